@@ -1,0 +1,1 @@
+"""dataflow: Orocos RTT-style data-flow components for Python."""

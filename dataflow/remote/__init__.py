@@ -1,0 +1,1 @@
+"""Remote access to data-flow components over gRPC (the JOrocos mirror)."""

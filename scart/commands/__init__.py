@@ -1,0 +1,1 @@
+"""The verbs of the ``scart`` command line, one module per group (see ``scart.cli``)."""
