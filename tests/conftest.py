@@ -1,0 +1,28 @@
+"""Suite-wide guards: tests leave no non-daemon thread behind."""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+
+@pytest.fixture(autouse=True)
+def _no_leaked_threads():
+    """Fail a test that leaves a new non-daemon thread running (bounded wait for it to end)."""
+    before = set(threading.enumerate())
+    yield
+    deadline = time.monotonic() + 5.0
+    while True:
+        leaked = [
+            t for t in threading.enumerate() if t not in before and t.is_alive() and not t.daemon
+        ]
+        if not leaked or time.monotonic() >= deadline:
+            break
+        time.sleep(0.01)
+    assert not leaked, f"test left threads running: {[t.name for t in leaked]}"
