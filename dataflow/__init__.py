@@ -1,1 +1,79 @@
-"""dataflow: Orocos RTT-style data-flow components for Python."""
+"""dataflow: Orocos RTT-style data-flow components for Python.
+
+The story — declare, deploy, connect, run, stop::
+
+    from dataflow import TaskContext, InputPort, OutputPort, Property, FlowStatus
+    from dataflow import Deployer, ConnPolicy
+
+    class Doubler(TaskContext):
+        x = InputPort(float, event=True)
+        y = OutputPort(float)
+        gain = Property(float, 2.0, doc="multiplier")
+        def update_hook(self) -> None:
+            flow, v = self.x.read()            # FlowStatus.NO_DATA / OLD_DATA / NEW_DATA
+            if flow is FlowStatus.NEW_DATA:
+                self.y.write(self.gain * v)    # WriteStatus
+
+    with Deployer() as d:
+        d.add(Source("source"))                # some task with an OutputPort(float) "out"
+        d.add(Doubler("doubler"))
+        d.connect("source.out", "doubler.x", ConnPolicy.buffer(8))
+        d.configure_all(); d.start_all()
+        ...                                    # stop_all() + cleanup_all() on exit
+
+Ports never block and never take a lock on the hot path (:mod:`dataflow.buffers`
+explains the guarantee); the lifecycle is RTT 2.9's (:mod:`dataflow.task` has the
+table); activities own their threads (:mod:`dataflow.activities`). This package never
+imports ``scart``.
+"""
+
+from .activities import Activity, EventActivity, PeriodicActivity, SlaveActivity
+from .deployer import Deployer
+from .errors import DataflowError, DeploymentError, NotFoundError, PortTypeError, PropertyValueError
+from .introspection import (
+    OperationDescription,
+    PortDescription,
+    PropertyDescription,
+    TaskDescription,
+)
+from .operations import operation
+from .policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
+from .ports import Connection, InputPort, OutputPort
+from .properties import Property
+from .task import TaskContext, TaskState
+from .types import Encoded, TypeRegistry, UnknownValue, register_type, registry
+
+__all__ = [
+    "TaskContext",
+    "TaskState",
+    "InputPort",
+    "OutputPort",
+    "Connection",
+    "ConnPolicy",
+    "ConnType",
+    "LockPolicy",
+    "BufferPolicy",
+    "FlowStatus",
+    "WriteStatus",
+    "Property",
+    "operation",
+    "Activity",
+    "PeriodicActivity",
+    "SlaveActivity",
+    "EventActivity",
+    "Deployer",
+    "TypeRegistry",
+    "registry",
+    "register_type",
+    "UnknownValue",
+    "Encoded",
+    "DataflowError",
+    "PortTypeError",
+    "NotFoundError",
+    "DeploymentError",
+    "PropertyValueError",
+    "TaskDescription",
+    "PortDescription",
+    "PropertyDescription",
+    "OperationDescription",
+]

@@ -1,0 +1,210 @@
+"""The dummy youBot driver: a periodic data-flow task simulating the 5 arm joints.
+
+Every cycle it publishes a :class:`YouBotStatus` on ``jointStatus``. It is a dummy, but
+a plausible one:
+
+* positions move toward the last commanded set-point (``commands``, clipped to the joint
+  limits) at most ``max_velocity`` rad/s; velocity follows from that motion, plus noise;
+* current follows motion (a holding current plus a term in |velocity|), plus noise;
+* temperature drifts with current (I²-heating against cooling to ambient; time constant
+  ~100 s);
+* error bits (:data:`ERROR_BITS`) follow real conditions — ``POSITION_LIMIT`` (at a limit
+  or a command clipped), ``OVER_TEMPERATURE`` (above ``max_temperature``) which also
+  halts the motor (``MOTOR_HALTED``) until it cooled 5 °C below, ``OVER_CURRENT`` (above
+  ``max_current``), ``I2T_EXCEEDED`` (integrated overload), ``TIMEOUT`` (no command for
+  ``command_timeout`` s while a set-point is pending) — plus rare random ones (rate
+  ``random_error_rate`` per joint per cycle) that last one sample.
+
+``period`` (input port) changes the task's own activity period: a value in (0, 1] s is
+accepted, anything else is refused; ``accepted_period`` and ``period_status`` (properties)
+say what was accepted, or why not. The random source is seeded with the ``seed``
+property at configure time and by ``reset()``: with a :class:`SlaveActivity` the whole
+simulation is deterministic (the time step is the nominal period, never wall time).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+
+from dataflow import (
+    FlowStatus,
+    InputPort,
+    OutputPort,
+    PeriodicActivity,
+    Property,
+    TaskContext,
+    TaskState,
+    operation,
+)
+
+from .model import ERROR_BITS, JOINT_LIMITS, N_JOINTS, JointStatus, YouBotStatus, error_names
+
+__all__ = ["YouBotDriver", "ERROR_BITS", "JointStatus", "YouBotStatus", "error_names", "N_JOINTS"]
+
+BIT = {name: 1 << bit for bit, name in ERROR_BITS.items()}
+MAX_PERIOD = 1.0
+AMBIENT = 25.0
+HOLD_CURRENT = 0.15  # A, holding a pose
+CURRENT_PER_VELOCITY = 1.2  # A per rad/s
+HEATING = 0.165  # °C/s per A²
+COOLING = 0.01  # 1/s towards ambient
+I2T_LIMIT = 20.0  # A²·s above the nominal current before I2T_EXCEEDED
+NOMINAL_CURRENT = 1.5
+RANDOM_BITS = ("UNDER_VOLTAGE", "OVER_VOLTAGE", "HALL_SENSOR_ERROR", "ENCODER_ERROR")
+
+
+class YouBotDriver(TaskContext):
+    """Dummy KUKA youBot arm driver (5 joints), periodic (default 10 ms)."""
+
+    commands = InputPort(list[float], doc="joint position set-points [rad], 5 values")
+    new_period = InputPort(float, name="period", doc="new period of the driver [s], in (0, 1]")
+    status = OutputPort(YouBotStatus, name="jointStatus", doc="joint status, every period")
+
+    seed = Property(int, 0, doc="seed of the random source (applied on configure and reset)")
+    max_velocity = Property(float, 1.0, doc="joint velocity limit [rad/s]")
+    max_current = Property(float, 2.0, doc="OVER_CURRENT threshold [A]")
+    max_temperature = Property(float, 70.0, doc="OVER_TEMPERATURE threshold [°C]")
+    command_timeout = Property(float, 10.0, doc="TIMEOUT when a set-point is pending this long [s]")
+    noise = Property(float, 1.0, doc="noise scale (0 = noiseless)")
+    random_error_rate = Property(float, 1e-5, doc="probability of a random error bit per joint per cycle")
+    accepted_period = Property(float, 0.01, doc="the period currently in use [s]")
+    period_status = Property(str, "", doc="outcome of the last period request")
+
+    def __init__(self, name: str = "youBotDriver", period: float = 0.01) -> None:
+        super().__init__(name)
+        self.set_activity(PeriodicActivity(period))
+        self.accepted_period = period
+        self.period_status = f"accepted {period:g} s"
+        self._reset_state()
+
+    # -- operations -------------------------------------------------------------
+    @operation(own_thread=True)
+    def reset(self) -> None:
+        """Back to the candle pose at ambient temperature, errors cleared, RNG reseeded."""
+        self._reset_state()
+
+    @operation
+    def set_period(self, seconds: float) -> bool:
+        """Request a new period (same as writing the ``period`` port); True if accepted."""
+        return self._apply_period(seconds)
+
+    @operation
+    def error_names(self, joint: int) -> list[str]:
+        """Names of the error bits set on ``joint`` (0..4) in the last sample."""
+        return error_names(self._flags[joint])
+
+    # -- lifecycle --------------------------------------------------------------
+    def configure_hook(self) -> bool:
+        self._reset_state()
+        return True
+
+    def update_hook(self) -> None:
+        flow, period = self.new_period.read()
+        if flow is FlowStatus.NEW_DATA:
+            self._apply_period(period)
+        flow, cmd = self.commands.read()
+        if flow is FlowStatus.NEW_DATA:
+            self._apply_command(cmd)
+        self._step(self.accepted_period)
+        self._sequence += 1
+        self.status.write(self._sample())
+
+    # -- simulation -------------------------------------------------------------
+    def _reset_state(self) -> None:
+        self._rng = random.Random(self.seed)
+        self._pos = [0.0] * N_JOINTS
+        self._vel = [0.0] * N_JOINTS
+        self._cur = [HOLD_CURRENT] * N_JOINTS
+        self._temp = [AMBIENT] * N_JOINTS
+        self._target = [0.0] * N_JOINTS
+        self._flags = [0] * N_JOINTS
+        self._clipped = [False] * N_JOINTS
+        self._halted = [False] * N_JOINTS
+        self._i2t = [0.0] * N_JOINTS
+        self._since_command = 0.0
+        self._sequence = 0
+
+    def _apply_period(self, seconds: object) -> bool:
+        try:
+            value = float(seconds)  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            value = math.nan
+        if not (0.0 < value <= MAX_PERIOD):
+            self.period_status = f"rejected {seconds!r}: the period must be in (0, {MAX_PERIOD:g}] s"
+            return False
+        act = self.activity
+        if isinstance(act, PeriodicActivity):
+            act.period = value
+        self.accepted_period = value
+        self.period_status = f"accepted {value:g} s"
+        return True
+
+    def _apply_command(self, cmd: list[float] | None) -> None:
+        if cmd is None or len(cmd) != N_JOINTS or not all(math.isfinite(x) for x in cmd):
+            return  # a malformed command is ignored; the previous set-point stays
+        for j, (lo, hi) in enumerate(JOINT_LIMITS):
+            self._target[j] = min(max(cmd[j], lo), hi)
+            self._clipped[j] = not lo <= cmd[j] <= hi
+        self._since_command = 0.0
+
+    def _step(self, dt: float) -> None:
+        rng, noise = self._rng, self.noise
+        self._since_command += dt
+        for j in range(N_JOINTS):
+            flags = 0
+            if self._temp[j] > self.max_temperature:
+                self._halted[j] = True
+            elif self._temp[j] < self.max_temperature - 5.0:
+                self._halted[j] = False
+            max_step = 0.0 if self._halted[j] else self.max_velocity * dt
+            err = self._target[j] - self._pos[j]
+            step = min(max(err, -max_step), max_step)
+            self._pos[j] += step
+            self._vel[j] = step / dt + rng.gauss(0.0, 0.002) * noise
+            accel_free = HOLD_CURRENT + CURRENT_PER_VELOCITY * abs(step / dt)
+            self._cur[j] = max(0.0, accel_free + rng.gauss(0.0, 0.01) * noise)
+            cur = self._cur[j]
+            self._temp[j] += (HEATING * cur * cur - COOLING * (self._temp[j] - AMBIENT)) * dt
+            self._i2t[j] = max(0.0, self._i2t[j] + (cur * cur - NOMINAL_CURRENT**2) * dt)
+            lo, hi = JOINT_LIMITS[j]
+            if self._clipped[j] or self._pos[j] <= lo or self._pos[j] >= hi:
+                flags |= BIT["POSITION_LIMIT"]
+            if self._temp[j] > self.max_temperature:
+                flags |= BIT["OVER_TEMPERATURE"]
+            if self._halted[j]:
+                flags |= BIT["MOTOR_HALTED"]
+            if cur > self.max_current:
+                flags |= BIT["OVER_CURRENT"]
+            if self._i2t[j] > I2T_LIMIT:
+                flags |= BIT["I2T_EXCEEDED"]
+            if abs(err) > 1e-6 and self._since_command > self.command_timeout:
+                flags |= BIT["TIMEOUT"]
+            if rng.random() < self.random_error_rate:
+                flags |= BIT[rng.choice(RANDOM_BITS)]
+            self._flags[j] = flags
+
+    def _sample(self) -> YouBotStatus:
+        joints = [
+            JointStatus.model_construct(
+                position=self._pos[j],
+                velocity=self._vel[j],
+                current=self._cur[j],
+                temperature=self._temp[j],
+                error_flags=self._flags[j],
+            )
+            for j in range(N_JOINTS)
+        ]
+        return YouBotStatus.model_construct(
+            joints=joints, timestamp=time.time(), sequence=self._sequence
+        )
+
+    @property
+    def positions(self) -> list[float]:
+        """Current joint positions [rad] (a copy)."""
+        return list(self._pos)
+
+    def is_halted(self) -> bool:
+        """True when any joint motor is halted (over-temperature)."""
+        return any(self._halted) and self.state >= TaskState.RUNNING

@@ -1,0 +1,306 @@
+"""Activities: what runs a task's update cycle, and in which thread.
+
+* :class:`EventActivity` (the default, RTT's non-periodic ``Activity``): one daemon
+  thread while the task runs; a cycle runs when triggered — by ``task.trigger()``, by
+  data arriving on an event port (``InputPort(T, event=True)``), and once right after
+  ``start()`` (as RTT's ``TaskCore::start`` triggers). Triggers arriving during a cycle
+  coalesce into one more cycle.
+* :class:`PeriodicActivity` (``period`` seconds): one daemon thread while the task runs,
+  cycles at absolute deadlines ``t0 + k*period`` (no drift); a cycle that ends after its
+  next deadline counts one overrun and the missed deadlines are skipped (no burst of
+  catch-up cycles). ``period`` is writable while running (takes effect from the cycle
+  in progress). ``trigger()`` is refused (False), as in RTT.
+* :class:`SlaveActivity`: no thread; its owner calls ``step()`` (or ``task.update()``);
+  deterministic tests use it.
+
+Threads are created in ``start()``, never in ``__init__``; they are daemon threads and
+end when the task stops running. ``stop()`` signals (sets the stop flag and wakes the
+thread), then joins with a timeout — it never hangs, is idempotent, and called from the
+activity's own thread (e.g. from ``update_hook``) it only signals.
+
+Operations declared ``own_thread=True`` are queued to the activity's thread and run
+between cycles; with no live thread (stopped task, slave activity, or a call made from
+that very thread) they run in the caller's thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .task import TaskContext
+
+__all__ = ["Activity", "PeriodicActivity", "SlaveActivity", "EventActivity"]
+
+log = logging.getLogger(__name__)
+DEFAULT_JOIN_TIMEOUT = 2.0
+
+
+class Activity:
+    """Base of activities. ``cycles``/``overruns`` are counters; ``kind`` names the activity."""
+
+    kind = "activity"
+
+    def __init__(self) -> None:
+        self.task: TaskContext | None = None
+        self.cycles = 0
+        self.overruns = 0
+        self._active = False
+
+    @property
+    def period(self) -> float:
+        """Seconds between cycles; 0.0 for a non-periodic activity."""
+        return 0.0
+
+    def is_active(self) -> bool:
+        """True between ``start()`` and ``stop()``."""
+        return self._active
+
+    def start(self) -> bool:
+        """Begin running the task's cycles; False if already active. Called by ``task.start()``."""
+        if self._active or self.task is None:
+            return False
+        self._active = True
+        return True
+
+    def stop(self, timeout: float = DEFAULT_JOIN_TIMEOUT) -> bool:
+        """Stop running cycles; idempotent; never blocks longer than ``timeout``."""
+        self._active = False
+        return True
+
+    def trigger(self) -> bool:
+        """Ask for one cycle; True when accepted."""
+        return False
+
+    def execute(self) -> bool:
+        """Run one cycle in the caller's thread (only a slave activity accepts: RTT's ``execute``)."""
+        return False
+
+    def _on_event(self) -> None:
+        """Data arrived on an event port (called in the writer's thread; must not block)."""
+
+    def _submit(self, fn: Callable[[], Any]) -> Future[Any] | None:
+        """Queue ``fn`` to this activity's thread; None means 'run it yourself, now'."""
+        return None
+
+    def _run_cycle(self) -> None:
+        task = self.task
+        if task is not None:
+            self.cycles += 1
+            task._cycle()
+
+
+class SlaveActivity(Activity):
+    """No thread: the owner steps the task (``step()`` or ``task.update()``). Deterministic."""
+
+    kind = "slave"
+
+    def step(self) -> bool:
+        """Run one update cycle now, in the caller's thread; False when the task is not running."""
+        if not self._active:
+            return False
+        self._run_cycle()
+        return True
+
+    def execute(self) -> bool:
+        return self.step()
+
+    def trigger(self) -> bool:
+        return self.step()
+
+
+class _Run:
+    """State of one start()..stop() run: its own wake event and stop flag (never reused)."""
+
+    __slots__ = ("wake", "stopping", "accepting", "thread")
+
+    def __init__(self) -> None:
+        self.wake = threading.Event()
+        self.stopping = False
+        self.accepting = True
+        self.thread: threading.Thread | None = None
+
+
+class _ThreadedActivity(Activity):
+    """An activity with one owned daemon thread while active, and an operation queue."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._run = _Run()
+        self._run.accepting = False
+        self._ops: deque[tuple[Callable[[], Any], Future[Any]]] = deque()
+        self._ops_lock = threading.Lock()  # operation queue only; cycles never take it
+
+    @property
+    def _wake(self) -> threading.Event:
+        return self._run.wake
+
+    def start(self) -> bool:
+        old = self._run.thread
+        if old is not None and old.is_alive() and old is not threading.current_thread():
+            old.join(DEFAULT_JOIN_TIMEOUT)  # a run stopped from its own thread is finishing
+        if not super().start():
+            return False
+        run = _Run()
+        name = f"{self.kind}:{self.task.name if self.task else '?'}"
+        run.thread = threading.Thread(target=self._main, args=(run,), name=name, daemon=True)
+        with self._ops_lock:
+            self._run = run
+        run.thread.start()
+        return True
+
+    def stop(self, timeout: float = DEFAULT_JOIN_TIMEOUT) -> bool:
+        self._active = False
+        run = self._run
+        run.stopping = True
+        run.wake.set()
+        thread = run.thread
+        if thread is None or thread is threading.current_thread() or not thread.is_alive():
+            return True
+        thread.join(timeout)
+        if thread.is_alive():
+            log.warning("activity thread %s did not end within %.1f s", thread.name, timeout)
+            return False
+        return True
+
+    def in_own_thread(self) -> bool:
+        """True when called from this activity's thread."""
+        return self._run.thread is threading.current_thread()
+
+    def _submit(self, fn: Callable[[], Any]) -> Future[Any] | None:
+        if self.in_own_thread():
+            return None
+        with self._ops_lock:
+            run = self._run
+            if not run.accepting:
+                return None
+            fut: Future[Any] = Future()
+            self._ops.append((fn, fut))
+        run.wake.set()
+        return fut
+
+    def _process_ops(self) -> None:
+        while self._ops:
+            try:
+                fn, fut = self._ops.popleft()
+            except IndexError:
+                return
+            if fut.set_running_or_notify_cancel():
+                try:
+                    fut.set_result(fn())
+                except BaseException as exc:  # handed to the caller, who re-raises it
+                    fut.set_exception(exc)
+
+    def _main(self, run: _Run) -> None:
+        try:
+            self._loop(run)
+        except Exception:
+            log.exception("activity %s crashed", self.kind)
+        finally:
+            with self._ops_lock:
+                run.accepting = False
+            self._process_ops()  # no caller is left waiting on a dead thread
+
+    def _loop(self, run: _Run) -> None:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class EventActivity(_ThreadedActivity):
+    """Runs a cycle when triggered (``trigger()``, event ports, once after start)."""
+
+    kind = "event"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._pending = False
+
+    def trigger(self) -> bool:
+        if not self._active:
+            return False
+        self._pending = True
+        self._wake.set()
+        return True
+
+    def _on_event(self) -> None:
+        self.trigger()
+
+    def _loop(self, run: _Run) -> None:
+        wake = run.wake
+        while True:
+            wake.clear()
+            if run.stopping:
+                return
+            self._process_ops()
+            if self._pending:
+                self._pending = False
+                self._run_cycle()
+                continue
+            wake.wait()
+
+
+class PeriodicActivity(_ThreadedActivity):
+    """Runs a cycle every ``period`` seconds at absolute deadlines, in its own thread.
+
+    Raises ``ValueError`` for a period <= 0 (also when set while running).
+    """
+
+    kind = "periodic"
+
+    def __init__(self, period: float) -> None:
+        super().__init__()
+        self._period = self._checked(period)
+        self._period_changed = False
+
+    @staticmethod
+    def _checked(period: float) -> float:
+        period = float(period)
+        if not period > 0.0 or period != period or period == float("inf"):
+            raise ValueError(f"a periodic activity needs a finite period > 0, got {period}")
+        return period
+
+    @property
+    def period(self) -> float:
+        return self._period
+
+    @period.setter
+    def period(self, value: float) -> None:
+        """Change the period, also while running (thread-safe, takes effect at once)."""
+        self._period = self._checked(value)
+        self._period_changed = True
+        self._wake.set()
+
+    def trigger(self) -> bool:
+        return False
+
+    def _loop(self, run: _Run) -> None:
+        clock = time.monotonic
+        wake = run.wake
+        start = clock()
+        deadline = start
+        while True:
+            wake.clear()
+            if run.stopping:
+                return
+            self._process_ops()
+            now = clock()
+            if self._period_changed:
+                self._period_changed = False
+                deadline = start + self._period
+            if now >= deadline:
+                start = deadline
+                self._run_cycle()
+                period = self._period
+                deadline += period
+                now = clock()
+                if now > deadline:
+                    self.overruns += 1
+                    missed = int((now - deadline) / period) + 1
+                    deadline += missed * period
+                continue
+            wake.wait(deadline - now)

@@ -1,0 +1,58 @@
+"""Plain-data descriptions of tasks (pydantic models): what the remote layer and CLI print."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict
+
+__all__ = ["TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription"]
+
+
+class PortDescription(BaseModel):
+    """A port: direction, registry type name, doc, number of connections, event port or not."""
+
+    model_config = ConfigDict(frozen=True)
+    name: str
+    direction: Literal["in", "out"]
+    type_name: str
+    doc: str = ""
+    connections: int = 0
+    event: bool = False
+
+
+class PropertyDescription(BaseModel):
+    """A property: registry type name, current value (JSON-able) and doc."""
+
+    model_config = ConfigDict(frozen=True)
+    name: str
+    type_name: str
+    value: Any = None
+    doc: str = ""
+
+
+class OperationDescription(BaseModel):
+    """An operation: parameters (name, type name), return type name, doc, thread mode, signature."""
+
+    model_config = ConfigDict(frozen=True)
+    name: str
+    params: list[tuple[str, str]] = []
+    returns: str = "None"
+    doc: str = ""
+    own_thread: bool = False
+    signature: str = ""
+
+
+class TaskDescription(BaseModel):
+    """A task: state, activity kind and period, counters, ports, properties, operations."""
+
+    model_config = ConfigDict(frozen=True)
+    name: str
+    state: str
+    activity: str
+    period: float = 0.0
+    cycles: int = 0
+    overruns: int = 0
+    ports: list[PortDescription] = []
+    properties: list[PropertyDescription] = []
+    operations: list[OperationDescription] = []

@@ -1,0 +1,161 @@
+"""Connection policies and the statuses of the data-flow hot path (RTT 2.9 ``ConnPolicy``).
+
+A :class:`ConnPolicy` is a frozen value with named constructors; there is no mutable
+module-level default. Defaults are RTT 2.9's, including its asymmetry on ``init``:
+
+==============================  ===============  ======  =====  ============  ==============
+constructor                     type             size    init   lock_policy   buffer_policy
+==============================  ===============  ======  =====  ============  ==============
+``ConnPolicy()``                DATA             0       False  LOCK_FREE     PER_CONNECTION
+``ConnPolicy.data()``           DATA             0       True   LOCK_FREE     PER_CONNECTION
+``ConnPolicy.buffer(n)``        BUFFER           n       False  LOCK_FREE     PER_CONNECTION
+``ConnPolicy.circular_buffer(n)`` CIRCULAR_BUFFER n      False  LOCK_FREE     PER_CONNECTION
+==============================  ===============  ======  =====  ============  ==============
+
+``init=True`` hands the output's last written value to a connection made later.
+``mandatory`` (default True, as RTT 2.9: "by default, all connections are mandatory"):
+a sample rejected by a mandatory connection makes ``write`` return ``WRITE_FAILURE``;
+a non-mandatory connection's rejection is only counted in its ``dropped``.
+
+Where storage lives when ports have several connections (``buffer_policy``, RTT 2.9):
+
+* ``PER_CONNECTION`` (default): each writer→reader pair has its own data object/buffer;
+  a reader with several connections drains its current channel, then the others in
+  connection order.
+* ``PER_INPUT_PORT``: one storage per input port, fed by all its writers (fan-in merge).
+* ``PER_OUTPUT_PORT``: one storage per output port, shared by all its readers: a sample
+  (buffers) or the newness of a sample (data) is consumed by the first reader.
+* ``SHARED``: one storage shared by every writer and reader connected with this policy.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field, replace
+
+__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus"]
+
+
+class ConnType(enum.Enum):
+    """What a connection stores: the last sample only, a bounded FIFO, or a ring."""
+
+    DATA = "data"
+    BUFFER = "buffer"
+    CIRCULAR_BUFFER = "circular"
+
+
+class LockPolicy(enum.Enum):
+    """How a connection's storage is synchronised (see :mod:`dataflow.buffers`)."""
+
+    LOCK_FREE = "lock_free"
+    LOCKED = "locked"
+    UNSYNC = "unsync"
+
+
+class BufferPolicy(enum.Enum):
+    """Where a connection's storage lives when ports have several connections."""
+
+    PER_CONNECTION = "per_connection"
+    PER_INPUT_PORT = "per_input_port"
+    PER_OUTPUT_PORT = "per_output_port"
+    SHARED = "shared"
+
+
+class FlowStatus(enum.Enum):
+    """Result of ``InputPort.read``: nothing ever, an already read sample, or a new one."""
+
+    NO_DATA = 0
+    OLD_DATA = 1
+    NEW_DATA = 2
+
+
+class WriteStatus(enum.Enum):
+    """Result of ``OutputPort.write``."""
+
+    WRITE_SUCCESS = 0
+    WRITE_FAILURE = 1
+    NOT_CONNECTED = 2
+
+
+@dataclass(frozen=True)
+class ConnPolicy:
+    """How one output→input connection stores and hands over samples (immutable, hashable).
+
+    Raises ``ValueError`` at construction for a buffer of size < 1 or a negative size.
+    """
+
+    type: ConnType = ConnType.DATA
+    size: int = 0
+    lock_policy: LockPolicy = LockPolicy.LOCK_FREE
+    init: bool = False
+    buffer_policy: BufferPolicy = field(default=BufferPolicy.PER_CONNECTION)
+    mandatory: bool = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.type, ConnType):
+            raise ValueError(f"ConnPolicy.type must be a ConnType, got {self.type!r}")
+        if self.size < 0:
+            raise ValueError(f"ConnPolicy.size must be >= 0, got {self.size}")
+        if self.type is not ConnType.DATA and self.size < 1:
+            raise ValueError(f"a {self.type.name} connection needs size >= 1, got {self.size}")
+
+    @classmethod
+    def data(
+        cls,
+        lock_policy: LockPolicy = LockPolicy.LOCK_FREE,
+        init: bool = True,
+        buffer_policy: BufferPolicy = BufferPolicy.PER_CONNECTION,
+    ) -> ConnPolicy:
+        """Last value only; seeds a new connection with the last written value (RTT default)."""
+        return cls(ConnType.DATA, 0, lock_policy, init, buffer_policy)
+
+    @classmethod
+    def buffer(
+        cls,
+        size: int,
+        lock_policy: LockPolicy = LockPolicy.LOCK_FREE,
+        init: bool = False,
+        buffer_policy: BufferPolicy = BufferPolicy.PER_CONNECTION,
+    ) -> ConnPolicy:
+        """Bounded FIFO of ``size`` samples; a write to a full buffer fails (WRITE_FAILURE)."""
+        return cls(ConnType.BUFFER, size, lock_policy, init, buffer_policy)
+
+    @classmethod
+    def circular_buffer(
+        cls,
+        size: int,
+        lock_policy: LockPolicy = LockPolicy.LOCK_FREE,
+        init: bool = False,
+        buffer_policy: BufferPolicy = BufferPolicy.PER_CONNECTION,
+    ) -> ConnPolicy:
+        """Ring of ``size`` samples; a write to a full ring drops the oldest sample."""
+        return cls(ConnType.CIRCULAR_BUFFER, size, lock_policy, init, buffer_policy)
+
+    @classmethod
+    def parse(cls, text: str) -> ConnPolicy:
+        """Parse the short form ``"data"``, ``"buffer:8"`` or ``"circular:8"``.
+
+        Raises ``ValueError`` naming the valid forms for anything else.
+        """
+        kind, _, size = text.strip().lower().partition(":")
+        try:
+            if kind == "data" and not size:
+                return cls.data()
+            if kind == "buffer" and size:
+                return cls.buffer(int(size))
+            if kind in ("circular", "circular_buffer") and size:
+                return cls.circular_buffer(int(size))
+        except ValueError as exc:
+            raise ValueError(f"invalid connection policy {text!r}: {exc}") from None
+        raise ValueError(
+            f"invalid connection policy {text!r}: expected 'data', 'buffer:N' or 'circular:N'"
+        )
+
+    def with_(self, **changes: object) -> ConnPolicy:
+        """A copy with some fields changed (the value itself never changes)."""
+        return replace(self, **changes)  # type: ignore[arg-type]
+
+    def __str__(self) -> str:
+        if self.type is ConnType.DATA:
+            return "data"
+        return f"{self.type.value}:{self.size}"

@@ -1,0 +1,445 @@
+"""Input and output ports and the connections between them (RTT 2.9 semantics).
+
+An :class:`OutputPort` fans out to any number of :class:`InputPort` s, each
+connection with its own :class:`~dataflow.policy.ConnPolicy` and (by default) its own
+storage; an input port may have several incoming connections. Hot path:
+
+* ``out.write(v) -> WriteStatus``: ``NOT_CONNECTED`` without connections (the value is
+  still kept as ``last_written_value()``), ``WRITE_FAILURE`` when at least one full
+  ``BUFFER`` of a mandatory connection (the default) rejected the sample,
+  ``WRITE_SUCCESS`` otherwise. A ``CIRCULAR_BUFFER``
+  drops its oldest sample and succeeds. A value of the wrong type raises
+  :class:`~dataflow.errors.PortTypeError` (a programming error, not a flow condition).
+* ``inp.read() -> (FlowStatus, value)``: ``NO_DATA`` when nothing has arrived (or after
+  ``clear()``), ``NEW_DATA`` for a sample not read before, ``OLD_DATA`` with the last
+  sample when nothing new arrived. With several connections the port drains its current
+  channel, then the others in connection order (the first with new data becomes current).
+
+Truth table (one connection; RTT 2.9):
+
+=====================================  =================  ======================  ==========
+situation                              ``write`` returns  next ``read`` returns   ``dropped``
+=====================================  =================  ======================  ==========
+no connection                          NOT_CONNECTED      (NO_DATA, None)         —
+connected, nothing written yet         —                  (NO_DATA, None)         —
+DATA: written                          WRITE_SUCCESS      (NEW_DATA, v)           —
+DATA: read already, nothing new        —                  (OLD_DATA, v)           —
+DATA: written twice before a read      WRITE_SUCCESS      (NEW_DATA, v2)          +1
+BUFFER(n) full                         WRITE_FAILURE      (NEW_DATA, oldest)      +1
+CIRCULAR_BUFFER(n) full                WRITE_SUCCESS      (NEW_DATA, 2nd oldest)  +1
+buffer drained                         —                  (OLD_DATA, last read)   —
+after ``inp.clear()``                  —                  (NO_DATA, None)         —
+=====================================  =================  ======================  ==========
+
+Lock-free guarantee: with ``LockPolicy.LOCK_FREE`` (the default) no reader or writer ever
+waits on a lock held by another port user — ``write``/``read`` take no lock at all; each
+step is one operation CPython performs atomically under the GIL (a reference swap, a
+``list.pop``, a ``deque.append``/``popleft``); :mod:`dataflow.buffers` details each
+storage and what changes on free-threaded Python (per-object critical sections of a few
+instructions replace the GIL). The sets of connections seen by the hot path are
+immutable tuples replaced whole on connect/disconnect (copy-on-write), so a writer
+iterating its connections never races a connect; connect/disconnect (the setup path)
+serialise on one lock, which the hot path never takes. ``LOCKED`` connections take a
+per-connection lock on every operation; ``UNSYNC`` ones are for single-threaded use.
+
+``init`` (RTT 2.9 defaults): ``ConnPolicy.data()`` seeds a new connection with the
+output's last written value, ``ConnPolicy()``, ``.buffer(n)``, ``.circular_buffer(n)``
+do not (see :mod:`dataflow.policy`).
+
+Data callbacks (``inp.add_data_callback(cb)``) run ``cb(inp)`` in the writer's thread
+after a sample was stored for that input; a rejected write fires nothing. A callback
+that raises is logged and never disturbs the writer.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
+
+from .buffers import _NONE, DataObject, Storage, make_storage
+from .errors import DataflowError, PortTypeError
+from .policy import BufferPolicy, ConnPolicy, FlowStatus, WriteStatus
+from .types import registry
+
+if TYPE_CHECKING:
+    from .task import TaskContext
+
+__all__ = ["InputPort", "OutputPort", "Connection", "Port"]
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+DataCallback = Callable[["InputPort[Any]"], None]
+
+_setup_lock = threading.RLock()  # connect/disconnect only; never taken by read/write
+_NO_DATA = (FlowStatus.NO_DATA, None)
+_NEW = FlowStatus.NEW_DATA
+_SUCCESS = WriteStatus.WRITE_SUCCESS
+_FAILURE = WriteStatus.WRITE_FAILURE
+_NOT_CONNECTED = WriteStatus.NOT_CONNECTED
+
+
+class Connection:
+    """One output→input connection. ``close()`` disconnects it (idempotent, thread-safe)."""
+
+    __slots__ = ("output", "input", "policy", "storage")
+
+    def __init__(
+        self, output: OutputPort[Any], input: InputPort[Any], policy: ConnPolicy, storage: Storage
+    ) -> None:
+        self.output = output
+        self.input = input
+        self.policy = policy
+        self.storage = storage
+
+    @property
+    def dropped(self) -> int:
+        """Samples lost unread on this connection's storage (shared storages share the count)."""
+        return self.storage.dropped
+
+    def close(self) -> None:
+        """Disconnect; a no-op if already disconnected."""
+        self.output.disconnect(self.input)
+
+    def __repr__(self) -> str:
+        return f"<Connection {self.output.qualname} -> {self.input.qualname} [{self.policy}]>"
+
+
+class Port(Generic[T]):
+    """Common part of ports: name, type, doc, owning task; a descriptor on a TaskContext class.
+
+    Declared on a class, ``task.port_attr`` is that task's own port (a copy made when
+    the task is created); created free-standing, it belongs to no task.
+    """
+
+    is_input: bool = False
+
+    def __init__(self, type: Any, name: str | None = None, doc: str = "") -> None:
+        self.type = type
+        self.name: str = name or ""
+        self.doc = doc
+        self.task: TaskContext | None = None
+        self.attr: str | None = None
+        self._check = registry.checker(type)
+        self._conns: dict[Port[Any], Connection] = {}
+
+    @property
+    def type_name(self) -> str:
+        """The registry name of the port's type (e.g. ``float64[]``)."""
+        return registry.type_name(self.type)
+
+    @property
+    def qualname(self) -> str:
+        """``task.port`` (or just the port name for a free-standing port)."""
+        name = self.name or "<unnamed>"
+        return f"{self.task.name}.{name}" if self.task is not None else name
+
+    def __set_name__(self, owner: type, attr: str) -> None:
+        self.attr = attr
+        if not self.name:
+            self.name = attr
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        return obj.ports_by_attr()[self.attr]  # instances normally shadow this via __dict__
+
+    def _clone(self) -> Port[T]:
+        raise NotImplementedError
+
+    def connected(self) -> bool:
+        """True when at least one connection exists."""
+        return bool(self._conns)
+
+    def connection_count(self) -> int:
+        """Number of connections of this port."""
+        return len(self._conns)
+
+    def connections(self) -> list[Connection]:
+        """A snapshot of this port's connections."""
+        return list(self._conns.values())
+
+    def disconnect(self) -> None:
+        """Remove every connection of this port (idempotent, thread-safe, also while running)."""
+        with _setup_lock:
+            for conn in list(self._conns.values()):
+                conn.output._remove(conn)
+
+    def __repr__(self) -> str:
+        kind = "InputPort" if self.is_input else "OutputPort"
+        return f"<{kind} {self.qualname}: {self.type_name}>"
+
+
+class OutputPort(Port[T]):
+    """Writes samples to every connected input; never blocks (see module docstring)."""
+
+    is_input = False
+
+    def __init__(self, type: Any, name: str | None = None, doc: str = "") -> None:
+        super().__init__(type, name, doc)
+        self._last: Any = _NONE
+        self._storages: tuple[Storage, ...] = ()
+        self._single_data: DataObject | None = None  # the one lock-free DATA storage, if so
+        self._port_storage: Storage | None = None  # PER_OUTPUT_PORT
+        self._shared: Storage | None = None  # SHARED
+
+    def _clone(self) -> OutputPort[T]:
+        port: OutputPort[T] = OutputPort(self.type, self.name, self.doc)
+        port.attr = self.attr
+        return port
+
+    def write(self, value: T) -> WriteStatus:
+        """Write ``value`` to every connection; returns a :class:`WriteStatus`.
+
+        Never blocks, thread-safe, lock-free. Raises ``PortTypeError`` (naming the port,
+        the expected and the given type) when ``value`` is not of the port's type.
+        """
+        if type(value) is not self.type:
+            value = self._checked(value)
+        self._last = value
+        cell_store = self._single_data
+        if cell_store is not None:  # hot path, inlined DataObject.write (keep the two in sync)
+            prev = cell_store._cell
+            cell_store._cell = [value, True]
+            if prev is not None and len(prev) == 2:
+                try:
+                    prev.pop()
+                    cell_store._drops.add()
+                except IndexError:
+                    pass
+            for reader in cell_store.readers:
+                if reader._callbacks:
+                    reader._notify()
+            return _SUCCESS
+        storages = self._storages
+        if not storages:
+            return _NOT_CONNECTED
+        status = _SUCCESS
+        for storage in storages:
+            if storage.write(value):
+                for reader in storage.readers:
+                    if reader._callbacks:
+                        reader._notify()
+            elif storage.policy.mandatory:
+                status = _FAILURE
+        return status
+
+    def _checked(self, value: Any) -> Any:
+        try:
+            return self._check(value)
+        except TypeError:
+            raise PortTypeError(
+                f"{self.qualname}: cannot write {type(value).__name__} {value!r:.60}; "
+                f"expected {self.type_name}"
+            ) from None
+
+    def last_written_value(self) -> T | None:
+        """The last value written (kept also while unconnected), or None if never written."""
+        last = self._last
+        return None if last is _NONE else last
+
+    def connect_to(self, other: InputPort[T], policy: ConnPolicy | None = None) -> Connection:
+        """Connect to ``other`` with ``policy`` (default ``ConnPolicy()``); returns the connection.
+
+        Idempotent: connecting an already connected pair returns the existing connection.
+        Thread-safe; allowed at any time, also while tasks run. Raises ``PortTypeError``
+        when the types differ (naming both ports and types), ``DataflowError`` when
+        ``other`` is not an input port or a port-level storage has another policy.
+        """
+        policy = policy if policy is not None else ConnPolicy()
+        if not isinstance(other, InputPort):
+            raise DataflowError(f"{self.qualname}: can only connect to an InputPort, got {other!r}")
+        with _setup_lock:
+            existing = self._conns.get(other)
+            if existing is not None:
+                return existing
+            if registry.type_name(self.type) != registry.type_name(other.type):
+                raise PortTypeError(
+                    f"cannot connect {self.qualname} ({self.type_name}) to "
+                    f"{other.qualname} ({other.type_name}): types differ"
+                )
+            storage = self._storage_for(other, policy)
+            if policy.init and self._last is not _NONE:
+                storage.write(self._last)
+            conn = Connection(self, other, policy, storage)
+            self._conns[other] = conn
+            other._conns[self] = conn
+            self._rebuild()
+            other._rebuild()
+            _rebuild_readers(storage, other)
+            return conn
+
+    def _storage_for(self, other: InputPort[Any], policy: ConnPolicy) -> Storage:
+        bp = policy.buffer_policy
+        if bp is BufferPolicy.PER_CONNECTION:
+            return make_storage(policy)
+        if bp is BufferPolicy.PER_INPUT_PORT:
+            storage = other._port_storage = other._port_storage or make_storage(policy)
+        elif bp is BufferPolicy.PER_OUTPUT_PORT:
+            storage = self._port_storage = self._port_storage or make_storage(policy)
+        else:
+            storage = self._shared or other._shared or make_storage(policy)
+            self._shared = other._shared = storage
+        if storage.policy != policy:
+            raise DataflowError(
+                f"cannot connect {self.qualname} to {other.qualname} with {policy}: "
+                f"its {bp.value} storage uses {storage.policy}"
+            )
+        return storage
+
+    def disconnect(self, other: InputPort[Any] | None = None) -> None:  # type: ignore[override]
+        """Disconnect from ``other`` (or from every input); idempotent, thread-safe."""
+        if other is None:
+            super().disconnect()
+            return
+        with _setup_lock:
+            conn = self._conns.get(other)
+            if conn is not None:
+                self._remove(conn)
+
+    def _remove(self, conn: Connection) -> None:
+        with _setup_lock:
+            if self._conns.get(conn.input) is not conn:
+                return
+            del self._conns[conn.input]
+            del conn.input._conns[self]
+            self._rebuild()
+            conn.input._rebuild()
+            _rebuild_readers(conn.storage)
+
+    def _rebuild(self) -> None:
+        storages = _unique(c.storage for c in self._conns.values())
+        single = storages[0] if len(storages) == 1 else None
+        # Publish in an order that is safe for a concurrent writer: the fast path is
+        # cleared before the tuple changes, and set only after it.
+        self._single_data = None
+        self._storages = storages
+        if single is not None and type(single) is DataObject:
+            self._single_data = single
+        if self._port_storage is not None and self._port_storage not in self._storages:
+            self._port_storage = None
+        if self._shared is not None and self._shared not in self._storages:
+            self._shared = None
+
+
+class InputPort(Port[T]):
+    """Reads samples from its connections; never blocks (see module docstring).
+
+    ``event=True`` makes the port an event port: new data triggers the owning task's
+    event-driven activity (via a data callback).
+    """
+
+    is_input = True
+
+    def __init__(
+        self, type: Any, name: str | None = None, doc: str = "", event: bool = False
+    ) -> None:
+        super().__init__(type, name, doc)
+        self.event = event
+        self._sources: tuple[Storage, ...] = ()
+        self._current = 0
+        self._callbacks: tuple[DataCallback, ...] = ()
+        self._port_storage: Storage | None = None  # PER_INPUT_PORT
+        self._shared: Storage | None = None  # SHARED
+
+    def _clone(self) -> InputPort[T]:
+        port: InputPort[T] = InputPort(self.type, self.name, self.doc, self.event)
+        port.attr = self.attr
+        return port
+
+    def read(self) -> tuple[FlowStatus, T | None]:
+        """The next sample and its :class:`FlowStatus` (see module docstring).
+
+        Never blocks; lock-free; meant for one reading thread per port (the task's).
+        """
+        sources = self._sources
+        n = len(sources)
+        if n == 1:
+            return sources[0].read()
+        if n == 0:
+            return _NO_DATA
+        return self._read_many(sources, n, newest=False)
+
+    def read_newest(self) -> tuple[FlowStatus, T | None]:
+        """Like ``read`` but skips buffered samples to the newest one (skipped count as dropped)."""
+        sources = self._sources
+        n = len(sources)
+        if n == 1:
+            return sources[0].read_newest()
+        if n == 0:
+            return _NO_DATA
+        return self._read_many(sources, n, newest=True)
+
+    def _read_many(
+        self, sources: tuple[Storage, ...], n: int, newest: bool
+    ) -> tuple[FlowStatus, Any]:
+        cur = self._current if self._current < n else 0
+        first = sources[cur].read_newest() if newest else sources[cur].read()
+        if first[0] is _NEW:
+            return first
+        for k in range(1, n):
+            i = (cur + k) % n
+            result = sources[i].read_newest() if newest else sources[i].read()
+            if result[0] is _NEW:
+                self._current = i
+                return result
+        return first
+
+    def clear(self) -> None:
+        """Forget every stored sample: the next read is NO_DATA until a new write."""
+        for storage in self._sources:
+            storage.clear()
+
+    def add_data_callback(self, callback: DataCallback) -> None:
+        """Call ``callback(port)`` in the writer's thread after each sample stored for this port.
+
+        The callback must be cheap and never block (e.g. set an Event). Thread-safe.
+        """
+        with _setup_lock:
+            self._callbacks = (*self._callbacks, callback)
+
+    def remove_data_callback(self, callback: DataCallback) -> None:
+        """Remove a callback added before (idempotent)."""
+        with _setup_lock:
+            cbs = list(self._callbacks)
+            if callback in cbs:
+                cbs.remove(callback)
+            self._callbacks = tuple(cbs)
+
+    def _notify(self) -> None:
+        for cb in self._callbacks:
+            try:
+                cb(self)
+            except Exception:  # a reader's callback must never break its writer
+                log.exception("data callback %r of %s raised", cb, self.qualname)
+
+    def _rebuild(self) -> None:
+        self._sources = _unique(c.storage for c in self._conns.values())
+        if len(self._sources) == 1:  # hot path: read() is the storage's own read
+            self.read = self._sources[0].read  # type: ignore[method-assign]
+            self.read_newest = self._sources[0].read_newest  # type: ignore[method-assign]
+        else:
+            self.__dict__.pop("read", None)
+            self.__dict__.pop("read_newest", None)
+        if self._port_storage is not None and self._port_storage not in self._sources:
+            self._port_storage = None
+        if self._shared is not None and self._shared not in self._sources:
+            self._shared = None
+        self._current = 0
+
+
+def _unique(storages: Any) -> tuple[Storage, ...]:
+    seen: list[Storage] = []
+    for s in storages:
+        if not any(s is t for t in seen):
+            seen.append(s)
+    return tuple(seen)
+
+
+def _rebuild_readers(storage: Storage, extra: InputPort[Any] | None = None) -> None:
+    """Recompute which inputs a storage feeds (for data callbacks); setup path only."""
+    readers = [inp for inp in storage.readers if storage in inp._sources]
+    if extra is not None and storage in extra._sources and extra not in readers:
+        readers.append(extra)
+    storage.readers = tuple(readers)
