@@ -1,1 +1,63 @@
-"""scart: an SCA runtime for Python, bridged to an Orocos-style data-flow world."""
+"""scart: an SCA runtime for Python, bridged to an Orocos-style data-flow world.
+
+The story, load -> start -> use -> stop::
+
+    import scart
+
+    with scart.Runtime.from_file("composites/calculator/calculator.composite") as rt:
+        calc = rt.service("CalculatorServiceComponent")
+        print(calc.add(3, 2))
+
+``Runtime.from_file`` parses the composite safely, checks every assembly rule and raises
+one :class:`ScdlError` listing every problem (``path:line: message [CODE]``); entering
+the ``with`` creates the components and runs their ``@init`` (targets first); leaving it
+runs ``@destroy`` in reverse. Components are plain classes declared with
+:func:`component`, :func:`interface`, :func:`prop`, :func:`reference`,
+:func:`callback`, :func:`oneway`, :func:`init` and :func:`destroy`.
+"""
+
+from scart.api import (
+    ComponentContext,
+    callback,
+    component,
+    context,
+    destroy,
+    init,
+    interface,
+    oneway,
+    prop,
+    reference,
+)
+from scart.errors import (
+    InvocationError,
+    NoCallbackError,
+    Problem,
+    RuntimeStateError,
+    ScartError,
+    ScdlError,
+    ServiceNotFoundError,
+)
+from scart.runtime import Runtime, RuntimeState, ServiceProxy
+
+__all__ = [
+    "ComponentContext",
+    "InvocationError",
+    "NoCallbackError",
+    "Problem",
+    "Runtime",
+    "RuntimeState",
+    "RuntimeStateError",
+    "ScartError",
+    "ScdlError",
+    "ServiceNotFoundError",
+    "ServiceProxy",
+    "callback",
+    "component",
+    "context",
+    "destroy",
+    "init",
+    "interface",
+    "oneway",
+    "prop",
+    "reference",
+]

@@ -1,9 +1,200 @@
-"""Placeholder: this group of verbs is not built yet."""
+"""The verbs ``scart run``, ``scart validate`` and ``scart graph``.
+
+Exit codes: 0 success (``run``: after a clean stop on SIGINT/SIGTERM), 2 an invalid
+composite (every problem listed on stderr as ``path:line: message [CODE]``, nothing
+started), 1 a failure while starting or stopping.
+"""
 
 from __future__ import annotations
 
 import argparse
+import signal
+import sys
+import threading
+from types import FrameType
+
+from scart.assembly import Assembly, Bound, Target, assemble
+from scart.errors import ScartError, ScdlError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
-    """Add this group's verbs (none yet)."""
+    """Add ``run``, ``validate`` and ``graph``."""
+    run = subparsers.add_parser("run", help="run a composite until Ctrl-C or SIGTERM")
+    run.add_argument("file", help="the .composite file")
+    _add_set(run)
+    run.add_argument("--workers", type=int, default=8, help="size of the one-way worker pool (default 8)")
+    run.add_argument("--ns", default=None, help="name service HOST:PORT (used by data-flow tasks)")
+    run.set_defaults(func=cmd_run)
+
+    validate = subparsers.add_parser("validate", help="check composites without running them")
+    validate.add_argument("files", nargs="+", help=".composite files")
+    _add_set(validate)
+    validate.set_defaults(func=cmd_validate)
+
+    graph = subparsers.add_parser("graph", help="print a composite as Graphviz DOT")
+    graph.add_argument("file", help="the .composite file")
+    _add_set(graph)
+    graph.set_defaults(func=cmd_graph)
+
+
+def _add_set(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="COMPONENT.PROP=VALUE",
+                        help="override a component property (repeatable)")
+
+
+def parse_overrides(items: list[str]) -> dict[str, str]:
+    """``["Comp.prop=value", ...]`` to a dict; raises ``ValueError`` naming a malformed item."""
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or "." not in key:
+            raise ValueError(f"--set {item!r}: expected COMPONENT.PROPERTY=VALUE")
+        out[key.strip()] = value
+    return out
+
+
+def _assemble(file: str, raw_overrides: list[str]) -> Assembly | None:
+    try:
+        return assemble(file, parse_overrides(raw_overrides))
+    except ScdlError as exc:
+        print(str(exc), file=sys.stderr)
+        print(f"scart: {file}: {len(exc.errors)} problem(s); nothing started", file=sys.stderr)
+    except ValueError as exc:
+        print(f"scart: {exc}", file=sys.stderr)
+    return None
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """Install SIGINT/SIGTERM handlers, load, start, print a summary, wait for a signal, stop."""
+    from scart.runtime import Runtime
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        assembly = _assemble(args.file, args.overrides)
+        if assembly is None:
+            return 2
+        runtime = Runtime(assembly, max_workers=args.workers)
+        try:
+            runtime.start()
+        except ScartError as exc:
+            print(f"scart: start failed: {exc}", file=sys.stderr)
+            return 1
+        try:
+            print(summary(assembly, runtime.addresses()), flush=True)
+            print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
+            while not stop.wait(0.5):
+                pass
+            print("scart: stopping", flush=True)
+        finally:
+            runtime.stop()
+        print("scart: stopped", flush=True)
+        return 0
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def summary(assembly: Assembly, addresses: dict[str, str | None]) -> str:
+    """A short text of what runs: components, their wires, promoted services, bound addresses."""
+    c = assembly.composite
+    lines = [f"scart: composite {c.name} ({c.loc.path})"]
+    for path, node in assembly.nodes.items():
+        impl = node.model.implementation
+        what = (impl.attributes.get("class") or "") if impl else ""
+        lines.append(f"  component {path} [{node.kind} {what}] services: {', '.join(node.ctype.services) or '-'}")
+        for ref, eps in node.references.items():
+            targets = ", ".join(_endpoint_text(e) for e in eps) or "(unwired)"
+            lines.append(f"    {ref} -> {targets}")
+    for name, t in assembly.services.items():
+        lines.append(f"  service {name} -> {t.node}/{t.service}")
+    for name, addr in addresses.items():
+        lines.append(f"  binding {name} at {addr}")
+    return "\n".join(lines)
+
+
+def _endpoint_text(ep: Target | Bound) -> str:
+    if isinstance(ep, Target):
+        return f"{ep.node}/{ep.service}"
+    return f"<{ep.binding.kind} {' '.join(f'{k}={v}' for k, v in ep.binding.attributes.items())}>"
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """Check each file; print "ok" lines or every problem; 0 if all valid, else 2."""
+    failed = 0
+    for file in args.files:
+        assembly = _assemble(file, args.overrides)
+        if assembly is None:
+            failed += 1
+        else:
+            print(f"{file}: ok ({len(assembly.nodes)} component(s))")
+    return 2 if failed else 0
+
+
+def cmd_graph(args: argparse.Namespace) -> int:
+    """Print the composite as Graphviz DOT; 2 (problems on stderr) if invalid."""
+    assembly = _assemble(args.file, args.overrides)
+    if assembly is None:
+        return 2
+    print(to_dot(assembly))
+    return 0
+
+
+def _clusters(assembly: Assembly, prefix: str, depth: int) -> list[str]:
+    """Component boxes of one composite level; nested composites as nested clusters."""
+    pad = "  " * depth
+    lines: list[str] = []
+    subs: list[str] = []
+    for path, node in assembly.nodes.items():
+        if not path.startswith(prefix):
+            continue
+        rest = path[len(prefix):]
+        if "/" in rest:
+            sub = prefix + rest.split("/")[0] + "/"
+            if sub not in subs:
+                subs.append(sub)
+            continue
+        label = f"{rest}\\n[{', '.join(node.ctype.services)}]"
+        lines.append(f'{pad}{_q(path)} [label="{label}"];')
+    for sub in subs:
+        lines.append(f"{pad}subgraph {_q('cluster_' + sub.rstrip('/'))} {{")
+        lines.append(f"{pad}  label={_q(sub.rstrip('/') + ' (implementation.composite)')};")
+        lines += _clusters(assembly, sub, depth + 1)
+        lines.append(f"{pad}}}")
+    return lines
+
+
+def _q(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def to_dot(assembly: Assembly) -> str:
+    """The assembly as DOT: a box per component (label lists its services), an edge per
+    wire labelled with the reference, dashed edges for promoted services and references,
+    a note-shaped node per binding endpoint."""
+    c = assembly.composite
+    out = [f"digraph {_q(c.name)} {{", "  rankdir=LR;", "  node [shape=box, fontname=Helvetica];"]
+    out += _clusters(assembly, "", 1)
+    for path, node in assembly.nodes.items():
+        for ref, eps in node.references.items():
+            for ep in eps:
+                if isinstance(ep, Target):
+                    out.append(f"  {_q(path)} -> {_q(ep.node)} [label={_q(f'{ref} -> {ep.service}')}];")
+                else:
+                    bid = f"{path}.{ref}:{ep.binding.kind}"
+                    out.append(f"  {_q(bid)} [shape=note, label={_q(_endpoint_text(ep))}];")
+                    out.append(f"  {_q(path)} -> {_q(bid)} [label={_q(ref)}];")
+    for name, t in assembly.services.items():
+        out.append(f"  {_q('service:' + name)} [shape=cds, label={_q(name)}];")
+        out.append(f"  {_q('service:' + name)} -> {_q(t.node)} [style=dashed, label={_q('promotes ' + t.service)}];")
+    for cr in c.references:
+        out.append(f"  {_q('reference:' + cr.name)} [shape=cds, label={_q(cr.name)}];")
+        for uri in cr.promote:
+            comp = uri.partition("/")[0]
+            out.append(f"  {_q(comp)} -> {_q('reference:' + cr.name)} [style=dashed, label={_q('promoted')}];")
+    out.append("}")
+    return "\n".join(out)

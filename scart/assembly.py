@@ -1,0 +1,532 @@
+"""Assembly: the static checks, and the flat, resolved component graph the runtime runs.
+
+:func:`assemble` loads a composite and its contribution, introspects every
+implementation, checks every SCA assembly rule, and returns an :class:`Assembly` — or
+raises one :class:`~scart.errors.ScdlError` listing every problem. Nothing is started.
+
+Two phases. *Build* walks composites top-down (nesting through
+``implementation.composite``), introspects implementations and resolves property values
+(composite properties flow in through ``source="$name"``). *Wire* resolves every
+reference to endpoints (``@target``, ``<wire>`` with ``replace``, autowire, then
+promotion from the enclosing component), and checks multiplicity and interface
+compatibility. Leaf components are named by their path ("Outer/Inner").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from scart import errors as E
+from scart.api import ComponentType, InterfaceInfo, PropSpec, RefSpec, interface_info
+from scart.contribution import Contribution, import_object
+from scart.errors import Problem, ScdlError
+from scart.bindings.base import BINDING_KINDS
+from scart.extensions import COMPOSITE_EXTENSIONS
+from scart.implementations import IMPLEMENTATION_KINDS, ImplementationProblem
+from scart.model import Binding, Component, Composite, Element, Interface, Location, PropertyValue
+from scart.values import XSD_TYPES, is_many, parse_value
+
+
+
+@dataclass(frozen=True)
+class Target:
+    """A reference endpoint in this runtime: leaf component path and service name."""
+
+    node: str
+    service: str
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A reference endpoint reached through a binding (no local target)."""
+
+    binding: Binding
+
+
+Endpoint = Target | Bound
+
+
+@dataclass
+class Node:
+    """A leaf component: implementation kind and type, values to inject, resolved references."""
+
+    path: str
+    model: Component
+    kind: str
+    ctype: ComponentType
+    properties: dict[str, Any] = field(default_factory=dict)
+    references: dict[str, list[Endpoint]] = field(default_factory=dict)
+    service_bindings: dict[str, list[Binding]] = field(default_factory=dict)
+
+
+@dataclass
+class Scope:
+    """One composite instance while assembling: its children (leaf Node or nested Scope)."""
+
+    composite: Composite
+    prefix: str
+    props: dict[str, list[str] | None]
+    children: dict[str, Node | Scope] = field(default_factory=dict)
+    component: Component | None = None  # the component this composite implements
+    ctype: ComponentType | None = None
+
+
+@dataclass
+class Assembly:
+    """The checked, resolved graph: leaf ``nodes`` by path, ``order`` (targets first),
+    top-level promoted ``services`` and their ``service_bindings``."""
+
+    composite: Composite
+    contribution: Contribution
+    nodes: dict[str, Node]
+    order: list[str]
+    services: dict[str, Target]
+    service_bindings: dict[str, list[Binding]]
+    aliases: dict[str, Target] = field(default_factory=dict)  # "Comp", "Comp/Service" of top-level components
+    extensions: list[tuple[str, Element]] = field(default_factory=list)  # (prefix, <scart:...>) of all composites
+
+
+def assemble(path: str, overrides: dict[str, str] | None = None) -> Assembly:
+    """Load, check and resolve the composite at ``path``; ``overrides`` maps
+    "Component.prop" (or "Outer/Inner.prop") to a raw value. Raises ``ScdlError``."""
+    import scart.bindings.local  # noqa: F401  (registers binding.sca)
+
+    contribution = Contribution(path)
+    root = contribution.load_root()
+    assembler = _Assembler(contribution, dict(overrides or {}))
+    if root is None:
+        raise ScdlError(contribution.problems)
+    result = assembler.run(root)
+    problems = contribution.problems + assembler.problems
+    root_path = str(path)
+    problems.sort(key=lambda p: (p.path != root_path, p.path, p.line))  # stable: root file first, by line
+    if problems:
+        raise ScdlError(problems)
+    return result
+
+
+class _Assembler:
+    def __init__(self, contribution: Contribution, overrides: dict[str, str]) -> None:
+        self.contribution = contribution
+        self.overrides = overrides
+        self.used_overrides: set[str] = set()
+        self.problems: list[Problem] = []
+        self.nodes: dict[str, Node] = {}
+        self.extensions: list[tuple[str, Element]] = []
+
+    def problem(self, code: str, message: str, loc: Location) -> None:
+        self.problems.append(Problem(code, message, loc.path, loc.line))
+
+    def run(self, root: Composite) -> Assembly:
+        props = {p.name: self.raw_value(p, {}) for p in root.properties}
+        scope = self.build(root, "", props)
+        self.wire(scope, {})
+        for key in sorted(set(self.overrides) - self.used_overrides):
+            self.problems.append(Problem(E.SCART_OVERRIDE, f"--set {key}: no such component property", "<command line>", 0))
+        services: dict[str, Target] = {}
+        bindings: dict[str, list[Binding]] = {}
+        for cs in root.services:
+            target = self.resolve_service(scope, cs.promote, cs.loc, E.ASM_PROMOTED_SERVICE)
+            if target is not None:
+                services[cs.name] = target
+                bindings[cs.name] = cs.bindings
+        aliases: dict[str, Target] = {}
+        for name, child in scope.children.items():
+            offered = list(child.ctype.services) if child.ctype is not None else []
+            for sname in offered:
+                t = self.resolve_service(scope, f"{name}/{sname}", root.loc)
+                if t is not None:
+                    aliases[f"{name}/{sname}"] = t
+                    if len(offered) == 1:
+                        aliases[name] = t
+        result = Assembly(root, self.contribution, self.nodes, self.init_order(), services, bindings, aliases,
+                          self.extensions)
+        self.check_bindings(result)
+        self.check_extensions(result)
+        return result
+
+    # --- extension checks ---------------------------------------------------------------
+
+    def check_bindings(self, result: Assembly) -> None:
+        """Every binding's kind is registered for its side; the kind's own ``check`` runs."""
+        for node in result.nodes.values():
+            for sname, models in node.service_bindings.items():
+                for model in models:
+                    self.check_binding(model, "service", node.ctype.services[sname])
+            for ref, eps in node.references.items():
+                ref_type = node.ctype.references[ref][1]
+                for ep in eps:
+                    if isinstance(ep, Bound):
+                        self.check_binding(ep.binding, "reference", interface_info(ref_type) if ref_type else None)
+        for name, models in result.service_bindings.items():
+            t = result.services[name]
+            for model in models:
+                self.check_binding(model, "service", result.nodes[t.node].ctype.services[t.service])
+
+    def check_binding(self, model: Binding, side: str, iface: InterfaceInfo | None) -> None:
+        kind = BINDING_KINDS.get(model.kind)
+        impl = getattr(kind, side, None) if kind is not None else None
+        if impl is None:
+            usable = sorted(k for k, v in BINDING_KINDS.items() if getattr(v, side) is not None)
+            self.problem(E.SCART_UNKNOWN_KIND, f"binding <{model.kind}> cannot be used on a {side}; "
+                         f"known: {', '.join(usable)}", model.loc)
+            return
+        self.problems.extend(impl.check(model, iface, self.contribution))
+
+    def check_extensions(self, result: Assembly) -> None:
+        """Run each registered composite extension's static check on its elements."""
+        by_kind: dict[str, list[tuple[str, Element]]] = {}
+        for prefix, el in result.extensions:
+            by_kind.setdefault(el.kind, []).append((prefix, el))
+        for kind, elements in by_kind.items():
+            ext = COMPOSITE_EXTENSIONS.get(kind)
+            if ext is None:
+                self.problem(E.SCART_UNKNOWN_KIND, f"no handler for <scart:{kind}>", elements[0][1].loc)
+                continue
+            self.problems.extend(ext.check(elements, result))
+
+    # --- phase 1: build ---------------------------------------------------------------
+
+    def build(self, composite: Composite, prefix: str, props: dict[str, list[str] | None]) -> Scope:
+        scope = Scope(composite, prefix, props)
+        self.extensions.extend((prefix, el) for el in composite.extensions)
+        for comp in composite.components:
+            if comp.name in scope.children:
+                self.problem(E.ASM_DUPLICATE_COMPONENT, f"duplicate component name {comp.name!r}", comp.loc)
+                continue
+            child = self.build_component(comp, scope)
+            if child is not None:
+                scope.children[comp.name] = child
+        return scope
+
+    def build_component(self, comp: Component, scope: Scope) -> Node | Scope | None:
+        impl = comp.implementation
+        if impl is None:
+            return None
+        path = scope.prefix + comp.name
+        if impl.kind == "implementation.composite":
+            if impl.composite is None:
+                return None
+            return self.build_nested(comp, impl.composite, scope, path)
+        kind = IMPLEMENTATION_KINDS.get(impl.kind)
+        if kind is None:
+            self.problem(E.SCART_UNKNOWN_KIND, f"unknown implementation kind <{impl.kind}>; known: "
+                         f"{', '.join(sorted(IMPLEMENTATION_KINDS))}, implementation.composite", impl.loc)
+            return None
+        try:
+            ctype = kind.component_type(impl, self.contribution)
+        except ImplementationProblem as exc:
+            self.problem(exc.code, str(exc), impl.loc)
+            return None
+        self.check_type(ctype, impl.loc)
+        self.check_component_names(comp, ctype)
+        node = Node(path, comp, impl.kind, ctype)
+        raw = self.component_raw_props(comp, ctype, scope, path)
+        for name, (spec, py_type) in ctype.properties.items():
+            node.properties[name] = self.property_value(comp, name, spec, py_type, raw.get(name))
+        node.service_bindings = {s.name: s.bindings for s in comp.services if s.bindings}
+        self.nodes[path] = node
+        return node
+
+    def build_nested(self, comp: Component, inner: Composite, scope: Scope, path: str) -> Scope:
+        declared = {p.name: p for p in inner.properties}
+        fake = ComponentType(object, {}, {}, {n: (PropSpec(None, p.must_supply), str) for n, p in declared.items()},
+                             (), (), (), (), "composite", True)
+        self.check_component_names(comp, fake, check_services=False)
+        raw = self.component_raw_props(comp, fake, scope, path)
+        props: dict[str, list[str] | None] = {}
+        for name, decl in declared.items():
+            value = raw.get(name) if raw.get(name) is not None else self.raw_value(decl, {})
+            if value is None and decl.must_supply:
+                self.problem(E.ASM_MUST_SUPPLY, f"component {comp.name!r}: required property {name!r} not supplied", comp.loc)
+            props[name] = value
+        child = self.build(inner, path + "/", props)
+        child.component = comp
+        services: dict[str, InterfaceInfo] = {}
+        for cs in inner.services:
+            target = self.resolve_service(child, cs.promote, cs.loc, E.ASM_PROMOTED_SERVICE)
+            if target is not None:
+                services[cs.name] = self.nodes[target.node].ctype.services[target.service]
+        refs = {cr.name: (RefSpec(_required(cr.multiplicity), _multiple(cr.multiplicity)), None)
+                for cr in inner.references}
+        child.ctype = ComponentType(object, services, refs, fake.properties, (), (), (), (), "composite", True)
+        self.check_component_names(comp, child.ctype, check_properties=False)
+        return child
+
+    def check_type(self, ctype: ComponentType, loc: Location) -> None:
+        cls_ops = {n for n in dir(ctype.cls) if not n.startswith("_")}
+        for sname, iface in ctype.services.items():
+            for op in iface.operations.values():
+                if op.name not in cls_ops:
+                    self.problem(E.SCART_MISSING_OPERATION, f"{ctype.cls.__name__} lacks operation {op.name!r} "
+                                 f"of its declared service {sname!r}", loc)
+            for checked in (iface, iface.callback):
+                for op in (checked.operations.values() if checked else ()):
+                    if op.oneway and op.returns_value:
+                        self.problem(E.SCART_ONEWAY_RETURNS, f"one-way operation {checked.name}.{op.name} "
+                                     "declares a return value", loc)
+
+    def check_component_names(self, comp: Component, ctype: ComponentType, *, check_services: bool = True,
+                              check_properties: bool = True) -> None:
+        if check_services:
+            for s in comp.services:
+                if s.name not in ctype.services:
+                    self.problem(E.ASM_NO_SUCH_SERVICE, f"component {comp.name!r} has no service {s.name!r}; "
+                                 f"it offers: {', '.join(ctype.services) or 'none'}", s.loc)
+                elif s.interface is not None:
+                    declared = self.reference_interface(s.interface, None, s.loc)
+                    extra = [op for op in (declared.operations if declared else ()) if op not in ctype.services[s.name].operations]
+                    if extra:
+                        self.problem(E.ASM_SERVICE_INTERFACE, f"service {s.name!r} of {comp.name!r}: declared interface "
+                                     f"{declared.name} has operation(s) {', '.join(extra)} the implementation "
+                                     "does not offer", s.interface.loc)
+            for r in comp.references:
+                if r.name not in ctype.references:
+                    self.problem(E.ASM_NO_SUCH_REFERENCE, f"component {comp.name!r} has no reference {r.name!r}; "
+                                 f"it declares: {', '.join(ctype.references) or 'none'}", r.loc)
+        if check_properties:
+            seen: set[str] = set()
+            for p in comp.properties:
+                if p.name in seen:
+                    self.problem(E.ASM_DUPLICATE_PROPERTY, f"duplicate property {p.name!r}", p.loc)
+                seen.add(p.name)
+                if p.name not in ctype.properties:
+                    self.problem(E.ASM_NO_SUCH_PROPERTY, f"component {comp.name!r} has no property {p.name!r}; "
+                                 f"it declares: {', '.join(ctype.properties) or 'none'}", p.loc)
+
+    # --- properties ---------------------------------------------------------------------
+
+    def component_raw_props(self, comp: Component, ctype: ComponentType, scope: Scope, path: str) -> dict[str, list[str] | None]:
+        raw: dict[str, list[str] | None] = {}
+        for p in comp.properties:
+            if p.name in ctype.properties:
+                raw[p.name] = self.raw_value(p, scope.props)
+        for name in ctype.properties:
+            key = f"{path}.{name}"
+            if key in self.overrides:
+                raw[name] = [self.overrides[key]]
+                self.used_overrides.add(key)
+        return raw
+
+    def raw_value(self, p: PropertyValue, ctx: dict[str, list[str] | None]) -> list[str] | None:
+        if p.source is not None:
+            name = p.source.lstrip("$").split("/")[0]
+            if name not in ctx:
+                self.problem(E.SCART_BAD_SOURCE, f"property {p.name!r}: source {p.source!r} names no "
+                             f"composite property; known: {', '.join(ctx) or 'none'}", p.loc)
+                return None
+            return ctx[name]
+        if p.file is not None:
+            file = Path(p.loc.path).parent / p.file
+            try:
+                return [file.read_text(encoding="utf-8").strip()]
+            except OSError as exc:
+                self.problem(E.ASM_PROPERTY_FILE, f"property {p.name!r}: cannot read file {p.file!r}: "
+                             f"{exc.strerror or exc}", p.loc)
+                return None
+        if p.values is not None and p.type:
+            xsd = XSD_TYPES.get(p.type.rpartition(":")[2])
+            if xsd is not None:
+                for v in p.values:
+                    try:
+                        parse_value([v], xsd)
+                    except ValueError as exc:
+                        self.problem(E.ASM_PROPERTY_VALUE, f"property {p.name!r}: {exc}", p.loc)
+        return p.values
+
+    def property_value(self, comp: Component, name: str, spec: PropSpec, py_type: Any, raw: list[str] | None) -> Any:
+        where = next((p.loc for p in comp.properties if p.name == name), comp.loc)
+        if raw is None:
+            if spec.required:
+                self.problem(E.ASM_MUST_SUPPLY, f"component {comp.name!r}: required property {name!r} "
+                             "not supplied", comp.loc)
+            return _Default
+        if len(raw) > 1 and not is_many(py_type):
+            self.problem(E.ASM_SINGLE_VALUED, f"property {name!r} is single-valued but has {len(raw)} values", where)
+            return _Default
+        try:
+            return parse_value(raw, py_type)
+        except ValueError as exc:
+            self.problem(E.ASM_PROPERTY_VALUE, f"property {name!r}: {exc}", where)
+            return _Default
+
+    # --- phase 2: wire ------------------------------------------------------------------
+
+    def resolve_service(self, scope: Scope, uri: str, loc: Location, code: str = E.ASM_NO_SUCH_TARGET) -> Target | None:
+        comp_name, _, service = uri.partition("/")
+        service = service.split("/")[0]
+        child = scope.children.get(comp_name)
+        if child is None:
+            self.problem(code, f"{uri!r}: no component {comp_name!r}; known: {', '.join(scope.children) or 'none'}", loc)
+            return None
+        offered = child.ctype.services if child.ctype is not None else {}
+        if not service:
+            if len(offered) != 1:
+                self.problem(E.ASM_AMBIGUOUS_TARGET, f"{uri!r}: component {comp_name!r} offers "
+                             f"{len(offered)} services ({', '.join(offered)}); name one as 'Component/Service'", loc)
+                return None
+            service = next(iter(offered))
+        if service not in offered:
+            self.problem(code, f"{uri!r}: component {comp_name!r} has no service {service!r}; "
+                         f"it offers: {', '.join(offered) or 'none'}", loc)
+            return None
+        if isinstance(child, Node):
+            return Target(child.path, service)
+        promoted = next(cs for cs in child.composite.services if cs.name == service)
+        return self.resolve_service(child, promoted.promote, promoted.loc, E.ASM_PROMOTED_SERVICE)
+
+    def wire(self, scope: Scope, inherited: dict[str, list[Endpoint]]) -> None:
+        promoted: dict[str, list[Endpoint]] = {}
+        for cr in scope.composite.references:
+            for uri in cr.promote:
+                comp_name, _, ref = uri.partition("/")
+                child = scope.children.get(comp_name)
+                if child is None or child.ctype is None or ref not in child.ctype.references:
+                    self.problem(E.ASM_PROMOTED_REFERENCE, f"composite reference {cr.name!r} promotes {uri!r}, "
+                                 "which is no component reference", cr.loc)
+                    continue
+                outer = inherited.get(cr.name) or [Bound(b) for b in cr.bindings]
+                if not outer and cr.targets and scope.component is None:
+                    outer = [t for t in (self.resolve_service(scope, u, cr.loc) for u in cr.targets) if t]
+                promoted[uri] = outer
+        for name, child in scope.children.items():
+            if child.ctype is None:
+                continue
+            endpoints = {r: self.reference_endpoints(scope, name, child, r, promoted.get(f"{name}/{r}", []))
+                         for r in child.ctype.references}
+            if isinstance(child, Node):
+                child.references = endpoints
+            else:
+                self.wire(child, endpoints)
+
+    def reference_endpoints(self, scope: Scope, comp_name: str, child: Node | Scope, ref: str,
+                            from_outside: list[Endpoint]) -> list[Endpoint]:
+        comp = child.model if isinstance(child, Node) else child.component
+        assert comp is not None and child.ctype is not None
+        spec, ref_type = child.ctype.references[ref]
+        xml = next((r for r in comp.references if r.name == ref), None)
+        loc = xml.loc if xml is not None else comp.loc
+        uris = [(u, loc) for u in (xml.targets if xml else [])]
+        for w in scope.composite.wires:
+            src_comp, _, src_ref = w.source.partition("/")
+            if src_comp == comp_name and (src_ref == ref or (not src_ref and len(child.ctype.references) == 1)):
+                uris = [(w.target, w.loc)] if w.replace else [*uris, (w.target, w.loc)]
+        targets: list[Endpoint] = [t for t in (self.resolve_service(scope, u, l) for u, l in uris) if t]
+        iface = self.reference_interface(xml.interface if xml else None, ref_type, loc)
+        if not targets and xml is not None and xml.bindings:
+            targets = [Bound(b) for b in xml.bindings]
+        if not targets and from_outside:
+            targets = list(from_outside)
+        autowire = next((a for a in ((xml.autowire if xml else None), comp.autowire) if a is not None),
+                        scope.composite.autowire)
+        if not targets and not uris and autowire and iface is not None:
+            targets = self.autowire(scope, comp_name, iface)
+        self.check_multiplicity(comp, ref, xml.multiplicity if xml and xml.multiplicity else spec.multiplicity,
+                                targets, loc, promoted=bool(from_outside) or self._is_promoted(scope, comp_name, ref))
+        for t in targets:
+            if not isinstance(t, Target):
+                continue
+            offered = self.nodes[t.node].ctype.services[t.service]
+            if iface is not None:
+                self.check_compatible(iface, offered, ref, t, loc)
+            if offered.callback is not None and isinstance(child, Node):
+                lacking = [op for op in offered.callback.operations if not callable(getattr(child.ctype.cls, op, None))]
+                if lacking:
+                    self.problem(E.SCART_CALLBACK_MISSING, f"component {comp.name!r} calls {t.node}/{t.service}, whose "
+                                 f"callback interface {offered.callback.name} needs method(s) {', '.join(lacking)} "
+                                 "on the caller", loc)
+        return targets
+
+    def _is_promoted(self, scope: Scope, comp_name: str, ref: str) -> bool:
+        return scope.component is not None and any(f"{comp_name}/{ref}" in cr.promote for cr in scope.composite.references)
+
+    def reference_interface(self, declared: Interface | None, ref_type: type | None, loc: Location) -> InterfaceInfo | None:
+        if declared is not None:
+            if declared.kind == "interface.wsdl":
+                found = self.contribution.wsdl_interface(declared.target, declared.loc)
+                if found is not None and declared.callback:
+                    cb = self.contribution.wsdl_interface(declared.callback, declared.loc)
+                    found = dataclasses.replace(found, callback=cb)
+                return found
+            try:
+                obj = import_object(declared.target, self.contribution.folder)
+            except Exception as exc:
+                self.problem(E.SCART_IMPORT, f"cannot import interface {declared.target!r}: {exc}", declared.loc)
+                return None
+            return interface_info(obj) if isinstance(obj, type) else None
+        return interface_info(ref_type) if ref_type is not None else None
+
+    def autowire(self, scope: Scope, comp_name: str, iface: InterfaceInfo) -> list[Endpoint]:
+        found: list[Endpoint] = []
+        for name, child in scope.children.items():
+            if name == comp_name or child.ctype is None:
+                continue
+            for sname, offered in child.ctype.services.items():
+                if set(iface.operations) <= set(offered.operations):
+                    target = self.resolve_service(scope, f"{name}/{sname}", scope.composite.loc)
+                    if target is not None:
+                        found.append(target)
+        return found
+
+    def check_multiplicity(self, comp: Component, ref: str, mult: str, targets: list[Endpoint],
+                           loc: Location, promoted: bool) -> None:
+        n = len(targets)
+        if n == 0 and promoted:
+            return
+        where = comp.loc if n == 0 else loc
+        if mult == "1..1" and n != 1:
+            self.problem(E.ASM_MULTIPLICITY_1_1, f"component {comp.name!r}: reference {ref!r} (1..1) has {n} targets", where)
+        elif mult == "0..1" and n > 1:
+            self.problem(E.ASM_MULTIPLICITY_0_1, f"component {comp.name!r}: reference {ref!r} (0..1) has {n} targets", where)
+        elif mult == "1..n" and n == 0:
+            self.problem(E.ASM_MULTIPLICITY_1_N, f"component {comp.name!r}: reference {ref!r} (1..n) has no target", where)
+
+    def check_compatible(self, source: InterfaceInfo, target: InterfaceInfo, ref: str, t: Target, loc: Location) -> None:
+        missing = [op for op in source.operations if op not in target.operations]
+        if missing:
+            self.problem(E.ASM_INTERFACE_MISMATCH, f"reference {ref!r} ({source.name}) is wired to {t.node}/{t.service} "
+                         f"({target.name}), which lacks operation(s) {', '.join(missing)}", loc)
+
+    def init_order(self) -> list[str]:
+        """Leaf paths, targets before sources; definition order otherwise; cycles broken."""
+        order: list[str] = []
+        state: dict[str, int] = {}
+        for start in self.nodes:
+            stack: list[tuple[str, int]] = [(start, 0)]
+            while stack:
+                path, i = stack.pop()
+                if i == 0:
+                    if state.get(path):
+                        continue
+                    state[path] = 1
+                deps = [t.node for ts in self.nodes[path].references.values() for t in ts if isinstance(t, Target)]
+                if i < len(deps):
+                    stack.append((path, i + 1))
+                    if not state.get(deps[i]):
+                        stack.append((deps[i], 0))
+                else:
+                    state[path] = 2
+                    order.append(path)
+        return order
+
+
+class _DefaultType:
+    def __repr__(self) -> str:
+        return "<default>"
+
+
+_Default: Any = _DefaultType()
+
+
+def _required(mult: str | None) -> bool:
+    return (mult or "1..1").startswith("1")
+
+
+def _multiple(mult: str | None) -> bool:
+    return (mult or "1..1").endswith("n")
+
+
+__all__ = ["Assembly", "Bound", "Endpoint", "Node", "Target", "assemble", "parse_value"]

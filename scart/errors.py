@@ -1,0 +1,114 @@
+"""The error tree of scart, and the codes of composite problems.
+
+Every error scart raises derives from :class:`ScartError`. A composite that cannot be
+loaded raises one :class:`ScdlError` listing **every** problem found, each a
+:class:`Problem` with a stable ``code``: the OASIS SCA Assembly 1.1 conformance
+statement it enforces (``ASM50001``...) where one applies, ``SCART-...`` otherwise.
+Tools and tests match the code, never the wording.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# --- codes: OASIS SCA Assembly 1.1 conformance statements -----------------------------
+ASM_DUPLICATE_COMPONENT = "ASM50001"  # component names unique in a composite
+ASM_NO_SUCH_SERVICE = "ASM50003"  # component <service> must exist in the componentType
+ASM_SERVICE_INTERFACE = "ASM50004"  # a component service's declared interface is a subset of the implementation's
+ASM_NO_SUCH_REFERENCE = "ASM50008"  # component <reference> must exist in the componentType
+ASM_PROPERTY_VALUE = "ASM50027"  # a property value must parse as its declared type
+ASM_SINGLE_VALUED = "ASM50032"  # a single-valued property takes at most one <value>
+ASM_DUPLICATE_PROPERTY = "ASM50031"  # property names unique on a component
+ASM_NO_SUCH_PROPERTY = "ASM50037"  # component <property> must exist in the componentType
+ASM_MUST_SUPPLY = "ASM40011"  # mustSupply property without a value
+ASM_MULTIPLICITY_0_1 = "ASM50039"  # 0..1 with more than one target
+ASM_MULTIPLICITY_1_1 = "ASM50040"  # 1..1 without exactly one target
+ASM_MULTIPLICITY_1_N = "ASM50041"  # 1..n without a target
+ASM_PROPERTY_FILE = "ASM50045"  # property @file must be readable
+ASM_PROMOTED_SERVICE = "ASM60004"  # composite service promotes an existing component service
+ASM_PROMOTED_REFERENCE = "ASM60007"  # composite reference promotes existing component references
+ASM_DUPLICATE_COMPOSITE_PROPERTY = "ASM60014"  # composite property names unique
+ASM_NO_SUCH_COMPOSITE = "ASM60030"  # implementation.composite names a known composite
+ASM_INCLUDE_UNKNOWN = "ASM60042"  # include names a known composite
+ASM_INTERFACE_MISMATCH = "ASM60043"  # wire target interface is a superset of the source's
+ASM_NO_SUCH_TARGET = "ASM60047"  # target/wire names no component or no such service
+ASM_AMBIGUOUS_TARGET = "ASM60048"  # "Component" target with several services
+ASM_SCHEMA = "ASM13001"  # the composite does not conform to the schema
+
+# --- codes: scart's own rules -------------------------------------------------------
+SCART_XML = "SCART-X001"  # malformed XML
+SCART_UNSAFE_XML = "SCART-X002"  # DOCTYPE / entities / too large
+SCART_SCHEMA = "SCART-X003"  # element of urn:scart:1.0 violates the shipped XSD
+SCART_UNKNOWN_ELEMENT = "SCART-X004"  # an element scart does not know
+SCART_IMPORT = "SCART-I001"  # implementation/interface class cannot be imported
+SCART_MISSING_OPERATION = "SCART-I002"  # class lacks an operation of a declared service
+SCART_ONEWAY_RETURNS = "SCART-I003"  # a one-way operation declares a return value
+SCART_NOT_A_COMPONENT = "SCART-I004"  # implementation class is not usable
+SCART_WSDL = "SCART-I005"  # interface.wsdl portType not found / WSDL unreadable
+SCART_CALLBACK_MISSING = "SCART-I006"  # caller lacks a method of the target's callback interface
+SCART_COMPOSITE_CYCLE = "SCART-C001"  # implementation.composite / include cycle
+SCART_UNKNOWN_KIND = "SCART-C002"  # implementation or binding kind not registered
+SCART_BAD_SOURCE = "SCART-C003"  # property @source names no composite property
+SCART_BAD_WIRE = "SCART-C004"  # wire source names no component reference
+SCART_OVERRIDE = "SCART-C005"  # --set names no component/property
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One composite problem: ``code``, human ``message``, and where (``path``, ``line``)."""
+
+    code: str
+    message: str
+    path: str
+    line: int
+
+    def __str__(self) -> str:
+        return f"{self.path}:{self.line}: {self.message} [{self.code}]"
+
+
+class ScartError(Exception):
+    """Base class of every error raised by scart."""
+
+
+class ScdlError(ScartError):
+    """A composite (SCDL) is invalid: ``errors`` lists every problem, in file order.
+
+    ``path`` and ``line`` are those of the first problem; ``str(error)`` lists each
+    problem on its own line as ``path:line: message [CODE]``.
+    """
+
+    def __init__(self, errors: list[Problem]) -> None:
+        if not errors:
+            raise ValueError("ScdlError needs at least one problem")
+        self.errors: list[Problem] = list(errors)
+        self.path: str = errors[0].path
+        self.line: int = errors[0].line
+        super().__init__("\n".join(str(p) for p in self.errors))
+
+    @property
+    def codes(self) -> list[str]:
+        """The codes of all problems, in order."""
+        return [p.code for p in self.errors]
+
+
+class RuntimeStateError(ScartError):
+    """An operation is not allowed in the runtime's current lifecycle state."""
+
+
+class ServiceNotFoundError(ScartError, KeyError):
+    """``Runtime.service(name)`` names no service; the message lists what exists."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class NoCallbackError(ScartError):
+    """``scart.callback()`` was used outside a call made by a component with a callback."""
+
+
+class InvocationError(ScartError):
+    """A call through a binding failed (``remote_type`` names the original error's type)."""
+
+    def __init__(self, message: str, remote_type: str = "") -> None:
+        super().__init__(message)
+        self.remote_type = remote_type

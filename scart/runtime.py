@@ -1,0 +1,378 @@
+"""The runtime: turns a checked :class:`~scart.assembly.Assembly` into running components.
+
+Lifecycle (one table; anything else raises ``RuntimeStateError``)::
+
+    state     start()                                  stop()
+    CREATED   -> STARTED (instances, @init, bindings)   -> STOPPED (nothing ran)
+    STARTED   error                                    -> STOPPED (bindings, pool, @destroy)
+    STOPPED   error                                    no-op (idempotent)
+
+``start()``: creates the bounded one-way pool, starts reference bindings, creates
+composite-scoped instances and runs their ``@init`` targets first (dependency order),
+starts composite extensions (``scart.extensions``), then service bindings. A failing
+``@init`` raises ``ScartError`` (the cause chained) after stopping what started.
+
+``stop()``: stops service bindings, then composite extensions (reverse), drains and
+shuts down the pool (in-flight one-way calls finish; from inside a one-way worker it
+does not wait), runs ``@destroy`` in reverse init order, stops reference bindings.
+
+Thread-safety: ``service()`` and the proxies are thread-safe; ``start``/``stop`` are
+serialised by a lock. ``stop()`` may be called from a component (even a one-way worker).
+"""
+
+from __future__ import annotations
+
+import copy
+import enum
+import os
+import logging
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from pydantic import BaseModel
+
+import scart.bindings.local  # noqa: F401  (registers binding.sca)
+from scart.api import ComponentContext, InterfaceInfo, interface_info
+from scart.assembly import Assembly, Bound, Node, Target, _Default, assemble
+from scart.bindings.base import BINDING_KINDS, Invocation, ReferenceBinding, ServiceBinding, wrap_operation
+from scart.bindings.local import LocalReferenceBinding
+from scart.errors import InvocationError, RuntimeStateError, ScartError, ServiceNotFoundError
+from scart.extensions import COMPOSITE_EXTENSIONS, Participant
+from scart.implementations import IMPLEMENTATION_KINDS, ComponentManager
+from scart.model import Element
+
+log = logging.getLogger("scart.runtime")
+_WORKER_PREFIX = "scart-oneway"
+
+
+class RuntimeState(enum.Enum):
+    """See the lifecycle table in the module docstring."""
+
+    CREATED = "created"
+    STARTED = "started"
+    STOPPED = "stopped"
+
+
+class ServiceProxy:
+    """A proxy with one attribute per operation (plain callables built at wiring time)."""
+
+    def __init__(self, name: str, invokers: dict[str, Callable[..., Any]]) -> None:
+        self.__dict__.update(invokers)
+        self.__dict__["_scart_name"] = name
+
+    def __repr__(self) -> str:
+        return f"<scart proxy {self.__dict__['_scart_name']}>"
+
+
+class _Endpoint:
+    """A component service inside this runtime (the ``ServiceEndpoint`` of bindings)."""
+
+    def __init__(self, runtime: Runtime, node: Node, service: str, manager: ComponentManager) -> None:
+        self.component = node.path
+        self.service = service
+        self.interface: InterfaceInfo = node.ctype.services[service]
+        self._runtime = runtime
+        self._manager = manager
+
+    def method(self, operation: str) -> Callable[..., Any]:
+        """The raw callable of ``operation`` (scope handled by the component's manager)."""
+        if operation not in self.interface.operations:
+            raise KeyError(operation)
+        return self._manager.method(operation)
+
+    def operation(self, name: str, callback: object | None) -> Callable[..., Any]:
+        """The full per-operation callable (see ``scart.bindings.base.wrap_operation``)."""
+        op = self.interface.operations.get(name)
+        if op is None:
+            raise InvocationError(f"{self.component}/{self.service} has no operation {name!r}")
+        return wrap_operation(self._manager.method(name), op, callback=callback,
+                              by_value=self.interface.remotable, submit=self._runtime.submit)
+
+    def invoke(self, invocation: Invocation) -> Any:
+        """Perform ``invocation`` (one-way: queued, returns None at once)."""
+        return self.operation(invocation.operation, invocation.callback)(*invocation.args, **invocation.kwargs)
+
+
+class Runtime:
+    """Runs one assembled composite. Use ``with Runtime.from_file(path) as rt:``."""
+
+    def __init__(self, assembly: Assembly, *, max_workers: int = 8) -> None:
+        self.assembly = assembly
+        self.max_workers = max_workers
+        self.state = RuntimeState.CREATED
+        self.oneway_failures = 0
+        self._failures_lock = threading.Lock()
+        self._lock = threading.RLock()
+        self._pool: ThreadPoolExecutor | None = None
+        self._managers: dict[str, ComponentManager] = {}
+        self._endpoints: dict[tuple[str, str], _Endpoint] = {}
+        self._ref_bindings: dict[tuple[str, str], list[ReferenceBinding]] = {}
+        self._service_bindings: list[ServiceBinding] = []
+        self._started: list[str] = []
+        self._participants: list[Participant] = []
+        self._stopped = threading.Event()
+        self._shared: dict[str, Any] = {}
+        self._stop_hooks: list[Callable[[], None]] = []
+        self._stopping_thread: threading.Thread | None = None
+        self._proxies: dict[str, ServiceProxy] = {}
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike[str], *, overrides: dict[str, str] | None = None, max_workers: int = 8) -> Runtime:
+        """Load and check the composite at ``path`` (raises ``ScdlError``); nothing starts yet.
+        ``overrides`` maps "Component.property" to a raw value (like ``--set``)."""
+        return cls(assemble(str(path), overrides), max_workers=max_workers)
+
+    def __enter__(self) -> Runtime:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    # --- lifecycle --------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start everything (see the module docstring). Raises ``RuntimeStateError`` unless CREATED."""
+        with self._lock:
+            if self.state is not RuntimeState.CREATED:
+                raise RuntimeStateError(f"cannot start a runtime in state {self.state.value}")
+            self.state = RuntimeState.STARTED
+            self._pool = ThreadPoolExecutor(self.max_workers, thread_name_prefix=_WORKER_PREFIX)
+            try:
+                self._create_managers()
+                self._create_reference_bindings()
+                for path in self.assembly.order:
+                    self._started.append(path)
+                    try:
+                        self._managers[path].start()
+                    except Exception as exc:
+                        raise ScartError(f"starting component {path} failed: {type(exc).__name__}: {exc}") from exc
+                self._start_extensions()
+                self._start_service_bindings()
+            except BaseException:
+                self.stop()
+                raise
+
+    def stop(self) -> None:
+        """Stop everything, in reverse; idempotent; errors in @destroy are logged, not raised.
+
+        Blocks until stopped, except when called from a one-way worker or by the thread
+        already stopping (then it returns at once instead of deadlocking). The lock is
+        held only for the state transition, so a worker calling ``stop()`` while another
+        thread drains the pool never deadlocks."""
+        in_worker = threading.current_thread().name.startswith(_WORKER_PREFIX)
+        with self._lock:
+            first = self.state is not RuntimeState.STOPPED
+            self.state = RuntimeState.STOPPED
+        if not first:
+            if not in_worker and threading.current_thread() is not self._stopping_thread:
+                self._stopped.wait(30.0)
+            return
+        self._stopping_thread = threading.current_thread()
+        try:
+            for binding in reversed(self._service_bindings):
+                _quietly(binding.stop, "stopping a service binding")
+            for participant in reversed(self._participants):
+                _quietly(participant.stop, "stopping a composite extension")
+            if self._pool is not None:
+                self._pool.shutdown(wait=not in_worker)
+            for path in reversed(self._started):
+                _quietly(self._managers[path].stop, f"destroying {path}")
+            for bindings in self._ref_bindings.values():
+                for rb in bindings:
+                    _quietly(rb.stop, "stopping a reference binding")
+            for hook in reversed(self._stop_hooks):
+                _quietly(hook, "running a stop hook")
+        finally:
+            self._stopped.set()
+
+    def _create_managers(self) -> None:
+        for path, node in self.assembly.nodes.items():
+            manager = IMPLEMENTATION_KINDS[node.kind].manager(node, self)
+            self._managers[path] = manager
+            for service in node.ctype.services:
+                self._endpoints[(path, service)] = _Endpoint(self, node, service, manager)
+
+    def _create_reference_bindings(self) -> None:
+        for path, node in self.assembly.nodes.items():
+            for ref, endpoints in node.references.items():
+                iface = _iface_of(node, ref)
+                made: list[ReferenceBinding] = []
+                for ep in endpoints:
+                    if isinstance(ep, Target):
+                        target = self._endpoints[(ep.node, ep.service)]
+                        made.append(LocalReferenceBinding(None, target.interface, self, target=target))
+                    else:
+                        made.append(self._binding_reference(ep, iface, f"{path}/{ref}"))
+                self._ref_bindings[(path, ref)] = made
+        for bindings in self._ref_bindings.values():
+            for rb in bindings:
+                rb.start()
+
+    def _binding_reference(self, ep: Bound, iface: InterfaceInfo | None, where: str) -> ReferenceBinding:
+        kind = BINDING_KINDS.get(ep.binding.kind)
+        if kind is None or kind.reference is None:
+            raise ScartError(f"{ep.binding.loc}: {where}: binding <{ep.binding.kind}> cannot be used on a reference")
+        return kind.reference(ep.binding, iface or InterfaceInfo("?", {}), self)
+
+    def _start_extensions(self) -> None:
+        by_kind: dict[str, list[tuple[str, Element]]] = {}
+        for prefix, el in self.assembly.extensions:
+            by_kind.setdefault(el.kind, []).append((prefix, el))
+        for kind, elements in by_kind.items():
+            participant = COMPOSITE_EXTENSIONS[kind].participant(elements, self)
+            participant.start()
+            self._participants.append(participant)
+
+    def _start_service_bindings(self) -> None:
+        todo = [((p, s), b) for p, n in self.assembly.nodes.items() for s, bs in n.service_bindings.items() for b in bs]
+        todo += [((t.node, t.service), b) for name, t in self.assembly.services.items()
+                 for b in self.assembly.service_bindings.get(name, [])]
+        for key, model in todo:
+            kind = BINDING_KINDS.get(model.kind)
+            if kind is None or kind.service is None:
+                raise ScartError(f"{model.loc}: binding <{model.kind}> cannot be used on a service")
+            binding = kind.service(model, self._endpoints[key], self)
+            binding.start()
+            self._service_bindings.append(binding)
+
+    # --- what bindings and managers use ------------------------------------------------
+
+    def shared(self, key: str, factory: Callable[[], Any]) -> Any:
+        """A per-runtime singleton for extensions (e.g. issue 5's data-flow ``Deployer``):
+        created by ``factory`` on first use; thread-safe."""
+        with self._lock:
+            if key not in self._shared:
+                self._shared[key] = factory()
+            return self._shared[key]
+
+    def add_stop_hook(self, hook: Callable[[], None]) -> None:
+        """Run ``hook`` at the very end of ``stop()`` (after every @destroy and binding stop),
+        hooks in reverse order of registration; errors are logged."""
+        self._stop_hooks.append(hook)
+
+    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+        """Queue ``fn`` on the one-way pool (bounded worker count); failures are logged and
+        counted in ``oneway_failures``. After stop, the call is counted and dropped with a log."""
+        pool = self._pool
+        try:
+            if pool is None:
+                raise RuntimeError("runtime not started")
+            pool.submit(self._run_oneway, fn, args, kwargs)
+        except RuntimeError as exc:
+            self._count_failure()
+            log.error("one-way call %s dropped: %s", getattr(fn, "__qualname__", fn), exc)
+
+    def _run_oneway(self, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+        try:
+            fn(*args, **kwargs)
+        except Exception:
+            self._count_failure()
+            log.exception("one-way call %s failed", getattr(fn, "__qualname__", fn))
+
+    def _count_failure(self) -> None:
+        with self._failures_lock:
+            self.oneway_failures += 1
+
+    def endpoint(self, name: str) -> _Endpoint:
+        """The endpoint of service ``name`` (same forms as :meth:`service`)."""
+        target = self._resolve(name)
+        return self._endpoints[(target.node, target.service)]
+
+    def configure(self, node: Node, instance: object) -> None:
+        """Inject properties, references and context into ``instance`` (before its @init)."""
+        ctype = node.ctype
+        for name, value in node.properties.items():
+            if value is _Default:
+                value = ctype.properties[name][0].default_value()
+            elif isinstance(value, (list, dict, set, BaseModel)):
+                value = copy.deepcopy(value)
+            setattr(instance, name, value)
+        for ref, (spec, _) in ctype.references.items():
+            proxies = [self._reference_proxy(instance, node, ref, rb) for rb in self._ref_bindings.get((node.path, ref), [])]
+            setattr(instance, ref, proxies if spec.multiple else (proxies[0] if proxies else None))
+        for name in ctype.contexts:
+            setattr(instance, name, ComponentContext(node.path, self.service))
+
+    def _reference_proxy(self, instance: object, node: Node, ref: str, rb: ReferenceBinding) -> ServiceProxy:
+        iface = rb.interface
+        callback = _LocalCallback(instance, iface.callback, self) if iface.callback is not None else None
+        invokers = {name: rb.invoker(op, callback) for name, op in iface.operations.items()}
+        return ServiceProxy(f"{node.path}.{ref}", invokers)
+
+    # --- lookup -----------------------------------------------------------------------
+
+    def service(self, name: str) -> ServiceProxy:
+        """A proxy to a service: ``"Component"`` (one service), ``"Component/Service"``, a nested
+        ``"Outer/Inner/Service"``, or a service the top-level composite promotes.
+
+        Calls go through the runtime (stateless: fresh instance per call; one-way: None at
+        once). Raises ``ServiceNotFoundError`` listing the known services, or
+        ``RuntimeStateError`` when not started."""
+        proxy = self._proxies.get(name)
+        if proxy is not None:
+            return proxy
+        if self.state is not RuntimeState.STARTED:
+            raise RuntimeStateError(f"service({name!r}): runtime is {self.state.value}, not started")
+        ep = self.endpoint(name)
+        invokers = {op: ep.operation(op, None) for op in ep.interface.operations}
+        proxy = self._proxies[name] = ServiceProxy(name, invokers)
+        return proxy
+
+    def _resolve(self, name: str) -> Target:
+        a = self.assembly
+        if name in a.services:
+            return a.services[name]
+        if name in a.aliases:
+            return a.aliases[name]
+        path, _, service = name.rpartition("/")
+        node = a.nodes.get(path)
+        if node is not None and service in node.ctype.services:
+            return Target(path, service)
+        node = a.nodes.get(name)
+        if node is not None and len(node.ctype.services) == 1:
+            return Target(name, next(iter(node.ctype.services)))
+        raise ServiceNotFoundError(f"no service {name!r}; known: {', '.join(self.service_names())}")
+
+    def service_names(self) -> list[str]:
+        """Every name :meth:`service` accepts in the "Component/Service" form, plus promoted names."""
+        names = list(self.assembly.services)
+        names += [f"{p}/{s}" for p, n in self.assembly.nodes.items() for s in n.ctype.services]
+        return names
+
+    def addresses(self) -> dict[str, str | None]:
+        """Started service bindings: "Component/Service (kind)" -> real address."""
+        return {f"{b.endpoint.component}/{b.endpoint.service} ({b.model.kind})": b.address for b in self._service_bindings}
+
+
+class _LocalCallback:
+    """The callback target of a calling instance: one attribute per callback operation."""
+
+    def __init__(self, instance: object, iface: InterfaceInfo, runtime: Runtime) -> None:
+        for name, op in iface.operations.items():
+            method = getattr(instance, name, None) or _missing(type(instance).__name__, name)
+            setattr(self, name, wrap_operation(method, op, callback=None, by_value=iface.remotable,
+                                               submit=runtime.submit))
+
+
+def _missing(cls: str, op: str) -> Callable[..., Any]:
+    def fail(*args: Any, **kwargs: Any) -> Any:
+        raise InvocationError(f"callback {op!r}: the calling component {cls} has no method {op!r}")
+    return fail
+
+
+def _iface_of(node: Node, ref: str) -> InterfaceInfo | None:
+    ref_type = node.ctype.references[ref][1]
+    return interface_info(ref_type) if ref_type is not None else None
+
+
+def _quietly(fn: Callable[[], None], what: str) -> None:
+    try:
+        fn()
+    except Exception:
+        log.exception("error while %s", what)
+
+
+__all__ = ["Runtime", "RuntimeState", "ServiceProxy"]

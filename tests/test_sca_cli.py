@@ -1,0 +1,160 @@
+"""``scart run`` / ``validate`` / ``graph`` in real subprocesses."""
+
+from __future__ import annotations
+
+import os
+import selectors
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from test_sca_support import composite, py, write
+
+ROOT = Path(__file__).resolve().parent.parent
+CALCULATOR = ROOT / "composites" / "calculator" / "calculator.composite"
+
+
+def scart_cmd(*args: str) -> list[str]:
+    return [sys.executable, "-m", "scart", *args]
+
+
+def run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(scart_cmd(*args), capture_output=True, text=True, timeout=60)
+
+
+def start(*args: str) -> subprocess.Popen[bytes]:
+    """``scart ARGS`` with unbuffered binary pipes (so ``read_until`` can select on them)."""
+    return subprocess.Popen(scart_cmd(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
+
+
+def read_until(proc: subprocess.Popen[bytes], needle: str, timeout: float = 30.0) -> str:
+    """Read the process's stdout until it contains ``needle`` (deadline; never sleeps)."""
+    assert proc.stdout is not None
+    fd = proc.stdout.fileno()
+    seen = b""
+    deadline = time.monotonic() + timeout
+    with selectors.DefaultSelector() as sel:
+        sel.register(fd, selectors.EVENT_READ)
+        while time.monotonic() < deadline:
+            if not sel.select(timeout=max(0.0, deadline - time.monotonic())):
+                continue
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                break
+            seen += chunk
+            if needle.encode() in seen:
+                return seen.decode()
+    raise AssertionError(f"{needle!r} not printed within {timeout} s; got: {seen.decode(errors='replace')}")
+
+
+def finish(proc: subprocess.Popen[bytes]) -> tuple[str, str]:
+    """Wait (bounded) for the process; kill it if it hangs. Returns (stdout, stderr)."""
+    try:
+        out, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate(timeout=30)
+    return out.decode(), err.decode()
+
+
+def lifecycle_composite(tmp_path: Path, log: Path) -> Path:
+    return write(tmp_path, {"life.composite": composite(f"""
+        <component name="A">{py("Tracker")}<reference name="next" target="B"/>
+          <property name="log_file">{log}</property></component>
+        <component name="B">{py("Tracker")}<property name="log_file">{log}</property></component>
+    """)})
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_run_stops_cleanly_on_signal(tmp_path: Path, sig: signal.Signals) -> None:
+    log = tmp_path / "events.log"
+    path = lifecycle_composite(tmp_path, log)
+    proc = start("run", str(path))
+    try:
+        out = read_until(proc, "started")
+        assert "component A" in out and "next -> B/Tracker" in out
+        assert log.read_text(encoding="utf-8").splitlines() == ["init B", "init A"]
+        proc.send_signal(sig)
+    finally:
+        rest, err = finish(proc)
+    assert proc.returncode == 0, err
+    assert "stopped" in rest
+    assert log.read_text(encoding="utf-8").splitlines() == ["init B", "init A", "destroy A", "destroy B"]
+
+
+def test_run_refuses_a_bad_composite_before_starting(tmp_path: Path) -> None:
+    log = tmp_path / "events.log"
+    text = composite(f"""
+        <component name="A">{py("Tracker")}<property name="log_file">{log}</property></component>
+        <component name="S">{py("Single")}</component>
+        <component name="N">{py("NeedsValue")}</component>
+    """)
+    path = write(tmp_path, {"bad.composite": text})
+    out = run("run", str(path))
+    assert out.returncode == 2
+    assert f"{path}:5: " in out.stderr and "ASM50040" in out.stderr and "ASM40011" in out.stderr
+    assert not log.exists()
+
+
+def test_run_with_set_override(tmp_path: Path) -> None:
+    log = tmp_path / "events.log"
+    other = tmp_path / "other.log"
+    path = lifecycle_composite(tmp_path, log)
+    proc = start("run", str(path), "--set", f"B.log_file={other}")
+    try:
+        read_until(proc, "started")
+        proc.send_signal(signal.SIGINT)
+    finally:
+        finish(proc)
+    assert proc.returncode == 0
+    assert other.read_text(encoding="utf-8").splitlines() == ["init B", "destroy B"]
+
+
+def test_validate_good_and_bad(tmp_path: Path) -> None:
+    good = run("validate", str(CALCULATOR))
+    assert good.returncode == 0 and "ok (5 component(s))" in good.stdout
+    bad = write(tmp_path, {"bad.composite": composite(f"<component name='S'>{py('Single')}</component>")})
+    out = run("validate", str(CALCULATOR), str(bad))
+    assert out.returncode == 2
+    assert f"{bad}:3: component 'S': reference 'one' (1..1) has 0 targets [ASM50040]" in out.stderr
+    assert "ok" in out.stdout
+
+
+def test_validate_with_set(tmp_path: Path) -> None:
+    out = run("validate", str(CALCULATOR), "--set", "CalculatorServiceComponent.precision=abc")
+    assert out.returncode == 2 and "ASM50027" in out.stderr
+    assert run("validate", str(CALCULATOR), "--set", "CalculatorServiceComponent.precision=2").returncode == 0
+    bad = run("validate", str(CALCULATOR), "--set", "nodot")
+    assert bad.returncode == 2 and "COMPONENT.PROPERTY=VALUE" in bad.stderr
+
+
+def test_graph_is_dot() -> None:
+    out = run("graph", str(CALCULATOR))
+    assert out.returncode == 0
+    dot = out.stdout
+    assert dot.startswith('digraph "Calculator" {') and dot.rstrip().endswith("}")
+    assert '"CalculatorServiceComponent" -> "AddServiceComponent" [label="add_service -> AddService"];' in dot
+    assert '"service:CalculatorService" -> "CalculatorServiceComponent"' in dot
+
+
+def test_graph_shows_nested_composites_as_clusters(tmp_path: Path) -> None:
+    inner = composite(f"""
+        <service name="Greeter" promote="G"/>
+        <component name="G">{py("GreeterImpl")}</component>
+    """, name="Inner")
+    outer = composite(f"""
+        <service name="Front" promote="M/Greeter"/>
+        <component name="M"><implementation.composite name="t:Inner"/></component>
+        <component name="S">{py("Single")}<reference name="one" target="M"/></component>
+    """, name="Outer")
+    path = write(tmp_path, {"outer.composite": outer, "inner.composite": inner})
+    out = run("graph", str(path))
+    assert out.returncode == 0, out.stderr
+    assert 'subgraph "cluster_M" {' in out.stdout
+    assert '"M/G" [label="G\\n[Greeter]"];' in out.stdout
+    assert '"S" -> "M/G" [label="one -> Greeter"];' in out.stdout
+    assert '"service:Front" -> "M/G"' in out.stdout
