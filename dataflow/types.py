@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import pydantic
+import pydantic_core
 
 from .errors import PortTypeError
 
@@ -272,8 +273,10 @@ class TypeRegistry:
         if py_type == list[int]:
             return Encoded(name, struct.pack(f"<{len(value)}q", *value))
         if _is_model(py_type) and isinstance(value, py_type):
-            return Encoded(name, value.model_dump_json().encode())
-        return Encoded(name, self._adapter(py_type).dump_json(value))
+            # "constants" keeps inf/nan as Infinity/NaN (pydantic's default writes null,
+            # which then fails to decode as a float: a sensor reading inf must survive).
+            return Encoded(name, pydantic_core.to_json(value.model_dump(), inf_nan_mode="constants"))
+        return Encoded(name, pydantic_core.to_json(self._adapter(py_type).dump_python(value), inf_nan_mode="constants"))
 
     @staticmethod
     def _guess_list_type(value: list[Any]) -> Any:

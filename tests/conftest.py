@@ -10,6 +10,10 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
+# The youBot case study is an SCA contribution: its modules are imported by plain names
+# (driver, youbot_model, ...), exactly as `scart run` imports them from the composite's folder.
+YOUBOT = Path(__file__).resolve().parent.parent / "composites" / "youbot"
+sys.path.insert(0, str(YOUBOT))
 
 
 @pytest.fixture(autouse=True)

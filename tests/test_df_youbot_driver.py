@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 from helpers import wait_until
 
-from composites.youbot.driver import ERROR_BITS, N_JOINTS, YouBotDriver, YouBotStatus, error_names
-from composites.youbot.model import JOINT_LIMITS
+from driver import ERROR_BITS, N_JOINTS, YouBotDriver, YouBotStatus, error_names
+from youbot_model import JOINT_LIMITS
 from dataflow import ConnPolicy, FlowStatus, InputPort, OutputPort, PeriodicActivity, SlaveActivity, registry
 
 BIT = {name: 1 << bit for bit, name in ERROR_BITS.items()}

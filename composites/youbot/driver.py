@@ -39,7 +39,7 @@ from dataflow import (
     operation,
 )
 
-from .model import ERROR_BITS, JOINT_LIMITS, N_JOINTS, JointStatus, YouBotStatus, error_names
+from youbot_model import ERROR_BITS, JOINT_LIMITS, N_JOINTS, JointStatus, YouBotStatus, error_names
 
 __all__ = ["YouBotDriver", "ERROR_BITS", "JointStatus", "YouBotStatus", "error_names", "N_JOINTS"]
 
