@@ -1,0 +1,418 @@
+"""`MonitorServer`: the HTTP side of the youBot Monitor (stdlib only, plus plotly's JS file).
+
+Routes (all on the address given, 127.0.0.1 by default):
+
+| method | path | answer |
+|---|---|---|
+| GET | `/` | the page (`static/index.html`) |
+| GET | `/static/app.js`, `/static/style.css` | our page code |
+| GET | `/static/plotly.min.js` | Plotly.js from the installed ``plotly`` package |
+| GET | `/api/state` | one JSON snapshot (same shape as an SSE message) plus ``poses`` |
+| GET | `/api/poses` | ``{"poses": [...]}`` from the backend |
+| GET | `/events` | Server-Sent Events: ``event: update`` messages, at most `MAX_RATE_HZ`/s |
+| POST | `/api/period` | ``{"seconds": 0.02}`` → ``{"ok": bool, "message": str}`` from the backend |
+| POST | `/api/pose` | ``{"pose": "home"}`` or ``{"pose": [5 floats]}`` → same answer shape |
+
+POST bodies must be ``application/json`` (which a cross-site form cannot send without a
+CORS preflight this server never grants); a malformed body is a 400 whose JSON
+``message`` says what was expected.
+
+Threads: `start` creates one accept thread; each connection gets its own daemon handler
+thread. `stop` signals (closes the hub, which ends SSE loops), shuts the listener down,
+shuts every open connection's socket (unblocking reads), then joins them all with a
+timeout. Nothing is started in ``__init__``.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import json
+import logging
+import math
+import secrets
+import socket
+import threading
+import time
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import Any, Protocol, runtime_checkable
+
+from .hub import StatusHub
+
+log = logging.getLogger(__name__)
+
+MAX_RATE_HZ = 25.0
+"""SSE updates per second per client at most; statuses in between are coalesced."""
+
+HEARTBEAT_S = 0.5
+"""An SSE update is sent at least this often, so the sample age keeps counting up."""
+
+MAX_BODY = 64 * 1024
+"""Largest POST body accepted (bytes)."""
+
+_STATIC = {
+    "/": ("index.html", "text/html; charset=utf-8"),
+    "/index.html": ("index.html", "text/html; charset=utf-8"),
+    "/static/app.js": ("app.js", "text/javascript; charset=utf-8"),
+    "/static/style.css": ("style.css", "text/css; charset=utf-8"),
+}
+
+
+@runtime_checkable
+class MonitorBackend(Protocol):
+    """What the monitor calls back; implemented by its host. Called from handler threads
+    (possibly several at once); each call may block for as long as the host needs."""
+
+    def set_period(self, seconds: float) -> tuple[bool, str]:
+        """Ask the driver for a new period; (accepted?, what it accepted or why not)."""
+        ...
+
+    def send_pose(self, pose: str | list[float]) -> tuple[bool, str]:
+        """Send the arm to a named pose or to joint positions; (accepted?, message)."""
+        ...
+
+    def poses(self) -> list[str]:
+        """The named poses `send_pose` knows."""
+        ...
+
+
+class _BadRequest(Exception):
+    """A client error: answered with ``status`` and a JSON ``message``."""
+
+    def __init__(self, message: str, status: HTTPStatus = HTTPStatus.BAD_REQUEST) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def _plotly_js() -> bytes:
+    """Plotly.js as shipped inside the installed ``plotly`` Python package."""
+    return (importlib.resources.files("plotly") / "package_data" / "plotly.min.js").read_bytes()
+
+
+def _static_file(name: str) -> bytes:
+    return (importlib.resources.files(__package__) / "static" / name).read_bytes()
+
+
+class _HTTPServer(ThreadingHTTPServer):
+    """ThreadingHTTPServer that remembers its connections so `close_connections` can end them."""
+
+    daemon_threads = True
+    block_on_close = False
+
+    def __init__(self, address: tuple[str, int], monitor: MonitorServer) -> None:
+        self.monitor = monitor
+        self._conn_lock = threading.Lock()
+        self._conns: dict[threading.Thread, socket.socket] = {}
+        super().__init__(address, _Handler)
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        # Registered here, in the accept thread, so that after shutdown() returns the
+        # set of connection threads is complete.
+        thread = threading.Thread(
+            target=self._serve_connection,
+            args=(request, client_address),
+            name=f"scart-monitor-conn-{client_address[1]}",
+            daemon=True,
+        )
+        with self._conn_lock:
+            self._conns[thread] = request
+        thread.start()
+
+    def _serve_connection(self, request: Any, client_address: Any) -> None:
+        try:
+            self.finish_request(request, client_address)
+        except (ConnectionError, TimeoutError, OSError):
+            pass  # the browser went away or stop() shut the socket: nothing to report
+        except Exception:  # noqa: BLE001 - a handler bug must not kill the server
+            log.exception("monitor: request from %s failed", client_address)
+        finally:
+            self.shutdown_request(request)
+            with self._conn_lock:
+                self._conns.pop(threading.current_thread(), None)
+
+    def close_connections(self, timeout: float) -> list[str]:
+        """Shut every open connection and join its thread; returns names still alive."""
+        me = threading.current_thread()  # stop() called from a request (a backend) answers it
+        with self._conn_lock:
+            conns = [(t, s) for t, s in self._conns.items() if t is not me]
+        for _thread, sock in conns:
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+        deadline = time.monotonic() + timeout
+        for thread, _sock in conns:
+            thread.join(max(0.0, deadline - time.monotonic()))
+        return [t.name for t, _ in conns if t.is_alive()]
+
+
+class _Handler(BaseHTTPRequestHandler):
+    """One request (HTTP/1.0: one request per connection, SSE streams until closed)."""
+
+    server: _HTTPServer
+    server_version = "scart-monitor/0.1"
+    timeout = 10.0  # a connection that never sends its request line does not pin a thread
+
+    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib name
+        log.debug("monitor: " + format, *args)
+
+    # -- routing --------------------------------------------------------------------
+
+    def do_GET(self) -> None:  # noqa: N802 - stdlib name
+        path = self.path.split("?", 1)[0].split("#", 1)[0]
+        monitor = self.server.monitor
+        if path in _STATIC:
+            name, ctype = _STATIC[path]
+            self._send(HTTPStatus.OK, _static_file(name), ctype, cache=False)
+        elif path == "/static/plotly.min.js":
+            try:
+                script = monitor._plotly()
+            except (ImportError, OSError) as exc:
+                message = f"Plotly.js not found ({exc}); install the 'plotly' package: pip install 'plotly>=5'"
+                self._send_json(HTTPStatus.INTERNAL_SERVER_ERROR, {"ok": False, "message": message})
+                return
+            self._send(HTTPStatus.OK, script, "text/javascript; charset=utf-8", cache=True)
+        elif path == "/api/state":
+            state, _ = monitor._hub.snapshot()
+            state["status"] = json.loads(state["status"])
+            state["poses"] = monitor._safe_poses()
+            self._send_json(HTTPStatus.OK, state)
+        elif path == "/api/poses":
+            self._send_json(HTTPStatus.OK, {"poses": monitor._safe_poses()})
+        elif path == "/events":
+            self._stream_events()
+        else:
+            self._send_json(HTTPStatus.NOT_FOUND, {"ok": False, "message": f"no such page: {path}"})
+
+    def do_POST(self) -> None:  # noqa: N802 - stdlib name
+        path = self.path.split("?", 1)[0]
+        backend = self.server.monitor._backend
+        try:
+            if path == "/api/period":
+                seconds = _number(self._json_body(), "seconds")
+                ok, message = self._call(backend.set_period, seconds)
+            elif path == "/api/pose":
+                ok, message = self._call(backend.send_pose, _pose(self._json_body()))
+            else:
+                raise _BadRequest(f"no such command: {path}", HTTPStatus.NOT_FOUND)
+        except _BadRequest as exc:
+            self._send_json(exc.status, {"ok": False, "message": str(exc)})
+            return
+        self._send_json(HTTPStatus.OK, {"ok": bool(ok), "message": str(message)})
+
+    # -- helpers ----------------------------------------------------------------------
+
+    def _resume_from(self, instance: str) -> int:
+        """Event cursor from a reconnecting EventSource's ``Last-Event-ID`` (``instance:id``);
+        0 (send the whole log) for a new page or after this server was replaced."""
+        token, _, number = self.headers.get("Last-Event-ID", "").partition(":")
+        return int(number) if token == instance and number.isdigit() else 0
+
+    def _json_body(self) -> Any:
+        ctype = self.headers.get("Content-Type", "").split(";", 1)[0].strip().lower()
+        if ctype != "application/json":
+            raise _BadRequest(
+                f"expected Content-Type application/json, got {ctype or 'none'!r}",
+                HTTPStatus.UNSUPPORTED_MEDIA_TYPE,
+            )
+        try:
+            length = int(self.headers.get("Content-Length", "0"))
+        except ValueError:
+            raise _BadRequest("bad Content-Length") from None
+        if length > MAX_BODY:
+            raise _BadRequest(f"body too large: {length} > {MAX_BODY} bytes", HTTPStatus.REQUEST_ENTITY_TOO_LARGE)
+        raw = self.rfile.read(length) if length > 0 else b""
+        try:
+            return json.loads(raw)
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise _BadRequest(f"body is not valid JSON: {exc}") from None
+
+    def _call(self, func: Any, arg: Any) -> tuple[bool, str]:
+        try:
+            ok, message = func(arg)
+        except Exception as exc:  # noqa: BLE001 - the host's failure is reported, not raised
+            log.warning("monitor: backend %s failed: %s", getattr(func, "__name__", func), exc)
+            return False, f"backend error: {type(exc).__name__}: {exc}"
+        return bool(ok), str(message)
+
+    def _send(self, status: HTTPStatus, body: bytes, ctype: str, cache: bool = False) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "max-age=3600" if cache else "no-cache")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _send_json(self, status: HTTPStatus, obj: Any) -> None:
+        self._send(status, json.dumps(obj, default=str).encode(), "application/json")
+
+    def _stream_events(self) -> None:
+        """Send `update` events until the client leaves or the server stops.
+
+        At most MAX_RATE_HZ messages/s (newest status only) and at least one every
+        HEARTBEAT_S. Bounded: ends when the hub is closed or a write fails.
+        """
+        hub = self.server.monitor._hub
+        self.send_response(HTTPStatus.OK)
+        self.send_header("Content-Type", "text/event-stream")
+        self.send_header("Cache-Control", "no-cache")
+        self.send_header("X-Accel-Buffering", "no")
+        self.end_headers()
+        self.wfile.write(b"retry: 1000\n\n")
+        self.wfile.flush()
+        seen, last_event = -1, self._resume_from(self.server.monitor._instance)
+        min_gap = 1.0 / MAX_RATE_HZ
+        stop = self.server.monitor._stopping
+        while not hub.closed:
+            sent_at = time.monotonic()
+            message, last_event = hub.snapshot(last_event)
+            seen = message["version"]
+            self.wfile.write(_sse_frame(message, f"{self.server.monitor._instance}:{last_event}"))
+            self.wfile.flush()
+            # Throttle (a rate limit, not synchronisation): wake early only on stop.
+            if stop.wait(max(0.0, min_gap - (time.monotonic() - sent_at))):
+                break
+            hub.wait(seen, HEARTBEAT_S)
+
+
+def _sse_frame(message: dict[str, Any], event_id: str) -> bytes:
+    status_json = message.pop("status")
+    body = json.dumps(message, default=str)
+    # Splice the pre-serialised status in, rather than decoding and re-encoding it.
+    body = body[:-1] + ', "status": ' + status_json + "}"
+    return f"id: {event_id}\nevent: update\ndata: ".encode() + body.encode() + b"\n\n"
+
+
+def _number(body: Any, key: str) -> float:
+    if not isinstance(body, dict) or key not in body:
+        raise _BadRequest(f'expected a JSON object like {{"{key}": 0.01}}')
+    value = body[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise _BadRequest(f"{key!r} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _pose(body: Any) -> str | list[float]:
+    if not isinstance(body, dict) or "pose" not in body:
+        raise _BadRequest('expected a JSON object like {"pose": "home"} or {"pose": [0, 0, 0, 0, 0]}')
+    pose = body["pose"]
+    if isinstance(pose, str) and pose:
+        return pose
+    if isinstance(pose, list) and pose and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pose
+    ):
+        return [float(v) for v in pose]
+    raise _BadRequest(f"'pose' must be a pose name or a list of joint positions, got {pose!r}")
+
+
+class MonitorServer:
+    """The youBot Monitor web server, fed by its host.
+
+    Lifecycle: ``__init__`` (nothing bound, no thread) → `start` (binds, one accept
+    thread) → `stop` (idempotent; ends every stream and joins every thread it started,
+    with a timeout). Publishing (`publish_status`, `publish_event`, `set_driver_info`)
+    is thread-safe, never waits for a browser, and is allowed before `start` and after
+    `stop` (it then only updates the state).
+    """
+
+    def __init__(self, backend: MonitorBackend, host: str = "127.0.0.1", port: int = 0) -> None:
+        self._backend = backend
+        self._address = (host, port)
+        self._hub = StatusHub()
+        self._stopping = threading.Event()
+        self._instance = secrets.token_hex(4)  # SSE ids: a reconnect resumes only on this server
+        self._lock = threading.Lock()
+        self._httpd: _HTTPServer | None = None
+        self._thread: threading.Thread | None = None
+        self._plotly_bytes: bytes | None = None
+
+    # -- lifecycle --------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Bind the address and start serving. Raises `OSError` if it cannot bind and
+        `RuntimeError` if already started or stopped (a server is started once)."""
+        with self._lock:
+            if self._httpd is not None or self._stopping.is_set():
+                raise RuntimeError("MonitorServer.start: already started (or stopped)")
+            self._httpd = _HTTPServer(self._address, self)
+            self._thread = threading.Thread(
+                target=self._httpd.serve_forever,
+                kwargs={"poll_interval": 0.05},
+                name="scart-monitor-http",
+                daemon=True,
+            )
+            self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Close every SSE stream and connection, stop serving, join the threads.
+
+        Idempotent and thread-safe; blocks up to about ``timeout`` s. Threads still
+        alive after that (a backend call that never returns) are logged, not killed.
+        Called from inside a request (a backend method), that request is still answered
+        and its thread ends right after.
+        """
+        with self._lock:
+            if self._stopping.is_set():
+                return
+            self._stopping.set()
+            httpd, thread = self._httpd, self._thread
+        self._hub.close()
+        if httpd is None:
+            return
+        deadline = time.monotonic() + timeout
+        httpd.shutdown()  # returns once serve_forever has left its loop
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(max(0.0, deadline - time.monotonic()))
+        stuck = httpd.close_connections(max(0.0, deadline - time.monotonic()))
+        httpd.server_close()
+        if stuck:
+            log.warning("monitor: connection threads still running after stop: %s", stuck)
+
+    @property
+    def url(self) -> str:
+        """``http://HOST:PORT/`` with the port actually bound; raises if not started."""
+        if self._httpd is None:
+            raise RuntimeError("MonitorServer.url: not started")
+        host, port = self._httpd.server_address[:2]
+        return f"http://{host}:{port}/"
+
+    # -- feeding ----------------------------------------------------------------------
+
+    def publish_status(self, sample: dict[str, object]) -> None:
+        """Make ``sample`` (a YouBotStatus-like dict) the newest status. Thread-safe, never
+        blocks on browsers; statuses faster than the page refresh are coalesced. The
+        monitor keeps the dict: do not mutate it after publishing."""
+        self._hub.publish_status(sample)
+
+    def publish_event(self, name: str, detail: str = "") -> None:
+        """Show an event (``busy``, ``idle``, ``reached``, ...); ``refresh`` is counted, not
+        logged one by one. Thread-safe, never blocks on browsers."""
+        self._hub.publish_event(name, detail)
+
+    def set_driver_info(self, state: str, period: float, connected: bool) -> None:
+        """Driver state (e.g. ``RUNNING``), its accepted period in seconds, and whether
+        it is reachable; a change of ``connected`` is logged. Thread-safe."""
+        self._hub.set_driver_info(state, period, connected)
+
+    @property
+    def error_flag_names(self) -> dict[int, str]:
+        """Bit index → name used to show error flag words (a copy; assign to change)."""
+        return self._hub.error_flag_names
+
+    @error_flag_names.setter
+    def error_flag_names(self, names: dict[int, str]) -> None:
+        self._hub.error_flag_names = names
+
+    # -- for the handler --------------------------------------------------------------
+
+    def _plotly(self) -> bytes:
+        if self._plotly_bytes is None:
+            self._plotly_bytes = _plotly_js()  # 4-5 MB, read once
+        return self._plotly_bytes
+
+    def _safe_poses(self) -> list[str]:
+        try:
+            return [str(p) for p in self._backend.poses()]
+        except Exception as exc:  # noqa: BLE001 - the page still works without poses
+            log.warning("monitor: backend poses() failed: %s", exc)
+            return []
