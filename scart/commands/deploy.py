@@ -1,9 +1,173 @@
-"""Placeholder: this group of verbs is not built yet."""
+"""The verbs ``scart deploy`` (host data-flow tasks in a served Deployer) and
+``scart nameserver`` (a standalone name service).
+
+``scart deploy pkg.mod:Class [pkg.mod:Other@name ...] --name X --period 0.01`` imports
+each class, creates the task (``Class(name)``), gives it a PeriodicActivity when
+``--period`` is set, configures and starts everything, serves it over gRPC and waits
+for SIGINT/SIGTERM; then it stops serving, stops the tasks and cleans them up in
+reverse order. Without ``--ns``/``SCART_NS`` it embeds a name service and listens on
+``127.0.0.1:7850`` (the default name-service port) unless ``--listen`` says otherwise;
+with one, it registers there and listens on a free port.
+
+Readiness: one stderr line ``scart deploy: serving NAMES on HOST:PORT (name service
+HOST:PORT)``. Exit codes: 0 clean stop, 1 failure (import, configure, bind, duplicate
+name), 2 usage.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import os
+import signal
+import sys
+import threading
+from typing import Any
+
+from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
-    """Add this group's verbs (none yet)."""
+    """Add ``deploy`` and ``nameserver``."""
+    deploy = subparsers.add_parser("deploy", help="host data-flow tasks in a served Deployer until Ctrl-C")
+    deploy.add_argument("classes", nargs="+", metavar="pkg.mod:Class[@name]", help="TaskContext classes to host")
+    deploy.add_argument("--name", default=None, help="task name (one class only; default: the class's own)")
+    deploy.add_argument("--period", type=float, default=None, help="run each task periodically (s)")
+    deploy.add_argument("--listen", default=None, help="HOST:PORT to serve on (default: see above)")
+    deploy.add_argument("--ns", default=None, help=f"join the name service at HOST:PORT (or ${NS_ENV}); default: embed one")
+    deploy.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="name-service lease (s)")
+    deploy.add_argument("--heartbeat-ms", type=int, default=500, help="idle heartbeat of subscriptions (ms)")
+    deploy.add_argument("--no-start", action="store_true", help="configure only, do not start the tasks")
+    deploy.add_argument(
+        "--connect", nargs=2, action="append", default=[], metavar=("A.out", "B.in"),
+        help="connect a hosted output port to an input port here or in another deployer (repeatable)",
+    )
+    deploy.add_argument("--policy", default="data", help="policy of --connect: data | buffer:N | circular:N")
+    deploy.set_defaults(func=cmd_deploy)
+
+    names = subparsers.add_parser("nameserver", help="run a standalone name service until Ctrl-C")
+    names.add_argument("--listen", default=DEFAULT_NS_ADDRESS, help=f"HOST:PORT (default {DEFAULT_NS_ADDRESS})")
+    names.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="default lease (s)")
+    names.set_defaults(func=cmd_nameserver)
+
+
+def _err(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def _stop_event() -> threading.Event:
+    """An Event set by SIGINT/SIGTERM (handlers installed in the main thread)."""
+    event = threading.Event()
+
+    def handler(signum: int, frame: Any) -> None:
+        event.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return event
+
+
+def _load(spec: str) -> tuple[type, str | None]:
+    """``pkg.mod:Class[@name]`` → (class, name or None); raises ValueError/ImportError."""
+    target, _, name = spec.partition("@")
+    module_name, colon, attr = target.partition(":")
+    if not colon or not module_name or not attr:
+        raise ValueError(f"expected pkg.mod:Class[@name], got {spec!r}")
+    module = importlib.import_module(module_name)
+    try:
+        cls = getattr(module, attr)
+    except AttributeError:
+        raise ValueError(f"module {module_name} has no {attr!r}") from None
+    return cls, name or None
+
+
+def _make_tasks(args: argparse.Namespace) -> list[Any]:
+    from dataflow import PeriodicActivity, TaskContext
+
+    if args.name and len(args.classes) > 1:
+        raise ValueError("--name works with one class only; use pkg.mod:Class@name for several")
+    tasks = []
+    for spec in args.classes:
+        cls, name = _load(spec)
+        if not (isinstance(cls, type) and issubclass(cls, TaskContext)):
+            raise ValueError(f"{spec} is not a TaskContext subclass")
+        name = name or args.name
+        task = cls(name) if name else cls()
+        if args.period is not None:
+            task.set_activity(PeriodicActivity(args.period))
+        tasks.append(task)
+    return tasks
+
+
+def cmd_deploy(args: argparse.Namespace) -> int:
+    """Run ``scart deploy``; returns the exit code."""
+    from dataflow import DataflowError, Deployer
+    from dataflow.remote.server import serve_deployer
+
+    ns = args.ns or os.environ.get(NS_ENV) or None
+    listen = args.listen or ("127.0.0.1:0" if ns else DEFAULT_NS_ADDRESS)
+    stop = _stop_event()
+    deployer = Deployer()
+    try:
+        for task in _make_tasks(args):
+            deployer.add(task)
+        deployer.configure_all()
+        if not args.no_start:
+            deployer.start_all()
+        server = serve_deployer(deployer, listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms)
+    except (ImportError, ValueError, DataflowError) as exc:
+        _err(f"scart deploy: {exc}")
+        deployer.stop_all()
+        deployer.cleanup_all()
+        return 1
+    try:
+        _connect_at_start(server, args)
+    except (ValueError, DataflowError) as exc:
+        _err(f"scart deploy: --connect: {exc}")
+        server.stop()
+        deployer.stop_all()
+        deployer.cleanup_all()
+        return 1
+    where = "embedded" if ns is None else "joined"
+    _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.address} "
+         f"(name service {server.ns_address}, {where})")
+    try:
+        while not stop.wait(1.0):
+            pass
+    finally:
+        _err("scart deploy: stopping")
+        server.stop()
+        deployer.stop_all()
+        deployer.cleanup_all()
+    return 0
+
+
+def _connect_at_start(server: Any, args: argparse.Namespace) -> None:
+    """Make the ``--connect`` links (a remote sink not registered yet is waited for)."""
+    from dataflow import ConnPolicy
+    from dataflow.remote.api import split_port
+
+    policy = ConnPolicy.parse(args.policy)
+    for source, sink in args.connect:
+        (st, sp), (kt, kp) = split_port(source), split_port(sink)
+        server.connect_ports(st, sp, kt, kp, policy, defer=True)
+
+
+def cmd_nameserver(args: argparse.Namespace) -> int:
+    """Run ``scart nameserver``; returns the exit code."""
+    from dataflow.remote.errors import RemoteError
+    from dataflow.remote.naming import serve_nameserver
+
+    stop = _stop_event()
+    try:
+        server = serve_nameserver(args.listen, default_lease=args.lease)
+    except RemoteError as exc:
+        _err(f"scart nameserver: {exc}")
+        return 1
+    _err(f"scart nameserver: serving on {server.address}")
+    try:
+        while not stop.wait(1.0):
+            pass
+    finally:
+        server.stop()
+    return 0

@@ -1,9 +1,379 @@
-"""Placeholder: this group of verbs is not built yet."""
+"""Introspection of a running data-flow system: ``scart ls | describe | echo | hz | write |
+call | prop | state | connect | disconnect``.
+
+Every verb finds the system through a name service: ``--ns HOST:PORT``, else the
+``SCART_NS`` environment variable, else ``127.0.0.1:7850``. Data goes to stdout (with
+``--json``: JSON, one document — or one line per sample for ``echo``/``hz`` streams),
+diagnostics to stderr. ``--timeout`` is the deadline of each remote call.
+What ``echo --json`` prints, ``write`` accepts.
+
+Exit codes: 0 success, 1 a failure (nothing answers, unknown name, wrong type, refused
+transition), 2 usage.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import os
+import signal
+import statistics
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
-    """Add this group's verbs (none yet)."""
+    """Add the inspection verbs."""
+    def verb(name: str, help_: str, func: Callable[[argparse.Namespace], int]) -> argparse.ArgumentParser:
+        p = subparsers.add_parser(name, help=help_)
+        p.add_argument("--ns", default=None, help=f"name service HOST:PORT (default ${NS_ENV} or {DEFAULT_NS_ADDRESS})")
+        p.add_argument("--json", action="store_true", help="JSON on stdout")
+        p.add_argument("--timeout", type=float, default=3.0, help="deadline of each remote call (s)")
+        p.set_defaults(func=lambda a: _guard(func, a))
+        return p
+
+    p = verb("ls", "list components: name, state, period, measured rate, deployer", cmd_ls)
+    p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
+    p = verb("describe", "properties, operations and ports of a component", cmd_describe)
+    p.add_argument("component")
+    p = verb("echo", "print samples of an output port", cmd_echo)
+    p.add_argument("port", metavar="COMP.PORT")
+    p.add_argument("-n", type=int, default=None, help="stop after N samples")
+    p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
+    p.add_argument("--period", type=float, default=None, help="poll at this period instead of push")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p = verb("hz", "measure the rate of an output port", cmd_hz)
+    p.add_argument("port", metavar="COMP.PORT")
+    p.add_argument("-n", type=int, default=None, help="stop after N samples (prints one report)")
+    p.add_argument("--window", type=int, default=10000, help="samples kept for the statistics")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p = verb("write", "write one value (JSON) to an input port", cmd_write)
+    p.add_argument("port", metavar="COMP.PORT")
+    p.add_argument("value", help="JSON value (a bare word is taken as a string)")
+    p = verb("call", "call an operation with JSON arguments", cmd_call)
+    p.add_argument("operation", metavar="COMP.OP")
+    p.add_argument("args", nargs="*", help="JSON arguments")
+    p = verb("prop", "list, get or set properties", cmd_prop)
+    p.add_argument("action", choices=["list", "get", "set"])
+    p.add_argument("component")
+    p.add_argument("name", nargs="?")
+    p.add_argument("value", nargs="?", help="JSON value (set)")
+    p = verb("state", "show or change a component's lifecycle state", cmd_state)
+    p.add_argument("component")
+    p.add_argument("transition", nargs="?", choices=["configure", "start", "stop", "cleanup", "recover"])
+    p = verb("connect", "connect an output port to an input port (any deployers)", cmd_connect)
+    p.add_argument("source", metavar="A.out")
+    p.add_argument("sink", metavar="B.in")
+    p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
+    p = verb("disconnect", "disconnect two ports", cmd_disconnect)
+    p.add_argument("source", metavar="A.out")
+    p.add_argument("sink", metavar="B.in")
+
+
+# ---- shared plumbing -------------------------------------------------------------------
+def ns_address(args: argparse.Namespace) -> str:
+    """The name service to use: ``--ns``, else ``$SCART_NS``, else the default."""
+    return args.ns or os.environ.get(NS_ENV) or DEFAULT_NS_ADDRESS
+
+
+def _err(message: str) -> None:
+    print(f"scart {message}", file=sys.stderr, flush=True)
+
+
+def _out(text: str) -> None:
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def _dump(obj: Any) -> str:
+    return json.dumps(obj, ensure_ascii=False)
+
+
+def _jsonable(value: Any) -> Any:
+    from dataflow import registry
+
+    return registry.to_jsonable(value)
+
+
+def _parse_json(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text  # a bare word is a string
+
+
+def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """Run a verb: connect, map errors to one stderr line and exit code 1."""
+    from dataflow import DataflowError
+    from dataflow.remote import connect
+    from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
+
+    address = ns_address(args)
+    source = "--ns" if args.ns else (f"${NS_ENV}" if os.environ.get(NS_ENV) else "the default")
+    try:
+        system = connect(address, timeout=args.timeout)
+    except (UnavailableError, RemoteTimeoutError) as exc:
+        _err(
+            f"{args.command}: no name service answers at {address} (from {source}): {exc}\n"
+            f"  start one with `scart nameserver --listen {address}`, or host tasks with "
+            f"`scart deploy pkg.mod:Class` (embeds one on {DEFAULT_NS_ADDRESS}),\n"
+            f"  or point --ns / {NS_ENV} at a running name service or deployer."
+        )
+        return 1
+    try:
+        args.system = system
+        return func(args)
+    except (DataflowError, ValueError) as exc:
+        _err(f"{args.command}: {exc}")
+        return 1
+    finally:
+        system.close()
+
+
+def _split(text: str) -> tuple[str, str]:
+    from dataflow.remote.api import split_port
+
+    return split_port(text)
+
+
+def _wait_until_stopped(done: threading.Event, duration: float | None, tick: float = 1.0,
+                        on_tick: Callable[[], None] | None = None) -> None:
+    """Block until ``done``, SIGINT/SIGTERM, or ``duration`` s; call ``on_tick`` every ``tick`` s."""
+    def handler(signum: int, frame: Any) -> None:
+        done.set()
+
+    old = [signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)]
+    try:
+        deadline = None if duration is None else time.monotonic() + duration
+        while not done.is_set():
+            wait = tick if deadline is None else min(tick, max(0.0, deadline - time.monotonic()))
+            if done.wait(wait):
+                break
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+            if on_tick is not None:
+                on_tick()
+    finally:
+        signal.signal(signal.SIGINT, old[0])
+        signal.signal(signal.SIGTERM, old[1])
+
+
+# ---- verbs -----------------------------------------------------------------------------
+def cmd_ls(args: argparse.Namespace) -> int:
+    """``scart ls``: one line per component; rate measured over ``--sample`` s."""
+    first = {c.name: (c.cycles, time.monotonic()) for c in args.system.components()}
+    if args.sample > 0:
+        threading.Event().wait(args.sample)
+    rows = []
+    for c in args.system.components():
+        cycles0, t0 = first.get(c.name, (c.cycles, time.monotonic()))
+        dt = time.monotonic() - t0
+        rate = (c.cycles - cycles0) / dt if dt > 0 else 0.0
+        rows.append({"name": c.name, "state": c.state, "activity": c.activity, "period": c.period,
+                     "rate": round(rate, 2), "cycles": c.cycles, "overruns": c.overruns, "deployer": c.address})
+    if args.json:
+        _out(_dump(rows))
+        return 0
+    _out(f"{'NAME':<24} {'STATE':<16} {'PERIOD':>9} {'RATE(Hz)':>9}  DEPLOYER")
+    for r in rows:
+        period = f"{r['period']:g}" if r["period"] else "-"
+        _out(f"{r['name']:<24} {r['state']:<16} {period:>9} {r['rate']:>9.1f}  {r['deployer']}")
+    return 0
+
+
+def cmd_describe(args: argparse.Namespace) -> int:
+    """``scart describe COMP``."""
+    proxy = args.system.component(args.component)
+    if hasattr(proxy, "describe_with_values"):
+        desc, last = proxy.describe_with_values()
+    else:
+        desc, last = proxy.describe(), proxy.last_values()
+    if args.json:
+        doc = desc.model_dump(mode="json")
+        for port in doc["ports"]:
+            if port["name"] in last:
+                port["last_value"] = _jsonable(last[port["name"]])
+        _out(_dump(doc))
+        return 0
+    period = f", period {desc.period:g} s" if desc.period else ""
+    _out(f"{desc.name}: {desc.state} ({desc.activity}{period}, {desc.cycles} cycles, {desc.overruns} overruns)")
+    _out("properties:")
+    for p in desc.properties:
+        _out(f"  {p.name}: {p.type_name} = {_dump(p.value)}" + (f"  # {p.doc}" if p.doc else ""))
+    _out("operations:")
+    for o in desc.operations:
+        _out(f"  {o.signature or o.name}" + (f"  # {o.doc}" if o.doc else ""))
+    _out("ports:")
+    for p in desc.ports:
+        line = f"  {p.direction:<3} {p.name}: {p.type_name}, {p.connections} connection(s)"
+        if p.name in last:
+            text = _dump(_jsonable(last[p.name]))
+            line += f", last = {text if len(text) <= 120 else text[:117] + '...'}"
+        _out(line + (f"  # {p.doc}" if p.doc else ""))
+    return 0
+
+
+def _policy(text: str) -> Any:
+    from dataflow import ConnPolicy
+
+    return ConnPolicy.parse(text)
+
+
+def cmd_echo(args: argparse.Namespace) -> int:
+    """``scart echo COMP.PORT [-n N]``: one line per sample."""
+    component, port = _split(args.port)
+    proxy = args.system.component(component)
+    done = threading.Event()
+    count = [0]
+    lock = threading.Lock()
+
+    def observer(event: Any) -> None:
+        with lock:
+            if done.is_set():
+                return
+            value = _dump(_jsonable(event.value))
+            _out(value if args.json else f"[{event.sequence}] {value}")
+            count[0] += 1
+            if args.n is not None and count[0] >= args.n:
+                done.set()
+
+    sub = proxy.subscribe(port, observer, policy=_policy(args.policy), period=args.period)
+    try:
+        _wait_until_stopped(done, args.duration)
+    finally:
+        sub.close()
+    if sub.dropped:
+        _err(f"echo: {sub.dropped} sample(s) dropped by the policy {args.policy}")
+    return 0
+
+
+def hz_stats(stamps: list[float]) -> dict[str, float]:
+    """``ros2 topic hz`` statistics from sample times (s): rate, min, max, std_dev, window."""
+    periods = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    if not periods:
+        return {"rate": 0.0, "min": 0.0, "max": 0.0, "std_dev": 0.0, "window": len(stamps)}
+    mean = statistics.fmean(periods)
+    return {
+        "rate": 1.0 / mean if mean > 0 else math.inf,
+        "min": min(periods),
+        "max": max(periods),
+        "std_dev": statistics.pstdev(periods),
+        "window": len(stamps),
+    }
+
+
+def cmd_hz(args: argparse.Namespace) -> int:
+    """``scart hz COMP.PORT [-n N]``: rate statistics from the samples' source times."""
+    from dataflow import ConnPolicy
+
+    component, port = _split(args.port)
+    proxy = args.system.component(component)
+    done = threading.Event()
+    stamps: list[float] = []
+    lock = threading.Lock()
+    target = None if args.n is None else args.n + 1  # n periods need n+1 samples
+
+    def observer(event: Any) -> None:
+        with lock:
+            stamps.append(event.source_time)
+            del stamps[: max(0, len(stamps) - args.window)]
+            if target is not None and len(stamps) >= target:
+                done.set()
+
+    def report() -> None:
+        with lock:
+            stats = hz_stats(list(stamps))
+        if args.json:
+            _out(_dump(stats))
+        else:
+            _out(f"average rate: {stats['rate']:.3f}\n\tmin: {stats['min']:.6f}s max: {stats['max']:.6f}s "
+                 f"std dev: {stats['std_dev']:.6f}s window: {stats['window']}")
+
+    sub = proxy.subscribe(port, observer, policy=ConnPolicy.buffer(1000))
+    try:
+        _wait_until_stopped(done, args.duration, on_tick=report if args.n is None else None)
+    finally:
+        sub.close()
+    report()
+    return 0
+
+
+def cmd_write(args: argparse.Namespace) -> int:
+    """``scart write COMP.PORT VALUE``."""
+    component, port = _split(args.port)
+    status = args.system.component(component).write_json(port, _parse_json(args.value))
+    _out(_dump({"status": status.name}) if args.json else status.name)
+    return 0 if status.name == "WRITE_SUCCESS" else 1
+
+
+def cmd_call(args: argparse.Namespace) -> int:
+    """``scart call COMP.OP ARGS...``: prints the result."""
+    component, op = _split(args.operation)
+    result = args.system.component(component).call_json(op, [_parse_json(a) for a in args.args], timeout=args.timeout)
+    _out(_dump(_jsonable(result)))
+    return 0
+
+
+def cmd_prop(args: argparse.Namespace) -> int:
+    """``scart prop list|get|set COMP [NAME] [VALUE]``."""
+    proxy = args.system.component(args.component)
+    if args.action == "list":
+        props = list(proxy.properties().values())
+        if args.json:
+            _out(_dump([p.model_dump(mode="json") for p in props]))
+        else:
+            for p in props:
+                _out(f"{p.name}: {p.type_name} = {_dump(p.value)}" + (f"  # {p.doc}" if p.doc else ""))
+        return 0
+    if not args.name:
+        raise ValueError(f"prop {args.action} needs a property NAME")
+    if args.action == "get":
+        _out(_dump(_jsonable(proxy.get_property(args.name))))
+        return 0
+    if args.value is None:
+        raise ValueError("prop set needs a VALUE (JSON)")
+    _out(_dump(proxy.set_property_json(args.name, _parse_json(args.value))))
+    return 0
+
+
+def cmd_state(args: argparse.Namespace) -> int:
+    """``scart state COMP [TRANSITION]``."""
+    proxy = args.system.component(args.component)
+    accepted = True
+    if args.transition:
+        accepted = proxy.change_state(args.transition)
+    state = proxy.state
+    if args.json:
+        doc: dict[str, Any] = {"component": args.component, "state": state}
+        if args.transition:
+            doc.update(transition=args.transition, accepted=accepted)
+        _out(_dump(doc))
+    else:
+        _out(state)
+    if not accepted:
+        _err(f"state: {args.component} refused {args.transition} (state {state})")
+        return 1
+    return 0
+
+
+def cmd_connect(args: argparse.Namespace) -> int:
+    """``scart connect A.out B.in [--policy P]``."""
+    policy = _policy(args.policy)
+    args.system.connect_ports(args.source, args.sink, policy)
+    doc = {"source": args.source, "sink": args.sink, "policy": str(policy), "connected": True}
+    _out(_dump(doc) if args.json else f"connected {args.source} -> {args.sink} ({policy})")
+    return 0
+
+
+def cmd_disconnect(args: argparse.Namespace) -> int:
+    """``scart disconnect A.out B.in``."""
+    done = args.system.disconnect_ports(args.source, args.sink)
+    doc = {"source": args.source, "sink": args.sink, "disconnected": done}
+    _out(_dump(doc) if args.json else ("disconnected" if done else "were not connected"))
+    return 0 if done else 1

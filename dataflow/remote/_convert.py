@@ -1,0 +1,103 @@
+"""Conversions between the core's values/policies/descriptions and proto messages (private)."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from dataflow.policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
+from dataflow.remote._proto import df as pb
+
+_CONN_TO_MSG = {
+    ConnType.DATA: pb.ConnType["CONN_TYPE_DATA"],
+    ConnType.BUFFER: pb.ConnType["CONN_TYPE_BUFFER"],
+    ConnType.CIRCULAR_BUFFER: pb.ConnType["CONN_TYPE_CIRCULAR_BUFFER"],
+}
+_CONN_FROM_MSG = {v: k for k, v in _CONN_TO_MSG.items()}
+
+
+def policy_to_msg(policy: ConnPolicy) -> Any:
+    """ConnPolicy → ``scart.dataflow.v1.ConnPolicy``."""
+    return pb.ConnPolicy(
+        type=_CONN_TO_MSG[policy.type],
+        size=policy.size,
+        init=policy.init,
+        lock_policy=policy.lock_policy.name,
+        buffer_policy=policy.buffer_policy.name,
+    )
+
+
+def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
+    """``scart.dataflow.v1.ConnPolicy`` → ConnPolicy (unset message → ``default`` or DATA).
+
+    Raises ``ValueError`` for an invalid combination (e.g. a buffer of size 0).
+    """
+    if msg is None or msg.type == 0:
+        return default if default is not None else ConnPolicy.data()
+    return ConnPolicy(
+        type=_CONN_FROM_MSG[msg.type],
+        size=msg.size,
+        init=msg.init,
+        lock_policy=LockPolicy[msg.lock_policy] if msg.lock_policy else LockPolicy.LOCK_FREE,
+        buffer_policy=BufferPolicy[msg.buffer_policy] if msg.buffer_policy else BufferPolicy.PER_CONNECTION,
+    )
+
+
+def flow_to_msg(status: FlowStatus) -> int:
+    """FlowStatus → proto enum number."""
+    return pb.FlowStatus[f"FLOW_STATUS_{status.name}"]
+
+
+def flow_from_msg(number: int) -> FlowStatus:
+    """Proto enum number → FlowStatus (unspecified → NO_DATA)."""
+    names = {v: k for k, v in pb.FlowStatus.items()}
+    name = names.get(number, "FLOW_STATUS_NO_DATA").removeprefix("FLOW_STATUS_")
+    return FlowStatus[name] if name in FlowStatus.__members__ else FlowStatus.NO_DATA
+
+
+def write_to_msg(status: WriteStatus) -> int:
+    """WriteStatus → proto enum number."""
+    return pb.WriteStatus[f"WRITE_STATUS_{status.name}"]
+
+
+def write_from_msg(number: int) -> WriteStatus:
+    """Proto enum number → WriteStatus."""
+    names = {v: k for k, v in pb.WriteStatus.items()}
+    name = names.get(number, "WRITE_STATUS_WRITE_FAILURE").removeprefix("WRITE_STATUS_")
+    return WriteStatus[name] if name in WriteStatus.__members__ else WriteStatus.WRITE_FAILURE
+
+
+def encode(value: Any, py_type: Any = None) -> Any:
+    """A value → ``Value`` through the core registry; ``None`` → empty type name."""
+    from dataflow.types import registry
+
+    if value is None:
+        return pb.Value(type_name="", data=b"")
+    enc = registry.encode(value, py_type)
+    return pb.Value(type_name=enc.type_name, data=enc.data)
+
+
+def decode(msg: Any) -> Any:
+    """``Value`` → a value (unknown type → ``UnknownValue``; empty type name → None)."""
+    from dataflow.types import registry
+
+    if not msg.type_name:
+        return None
+    return registry.decode(msg.type_name, msg.data)
+
+
+def to_json_text(value: Any) -> str:
+    """What ``echo --json`` prints for a value."""
+    from dataflow.types import registry
+
+    return json.dumps(registry.to_jsonable(value))
+
+
+def type_label(value: Any) -> str:
+    """A short name of a value's type for error messages (registry name when known)."""
+    from dataflow.types import registry
+
+    try:
+        return registry.type_name(type(value))
+    except Exception:  # noqa: BLE001 - only for messages
+        return type(value).__name__

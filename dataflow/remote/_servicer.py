@@ -1,0 +1,438 @@
+"""The DeployerService implementation (private; see :mod:`dataflow.remote.server`).
+
+Threading: every RPC runs on a worker of the server's pool. A subscription never runs
+on, nor blocks, the task's thread: the task's output port is connected to a
+free-standing InputPort with the subscriber's policy, whose data callback only sets an
+Event; the stream's own worker wakes, drains that port and sends. A slow subscriber
+therefore fills its own connection (drops counted there) and nothing else.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections import deque
+from typing import TYPE_CHECKING, Any
+
+import grpc
+
+from dataflow.errors import NotFoundError, PortTypeError
+from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
+from dataflow.ports import InputPort, OutputPort
+from dataflow.remote import _convert as cv
+from dataflow.remote._proto import df as pb
+from dataflow.remote._rpc import Abort, abort
+
+if TYPE_CHECKING:
+    from dataflow.remote.server import DeployerServer
+
+log = logging.getLogger(__name__)
+
+_TRANSITIONS = {
+    pb.Transition["TRANSITION_CONFIGURE"]: "configure",
+    pb.Transition["TRANSITION_START"]: "start",
+    pb.Transition["TRANSITION_STOP"]: "stop",
+    pb.Transition["TRANSITION_CLEANUP"]: "cleanup",
+    pb.Transition["TRANSITION_RECOVER"]: "recover",
+}
+
+
+class _Tap:
+    """A DATA reader on an output port counting samples, for ReadPort (new vs old)."""
+
+    def __init__(self, port: OutputPort) -> None:
+        self.port = port
+        self.inp: InputPort = InputPort(port.type, name=f"tap_{port.name}")
+        self.sequence = 0
+        self.stamp = 0
+        self.inp.add_data_callback(self._on_data)
+        port.connect_to(self.inp, ConnPolicy.data())
+        if port.last_written_value() is not None and self.sequence == 0:
+            self.sequence, self.stamp = 1, time.time_ns()
+
+    def _on_data(self, _inp: InputPort) -> None:
+        self.sequence += 1
+        self.stamp = time.time_ns()
+
+    def close(self) -> None:
+        self.port.disconnect(self.inp)
+        self.inp.remove_data_callback(self._on_data)
+
+
+class _Stream:
+    """Server side of one subscription: a free InputPort with the subscriber's policy."""
+
+    def __init__(self, port: OutputPort, policy: ConnPolicy) -> None:
+        self.port = port
+        self.wake = threading.Event()
+        self.inp: InputPort = InputPort(port.type, name=f"sub_{port.name}")
+        self._lock = threading.Lock()
+        self._count = 0
+        self._stamps: deque[tuple[int, int]] = deque(maxlen=max(1, policy.size))
+        self.inp.add_data_callback(self._on_data)
+        self.connection = port.connect_to(self.inp, policy)
+        self.wake.set()  # an init=True policy may have handed a sample over already
+
+    def _on_data(self, _inp: InputPort) -> None:  # writer's thread: cheap, never blocks
+        with self._lock:
+            self._count += 1
+            self._stamps.append((self._count, time.time_ns()))
+        self.wake.set()
+
+    def drain(self) -> list[tuple[Any, int, int]]:
+        """Every pending sample as ``(value, sequence, source_time_ns)`` (non-blocking)."""
+        out = []
+        for _ in range(10_000):  # bounded: a buffer never holds more than its size
+            status, value = self.inp.read()
+            if status is not FlowStatus.NEW_DATA:
+                break
+            with self._lock:
+                seq, stamp = self._stamps.popleft() if self._stamps else (self._count, time.time_ns())
+            out.append((value, seq, stamp))
+        return out
+
+    def close(self) -> None:
+        self.port.disconnect(self.inp)
+        self.inp.remove_data_callback(self._on_data)
+
+
+class _Writer:
+    """A free OutputPort connected to a task's input port (a remote writer)."""
+
+    def __init__(self, task: str, port: InputPort, policy: ConnPolicy) -> None:
+        self.task = task
+        self.target = port
+        self.out: OutputPort = OutputPort(port.type, name=f"remote_{port.name}")
+        self.out.connect_to(port, policy)
+
+    def close(self) -> None:
+        self.out.disconnect(self.target)
+
+
+class DeployerServicer:
+    """Implements every method of ``scart.dataflow.v1.DeployerService`` for one server."""
+
+    def __init__(self, owner: DeployerServer, heartbeat_ms: int, max_streams: int) -> None:
+        self.owner = owner
+        self.deployer = owner.deployer
+        self.heartbeat_ms = heartbeat_ms
+        self.max_streams = max_streams
+        self.batch = 64  # samples per message at most (bounded message size and latency)
+        self._lock = threading.Lock()
+        self._taps: dict[tuple[str, str], _Tap] = {}
+        self._defaults: dict[tuple[str, str], _Writer] = {}
+        self._writers: dict[int, _Writer] = {}
+        self._next_writer = 1
+        self._streams: set[_Stream] = set()
+        self._stopping = threading.Event()
+
+    # ---- lookup helpers -------------------------------------------------------------
+    def _task(self, name: str) -> Any:
+        return self.deployer.task(name)
+
+    def _port(self, task: str, port: str, want_input: bool | None = None) -> Any:
+        p = self._task(task).port(port)
+        if want_input is not None and p.is_input != want_input:
+            kind = "an input" if p.is_input else "an output"
+            need = "input" if want_input else "output"
+            raise Abort("INVALID_ARGUMENT", f"{task}.{port} is {kind} port; this needs an {need} port")
+        return p
+
+    def _value_for(self, where: str, py_type: Any, type_name: str, msg: Any, json_text: str) -> Any:
+        from dataflow.types import registry
+
+        if json_text:
+            try:
+                obj = json.loads(json_text)
+            except json.JSONDecodeError as exc:
+                raise Abort("INVALID_ARGUMENT", f"{where}: value is not valid JSON ({exc})") from None
+            try:
+                return registry.from_jsonable(py_type, obj)
+            except (PortTypeError, TypeError, ValueError) as exc:
+                raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, got {json_text!r}: {exc}") from None
+        given = msg.type_name or "None"
+        try:
+            value = cv.decode(msg)
+            return registry.validate(py_type, value)
+        except (PortTypeError, TypeError, ValueError) as exc:
+            raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, given {given}: {exc}") from None
+
+    def stop(self) -> None:
+        """Wake every stream so it ends; close taps and writers (idempotent)."""
+        self._stopping.set()
+        with self._lock:
+            for stream in list(self._streams):
+                stream.wake.set()
+            for item in [*self._taps.values(), *self._defaults.values(), *self._writers.values()]:
+                item.close()
+            self._taps.clear()
+            self._defaults.clear()
+            self._writers.clear()
+
+    # ---- introspection and lifecycle ---------------------------------------------------
+    @staticmethod
+    def _summary(task: Any) -> Any:
+        act = task.activity
+        return pb.TaskSummary(
+            name=task.name,
+            state=task.state.name,
+            activity=getattr(act, "kind", "") if act is not None else "",
+            period=float(getattr(act, "period", 0.0) or 0.0),
+            cycles=int(getattr(act, "cycles", 0) or 0),
+            overruns=int(getattr(act, "overruns", 0) or 0),
+        )
+
+    def ListTasks(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        return pb.ListTasksResponse(tasks=[self._summary(t) for t in self.deployer.tasks()])
+
+    def DescribeTask(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            task = self._task(request.task)
+            d = task.describe()
+            ports = []
+            for p in d.ports:
+                info = pb.PortInfo(
+                    name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
+                    connections=p.connections, event=p.event,
+                )
+                if p.direction == "out":
+                    port = task.port(p.name)
+                    last = port.last_written_value()
+                    if last is not None:
+                        info.last_value.CopyFrom(cv.encode(last, port.type))
+                        info.has_last_value = True
+                ports.append(info)
+            props = [
+                pb.PropertyInfo(name=p.name, type_name=p.type_name, json_value=json.dumps(p.value), doc=p.doc)
+                for p in d.properties
+            ]
+            ops = [
+                pb.OperationInfo(
+                    name=o.name, params=[pb.Parameter(name=n, type_name=t) for n, t in o.params],
+                    returns=o.returns, doc=o.doc, own_thread=o.own_thread, signature=o.signature,
+                )
+                for o in d.operations
+            ]
+            info = pb.TaskInfo(summary=self._summary(task), ports=ports, properties=props, operations=ops)
+            return pb.DescribeTaskResponse(task=info)
+        except Exception as exc:  # noqa: BLE001 - mapped to a status
+            abort(context, exc)
+
+    def ChangeState(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            task = self._task(request.task)
+            name = _TRANSITIONS.get(request.transition)
+            if name is None:
+                raise Abort("INVALID_ARGUMENT", f"unknown transition {request.transition}")
+            accepted = bool(getattr(task, name)())
+            return pb.ChangeStateResponse(accepted=accepted, state=task.state.name)
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    # ---- writing ---------------------------------------------------------------------
+    def _default_writer(self, task: str, port: Any) -> _Writer:
+        key = (task, port.name)
+        with self._lock:
+            writer = self._defaults.get(key)
+            if writer is None:
+                writer = self._defaults[key] = _Writer(task, port, ConnPolicy.data())
+            return writer
+
+    def WritePort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            if request.writer_id:
+                with self._lock:
+                    writer = self._writers.get(request.writer_id)
+                if writer is None:
+                    raise NotFoundError(f"writer {request.writer_id} is not open on this deployer")
+                port = writer.target
+                task = writer.task
+            else:
+                task = request.task
+                port = self._port(task, request.port, want_input=True)
+                writer = self._default_writer(task, port)
+            where = f"{task}.{port.name}"
+            value = self._value_for(where, port.type, port.type_name, request.value, request.json)
+            status = writer.out.write(value)
+            return pb.WritePortResponse(status=cv.write_to_msg(status))
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def OpenWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            port = self._port(request.task, request.port, want_input=True)
+            writer = _Writer(request.task, port, cv.policy_from_msg(request.policy))
+            with self._lock:
+                wid = self._next_writer
+                self._next_writer += 1
+                self._writers[wid] = writer
+            return pb.OpenWriterResponse(writer_id=wid)
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def CloseWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        with self._lock:
+            writer = self._writers.pop(request.writer_id, None)
+        if writer is not None:
+            writer.close()
+        return pb.CloseWriterResponse()
+
+    def WritePortStream(self, request_iterator: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        writer: _Writer | None = None
+        written = failures = 0
+        try:
+            for msg in request_iterator:
+                if writer is None:
+                    port = self._port(msg.task, msg.port, want_input=True)
+                    writer = _Writer(msg.task, port, cv.policy_from_msg(msg.policy))
+                    where = f"{msg.task}.{port.name}"
+                if not msg.value.type_name:
+                    continue
+                value = self._value_for(where, writer.target.type, writer.target.type_name, msg.value, "")
+                if writer.out.write(value) is WriteStatus.WRITE_SUCCESS:
+                    written += 1
+                else:
+                    failures += 1
+            return pb.WritePortStreamResponse(written=written, failures=failures)
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+        finally:
+            if writer is not None:
+                writer.close()
+
+    # ---- reading and subscribing -------------------------------------------------------
+    def ReadPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            port = self._port(request.task, request.port, want_input=False)
+            key = (request.task, port.name)
+            with self._lock:
+                tap = self._taps.get(key)
+                if tap is None:
+                    tap = self._taps[key] = _Tap(port)
+            value = port.last_written_value()
+            if value is None:
+                return pb.ReadPortResponse(flow_status=cv.flow_to_msg(FlowStatus.NO_DATA))
+            return pb.ReadPortResponse(
+                flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=cv.encode(value, port.type),
+                sequence=tap.sequence, source_time_ns=tap.stamp,
+            )
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def Subscribe(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            port = self._port(request.task, request.port, want_input=False)
+            policy = cv.policy_from_msg(request.policy)
+            with self._lock:
+                if len(self._streams) >= self.max_streams:
+                    raise Abort("RESOURCE_EXHAUSTED", f"this deployer serves at most {self.max_streams} subscriptions")
+                stream = _Stream(port, policy)
+                self._streams.add(stream)
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+        context.add_callback(stream.wake.set)  # a cancelled stream wakes at once
+        heartbeat = (request.heartbeat_ms or self.heartbeat_ms) / 1000.0
+        try:
+            yield pb.SubscribeResponse(heartbeat=True)  # tells the client it is connected
+            while context.is_active() and not self._stopping.is_set():
+                if not stream.wake.wait(heartbeat):
+                    yield pb.SubscribeResponse(heartbeat=True, dropped=stream.connection.dropped)
+                    continue
+                stream.wake.clear()
+                pending = stream.drain()
+                for start in range(0, len(pending), self.batch):
+                    samples = [
+                        pb.Sample(value=cv.encode(value, port.type), sequence=seq, source_time_ns=stamp)
+                        for value, seq, stamp in pending[start : start + self.batch]
+                    ]
+                    yield pb.SubscribeResponse(samples=samples, dropped=stream.connection.dropped)
+        finally:
+            with self._lock:
+                self._streams.discard(stream)
+            stream.close()
+
+    # ---- operations and properties -----------------------------------------------------
+    def CallOperation(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        from dataflow.types import registry
+
+        try:
+            task = self._task(request.task)
+            ops = task.operations()
+            if request.operation not in ops:
+                raise NotFoundError(
+                    f"{task.name} has no operation {request.operation!r}; operations: {', '.join(sorted(ops)) or '(none)'}"
+                )
+            desc = ops[request.operation]
+            given = list(request.json_args) if request.use_json else list(request.args)
+            if len(given) != len(desc.params):
+                raise Abort(
+                    "INVALID_ARGUMENT",
+                    f"{task.name}.{desc.signature or desc.name} takes {len(desc.params)} argument(s), got {len(given)}",
+                )
+            args = []
+            for (pname, tname), arg in zip(desc.params, given, strict=True):
+                py_type = registry.python_type(tname)
+                where = f"{task.name}.{desc.name}({pname})"
+                if request.use_json:
+                    args.append(self._value_for(where, py_type if py_type is not None else tname, tname, None, arg))
+                elif py_type is not None:
+                    args.append(self._value_for(where, py_type, tname, arg, ""))
+                else:
+                    args.append(cv.decode(arg))
+            try:
+                result = task.call(desc.name, *args)
+            except (NotFoundError, PortTypeError, Abort):
+                raise
+            except Exception as exc:  # noqa: BLE001 - the operation's own failure
+                raise Abort("UNKNOWN", f"{task.name}.{desc.name} raised {type(exc).__name__}: {exc}") from None
+            return pb.CallOperationResponse(result=cv.encode(result))
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def _property(self, task: Any, name: str) -> Any:
+        props = task.properties()
+        if name not in props:
+            raise NotFoundError(f"{task.name} has no property {name!r}; properties: {', '.join(sorted(props)) or '(none)'}")
+        return props[name]
+
+    def GetProperty(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            task = self._task(request.task)
+            prop = self._property(task, request.name)
+            value = task.get_property(request.name)
+            return pb.GetPropertyResponse(value=cv.encode(value, prop.type), json_value=cv.to_json_text(value))
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def SetProperty(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            task = self._task(request.task)
+            prop = self._property(task, request.name)
+            where = f"{task.name}.{request.name}"
+            value = self._value_for(where, prop.type, prop.type_name, request.value, request.json)
+            task.set_property(request.name, value)
+            return pb.SetPropertyResponse(json_value=cv.to_json_text(task.get_property(request.name)))
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    # ---- connections (delegated to the server, which owns the links) -------------------
+    def ConnectPorts(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            local, address = self.owner.connect_ports(
+                request.source_task, request.source_port, request.sink_task, request.sink_port,
+                cv.policy_from_msg(request.policy),
+            )
+            return pb.ConnectPortsResponse(local=local, sink_address=address)
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def DisconnectPorts(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            done = self.owner.disconnect_ports(
+                request.source_task, request.source_port, request.sink_task, request.sink_port
+            )
+            return pb.DisconnectPortsResponse(disconnected=done)
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)

@@ -1,0 +1,237 @@
+"""Client side of a gRPC subscription (private; built by ``GrpcComponentProxy.subscribe``).
+
+Two threads per subscription: the *receiver* owns the stream (or the polling loop),
+puts samples into a policy-shaped :class:`Mailbox` and reconnects after failures; the
+*dispatcher* calls the observer. With DATA the mailbox keeps only the newest sample, so
+a slow observer never sees a backlog; with BUFFER(n) it holds n and counts the rest as
+dropped; the server's own connection does the same on the task's side and reports its
+drops in every message. A peer silent for 3 heartbeats is treated as frozen: the stream
+is cancelled and re-established (through the name service), and the gap is reported.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import grpc
+
+from dataflow.errors import DataflowError
+from dataflow.policy import ConnPolicy, FlowStatus
+from dataflow.remote import _convert as cv
+from dataflow.remote import _rpc
+from dataflow.remote._proto import df as pb
+from dataflow.remote.api import Dispatcher, GapEvent, Mailbox, Observer, SampleEvent, Subscription
+
+if TYPE_CHECKING:
+    from dataflow.remote.client import GrpcComponentProxy
+
+log = logging.getLogger(__name__)
+
+
+class GrpcSubscription(Subscription):
+    """A push (or, with ``period``, polling) subscription over gRPC.
+
+    Counters: :attr:`delivered` (observer calls), :attr:`dropped`, :attr:`polls` and
+    :attr:`wasted_polls` (polls that found nothing new), :attr:`reconnects`.
+    """
+
+    def __init__(
+        self,
+        proxy: GrpcComponentProxy,
+        port: str,
+        observer: Observer,
+        policy: ConnPolicy,
+        period: float | None,
+        on_gap: Callable[[GapEvent], None] | None,
+    ) -> None:
+        super().__init__(proxy.name, port, policy, period)
+        self._proxy = proxy
+        self._system = proxy.system
+        self._observer = observer
+        self._on_gap = on_gap
+        self._heartbeat = self._system.heartbeat_ms / 1000.0
+        self._mailbox: Mailbox[SampleEvent] = Mailbox(policy)
+        self._closed = threading.Event()
+        self._call: Any = None
+        self._connected = False
+        self._up = threading.Event()
+        self._settled = threading.Event()  # first attempt done: connected or failed
+        self._first_error: BaseException | None = None
+        self._gap_start: float | None = None
+        self._gap_reason = ""
+        self._last_seen = time.monotonic()
+        self._server_dropped_done = 0
+        self._server_dropped_now = 0
+        self.polls = 0
+        self.wasted_polls = 0
+        self.reconnects = 0
+        label = f"{proxy.name}.{port}"
+        self._dispatcher = Dispatcher(
+            f"scart-sub-{label}", self._mailbox, self._deliver, idle=self._heartbeat, on_idle=self._watchdog
+        )
+        self._receiver = threading.Thread(target=self._run, name=f"scart-recv-{label}", daemon=True)
+        self._system.own(self)
+        self._dispatcher.start()
+        self._receiver.start()
+        self._settled.wait(self._system.timeout)  # connected on the task's side before returning
+        if self._first_error is not None and not self._connected:
+            error = self._first_error
+            self.close()
+            raise error
+
+    # ---- counters ----------------------------------------------------------------------
+    @property
+    def dropped(self) -> int:
+        return self._server_dropped_done + self._server_dropped_now + self._mailbox.dropped
+
+    @property
+    def connected(self) -> bool:
+        return self._connected
+
+    # ---- observer side -----------------------------------------------------------------
+    def _deliver(self, event: object) -> None:
+        self.delivered += 1
+        self._observer(event)  # type: ignore[arg-type]
+
+    def _watchdog(self) -> None:
+        """Dispatcher idle: cancel a stream whose peer stopped sending heartbeats."""
+        call = self._call
+        if self.period is None and call is not None and self._connected:
+            silent = time.monotonic() - self._last_seen
+            if silent > 3 * self._heartbeat:
+                self._mark_down(f"no heartbeat for {silent:.1f} s (peer frozen?)")
+                call.cancel()
+
+    # ---- connection state --------------------------------------------------------------
+    def _mark_up(self) -> None:
+        self._last_seen = time.monotonic()
+        if self._connected:
+            return
+        self._connected = True
+        self._up.set()
+        self._settled.set()
+        if self._gap_start is not None:
+            gap = GapEvent(self.component, self.port, self._gap_start, time.time(), self._gap_reason)
+            self._gap_start = None
+            with self._lock:
+                self._gaps.append(gap)
+            log.info("subscription %s.%s resumed after %.2f s (%s)", self.component, self.port, gap.duration, gap.reason)
+            if self._on_gap is not None:
+                try:
+                    self._on_gap(gap)
+                except Exception:  # noqa: BLE001
+                    log.exception("on_gap callback raised")
+
+    def _mark_down(self, reason: str) -> None:
+        if self._gap_start is None and not self._closed.is_set():
+            self._gap_start = time.time()
+            self._gap_reason = reason
+        self._connected = False
+        self._up.clear()
+
+    # ---- receiver ----------------------------------------------------------------------
+    def _run(self) -> None:
+        backoff = 0.05
+        fresh = False
+        while not self._closed.is_set():
+            try:
+                address = self._system.resolve(self.component, fresh=fresh)
+                if self.period is None:
+                    self._stream(address)
+                else:
+                    self._poll()
+                backoff = 0.05
+                reason = "stream ended by the server"
+            except (grpc.RpcError, DataflowError) as exc:
+                reason = _reason(exc)
+                if not self._settled.is_set():
+                    self._first_error = _first_failure(exc, self._system.address)
+            self._settled.set()
+            if self._closed.is_set():
+                return
+            self._mark_down(reason)
+            fresh = True
+            self.reconnects += 1
+            if self._closed.wait(backoff):
+                return
+            backoff = min(1.0, backoff * 2)
+
+    def _stream(self, address: str) -> None:
+        req = pb.SubscribeRequest(
+            task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy),
+            heartbeat_ms=self._system.heartbeat_ms,
+        )
+        self._last_seen = time.monotonic()
+        call = self._system.stub(address).Subscribe(req)
+        self._call = call
+        if self._closed.is_set():
+            call.cancel()
+            return
+        try:
+            for msg in call:
+                self._mark_up()
+                self._server_dropped_now = msg.dropped
+                for sample in msg.samples:
+                    event = SampleEvent(
+                        self.component, self.port, cv.decode(sample.value), FlowStatus.NEW_DATA,
+                        sample.source_time_ns / 1e9, sample.sequence,
+                    )
+                    self._mailbox.put(event)
+        finally:
+            self._call = None
+            self._server_dropped_done += self._server_dropped_now
+            self._server_dropped_now = 0
+
+    def _poll(self) -> None:
+        """JOrocos-style polling: ReadPort every ``period`` s, deliver what is new."""
+        assert self.period is not None
+        while not self._closed.is_set():
+            flow, value, seq, stamp = self._proxy.read_sample(self.port)
+            self._mark_up()
+            self.polls += 1
+            if flow is FlowStatus.NEW_DATA:
+                self._mailbox.put(SampleEvent(self.component, self.port, value, flow, stamp / 1e9, seq))
+            else:
+                self.wasted_polls += 1
+            if self._closed.wait(self.period):
+                return
+
+    def wait_connected(self, timeout: float) -> bool:
+        """Block until samples can flow (≤ ``timeout`` s); True if connected."""
+        return self._up.wait(timeout)
+
+    def close(self) -> None:
+        """Cancel the stream, end both threads (joins ≤ 5 s each); idempotent."""
+        if self._closed.is_set():
+            return
+        self._closed.set()
+        self._system.disown(self)
+        call = self._call
+        if call is not None:
+            call.cancel()
+        if threading.current_thread() is not self._receiver:
+            self._receiver.join(timeout=5.0)
+        self._dispatcher.stop()
+
+
+def _first_failure(exc: BaseException, address: str) -> BaseException | None:
+    """The error to raise from ``subscribe`` when the very first attempt failed for a
+    reason retrying cannot fix (refused, unknown, limit reached); None for transient ones."""
+    if isinstance(exc, grpc.RpcError) and hasattr(exc, "code"):
+        if exc.code() in (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED, grpc.StatusCode.CANCELLED):
+            return None
+        return _rpc.translate(exc, address)
+    return None
+
+
+def _reason(exc: BaseException) -> str:
+    if isinstance(exc, grpc.RpcError) and hasattr(exc, "code"):
+        return f"{exc.code().name}: {exc.details()}"
+    return f"{type(exc).__name__}: {exc}"
+
+
+__all__ = ["GrpcSubscription"]

@@ -1,0 +1,397 @@
+"""The transport-neutral proxy API (JOrocos's *core* package): what a client of a
+data-flow system sees, whatever carries the calls. Two implementations:
+:mod:`dataflow.remote.local` (in-process, no gRPC) and :mod:`dataflow.remote.client`
+(gRPC). Nothing here imports gRPC; descriptions are the core's pydantic models, errors
+the core's error tree (plus :mod:`dataflow.remote.errors`).
+
+Story: ``system = connect(address)`` → ``proxy = system.component("driver")`` →
+introspect (``ports()``, ``operations()``, ``properties()``, ``state``) → ``write`` /
+``subscribe`` / ``call`` / ``set_property`` → ``sub.close()`` → ``system.close()``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from abc import ABC, abstractmethod
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Generic, TypeVar
+
+from dataflow.policy import ConnPolicy, ConnType, FlowStatus, WriteStatus
+
+if TYPE_CHECKING:  # the core's description models
+    from dataflow import OperationDescription, PortDescription, PropertyDescription, TaskDescription
+
+__all__ = [
+    "SampleEvent",
+    "GapEvent",
+    "ComponentInfo",
+    "Observer",
+    "Subscription",
+    "PortWriter",
+    "ComponentProxy",
+    "System",
+]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class SampleEvent:
+    """One sample delivered to an observer.
+
+    ``source_time`` is the wall-clock time (s since the epoch) the sample was stored for
+    this subscription on the task's side; ``sequence`` counts samples stored for this
+    subscription (a jump means samples were dropped by the policy).
+    """
+
+    component: str
+    port: str
+    value: object
+    flow_status: FlowStatus
+    source_time: float
+    sequence: int
+
+
+@dataclass(frozen=True)
+class GapEvent:
+    """The subscription was cut from ``started`` to ``ended`` (wall-clock s) and resumed."""
+
+    component: str
+    port: str
+    started: float
+    ended: float
+    reason: str
+
+    @property
+    def duration(self) -> float:
+        """Length of the gap in seconds."""
+        return self.ended - self.started
+
+
+@dataclass(frozen=True)
+class ComponentInfo:
+    """One line of ``scart ls``: a component's summary and the deployer serving it."""
+
+    name: str
+    state: str
+    activity: str
+    period: float
+    cycles: int
+    overruns: int
+    address: str
+
+
+Observer = Callable[[SampleEvent], None]
+
+T = TypeVar("T")
+
+
+class Mailbox(Generic[T]):
+    """A policy-shaped hand-over between a producer and the observer's thread.
+
+    DATA keeps only the newest item; BUFFER(n) refuses items when n are pending;
+    CIRCULAR_BUFFER(n) drops the oldest. Every item lost is counted in :attr:`dropped`.
+    :meth:`put` never blocks; :meth:`get` blocks up to ``timeout``. Thread-safe.
+    """
+
+    def __init__(self, policy: ConnPolicy) -> None:
+        self._kind = policy.type
+        self._size = max(1, policy.size) if policy.type is not ConnType.DATA else 1
+        self._items: deque[T] = deque()
+        self._cond = threading.Condition()
+        self._closed = False
+        self.dropped = 0
+
+    def put(self, item: T) -> bool:
+        """Store ``item``; False when it was refused (full BUFFER)."""
+        with self._cond:
+            if len(self._items) >= self._size:
+                self.dropped += 1
+                if self._kind is ConnType.BUFFER:
+                    return False
+                self._items.popleft()
+            self._items.append(item)
+            self._cond.notify()
+            return True
+
+    def get(self, timeout: float) -> T | None:
+        """The oldest pending item, or None after ``timeout`` s or when closed."""
+        with self._cond:
+            if not self._items and not self._closed:
+                self._cond.wait(timeout)
+            return self._items.popleft() if self._items else None
+
+    def close(self) -> None:
+        """Wake :meth:`get` for good (idempotent)."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+
+class Subscription(ABC):
+    """A live subscription to an output port; the observer runs on the subscription's own
+    thread, so a slow observer never slows the task or other subscribers.
+
+    :meth:`close` is idempotent, blocks until the subscription's threads ended (≤ ~5 s),
+    and may be called from inside the observer.
+    """
+
+    def __init__(self, component: str, port: str, policy: ConnPolicy, period: float | None) -> None:
+        self.component = component
+        self.port = port
+        self.policy = policy
+        self.period = period
+        self._gaps: list[GapEvent] = []
+        self._lock = threading.Lock()
+        self.delivered = 0
+
+    @property
+    @abstractmethod
+    def dropped(self) -> int:
+        """Samples lost to the policy so far (task side and client side together)."""
+
+    @property
+    @abstractmethod
+    def connected(self) -> bool:
+        """True while samples can flow (False during a gap)."""
+
+    @property
+    def gaps(self) -> list[GapEvent]:
+        """The gaps (disconnections that ended by resuming) so far, oldest first."""
+        with self._lock:
+            return list(self._gaps)
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop delivering and release every resource; idempotent."""
+
+    def __enter__(self) -> Subscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Dispatcher:
+    """The observer's thread: takes items from a :class:`Mailbox` and calls ``deliver``.
+
+    ``on_idle`` is called whenever ``idle`` s pass without an item (heartbeat watchdog).
+    An exception in ``deliver`` is logged and does not end the thread.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        mailbox: Mailbox,
+        deliver: Callable[[object], None],
+        idle: float = 0.5,
+        on_idle: Callable[[], None] | None = None,
+    ) -> None:
+        self._mailbox = mailbox
+        self._deliver = deliver
+        self._idle = idle
+        self._on_idle = on_idle
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> None:
+        """Start the thread (once)."""
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            item = self._mailbox.get(self._idle)
+            if self._stop.is_set():
+                return
+            if item is None:
+                if self._on_idle is not None:
+                    self._on_idle()
+                continue
+            try:
+                self._deliver(item)
+            except Exception:  # noqa: BLE001 - an observer bug must not end the subscription
+                log.exception("observer of %s raised", self._thread.name)
+
+    def stop(self) -> None:
+        """Signal and join (unless called from the dispatcher thread itself)."""
+        self._stop.set()
+        self._mailbox.close()
+        if threading.current_thread() is not self._thread and self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+
+
+class PortWriter(ABC):
+    """A connection from the client to one input port, with the policy it was opened with.
+
+    :meth:`write` returns a :class:`WriteStatus` (hot path: no raise for a full buffer) but
+    raises :class:`dataflow.errors.PortTypeError` for a value of the wrong type.
+    :meth:`close` is idempotent.
+    """
+
+    def __init__(self, component: str, port: str, policy: ConnPolicy) -> None:
+        self.component = component
+        self.port = port
+        self.policy = policy
+
+    @abstractmethod
+    def write(self, value: object) -> WriteStatus:
+        """Send one sample."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Disconnect from the port."""
+
+    def __enter__(self) -> PortWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class ComponentProxy(ABC):
+    """A data-flow component seen from a client (the JOrocos ``TaskProxy``).
+
+    Every method may raise :class:`dataflow.errors.NotFoundError` (unknown port, property,
+    operation — the message lists what exists) and, for remote proxies,
+    :class:`dataflow.remote.errors.UnavailableError` / ``RemoteTimeoutError`` (each call has
+    a deadline). Methods are thread-safe.
+    """
+
+    name: str
+
+    @property
+    @abstractmethod
+    def state(self) -> str:
+        """The task's lifecycle state name (e.g. ``"RUNNING"``)."""
+
+    @abstractmethod
+    def describe(self) -> TaskDescription:
+        """Full introspection: state, activity, ports, properties, operations."""
+
+    @abstractmethod
+    def last_values(self) -> dict[str, object]:
+        """The last value written on each output port that has one."""
+
+    def ports(self) -> dict[str, PortDescription]:
+        """The ports by name."""
+        return {p.name: p for p in self.describe().ports}
+
+    def properties(self) -> dict[str, PropertyDescription]:
+        """The properties (with current values) by name."""
+        return {p.name: p for p in self.describe().properties}
+
+    def operations(self) -> dict[str, OperationDescription]:
+        """The operations by name."""
+        return {o.name: o for o in self.describe().operations}
+
+    @abstractmethod
+    def change_state(self, transition: str) -> bool:
+        """Run ``configure|start|stop|cleanup|recover``; True if the task accepted it."""
+
+    def configure(self) -> bool:
+        """Configure the task; True if accepted."""
+        return self.change_state("configure")
+
+    def start(self) -> bool:
+        """Start the task; True if accepted."""
+        return self.change_state("start")
+
+    def stop(self) -> bool:
+        """Stop the task; True if accepted."""
+        return self.change_state("stop")
+
+    def cleanup(self) -> bool:
+        """Clean the task up; True if accepted."""
+        return self.change_state("cleanup")
+
+    @abstractmethod
+    def connect_input(self, port: str, policy: ConnPolicy = ConnPolicy.data()) -> PortWriter:
+        """A writer connected to input ``port`` with ``policy``."""
+
+    @abstractmethod
+    def write(self, port: str, value: object) -> WriteStatus:
+        """Write one sample to input ``port`` through its default (DATA) writer."""
+
+    @abstractmethod
+    def write_json(self, port: str, json_value: object) -> WriteStatus:
+        """Write a JSON-shaped value; converted to the port's type by the task's side."""
+
+    @abstractmethod
+    def read(self, port: str) -> tuple[FlowStatus, object | None]:
+        """The newest sample of output ``port``: NEW_DATA if written since this proxy's last read."""
+
+    @abstractmethod
+    def subscribe(
+        self,
+        port: str,
+        observer: Observer,
+        policy: ConnPolicy = ConnPolicy.data(),
+        period: float | None = None,
+        on_gap: Callable[[GapEvent], None] | None = None,
+    ) -> Subscription:
+        """Deliver samples of output ``port`` to ``observer`` (push; ``period`` = polling)."""
+
+    @abstractmethod
+    def call(self, operation: str, *args: object, timeout: float | None = None) -> object:
+        """Call an operation and return its result (blocks ≤ ``timeout``)."""
+
+    @abstractmethod
+    def call_json(self, operation: str, json_args: list[object], timeout: float | None = None) -> object:
+        """Call with JSON-shaped arguments, converted to the parameter types by the task's side."""
+
+    @abstractmethod
+    def get_property(self, name: str) -> object:
+        """A property's current value."""
+
+    @abstractmethod
+    def set_property(self, name: str, value: object) -> None:
+        """Set a property (validated; raises ``PortTypeError`` / ``PropertyValueError``)."""
+
+    @abstractmethod
+    def set_property_json(self, name: str, json_value: object) -> object:
+        """Set a property from a JSON-shaped value; returns the stored value as JSON."""
+
+
+class System(ABC):
+    """A data-flow system: every component known to one name service (or one deployer)."""
+
+    @abstractmethod
+    def component_names(self) -> list[str]:
+        """Names of the components, sorted."""
+
+    @abstractmethod
+    def component(self, name: str) -> ComponentProxy:
+        """A proxy for ``name``; raises ``NotFoundError`` listing the known names."""
+
+    @abstractmethod
+    def components(self) -> list[ComponentInfo]:
+        """A summary line per component."""
+
+    @abstractmethod
+    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data()) -> None:
+        """Connect ``"task.out"`` to ``"task.in"`` (possibly in another deployer)."""
+
+    @abstractmethod
+    def disconnect_ports(self, source: str, sink: str) -> bool:
+        """Undo :meth:`connect_ports`; False if they were not connected."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Close every subscription, writer and channel opened through this system; idempotent."""
+
+    def __enter__(self) -> System:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def split_port(text: str) -> tuple[str, str]:
+    """``"task.port"`` → ``("task", "port")``; raises ``ValueError`` for anything else."""
+    task, dot, port = text.rpartition(".")
+    if not dot or not task or not port:
+        raise ValueError(f"expected COMPONENT.PORT, got {text!r}")
+    return task, port

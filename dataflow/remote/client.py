@@ -1,0 +1,345 @@
+"""The gRPC implementation of the proxy API (JOrocos's *corba* package).
+
+``connect(address)`` talks to a name service (standalone, or embedded in a deployer)
+and reaches each component's deployer directly. Every unary call has a deadline
+(``timeout``). Proxies hold names, not addresses: a call that finds its deployer gone
+re-resolves the name and retries once, so a restarted deployer (same or new address)
+is picked up by itself. Subscriptions run on two threads each — a receiver that owns
+the stream (and reconnects, reporting the gap), and the observer's dispatcher fed
+through a policy-shaped :class:`~dataflow.remote.api.Mailbox` — and detect a frozen
+peer by the stream's heartbeats (3 missed → reconnect).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import grpc
+
+from dataflow.errors import DataflowError
+from dataflow.introspection import OperationDescription, PortDescription, PropertyDescription, TaskDescription
+from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
+from dataflow.remote import _convert as cv
+from dataflow.remote import _rpc, errors
+from dataflow.remote._proto import DEPLOYER_SERVICE
+from dataflow.remote._proto import df as pb
+from dataflow.remote._subscription import GrpcSubscription
+from dataflow.remote.api import (
+    ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, System, split_port,
+)
+from dataflow.remote.naming import NameClient
+
+__all__ = ["GrpcSystem", "GrpcComponentProxy", "GrpcSubscription", "GrpcPortWriter", "connect"]
+
+log = logging.getLogger(__name__)
+
+_RETRYABLE = (errors.UnavailableError,)
+_TRANSITIONS = {
+    "configure": "TRANSITION_CONFIGURE", "start": "TRANSITION_START", "stop": "TRANSITION_STOP",
+    "cleanup": "TRANSITION_CLEANUP", "recover": "TRANSITION_RECOVER",
+}
+
+
+class GrpcSystem(System):
+    """A data-flow system reached through the name service at ``address``.
+
+    ``timeout``: deadline of every unary call (s). ``heartbeat_ms``: idle heartbeat the
+    subscriptions ask for (a peer silent for 3 of them is treated as frozen).
+    Thread-safe; :meth:`close` is idempotent and closes every subscription and writer.
+    """
+
+    def __init__(self, address: str, timeout: float = 2.0, heartbeat_ms: int = 500) -> None:
+        self.address = address
+        self.timeout = timeout
+        self.heartbeat_ms = heartbeat_ms
+        self._ns = NameClient(address, timeout=timeout)
+        self._lock = threading.Lock()
+        self._channels: dict[str, tuple[grpc.Channel, _rpc.Stub]] = {}
+        self._where: dict[str, str] = {}
+        self._owned: set[Any] = set()
+        self._closed = False
+
+    # ---- plumbing ----------------------------------------------------------------------
+    def stub(self, address: str) -> _rpc.Stub:
+        """The DeployerService stub for ``address`` (one channel per address, cached)."""
+        with self._lock:
+            if self._closed:
+                raise errors.ClosedError("this system proxy is closed")
+            entry = self._channels.get(address)
+            if entry is None:
+                channel = grpc.insecure_channel(address, options=_rpc.channel_options())
+                entry = self._channels[address] = (channel, _rpc.Stub(channel, DEPLOYER_SERVICE))
+            return entry[1]
+
+    def resolve(self, component: str, fresh: bool = False) -> str:
+        """Address of the deployer serving ``component`` (cached unless ``fresh``)."""
+        with self._lock:
+            cached = self._where.get(component)
+        if cached and not fresh:
+            return cached
+        address = self._ns.resolve(component).address
+        with self._lock:
+            self._where[component] = address
+        return address
+
+    def invoke(self, component: str, method: str, request: Any, timeout: float | None = None) -> Any:
+        """Call ``method`` on the deployer of ``component`` with a deadline; when the deployer is
+        gone (UNAVAILABLE) or no longer has the component, re-resolve and retry once."""
+        deadline = timeout or self.timeout
+        address = self.resolve(component)
+        try:
+            return _rpc.call(getattr(self.stub(address), method), request, deadline, address)
+        except _RETRYABLE:
+            address = self.resolve(component, fresh=True)
+        except errors.RemoteNotFoundError:
+            # the cached address may now be served by another deployer: retry only if moved
+            moved = self.resolve(component, fresh=True)
+            if moved == address:
+                raise
+            address = moved
+        return _rpc.call(getattr(self.stub(address), method), request, deadline, address)
+
+    def own(self, item: Any) -> None:
+        """Track a subscription/writer so :meth:`close` closes it."""
+        with self._lock:
+            self._owned.add(item)
+
+    def disown(self, item: Any) -> None:
+        """Stop tracking ``item`` (idempotent)."""
+        with self._lock:
+            self._owned.discard(item)
+
+    # ---- System API --------------------------------------------------------------------
+    def component_names(self) -> list[str]:
+        """Names registered in the name service, sorted."""
+        return sorted(e.component for e in self._ns.entries())
+
+    def component(self, name: str) -> GrpcComponentProxy:
+        """A proxy; raises ``NotFoundError`` listing the registered names."""
+        self.resolve(name, fresh=True)
+        return GrpcComponentProxy(self, name)
+
+    def components(self) -> list[ComponentInfo]:
+        """A summary per registered component (one ListTasks per deployer)."""
+        entries = self._ns.entries()
+        out: list[ComponentInfo] = []
+        for address in sorted({e.address for e in entries}):
+            names = {e.component for e in entries if e.address == address}
+            try:
+                reply = _rpc.call(self.stub(address).ListTasks, pb.ListTasksRequest(), self.timeout, address)
+            except errors.RemoteError as exc:
+                log.warning("deployer %s: %s", address, exc)
+                out += [ComponentInfo(n, "UNREACHABLE", "", 0.0, 0, 0, address) for n in sorted(names)]
+                continue
+            for t in reply.tasks:
+                if t.name in names:
+                    out.append(ComponentInfo(t.name, t.state, t.activity, t.period, t.cycles, t.overruns, address))
+        return sorted(out, key=lambda c: c.name)
+
+    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data()) -> None:
+        """Connect ``"a.out"`` to ``"b.in"``; the source's deployer makes the link."""
+        (st, sp), (kt, kp) = split_port(source), split_port(sink)
+        req = pb.ConnectPortsRequest(
+            source_task=st, source_port=sp, sink_task=kt, sink_port=kp, policy=cv.policy_to_msg(policy)
+        )
+        self.invoke(st, "ConnectPorts", req)
+
+    def disconnect_ports(self, source: str, sink: str) -> bool:
+        """Undo :meth:`connect_ports`; False if they were not connected."""
+        (st, sp), (kt, kp) = split_port(source), split_port(sink)
+        req = pb.DisconnectPortsRequest(source_task=st, source_port=sp, sink_task=kt, sink_port=kp)
+        return bool(self.invoke(st, "DisconnectPorts", req).disconnected)
+
+    def close(self) -> None:
+        """Close subscriptions, writers, channels (idempotent)."""
+        with self._lock:
+            if self._closed:
+                return
+            owned = list(self._owned)
+            self._owned.clear()
+        for item in owned:
+            item.close()
+        with self._lock:
+            self._closed = True
+            channels = [c for c, _ in self._channels.values()]
+            self._channels.clear()
+        for channel in channels:
+            channel.close()
+        self._ns.close()
+
+
+def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
+    s = info.summary
+    ports = [
+        PortDescription(
+            name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
+            connections=p.connections, event=p.event,
+        )
+        for p in info.ports
+    ]
+    props = [
+        PropertyDescription(name=p.name, type_name=p.type_name, value=json.loads(p.json_value or "null"), doc=p.doc)
+        for p in info.properties
+    ]
+    ops = [
+        OperationDescription(
+            name=o.name, params=[(x.name, x.type_name) for x in o.params], returns=o.returns,
+            doc=o.doc, own_thread=o.own_thread, signature=o.signature,
+        )
+        for o in info.operations
+    ]
+    desc = TaskDescription(
+        name=s.name, state=s.state, activity=s.activity, period=s.period, cycles=s.cycles,
+        overruns=s.overruns, ports=ports, properties=props, operations=ops,
+    )
+    last = {p.name: cv.decode(p.last_value) for p in info.ports if p.has_last_value}
+    return desc, last
+
+
+class GrpcComponentProxy(ComponentProxy):
+    """A component reached over gRPC (see :class:`~dataflow.remote.api.ComponentProxy`)."""
+
+    def __init__(self, system: GrpcSystem, name: str) -> None:
+        self.system = system
+        self.name = name
+        self._seen: dict[str, int] = {}
+        self._lock = threading.Lock()
+
+    def _invoke(self, method: str, request: Any, timeout: float | None = None) -> Any:
+        return self.system.invoke(self.name, method, request, timeout)
+
+    @property
+    def state(self) -> str:
+        return self.describe().state
+
+    def describe(self) -> TaskDescription:
+        return self.describe_with_values()[0]
+
+    def describe_with_values(self) -> tuple[TaskDescription, dict[str, object]]:
+        """Description and output ports' last values from one call."""
+        return _task_description(self._invoke("DescribeTask", pb.DescribeTaskRequest(task=self.name)).task)
+
+    def last_values(self) -> dict[str, object]:
+        return self.describe_with_values()[1]
+
+    def change_state(self, transition: str) -> bool:
+        if transition not in _TRANSITIONS:
+            raise ValueError(f"unknown transition {transition!r}; expected one of {', '.join(_TRANSITIONS)}")
+        req = pb.ChangeStateRequest(task=self.name, transition=pb.Transition[_TRANSITIONS[transition]])
+        return bool(self._invoke("ChangeState", req).accepted)
+
+    def connect_input(self, port: str, policy: ConnPolicy = ConnPolicy.data()) -> GrpcPortWriter:
+        return GrpcPortWriter(self, port, policy)
+
+    def write(self, port: str, value: object) -> WriteStatus:
+        req = pb.WritePortRequest(task=self.name, port=port, value=cv.encode(value))
+        return cv.write_from_msg(self._invoke("WritePort", req).status)
+
+    def write_json(self, port: str, json_value: object) -> WriteStatus:
+        req = pb.WritePortRequest(task=self.name, port=port, json=json.dumps(json_value))
+        return cv.write_from_msg(self._invoke("WritePort", req).status)
+
+    def read(self, port: str) -> tuple[FlowStatus, object | None]:
+        return self.read_sample(port)[:2]
+
+    def read_sample(self, port: str, timeout: float | None = None) -> tuple[FlowStatus, object | None, int, int]:
+        """``(flow, value, sequence, source_time_ns)``; NEW_DATA when written since this proxy's last read."""
+        reply = self._invoke("ReadPort", pb.ReadPortRequest(task=self.name, port=port), timeout)
+        flow = cv.flow_from_msg(reply.flow_status)
+        if flow is FlowStatus.NO_DATA:
+            return FlowStatus.NO_DATA, None, 0, 0
+        with self._lock:
+            new = self._seen.get(port) != reply.sequence
+            self._seen[port] = reply.sequence
+        flow = FlowStatus.NEW_DATA if new else FlowStatus.OLD_DATA
+        return flow, cv.decode(reply.value), reply.sequence, reply.source_time_ns
+
+    def subscribe(
+        self,
+        port: str,
+        observer: Observer,
+        policy: ConnPolicy = ConnPolicy.data(),
+        period: float | None = None,
+        on_gap: Callable[[GapEvent], None] | None = None,
+    ) -> GrpcSubscription:
+        self.read_sample(port)  # raises now for an unknown port or an input port
+        with self._lock:
+            self._seen.pop(port, None)
+        return GrpcSubscription(self, port, observer, policy, period, on_gap)
+
+    def call(self, operation: str, *args: object, timeout: float | None = None) -> object:
+        req = pb.CallOperationRequest(task=self.name, operation=operation, args=[cv.encode(a) for a in args])
+        return cv.decode(self._invoke("CallOperation", req, timeout).result)
+
+    def call_json(self, operation: str, json_args: list[object], timeout: float | None = None) -> object:
+        req = pb.CallOperationRequest(
+            task=self.name, operation=operation, json_args=[json.dumps(a) for a in json_args], use_json=True
+        )
+        return cv.decode(self._invoke("CallOperation", req, timeout).result)
+
+    def get_property(self, name: str) -> object:
+        return cv.decode(self._invoke("GetProperty", pb.GetPropertyRequest(task=self.name, name=name)).value)
+
+    def set_property(self, name: str, value: object) -> None:
+        self._invoke("SetProperty", pb.SetPropertyRequest(task=self.name, name=name, value=cv.encode(value)))
+
+    def set_property_json(self, name: str, json_value: object) -> object:
+        req = pb.SetPropertyRequest(task=self.name, name=name, json=json.dumps(json_value))
+        return json.loads(self._invoke("SetProperty", req).json_value)
+
+
+class GrpcPortWriter(PortWriter):
+    """A remote writer (OpenWriter); re-opened by itself after its deployer restarted."""
+
+    def __init__(self, proxy: GrpcComponentProxy, port: str, policy: ConnPolicy) -> None:
+        super().__init__(proxy.name, port, policy)
+        self._proxy = proxy
+        self._id = 0
+        self._closed = False
+        self._open()
+        proxy.system.own(self)
+
+    def _open(self) -> None:
+        req = pb.OpenWriterRequest(task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy))
+        self._id = self._proxy._invoke("OpenWriter", req).writer_id
+
+    def write(self, value: object) -> WriteStatus:
+        if self._closed:
+            raise errors.ClosedError(f"writer to {self.component}.{self.port} is closed")
+        req = pb.WritePortRequest(writer_id=self._id, value=cv.encode(value))
+        try:
+            return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
+        except (errors.RemoteNotFoundError, errors.UnavailableError):
+            self._open()  # the deployer restarted: our writer id is gone
+            req.writer_id = self._id
+            return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._proxy.system.disown(self)
+        try:
+            self._proxy._invoke("CloseWriter", pb.CloseWriterRequest(writer_id=self._id), timeout=0.5)
+        except DataflowError:
+            pass
+
+
+def connect(address: str, timeout: float = 2.0, heartbeat_ms: int = 500) -> GrpcSystem:
+    """Connect to the name service at ``address`` (standalone or embedded in a deployer).
+
+    Checks at once that it answers: raises :class:`errors.UnavailableError` naming the
+    address otherwise (or :class:`errors.RemoteTimeoutError`).
+    """
+    system = GrpcSystem(address, timeout=timeout, heartbeat_ms=heartbeat_ms)
+    try:
+        system.component_names()
+    except BaseException:
+        system.close()
+        raise
+    return system
+

@@ -1,0 +1,265 @@
+"""The in-process implementation of the proxy API (JOrocos's *core* package): the same
+:class:`~dataflow.remote.api.System` / :class:`~dataflow.remote.api.ComponentProxy` over a
+``Deployer`` in this process, without gRPC. Subscriptions connect a free-standing
+InputPort with the subscriber's policy (the port itself is the mailbox) and call the
+observer on the subscription's own thread.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from dataflow.errors import DataflowError, NotFoundError, PortTypeError
+from dataflow.introspection import TaskDescription
+from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
+from dataflow.ports import InputPort, OutputPort
+from dataflow.remote.api import (
+    ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, SampleEvent, Subscription, System, split_port,
+)
+from dataflow.remote.errors import ClosedError
+
+__all__ = ["LocalSystem", "LocalComponentProxy", "LocalSubscription", "LocalPortWriter"]
+
+
+def _port(task: Any, name: str, want_input: bool) -> Any:
+    port = task.port(name)
+    if port.is_input != want_input:
+        need = "an input" if want_input else "an output"
+        raise PortTypeError(f"{task.name}.{name} is not {need} port")
+    return port
+
+
+class LocalPortWriter(PortWriter):
+    """A free OutputPort connected to the task's input port with ``policy``."""
+
+    def __init__(self, task: Any, port: Any, policy: ConnPolicy) -> None:
+        super().__init__(task.name, port.name, policy)
+        self._target = port
+        self._out: OutputPort = OutputPort(port.type, name=f"local_{port.name}")
+        self._out.connect_to(port, policy)
+        self._closed = False
+
+    def write(self, value: object) -> WriteStatus:
+        if self._closed:
+            raise ClosedError(f"writer to {self.component}.{self.port} is closed")
+        from dataflow.types import registry
+
+        try:
+            value = registry.validate(self._target.type, value)
+        except PortTypeError as exc:
+            raise PortTypeError(f"{self.component}.{self.port} expects {self._target.type_name}: {exc}") from None
+        return self._out.write(value)
+
+    def close(self) -> None:
+        self._closed = True
+        self._out.disconnect(self._target)
+
+
+class LocalSubscription(Subscription):
+    """Samples of an output port delivered on this subscription's own thread."""
+
+    def __init__(self, task: Any, port: Any, observer: Observer, policy: ConnPolicy, period: float | None) -> None:
+        super().__init__(task.name, port.name, policy, period)
+        self._port = port
+        self._observer = observer
+        self._inp: InputPort = InputPort(port.type, name=f"sub_{port.name}")
+        self._wake = threading.Event()
+        self._closed = threading.Event()
+        self._seq = 0
+        self._inp.add_data_callback(self._on_data)
+        self._conn = port.connect_to(self._inp, policy)
+        self._wake.set()
+        self.polls = self.wasted_polls = 0
+        self._thread = threading.Thread(target=self._run, name=f"scart-local-sub-{task.name}.{port.name}", daemon=True)
+        self._thread.start()
+
+    def _on_data(self, _inp: InputPort) -> None:
+        self._seq += 1
+        if self.period is None:
+            self._wake.set()
+
+    @property
+    def dropped(self) -> int:
+        return self._conn.dropped
+
+    @property
+    def connected(self) -> bool:
+        return not self._closed.is_set()
+
+    def _run(self) -> None:
+        while not self._closed.is_set():
+            if self.period is None:
+                self._wake.wait()
+                self._wake.clear()
+            elif self._closed.wait(self.period):
+                return
+            found = False
+            for _ in range(10_000):
+                if self._closed.is_set():
+                    return
+                status, value = self._inp.read()
+                if status is not FlowStatus.NEW_DATA:
+                    break
+                found = True
+                self.delivered += 1
+                self._observer(SampleEvent(self.component, self.port, value, status, time.time(), self._seq))
+            self.polls += 1
+            self.wasted_polls += 0 if found else 1
+
+    def close(self) -> None:
+        if self._closed.is_set():
+            return
+        self._closed.set()
+        self._wake.set()
+        self._port.disconnect(self._inp)
+        self._inp.remove_data_callback(self._on_data)
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=5.0)
+
+
+class LocalComponentProxy(ComponentProxy):
+    """A task of an in-process deployer behind the proxy API."""
+
+    def __init__(self, system: LocalSystem, task: Any) -> None:
+        self.system = system
+        self.task = task
+        self.name = task.name
+        self._defaults: dict[str, LocalPortWriter] = {}
+        self._taps: dict[str, InputPort] = {}
+        self._lock = threading.Lock()
+
+    @property
+    def state(self) -> str:
+        return self.task.state.name
+
+    def describe(self) -> TaskDescription:
+        return self.task.describe()
+
+    def last_values(self) -> dict[str, object]:
+        out = {}
+        for name, port in self.task.ports().items():
+            if not port.is_input and (value := port.last_written_value()) is not None:
+                out[name] = value
+        return out
+
+    def change_state(self, transition: str) -> bool:
+        if transition not in ("configure", "start", "stop", "cleanup", "recover"):
+            raise ValueError(f"unknown transition {transition!r}")
+        return bool(getattr(self.task, transition)())
+
+    def connect_input(self, port: str, policy: ConnPolicy = ConnPolicy.data()) -> LocalPortWriter:
+        writer = LocalPortWriter(self.task, _port(self.task, port, True), policy)
+        self.system._own(writer)
+        return writer
+
+    def write(self, port: str, value: object) -> WriteStatus:
+        with self._lock:
+            writer = self._defaults.get(port)
+            if writer is None:
+                writer = self._defaults[port] = self.connect_input(port, ConnPolicy.data())
+        return writer.write(value)
+
+    def write_json(self, port: str, json_value: object) -> WriteStatus:
+        from dataflow.types import registry
+
+        target = _port(self.task, port, True)
+        return self.write(port, registry.from_jsonable(target.type, json_value))
+
+    def read(self, port: str) -> tuple[FlowStatus, object | None]:
+        with self._lock:
+            tap = self._taps.get(port)
+            if tap is None:
+                out = _port(self.task, port, False)
+                tap = self._taps[port] = InputPort(out.type, name=f"tap_{port}")
+                out.connect_to(tap, ConnPolicy.data())
+        return tap.read()
+
+    def subscribe(
+        self,
+        port: str,
+        observer: Observer,
+        policy: ConnPolicy = ConnPolicy.data(),
+        period: float | None = None,
+        on_gap: Callable[[GapEvent], None] | None = None,
+    ) -> LocalSubscription:
+        sub = LocalSubscription(self.task, _port(self.task, port, False), observer, policy, period)
+        self.system._own(sub)
+        return sub
+
+    def call(self, operation: str, *args: object, timeout: float | None = None) -> object:
+        return self.task.call(operation, *args)
+
+    def call_json(self, operation: str, json_args: list[object], timeout: float | None = None) -> object:
+        from dataflow.types import registry
+
+        ops = self.task.operations()
+        if operation not in ops:
+            raise NotFoundError(f"{self.name} has no operation {operation!r}; operations: {', '.join(sorted(ops))}")
+        params = ops[operation].params
+        if len(params) != len(json_args):
+            raise PortTypeError(f"{self.name}.{operation} takes {len(params)} argument(s), got {len(json_args)}")
+        args = [registry.from_jsonable(t, a) for (_n, t), a in zip(params, json_args, strict=True)]
+        return self.task.call(operation, *args)
+
+    def get_property(self, name: str) -> object:
+        return self.task.get_property(name)
+
+    def set_property(self, name: str, value: object) -> None:
+        self.task.set_property(name, value)
+
+    def set_property_json(self, name: str, json_value: object) -> object:
+        from dataflow.types import registry
+
+        prop = self.task.properties()[name] if name in self.task.properties() else None
+        if prop is None:
+            raise NotFoundError(f"{self.name} has no property {name!r}; properties: {', '.join(self.task.properties())}")
+        self.task.set_property(name, registry.from_jsonable(prop.type, json_value))
+        return registry.to_jsonable(self.task.get_property(name))
+
+
+class LocalSystem(System):
+    """The tasks of one in-process ``Deployer`` as a :class:`System`. Thread-safe; close idempotent."""
+
+    def __init__(self, deployer: Any) -> None:
+        self.deployer = deployer
+        self._owned: list[Any] = []
+        self._lock = threading.Lock()
+
+    def _own(self, item: Any) -> None:
+        with self._lock:
+            self._owned.append(item)
+
+    def component_names(self) -> list[str]:
+        return sorted(self.deployer.names())
+
+    def component(self, name: str) -> LocalComponentProxy:
+        return LocalComponentProxy(self, self.deployer.task(name))
+
+    def components(self) -> list[ComponentInfo]:
+        out = []
+        for t in self.deployer.tasks():
+            a = t.activity
+            out.append(ComponentInfo(t.name, t.state.name, a.kind, a.period, a.cycles, a.overruns, "in-process"))
+        return sorted(out, key=lambda c: c.name)
+
+    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data()) -> None:
+        self.deployer.connect(source, sink, policy)
+
+    def disconnect_ports(self, source: str, sink: str) -> bool:
+        (st, sp), (kt, kp) = split_port(source), split_port(sink)
+        out, inp = self.deployer.task(st).port(sp), self.deployer.task(kt).port(kp)
+        was = any(c.input is inp for c in out.connections())
+        out.disconnect(inp)
+        return was
+
+    def close(self) -> None:
+        with self._lock:
+            owned, self._owned = self._owned, []
+        for item in owned:
+            try:
+                item.close()
+            except DataflowError:
+                pass

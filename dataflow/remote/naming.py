@@ -1,0 +1,394 @@
+"""The name service: component name → deployer address, with leases.
+
+A deployer registers its components under a lease and renews it by heartbeats
+(:class:`Registration` does this on its own thread); a deployer that stops heartbeating
+loses its names when the lease runs out, so entries never go stale. A name already held
+by another *live* deployer is refused (``ALREADY_EXISTS``); a holder that is gone (same
+address now served by the newcomer, or its health service does not answer) is replaced,
+so a restarted deployer takes its names back at once.
+
+The service is either embedded in a deployer's gRPC server (the default: one deployer
+needs no extra process) or standalone (:func:`serve_nameserver`, ``scart nameserver``).
+Expiry is evaluated lazily on every access, so the registry owns no thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import uuid
+from typing import Any
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import grpc
+
+from dataflow.errors import NotFoundError
+from dataflow.remote import _rpc, errors
+from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
+from dataflow.remote._proto import NAMING_SERVICE, NAMING_SERVICE_NAME, ns as pb
+
+__all__ = [
+    "DEFAULT_NS_PORT",
+    "DEFAULT_NS_ADDRESS",
+    "DEFAULT_LEASE",
+    "NameEntry",
+    "NameRegistry",
+    "NameServer",
+    "NameClient",
+    "Registration",
+    "serve_nameserver",
+]
+
+log = logging.getLogger(__name__)
+
+
+
+@dataclass(frozen=True)
+class NameEntry:
+    """One registered component: where it is served, by which deployer, lease left (s)."""
+
+    component: str
+    address: str
+    deployer_id: str
+    expires_in: float
+
+
+@dataclass
+class _Lease:
+    deployer_id: str
+    address: str
+    components: set[str]
+    seconds: float
+    expires: float
+    permanent: bool = False
+    lease_id: str = field(default_factory=lambda: uuid.uuid4().hex)
+
+
+class NameRegistry:
+    """The name table (thread-safe; every method is short and non-blocking, except that
+    a conflicting :meth:`register` may probe the current holder with ``probe``).
+
+    ``clock`` is injectable for tests; ``probe(address) -> bool`` says whether a
+    deployer still answers (default: its gRPC health service, 0.5 s deadline).
+    """
+
+    def __init__(
+        self,
+        default_lease: float = DEFAULT_LEASE,
+        max_lease: float = 600.0,
+        clock: Callable[[], float] = time.monotonic,
+        probe: Callable[[str], bool] | None = None,
+    ) -> None:
+        self._default = default_lease
+        self._max = max_lease
+        self._clock = clock
+        self._probe = probe if probe is not None else _rpc.health_ok
+        self._leases: dict[str, _Lease] = {}
+        self._lock = threading.Lock()
+
+    def _purge(self) -> None:
+        now = self._clock()
+        for lease_id in [k for k, v in self._leases.items() if not v.permanent and v.expires <= now]:
+            lease = self._leases.pop(lease_id)
+            log.info("lease of %s (%s) expired", lease.address, sorted(lease.components))
+
+    def _holder(self, component: str) -> _Lease | None:
+        for lease in self._leases.values():
+            if component in lease.components:
+                return lease
+        return None
+
+    def register(
+        self,
+        deployer_id: str,
+        address: str,
+        components: list[str],
+        lease_seconds: float = 0.0,
+        permanent: bool = False,
+    ) -> tuple[str, float]:
+        """Register ``components`` served at ``address``; returns ``(lease_id, lease_seconds)``.
+
+        Idempotent per ``deployer_id`` (a re-registration replaces the previous lease).
+        Raises :class:`errors.AlreadyRegisteredError` naming the component and its live holder.
+        """
+        seconds = min(lease_seconds or self._default, self._max)
+        with self._lock:
+            self._purge()
+            conflicts = {
+                h.lease_id: h
+                for c in components
+                if (h := self._holder(c)) is not None and h.deployer_id != deployer_id
+            }
+        dead = {lid for lid, h in conflicts.items() if h.address == address or not self._probe(h.address)}
+        with self._lock:
+            for lid, holder in conflicts.items():
+                if lid not in dead and lid in self._leases:
+                    taken = sorted(holder.components & set(components))
+                    raise errors.AlreadyRegisteredError(
+                        f"component name(s) {', '.join(taken)} already registered by the deployer at "
+                        f"{holder.address}; choose another name or stop that deployer",
+                        "ALREADY_EXISTS",
+                        address,
+                    )
+            for lid in dead:
+                self._leases.pop(lid, None)
+            for lid in [k for k, v in self._leases.items() if v.deployer_id == deployer_id]:
+                del self._leases[lid]
+            lease = _Lease(deployer_id, address, set(components), seconds, self._clock() + seconds, permanent)
+            self._leases[lease.lease_id] = lease
+        log.info("registered %s at %s", sorted(components), address)
+        return lease.lease_id, seconds
+
+    def heartbeat(self, lease_id: str, components: list[str] | None = None) -> float:
+        """Renew a lease (and update its names); returns its length. Raises ``NotFoundError`` if expired."""
+        with self._lock:
+            self._purge()
+            lease = self._leases.get(lease_id)
+            if lease is None:
+                raise NotFoundError(f"lease {lease_id} is unknown or expired; register again")
+            if components is not None:
+                free = {c for c in components if (h := self._holder(c)) is None or h is lease}
+                lease.components = free
+            lease.expires = self._clock() + lease.seconds
+            return lease.seconds
+
+    def unregister(self, lease_id: str) -> None:
+        """Drop a lease and its names (idempotent)."""
+        with self._lock:
+            self._leases.pop(lease_id, None)
+
+    def resolve(self, component: str) -> NameEntry:
+        """Where ``component`` is served; raises ``NotFoundError`` listing the known names."""
+        with self._lock:
+            self._purge()
+            lease = self._holder(component)
+            if lease is None:
+                known = sorted(c for v in self._leases.values() for c in v.components)
+                raise NotFoundError(
+                    f"no component named {component!r} is registered; known: {', '.join(known) or '(none)'}"
+                )
+            return self._entry(component, lease)
+
+    def entries(self) -> list[NameEntry]:
+        """Every live registration, sorted by component name."""
+        with self._lock:
+            self._purge()
+            return sorted(
+                (self._entry(c, v) for v in self._leases.values() for c in v.components),
+                key=lambda e: e.component,
+            )
+
+    def _entry(self, component: str, lease: _Lease) -> NameEntry:
+        left = float("inf") if lease.permanent else max(0.0, lease.expires - self._clock())
+        return NameEntry(component, lease.address, lease.deployer_id, left)
+
+
+def _entry_msg(entry: NameEntry) -> Any:
+    left = entry.expires_in if entry.expires_in != float("inf") else -1.0
+    return pb.Entry(component=entry.component, address=entry.address, deployer_id=entry.deployer_id, expires_in=left)
+
+
+class NamingServicer:
+    """gRPC face of a :class:`NameRegistry` (methods named as in naming.proto)."""
+
+    def __init__(self, registry: NameRegistry) -> None:
+        self.registry = registry
+
+    def Register(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802 - gRPC method names
+        try:
+            lease_id, seconds = self.registry.register(
+                request.deployer_id, request.address, list(request.components), request.lease_seconds
+            )
+        except errors.AlreadyRegisteredError as exc:
+            context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
+        return pb.RegisterResponse(lease_id=lease_id, lease_seconds=seconds)
+
+    def Heartbeat(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            seconds = self.registry.heartbeat(request.lease_id, list(request.components) or None)
+        except NotFoundError as exc:
+            context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+        return pb.HeartbeatResponse(lease_seconds=seconds)
+
+    def Unregister(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        self.registry.unregister(request.lease_id)
+        return pb.UnregisterResponse()
+
+    def Resolve(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            entry = self.registry.resolve(request.component)
+        except NotFoundError as exc:
+            context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+        return pb.ResolveResponse(entry=_entry_msg(entry))
+
+    def ListEntries(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        return pb.ListEntriesResponse(entries=[_entry_msg(e) for e in self.registry.entries()])
+
+
+class NameServer:
+    """A running standalone name service. ``address`` is where it listens."""
+
+    def __init__(self, server: grpc.Server, address: str, registry: NameRegistry) -> None:
+        self._server = server
+        self.address = address
+        self.registry = registry
+
+    def stop(self, grace: float = 0.2) -> None:
+        """Stop serving and wait until stopped (blocks ≤ ``grace`` + 5 s). Idempotent."""
+        self._server.stop(grace).wait(grace + 5.0)
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the server terminates or ``timeout`` s pass; True if terminated."""
+        return self._server.wait_for_termination(timeout)
+
+    def __enter__(self) -> NameServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def serve_nameserver(
+    address: str = "127.0.0.1:0", default_lease: float = DEFAULT_LEASE, max_workers: int = 16
+) -> NameServer:
+    """Start a standalone name service (health + reflection included); returns at once.
+
+    Raises :class:`errors.UnavailableError` when ``address`` cannot be bound.
+    """
+    registry = NameRegistry(default_lease=default_lease)
+    handler = _rpc.generic_handler(NAMING_SERVICE, NamingServicer(registry))
+    server, port, _health = _rpc.make_server(address, [handler], [NAMING_SERVICE_NAME], max_workers)
+    return NameServer(server, _rpc.bound_address(address, port), registry)
+
+
+class NameClient:
+    """Client of a name service at ``address``; every call has a ``timeout`` deadline.
+
+    Thread-safe. Raises :class:`errors.UnavailableError` (nothing answers),
+    :class:`errors.RemoteTimeoutError`, :class:`errors.RemoteNotFoundError`,
+    :class:`errors.AlreadyRegisteredError`. :meth:`close` is idempotent.
+    """
+
+    def __init__(self, address: str, timeout: float = 2.0) -> None:
+        self.address = address
+        self.timeout = timeout
+        self._channel = grpc.insecure_channel(address, options=_rpc.channel_options())
+        self._stub = _rpc.Stub(self._channel, NAMING_SERVICE)
+
+    def _call(self, name: str, request: Any, timeout: float | None) -> Any:
+        return _rpc.call(getattr(self._stub, name), request, timeout or self.timeout, self.address)
+
+    def resolve(self, component: str, timeout: float | None = None) -> NameEntry:
+        """Where ``component`` is served."""
+        reply = self._call("Resolve", pb.ResolveRequest(component=component), timeout)
+        return _entry_from_msg(reply.entry)
+
+    def entries(self, timeout: float | None = None) -> list[NameEntry]:
+        """Every live registration."""
+        reply = self._call("ListEntries", pb.ListEntriesRequest(), timeout)
+        return [_entry_from_msg(e) for e in reply.entries]
+
+    def register(
+        self, deployer_id: str, address: str, components: list[str], lease_seconds: float = 0.0
+    ) -> tuple[str, float]:
+        """Register; returns ``(lease_id, lease_seconds)``."""
+        req = pb.RegisterRequest(
+            deployer_id=deployer_id, address=address, components=components, lease_seconds=lease_seconds
+        )
+        reply = self._call("Register", req, None)
+        return reply.lease_id, reply.lease_seconds
+
+    def heartbeat(self, lease_id: str, components: list[str] | None = None) -> float:
+        """Renew a lease; raises :class:`errors.RemoteNotFoundError` when it expired."""
+        reply = self._call("Heartbeat", pb.HeartbeatRequest(lease_id=lease_id, components=components or []), None)
+        return reply.lease_seconds
+
+    def unregister(self, lease_id: str, timeout: float | None = None) -> None:
+        """Drop a lease (idempotent)."""
+        self._call("Unregister", pb.UnregisterRequest(lease_id=lease_id), timeout)
+
+    def close(self) -> None:
+        """Close the channel (idempotent)."""
+        self._channel.close()
+
+
+def _entry_from_msg(msg: Any) -> NameEntry:
+    left = float("inf") if msg.expires_in < 0 else msg.expires_in
+    return NameEntry(msg.component, msg.address, msg.deployer_id, left)
+
+
+class Registration:
+    """Keeps one deployer's components registered with a remote name service.
+
+    :meth:`start` registers synchronously (so a duplicate name or a missing name service
+    fails at once, raising), then heartbeats every ``lease/3`` s on its own thread,
+    registering again whenever the lease was lost (name service restarted, deployer was
+    frozen). :meth:`stop` ends the thread (joins it) and unregisters; idempotent.
+    """
+
+    def __init__(
+        self,
+        ns_address: str,
+        address: str,
+        components: Callable[[], list[str]],
+        lease_seconds: float = DEFAULT_LEASE,
+        deployer_id: str | None = None,
+        timeout: float = 2.0,
+    ) -> None:
+        self.ns_address = ns_address
+        self.address = address
+        self.deployer_id = deployer_id or uuid.uuid4().hex
+        self._components = components
+        self._lease_seconds = lease_seconds
+        self._client = NameClient(ns_address, timeout=timeout)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.lease_id = ""
+        self.registrations = 0
+
+    def start(self) -> None:
+        """Register now (raises on failure) and start heartbeating."""
+        self._register()
+        self._thread = threading.Thread(target=self._run, name=f"scart-ns-heartbeat-{self.address}", daemon=True)
+        self._thread.start()
+
+    def _register(self) -> None:
+        self.lease_id, self._lease_seconds = self._client.register(
+            self.deployer_id, self.address, self._components(), self._lease_seconds
+        )
+        self.registrations += 1
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._lease_seconds / 3.0):
+            try:
+                if self.lease_id:
+                    self._client.heartbeat(self.lease_id, self._components())
+                else:
+                    self._register()
+            except errors.RemoteNotFoundError:
+                self.lease_id = ""
+                self._try_register()
+            except errors.RemoteError as exc:
+                log.warning("name service %s: %s", self.ns_address, exc)
+
+    def _try_register(self) -> None:
+        try:
+            self._register()
+        except errors.RemoteError as exc:
+            log.warning("re-registering with %s failed: %s", self.ns_address, exc)
+
+    def stop(self) -> None:
+        """Stop heartbeating, join the thread, unregister (best effort, short deadline)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        if self.lease_id:
+            try:
+                self._client.unregister(self.lease_id, timeout=0.5)
+            except errors.RemoteError:
+                pass
+            self.lease_id = ""
+        self._client.close()

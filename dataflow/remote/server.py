@@ -1,0 +1,297 @@
+"""Serve a :class:`dataflow.Deployer` over gRPC: ``server = serve_deployer(deployer)``.
+
+The server offers ``scart.dataflow.v1.DeployerService``, standard gRPC health checking
+and server reflection (``grpcurl -plaintext ADDRESS list`` works), and — unless told to
+join another one with ``ns=`` — an embedded ``scart.naming.v1.NamingService`` in which
+its tasks are registered, so one deployer is a whole system. With ``ns="host:port"``
+the tasks are registered there under a lease renewed by heartbeats.
+
+Limits: messages ≤ 4 MiB (RESOURCE_EXHAUSTED beyond), at most ``max_workers``
+concurrent RPCs (RESOURCE_EXHAUSTED beyond, never an unbounded queue), at most
+``max_workers - 8`` subscriptions. It binds 127.0.0.1 unless given another address.
+
+Shutdown: :meth:`DeployerServer.stop` signals every stream and cross-deployer link,
+unregisters, stops the gRPC server and waits for it (idempotent, safe from any thread
+except an RPC handler of this server).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import uuid
+from typing import Any
+
+import grpc
+
+from dataflow.errors import NotFoundError
+from dataflow.policy import ConnPolicy, FlowStatus
+from dataflow.ports import InputPort
+from dataflow.remote import _convert as cv
+from dataflow.remote import _rpc, errors
+from dataflow.remote._proto import DEPLOYER_SERVICE, DEPLOYER_SERVICE_NAME, NAMING_SERVICE, NAMING_SERVICE_NAME
+from dataflow.remote._proto import df as pb
+from dataflow.remote._servicer import DeployerServicer
+from dataflow.remote.naming import DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration
+
+__all__ = ["DeployerServer", "serve_deployer"]
+
+log = logging.getLogger(__name__)
+
+
+class _RemoteLink:
+    """An output port of this deployer feeding an input port in another deployer.
+
+    A free InputPort with the connection's policy is connected to the output port; its
+    data callback wakes this link's thread, which streams the samples to the sink
+    deployer (client streaming ``WritePortStream``), re-resolving the sink through the
+    name service and reconnecting after failures until :meth:`close`.
+    """
+
+    def __init__(self, server: DeployerServer, out: Any, sink_task: str, sink_port: str, policy: ConnPolicy) -> None:
+        self.server = server
+        self.out = out
+        self.sink_task = sink_task
+        self.sink_port = sink_port
+        self.policy = policy
+        self.inp: InputPort = InputPort(out.type, name=f"link_{out.name}")
+        self._wake = threading.Event()
+        self._closed = threading.Event()
+        self._call: Any = None
+        self.inp.add_data_callback(lambda _i: self._wake.set())
+        out.connect_to(self.inp, policy)
+        self._wake.set()
+        self._thread = threading.Thread(target=self._run, name=f"scart-link-{out.name}->{sink_task}", daemon=True)
+        self._thread.start()
+
+    def _requests(self) -> Any:
+        yield pb.WritePortStreamRequest(task=self.sink_task, port=self.sink_port, policy=cv.policy_to_msg(self.policy))
+        while not self._closed.is_set():
+            if not self._wake.wait(0.5):
+                continue
+            self._wake.clear()
+            for _ in range(10_000):
+                status, value = self.inp.read()
+                if status is not FlowStatus.NEW_DATA:
+                    break
+                yield pb.WritePortStreamRequest(value=cv.encode(value, self.out.type))
+
+    def _run(self) -> None:
+        backoff = 0.05
+        while not self._closed.is_set():
+            try:
+                address = self.server.resolve(self.sink_task)
+                with grpc.insecure_channel(address, options=_rpc.channel_options()) as channel:
+                    stub = _rpc.Stub(channel, DEPLOYER_SERVICE)
+                    self._call = stub.WritePortStream.future(self._requests())
+                    self._call.result()
+                backoff = 0.05
+            except (grpc.RpcError, grpc.FutureCancelledError, errors.RemoteError, NotFoundError) as exc:
+                if self._closed.is_set():
+                    return
+                log.info("link to %s.%s interrupted: %s", self.sink_task, self.sink_port, exc)
+            if self._closed.wait(backoff):
+                return
+            backoff = min(1.0, backoff * 2)
+
+    def close(self) -> None:
+        """Disconnect and end the link's thread (idempotent; joins ≤ 5 s)."""
+        self._closed.set()
+        self._wake.set()
+        call = self._call
+        if call is not None:
+            call.cancel()
+        self.out.disconnect(self.inp)
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=5.0)
+
+
+class _EmbeddedNaming(NamingServicer):
+    """The embedded name service: publishes tasks added to the deployer after it started
+    serving before answering a lookup."""
+
+    def __init__(self, owner: DeployerServer) -> None:
+        super().__init__(owner.registry)
+        self._owner = owner
+
+    def Resolve(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        self._owner.refresh_names()
+        return super().Resolve(request, context)
+
+    def ListEntries(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        self._owner.refresh_names()
+        return super().ListEntries(request, context)
+
+
+class DeployerServer:
+    """A running deployer server. ``address`` is where it serves; ``ns_address`` is the name
+    service its tasks are registered in (its own address when embedded)."""
+
+    def __init__(
+        self,
+        deployer: Any,
+        address: str = "127.0.0.1:0",
+        ns: str | None = None,
+        lease_seconds: float = DEFAULT_LEASE,
+        heartbeat_ms: int = 500,
+        max_workers: int = 64,
+        ns_timeout: float = 2.0,
+    ) -> None:
+        self.deployer = deployer
+        self.deployer_id = uuid.uuid4().hex
+        self.registry: NameRegistry | None = None if ns else NameRegistry(default_lease=lease_seconds)
+        self._servicer = DeployerServicer(self, heartbeat_ms=heartbeat_ms, max_streams=max(1, max_workers - 8))
+        handlers = [_rpc.generic_handler(DEPLOYER_SERVICE, self._servicer)]
+        names = [DEPLOYER_SERVICE_NAME]
+        if self.registry is not None:
+            handlers.append(_rpc.generic_handler(NAMING_SERVICE, _EmbeddedNaming(self)))
+            names.append(NAMING_SERVICE_NAME)
+        self._server, port, _health = _rpc.make_server(address, handlers, names, max_workers)
+        self.address = _rpc.bound_address(address, port)
+        self.ns_address = ns or self.address
+        self._links: dict[tuple[str, str, str, str], _RemoteLink] = {}
+        self._lock = threading.Lock()
+        self._stopped = False
+        self._ns_client: NameClient | None = None
+        self._registration: Registration | None = None
+        self._published: list[str] = []
+        try:
+            if self.registry is not None:
+                self.refresh_names()
+            else:
+                self._ns_client = NameClient(self.ns_address, timeout=ns_timeout)
+                self._registration = Registration(
+                    self.ns_address, self.address, self.deployer.names, lease_seconds,
+                    deployer_id=self.deployer_id, timeout=ns_timeout,
+                )
+                self._registration.start()
+        except BaseException:
+            self.stop()
+            raise
+
+    # ---- names -------------------------------------------------------------------------
+    def refresh_names(self) -> None:
+        """Publish tasks added to the deployer after it started serving (embedded name
+        service; a joined one learns them from the next heartbeat). Cheap when nothing changed."""
+        names = sorted(self.deployer.names())
+        if self.registry is not None and names != self._published:
+            self.registry.register(self.deployer_id, self.address, names, permanent=True)
+            self._published = names
+
+    def resolve(self, component: str) -> str:
+        """Address of the deployer serving ``component`` (this one, or via the name service)."""
+        if component in self.deployer.names():
+            return self.address
+        if self.registry is not None:
+            return self.registry.resolve(component).address
+        assert self._ns_client is not None
+        return self._ns_client.resolve(component).address
+
+    # ---- connections -------------------------------------------------------------------
+    def connect_ports(
+        self,
+        source_task: str,
+        source_port: str,
+        sink_task: str,
+        sink_port: str,
+        policy: ConnPolicy,
+        defer: bool = False,
+    ) -> tuple[bool, str]:
+        """Connect a local output port to a local or remote input port; returns ``(local, sink address)``.
+
+        Idempotent for the same pair. Raises ``NotFoundError`` (source not here, sink
+        unknown — unless ``defer``: then the link waits for the sink to be registered, as
+        when deployers start in any order), ``PortTypeError`` (types differ, local case;
+        across deployers a type mismatch makes the sink refuse the samples, logged).
+        """
+        if source_task not in self.deployer.names():
+            raise NotFoundError(
+                f"source task {source_task!r} is not in the deployer at {self.address}; "
+                f"it has: {', '.join(self.deployer.names()) or '(none)'} — send the request to the source's deployer"
+            )
+        out = self.deployer.task(source_task).port(source_port)
+        if out.is_input:
+            raise _rpc.Abort("INVALID_ARGUMENT", f"{source_task}.{source_port} is an input port; the source must be an output")
+        if sink_task in self.deployer.names():
+            inp = self.deployer.task(sink_task).port(sink_port)
+            out.connect_to(inp, policy)
+            return True, self.address
+        try:
+            address = self.resolve(sink_task)
+        except NotFoundError:
+            if not defer:
+                raise
+            address = ""
+        key = (source_task, source_port, sink_task, sink_port)
+        with self._lock:
+            if key not in self._links:
+                self._links[key] = _RemoteLink(self, out, sink_task, sink_port, policy)
+        return False, address
+
+    def disconnect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str) -> bool:
+        """Undo :meth:`connect_ports`; False when they were not connected."""
+        key = (source_task, source_port, sink_task, sink_port)
+        with self._lock:
+            link = self._links.pop(key, None)
+        if link is not None:
+            link.close()
+            return True
+        if source_task in self.deployer.names() and sink_task in self.deployer.names():
+            out = self.deployer.task(source_task).port(source_port)
+            inp = self.deployer.task(sink_task).port(sink_port)
+            was = any(c.input is inp for c in out.connections())
+            out.disconnect(inp)
+            return was
+        return False
+
+    # ---- lifecycle ---------------------------------------------------------------------
+    def stop(self, grace: float = 0.2) -> None:
+        """Stop serving: end streams and links, unregister, stop gRPC, wait (idempotent)."""
+        with self._lock:
+            if self._stopped:
+                return
+            self._stopped = True
+            links = list(self._links.values())
+            self._links.clear()
+        for link in links:
+            link.close()
+        if self._registration is not None:
+            self._registration.stop()
+        if self._ns_client is not None:
+            self._ns_client.close()
+        self._servicer.stop()
+        server = getattr(self, "_server", None)
+        if server is not None:
+            server.stop(grace).wait(grace + 5.0)
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the server terminates or ``timeout`` s pass; True if terminated."""
+        return self._server.wait_for_termination(timeout)
+
+    def __enter__(self) -> DeployerServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def serve_deployer(
+    deployer: Any,
+    address: str = "127.0.0.1:0",
+    ns: str | None = None,
+    *,
+    lease_seconds: float = DEFAULT_LEASE,
+    heartbeat_ms: int = 500,
+    max_workers: int = 64,
+) -> DeployerServer:
+    """Serve ``deployer`` at ``address`` (returns once listening; does not block).
+
+    ``ns=None`` embeds a name service; otherwise the tasks are registered with the name
+    service at ``ns`` (raises :class:`errors.AlreadyRegisteredError` for a name held by
+    another live deployer, :class:`errors.UnavailableError` when nothing answers there or
+    the address cannot be bound). ``heartbeat_ms``: idle interval of subscription
+    heartbeats; ``lease_seconds``: name-service lease (heartbeats every third of it).
+    """
+    return DeployerServer(
+        deployer, address, ns=ns, lease_seconds=lease_seconds, heartbeat_ms=heartbeat_ms, max_workers=max_workers
+    )
