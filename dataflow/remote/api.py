@@ -389,9 +389,12 @@ class System(ABC):
         self.close()
 
 
-def split_port(text: str) -> tuple[str, str]:
-    """``"task.port"`` → ``("task", "port")``; raises ``ValueError`` for anything else."""
+def split_port(text: str, what: str = "PORT") -> tuple[str, str]:
+    """``"task.port"`` → ``("task", "port")``; raises ``ValueError`` for anything else.
+
+    ``what`` names the second part in the error ("PORT", "OPERATION").
+    """
     task, dot, port = text.rpartition(".")
     if not dot or not task or not port:
-        raise ValueError(f"expected COMPONENT.PORT, got {text!r}")
+        raise ValueError(f"expected COMPONENT.{what}, got {text!r}")
     return task, port

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import grpc
 
-from dataflow.errors import NotFoundError
+from dataflow.errors import DataflowError, NotFoundError
 from dataflow.remote import _rpc, errors
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
 from dataflow.remote._proto import NAMING_SERVICE, NAMING_SERVICE_NAME, ns as pb
@@ -312,6 +312,23 @@ class NameClient:
     def close(self) -> None:
         """Close the channel (idempotent)."""
         self._channel.close()
+
+
+def name_service_answers(address: str, timeout: float = 0.5) -> bool:
+    """True when a name service answers at ``address`` within ``timeout`` s.
+
+    Used by ``scart run``/``scart deploy`` to decide between joining a running name service
+    and embedding one at that address. Blocks at most ``timeout``; never raises for an
+    unreachable address.
+    """
+    probe = NameClient(address, timeout=timeout)
+    try:
+        probe.entries()
+        return True
+    except DataflowError:
+        return False
+    finally:
+        probe.close()
 
 
 def _entry_from_msg(msg: Any) -> NameEntry:

@@ -7,7 +7,8 @@ each class, creates the task (``Class(name)``), gives it a PeriodicActivity when
 for SIGINT/SIGTERM; then it stops serving, stops the tasks and cleans them up in
 reverse order. Without ``--ns``/``SCART_NS`` it embeds a name service and listens on
 ``127.0.0.1:7850`` (the default name-service port) unless ``--listen`` says otherwise;
-with one, it registers there and listens on a free port.
+with one, it joins the name service answering there (listening on a free port), or,
+when nothing answers, embeds one at that address.
 
 Readiness: one stderr line ``scart deploy: serving NAMES on HOST:PORT (name service
 HOST:PORT)``. Exit codes: 0 clean stop, 1 failure (import, configure, bind, duplicate
@@ -34,7 +35,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     deploy.add_argument("--name", default=None, help="task name (one class only; default: the class's own)")
     deploy.add_argument("--period", type=float, default=None, help="run each task periodically (s)")
     deploy.add_argument("--listen", default=None, help="HOST:PORT to serve on (default: see above)")
-    deploy.add_argument("--ns", default=None, help=f"join the name service at HOST:PORT (or ${NS_ENV}); default: embed one")
+    deploy.add_argument("--ns", default=None, help=f"name service HOST:PORT (or ${NS_ENV}): joined when one answers there, else embedded there; "
+                        "default: embed one")
     deploy.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="name-service lease (s)")
     deploy.add_argument("--heartbeat-ms", type=int, default=500, help="idle heartbeat of subscriptions (ms)")
     deploy.add_argument("--no-start", action="store_true", help="configure only, do not start the tasks")
@@ -102,9 +104,17 @@ def _make_tasks(args: argparse.Namespace) -> list[Any]:
 def cmd_deploy(args: argparse.Namespace) -> int:
     """Run ``scart deploy``; returns the exit code."""
     from dataflow import DataflowError, Deployer
+    from dataflow.remote.naming import name_service_answers
     from dataflow.remote.server import serve_deployer
 
     ns = args.ns or os.environ.get(NS_ENV) or None
+    if ns is not None and not name_service_answers(ns):
+        # Nothing answers at --ns/SCART_NS: embed the name service there, as `scart run` does.
+        if args.listen and args.listen != ns:
+            _err(f"scart deploy: no name service answers at {ns}; start one with "
+                 f"`scart nameserver --listen {ns}`, or drop --listen to embed it there")
+            return 1
+        args.listen, ns = ns, None
     listen = args.listen or ("127.0.0.1:0" if ns else DEFAULT_NS_ADDRESS)
     stop = _stop_event()
     deployer = Deployer()

@@ -136,10 +136,10 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
         system.close()
 
 
-def _split(text: str) -> tuple[str, str]:
+def _split(text: str, what: str = "PORT") -> tuple[str, str]:
     from dataflow.remote.api import split_port
 
-    return split_port(text)
+    return split_port(text, what)
 
 
 def _wait_until_stopped(done: threading.Event, duration: float | None, tick: float = 1.0,
@@ -314,7 +314,7 @@ def cmd_write(args: argparse.Namespace) -> int:
 
 def cmd_call(args: argparse.Namespace) -> int:
     """``scart call COMP.OP ARGS...``: prints the result."""
-    component, op = _split(args.operation)
+    component, op = _split(args.operation, "OPERATION")
     result = args.system.component(component).call_json(op, [_parse_json(a) for a in args.args], timeout=args.timeout)
     _out(_dump(_jsonable(result)))
     return 0
