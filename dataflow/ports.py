@@ -415,6 +415,10 @@ class InputPort(Port[T]):
                 log.exception("data callback %r of %s raised", cb, self.qualname)
 
     def _rebuild(self) -> None:
+        # Keep reading from the current channel across connects/disconnects (as RTT does):
+        # a port that holds data must not answer NO_DATA because an unrelated peer came.
+        old = self._sources
+        current = old[self._current] if self._current < len(old) else None
         self._sources = _unique(c.storage for c in self._conns.values())
         if len(self._sources) == 1:  # hot path: read() is the storage's own read
             self.read = self._sources[0].read  # type: ignore[method-assign]
@@ -426,7 +430,7 @@ class InputPort(Port[T]):
             self._port_storage = None
         if self._shared is not None and self._shared not in self._sources:
             self._shared = None
-        self._current = 0
+        self._current = next((i for i, st in enumerate(self._sources) if st is current), 0)
 
 
 def _unique(storages: Any) -> tuple[Storage, ...]:

@@ -47,6 +47,7 @@ from __future__ import annotations
 import enum
 import logging
 import threading
+from concurrent.futures import Future
 from collections.abc import Callable
 from typing import Any
 
@@ -427,7 +428,20 @@ class TaskContext:
         """Call operation ``name``; blocks until it returned; re-raises what it raised.
 
         ``own_thread`` operations run in the activity's thread when it has a live one.
-        Raises ``NotFoundError`` for an unknown operation.
+        Raises ``NotFoundError`` for an unknown operation. To wait with a deadline, use
+        :meth:`send`.
+        """
+        return self.send(name, *args, **kwargs).result()
+
+    def send(self, name: str, *args: Any, **kwargs: Any) -> Future[Any]:
+        """Start operation ``name`` and return a :class:`~concurrent.futures.Future` (RTT's
+        ``send``/``collect``).
+
+        An ``own_thread`` operation is queued to the activity's live thread and the future
+        completes when that thread ran it: ``future.result(timeout)`` waits with a deadline,
+        and ``future.cancel()`` withdraws it if it has not started. Any other operation runs
+        now, in the caller's thread, and the returned future is already done. Raises
+        ``NotFoundError`` (at once) for an unknown operation.
         """
         attr = self._operation_attrs.get(name)
         if attr is None:
@@ -440,8 +454,13 @@ class TaskContext:
         if spec is not None and spec.own_thread and isinstance(self._tc_activity, _ThreadedActivity):
             fut = self._tc_activity._submit(lambda: fn(*args, **kwargs))
             if fut is not None:
-                return fut.result()
-        return fn(*args, **kwargs)
+                return fut
+        done: Future[Any] = Future()
+        try:
+            done.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # handed to the caller, who re-raises it from result()
+            done.set_exception(exc)
+        return done
 
     # -- introspection ----------------------------------------------------------
     def describe(self) -> TaskDescription:

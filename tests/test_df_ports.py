@@ -271,3 +271,19 @@ def test_non_mandatory_full_buffer_does_not_fail_the_write():
     assert [out.write(i) for i in range(3)] == [OK, OK, OK]
     assert out.connections()[0].dropped == 2 and cb.dropped == 0
     assert ConnPolicy().mandatory is True
+
+
+def test_connecting_another_writer_keeps_the_current_channel():
+    """A port that holds data keeps answering OLD_DATA when an unrelated writer connects."""
+    a, b, c = OutputPort(float, name="a"), OutputPort(float, name="b"), OutputPort(float, name="c")
+    inp = InputPort(float, name="in")
+    a.connect_to(inp, ConnPolicy.data())
+    b.connect_to(inp, ConnPolicy.data())
+    b.write(1.0)
+    assert inp.read() == (FlowStatus.NEW_DATA, 1.0)
+    c.connect_to(inp, ConnPolicy.data())
+    assert inp.read() == (FlowStatus.OLD_DATA, 1.0)
+    a.disconnect(inp)
+    assert inp.read() == (FlowStatus.OLD_DATA, 1.0)
+    b.disconnect(inp)
+    assert inp.read() == (FlowStatus.NO_DATA, None)

@@ -7,6 +7,7 @@ handed to ``ServiceEndpoint.invoke``).
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -186,10 +187,25 @@ class _Connect:
 
 @pytest.fixture
 def connect_registered() -> Iterator[None]:
-    register_composite_extension("connect", _Connect())
-    yield
-    COMPOSITE_EXTENSIONS.pop("connect", None)
-    EXTENSION_ELEMENTS.pop("connect", None)
+    """Stand a recording handler in for ``scart:connect``; put the real one back after."""
+    with _connect_handler(_Connect()):
+        yield
+
+
+@contextlib.contextmanager
+def _connect_handler(handler: object | None) -> Iterator[None]:
+    """Swap the ``scart:connect`` handler (``None``: unregistered) and restore it after."""
+    tables = (COMPOSITE_EXTENSIONS, EXTENSION_ELEMENTS)
+    saved = [table.pop("connect", None) for table in tables]
+    if handler is not None:
+        register_composite_extension("connect", handler)
+    try:
+        yield
+    finally:
+        for table, entry in zip(tables, saved):
+            table.pop("connect", None)
+            if entry is not None:
+                table["connect"] = entry
 
 
 def test_composite_extension_element(tmp_path: Path, connect_registered: None) -> None:
@@ -209,7 +225,7 @@ def test_composite_extension_element(tmp_path: Path, connect_registered: None) -
 
 def test_unregistered_extension_element_is_refused(tmp_path: Path) -> None:
     path = write(tmp_path, {"x.composite": composite('<scart:connect from="a.out" to="b.in"/>')})
-    with pytest.raises(scart.ScdlError) as info:
+    with _connect_handler(None), pytest.raises(scart.ScdlError) as info:
         scart.Runtime.from_file(str(path))
     assert info.value.codes == ["SCART-X004"]
 
