@@ -34,6 +34,8 @@ from typing import Any
 from pydantic import BaseModel
 
 import scart.bindings.local  # noqa: F401  (registers binding.sca)
+import scart.bindings.grpc  # noqa: F401  (registers binding.grpc)
+import scart.bindings.dataflow  # noqa: F401  (registers binding.dataflow, implementation.task, scart:connect)
 from scart.api import ComponentContext, InterfaceInfo, interface_info
 from scart.assembly import Assembly, Bound, Node, Target, _Default, assemble
 from scart.bindings.base import BINDING_KINDS, Invocation, ReferenceBinding, ServiceBinding, wrap_operation

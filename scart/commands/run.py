@@ -1,5 +1,13 @@
 """The verbs ``scart run``, ``scart validate`` and ``scart graph``.
 
+When the composite has ``implementation.task`` components, ``scart run`` serves them over
+gRPC after starting the composite, so ``scart ls``/``describe``/``echo`` see them: with the
+name service embedded at ``--ns HOST:PORT`` (else ``SCART_NS``, else the default
+127.0.0.1:7850), or — when a name service already answers there — registered with that
+one. The start summary then has the lines ``scart: dataflow server at HOST:PORT`` and
+``scart: name service at HOST:PORT (embedded|joined)``. ``binding.dataflow`` and
+``scart:connect`` resolve tasks of other processes through that same name service.
+
 Exit codes: 0 success (``run``: after a clean stop on SIGINT/SIGTERM), 2 an invalid
 composite (every problem listed on stderr as ``path:line: message [CODE]``, nothing
 started), 1 a failure while starting or stopping.
@@ -8,10 +16,15 @@ started), 1 a failure while starting or stopping.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
 from types import FrameType
+from typing import Any
+
+from dataflow import DataflowError
+from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 from scart.assembly import Assembly, Bound, Target, assemble
 from scart.errors import ScartError, ScdlError
@@ -23,7 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.add_argument("file", help="the .composite file")
     _add_set(run)
     run.add_argument("--workers", type=int, default=8, help="size of the one-way worker pool (default 8)")
-    run.add_argument("--ns", default=None, help="name service HOST:PORT (used by data-flow tasks)")
+    run.add_argument("--ns", default=None, metavar="HOST:PORT",
+                     help="name service of data-flow tasks: where the embedded one listens, or the running one "
+                          "to join (default: $SCART_NS, else 127.0.0.1:7850)")
     run.set_defaults(func=cmd_run)
 
     validate = subparsers.add_parser("validate", help="check composites without running them")
@@ -65,7 +80,8 @@ def _assemble(file: str, raw_overrides: list[str]) -> Assembly | None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Install SIGINT/SIGTERM handlers, load, start, print a summary, wait for a signal, stop."""
+    """Install SIGINT/SIGTERM handlers, load, start, serve tasks, print a summary, wait, stop."""
+    from scart.bindings._dataflow_host import AMBIENT_NS, host_of
     from scart.runtime import Runtime
 
     stop = threading.Event()
@@ -74,29 +90,66 @@ def cmd_run(args: argparse.Namespace) -> int:
         stop.set()
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    ns = args.ns or os.environ.get(NS_ENV) or DEFAULT_NS_ADDRESS
+    AMBIENT_NS["address"] = ns
     try:
         assembly = _assemble(args.file, args.overrides)
         if assembly is None:
             return 2
         runtime = Runtime(assembly, max_workers=args.workers)
+        host = host_of(runtime)
+        host.use_ns(ns)
         try:
             runtime.start()
-        except ScartError as exc:
+            served = serve_tasks(runtime, ns, explicit=bool(args.ns or os.environ.get(NS_ENV)))
+        except (ScartError, DataflowError) as exc:
+            runtime.stop()
             print(f"scart: start failed: {exc}", file=sys.stderr)
             return 1
         try:
             print(summary(assembly, runtime.addresses()), flush=True)
+            for line in served:
+                print(line, flush=True)
             print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
             while not stop.wait(0.5):
                 pass
             print("scart: stopping", flush=True)
         finally:
+            host.close()
             runtime.stop()
         print("scart: stopped", flush=True)
         return 0
     finally:
+        AMBIENT_NS.pop("address", None)
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def serve_tasks(runtime: Any, ns: str, explicit: bool = True) -> list[str]:
+    """Serve the runtime's tasks (if it has any) with the name service at ``ns``: join it
+    when one answers there, else embed one listening at ``ns`` (when ``ns`` was not given
+    explicitly and cannot be bound, at a free port). Returns the summary lines.
+    Raises ``DataflowError`` when serving fails."""
+    from dataflow.remote.errors import UnavailableError
+    from dataflow.remote.naming import name_service_answers
+    from scart.bindings._dataflow_host import host_of
+
+    if not any(n.kind == "implementation.task" for n in runtime.assembly.nodes.values()):
+        return []
+    host = host_of(runtime)
+    joined = name_service_answers(ns)
+    if joined:
+        server = host.serve("127.0.0.1:0", ns=ns)
+    else:
+        try:
+            server = host.serve(ns)
+        except UnavailableError:
+            if explicit:
+                raise
+            server = host.serve("127.0.0.1:0")
+    how = "joined" if joined else "embedded"
+    return [f"scart: dataflow server at {server.address} ({len(host.deployer.names())} task(s))",
+            f"scart: name service at {server.ns_address} ({how})"]
 
 
 def summary(assembly: Assembly, addresses: dict[str, str | None]) -> str:

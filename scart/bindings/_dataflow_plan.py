@@ -1,0 +1,189 @@
+"""How ``binding.dataflow`` maps interface operations to ports, and its static checks.
+
+Private to :mod:`scart.bindings.dataflow` (whose docstring documents the XML forms).
+A *plan* maps each operation to ``(kind, port, type_name)``: ``kind`` is ``"write"``
+(reference, one argument → input port), ``"read"`` (reference, no argument and a return
+value → output port) or ``"deliver"`` (service, one argument ← output port).
+"""
+
+from __future__ import annotations
+
+import inspect
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dataflow import ConnPolicy
+from scart.api import InterfaceInfo
+from scart.bindings._dataflow_host import PortInfo, ambient_ns, class_ports, remote_ports, type_name_of
+from scart.model import SCART_NS, Binding
+
+#: Problem codes.
+DF_ATTRIBUTE = "SCART-D001"  # missing/invalid attribute or mapping
+DF_PORT = "SCART-D002"  # operation maps to no port / wrong direction / wrong shape
+DF_TYPE = "SCART-D003"  # interface type differs from the port type
+
+
+@dataclass(frozen=True)
+class Step:
+    """One operation's mapping."""
+
+    operation: str
+    kind: str  # "write" | "read" | "deliver"
+    port: str
+    type_name: str | None  # the interface's type for it (None: not checkable)
+    explicit: bool
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The attributes of one binding element, parsed."""
+
+    component: str
+    ns: str | None
+    policy: ConnPolicy
+    period: float | None
+    mapping: dict[str, str]
+    problems: tuple[str, ...]
+
+
+def settings(model: Binding) -> Settings:
+    """Parse attributes and ``<scart:map>`` children (problems as messages, never raises)."""
+    a = model.attributes
+    problems: list[str] = []
+    component = (a.get("component") or "").strip()
+    if not component:
+        problems.append("binding.dataflow needs a 'component' attribute (the task name)")
+    try:
+        policy = ConnPolicy.parse(a.get("policy", "data"))
+    except ValueError as exc:
+        problems.append(str(exc))
+        policy = ConnPolicy.data()
+    period = None
+    if a.get("period") is not None:
+        try:
+            period = float(a["period"])
+            if not period > 0:
+                raise ValueError
+        except ValueError:
+            problems.append(f"period {a.get('period')!r}: expected seconds > 0")
+            period = None
+    mapping: dict[str, str] = {}
+    for item in (a.get("ports") or "").split(","):
+        if item.strip():
+            op, eq, port = item.partition("=")
+            if not eq or not op.strip() or not port.strip():
+                problems.append(f"ports={a['ports']!r}: expected 'operation=port,...'")
+                continue
+            mapping[op.strip()] = port.strip()
+    for child in model.children:
+        if child.kind == "map":
+            op, port = child.attributes.get("operation", ""), child.attributes.get("port", "")
+            if op and port:
+                mapping[op] = port
+    ns = (a.get("ns") or "").strip() or None
+    return Settings(component, ns, policy, period, mapping, tuple(problems))
+
+
+def _signature(iface: InterfaceInfo, op: str) -> tuple[list[Any], Any] | None:
+    """(parameter annotations, return annotation) of ``op``; None if not introspectable."""
+    cls = iface.python_type
+    fn = getattr(cls, op, None) if cls is not None else None
+    if fn is None:
+        return None
+    try:
+        hints = typing.get_type_hints(fn)
+    except Exception:  # noqa: BLE001 - unresolvable forward refs: fall back to raw annotations
+        hints = dict(getattr(fn, "__annotations__", {}))
+    params = [p for p in inspect.signature(fn).parameters.values() if p.name != "self"]
+    return [hints.get(p.name, p.annotation) for p in params], hints.get("return", inspect.Parameter.empty)
+
+
+def plan(iface: InterfaceInfo, side: str, s: Settings) -> tuple[list[Step], list[str]]:
+    """The steps of an interface (reference or service side) and shape problems."""
+    steps: list[Step] = []
+    problems = [f"<scart:map operation={op!r}>: interface {iface.name} has no such operation"
+                for op in s.mapping if op not in iface.operations]
+    for name, op in iface.operations.items():
+        sig = _signature(iface, name)
+        nargs = len(sig[0]) if sig is not None else (0 if op.returns_value else 1)
+        port = s.mapping.get(name, name)
+        explicit = name in s.mapping
+        if side == "reference":
+            if nargs == 1:
+                steps.append(Step(name, "write", port, type_name_of(sig[0][0]) if sig else None, explicit))
+            elif nargs == 0 and op.returns_value:
+                steps.append(Step(name, "read", port, type_name_of(sig[1]) if sig else None, explicit))
+            else:
+                problems.append(f"operation {name!r}: binding.dataflow needs one argument (written to an input "
+                                "port) or none and a return value (the latest sample of an output port)")
+        elif nargs == 1:
+            steps.append(Step(name, "deliver", port, type_name_of(sig[0][0]) if sig else None, explicit))
+        elif explicit:
+            problems.append(f"operation {name!r}: a data-driven operation takes exactly one argument (the sample)")
+    return steps, problems
+
+
+def check_ports(steps: list[Step], ports: dict[str, PortInfo], component: str) -> tuple[list[Step], list[tuple[str, str]]]:
+    """Steps usable against ``ports`` and (code, message) problems. A service step that was
+    not mapped explicitly and names no port is dropped silently (not data-driven)."""
+    good: list[Step] = []
+    problems: list[tuple[str, str]] = []
+    listing = ", ".join(f"{p.name} ({p.direction} {p.type_name})" for p in ports.values()) or "none"
+    for st in steps:
+        info = ports.get(st.port)
+        want = "in" if st.kind == "write" else "out"
+        if info is None or info.direction != want:
+            if st.kind == "deliver" and not st.explicit:
+                continue
+            need = "input" if want == "in" else "output"
+            what = f"has no {need} port" if info is None else f"port is an {info.direction}put, not an {need}:"
+            problems.append((DF_PORT, f"operation {st.operation!r}: task {component!r} {what} {st.port!r}; "
+                             f"ports: {listing}"))
+            continue
+        if st.type_name is not None and st.type_name != info.type_name:
+            problems.append((DF_TYPE, f"operation {st.operation!r}: interface type {st.type_name} does not match "
+                             f"port {component}.{st.port} of type {info.type_name}"))
+            continue
+        good.append(st)
+    if steps and not good and not problems and all(s.kind == "deliver" for s in steps):
+        problems.append((DF_PORT, f"no operation matches an output port of task {component!r}; ports: {listing}"))
+    return good, problems
+
+
+def local_task_class(folder: Path, root_file: str, component: str) -> type | None:
+    """The class of an ``implementation.task`` component named ``component`` in the
+    contribution's composites (root first); None if there is none."""
+    from scart.contribution import import_object
+    from scart.scdl import parse_xml
+
+    files = [Path(root_file)] + sorted(p for p in folder.glob("*.composite") if p.resolve() != Path(root_file).resolve())
+    leaf = component.rpartition("/")[2]
+    for file in files:
+        root = parse_xml(str(file), [])
+        if root is None:
+            continue
+        for el in root.iter():
+            if not isinstance(el.tag, str) or not el.tag.endswith("}component") or el.get("name") != leaf:
+                continue
+            impl = el.find(f"{{{SCART_NS}}}implementation.task")
+            if impl is not None:
+                try:
+                    return import_object(impl.get("class", ""), folder)  # type: ignore[return-value]
+                except Exception:  # noqa: BLE001 - implementation.task reports it
+                    return None
+    return None
+
+
+def static_ports(s: Settings, contribution: Any) -> tuple[dict[str, PortInfo] | None, str]:
+    """Ports to check against at load time and where they came from ("" when unknown)."""
+    if s.ns is None:
+        cls = local_task_class(contribution.folder, contribution.root_file, s.component)
+        if cls is not None:
+            return class_ports(cls), "local"
+    ns = s.ns or ambient_ns()
+    if ns is None:
+        return None, ""
+    ports = remote_ports(ns, s.component, timeout=0.5)
+    return ports, (f"name service {ns}" if ports is not None else "")

@@ -1,0 +1,426 @@
+"""Data-flow tasks inside a composite: ``implementation.task`` and ``scart:connect``.
+
+(The code behind the public module :mod:`scart.tasks`; it lives under ``scart.bindings``
+so that the runtime registers it together with ``binding.dataflow``.)
+
+``<scart:implementation.task class="pkg.mod:Driver" period="0.01"/>`` hosts a
+:class:`dataflow.TaskContext` in the runtime's :class:`dataflow.Deployer` (one per
+runtime, ``runtime.shared("deployer", Deployer)``):
+
+* the task is created with the component's name (its path "Outer/Inner" when nested);
+  ``period`` (seconds, > 0) gives it a ``PeriodicActivity``; without it the task keeps
+  its own default activity (event-driven);
+* ``<property name="gain">2.5</property>`` sets the task's dataflow ``Property`` of that
+  name; values are parsed and validated at load time against the Property's type (and
+  its ``check``), problems reported as ``file:line``;
+* lifecycle: at the component's start the task is added to the deployer, its
+  properties set, configured, connected to the tasks already added (see below) and
+  started; at the component's stop (reverse order of start) it is stopped, cleaned up
+  and disconnected;
+* its ``@operation`` s form one SCA service named after the task class, so an SCA
+  reference can target the task component and call its operations (in the caller's
+  thread, or the activity's for ``own_thread`` ones).
+
+``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` (a child of
+``<composite>``; ``policy`` in ``ConnPolicy.parse`` short form, default ``data``;
+optional ``ns`` = name service) connects an output port to an input port. Both ends in
+this composite: connected in-process when the second task is added. One end not in this
+composite: it is a task of another deployer, resolved through the name service (``ns``,
+else the runtime's, see :class:`~scart.bindings._dataflow_host.DataflowHost`) at start or
+whenever it appears; the connection is re-made when that deployer restarts (a new
+registration). Cross-deployer connections need this runtime's tasks served (``scart run``
+does it). Static errors (``file:line``): malformed ``comp.port``, a component of this
+composite that is not a task, an unknown port (the message lists the ports), wrong
+direction, a bad policy, type mismatch (for a remote end: when its name service answers
+at load time, else checked when connecting and logged), neither end in this composite.
+"""
+
+from __future__ import annotations
+
+import logging
+import typing
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import pydantic
+from pydantic_core import core_schema
+
+from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
+from scart import errors as E
+from scart.api import ComponentType, InterfaceInfo, Operation, PropSpec
+from scart.bindings._dataflow_host import PortInfo, Watcher, ambient_ns, class_ports, host_of, remote_ports
+from scart.errors import Problem
+from scart.extensions import register_composite_extension
+from scart.implementations import ComponentManager, ImplementationProblem, register_implementation
+from scart.model import Element, Implementation
+
+if TYPE_CHECKING:
+    from scart.assembly import Assembly, Node
+    from scart.contribution import Contribution
+
+log = logging.getLogger("scart.tasks")
+
+#: Problem codes of this module.
+TASK_NOT_A_TASK = "SCART-T001"  # implementation.task class is not a TaskContext / bad period
+TASK_CONNECT = "SCART-T002"  # scart:connect names no component/port, wrong direction, bad policy
+TASK_CONNECT_TYPE = "SCART-T003"  # scart:connect between ports of different types
+
+
+# --- implementation.task ------------------------------------------------------------------
+
+
+def task_class(impl: Implementation, contribution: Contribution) -> type[TaskContext]:
+    """Import and check the class of an ``implementation.task``; raises ``ImplementationProblem``."""
+    from scart.contribution import import_object
+
+    ref = impl.attributes.get("class", "")
+    try:
+        cls = import_object(ref, contribution.folder)
+    except Exception as exc:  # any import-time failure is a composite problem
+        raise ImplementationProblem(E.SCART_IMPORT, f"cannot import {ref!r}: {type(exc).__name__}: {exc}") from exc
+    if not (isinstance(cls, type) and issubclass(cls, TaskContext)):
+        raise ImplementationProblem(TASK_NOT_A_TASK, f"{ref!r} is not a dataflow.TaskContext subclass")
+    return cls
+
+
+def _period(impl: Implementation) -> float | None:
+    raw = impl.attributes.get("period")
+    if raw is None:
+        return None
+    try:
+        return PeriodicActivity._checked(float(raw))
+    except ValueError:
+        raise ImplementationProblem(TASK_NOT_A_TASK, f"period {raw!r}: expected seconds > 0") from None
+
+
+def _checked_type(prop: Any) -> Any:
+    """The type the assembler parses a property value as: the Property's type, with its
+    ``check`` attached (so a value the task would refuse is a load-time problem)."""
+    if prop.check is None or prop.type is str or typing.get_origin(prop.type) in (list, tuple, set):
+        return prop.type
+
+    base = prop.type
+
+    def check(value: Any) -> Any:
+        prop.check(value)
+        return value
+
+    def schema(cls: type, source: Any, handler: pydantic.GetCoreSchemaHandler) -> Any:
+        return core_schema.no_info_after_validator_function(check, handler(base))
+
+    # named like the base type, so the assembler's messages read "not a valid float"
+    return type(getattr(base, "__name__", "value"), (), {"__get_pydantic_core_schema__": classmethod(schema)})
+
+
+def task_interface(cls: type[TaskContext]) -> InterfaceInfo:
+    """The SCA service of a task class: one operation per ``@operation``."""
+    ops: dict[str, Operation] = {}
+    for name, attr in cls._operation_attrs.items():
+        ann = getattr(getattr(cls, attr), "__annotations__", {}).get("return")
+        ops[name] = Operation(name, False, ann not in (None, "None", type(None)))
+    return InterfaceInfo(cls.__name__, ops, None, True, None)
+
+
+class TaskImplementation:
+    """The ``implementation.task`` kind (see the module docstring)."""
+
+    def component_type(self, impl: Implementation, contribution: Contribution) -> ComponentType:
+        """The task's service (its operations) and properties; raises ``ImplementationProblem``."""
+        cls = task_class(impl, contribution)
+        _period(impl)
+        props: dict[str, tuple[PropSpec, Any]] = {}
+        for name, prop in cls._property_decls.items():
+            spec = PropSpec(prop.default, False)
+            spec.name = name
+            props[name] = (spec, _checked_type(prop))
+        return ComponentType(cls, {cls.__name__: task_interface(cls)}, {}, props, (), (), (), (), "composite", True)
+
+    def manager(self, node: Node, host: Any) -> ComponentManager:
+        """A :class:`TaskManager`."""
+        return TaskManager(node, host)
+
+
+class TaskManager(ComponentManager):
+    """Creates, deploys, starts and stops the one TaskContext of a task component."""
+
+    def __init__(self, node: Node, host: Any) -> None:
+        super().__init__(node, host)
+        self.task: TaskContext | None = None
+
+    def method(self, operation: str) -> Callable[..., Any]:
+        """``task.call(operation, ...)`` (raises ``RuntimeStateError`` before start)."""
+
+        def call(*args: Any, **kwargs: Any) -> Any:
+            task = self.task
+            if task is None:
+                from scart.errors import RuntimeStateError
+
+                raise RuntimeStateError(f"task component {self.node.path} is not started")
+            return task.call(operation, *args, **kwargs)
+
+        return call
+
+    def start(self) -> None:
+        """Create, deploy, set properties, configure, connect to present peers, start.
+
+        Raises ``ScartError`` naming the task when a step is refused."""
+        from scart.assembly import _Default
+        from scart.errors import ScartError
+
+        impl = self.node.model.implementation
+        assert impl is not None
+        dataflow_host = host_of(self.host)
+        task = self.node.ctype.cls(self.node.path)
+        period = _period(impl)
+        if period is not None:
+            task.set_activity(PeriodicActivity(period))
+        for name, value in self.node.properties.items():
+            if value is not _Default:
+                task.set_property(name, value)
+        dataflow_host.deployer.add(task)
+        self.task = task
+        if not task.configure():
+            raise ScartError(f"task {task.name}: configure refused (state {task.state.name})")
+        connect_present(self.host, task.name)
+        if not task.start():
+            raise ScartError(f"task {task.name}: start refused (state {task.state.name})")
+        dataflow_host.refresh()
+
+    def stop(self) -> None:
+        """Stop, clean up and disconnect the task (idempotent; refusals are logged)."""
+        task = self.task
+        if task is None:
+            return
+        if task.is_running():
+            task.stop()
+        if task.is_configured():
+            task.cleanup()
+        for port in task.ports().values():
+            port.disconnect()
+
+    def instance(self) -> object | None:
+        """The task once started."""
+        return self.task
+
+
+# --- scart:connect ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Link:
+    """One ``scart:connect``: source and sink as (task name, port), policy, local flags."""
+
+    source: tuple[str, str]
+    sink: tuple[str, str]
+    policy: ConnPolicy
+    ns: str | None
+    where: str
+
+    @property
+    def text(self) -> str:
+        """``a.out -> b.in [policy]``."""
+        return f"{'.'.join(self.source)} -> {'.'.join(self.sink)} [{self.policy}]"
+
+
+def _split(ref: str) -> tuple[str, str] | None:
+    comp, dot, port = ref.strip().rpartition(".")
+    return (comp, port) if dot and comp and port else None
+
+
+def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
+    """The link of an element and the problems found reading it (messages only)."""
+    problems: list[str] = []
+    ends = []
+    for attr in ("from", "to"):
+        raw = el.attributes.get(attr, "")
+        parsed = _split(raw)
+        if parsed is None:
+            problems.append(f"<scart:connect> {attr}={raw!r}: expected COMPONENT.PORT")
+        else:
+            ends.append((prefix + parsed[0], parsed[1]))
+    try:
+        policy = ConnPolicy.parse(el.attributes.get("policy", "data"))
+    except ValueError as exc:
+        problems.append(f"<scart:connect>: {exc}")
+        policy = ConnPolicy.data()
+    if problems:
+        return None, problems
+    return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc)), []
+
+
+def links_of(elements: list[tuple[str, Element]]) -> list[Link]:
+    """The well-formed links among ``elements``."""
+    return [link for prefix, el in elements if (link := _parse_link(prefix, el)[0]) is not None]
+
+
+class ConnectExtension:
+    """The ``scart:connect`` composite extension (see the module docstring)."""
+
+    def check(self, elements: list[tuple[str, Element]], assembly: Assembly) -> list[Problem]:
+        """Static problems of every connect element."""
+        out: list[Problem] = []
+        for prefix, el in elements:
+            def add(code: str, msg: str, _el: Element = el) -> None:
+                out.append(Problem(code, msg, _el.loc.path, _el.loc.line))
+
+            link, problems = _parse_link(prefix, el)
+            for msg in problems:
+                add(TASK_CONNECT, msg)
+            if link is not None:
+                self._check_link(link, assembly, add)
+        return out
+
+    def _check_link(self, link: Link, assembly: Assembly, add: Callable[[str, str], None]) -> None:
+        ends: list[PortInfo | None] = []
+        local = 0
+        for (comp, port), want, role in ((link.source, "out", "from"), (link.sink, "in", "to")):
+            node = assembly.nodes.get(comp)
+            if node is None:
+                ns = link.ns or ambient_ns()
+                ports = remote_ports(ns, comp, timeout=0.5) if ns else None
+                if ports is None:
+                    log.info("%s: %s is not in this composite: resolved through the name service at start", link.where, comp)
+                ends.append(_port_or_problem(ports, comp, port, want, role, add) if ports is not None else None)
+                continue
+            local += 1
+            if node.kind != "implementation.task":
+                add(TASK_CONNECT, f"<scart:connect> {role}: component {comp!r} is not an implementation.task")
+                ends.append(None)
+                continue
+            ends.append(_port_or_problem(class_ports(node.ctype.cls), comp, port, want, role, add))
+        if local == 0:
+            known = [p for p, n in assembly.nodes.items() if n.kind == "implementation.task"]
+            add(TASK_CONNECT, f"<scart:connect>: neither {link.source[0]!r} nor {link.sink[0]!r} is a task of this "
+                f"composite; tasks: {', '.join(known) or 'none'}")
+        src, dst = ends
+        if src is not None and dst is not None and src.type_name != dst.type_name:
+            add(TASK_CONNECT_TYPE, f"<scart:connect> {link.text}: type mismatch: {src.type_name} -> {dst.type_name}")
+
+    def participant(self, elements: list[tuple[str, Element]], runtime: Any) -> ConnectParticipant:
+        """Makes the links at start (cross-deployer ones in the background)."""
+        return ConnectParticipant(links_of(elements), runtime)
+
+
+def _port_or_problem(
+    ports: dict[str, PortInfo], comp: str, port: str, want: str, role: str, add: Callable[[str, str], None]
+) -> PortInfo | None:
+    info = ports.get(port)
+    if info is None:
+        add(TASK_CONNECT, f"<scart:connect> {role}: task {comp!r} has no port {port!r}; ports: "
+            f"{', '.join(f'{p.name} ({p.direction})' for p in ports.values()) or 'none'}")
+        return None
+    if info.direction != want:
+        need = "an output" if want == "out" else "an input"
+        add(TASK_CONNECT, f"<scart:connect> {role}: {comp}.{port} is not {need} port")
+        return None
+    return info
+
+
+def connect_present(runtime: Any, task_name: str) -> None:
+    """Make the in-process links of ``task_name`` whose other end is already deployed."""
+    deployer = host_of(runtime).deployer
+    names = set(deployer.names())
+    for link in runtime_links(runtime):
+        if task_name in (link.source[0], link.sink[0]) and link.source[0] in names and link.sink[0] in names:
+            deployer.connect(".".join(link.source), ".".join(link.sink), link.policy)
+
+
+def runtime_links(runtime: Any) -> list[Link]:
+    """Every link declared in ``runtime``'s assembly."""
+    return links_of([(p, el) for p, el in runtime.assembly.extensions if el.kind == "connect"])
+
+
+class ConnectParticipant:
+    """Runs the links of one runtime: in-process ones at start, remote ones by a connector
+    thread that (re)connects whenever the remote end (re)appears in the name service."""
+
+    def __init__(self, links: list[Link], runtime: Any) -> None:
+        self.runtime = runtime
+        self.links = links
+        self._remote = [lk for lk in links if not self._is_local(lk)]
+        self._made: dict[Link, str] = {}  # link -> deployer id of the remote end it was made with
+        self._watcher: Watcher | None = None
+        self._clients: dict[str, Any] = {}
+
+    def _is_local(self, link: Link) -> bool:
+        nodes = self.runtime.assembly.nodes
+        return link.source[0] in nodes and link.sink[0] in nodes
+
+    def start(self) -> None:
+        """Connect local links (idempotent); start the connector for remote ones."""
+        deployer = host_of(self.runtime).deployer
+        for link in self.links:
+            if self._is_local(link):
+                deployer.connect(".".join(link.source), ".".join(link.sink), link.policy)
+        if self._remote:
+            self._watcher = Watcher("scart-connect", self._step, interval=0.25)
+            self._watcher.start()
+
+    def _client(self, ns: str) -> Any:
+        from dataflow.remote.naming import NameClient
+
+        if ns not in self._clients:
+            self._clients[ns] = NameClient(ns, timeout=1.0)
+        return self._clients[ns]
+
+    def _step(self) -> None:
+        host = host_of(self.runtime)
+        if host.server is None:
+            return  # not served (yet): scart run serves right after start
+        for link in self._remote:
+            nodes = self.runtime.assembly.nodes
+            remote = link.sink[0] if link.source[0] in nodes else link.source[0]
+            ns = link.ns or host.ns_address
+            try:
+                entry = self._client(ns).resolve(remote)
+            except DataflowError:
+                if link in self._made:
+                    log.info("connect %s: %s is gone from the name service %s", link.text, remote, ns)
+                    del self._made[link]
+                continue
+            if self._made.get(link) == entry.deployer_id:
+                continue
+            try:
+                self._connect(host, link, ns)
+            except PortTypeError as exc:  # retrying cannot help until that deployer changes
+                log.error("connect %s (%s): %s", link.text, link.where, exc)
+            except DataflowError as exc:
+                log.info("connect %s: not yet: %s", link.text, exc)
+                continue
+            self._made[link] = entry.deployer_id
+
+    def _connect(self, host: Any, link: Link, ns: str) -> None:
+        from dataflow.remote.client import GrpcSystem
+
+        if host.server is None:
+            raise DataflowError(f"connect {link.text}: this runtime's tasks are not served (use scart run)")
+        system = GrpcSystem(ns, timeout=2.0)
+        try:
+            system.connect_ports(".".join(link.source), ".".join(link.sink), link.policy)
+        finally:
+            system.close()
+        log.info("connect %s: connected across deployers", link.text)
+
+    def stop(self) -> None:
+        """Stop the connector and close its clients (idempotent)."""
+        if self._watcher is not None:
+            self._watcher.stop()
+        for client in self._clients.values():
+            client.close()
+        self._clients.clear()
+
+
+def ensure_registered() -> None:
+    """(Re-)register ``implementation.task`` and ``scart:connect`` if something replaced them
+    (idempotent; tests that swap handlers use it to restore the real ones)."""
+    from scart.extensions import COMPOSITE_EXTENSIONS
+    from scart.implementations import IMPLEMENTATION_KINDS
+
+    if not isinstance(IMPLEMENTATION_KINDS.get("implementation.task"), TaskImplementation):
+        register_implementation("implementation.task", TaskImplementation())
+    if not isinstance(COMPOSITE_EXTENSIONS.get("connect"), ConnectExtension):
+        register_composite_extension("connect", ConnectExtension())
+
+
+ensure_registered()

@@ -1,0 +1,369 @@
+"""``binding.dataflow``: SCA references and services wired straight to data-flow ports.
+
+XML (namespace ``urn:scart:1.0``)::
+
+    <reference name="thermostat">
+      <scart:binding.dataflow component="thermostat" ns="127.0.0.1:7850" policy="data">
+        <scart:map operation="set_target" port="setpoint"/>
+      </scart:binding.dataflow>
+    </reference>
+    <service name="Samples">
+      <scart:binding.dataflow component="thermostat" ports="on_temperature=temperature"
+                              policy="buffer:16" period="0.05"/>
+    </service>
+
+Attributes: ``component`` (required: the task's name), ``ns`` (name service
+``HOST:PORT``; absent → a task of this composite if there is one, else this runtime's
+name service: ``scart run --ns`` / ``SCART_NS`` / the default), ``policy`` (``data``
+default, ``buffer:N``, ``circular:N``: the connection policy of writes and of
+subscriptions), ``period`` (service only: poll every ``period`` s, JOrocos-style, instead
+of the push subscription), ``ports="op=port,..."`` and/or ``<scart:map operation port/>``
+children (explicit mapping; otherwise an operation maps to the port of its own name).
+
+Reference side: an operation with one argument writes it to the input port (returns
+None; a one-way operation is queued on the runtime's pool); an operation with no
+argument and a return value returns the latest sample of the output port, ``None``
+before any. A call while the task is unreachable raises ``InvocationError`` naming it.
+
+Service side: every new sample of an output port invokes the operation mapped to it,
+with the sample as its argument, on the subscription's own thread: while the component
+is busy, DATA keeps only the newest sample, BUFFER(n) queues n and counts the overflow
+(:attr:`DataflowServiceBinding.dropped`). Operations that map to no port (and are not
+mapped explicitly) are not data-driven.
+
+Checks: at load time (``file:line``), operation shapes and, by introspecting the task —
+its class for a task of this composite, else through the name service if it answers
+within 0.5 s — port existence, direction and type (the interface annotations' registry
+names against the port types). When the task cannot be introspected at load time, the
+same check runs when it connects; mismatching operations are logged and left out.
+
+Availability: the composite starts whether the task is there or not; a connector thread
+connects when the task appears, and the remote proxies reconnect after it restarts. Each
+change (appeared, connected, gone, restarted) is logged on ``scart.dataflow``.
+``bindings_of(runtime)`` lists the live bindings (for counters and tests).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from dataflow import DataflowError, FlowStatus
+from dataflow.remote import local_system
+from scart.api import InterfaceInfo, Operation
+from scart.bindings._dataflow_host import PortInfo, Watcher, host_of
+from scart.bindings._dataflow_plan import DF_ATTRIBUTE, Settings, Step, check_ports, plan, settings, static_ports
+from scart.bindings.base import BindingHost, ReferenceBinding, ServiceBinding, ServiceEndpoint, register_binding
+from scart.errors import InvocationError, Problem
+from scart.model import Binding
+
+__all__ = ["DataflowReferenceBinding", "DataflowServiceBinding", "bindings_of"]
+
+log = logging.getLogger("scart.dataflow")
+
+
+def bindings_of(runtime: Any) -> list[Any]:
+    """The ``binding.dataflow`` instances of ``runtime`` (references and services)."""
+    return runtime.shared("dataflow.bindings", list)
+
+
+def _check(model: Binding, iface: InterfaceInfo | None, contribution: Any, side: str) -> list[Problem]:
+    s = settings(model)
+    where = (model.loc.path, model.loc.line)
+    out = [Problem(DF_ATTRIBUTE, m, *where) for m in s.problems]
+    if side == "reference" and model.attributes.get("period") is not None:
+        out.append(Problem(DF_ATTRIBUTE, "period is for services (polling), not references", *where))
+    if iface is None or not s.component:
+        return out
+    steps, shape = plan(iface, side, s)
+    out += [Problem(DF_ATTRIBUTE, m, *where) for m in shape]
+    ports, source = static_ports(s, contribution)
+    if ports is None:
+        log.info("%s:%s: task %r not reachable at load time: ports checked when it connects", *where, s.component)
+        return out
+    _, problems = check_ports(steps, ports, s.component)
+    out += [Problem(code, f"{m} (from {source})", *where) for code, m in problems]
+    return out
+
+
+class _Link:
+    """The connection of one binding to its task: which system, the proxy, state logging.
+
+    ``proxy()`` returns the component proxy or raises ``DataflowError`` (one attempt, no
+    wait). ``watch()`` (connector thread) logs appear / gone / restarted transitions.
+    """
+
+    def __init__(self, runtime: Any, s: Settings, what: str) -> None:
+        self.runtime = runtime
+        self.s = s
+        self.what = what
+        self.host = host_of(runtime)
+        node = runtime.assembly.nodes.get(s.component)
+        self.local = s.ns is None and node is not None and node.kind == "implementation.task"
+        self._system: Any = None
+        self._proxy: Any = None
+        self._lock = threading.Lock()
+        self._deployer_id: str | None = None
+        self._names: Any = None
+        self._looked = 0.0
+        self.state = "waiting"
+
+    @property
+    def ns(self) -> str:
+        """The name service used (remote tasks)."""
+        return self.s.ns or self.host.ns_address
+
+    def proxy(self) -> Any:
+        """The component proxy (created on first success); raises ``DataflowError``."""
+        proxy = self._proxy
+        if proxy is not None:
+            return proxy
+        with self._lock:
+            if self._proxy is None:
+                if self._system is None:
+                    if self.local:
+                        self._system = local_system(self.host.deployer)
+                    else:
+                        from dataflow.remote.client import GrpcSystem
+
+                        self._system = GrpcSystem(self.ns, timeout=2.0)
+                self._proxy = self._system.component(self.s.component)
+                self._set_state("connected", "")
+            return self._proxy
+
+    def _set_state(self, state: str, detail: str) -> None:
+        if state != self.state:
+            where = "in this process" if self.local else f"through {self.ns}"
+            log.info("binding.dataflow %s: task %s %s (%s)%s", self.what, self.s.component, state, where, detail)
+            self.state = state
+
+    def watch(self) -> bool:
+        """One look at the name service: logs transitions; True while the task is registered."""
+        if self.local:
+            return self.s.component in self.host.deployer.names()
+        from dataflow.remote.naming import NameClient
+
+        now = time.monotonic()
+        if self.state == "connected" and now - self._looked < 1.0:
+            return True  # connected: the proxies reconnect by themselves; look once a second
+        self._looked = now
+        if self._names is None:
+            self._names = NameClient(self.ns, timeout=1.0)
+        try:
+            entry = self._names.resolve(self.s.component)
+        except DataflowError as exc:
+            if self.state != "waiting":
+                self._set_state("gone", f": {type(exc).__name__}")
+            return False
+        if self._deployer_id is not None and entry.deployer_id != self._deployer_id:
+            self._set_state("restarted", f" at {entry.address}")
+            self.state = "connected"
+        elif self.state == "gone":
+            self._set_state("connected", f" again at {entry.address}")
+        self._deployer_id = entry.deployer_id
+        return True
+
+    def close(self) -> None:
+        """Close the system (subscriptions and writers with it) and the name client."""
+        with self._lock:
+            system, self._system, self._proxy = self._system, None, None
+        if system is not None:
+            system.close()
+        if self._names is not None:
+            self._names.close()
+
+
+class DataflowReferenceBinding(ReferenceBinding):
+    """Reference side (see the module docstring). Thread-safe."""
+
+    @classmethod
+    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
+        """Static problems (see the module docstring)."""
+        return _check(model, interface, contribution, "reference")
+
+    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: BindingHost) -> None:
+        super().__init__(model, interface, host)
+        assert model is not None
+        self.settings = settings(model)
+        self.steps = {st.operation: st for st in plan(interface, "reference", self.settings)[0]}
+        self._link = _Link(host, self.settings, f"reference {interface.name}")
+        self._writers: dict[str, Any] = {}
+        self._lock = threading.Lock()
+        self._watcher: Watcher | None = None
+        self._checked = False
+        self.calls = 0
+        bindings_of(host).append(self)
+
+    def _writer(self, port: str) -> Any:
+        writer = self._writers.get(port)
+        if writer is None:
+            with self._lock:
+                writer = self._writers.get(port)
+                if writer is None:
+                    writer = self._writers[port] = self._link.proxy().connect_input(port, self.settings.policy)
+        return writer
+
+    def write(self, port: str, value: Any) -> None:
+        """Write ``value`` to input ``port``; raises ``InvocationError`` when unreachable."""
+        try:
+            self._writer(port).write(value)
+        except DataflowError as exc:
+            raise InvocationError(f"binding.dataflow: writing {self.settings.component}.{port} failed: {exc}",
+                                  type(exc).__name__) from exc
+        self.calls += 1
+
+    def read(self, port: str) -> Any:
+        """The latest sample of output ``port`` (None before any)."""
+        try:
+            flow, value = self._link.proxy().read(port)
+        except DataflowError as exc:
+            raise InvocationError(f"binding.dataflow: reading {self.settings.component}.{port} failed: {exc}",
+                                  type(exc).__name__) from exc
+        self.calls += 1
+        return None if flow is FlowStatus.NO_DATA else value
+
+    def invoker(self, operation: Operation, callback: object | None) -> Callable[..., Any]:
+        """A callable writing (one argument) or reading (none) the mapped port."""
+        step = self.steps.get(operation.name)
+        if step is None:
+            def unusable(*args: Any, **kwargs: Any) -> Any:
+                raise InvocationError(f"binding.dataflow: operation {operation.name!r} maps to no port")
+            return unusable
+        port = step.port
+        if step.kind == "read":
+            return lambda: self.read(port)
+        if operation.oneway:
+            submit = self.host.submit
+            return lambda value: submit(self.write, port, value)
+        return lambda value: self.write(port, value)
+
+    def start(self) -> None:
+        """Start the connector (remote tasks: connect when it appears, log changes)."""
+        self._watcher = Watcher(f"scart-df-ref-{self.settings.component}", self._step, interval=0.25)
+        self._watcher.start()
+
+    def _step(self) -> None:
+        if not self._link.watch() or self._checked:
+            return
+        try:
+            ports = self._link.proxy().describe().ports
+        except DataflowError:
+            return
+        self._checked = True  # the load-time check could not reach the task: check it now, once
+        infos = {p.name: PortInfo(p.name, p.direction, p.type_name) for p in ports}
+        for _code, msg in check_ports(list(self.steps.values()), infos, self.settings.component)[1]:
+            log.error("binding.dataflow %s: %s", self.model.loc if self.model else "?", msg)
+
+    def stop(self) -> None:
+        """Stop the connector, close writers and the connection (idempotent)."""
+        if self._watcher is not None:
+            self._watcher.stop()
+        with self._lock:
+            writers, self._writers = list(self._writers.values()), {}
+        for w in writers:
+            try:
+                w.close()
+            except DataflowError:
+                pass
+        self._link.close()
+
+
+class DataflowServiceBinding(ServiceBinding):
+    """Service side (see the module docstring): samples invoke operations."""
+
+    @classmethod
+    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
+        """Static problems (see the module docstring)."""
+        return _check(model, interface, contribution, "service")
+
+    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: BindingHost) -> None:
+        super().__init__(model, endpoint, host)
+        self.settings = settings(model)
+        self.steps: list[Step] = plan(endpoint.interface, "service", self.settings)[0]
+        self._link = _Link(host, self.settings, f"service {endpoint.component}/{endpoint.service}")
+        self._subs: list[Any] = []
+        self._watcher: Watcher | None = None
+        self.delivered = 0
+        self.failures = 0
+        self.last_latency = 0.0
+        bindings_of(host).append(self)
+
+    @property
+    def dropped(self) -> int:
+        """Samples lost to the policy while the component was busy (all subscriptions)."""
+        return sum(s.dropped for s in list(self._subs))
+
+    @property
+    def connected(self) -> bool:
+        """True when subscribed and every subscription can receive."""
+        return bool(self._subs) and all(s.connected for s in list(self._subs))
+
+    @property
+    def address(self) -> str | None:
+        """``dataflow:COMPONENT`` (``@NS`` for a remote task)."""
+        where = "" if self._link.local else f"@{self._link.ns}"
+        return f"dataflow:{self.settings.component}{where}"
+
+    def start(self) -> None:
+        """Subscribe now if the task is there, else when it appears (connector thread)."""
+        self._watcher = Watcher(f"scart-df-svc-{self.settings.component}", self._step, interval=0.25)
+        self._watcher.start()
+
+    def _step(self) -> None:
+        present = self._link.watch()
+        if self._subs or not present:
+            return
+        try:
+            proxy = self._link.proxy()
+            ports = {p.name: p for p in proxy.describe().ports}
+        except DataflowError:
+            return
+        infos = {n: PortInfo(n, p.direction, p.type_name) for n, p in ports.items()}
+        steps, problems = check_ports(self.steps, infos, self.settings.component)
+        for _code, msg in problems:
+            log.error("binding.dataflow %s: %s (operation left out)", self.model.loc, msg)
+        subs = []
+        try:
+            for st in steps:
+                subs.append(proxy.subscribe(st.port, self._observer(st.operation), policy=self.settings.policy,
+                                            period=self.settings.period))
+        except DataflowError as exc:
+            for sub in subs:
+                sub.close()
+            log.info("binding.dataflow %s: subscribing to %s failed: %s", self.model.loc, self.settings.component, exc)
+            return
+        self._subs = subs
+        log.info("binding.dataflow %s: %d operation(s) of %s/%s driven by %s", self.model.loc, len(subs),
+                 self.endpoint.component, self.endpoint.service, self.settings.component)
+
+    def _observer(self, operation: str) -> Callable[[Any], None]:
+        call = self.endpoint.operation(operation, None)
+
+        def observe(event: Any) -> None:
+            try:
+                call(event.value)
+            except Exception:
+                self.failures += 1
+                raise
+            finally:
+                self.delivered += 1
+                self.last_latency = time.time() - event.source_time
+
+        return observe
+
+    def stop(self) -> None:
+        """Stop the connector and every subscription (idempotent)."""
+        if self._watcher is not None:
+            self._watcher.stop()
+        subs, self._subs = self._subs, []
+        for sub in subs:
+            sub.close()
+        self._link.close()
+
+
+register_binding("binding.dataflow", service=DataflowServiceBinding, reference=DataflowReferenceBinding)
+
+import scart.bindings._dataflow_tasks  # noqa: E402,F401  (implementation.task and scart:connect)
