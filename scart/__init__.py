@@ -32,10 +32,12 @@ from scart.errors import (
     InvocationError,
     NoCallbackError,
     Problem,
+    RemoteError,
     RuntimeStateError,
     ScartError,
     ScdlError,
     ServiceNotFoundError,
+    ServiceUnavailableError,
 )
 from scart.runtime import Runtime, RuntimeState, ServiceProxy
 
@@ -44,6 +46,7 @@ __all__ = [
     "InvocationError",
     "NoCallbackError",
     "Problem",
+    "RemoteError",
     "Runtime",
     "RuntimeState",
     "RuntimeStateError",
@@ -51,6 +54,7 @@ __all__ = [
     "ScdlError",
     "ServiceNotFoundError",
     "ServiceProxy",
+    "ServiceUnavailableError",
     "callback",
     "component",
     "context",

@@ -112,3 +112,21 @@ class InvocationError(ScartError):
     def __init__(self, message: str, remote_type: str = "") -> None:
         super().__init__(message)
         self.remote_type = remote_type
+
+
+class RemoteError(InvocationError):
+    """An operation raised on the other side of a remote binding (``binding.grpc``).
+
+    ``remote_type`` is the qualified type name of the remote exception (e.g.
+    "ZeroDivisionError", "mymodule.Rejected"), ``remote_message`` its message and
+    ``remote_traceback`` its formatted traceback (for logs)."""
+
+    def __init__(self, where: str, remote_type: str, remote_message: str, remote_traceback: str = "") -> None:
+        super().__init__(f"{where}: remote {remote_type}: {remote_message}", remote_type)
+        self.remote_message = remote_message
+        self.remote_traceback = remote_traceback
+
+
+class ServiceUnavailableError(InvocationError):
+    """A remote service could not be reached, or did not answer, within the deadline
+    (the message names the address and the deadline)."""

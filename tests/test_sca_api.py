@@ -15,8 +15,9 @@ from scart.bindings.base import BINDING_KINDS
 from scart.implementations import IMPLEMENTATION_KINDS
 
 EXPECTED = {
-    "ComponentContext", "InvocationError", "NoCallbackError", "Problem", "Runtime", "RuntimeState",
-    "RuntimeStateError", "ScartError", "ScdlError", "ServiceNotFoundError", "ServiceProxy",
+    "ComponentContext", "InvocationError", "NoCallbackError", "Problem", "RemoteError", "Runtime",
+    "RuntimeState", "RuntimeStateError", "ScartError", "ScdlError", "ServiceNotFoundError", "ServiceProxy",
+    "ServiceUnavailableError",
     "callback", "component", "context", "destroy", "init", "interface", "oneway", "prop", "reference",
 }
 
@@ -28,7 +29,8 @@ def test_public_exports_are_curated() -> None:
     public = {n for n in vars(scart) if not n.startswith("_")}
     # submodules may appear as attributes once imported; nothing else leaks
     assert public - EXPECTED <= {"api", "errors", "runtime", "assembly", "bindings", "contribution",
-                                 "implementations", "model", "scdl", "commands", "cli", "extensions", "values", "schema"}
+                                 "implementations", "model", "scdl", "commands", "cli", "extensions", "values", "schema",
+                                 "tasks"}
 
 
 def test_error_tree() -> None:

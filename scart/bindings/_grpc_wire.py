@@ -30,7 +30,7 @@ from google.protobuf.descriptor import ServiceDescriptor
 
 from dataflow import registry
 from dataflow.types import UnknownValue
-from scart.errors import InvocationError
+from scart.errors import InvocationError, RemoteError
 
 SCA_PROTO = "scart/sca/v1/sca.proto"
 SCA_SERVICE_NAME = "scart.sca.v1.ScaService"
@@ -230,19 +230,6 @@ def fill_invocation(msg: Any, args: tuple[Any, ...], kwargs: dict[str, Any]) -> 
 
 
 # --- faults ---------------------------------------------------------------------------
-
-
-class RemoteError(InvocationError):
-    """An operation raised on the other side of a ``binding.grpc`` call.
-
-    ``remote_type`` is the qualified type name of the remote exception (e.g.
-    "ZeroDivisionError", "mymodule.Rejected"), ``remote_message`` its message and
-    ``remote_traceback`` its formatted traceback (for logs)."""
-
-    def __init__(self, where: str, remote_type: str, remote_message: str, remote_traceback: str = "") -> None:
-        super().__init__(f"{where}: remote {remote_type}: {remote_message}", remote_type)
-        self.remote_message = remote_message
-        self.remote_traceback = remote_traceback
 
 
 class UnknownSessionError(InvocationError):

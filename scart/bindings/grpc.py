@@ -70,7 +70,7 @@ from scart.bindings._grpc_wire import (
     PATHS, RemoteError, UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, signatures,
 )
 from scart.bindings.base import BindingHost, ReferenceBinding, ServiceBinding, ServiceEndpoint, register_binding
-from scart.errors import InvocationError, Problem
+from scart.errors import InvocationError, Problem, ServiceUnavailableError
 from scart.model import Binding
 
 log = logging.getLogger("scart.bindings.grpc")
@@ -93,11 +93,6 @@ CHANNEL_OPTIONS: list[tuple[str, int]] = [
 
 _ADDRESS = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
 _SERVICE = re.compile(r"^[^\s/]+(/[^\s/]+)*$")
-
-
-class ServiceUnavailableError(InvocationError):
-    """The remote service could not be reached, or did not answer, within the deadline
-    (the message names the address and the deadline)."""
 
 
 # --- static checks -----------------------------------------------------------------------
