@@ -147,7 +147,7 @@ class _Link:
         from dataflow.remote.naming import NameClient
 
         now = time.monotonic()
-        if self.state == "connected" and now - self._looked < 1.0:
+        if self.state == "connected" and self._deployer_id is not None and now - self._looked < 1.0:
             return True  # connected: the proxies reconnect by themselves; look once a second
         self._looked = now
         if self._names is None:
