@@ -28,7 +28,7 @@ OVER_TEMPERATURE = 45.0  # °C
 AMBIENT = [28.0, 30.0, 32.0, 34.0, 43.0]  # °C per joint at rest (joint 5 runs hot: a visible flag)
 TAU_S = 20.0  # s, thermal time constant
 
-# The same bit names as the dummy driver's (composites/youbot/model.py), not imported: the
+# The same bit names as the dummy driver's (composites/youbot/youbot_model.py), not imported: the
 # monitor package stands alone.
 DEMO_FLAG_NAMES: dict[int, str] = {
     0: "OVER_CURRENT",
