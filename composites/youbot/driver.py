@@ -97,6 +97,12 @@ class YouBotDriver(TaskContext):
 
     # -- lifecycle --------------------------------------------------------------
     def configure_hook(self) -> bool:
+        # The activity may have been replaced after __init__ (a composite's period="..."):
+        # what is in use is what the properties report.
+        act = self.activity
+        if isinstance(act, PeriodicActivity) and act.period != self.accepted_period:
+            self.accepted_period = act.period
+            self.period_status = f"accepted {act.period:g} s"
         self._reset_state()
         return True
 

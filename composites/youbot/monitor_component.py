@@ -1,0 +1,210 @@
+"""``YouBotMonitor``: the SCA component hosting the youBot Monitor web page.
+
+It owns a :class:`monitor.MonitorServer` (started in ``@init``, stopped in ``@destroy``)
+and is its backend: period requests go to ``period: SettingPeriod``, poses to
+``locomotor: Moving``. It registers with the driver proxy for ``refresh`` callbacks by
+calling ``status.get_joints_status()`` at init; on each ``notify("refresh")`` it fetches
+the newest sample and publishes it; ``busy``/``idle`` and connection events are shown
+in the page's event log. A small owned thread (~2 Hz) keeps the driver info (state,
+period, connection) up to date.
+
+At start it prints ``youBot Monitor: http://HOST:PORT/`` on stdout (flushed).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from typing import Any, Protocol
+
+import scart
+from interfaces import Moving, RetrievingStatus, SettingPeriod
+from monitor import MonitorServer
+from youbot_model import ERROR_BITS
+
+__all__ = ["YouBotMonitor", "MonitorStatistics"]
+
+log = logging.getLogger("youbot.monitor")
+
+
+@scart.interface
+class MonitorStatistics(Protocol):
+    """What the monitor received (for benchmarks and tests)."""
+
+    def statistics(self) -> dict:
+        """{"url", "published", "refreshes", "latencies": [s, ...] (newest ≤ 20000),
+        "first_sequence", "last_sequence", "events": [[name, detail], ...]}."""
+        ...
+
+
+@scart.component(services=[MonitorStatistics])
+class YouBotMonitor:
+    """Hosts the monitor page; implements ``monitor.MonitorBackend`` by delegation."""
+
+    host: str = scart.prop(default="127.0.0.1")
+    port: int = scart.prop(default=0)
+    info_interval: float = scart.prop(default=0.5)
+    status: RetrievingStatus = scart.reference()
+    period: SettingPeriod = scart.reference()
+    locomotor: Moving = scart.reference()
+
+    @scart.init
+    def open(self) -> None:
+        """Start the web server, print its URL, register for refresh, start the info thread."""
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self.published = 0
+        self.refreshes = 0
+        self._last_sequence: int | None = None
+        self._moving = ""
+        self._first_sequence: int | None = None
+        self._latencies: deque[float] = deque(maxlen=20_000)
+        self._events: deque[tuple[str, str]] = deque(maxlen=200)
+        self.server = MonitorServer(self, host=self.host, port=int(self.port))
+        self.server.error_flag_names = dict(ERROR_BITS)
+        self.server.start()
+        self.url = self.server.url
+        self._thread = threading.Thread(target=self._info_loop, name="scart-youbot-monitor-info", daemon=True)
+        try:
+            self._publish_newest(self.status.get_joints_status())  # registers us for refresh
+            if not self.locomotor.is_busy():
+                self._show("idle", "arm ready")
+            self._thread.start()
+        except BaseException:
+            self.server.stop()  # @destroy does not run after a failed @init
+            raise
+        print(f"youBot Monitor: {self.url}", flush=True)
+
+    @scart.destroy
+    def close(self) -> None:
+        """Stop the info thread, then the web server (idempotent)."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+        self.server.stop()
+
+    # --- monitor.MonitorBackend --------------------------------------------------------
+
+    def set_period(self, seconds: float) -> tuple[bool, str]:
+        """Ask the driver (through the proxy) for a new period; the driver's answer."""
+        answer = self.period.set_period(float(seconds))
+        ok = bool(answer.get("accepted"))
+        period = answer.get("period")
+        message = str(answer.get("message", ""))
+        if ok and isinstance(period, (int, float)):
+            message = f"driver period {float(period) * 1000:g} ms ({message})"
+            self._refresh_info()
+        return ok, message
+
+    def send_pose(self, pose: str | list[float]) -> tuple[bool, str]:
+        """Named pose or 5 joint positions through the Locomotor; (accepted?, message)."""
+        try:
+            if isinstance(pose, str):
+                message = self.locomotor.move_to_pose(pose)
+            else:
+                message = self.locomotor.move_to([float(v) for v in pose])
+        except ValueError as exc:
+            return False, str(exc)
+        with self._lock:
+            self._moving = message
+        self._show("busy", message)
+        return True, message
+
+    def poses(self) -> list[str]:
+        """The Locomotor's named poses."""
+        return list(self.locomotor.poses())
+
+    # --- Notifying (callback from the driver proxy) ------------------------------------
+
+    def notify(self, event: str, detail: str = "") -> None:
+        """``refresh``: fetch and publish the newest sample; other events are shown."""
+        if event == "refresh":
+            self.refreshes += 1
+            self._publish_newest(self.status.get_joints_status())
+            self.server.publish_event("refresh")
+            if self._moving:
+                self._check_move()
+            return
+        if event in ("connected", "disconnected"):  # the page logs changes of the driver info itself
+            self._events.append((event, detail))
+            self._refresh_info()
+            return
+        self._show(event, detail)
+
+    def _show(self, event: str, detail: str) -> None:
+        self._events.append((event, detail))
+        self.server.publish_event(event, detail)
+
+    def _check_move(self) -> None:
+        """While a move sent from the page runs: show ``idle`` (and ``reached``) when the
+        Locomotor is no longer busy."""
+        if self.locomotor.is_busy():
+            return
+        with self._lock:
+            message, self._moving = self._moving, ""
+        if not message:
+            return
+        target = message.removeprefix("moving to ")
+        if self.locomotor.target_reached():
+            self._show("idle", f"at {target}")
+            self._show("reached", target)
+        else:
+            self._show("idle", f"{target} not reached")
+
+    # --- MonitorStatistics -------------------------------------------------------------
+
+    def statistics(self) -> dict:
+        """See :class:`MonitorStatistics`."""
+        with self._lock:
+            return {
+                "url": self.url,
+                "published": self.published,
+                "refreshes": self.refreshes,
+                "latencies": list(self._latencies),
+                "first_sequence": self._first_sequence,
+                "last_sequence": self._last_sequence,
+                "events": [list(e) for e in self._events],
+            }
+
+    # --- internals ---------------------------------------------------------------------
+
+    def _publish_newest(self, sample: dict[str, Any] | None) -> None:
+        if sample is None:
+            return
+        received = time.time()
+        sequence = sample.get("sequence")
+        with self._lock:
+            if sequence is not None and sequence == self._last_sequence:
+                return  # already shown
+            self._last_sequence = sequence
+            if self._first_sequence is None:
+                self._first_sequence = sequence
+            self.published += 1
+            stamp = sample.get("timestamp")
+            if isinstance(stamp, (int, float)):
+                self._latencies.append(received - float(stamp))
+        self.server.publish_status(sample)
+
+    def _refresh_info(self) -> None:
+        try:
+            info = self.status.get_driver_info()
+        except Exception as exc:  # noqa: BLE001 - shown as disconnected
+            log.debug("driver info: %s", exc)
+            self.server.set_driver_info("UNKNOWN", 0.0, False)
+            return
+        period = info.get("period")
+        self.server.set_driver_info(
+            str(info.get("state") or "UNKNOWN"),
+            float(period) if isinstance(period, (int, float)) else 0.0,
+            bool(info.get("connected")),
+        )
+
+    def _info_loop(self) -> None:
+        for _ in range(100_000_000):  # bounded; ends when @destroy sets the stop event
+            self._refresh_info()
+            if self._moving:
+                self._check_move()
+            if self._stop.wait(self.info_interval):
+                return

@@ -1,0 +1,246 @@
+"""``SCAYouBotDriver``: the SCA proxy of the data-flow ``youBotDriver`` (the paper's guideline).
+
+As in the JOrocos SCA–Orocos integration, the proxy is a plain SCA component that uses
+the data-flow client library: at ``@init`` it connects to the data-flow system through
+the name service (property ``name_service``), gets the ``component`` proxy, subscribes
+to its ``jointStatus`` output port (push, or JOrocos-style polling every ``poll_period``
+s, at most half the driver period) and keeps the newest sample; it writes the
+``commands`` and ``period`` input ports. Services ``RetrievingStatus``,
+``SendingCommands`` (see :mod:`proxy_core`) and ``SettingPeriod``; callback ``Notifying``.
+
+Threads (all owned: created in ``@init``, signalled then joined in ``@destroy``):
+
+* the *supervisor* connects (retrying every ``retry_interval`` s while the driver is
+  not up — ``@init`` never waits for it), subscribes, then refreshes the cached driver
+  info (state, accepted period, period status) every ``info_interval`` s, logs
+  connection changes and tells the clients (``connected`` / ``disconnected``);
+* the subscription's own threads (client library) hand each sample to
+  :meth:`~proxy_core.DriverProxyCore._on_status`, which never blocks;
+* one notifier per registered client (:class:`proxy_core.Listener`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import threading
+import time
+from typing import Any
+
+import scart
+from dataflow import ConnPolicy, WriteStatus
+from dataflow.remote import System, connect
+from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from interfaces import RetrievingStatus, SendingCommands, SettingPeriod
+from proxy_core import DriverProxyCore
+
+__all__ = ["SCAYouBotDriver", "resolve_name_service"]
+
+log = logging.getLogger("youbot.sca_driver")
+
+PERIOD_ANSWER_TIMEOUT = 2.0
+"""How long ``set_period`` waits for the driver's ``period_status`` to reflect a request."""
+
+
+def resolve_name_service(value: str) -> str:
+    """The name-service address to use: ``value`` if set; else the one this process's
+    runtime uses (``scart run --ns``), else ``$SCART_NS``, else the default address
+    ``scart run`` embeds its name service at (``127.0.0.1:7850``)."""
+    if value.strip():
+        return value.strip()
+    try:  # set by `scart run --ns` before the composite is loaded
+        from scart.bindings._dataflow_host import ambient_ns
+    except ImportError:  # an older scart: the environment only
+        ambient_ns = None
+    ambient = ambient_ns() if ambient_ns is not None else None
+    return ambient or os.environ.get(NS_ENV, "").strip() or DEFAULT_NS_ADDRESS
+
+
+@scart.component(services=[RetrievingStatus, SendingCommands, SettingPeriod])
+class SCAYouBotDriver(DriverProxyCore):
+    """SCA proxy of the data-flow youBot driver (see the module docstring)."""
+
+    name_service: str = scart.prop(default="")
+    poll_period: float = scart.prop(default=0.0)
+    retry_interval: float = scart.prop(default=0.2)
+    info_interval: float = scart.prop(default=0.5)
+
+    # --- lifecycle ---------------------------------------------------------------------
+
+    @scart.init
+    def open(self) -> None:
+        """Start the supervisor (it connects in the background); returns at once."""
+        self._core_open()
+        self._system: System | None = None
+        self._proxy: Any = None
+        self._subscription: Any = None
+        self._info: dict[str, Any] = {"state": None, "period": None, "period_status": "", "connected": False}
+        self._address = resolve_name_service(self.name_service)
+        self._supervisor = threading.Thread(target=self._supervise, name="scart-youbot-proxy", daemon=True)
+        self._supervisor.start()
+
+    @scart.destroy
+    def close(self) -> None:
+        """Signal every thread, close the subscription and the system, join (idempotent)."""
+        self._stop.set()
+        with self._sample_cond:
+            self._sample_cond.notify_all()
+        self._supervisor.join(timeout=10.0)
+        with self._lock:
+            sub, system = self._subscription, self._system
+            self._subscription = self._system = self._proxy = None
+        if sub is not None:
+            sub.close()
+        if system is not None:
+            system.close()
+        self._core_close()
+
+    # --- DriverProxyCore ---------------------------------------------------------------
+
+    def _write_commands(self, values: list[float]) -> None:
+        proxy = self._proxy
+        if proxy is None:
+            raise ConnectionError(f"not connected to {self.component} at {self._address}")
+        status = proxy.write("commands", values)
+        if status is not WriteStatus.WRITE_SUCCESS:
+            raise ConnectionError(f"writing {self.component}.commands: {status.name}")
+
+    def _driver_info(self) -> dict[str, Any]:
+        with self._lock:
+            info = dict(self._info)
+        info["address"] = self._address
+        return info
+
+    # --- SettingPeriod -----------------------------------------------------------------
+
+    def set_period(self, seconds: float) -> dict:
+        """Write the driver's ``period`` port, then wait (≤ 2 s) for ``period_status``."""
+        proxy = self._proxy
+        if proxy is None:
+            return self._refused(f"not connected to {self.component} at {self._address}")
+        try:
+            value = float(seconds)
+        except (TypeError, ValueError):
+            return self._refused(f"not a number: {seconds!r}")
+        accepted_text = f"accepted {value:g} s"
+        refused_prefix = f"rejected {value!r}"
+        try:
+            written = proxy.write("period", value)
+            if written is not WriteStatus.WRITE_SUCCESS:
+                return self._refused(f"writing {self.component}.period: {written.name}")
+            deadline = time.monotonic() + PERIOD_ANSWER_TIMEOUT
+            status = ""
+            for _ in range(10_000):  # bounded by the deadline too
+                status = str(proxy.get_property("period_status"))
+                if status == accepted_text or status.startswith(refused_prefix):
+                    break
+                if time.monotonic() >= deadline or self._stop.wait(0.01):  # polls a remote property
+                    return self._refused(f"no answer from {self.component} within {PERIOD_ANSWER_TIMEOUT:g} s "
+                                         f"(state {proxy.state}); last status: {status}")
+            period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
+        except Exception as exc:  # noqa: BLE001 - reported, not raised
+            return self._refused(f"{type(exc).__name__}: {exc}")
+        with self._lock:
+            self._info.update(period=period, period_status=status)
+        self._maybe_adjust_polling(period)
+        return {"accepted": status == accepted_text, "period": period, "message": status}
+
+    def _refused(self, message: str) -> dict:
+        with self._lock:
+            period = self._info.get("period")
+        return {"accepted": False, "period": period, "message": message}
+
+    # --- supervisor --------------------------------------------------------------------
+
+    def _supervise(self) -> None:
+        """Connect (retrying), subscribe, then keep the driver info fresh until stopped."""
+        connected = False
+        for _ in range(100_000_000):  # bounded; ends when @destroy sets the stop event
+            if self._stop.is_set():
+                return
+            if self._proxy is None:
+                self._try_connect()
+            ok = self._proxy is not None and self._poll_info()
+            if ok != connected:
+                connected = ok
+                log.log(logging.INFO if ok else logging.WARNING, "%s at %s: %s", self.component, self._address,
+                        "connected" if ok else "disconnected")
+                self._broadcast("connected" if ok else "disconnected", f"{self.component} at {self._address}")
+            if self._stop.wait(self.info_interval if ok else self.retry_interval):
+                return
+
+    def _try_connect(self) -> None:
+        system = None
+        try:
+            system = connect(self._address, timeout=2.0)
+            proxy = system.component(self.component)
+            period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
+            sub = proxy.subscribe("jointStatus", self._on_sample, policy=ConnPolicy.data(),
+                                  period=self._poll_for(period))
+        except Exception as exc:  # noqa: BLE001 - not up yet: retry later
+            log.debug("connecting to %s at %s failed: %s", self.component, self._address, exc)
+            if system is not None:
+                system.close()
+            return
+        with self._lock:
+            stale = self._stop.is_set()
+            if not stale:
+                self._system, self._proxy, self._subscription = system, proxy, sub
+                self._info["period"] = period
+        if stale:
+            sub.close()
+            system.close()
+
+    def _on_sample(self, event: Any) -> None:
+        """Observer of ``jointStatus`` (the client library's SampleEvent)."""
+        self._on_status(event.value)
+
+    def _poll_for(self, period: float, warn: bool = True) -> float | None:
+        """None (push) when ``poll_period`` is 0; else at most half the driver period."""
+        if self.poll_period <= 0:
+            return None
+        if self.poll_period > period / 2:
+            if warn:
+                log.warning("poll_period %g s is more than half the driver period %g s: polling at %g s",
+                            self.poll_period, period, period / 2)
+            return period / 2
+        return self.poll_period
+
+    def _maybe_adjust_polling(self, period: float) -> None:
+        """Re-subscribe at a faster poll when a new period makes the current one too slow."""
+        sub, proxy = self._subscription, self._proxy
+        if sub is None or proxy is None or sub.period is None:
+            return
+        wanted = self._poll_for(period, warn=False)
+        if wanted is None or math.isclose(wanted, sub.period):
+            return
+        log.info("driver period %g s: polling every %g s now", period, wanted)
+        try:
+            fresh = proxy.subscribe("jointStatus", self._on_sample, policy=ConnPolicy.data(), period=wanted)
+        except Exception as exc:  # noqa: BLE001 - keep the current subscription; retried on the next change
+            log.warning("re-subscribing at %g s failed: %s", wanted, exc)
+            return
+        with self._lock:
+            self._subscription = fresh
+        sub.close()
+
+    def _poll_info(self) -> bool:
+        proxy = self._proxy
+        try:
+            state = proxy.state
+            period = proxy.get_property("accepted_period")
+            status = proxy.get_property("period_status")
+        except Exception as exc:  # noqa: BLE001 - the driver went away: report, keep retrying
+            log.debug("driver info: %s", exc)
+            with self._lock:
+                self._info["connected"] = False
+            return False
+        sub = self._subscription
+        live = bool(sub is None or getattr(sub, "connected", True))
+        with self._lock:
+            changed = self._info.get("period") != period
+            self._info.update(state=state, period=period, period_status=status, connected=live)
+        if changed and isinstance(period, float):  # changed by someone else (e.g. scart write)
+            self._maybe_adjust_polling(period)
+        return True

@@ -1,0 +1,191 @@
+"""The youBot Monitor in a real browser against the real demo.
+
+``scart run composites/youbot/youbot.composite --ns 127.0.0.1:<free port>`` runs as a
+subprocess (data-flow driver, SCA proxy, Locomotor, monitor); Debian's chromium, headless,
+driven by playwright, opens the URL it printed. Screenshots of every tab go to
+``test-artifacts/youbot-*.png`` (gitignored). No sleeps: playwright's auto-waiting
+``expect`` and ``wait_for_function``, each with a timeout.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from test_youbot_support import ROOT, Demo, start_serving
+
+from locomotor import POSES
+
+CHROMIUM = shutil.which("chromium")
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None, reason="Debian's chromium is not installed (CI installs it: apt-get install chromium)"
+)
+
+ARTIFACTS = ROOT / "test-artifacts"
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+TIMEOUT_MS = 20_000
+
+
+class Session:
+    """The demo process, the page and the page's console errors."""
+
+    def __init__(self, demo: Demo, page: Any, errors: list[str]) -> None:
+        self.demo, self.page, self.errors = demo, page, errors
+
+    def wait(self, expression: str, arg: Any = None) -> Any:
+        return self.page.wait_for_function(expression, arg=arg, timeout=TIMEOUT_MS)
+
+    def number(self, element_id: str) -> float:
+        return float(self.page.evaluate(f"Number(document.getElementById('{element_id}').dataset.value)"))
+
+    def shot(self, name: str) -> Path:
+        ARTIFACTS.mkdir(exist_ok=True)
+        path = ARTIFACTS / f"youbot-{name}.png"
+        path.write_bytes(self.page.screenshot())  # bytes: screenshot(path=) leaves a thread behind
+        return path
+
+
+@pytest.fixture(scope="module")
+def session() -> Iterator[Session]:
+    from playwright.sync_api import sync_playwright
+
+    demo = start_serving("youbot.composite")
+    pw = browser = None
+    try:
+        url = demo.monitor_url()
+        pw = sync_playwright().start()
+        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport={"width": 1400, "height": 860})
+        page.set_default_timeout(TIMEOUT_MS)
+        errors: list[str] = []
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
+        page.goto(url)
+        yield Session(demo, page, errors)
+    finally:
+        if browser is not None:
+            browser.close()
+        if pw is not None:
+            pw.stop()
+        code = demo.stop(signal.SIGINT)
+        assert code == 0, demo.output()
+
+
+def expect(locator: Any) -> Any:
+    from playwright.sync_api import expect as pw_expect
+
+    return pw_expect(locator)
+
+
+def test_global_table_fills_and_updates(session: Session) -> None:
+    page = session.page
+    expect(page.locator("#tab-global")).to_have_attribute("aria-selected", "true")
+    for cell in ("pos-0", "pos-4", "vel-2", "cur-1", "temp-3"):
+        expect(page.locator(f"#{cell}")).to_have_text(re.compile(r"^-?\d+\.\d+$"))
+    seq = int(page.locator("#sample-seq").inner_text())
+    session.wait("s => Number(document.getElementById('sample-seq').textContent) > s + 20", seq)
+    expect(page.locator("#conn-indicator")).to_have_attribute("data-state", "live")
+    expect(page.locator("#driver-state")).to_have_text("RUNNING")
+    expect(page.locator("#set-period")).to_contain_text("10.0 ms")
+    expect(page.locator("#flags-0")).to_have_text("ok")
+    # the driver runs at 10 ms: the measured rate (sample timestamps) reads ~100 Hz
+    session.wait("() => Math.abs(Number(document.getElementById('measured-rate').dataset.value) - 100) < 15")
+    session.wait("() => Number(document.getElementById('sample-age').dataset.value) < 0.5")
+    session.wait("() => Number(document.getElementById('refresh-count').textContent) > 50")
+    session.shot("global")
+    assert session.errors == []
+
+
+def test_joint_tab_chart_advances(session: Session) -> None:
+    page = session.page
+    page.click("#tab-joint-2")
+    expect(page.locator("#chart-j2")).to_be_visible()
+    assert "tab=joint-2" in page.url
+    points = "() => { const d = document.getElementById('chart-j2').data; return d ? d[0].x.length : 0; }"
+    session.wait(f"() => ({points})() > 5")
+    n = page.evaluate(points)
+    session.wait(f"n => ({points})() >= n + 20", n)
+    session.shot("joint-2")
+
+
+def test_period_set_and_measured_rate_follows(session: Session) -> None:
+    page = session.page
+    page.click("#tab-global")
+    page.fill("#period-input", "50")  # ms
+    page.click("#period-apply")
+    expect(page.locator("#period-result")).to_have_attribute("data-ok", "true")
+    expect(page.locator("#period-result")).to_contain_text("accepted 0.05 s")
+    expect(page.locator("#set-period")).to_contain_text("50.0 ms")
+    session.wait("() => Math.abs(Number(document.getElementById('measured-rate').dataset.value) - 20) < 3")
+    session.shot("period-50ms")
+
+    page.fill("#period-input", "2000")  # the driver refuses > 1 s and says why
+    page.click("#period-apply")
+    expect(page.locator("#period-result")).to_have_attribute("data-ok", "false")
+    expect(page.locator("#period-result")).to_contain_text("must be in (0, 1] s")
+
+    page.fill("#period-input", "10")
+    page.click("#period-apply")
+    expect(page.locator("#period-result")).to_have_attribute("data-ok", "true")
+    session.wait("() => Math.abs(Number(document.getElementById('measured-rate').dataset.value) - 100) < 15")
+
+
+def test_pose_sent_and_positions_converge(session: Session) -> None:
+    page = session.page
+    page.click("#tab-global")
+    expect(page.locator("#pose-select option")).to_have_count(len(POSES))
+    page.select_option("#pose-select", "candle")
+    page.click("#pose-go")
+    expect(page.locator("#pose-result")).to_have_text("moving to candle")
+    log = page.locator("#event-log")
+    expect(log.locator("li[data-name='busy']").first).to_contain_text("moving to candle")
+    session.wait(
+        """t => t.every((v, i) =>
+             Math.abs(Number(document.getElementById('pos-' + i).dataset.value) - v) < 0.02)""",
+        POSES["candle"],
+    )
+    expect(log.locator("li[data-name='reached']").first).to_contain_text("candle")
+    expect(page.locator("#arm-state")).to_have_text("idle")
+    session.shot("pose-candle")
+
+
+def test_error_flags_shown_by_name(session: Session) -> None:
+    """A set-point beyond joint 1's limit is clipped by the driver: POSITION_LIMIT shows at once."""
+    from dataflow.remote import connect
+
+    page = session.page
+    page.click("#tab-global")
+    with connect(session.demo.ns) as system:  # as `scart write youBotDriver.commands ...` would
+        driver = system.component("youBotDriver")
+        driver.write("commands", [3.5, 0.0, 0.0, 0.0, 0.0])
+        expect(page.locator("#flags-0")).to_contain_text("POSITION_LIMIT")
+        expect(page.locator("#flags-1")).to_have_text("ok")
+        session.shot("error-flags")
+        driver.write("commands", [0.0, 0.0, 0.0, 0.0, 0.0])
+        expect(page.locator("#flags-0")).to_have_text("ok")
+
+
+def test_screenshot_every_tab(session: Session) -> None:
+    page = session.page
+    saved = []
+    for j in range(1, 6):
+        page.click(f"#tab-joint-{j}")
+        session.wait("j => { const d = document.getElementById('chart-j' + j).data; return d && d[0].x.length > 20; }", j)
+        saved.append(session.shot(f"joint-{j}"))
+    page.click("#tab-global")
+    expect(page.locator("#panel-global")).to_be_visible()
+    saved.append(session.shot("global-final"))
+    assert all(p.stat().st_size > 10_000 for p in saved)
+    assert session.errors == []
