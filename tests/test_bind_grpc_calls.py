@@ -141,6 +141,8 @@ def test_callbacks_during_and_after_a_oneway_call(tmp_path: Path) -> None:
         desk.done.clear()
         rt.service("K").ask_later("again")  # the session is reused
         assert desk.done.wait(10) and desk.results[-1] == "again -> False"
+        rt.service("K").ask("sync")  # a synchronous call names the same session
+        assert len(desk.callers) == 1  # one remote caller is one callback target, as locally
 
 
 # --- deadlines, reconnection, promotion ----------------------------------------------------

@@ -104,14 +104,17 @@ class DeskImpl:
     def __init__(self) -> None:
         self.results: list[str] = []
         self.done = threading.Event()
+        self.callers: set[Any] = set()  # as a provider keeps its clients to call back later
 
     def decide(self, question: str) -> str:
+        self.callers.add(self.caller)
         first = self.caller.confirm(question + "?")
         second = self.caller.confirm(question + "??")
         self.caller.told("decided")
         return f"{question}: {first} {second}"
 
     def decide_later(self, question: str) -> None:
+        self.callers.add(self.caller)
         answer = self.caller.confirm(question)
         self.results.append(f"{question} -> {answer}")
         self.caller.told(f"later {question}")

@@ -109,9 +109,15 @@ class Exported:
 class _Callback:
     """The provider's ``scart.callback()`` for a remote caller: one attribute per callback
     operation; each sends a ``CallbackCall`` through ``send`` and (unless one-way) returns
-    the decoded, coerced reply."""
+    the decoded, coerced reply.
 
-    def __init__(self, exported: Exported, send: Callable[[Any], Any | None], target_id: int) -> None:
+    Two callbacks to the same caller (same callback session and target) are equal, so a
+    provider that keeps its callers in a set or dict keeps one entry per caller, as with
+    local callers; without a session each callback is only equal to itself."""
+
+    def __init__(self, exported: Exported, send: Callable[[Any], Any | None], target_id: int,
+                 session_id: str = "") -> None:
+        self._key = (session_id, target_id) if session_id else None
         iface = exported.callback_iface
         for name, op in (iface.operations.items() if iface is not None else ()):
             setattr(self, name, self._make(name, op.oneway, exported.callback_sigs[name], send, target_id))
@@ -130,6 +136,14 @@ class _Callback:
             return sig.result(outcome.value)
         callback.__qualname__ = f"callback.{name}"
         return callback
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, _Callback) or self._key is None:
+            return self is other
+        return self._key == other._key
+
+    def __hash__(self) -> int:
+        return hash(self._key) if self._key is not None else id(self)
 
 
 class _StreamCallback:
@@ -342,7 +356,8 @@ class GrpcServer:
     def _callback_for(self, exported: Exported, inv: Any) -> object | None:
         if not inv.session_id or exported.callback_iface is None:
             return None
-        return _Callback(exported, self._session_sender(inv.session_id, exported.timeout), inv.target_id)
+        return _Callback(exported, self._session_sender(inv.session_id, exported.timeout), inv.target_id,
+                         inv.session_id)
 
     def _session_sender(self, session_id: str, timeout: float) -> Callable[[Any], Any | None]:
         def send(cc: Any) -> Any | None:
@@ -389,7 +404,8 @@ class GrpcServer:
             cb = _StreamCallback(out, context, exported.timeout, fallback)
             with self._lock:
                 self._calls[call_id] = cb
-            target = _Callback(exported, cb.send, inv.target_id) if exported.callback_iface is not None else None
+            target = (_Callback(exported, cb.send, inv.target_id, inv.session_id)
+                      if exported.callback_iface is not None else None)
             return exported.call(inv, target)
 
         def run() -> None:
