@@ -10,10 +10,10 @@ import sys
 
 import pytest
 
-from helpers import free_port
+from helpers import free_port, wait_until
 from test_remote_support import address_of, start_scart, stop_process, subprocess_env
 
-ROBOT = ["driver:YouBotDriver", "test_remote_support:Pinger@pinger"]
+ROBOT = ["driver:YouBotDriver", "test_remote_support:Pinger@pinger", "test_remote_support:Echo@echo"]
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,7 @@ def test_ls_text_and_json(system) -> None:
     ns, far = system
     rows = json.loads(scart(ns, "ls", "--json").stdout)
     by_name = {r["name"]: r for r in rows}
-    assert set(by_name) == {"youBotDriver", "pinger", "far"}
+    assert set(by_name) == {"youBotDriver", "pinger", "echo", "far"}
     driver = by_name["youBotDriver"]
     assert driver["state"] == "RUNNING" and driver["period"] == 0.01 and driver["deployer"] == ns
     assert 30 < driver["rate"] < 200
@@ -68,6 +68,16 @@ def test_describe_text_and_json(system) -> None:
     assert "set_period(seconds: float64) -> bool" in text
     assert "out jointStatus: YouBotStatus" in text and "last = " in text
     assert "max_velocity: float64 = 1.0" in text
+    # reading and describing attach nothing to the task: untouched ports show no connection
+    # (an ended echo's stream is closed by the server shortly after the client left)
+    scart(ns, "echo", "pinger.ticks", "-n", "1")
+
+    def counts() -> dict[str, int]:
+        pinger = json.loads(scart(ns, "describe", "pinger", "--json").stdout)
+        return {p["name"]: p["connections"] for p in pinger["ports"]}
+
+    wait_until(lambda: counts() == {"input": 0, "samples": 0, "output": 0, "ticks": 0}, timeout=30, interval=0.1)
+    assert "ticks: int64, 0 connection(s)" in scart(ns, "describe", "pinger").stdout
 
 
 def test_echo_json_lines_and_round_trip_into_write(system) -> None:
@@ -81,6 +91,27 @@ def test_echo_json_lines_and_round_trip_into_write(system) -> None:
     assert scart(ns, "write", "pinger.input", echoed, "--json").stdout.strip() == '{"status": "WRITE_SUCCESS"}'
     text = scart(ns, "echo", "pinger.ticks", "-n", "2").stdout.splitlines()
     assert len(text) == 2 and text[0].startswith("[")
+
+
+def _echo_json(ns: str, port: str) -> object:
+    return json.loads(scart(ns, "echo", port, "-n", "1", "--json").stdout.strip())
+
+
+def test_echo_json_round_trip_of_float_list_and_model(system) -> None:
+    """What ``echo --json`` prints for a float list and a pydantic model, ``write`` accepts."""
+    ns, _ = system
+    sent = [1.5, -2.25, 3e-05, 0.0]
+    assert scart(ns, "write", "echo.floats", json.dumps(sent)).stdout.strip() == "WRITE_SUCCESS"
+    wait_until(lambda: _echo_json(ns, "echo.floats_out") == sent, timeout=30, interval=0.1)
+    line = scart(ns, "echo", "echo.floats_out", "-n", "1", "--json").stdout.strip()
+    assert scart(ns, "write", "echo.floats", line).stdout.strip() == "WRITE_SUCCESS"  # echo → write
+    status_line = scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--json").stdout.strip()
+    status = json.loads(status_line)
+    assert len(status["joints"]) == 5
+    assert scart(ns, "write", "echo.status", status_line).stdout.strip() == "WRITE_SUCCESS"
+    wait_until(lambda: _echo_json(ns, "echo.status_out") == status, timeout=30, interval=0.1)
+    bad = scart(ns, "write", "echo.status", json.dumps({"joints": "many"}), check=False)
+    assert bad.returncode == 1 and "echo.status expects YouBotStatus" in bad.stderr
 
 
 def test_hz(system) -> None:

@@ -18,6 +18,9 @@ from pathlib import Path
 from dataflow import InputPort, OutputPort, Property, TaskContext, operation
 
 TESTS = Path(__file__).parent
+if str(TESTS.parent / "composites" / "youbot") not in sys.path:  # the youBot model (Echo's status)
+    sys.path.insert(0, str(TESTS.parent / "composites" / "youbot"))
+from youbot_model import YouBotStatus  # noqa: E402
 
 
 class Pinger(TaskContext):
@@ -59,6 +62,35 @@ class Pinger(TaskContext):
             self.output.write(value * self.gain)
         self.count += 1
         self.ticks.write(self.count)
+
+
+class Plain(TaskContext):
+    """A task whose ``__init__`` has no default name (``scart deploy`` names it after the class)."""
+
+    beats = OutputPort(int, doc="always 1")
+
+    def update_hook(self) -> None:
+        self.beats.write(1)
+
+
+class Echo(TaskContext):
+    """Echoes a float list and a youBot status (a pydantic model) to its outputs."""
+
+    floats = InputPort(list[float], doc="a list of floats")
+    floats_out = OutputPort(list[float], doc="the last floats received")
+    status = InputPort(YouBotStatus, doc="a youBot status")
+    status_out = OutputPort(YouBotStatus, doc="the last status received")
+
+    def __init__(self, name: str = "echo") -> None:
+        super().__init__(name)
+
+    def update_hook(self) -> None:
+        flow, value = self.floats.read()
+        if flow.name == "NEW_DATA":
+            self.floats_out.write(value)
+        flow, status = self.status.read()
+        if flow.name == "NEW_DATA":
+            self.status_out.write(status)
 
 
 def subprocess_env(ns: str | None = None) -> dict[str, str]:

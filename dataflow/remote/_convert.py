@@ -24,23 +24,43 @@ def policy_to_msg(policy: ConnPolicy) -> Any:
         init=policy.init,
         lock_policy=policy.lock_policy.name,
         buffer_policy=policy.buffer_policy.name,
+        mandatory=policy.mandatory,
     )
 
 
 def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
     """``scart.dataflow.v1.ConnPolicy`` → ConnPolicy (unset message → ``default`` or DATA).
 
-    Raises ``ValueError`` for an invalid combination (e.g. a buffer of size 0).
+    Raises ``ValueError`` (→ ``INVALID_ARGUMENT`` on the wire) naming the bad field for an
+    unknown connection type, lock or buffer policy name, a size beyond
+    :data:`MAX_BUFFER_SIZE`, or an invalid combination (e.g. a buffer of size 0).
     """
     if msg is None or msg.type == 0:
         return default if default is not None else ConnPolicy.data()
+    if msg.type not in _CONN_FROM_MSG:
+        raise ValueError(f"policy.type {msg.type} is not a known connection type")
+    if msg.size > MAX_BUFFER_SIZE:
+        raise ValueError(f"policy.size {msg.size} exceeds the limit of {MAX_BUFFER_SIZE} samples")
     return ConnPolicy(
         type=_CONN_FROM_MSG[msg.type],
         size=msg.size,
         init=msg.init,
-        lock_policy=LockPolicy[msg.lock_policy] if msg.lock_policy else LockPolicy.LOCK_FREE,
-        buffer_policy=BufferPolicy[msg.buffer_policy] if msg.buffer_policy else BufferPolicy.PER_CONNECTION,
+        lock_policy=_member(LockPolicy, "lock_policy", msg.lock_policy, LockPolicy.LOCK_FREE),
+        buffer_policy=_member(BufferPolicy, "buffer_policy", msg.buffer_policy, BufferPolicy.PER_CONNECTION),
+        mandatory=msg.mandatory if msg.HasField("mandatory") else True,
     )
+
+
+#: Largest buffer a remote peer may ask for (samples).
+MAX_BUFFER_SIZE = 1_000_000
+
+
+def _member(enum: Any, field: str, name: str, default: Any) -> Any:
+    if not name:
+        return default
+    if name not in enum.__members__:
+        raise ValueError(f"policy.{field} {name!r} is not one of {', '.join(enum.__members__)}")
+    return enum[name]
 
 
 def flow_to_msg(status: FlowStatus) -> int:

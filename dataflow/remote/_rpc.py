@@ -14,6 +14,9 @@ from google.protobuf.descriptor import ServiceDescriptor
 
 from dataflow.remote import errors
 
+#: Name prefix of the servers' worker threads (``scart-rpc_0``, ...).
+THREAD_PREFIX = "scart-rpc"
+
 #: Largest message accepted or sent (4 MiB, gRPC's default receive limit, made explicit).
 MAX_MESSAGE_BYTES = 4 * 1024 * 1024
 
@@ -156,10 +159,12 @@ def make_server(
     handlers: list[grpc.GenericRpcHandler],
     service_names: list[str],
     max_workers: int = 32,
-) -> tuple[grpc.Server, int, Any]:
+) -> tuple[grpc.Server, int, Any, Any]:
     """Create, bind and start a server with health checking and reflection.
 
-    Returns ``(server, bound_port, health_servicer)``. ``max_workers`` bounds concurrent
+    Returns ``(server, bound_port, health_servicer, executor)``; the caller owns the
+    executor and ends it with :func:`stop_server` (grpc does not shut it down).
+    ``max_workers`` bounds concurrent
     RPCs: beyond it a call fails fast with RESOURCE_EXHAUSTED instead of queueing.
     Raises :class:`errors.UnavailableError` when the address cannot be bound.
     """
@@ -168,8 +173,9 @@ def make_server(
     from grpc_health.v1 import health, health_pb2, health_pb2_grpc
     from grpc_reflection.v1alpha import reflection
 
+    executor = futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix=THREAD_PREFIX)
     server = grpc.server(
-        futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="scart-rpc"),
+        executor,
         handlers=handlers,
         options=server_options(),
         maximum_concurrent_rpcs=max_workers,
@@ -185,11 +191,27 @@ def make_server(
     try:
         port = server.add_insecure_port(address)
     except RuntimeError as exc:
+        stop_server(server, executor, 0.0)
         raise errors.UnavailableError(f"cannot listen on {address}: {exc}", "UNAVAILABLE", address) from None
     if port == 0:
+        stop_server(server, executor, 0.0)
         raise errors.UnavailableError(f"cannot listen on {address}", "UNAVAILABLE", address)
     server.start()
-    return server, port, health_servicer
+    return server, port, health_servicer, executor
+
+
+def stop_server(server: grpc.Server, executor: Any, grace: float = 0.2, timeout: float = 5.0) -> None:
+    """Stop ``server`` (``grace`` s for calls in flight), then end its worker threads.
+
+    Blocks at most ``grace + 2 * timeout`` s. Idempotent.
+    """
+    import time
+
+    server.stop(grace).wait(grace + timeout)
+    executor.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + timeout
+    for thread in list(getattr(executor, "_threads", ())):  # bounded join of each worker
+        thread.join(max(0.0, deadline - time.monotonic()))
 
 
 def bound_address(requested: str, port: int) -> str:

@@ -1,10 +1,16 @@
 """The DeployerService implementation (private; see :mod:`dataflow.remote.server`).
 
 Threading: every RPC runs on a worker of the server's pool. A subscription never runs
-on, nor blocks, the task's thread: the task's output port is connected to a
-free-standing InputPort with the subscriber's policy, whose data callback only sets an
-Event; the stream's own worker wakes, drains that port and sends. A slow subscriber
-therefore fills its own connection (drops counted there) and nothing else.
+on, nor blocks, the task's thread: the task's output port is connected to an
+:class:`~dataflow.remote._inbox.Inbox` with the subscriber's policy, whose data callback
+tags each sample with its sequence and time and wakes the stream's own worker, which
+drains the inbox and sends. A slow subscriber therefore fills its own inbox (drops
+counted there) and nothing else. A batch of samples stays under half the largest
+message; a sample too large on its own is counted as dropped and logged, never sent.
+
+ReadPort attaches nothing to the task (it reads ``last_written_value()``), and the one
+connection the server keeps per input port for plain remote writes is not counted in
+DescribeTask, so introspection shows only the connections users made.
 """
 
 from __future__ import annotations
@@ -13,7 +19,6 @@ import json
 import logging
 import threading
 import time
-from collections import deque
 from typing import TYPE_CHECKING, Any
 
 import grpc
@@ -22,8 +27,9 @@ from dataflow.errors import NotFoundError, PortTypeError
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote import _convert as cv
+from dataflow.remote._inbox import Inbox
 from dataflow.remote._proto import df as pb
-from dataflow.remote._rpc import Abort, abort
+from dataflow.remote._rpc import MAX_MESSAGE_BYTES, Abort, abort
 
 if TYPE_CHECKING:
     from dataflow.remote.server import DeployerServer
@@ -39,63 +45,24 @@ _TRANSITIONS = {
 }
 
 
-class _Tap:
-    """A DATA reader on an output port counting samples, for ReadPort (new vs old)."""
+class _Seen:
+    """ReadPort bookkeeping of one output port without any connection: the last value
+    object seen, its sequence number and when it was first seen (a new object = a new sample)."""
 
-    def __init__(self, port: OutputPort) -> None:
-        self.port = port
-        self.inp: InputPort = InputPort(port.type, name=f"tap_{port.name}")
+    __slots__ = ("value", "sequence", "stamp")
+
+    def __init__(self) -> None:
+        self.value: Any = None
         self.sequence = 0
         self.stamp = 0
-        self.inp.add_data_callback(self._on_data)
-        port.connect_to(self.inp, ConnPolicy.data())
-        if port.last_written_value() is not None and self.sequence == 0:
-            self.sequence, self.stamp = 1, time.time_ns()
-
-    def _on_data(self, _inp: InputPort) -> None:
-        self.sequence += 1
-        self.stamp = time.time_ns()
-
-    def close(self) -> None:
-        self.port.disconnect(self.inp)
-        self.inp.remove_data_callback(self._on_data)
 
 
-class _Stream:
-    """Server side of one subscription: a free InputPort with the subscriber's policy."""
+class _Stream(Inbox):
+    """Server side of one subscription: an :class:`Inbox` with the subscriber's policy."""
 
     def __init__(self, port: OutputPort, policy: ConnPolicy) -> None:
-        self.port = port
-        self.wake = threading.Event()
-        self.inp: InputPort = InputPort(port.type, name=f"sub_{port.name}")
-        self._lock = threading.Lock()
-        self._count = 0
-        self._stamps: deque[tuple[int, int]] = deque(maxlen=max(1, policy.size))
-        self.inp.add_data_callback(self._on_data)
-        self.connection = port.connect_to(self.inp, policy)
-        self.wake.set()  # an init=True policy may have handed a sample over already
-
-    def _on_data(self, _inp: InputPort) -> None:  # writer's thread: cheap, never blocks
-        with self._lock:
-            self._count += 1
-            self._stamps.append((self._count, time.time_ns()))
-        self.wake.set()
-
-    def drain(self) -> list[tuple[Any, int, int]]:
-        """Every pending sample as ``(value, sequence, source_time_ns)`` (non-blocking)."""
-        out = []
-        for _ in range(10_000):  # bounded: a buffer never holds more than its size
-            status, value = self.inp.read()
-            if status is not FlowStatus.NEW_DATA:
-                break
-            with self._lock:
-                seq, stamp = self._stamps.popleft() if self._stamps else (self._count, time.time_ns())
-            out.append((value, seq, stamp))
-        return out
-
-    def close(self) -> None:
-        self.port.disconnect(self.inp)
-        self.inp.remove_data_callback(self._on_data)
+        super().__init__(port, policy, name=f"sub_{port.name}")
+        self.wake.set()  # send the connected heartbeat and any init sample at once
 
 
 class _Writer:
@@ -120,8 +87,9 @@ class DeployerServicer:
         self.heartbeat_ms = heartbeat_ms
         self.max_streams = max_streams
         self.batch = 64  # samples per message at most (bounded message size and latency)
+        self.batch_bytes = MAX_MESSAGE_BYTES // 2  # encoded samples per message at most
         self._lock = threading.Lock()
-        self._taps: dict[tuple[str, str], _Tap] = {}
+        self._seen: dict[tuple[str, str], _Seen] = {}
         self._defaults: dict[tuple[str, str], _Writer] = {}
         self._writers: dict[int, _Writer] = {}
         self._next_writer = 1
@@ -165,9 +133,9 @@ class DeployerServicer:
         with self._lock:
             for stream in list(self._streams):
                 stream.wake.set()
-            for item in [*self._taps.values(), *self._defaults.values(), *self._writers.values()]:
+            for item in [*self._defaults.values(), *self._writers.values()]:
                 item.close()
-            self._taps.clear()
+            self._seen.clear()
             self._defaults.clear()
             self._writers.clear()
 
@@ -191,11 +159,14 @@ class DeployerServicer:
         try:
             task = self._task(request.task)
             d = task.describe()
+            with self._lock:
+                internal = {port for (t, port) in self._defaults if t == task.name}
             ports = []
             for p in d.ports:
+                hidden = 1 if p.direction == "in" and p.name in internal else 0
                 info = pb.PortInfo(
                     name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
-                    connections=p.connections, event=p.event,
+                    connections=max(0, p.connections - hidden), event=p.event,
                 )
                 if p.direction == "out":
                     port = task.port(p.name)
@@ -249,12 +220,15 @@ class DeployerServicer:
                     raise NotFoundError(f"writer {request.writer_id} is not open on this deployer")
                 port = writer.target
                 task = writer.task
+                where = f"{task}.{port.name}"
+                value = self._value_for(where, port.type, port.type_name, request.value, request.json)
             else:
                 task = request.task
                 port = self._port(task, request.port, want_input=True)
+                where = f"{task}.{port.name}"
+                # validate first: a refused value must leave no connection behind
+                value = self._value_for(where, port.type, port.type_name, request.value, request.json)
                 writer = self._default_writer(task, port)
-            where = f"{task}.{port.name}"
-            value = self._value_for(where, port.type, port.type_name, request.value, request.json)
             status = writer.out.write(value)
             return pb.WritePortResponse(status=cv.write_to_msg(status))
         except Exception as exc:  # noqa: BLE001
@@ -307,16 +281,19 @@ class DeployerServicer:
         try:
             port = self._port(request.task, request.port, want_input=False)
             key = (request.task, port.name)
-            with self._lock:
-                tap = self._taps.get(key)
-                if tap is None:
-                    tap = self._taps[key] = _Tap(port)
-            value = port.last_written_value()
-            if value is None:
-                return pb.ReadPortResponse(flow_status=cv.flow_to_msg(FlowStatus.NO_DATA))
+            with self._lock:  # value, sequence and stamp taken together
+                value = port.last_written_value()
+                if value is None:
+                    return pb.ReadPortResponse(flow_status=cv.flow_to_msg(FlowStatus.NO_DATA))
+                seen = self._seen.get(key)
+                if seen is None:
+                    seen = self._seen[key] = _Seen()
+                if seen.sequence == 0 or value is not seen.value:  # a new object: a new sample
+                    seen.value, seen.sequence, seen.stamp = value, seen.sequence + 1, time.time_ns()
+                sequence, stamp = seen.sequence, seen.stamp
             return pb.ReadPortResponse(
                 flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=cv.encode(value, port.type),
-                sequence=tap.sequence, source_time_ns=tap.stamp,
+                sequence=sequence, source_time_ns=stamp,
             )
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
@@ -338,20 +315,39 @@ class DeployerServicer:
             yield pb.SubscribeResponse(heartbeat=True)  # tells the client it is connected
             while context.is_active() and not self._stopping.is_set():
                 if not stream.wake.wait(heartbeat):
-                    yield pb.SubscribeResponse(heartbeat=True, dropped=stream.connection.dropped)
+                    yield pb.SubscribeResponse(heartbeat=True, dropped=stream.dropped)
                     continue
                 stream.wake.clear()
-                pending = stream.drain()
-                for start in range(0, len(pending), self.batch):
-                    samples = [
-                        pb.Sample(value=cv.encode(value, port.type), sequence=seq, source_time_ns=stamp)
-                        for value, seq, stamp in pending[start : start + self.batch]
-                    ]
-                    yield pb.SubscribeResponse(samples=samples, dropped=stream.connection.dropped)
+                for samples in self._batches(stream, request):
+                    yield pb.SubscribeResponse(samples=samples, dropped=stream.dropped)
         finally:
             with self._lock:
                 self._streams.discard(stream)
             stream.close()
+
+    def _batches(self, stream: _Stream, request: Any) -> Any:
+        """The pending samples of ``stream`` as lists of ``pb.Sample``, each list at most
+        :attr:`batch` samples and :attr:`batch_bytes` encoded bytes. A sample larger than
+        that on its own is counted as dropped and logged instead of breaking the stream."""
+        batch: list[Any] = []
+        size = 0
+        for seq, stamp, value in stream.take():
+            sample = pb.Sample(value=cv.encode(value, stream.port.type), sequence=seq, source_time_ns=stamp)
+            n = sample.ByteSize() + 8  # + the field's tag and length
+            if n > self.batch_bytes:
+                stream.count_dropped()
+                log.warning(
+                    "%s.%s: sample %d is %d bytes encoded, more than a message may carry (%d); dropped",
+                    request.task, request.port, seq, n, self.batch_bytes,
+                )
+                continue
+            if batch and (len(batch) >= self.batch or size + n > self.batch_bytes):
+                yield batch
+                batch, size = [], 0
+            batch.append(sample)
+            size += n
+        if batch:
+            yield batch
 
     # ---- operations and properties -----------------------------------------------------
     def CallOperation(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802

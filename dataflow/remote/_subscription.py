@@ -7,6 +7,9 @@ a slow observer never sees a backlog; with BUFFER(n) it holds n and counts the r
 dropped; the server's own connection does the same on the task's side and reports its
 drops in every message. A peer silent for 3 heartbeats is treated as frozen: the stream
 is cancelled and re-established (through the name service), and the gap is reported.
+A sample that cannot be decoded is logged and counted as dropped; any other receiver
+failure is logged and the stream re-established — the receiver never dies silently.
+``subscribe`` returns only once the server has connected the port (or raises).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import grpc
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.remote import _convert as cv
-from dataflow.remote import _rpc
+from dataflow.remote import _rpc, errors
 from dataflow.remote._proto import df as pb
 from dataflow.remote.api import Dispatcher, GapEvent, Mailbox, Observer, SampleEvent, Subscription
 
@@ -35,8 +38,13 @@ log = logging.getLogger(__name__)
 class GrpcSubscription(Subscription):
     """A push (or, with ``period``, polling) subscription over gRPC.
 
-    Counters: :attr:`delivered` (observer calls), :attr:`dropped`, :attr:`polls` and
-    :attr:`wasted_polls` (polls that found nothing new), :attr:`reconnects`.
+    Counters: :attr:`delivered` (observer calls), :attr:`dropped` (server, mailbox and
+    undecodable samples), :attr:`decode_errors`, :attr:`polls` and :attr:`wasted_polls`
+    (polls that found nothing new), :attr:`reconnects`.
+
+    Raises from the constructor (after closing itself) what the first attempt failed
+    with when retrying cannot help, or :class:`~dataflow.remote.errors.RemoteTimeoutError`
+    when not connected within the system's timeout.
     """
 
     def __init__(
@@ -59,7 +67,7 @@ class GrpcSubscription(Subscription):
         self._call: Any = None
         self._connected = False
         self._up = threading.Event()
-        self._settled = threading.Event()  # first attempt done: connected or failed
+        self._settled = threading.Event()  # connected, or failed for good (first attempt)
         self._first_error: BaseException | None = None
         self._gap_start: float | None = None
         self._gap_reason = ""
@@ -69,6 +77,7 @@ class GrpcSubscription(Subscription):
         self.polls = 0
         self.wasted_polls = 0
         self.reconnects = 0
+        self.decode_errors = 0
         label = f"{proxy.name}.{port}"
         self._dispatcher = Dispatcher(
             f"scart-sub-{label}", self._mailbox, self._deliver, idle=self._heartbeat, on_idle=self._watchdog
@@ -77,16 +86,21 @@ class GrpcSubscription(Subscription):
         self._system.own(self)
         self._dispatcher.start()
         self._receiver.start()
-        self._settled.wait(self._system.timeout)  # connected on the task's side before returning
-        if self._first_error is not None and not self._connected:
-            error = self._first_error
+        # return only once connected on the task's side (bounded by the system's timeout)
+        self._settled.wait(self._system.timeout)
+        if not self._connected:
+            error = self._first_error or errors.RemoteTimeoutError(
+                f"subscription to {label} not connected within {self._system.timeout} s "
+                f"({self._gap_reason or 'no answer'})",
+                "DEADLINE_EXCEEDED", self._system.address,
+            )
             self.close()
             raise error
 
     # ---- counters ----------------------------------------------------------------------
     @property
     def dropped(self) -> int:
-        return self._server_dropped_done + self._server_dropped_now + self._mailbox.dropped
+        return self._server_dropped_done + self._server_dropped_now + self._mailbox.dropped + self.decode_errors
 
     @property
     def connected(self) -> bool:
@@ -150,7 +164,11 @@ class GrpcSubscription(Subscription):
                 reason = _reason(exc)
                 if not self._settled.is_set():
                     self._first_error = _first_failure(exc, self._system.address)
-            self._settled.set()
+                    if self._first_error is not None:
+                        self._settled.set()
+            except Exception as exc:  # noqa: BLE001 - never let the receiver die silently
+                log.exception("subscription %s.%s: receiver failed; reconnecting", self.component, self.port)
+                reason = _reason(exc)
             if self._closed.is_set():
                 return
             self._mark_down(reason)
@@ -166,7 +184,7 @@ class GrpcSubscription(Subscription):
             heartbeat_ms=self._system.heartbeat_ms,
         )
         self._last_seen = time.monotonic()
-        call = self._system.stub(address).Subscribe(req)
+        call = self._system._stub(address).Subscribe(req)  # noqa: SLF001
         self._call = call
         if self._closed.is_set():
             call.cancel()
@@ -176,8 +194,17 @@ class GrpcSubscription(Subscription):
                 self._mark_up()
                 self._server_dropped_now = msg.dropped
                 for sample in msg.samples:
+                    try:
+                        value = cv.decode(sample.value)
+                    except Exception:  # noqa: BLE001 - one bad sample must not end the stream
+                        self.decode_errors += 1
+                        log.exception(
+                            "subscription %s.%s: sample %d (%s) cannot be decoded; dropped",
+                            self.component, self.port, sample.sequence, sample.value.type_name,
+                        )
+                        continue
                     event = SampleEvent(
-                        self.component, self.port, cv.decode(sample.value), FlowStatus.NEW_DATA,
+                        self.component, self.port, value, FlowStatus.NEW_DATA,
                         sample.source_time_ns / 1e9, sample.sequence,
                     )
                     self._mailbox.put(event)

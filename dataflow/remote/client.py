@@ -4,7 +4,10 @@
 and reaches each component's deployer directly. Every unary call has a deadline
 (``timeout``). Proxies hold names, not addresses: a call that finds its deployer gone
 re-resolves the name and retries once, so a restarted deployer (same or new address)
-is picked up by itself. Subscriptions run on two threads each — a receiver that owns
+is picked up by itself. Only idempotent calls (describe, list, read, get, resolve) are
+retried after any UNAVAILABLE; the others (write, call, set, lifecycle, connect) only
+when the request provably never left (no connection could be made), so an operation
+is never run twice. Subscriptions run on two threads each — a receiver that owns
 the stream (and reconnects, reporting the gap), and the observer's dispatcher fed
 through a policy-shaped :class:`~dataflow.remote.api.Mailbox` — and detect a frozen
 peer by the stream's heartbeats (3 missed → reconnect).
@@ -38,6 +41,16 @@ __all__ = ["GrpcSystem", "GrpcComponentProxy", "GrpcSubscription", "GrpcPortWrit
 log = logging.getLogger(__name__)
 
 _RETRYABLE = (errors.UnavailableError,)
+#: Methods safe to send twice (they change nothing on the deployer).
+_IDEMPOTENT = frozenset({"DescribeTask", "ListTasks", "ReadPort", "GetProperty"})
+#: gRPC's wording when no connection could be made (the request was never sent).
+_NOT_SENT = ("failed to connect to all addresses", "connection refused", "dns resolution failed")
+
+
+def _never_sent(exc: errors.RemoteError) -> bool:
+    """True when ``exc`` says the call failed before its request reached any server."""
+    text = str(exc).lower()
+    return any(marker in text for marker in _NOT_SENT)
 _TRANSITIONS = {
     "configure": "TRANSITION_CONFIGURE", "start": "TRANSITION_START", "stop": "TRANSITION_STOP",
     "cleanup": "TRANSITION_CLEANUP", "recover": "TRANSITION_RECOVER",
@@ -64,7 +77,7 @@ class GrpcSystem(System):
         self._closed = False
 
     # ---- plumbing ----------------------------------------------------------------------
-    def stub(self, address: str) -> _rpc.Stub:
+    def _stub(self, address: str) -> _rpc.Stub:
         """The DeployerService stub for ``address`` (one channel per address, cached)."""
         with self._lock:
             if self._closed:
@@ -86,14 +99,21 @@ class GrpcSystem(System):
             self._where[component] = address
         return address
 
-    def invoke(self, component: str, method: str, request: Any, timeout: float | None = None) -> Any:
+    def _invoke(self, component: str, method: str, request: Any, timeout: float | None = None) -> Any:
         """Call ``method`` on the deployer of ``component`` with a deadline; when the deployer is
-        gone (UNAVAILABLE) or no longer has the component, re-resolve and retry once."""
+        gone (UNAVAILABLE) or no longer has the component, re-resolve and retry once — an
+        UNAVAILABLE non-idempotent call only if its request was never sent."""
         deadline = timeout or self.timeout
         address = self.resolve(component)
         try:
-            return _rpc.call(getattr(self.stub(address), method), request, deadline, address)
-        except _RETRYABLE:
+            return _rpc.call(getattr(self._stub(address), method), request, deadline, address)
+        except _RETRYABLE as exc:
+            if method not in _IDEMPOTENT and not _never_sent(exc):
+                try:
+                    self.resolve(component, fresh=True)  # the next call goes to the right place
+                except DataflowError:
+                    pass
+                raise
             address = self.resolve(component, fresh=True)
         except errors.RemoteNotFoundError:
             # the cached address may now be served by another deployer: retry only if moved
@@ -101,7 +121,7 @@ class GrpcSystem(System):
             if moved == address:
                 raise
             address = moved
-        return _rpc.call(getattr(self.stub(address), method), request, deadline, address)
+        return _rpc.call(getattr(self._stub(address), method), request, deadline, address)
 
     def own(self, item: Any) -> None:
         """Track a subscription/writer so :meth:`close` closes it."""
@@ -130,7 +150,7 @@ class GrpcSystem(System):
         for address in sorted({e.address for e in entries}):
             names = {e.component for e in entries if e.address == address}
             try:
-                reply = _rpc.call(self.stub(address).ListTasks, pb.ListTasksRequest(), self.timeout, address)
+                reply = _rpc.call(self._stub(address).ListTasks, pb.ListTasksRequest(), self.timeout, address)
             except errors.RemoteError as exc:
                 log.warning("deployer %s: %s", address, exc)
                 out += [ComponentInfo(n, "UNREACHABLE", "", 0.0, 0, 0, address) for n in sorted(names)]
@@ -146,13 +166,13 @@ class GrpcSystem(System):
         req = pb.ConnectPortsRequest(
             source_task=st, source_port=sp, sink_task=kt, sink_port=kp, policy=cv.policy_to_msg(policy)
         )
-        self.invoke(st, "ConnectPorts", req)
+        self._invoke(st, "ConnectPorts", req)
 
     def disconnect_ports(self, source: str, sink: str) -> bool:
         """Undo :meth:`connect_ports`; False if they were not connected."""
         (st, sp), (kt, kp) = split_port(source), split_port(sink)
         req = pb.DisconnectPortsRequest(source_task=st, source_port=sp, sink_task=kt, sink_port=kp)
-        return bool(self.invoke(st, "DisconnectPorts", req).disconnected)
+        return bool(self._invoke(st, "DisconnectPorts", req).disconnected)
 
     def close(self) -> None:
         """Close subscriptions, writers, channels (idempotent)."""
@@ -210,7 +230,7 @@ class GrpcComponentProxy(ComponentProxy):
         self._lock = threading.Lock()
 
     def _invoke(self, method: str, request: Any, timeout: float | None = None) -> Any:
-        return self.system.invoke(self.name, method, request, timeout)
+        return self.system._invoke(self.name, method, request, timeout)  # noqa: SLF001
 
     @property
     def state(self) -> str:
@@ -313,8 +333,9 @@ class GrpcPortWriter(PortWriter):
         req = pb.WritePortRequest(writer_id=self._id, value=cv.encode(value))
         try:
             return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
-        except (errors.RemoteNotFoundError, errors.UnavailableError):
-            self._open()  # the deployer restarted: our writer id is gone
+        except errors.RemoteNotFoundError:
+            # the deployer restarted: our writer id is gone (the sample was not written)
+            self._open()
             req.writer_id = self._id
             return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
 

@@ -1,14 +1,15 @@
 """The in-process implementation of the proxy API (JOrocos's *core* package): the same
 :class:`~dataflow.remote.api.System` / :class:`~dataflow.remote.api.ComponentProxy` over a
-``Deployer`` in this process, without gRPC. Subscriptions connect a free-standing
-InputPort with the subscriber's policy (the port itself is the mailbox) and call the
-observer on the subscription's own thread.
+``Deployer`` in this process, without gRPC. Subscriptions connect an
+:class:`~dataflow.remote._inbox.Inbox` with the subscriber's policy (samples tagged with
+sequence and source time when stored) and call the observer on the subscription's own
+thread; an observer that raises is logged and the subscription goes on.
 """
 
 from __future__ import annotations
 
+import logging
 import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -19,9 +20,12 @@ from dataflow.ports import InputPort, OutputPort
 from dataflow.remote.api import (
     ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, SampleEvent, Subscription, System, split_port,
 )
+from dataflow.remote._inbox import Inbox
 from dataflow.remote.errors import ClosedError
 
 __all__ = ["LocalSystem", "LocalComponentProxy", "LocalSubscription", "LocalPortWriter"]
+
+log = logging.getLogger(__name__)
 
 
 def _port(task: Any, name: str, want_input: bool) -> Any:
@@ -59,53 +63,55 @@ class LocalPortWriter(PortWriter):
 
 
 class LocalSubscription(Subscription):
-    """Samples of an output port delivered on this subscription's own thread."""
+    """Samples of an output port delivered on this subscription's own thread.
+
+    Each sample is tagged with its sequence number and source time when it is stored (in
+    the writer's thread, see :class:`~dataflow.remote._inbox.Inbox`). An observer that
+    raises is logged and the subscription keeps going (:attr:`observer_errors` counts them).
+    """
 
     def __init__(self, task: Any, port: Any, observer: Observer, policy: ConnPolicy, period: float | None) -> None:
         super().__init__(task.name, port.name, policy, period)
         self._port = port
         self._observer = observer
-        self._inp: InputPort = InputPort(port.type, name=f"sub_{port.name}")
-        self._wake = threading.Event()
         self._closed = threading.Event()
-        self._seq = 0
-        self._inp.add_data_callback(self._on_data)
-        self._conn = port.connect_to(self._inp, policy)
-        self._wake.set()
         self.polls = self.wasted_polls = 0
+        self.observer_errors = 0
+        self._inbox = Inbox(port, policy, name=f"sub_{port.name}")
+        self._inbox.wake.set()
         self._thread = threading.Thread(target=self._run, name=f"scart-local-sub-{task.name}.{port.name}", daemon=True)
         self._thread.start()
 
-    def _on_data(self, _inp: InputPort) -> None:
-        self._seq += 1
-        if self.period is None:
-            self._wake.set()
-
     @property
     def dropped(self) -> int:
-        return self._conn.dropped
+        return self._inbox.dropped
 
     @property
     def connected(self) -> bool:
-        return not self._closed.is_set()
+        return not self._closed.is_set() and self._thread.is_alive()
+
+    def _notify(self, event: SampleEvent) -> None:
+        self.delivered += 1
+        try:
+            self._observer(event)
+        except Exception:  # noqa: BLE001 - an observer's bug must not end the subscription
+            self.observer_errors += 1
+            log.exception("observer of %s.%s raised; the subscription goes on", self.component, self.port)
 
     def _run(self) -> None:
+        wake = self._inbox.wake
         while not self._closed.is_set():
             if self.period is None:
-                self._wake.wait()
-                self._wake.clear()
+                wake.wait()
+                wake.clear()
             elif self._closed.wait(self.period):
                 return
             found = False
-            for _ in range(10_000):
+            for seq, stamp, value in self._inbox.take():
                 if self._closed.is_set():
                     return
-                status, value = self._inp.read()
-                if status is not FlowStatus.NEW_DATA:
-                    break
                 found = True
-                self.delivered += 1
-                self._observer(SampleEvent(self.component, self.port, value, status, time.time(), self._seq))
+                self._notify(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, stamp / 1e9, seq))
             self.polls += 1
             self.wasted_polls += 0 if found else 1
 
@@ -113,9 +119,8 @@ class LocalSubscription(Subscription):
         if self._closed.is_set():
             return
         self._closed.set()
-        self._wake.set()
-        self._port.disconnect(self._inp)
-        self._inp.remove_data_callback(self._on_data)
+        self._inbox.wake.set()
+        self._inbox.close()
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5.0)
 

@@ -64,6 +64,7 @@ class _Lease:
     expires: float
     permanent: bool = False
     lease_id: str = field(default_factory=lambda: uuid.uuid4().hex)
+    refused: list[str] = field(default_factory=list)
 
 
 class NameRegistry:
@@ -150,6 +151,15 @@ class NameRegistry:
                 raise NotFoundError(f"lease {lease_id} is unknown or expired; register again")
             if components is not None:
                 free = {c for c in components if (h := self._holder(c)) is None or h is lease}
+                refused = sorted(set(components) - free)
+                if refused and refused != getattr(lease, "refused", None):
+                    holders = {c: h.address for c in refused if (h := self._holder(c)) is not None}
+                    log.warning(
+                        "deployer at %s: name(s) %s refused, held by %s",
+                        lease.address, ", ".join(refused),
+                        ", ".join(f"{c} @ {a}" for c, a in sorted(holders.items())),
+                    )
+                lease.refused = refused
                 lease.components = free
             lease.expires = self._clock() + lease.seconds
             return lease.seconds
@@ -230,14 +240,18 @@ class NamingServicer:
 class NameServer:
     """A running standalone name service. ``address`` is where it listens."""
 
-    def __init__(self, server: grpc.Server, address: str, registry: NameRegistry) -> None:
+    def __init__(self, server: grpc.Server, address: str, registry: NameRegistry, executor: Any = None) -> None:
         self._server = server
+        self._executor = executor
         self.address = address
         self.registry = registry
 
     def stop(self, grace: float = 0.2) -> None:
-        """Stop serving and wait until stopped (blocks ≤ ``grace`` + 5 s). Idempotent."""
-        self._server.stop(grace).wait(grace + 5.0)
+        """Stop serving, end the worker threads (blocks ≤ ``grace`` + 10 s). Idempotent."""
+        if self._executor is None:
+            self._server.stop(grace).wait(grace + 5.0)
+        else:
+            _rpc.stop_server(self._server, self._executor, grace)
 
     def wait(self, timeout: float | None = None) -> bool:
         """Block until the server terminates or ``timeout`` s pass; True if terminated."""
@@ -259,8 +273,8 @@ def serve_nameserver(
     """
     registry = NameRegistry(default_lease=default_lease)
     handler = _rpc.generic_handler(NAMING_SERVICE, NamingServicer(registry))
-    server, port, _health = _rpc.make_server(address, [handler], [NAMING_SERVICE_NAME], max_workers)
-    return NameServer(server, _rpc.bound_address(address, port), registry)
+    server, port, _health, executor = _rpc.make_server(address, [handler], [NAMING_SERVICE_NAME], max_workers)
+    return NameServer(server, _rpc.bound_address(address, port), registry, executor)
 
 
 class NameClient:
@@ -364,6 +378,9 @@ class Registration:
         self._thread: threading.Thread | None = None
         self.lease_id = ""
         self.registrations = 0
+        #: This deployer's names the name service refused (held by another deployer).
+        self.refused: list[str] = []
+        self._checked: list[str] = []
 
     def start(self) -> None:
         """Register now (raises on failure) and start heartbeating."""
@@ -372,16 +389,61 @@ class Registration:
         self._thread.start()
 
     def _register(self) -> None:
-        self.lease_id, self._lease_seconds = self._client.register(
-            self.deployer_id, self.address, self._components(), self._lease_seconds
-        )
+        names = sorted(self._components())
+        refused: list[str] = []
+        try:
+            self.lease_id, self._lease_seconds = self._client.register(
+                self.deployer_id, self.address, names, self._lease_seconds
+            )
+        except errors.AlreadyRegisteredError:
+            if not self.registrations:
+                raise  # at start: a duplicate name fails the deployer loudly
+            # registering again (lease lost): keep the free names, report the others
+            held = self._held_elsewhere(names)
+            refused = sorted(held)
+            self._warn_refused(held)
+            self.lease_id, self._lease_seconds = self._client.register(
+                self.deployer_id, self.address, [n for n in names if n not in held], self._lease_seconds
+            )
         self.registrations += 1
+        self.refused, self._checked = refused, names
+
+    def _held_elsewhere(self, names: list[str]) -> dict[str, str]:
+        """``{name: address}`` of ``names`` registered by another deployer."""
+        held: dict[str, str] = {}
+        for name in names:
+            try:
+                entry = self._client.resolve(name)
+            except errors.RemoteNotFoundError:
+                continue
+            if entry.deployer_id != self.deployer_id:
+                held[name] = entry.address
+        return held
+
+    def _warn_refused(self, held: dict[str, str]) -> None:
+        if held and sorted(held) != self.refused:
+            log.warning(
+                "name service %s refused %s of the deployer at %s: held by %s; rename them",
+                self.ns_address, ", ".join(sorted(held)), self.address,
+                ", ".join(f"{n} @ {a}" for n, a in sorted(held.items())),
+            )
+
+    def _heartbeat(self) -> None:
+        """Renew the lease; when the names changed, check which ones the service took and
+        warn about (and record in :attr:`refused`) those held by another deployer."""
+        names = sorted(self._components())
+        self._client.heartbeat(self.lease_id, names)
+        if names == self._checked:
+            return
+        held = self._held_elsewhere(names)
+        self._warn_refused(held)
+        self.refused, self._checked = sorted(held), names
 
     def _run(self) -> None:
         while not self._stop.wait(self._lease_seconds / 3.0):
             try:
                 if self.lease_id:
-                    self._client.heartbeat(self.lease_id, self._components())
+                    self._heartbeat()
                 else:
                     self._register()
             except errors.RemoteNotFoundError:

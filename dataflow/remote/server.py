@@ -11,7 +11,7 @@ concurrent RPCs (RESOURCE_EXHAUSTED beyond, never an unbounded queue), at most
 ``max_workers - 8`` subscriptions. It binds 127.0.0.1 unless given another address.
 
 Shutdown: :meth:`DeployerServer.stop` signals every stream and cross-deployer link,
-unregisters, stops the gRPC server and waits for it (idempotent, safe from any thread
+unregisters, stops the gRPC server, waits for it and ends its worker threads (idempotent, safe from any thread
 except an RPC handler of this server).
 """
 
@@ -146,7 +146,7 @@ class DeployerServer:
         if self.registry is not None:
             handlers.append(_rpc.generic_handler(NAMING_SERVICE, _EmbeddedNaming(self)))
             names.append(NAMING_SERVICE_NAME)
-        self._server, port, _health = _rpc.make_server(address, handlers, names, max_workers)
+        self._server, port, _health, self._executor = _rpc.make_server(address, handlers, names, max_workers)
         self.address = _rpc.bound_address(address, port)
         self.ns_address = ns or self.address
         self._links: dict[tuple[str, str, str, str], _RemoteLink] = {}
@@ -155,6 +155,7 @@ class DeployerServer:
         self._ns_client: NameClient | None = None
         self._registration: Registration | None = None
         self._published: list[str] = []
+        self._refused: list[str] = []
         try:
             if self.registry is not None:
                 self.refresh_names()
@@ -170,13 +171,52 @@ class DeployerServer:
             raise
 
     # ---- names -------------------------------------------------------------------------
-    def refresh_names(self) -> None:
+    def refresh_names(self) -> list[str]:
         """Publish tasks added to the deployer after it started serving (embedded name
-        service; a joined one learns them from the next heartbeat). Cheap when nothing changed."""
+        service; a joined one learns them from the next heartbeat). Cheap when nothing changed.
+
+        A name already held by another live deployer is not published: a warning names the
+        component and that deployer, :attr:`refused_names` lists it, and every free name is
+        published as usual — the name service keeps serving everyone. Never raises;
+        returns the refused names (empty when all are published).
+        """
         names = sorted(self.deployer.names())
-        if self.registry is not None and names != self._published:
+        if self.registry is None or names == self._published:
+            return self.refused_names
+        try:
             self.registry.register(self.deployer_id, self.address, names, permanent=True)
-            self._published = names
+            self._refused = []
+        except errors.AlreadyRegisteredError:
+            held: dict[str, str] = {}
+            for name in names:
+                try:
+                    entry = self.registry.resolve(name)
+                except NotFoundError:
+                    continue
+                if entry.deployer_id != self.deployer_id:
+                    held[name] = entry.address
+            free = [n for n in names if n not in held]
+            for name, where in sorted(held.items()):
+                log.warning(
+                    "component %r of the deployer at %s is not published: the name is held by the "
+                    "deployer at %s; rename one of them", name, self.address, where,
+                )
+            self._refused = sorted(held)
+            try:
+                self.registry.register(self.deployer_id, self.address, free, permanent=True)
+            except errors.AlreadyRegisteredError as exc:  # raced with another registration
+                log.warning("deployer at %s: publishing %s failed: %s", self.address, free, exc)
+                return self.refused_names
+        self._published = names
+        return self.refused_names
+
+    @property
+    def refused_names(self) -> list[str]:
+        """Names of this deployer's tasks the name service refused (held by another deployer),
+        as of the last publication (embedded) or heartbeat (joined)."""
+        if self._registration is not None:
+            return list(self._registration.refused)
+        return list(self._refused)
 
     def resolve(self, component: str) -> str:
         """Address of the deployer serving ``component`` (this one, or via the name service)."""
@@ -262,7 +302,7 @@ class DeployerServer:
         self._servicer.stop()
         server = getattr(self, "_server", None)
         if server is not None:
-            server.stop(grace).wait(grace + 5.0)
+            _rpc.stop_server(server, self._executor, grace)
 
     def wait(self, timeout: float | None = None) -> bool:
         """Block until the server terminates or ``timeout`` s pass; True if terminated."""

@@ -329,7 +329,7 @@ class DataflowServiceBinding(ServiceBinding):
         try:
             for st in steps:
                 subs.append(proxy.subscribe(st.port, self._observer(st.operation), policy=self.settings.policy,
-                                            period=self.settings.period))
+                                            period=self.settings.period, on_gap=self._on_gap))
         except DataflowError as exc:
             for sub in subs:
                 sub.close()
@@ -338,6 +338,12 @@ class DataflowServiceBinding(ServiceBinding):
         self._subs = subs
         log.info("binding.dataflow %s: %d operation(s) of %s/%s driven by %s", self.model.loc, len(subs),
                  self.endpoint.component, self.endpoint.service, self.settings.component)
+
+    def _on_gap(self, gap: Any) -> None:
+        """The subscription was cut and resumed by itself (the task's deployer restarted or
+        stalled): say so, even when the name-service watch did not see it go."""
+        log.info("binding.dataflow %s: task %s restarted or stalled: samples of %s resumed after %.2f s (%s)",
+                 self.model.loc, gap.component, gap.port, gap.duration, gap.reason)
 
     def _observer(self, operation: str) -> Callable[[Any], None]:
         call = self.endpoint.operation(operation, None)

@@ -2,7 +2,8 @@
 ``scart nameserver`` (a standalone name service).
 
 ``scart deploy pkg.mod:Class [pkg.mod:Other@name ...] --name X --period 0.01`` imports
-each class, creates the task (``Class(name)``), gives it a PeriodicActivity when
+each class, creates the task (``Class(name)``; without a name, the class's own default
+name when its ``__init__`` has one, else the class name), gives it a PeriodicActivity when
 ``--period`` is set, configures and starts everything, serves it over gRPC and waits
 for SIGINT/SIGTERM; then it stops serving, stops the tasks and cleans them up in
 reverse order. Without ``--ns``/``SCART_NS`` it embeds a name service and listens on
@@ -94,11 +95,26 @@ def _make_tasks(args: argparse.Namespace) -> list[Any]:
         if not (isinstance(cls, type) and issubclass(cls, TaskContext)):
             raise ValueError(f"{spec} is not a TaskContext subclass")
         name = name or args.name
-        task = cls(name) if name else cls()
-        if args.period is not None:
-            task.set_activity(PeriodicActivity(args.period))
+        task = cls(name) if name else (cls() if _has_default_name(cls) else cls(cls.__name__))
+        if args.period is not None and not task.set_activity(PeriodicActivity(args.period)):
+            raise ValueError(f"{task.name}: refused a periodic activity of {args.period} s")
         tasks.append(task)
     return tasks
+
+
+def _has_default_name(cls: type) -> bool:
+    """True when ``cls(...)`` can be called without a name (its ``__init__`` has a default
+    for its first parameter, or takes none)."""
+    import inspect
+
+    try:
+        params = list(inspect.signature(cls).parameters.values())
+    except (TypeError, ValueError):
+        return False
+    positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    if not positional:
+        return not any(p.kind is p.VAR_POSITIONAL for p in params)
+    return positional[0].default is not inspect.Parameter.empty
 
 
 def cmd_deploy(args: argparse.Namespace) -> int:

@@ -1,0 +1,93 @@
+"""A subscriber's inbox on an output port (private; used by the gRPC servicer and the
+in-process subscription; no gRPC here).
+
+A free-standing InputPort with the subscriber's policy is connected to the output port.
+Its data callback runs in the writer's thread right after a sample was stored: it takes
+the sample out at once and keeps it as ``(sequence, source_time_ns, value)`` in a
+policy-shaped :class:`~dataflow.remote.api.Mailbox`, so the sequence number and the
+timestamp always belong to the sample they travel with. The callback is cheap (a read, a
+short lock, an ``Event.set``) and never blocks on the subscriber. Drops (full BUFFER,
+overwritten DATA/CIRCULAR sample) are counted by the mailbox; samples the consumer
+discards itself (e.g. too large to send) are added with :meth:`count_dropped`.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from dataflow.policy import ConnPolicy, FlowStatus
+from dataflow.ports import InputPort, OutputPort
+from dataflow.remote.api import Mailbox
+
+__all__ = ["Inbox"]
+
+Tagged = tuple[int, int, Any]  # (sequence, source_time_ns, value)
+
+
+class Inbox:
+    """Samples of ``port`` tagged on arrival; :meth:`take` drains them (non-blocking)."""
+
+    def __init__(
+        self, port: OutputPort, policy: ConnPolicy, name: str, on_new: Callable[[], None] | None = None
+    ) -> None:
+        self.port = port
+        self.policy = policy
+        self.wake = threading.Event()
+        self._on_new = on_new
+        self._lock = threading.Lock()
+        self._mailbox: Mailbox[Tagged] = Mailbox(policy)
+        self._seq = 0
+        self._discarded = 0
+        self.inp: InputPort = InputPort(port.type, name=name)
+        self.inp.add_data_callback(self._on_data)
+        self.connection = port.connect_to(self.inp, policy)
+        self._on_data(self.inp)  # an init=True policy may have handed a sample over already
+
+    def _on_data(self, _inp: InputPort) -> None:  # writer's thread: cheap, never blocks for long
+        got = False
+        with self._lock:  # one reader of self.inp at a time (several writers may call us)
+            for _ in range(10_000):  # bounded: the connection holds at most its size
+                status, value = self.inp.read()
+                if status is not FlowStatus.NEW_DATA:
+                    break
+                self._seq += 1
+                self._mailbox.put((self._seq, time.time_ns(), value))
+                got = True
+        if got:
+            self.wake.set()
+            if self._on_new is not None:
+                self._on_new()
+
+    @property
+    def sequence(self) -> int:
+        """Number of samples that arrived so far."""
+        return self._seq
+
+    @property
+    def dropped(self) -> int:
+        """Samples lost: by the connection, by the policy-shaped inbox, or discarded by the consumer."""
+        return self.connection.dropped + self._mailbox.dropped + self._discarded
+
+    def count_dropped(self, n: int = 1) -> None:
+        """Count ``n`` samples the consumer had to discard."""
+        with self._lock:
+            self._discarded += n
+
+    def take(self, limit: int = 10_000) -> list[Tagged]:
+        """Every pending sample, oldest first (at most ``limit``; non-blocking)."""
+        out: list[Tagged] = []
+        for _ in range(limit):
+            item = self._mailbox.get(0.0)
+            if item is None:
+                break
+            out.append(item)
+        return out
+
+    def close(self) -> None:
+        """Disconnect from the output port (idempotent)."""
+        self.port.disconnect(self.inp)
+        self.inp.remove_data_callback(self._on_data)
+        self._mailbox.close()
