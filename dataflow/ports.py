@@ -46,6 +46,14 @@ per-connection lock on every operation; ``UNSYNC`` ones are for single-threaded 
 output's last written value, ``ConnPolicy()``, ``.buffer(n)``, ``.circular_buffer(n)``
 do not (see :mod:`dataflow.policy`).
 
+Ownership: a written sample is handed over by reference, not copied (RTT copies by value;
+in Python a copy per write and per reader would cost more than the port itself). Once
+written, a sample belongs to the readers: write a new object each cycle (as the youBot
+driver does) or a frozen pydantic model, and never mutate a sample you wrote or read —
+exactly the rule of ROS 2's zero-copy (loaned) messages. Samples that cross a process are
+encoded when the server sends them, so mutating one after ``write`` can also change what
+a remote subscriber receives.
+
 Data callbacks (``inp.add_data_callback(cb)``) run ``cb(inp)`` in the writer's thread
 after a sample was stored for that input; a rejected write fires nothing. A callback
 that raises is logged and never disturbs the writer.
