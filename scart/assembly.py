@@ -21,10 +21,9 @@ from typing import Any
 
 from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, PropSpec, RefSpec, interface_info
+from scart.checks import NARROWINGS as _NARROWINGS, Checks
 from scart.contribution import Contribution, import_object
 from scart.errors import Problem, ScdlError
-from scart.bindings.base import BINDING_KINDS
-from scart.extensions import COMPOSITE_EXTENSIONS
 from scart.implementations import IMPLEMENTATION_KINDS, ImplementationProblem
 from scart.model import Binding, Component, Composite, Element, Interface, Location, PropertyValue
 from scart.values import XSD_TYPES, is_many, parse_value
@@ -60,6 +59,16 @@ class Node:
     properties: dict[str, Any] = field(default_factory=dict)
     references: dict[str, list[Endpoint]] = field(default_factory=dict)
     service_bindings: dict[str, list[Binding]] = field(default_factory=dict)
+    ref_interfaces: dict[str, InterfaceInfo] = field(default_factory=dict)  # as declared in the composite
+
+
+@dataclass
+class Failed:
+    """Placeholder of a component whose implementation could not be read (already reported):
+    names resolve to it silently, so one broken component causes no cascade of errors."""
+
+    model: Component
+    ctype: None = None
 
 
 @dataclass
@@ -69,7 +78,7 @@ class Scope:
     composite: Composite
     prefix: str
     props: dict[str, list[str] | None]
-    children: dict[str, Node | Scope] = field(default_factory=dict)
+    children: dict[str, Node | Scope | Failed] = field(default_factory=dict)
     component: Component | None = None  # the component this composite implements
     ctype: ComponentType | None = None
 
@@ -87,31 +96,44 @@ class Assembly:
     service_bindings: dict[str, list[Binding]]
     aliases: dict[str, Target] = field(default_factory=dict)  # "Comp", "Comp/Service" of top-level components
     extensions: list[tuple[str, Element]] = field(default_factory=list)  # (prefix, <scart:...>) of all composites
+    unused_overrides: set[str] = field(default_factory=set)  # overrides naming no property (non-strict mode)
 
 
-def assemble(path: str, overrides: dict[str, str] | None = None) -> Assembly:
+def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overrides: bool = True) -> Assembly:
     """Load, check and resolve the composite at ``path``; ``overrides`` maps
-    "Component.prop" (or "Outer/Inner.prop") to a raw value. Raises ``ScdlError``."""
+    "Component.prop" (or "Outer/Inner.prop") to a raw value. Raises ``ScdlError``.
+
+    With ``strict_overrides=False`` an override naming no component property is no
+    problem; the keys not used are then in ``unused_overrides`` of the result (or of the
+    ``ScdlError``), for callers checking several files (``scart validate --set``)."""
     import scart.bindings.local  # noqa: F401  (registers binding.sca)
 
     contribution = Contribution(path)
     root = contribution.load_root()
-    assembler = _Assembler(contribution, dict(overrides or {}))
+    assembler = _Assembler(contribution, dict(overrides or {}), strict_overrides)
     if root is None:
-        raise ScdlError(contribution.problems)
+        err = ScdlError(contribution.problems)
+        err.unused_overrides = set(overrides or {})  # type: ignore[attr-defined]
+        raise err
     result = assembler.run(root)
-    problems = contribution.problems + assembler.problems
+    # a composite used by several components is checked once per use: report each problem once
+    problems = list(dict.fromkeys(contribution.problems + assembler.problems))
     root_path = str(path)
     problems.sort(key=lambda p: (p.path != root_path, p.path, p.line))  # stable: root file first, by line
+    unused = set(assembler.overrides) - assembler.used_overrides
     if problems:
-        raise ScdlError(problems)
+        err = ScdlError(problems)
+        err.unused_overrides = unused  # type: ignore[attr-defined]
+        raise err
+    result.unused_overrides = unused
     return result
 
 
-class _Assembler:
-    def __init__(self, contribution: Contribution, overrides: dict[str, str]) -> None:
+class _Assembler(Checks):
+    def __init__(self, contribution: Contribution, overrides: dict[str, str], strict_overrides: bool = True) -> None:
         self.contribution = contribution
         self.overrides = overrides
+        self.strict_overrides = strict_overrides
         self.used_overrides: set[str] = set()
         self.problems: list[Problem] = []
         self.nodes: dict[str, Node] = {}
@@ -124,7 +146,7 @@ class _Assembler:
         props = {p.name: self.raw_value(p, {}) for p in root.properties}
         scope = self.build(root, "", props)
         self.wire(scope, {})
-        for key in sorted(set(self.overrides) - self.used_overrides):
+        for key in sorted(set(self.overrides) - self.used_overrides) if self.strict_overrides else ():
             self.problems.append(Problem(E.SCART_OVERRIDE, f"--set {key}: no such component property", "<command line>", 0))
         services: dict[str, Target] = {}
         bindings: dict[str, list[Binding]] = {}
@@ -148,46 +170,6 @@ class _Assembler:
         self.check_extensions(result)
         return result
 
-    # --- extension checks ---------------------------------------------------------------
-
-    def check_bindings(self, result: Assembly) -> None:
-        """Every binding's kind is registered for its side; the kind's own ``check`` runs."""
-        for node in result.nodes.values():
-            for sname, models in node.service_bindings.items():
-                for model in models:
-                    self.check_binding(model, "service", node.ctype.services[sname])
-            for ref, eps in node.references.items():
-                ref_type = node.ctype.references[ref][1]
-                for ep in eps:
-                    if isinstance(ep, Bound):
-                        self.check_binding(ep.binding, "reference", interface_info(ref_type) if ref_type else None)
-        for name, models in result.service_bindings.items():
-            t = result.services[name]
-            for model in models:
-                self.check_binding(model, "service", result.nodes[t.node].ctype.services[t.service])
-
-    def check_binding(self, model: Binding, side: str, iface: InterfaceInfo | None) -> None:
-        kind = BINDING_KINDS.get(model.kind)
-        impl = getattr(kind, side, None) if kind is not None else None
-        if impl is None:
-            usable = sorted(k for k, v in BINDING_KINDS.items() if getattr(v, side) is not None)
-            self.problem(E.SCART_UNKNOWN_KIND, f"binding <{model.kind}> cannot be used on a {side}; "
-                         f"known: {', '.join(usable)}", model.loc)
-            return
-        self.problems.extend(impl.check(model, iface, self.contribution))
-
-    def check_extensions(self, result: Assembly) -> None:
-        """Run each registered composite extension's static check on its elements."""
-        by_kind: dict[str, list[tuple[str, Element]]] = {}
-        for prefix, el in result.extensions:
-            by_kind.setdefault(el.kind, []).append((prefix, el))
-        for kind, elements in by_kind.items():
-            ext = COMPOSITE_EXTENSIONS.get(kind)
-            if ext is None:
-                self.problem(E.SCART_UNKNOWN_KIND, f"no handler for <scart:{kind}>", elements[0][1].loc)
-                continue
-            self.problems.extend(ext.check(elements, result))
-
     # --- phase 1: build ---------------------------------------------------------------
 
     def build(self, composite: Composite, prefix: str, props: dict[str, list[str] | None]) -> Scope:
@@ -197,36 +179,35 @@ class _Assembler:
             if comp.name in scope.children:
                 self.problem(E.ASM_DUPLICATE_COMPONENT, f"duplicate component name {comp.name!r}", comp.loc)
                 continue
-            child = self.build_component(comp, scope)
-            if child is not None:
-                scope.children[comp.name] = child
+            scope.children[comp.name] = self.build_component(comp, scope)
         return scope
 
-    def build_component(self, comp: Component, scope: Scope) -> Node | Scope | None:
+    def build_component(self, comp: Component, scope: Scope) -> Node | Scope | Failed:
         impl = comp.implementation
-        if impl is None:
-            return None
+        if impl is None or impl.invalid:
+            return Failed(comp)
         path = scope.prefix + comp.name
         if impl.kind == "implementation.composite":
             if impl.composite is None:
-                return None
+                return Failed(comp)
             return self.build_nested(comp, impl.composite, scope, path)
         kind = IMPLEMENTATION_KINDS.get(impl.kind)
         if kind is None:
             self.problem(E.SCART_UNKNOWN_KIND, f"unknown implementation kind <{impl.kind}>; known: "
                          f"{', '.join(sorted(IMPLEMENTATION_KINDS))}, implementation.composite", impl.loc)
-            return None
+            return Failed(comp)
         try:
             ctype = kind.component_type(impl, self.contribution)
         except ImplementationProblem as exc:
             self.problem(exc.code, str(exc), impl.loc)
-            return None
+            return Failed(comp)
         self.check_type(ctype, impl.loc)
-        self.check_component_names(comp, ctype)
+        ctype = self.check_component_names(comp, ctype)
         node = Node(path, comp, impl.kind, ctype)
         raw = self.component_raw_props(comp, ctype, scope, path)
         for name, (spec, py_type) in ctype.properties.items():
-            node.properties[name] = self.property_value(comp, name, spec, py_type, raw.get(name))
+            node.properties[name] = self.property_value(comp, name, spec, py_type, raw.get(name),
+                                                        override=f"{path}.{name}" if f"{path}.{name}" in self.overrides else None)
         node.service_bindings = {s.name: s.bindings for s in comp.services if s.bindings}
         self.nodes[path] = node
         return node
@@ -256,21 +237,11 @@ class _Assembler:
         self.check_component_names(comp, child.ctype, check_properties=False)
         return child
 
-    def check_type(self, ctype: ComponentType, loc: Location) -> None:
-        cls_ops = {n for n in dir(ctype.cls) if not n.startswith("_")}
-        for sname, iface in ctype.services.items():
-            for op in iface.operations.values():
-                if op.name not in cls_ops:
-                    self.problem(E.SCART_MISSING_OPERATION, f"{ctype.cls.__name__} lacks operation {op.name!r} "
-                                 f"of its declared service {sname!r}", loc)
-            for checked in (iface, iface.callback):
-                for op in (checked.operations.values() if checked else ()):
-                    if op.oneway and op.returns_value:
-                        self.problem(E.SCART_ONEWAY_RETURNS, f"one-way operation {checked.name}.{op.name} "
-                                     "declares a return value", loc)
-
     def check_component_names(self, comp: Component, ctype: ComponentType, *, check_services: bool = True,
-                              check_properties: bool = True) -> None:
+                              check_properties: bool = True) -> ComponentType:
+        """Check the component's services, references and properties against ``ctype``; returns
+        ``ctype`` with services made remotable where the composite's interface says so."""
+        services = dict(ctype.services)
         if check_services:
             for s in comp.services:
                 if s.name not in ctype.services:
@@ -283,6 +254,8 @@ class _Assembler:
                         self.problem(E.ASM_SERVICE_INTERFACE, f"service {s.name!r} of {comp.name!r}: declared interface "
                                      f"{declared.name} has operation(s) {', '.join(extra)} the implementation "
                                      "does not offer", s.interface.loc)
+                    if declared is not None and declared.remotable and not services[s.name].remotable:
+                        services[s.name] = dataclasses.replace(services[s.name], remotable=True)
             for r in comp.references:
                 if r.name not in ctype.references:
                     self.problem(E.ASM_NO_SUCH_REFERENCE, f"component {comp.name!r} has no reference {r.name!r}; "
@@ -296,6 +269,7 @@ class _Assembler:
                 if p.name not in ctype.properties:
                     self.problem(E.ASM_NO_SUCH_PROPERTY, f"component {comp.name!r} has no property {p.name!r}; "
                                  f"it declares: {', '.join(ctype.properties) or 'none'}", p.loc)
+        return ctype if services == ctype.services else dataclasses.replace(ctype, services=services)
 
     # --- properties ---------------------------------------------------------------------
 
@@ -337,8 +311,12 @@ class _Assembler:
                         self.problem(E.ASM_PROPERTY_VALUE, f"property {p.name!r}: {exc}", p.loc)
         return p.values
 
-    def property_value(self, comp: Component, name: str, spec: PropSpec, py_type: Any, raw: list[str] | None) -> Any:
+    def property_value(self, comp: Component, name: str, spec: PropSpec, py_type: Any, raw: list[str] | None,
+                       override: str | None = None) -> Any:
         where = next((p.loc for p in comp.properties if p.name == name), comp.loc)
+        if override is not None:  # the value came from --set: that is where the problem is
+            where = Location(path="<command line>", line=0)
+            name = f"{name} (--set {override})"
         if raw is None:
             if spec.required:
                 self.problem(E.ASM_MUST_SUPPLY, f"component {comp.name!r}: required property {name!r} "
@@ -362,6 +340,8 @@ class _Assembler:
         if child is None:
             self.problem(code, f"{uri!r}: no component {comp_name!r}; known: {', '.join(scope.children) or 'none'}", loc)
             return None
+        if isinstance(child, Failed):
+            return None  # its own problem is reported already
         offered = child.ctype.services if child.ctype is not None else {}
         if not service:
             if len(offered) != 1:
@@ -384,6 +364,8 @@ class _Assembler:
             for uri in cr.promote:
                 comp_name, _, ref = uri.partition("/")
                 child = scope.children.get(comp_name)
+                if isinstance(child, Failed):
+                    continue
                 if child is None or child.ctype is None or ref not in child.ctype.references:
                     self.problem(E.ASM_PROMOTED_REFERENCE, f"composite reference {cr.name!r} promotes {uri!r}, "
                                  "which is no component reference", cr.loc)
@@ -410,12 +392,27 @@ class _Assembler:
         xml = next((r for r in comp.references if r.name == ref), None)
         loc = xml.loc if xml is not None else comp.loc
         uris = [(u, loc) for u in (xml.targets if xml else [])]
+        replaced = False
         for w in scope.composite.wires:
             src_comp, _, src_ref = w.source.partition("/")
             if src_comp == comp_name and (src_ref == ref or (not src_ref and len(child.ctype.references) == 1)):
-                uris = [(w.target, w.loc)] if w.replace else [*uris, (w.target, w.loc)]
+                if w.replace and not replaced:  # the @target URIs go once; every wire is kept
+                    uris = [(u, l) for u, l in uris if l is not loc]
+                    replaced = True
+                uris.append((w.target, w.loc))
         targets: list[Endpoint] = [t for t in (self.resolve_service(scope, u, l) for u, l in uris) if t]
+        unresolved = len(targets) < len(uris)
         iface = self.reference_interface(xml.interface if xml else None, ref_type, loc)
+        if iface is not None and isinstance(child, Node) and xml is not None and xml.interface is not None:
+            child.ref_interfaces[ref] = iface
+        mult = spec.multiplicity
+        if xml is not None and xml.multiplicity:
+            if xml.multiplicity not in _NARROWINGS.get(spec.multiplicity, ()):
+                self.problem(E.ASM_MULTIPLICITY_NARROWING, f"component {comp.name!r}: reference {ref!r} is declared "
+                             f"{spec.multiplicity} by its implementation; multiplicity {xml.multiplicity!r} does not "
+                             f"narrow it (allowed: {', '.join(_NARROWINGS.get(spec.multiplicity, ()))})", loc)
+            else:
+                mult = xml.multiplicity
         if not targets and xml is not None and xml.bindings:
             targets = [Bound(b) for b in xml.bindings]
         if not targets and from_outside:
@@ -424,8 +421,11 @@ class _Assembler:
                         scope.composite.autowire)
         if not targets and not uris and autowire and iface is not None:
             targets = self.autowire(scope, comp_name, iface)
-        self.check_multiplicity(comp, ref, xml.multiplicity if xml and xml.multiplicity else spec.multiplicity,
-                                targets, loc, promoted=bool(from_outside) or self._is_promoted(scope, comp_name, ref))
+            if not mult.endswith("n"):
+                targets = targets[:1]  # SCA: for a 0..1/1..1 reference the runtime picks one; the first
+        if not unresolved:  # an unresolved target is reported already; its count would mislead
+            self.check_multiplicity(comp, ref, mult, targets, loc,
+                                    promoted=bool(from_outside) or self._is_promoted(scope, comp_name, ref))
         for t in targets:
             if not isinstance(t, Target):
                 continue
@@ -451,13 +451,30 @@ class _Assembler:
                     cb = self.contribution.wsdl_interface(declared.callback, declared.loc)
                     found = dataclasses.replace(found, callback=cb)
                 return found
-            try:
-                obj = import_object(declared.target, self.contribution.folder)
-            except Exception as exc:
-                self.problem(E.SCART_IMPORT, f"cannot import interface {declared.target!r}: {exc}", declared.loc)
+            if declared.invalid:
+                return None  # reported by the schema check
+            info = self.python_interface(declared.target, declared.loc)
+            if info is None:
                 return None
-            return interface_info(obj) if isinstance(obj, type) else None
+            if declared.callback:
+                cb = self.python_interface(declared.callback, declared.loc)
+                if cb is not None:
+                    info = dataclasses.replace(info, callback=cb)
+            if declared.remotable is not None:
+                info = dataclasses.replace(info, remotable=declared.remotable)
+            return info
         return interface_info(ref_type) if ref_type is not None else None
+
+    def python_interface(self, target: str, loc: Location) -> InterfaceInfo | None:
+        try:
+            obj = import_object(target, self.contribution.folder)
+        except Exception as exc:
+            self.problem(E.SCART_IMPORT, f"cannot import interface {target!r}: {exc}", loc)
+            return None
+        if not isinstance(obj, type):
+            self.problem(E.SCART_IMPORT, f"interface {target!r} is not a class", loc)
+            return None
+        return interface_info(obj)
 
     def autowire(self, scope: Scope, comp_name: str, iface: InterfaceInfo) -> list[Endpoint]:
         found: list[Endpoint] = []
@@ -470,25 +487,6 @@ class _Assembler:
                     if target is not None:
                         found.append(target)
         return found
-
-    def check_multiplicity(self, comp: Component, ref: str, mult: str, targets: list[Endpoint],
-                           loc: Location, promoted: bool) -> None:
-        n = len(targets)
-        if n == 0 and promoted:
-            return
-        where = comp.loc if n == 0 else loc
-        if mult == "1..1" and n != 1:
-            self.problem(E.ASM_MULTIPLICITY_1_1, f"component {comp.name!r}: reference {ref!r} (1..1) has {n} targets", where)
-        elif mult == "0..1" and n > 1:
-            self.problem(E.ASM_MULTIPLICITY_0_1, f"component {comp.name!r}: reference {ref!r} (0..1) has {n} targets", where)
-        elif mult == "1..n" and n == 0:
-            self.problem(E.ASM_MULTIPLICITY_1_N, f"component {comp.name!r}: reference {ref!r} (1..n) has no target", where)
-
-    def check_compatible(self, source: InterfaceInfo, target: InterfaceInfo, ref: str, t: Target, loc: Location) -> None:
-        missing = [op for op in source.operations if op not in target.operations]
-        if missing:
-            self.problem(E.ASM_INTERFACE_MISMATCH, f"reference {ref!r} ({source.name}) is wired to {t.node}/{t.service} "
-                         f"({target.name}), which lacks operation(s) {', '.join(missing)}", loc)
 
     def init_order(self) -> list[str]:
         """Leaf paths, targets before sources; definition order otherwise; cycles broken."""

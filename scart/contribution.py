@@ -33,7 +33,9 @@ class Contribution:
         self.root_file = root_file
         self.folder = Path(root_file).resolve().parent
         self.problems: list[Problem] = []
-        self._by_qname: dict[str, Composite] | None = None
+        self._by_qname: dict[str, str] | None = None
+        self._same_qname: dict[str, list[str]] = {}  # QName -> every file declaring it (when more than one)
+        self._loaded: dict[str, Composite | None] = {}  # QName -> loaded once, reused (problems reported once)
         self._sibling_problems: list[Problem] = []
         self._loading: list[str] = []
         self._wsdl: dict[str, InterfaceInfo] | None = None
@@ -65,7 +67,13 @@ class Contribution:
             self.problems.append(Problem(E.SCART_COMPOSITE_CYCLE, f"composite {qname} refers back to itself "
                                          f"(cycle through {Path(path).name})", where.path, where.line))
             return None
-        return self._load(path)
+        files = self._same_qname.pop(qname, None)
+        if files:
+            self.problems.append(Problem(E.SCART_DUPLICATE_COMPOSITE, f"composite {qname} is declared by several "
+                                         f"files: {', '.join(files)}; using {files[0]}", where.path, where.line))
+        if qname not in self._loaded:
+            self._loaded[qname] = self._load(path)
+        return self._loaded[qname]
 
     def _index(self) -> dict[str, str]:
         if self._by_qname is None:
@@ -77,8 +85,12 @@ class Contribution:
                     self._sibling_problems.extend(problems)
                     continue
                 qname = f"{{{root.get('targetNamespace', '')}}}{root.get('name', '')}"
-                self._by_qname.setdefault(qname, str(file))  # type: ignore[arg-type]
-        return self._by_qname  # type: ignore[return-value]
+                shown = str(Path(self.root_file).parent / file.name)  # as the root's path is shown
+                if qname in self._by_qname:
+                    self._same_qname.setdefault(qname, [self._by_qname[qname]]).append(shown)
+                    continue
+                self._by_qname[qname] = shown
+        return self._by_qname
 
     # --- WSDL ---------------------------------------------------------------------------
 

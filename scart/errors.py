@@ -13,6 +13,11 @@ from dataclasses import dataclass
 
 # --- codes: OASIS SCA Assembly 1.1 conformance statements -----------------------------
 ASM_DUPLICATE_COMPONENT = "ASM50001"  # component names unique in a composite
+ASM_DUPLICATE_SERVICE = "ASM50002"  # service names unique on a component
+ASM_DUPLICATE_REFERENCE = "ASM50007"  # reference names unique on a component
+ASM_MULTIPLICITY_NARROWING = "ASM50009"  # a component reference may only narrow the componentType multiplicity
+ASM_DUPLICATE_COMPOSITE_SERVICE = "ASM60003"  # composite service names unique
+ASM_DUPLICATE_COMPOSITE_REFERENCE = "ASM60006"  # composite reference names unique
 ASM_NO_SUCH_SERVICE = "ASM50003"  # component <service> must exist in the componentType
 ASM_SERVICE_INTERFACE = "ASM50004"  # a component service's declared interface is a subset of the implementation's
 ASM_NO_SUCH_REFERENCE = "ASM50008"  # component <reference> must exist in the componentType
@@ -50,6 +55,7 @@ SCART_COMPOSITE_CYCLE = "SCART-C001"  # implementation.composite / include cycle
 SCART_UNKNOWN_KIND = "SCART-C002"  # implementation or binding kind not registered
 SCART_BAD_SOURCE = "SCART-C003"  # property @source names no composite property
 SCART_BAD_WIRE = "SCART-C004"  # wire source names no component reference
+SCART_DUPLICATE_COMPOSITE = "SCART-C006"  # two composites of the contribution share a QName
 SCART_OVERRIDE = "SCART-C005"  # --set names no component/property
 
 
@@ -81,6 +87,7 @@ class ScdlError(ScartError):
         if not errors:
             raise ValueError("ScdlError needs at least one problem")
         self.errors: list[Problem] = list(errors)
+        self.unused_overrides: set[str] = set()  # filled by ``assemble(..., strict_overrides=False)``
         self.path: str = errors[0].path
         self.line: int = errors[0].line
         super().__init__("\n".join(str(p) for p in self.errors))

@@ -53,6 +53,8 @@ class Interface(_Node):
     kind: str
     target: str
     callback: str | None = None
+    remotable: bool | None = None  # interface.python @remotable (None: as the Python interface says)
+    invalid: bool = False  # failed the schema (already reported): not imported
 
 
 class Binding(Element):
@@ -66,6 +68,7 @@ class Implementation(Element):
     (``attributes['name']`` a QName, ``composite`` filled by the loader), or an extension."""
 
     composite: Composite | None = None
+    invalid: bool = False  # failed the schema (already reported): not imported
 
 
 class PropertyValue(_Node):

@@ -12,9 +12,18 @@ composite-scoped instances and runs their ``@init`` targets first (dependency or
 starts composite extensions (``scart.extensions``), then service bindings. A failing
 ``@init`` raises ``ScartError`` (the cause chained) after stopping what started.
 
-``stop()``: stops service bindings, then composite extensions (reverse), drains and
-shuts down the pool (in-flight one-way calls finish; from inside a one-way worker it
-does not wait), runs ``@destroy`` in reverse init order, stops reference bindings.
+``stop()``: stops service bindings, then composite extensions (reverse), closes the
+one-way pool and drains it with a deadline (``drain_timeout``, default 10 s): queued and
+in-flight one-way calls may finish until then; after it, queued calls are dropped (logged
+and counted) and calls still running are logged by operation and left behind on their
+daemon worker threads. Then ``@destroy`` runs in reverse init order (also when ``stop()``
+is called from a one-way worker: the *other* workers are drained first, the caller's own
+call is still running), reference bindings stop, and every proxy handed out (by
+``service()`` or injected as a reference) is switched to raising ``RuntimeStateError``.
+
+One-way calls queue on a bounded pool: at most ``max_pending`` (default 10 000) waiting
+calls; beyond that the caller gets a ``ScartError`` at once (backpressure), counted in
+``oneway_rejected``.
 
 Thread-safety: ``service()`` and the proxies are thread-safe; ``start``/``stop`` are
 serialised by a lock. ``stop()`` may be called from a component (even a one-way worker).
@@ -23,12 +32,15 @@ serialised by a lock. ``stop()`` may be called from a component (even a one-way 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import enum
 import os
 import logging
+import queue
 import threading
+import time
+import weakref
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from pydantic import BaseModel
@@ -58,14 +70,110 @@ class RuntimeState(enum.Enum):
 
 
 class ServiceProxy:
-    """A proxy with one attribute per operation (plain callables built at wiring time)."""
+    """A proxy with one attribute per operation (plain callables built at wiring time).
+
+    At the runtime's ``stop()`` every operation is swapped for a stub raising
+    ``RuntimeStateError`` (:meth:`_scart_disable`), so calls cost nothing extra before."""
 
     def __init__(self, name: str, invokers: dict[str, Callable[..., Any]]) -> None:
         self.__dict__.update(invokers)
         self.__dict__["_scart_name"] = name
+        self.__dict__["_scart_ops"] = tuple(invokers)
+
+    def _scart_disable(self, why: str) -> None:
+        name = self.__dict__["_scart_name"]
+        for op in self.__dict__["_scart_ops"]:
+            self.__dict__[op] = _stopped_stub(f"{name}.{op}: {why}")
 
     def __repr__(self) -> str:
         return f"<scart proxy {self.__dict__['_scart_name']}>"
+
+
+def _stopped_stub(message: str) -> Callable[..., Any]:
+    def stopped(*args: Any, **kwargs: Any) -> Any:
+        raise RuntimeStateError(message)
+    return stopped
+
+
+class _OnewayPool:
+    """Daemon worker threads fed by a bounded queue; knows which operation each worker runs.
+
+    ``submit`` raises ``queue.Full`` when ``max_pending`` calls wait and ``RuntimeError``
+    once closed. ``close(deadline)`` lets workers drain the queue until ``deadline``, then
+    drops what is still queued; returns (dropped count, labels of calls still running)."""
+
+    def __init__(self, workers: int, max_pending: int, run: Callable[[str, Callable[..., Any], tuple[Any, ...], dict[str, Any]], None]) -> None:
+        self._queue: queue.Queue[Any] = queue.Queue(max_pending + max(1, workers))  # room for the stop sentinels
+        self._max_pending = max_pending
+        self._run = run
+        self._lock = threading.Lock()
+        self._closed = False
+        self.running: dict[threading.Thread, str] = {}
+        self._workers = max(1, workers)
+        self._threads: list[threading.Thread] = []  # started on demand, up to ``workers``
+        self._idle = 0
+
+    def submit(self, label: str, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+        with self._lock:
+            if self._closed:
+                raise RuntimeError("runtime stopped")
+            if self._queue.qsize() >= self._max_pending:
+                raise queue.Full
+            self._queue.put_nowait((label, fn, args, kwargs))
+            if self._idle < self._queue.qsize() and len(self._threads) < self._workers:
+                t = threading.Thread(target=self._work, name=f"{_WORKER_PREFIX}_{len(self._threads)}", daemon=True)
+                self._threads.append(t)
+                self._idle += 1  # counted idle until it takes its first call
+                t.start()
+
+    def _work(self) -> None:
+        me = threading.current_thread()
+        while True:
+            item = self._queue.get()
+            with self._lock:
+                self._idle -= 1
+            if item is None:
+                return
+            label, fn, args, kwargs = item
+            self.running[me] = label
+            try:
+                self._run(label, fn, args, kwargs)
+            finally:
+                self.running.pop(me, None)
+                with self._lock:
+                    self._idle += 1
+
+    def close(self, deadline: float) -> tuple[int, list[str]]:
+        """Stop accepting calls; wait (until ``deadline``, a monotonic time) for the queue to
+        drain and the workers to finish, except the calling worker itself."""
+        with self._lock:
+            self._closed = True
+            threads = list(self._threads)
+        me = threading.current_thread()
+        others = [t for t in threads if t is not me]
+        while self._queue.qsize() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        dropped = 0
+        while True:  # bounded: the pool is closed, nothing is added any more
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if item is not None:
+                dropped += 1
+        for _ in threads:
+            self._queue.put(None)  # the queue is empty now and closed: never blocks
+        for t in others:
+            t.join(max(0.0, deadline - time.monotonic()))
+        stuck = [self.running.get(t, "?") for t in others if t.is_alive()]
+        return dropped, stuck
+
+    def join(self, timeout: float) -> None:
+        """Wait (bounded) for every worker thread to end (after ``close``)."""
+        deadline = time.monotonic() + timeout
+        for t in self._threads:
+            if t is not threading.current_thread():
+                t.join(max(0.0, deadline - time.monotonic()))
 
 
 class _Endpoint:
@@ -77,6 +185,12 @@ class _Endpoint:
         self.interface: InterfaceInfo = node.ctype.services[service]
         self._runtime = runtime
         self._manager = manager
+
+    def by_value(self) -> _Endpoint:
+        """A view of this endpoint with pass-by-value (remotable) semantics."""
+        view = copy.copy(self)
+        view.interface = dataclasses.replace(self.interface, remotable=True)
+        return view
 
     def method(self, operation: str) -> Callable[..., Any]:
         """The raw callable of ``operation`` (scope handled by the component's manager)."""
@@ -90,7 +204,8 @@ class _Endpoint:
         if op is None:
             raise InvocationError(f"{self.component}/{self.service} has no operation {name!r}")
         return wrap_operation(self._manager.method(name), op, callback=callback,
-                              by_value=self.interface.remotable, submit=self._runtime.submit)
+                              by_value=self.interface.remotable,
+                              submit=self._runtime.submitter(f"{self.component}/{self.service}.{name}"))
 
     def invoke(self, invocation: Invocation) -> Any:
         """Perform ``invocation`` (one-way: queued, returns None at once)."""
@@ -100,14 +215,19 @@ class _Endpoint:
 class Runtime:
     """Runs one assembled composite. Use ``with Runtime.from_file(path) as rt:``."""
 
-    def __init__(self, assembly: Assembly, *, max_workers: int = 8) -> None:
+    def __init__(self, assembly: Assembly, *, max_workers: int = 8, max_pending: int = 10_000,
+                 drain_timeout: float = 10.0) -> None:
         self.assembly = assembly
         self.max_workers = max_workers
+        self.max_pending = max_pending
+        self.drain_timeout = drain_timeout
         self.state = RuntimeState.CREATED
         self.oneway_failures = 0
+        self.oneway_rejected = 0
         self._failures_lock = threading.Lock()
         self._lock = threading.RLock()
-        self._pool: ThreadPoolExecutor | None = None
+        self._pool: _OnewayPool | None = None
+        self._all_proxies: weakref.WeakSet[ServiceProxy] = weakref.WeakSet()
         self._managers: dict[str, ComponentManager] = {}
         self._endpoints: dict[tuple[str, str], _Endpoint] = {}
         self._ref_bindings: dict[tuple[str, str], list[ReferenceBinding]] = {}
@@ -121,10 +241,12 @@ class Runtime:
         self._proxies: dict[str, ServiceProxy] = {}
 
     @classmethod
-    def from_file(cls, path: str | os.PathLike[str], *, overrides: dict[str, str] | None = None, max_workers: int = 8) -> Runtime:
+    def from_file(cls, path: str | os.PathLike[str], *, overrides: dict[str, str] | None = None, max_workers: int = 8,
+                  **options: Any) -> Runtime:
         """Load and check the composite at ``path`` (raises ``ScdlError``); nothing starts yet.
-        ``overrides`` maps "Component.property" to a raw value (like ``--set``)."""
-        return cls(assemble(str(path), overrides), max_workers=max_workers)
+        ``overrides`` maps "Component.property" to a raw value (like ``--set``); ``options``
+        are the other keyword arguments of ``Runtime`` (``max_pending``, ``drain_timeout``)."""
+        return cls(assemble(str(path), overrides), max_workers=max_workers, **options)
 
     def __enter__(self) -> Runtime:
         self.start()
@@ -141,7 +263,7 @@ class Runtime:
             if self.state is not RuntimeState.CREATED:
                 raise RuntimeStateError(f"cannot start a runtime in state {self.state.value}")
             self.state = RuntimeState.STARTED
-            self._pool = ThreadPoolExecutor(self.max_workers, thread_name_prefix=_WORKER_PREFIX)
+            self._pool = _OnewayPool(self.max_workers, self.max_pending, self._run_oneway)
             try:
                 self._create_managers()
                 self._create_reference_bindings()
@@ -170,7 +292,10 @@ class Runtime:
             self.state = RuntimeState.STOPPED
         if not first:
             if not in_worker and threading.current_thread() is not self._stopping_thread:
-                self._stopped.wait(30.0)
+                limit = self.drain_timeout + 30.0
+                if not self._stopped.wait(limit):
+                    log.warning("stop(): the stop begun by thread %s has not finished within %.0f s; returning",
+                                getattr(self._stopping_thread, "name", "?"), limit)
             return
         self._stopping_thread = threading.current_thread()
         try:
@@ -179,7 +304,7 @@ class Runtime:
             for participant in reversed(self._participants):
                 _quietly(participant.stop, "stopping a composite extension")
             if self._pool is not None:
-                self._pool.shutdown(wait=not in_worker)
+                self._drain_pool(self._pool)
             for path in reversed(self._started):
                 _quietly(self._managers[path].stop, f"destroying {path}")
             for bindings in self._ref_bindings.values():
@@ -188,7 +313,25 @@ class Runtime:
             for hook in reversed(self._stop_hooks):
                 _quietly(hook, "running a stop hook")
         finally:
+            self._disable_proxies()
             self._stopped.set()
+
+    def _drain_pool(self, pool: _OnewayPool) -> None:
+        dropped, stuck = pool.close(time.monotonic() + self.drain_timeout)
+        if dropped:
+            with self._failures_lock:
+                self.oneway_failures += dropped
+            log.warning("stop: %d queued one-way call(s) dropped after %.1f s", dropped, self.drain_timeout)
+        if stuck:
+            log.warning("stop: %d one-way call(s) still running after %.1f s, left behind on daemon threads: %s",
+                        len(stuck), self.drain_timeout, ", ".join(stuck))
+
+    def _disable_proxies(self) -> None:
+        why = "runtime is stopped"
+        for proxy in list(self._all_proxies):
+            proxy._scart_disable(why)
+        for proxy in list(self._proxies.values()):
+            proxy._scart_disable(why)
 
     def _create_managers(self) -> None:
         for path, node in self.assembly.nodes.items():
@@ -205,6 +348,8 @@ class Runtime:
                 for ep in endpoints:
                     if isinstance(ep, Target):
                         target = self._endpoints[(ep.node, ep.service)]
+                        if iface is not None and iface.remotable and not target.interface.remotable:
+                            target = target.by_value()  # the reference's interface says remotable
                         made.append(LocalReferenceBinding(None, target.interface, self, target=target))
                     else:
                         made.append(self._binding_reference(ep, iface, f"{path}/{ref}"))
@@ -257,22 +402,38 @@ class Runtime:
 
     def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
         """Queue ``fn`` on the one-way pool (bounded worker count); failures are logged and
-        counted in ``oneway_failures``. After stop, the call is counted and dropped with a log."""
+        counted in ``oneway_failures``. After stop, the call is counted and dropped with a log.
+        With ``max_pending`` calls already waiting, raises ``ScartError`` (counted in
+        ``oneway_rejected``)."""
+        self._submit(getattr(fn, "__qualname__", None) or repr(fn), fn, args, kwargs)
+
+    def submitter(self, label: str) -> Callable[..., None]:
+        """A ``submit`` whose calls are named ``label`` in logs (e.g. "Comp/Service.op")."""
+        def submit(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+            self._submit(label, fn, args, kwargs)
+        return submit
+
+    def _submit(self, label: str, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
         pool = self._pool
         try:
             if pool is None:
                 raise RuntimeError("runtime not started")
-            pool.submit(self._run_oneway, fn, args, kwargs)
+            pool.submit(label, fn, args, kwargs)
         except RuntimeError as exc:
             self._count_failure()
-            log.error("one-way call %s dropped: %s", getattr(fn, "__qualname__", fn), exc)
+            log.error("one-way call %s dropped: %s", label, exc)
+        except queue.Full:
+            with self._failures_lock:
+                self.oneway_rejected += 1
+            raise ScartError(f"one-way call {label} refused: {self.max_pending} one-way calls already "
+                             "pending (backpressure); retry later") from None
 
-    def _run_oneway(self, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+    def _run_oneway(self, label: str, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
         try:
             fn(*args, **kwargs)
         except Exception:
             self._count_failure()
-            log.exception("one-way call %s failed", getattr(fn, "__qualname__", fn))
+            log.exception("one-way call %s failed", label)
 
     def _count_failure(self) -> None:
         with self._failures_lock:
@@ -302,7 +463,12 @@ class Runtime:
         iface = rb.interface
         callback = _LocalCallback(instance, iface.callback, self) if iface.callback is not None else None
         invokers = {name: rb.invoker(op, callback) for name, op in iface.operations.items()}
-        return ServiceProxy(f"{node.path}.{ref}", invokers)
+        proxy = ServiceProxy(f"{node.path}.{ref}", invokers)
+        if self.state is RuntimeState.STOPPED:
+            proxy._scart_disable("runtime is stopped")
+        else:
+            self._all_proxies.add(proxy)
+        return proxy
 
     # --- lookup -----------------------------------------------------------------------
 
@@ -313,11 +479,11 @@ class Runtime:
         Calls go through the runtime (stateless: fresh instance per call; one-way: None at
         once). Raises ``ServiceNotFoundError`` listing the known services, or
         ``RuntimeStateError`` when not started."""
+        if self.state is not RuntimeState.STARTED:
+            raise RuntimeStateError(f"service({name!r}): runtime is {self.state.value}, not started")
         proxy = self._proxies.get(name)
         if proxy is not None:
             return proxy
-        if self.state is not RuntimeState.STARTED:
-            raise RuntimeStateError(f"service({name!r}): runtime is {self.state.value}, not started")
         ep = self.endpoint(name)
         invokers = {op: ep.operation(op, None) for op in ep.interface.operations}
         proxy = self._proxies[name] = ServiceProxy(name, invokers)
@@ -356,7 +522,7 @@ class _LocalCallback:
         for name, op in iface.operations.items():
             method = getattr(instance, name, None) or _missing(type(instance).__name__, name)
             setattr(self, name, wrap_operation(method, op, callback=None, by_value=iface.remotable,
-                                               submit=runtime.submit))
+                                               submit=runtime.submitter(f"callback {iface.name}.{name}")))
 
 
 def _missing(cls: str, op: str) -> Callable[..., Any]:
@@ -366,6 +532,8 @@ def _missing(cls: str, op: str) -> Callable[..., Any]:
 
 
 def _iface_of(node: Node, ref: str) -> InterfaceInfo | None:
+    if ref in node.ref_interfaces:
+        return node.ref_interfaces[ref]
     ref_type = node.ctype.references[ref][1]
     return interface_info(ref_type) if ref_type is not None else None
 

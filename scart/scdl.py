@@ -50,7 +50,44 @@ SCA_NAMESPACES = (SCA11_NS, SCA10_NS)
 _IGNORED = {"documentation", "requires", "policySetAttachment", "extensions", "description"}
 _SCHEMA_PATH = Path(__file__).with_name("schema") / "scart-1.0.xsd"
 _schema: etree.XMLSchema | None = None
-_DOCTYPE = re.compile(rb"<!DOCTYPE|<!ENTITY", re.IGNORECASE)
+_PROLOG_LIMIT = 64 * 1024  #: how much of a file's head is scanned for a DOCTYPE before its root element
+
+
+def _prolog_doctype_line(data: bytes) -> int | None:
+    """The line of a ``<!DOCTYPE``/``<!ENTITY`` before the root element, else None.
+
+    Only the prolog is scanned (XML declaration, processing instructions, comments,
+    whitespace), so the same text inside a comment or in content is no false positive.
+    UTF-16 files (BOM or not) are decoded first; other encodings are read as Latin-1,
+    which keeps every ASCII markup character in place."""
+    head = data[:_PROLOG_LIMIT]
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        text = head.decode("utf-16", errors="replace")
+    elif head.startswith(b"<\x00"):
+        text = head.decode("utf-16-le", errors="replace")
+    elif head.startswith(b"\x00<"):
+        text = head.decode("utf-16-be", errors="replace")
+    else:
+        text = head.decode("latin-1")
+    i, n = 0, len(text)
+    while i < n:  # bounded: i grows every round
+        if text[i].isspace() or text[i] in "\ufeff\u00ef\u00bb\u00bf":  # (a UTF-8 BOM read as Latin-1)
+            i += 1
+        elif text.startswith("<?", i):
+            end = text.find("?>", i + 2)
+            if end < 0:
+                return None
+            i = end + 2
+        elif text.startswith("<!--", i):
+            end = text.find("-->", i + 4)
+            if end < 0:
+                return None
+            i = end + 3
+        elif text[i:i + 9].upper() == "<!DOCTYPE" or text[i:i + 8].upper() == "<!ENTITY":
+            return text.count("\n", 0, i) + 1
+        else:
+            return None  # the root element (or malformed: the parser reports it)
+    return None
 
 
 def _parser() -> etree.XMLParser:
@@ -76,9 +113,8 @@ def parse_xml(path: str, problems: list[Problem], max_bytes: int = MAX_BYTES) ->
     except OSError as exc:
         problems.append(Problem(E.SCART_XML, f"cannot read: {exc.strerror or exc}", path, 0))
         return None
-    match = _DOCTYPE.search(data)
-    if match:
-        line = data.count(b"\n", 0, match.start()) + 1
+    line = _prolog_doctype_line(data)
+    if line is not None:
         problems.append(Problem(E.SCART_UNSAFE_XML, "DOCTYPE/ENTITY declarations are refused", path, line))
         return None
     try:
@@ -86,7 +122,7 @@ def parse_xml(path: str, problems: list[Problem], max_bytes: int = MAX_BYTES) ->
     except etree.XMLSyntaxError as exc:
         problems.append(Problem(E.SCART_XML, f"malformed XML: {exc.msg}", path, exc.lineno or 0))
         return None
-    if root.getroottree().docinfo.doctype:
+    if root.getroottree().docinfo.doctype or root.getroottree().docinfo.internalDTD is not None:
         problems.append(Problem(E.SCART_UNSAFE_XML, "DOCTYPE declarations are refused", path, 1))
         return None
     return root
@@ -182,9 +218,17 @@ class Loader:
                     self.problem(E.ASM_SCHEMA, f"component {comp.name!r} has more than one implementation", child)
                 comp.implementation = self.read_implementation(child)
             elif ns in SCA_NAMESPACES and local == "service":
-                comp.services.append(self.read_component_service(child))
+                service = self.read_component_service(child)
+                if any(s.name == service.name for s in comp.services):
+                    self.problem(E.ASM_DUPLICATE_SERVICE, f"component {comp.name!r}: duplicate service {service.name!r}", child)
+                    continue
+                comp.services.append(service)
             elif ns in SCA_NAMESPACES and local == "reference":
-                comp.references.append(self.read_component_reference(child))
+                ref = self.read_component_reference(child)
+                if any(r.name == ref.name for r in comp.references):
+                    self.problem(E.ASM_DUPLICATE_REFERENCE, f"component {comp.name!r}: duplicate reference {ref.name!r}", child)
+                    continue
+                comp.references.append(ref)
             elif ns in SCA_NAMESPACES and local == "property":
                 comp.properties.append(self.read_property(child))
             elif local not in _IGNORED:
@@ -197,8 +241,8 @@ class Loader:
         """Any ``implementation.*``; ``implementation.composite`` is resolved by QName."""
         ns, local = _local(el)
         impl = Implementation(kind=local, namespace=ns, attributes=dict(el.attrib), loc=self.loc(el))
-        if ns == SCART_NS:
-            self.validate_scart(el)
+        if ns == SCART_NS and not self.validate_scart(el):
+            impl.invalid = True  # reported; nothing is imported for it
         if local == "implementation.composite":
             qname = self.qname(el, "name")
             if qname is not None:
@@ -225,12 +269,14 @@ class Loader:
     def read_interface(self, el: etree._Element) -> Interface:
         """``interface.python``/``interface.wsdl``/``interface.java``: target and callback."""
         ns, local = _local(el)
-        if ns == SCART_NS:
-            self.validate_scart(el)
+        invalid = ns == SCART_NS and not self.validate_scart(el)
         target = el.get("interface") or el.get("class") or ""
-        if not target:
+        if not target and not invalid:
             self.problem(E.ASM_SCHEMA, f"<{local}> needs an 'interface' attribute", el)
-        return Interface(kind=local, target=target, callback=el.get("callbackInterface"), loc=self.loc(el))
+        remotable = el.get("remotable")
+        return Interface(kind=local, target=target, callback=el.get("callbackInterface"),
+                         remotable=_bool(remotable) if remotable is not None else None,
+                         invalid=invalid or not target, loc=self.loc(el))
 
     def read_binding(self, el: etree._Element) -> Binding:
         """Any ``binding.*``: kind, attributes and children kept for the binding's factory."""
@@ -310,15 +356,23 @@ class Loader:
     def read_composite_service(self, el: etree._Element, parent: Composite) -> None:
         """A composite ``<service name promote>``."""
         iface, b, _ = self._port_children(el, "service")
+        name = self.required(el, "name") or ""
+        if any(cs.name == name for cs in parent.services):
+            self.problem(E.ASM_DUPLICATE_COMPOSITE_SERVICE, f"duplicate composite service {name!r}", el)
+            return
         parent.services.append(CompositeService(
-            name=self.required(el, "name") or "", promote=self.required(el, "promote") or "",
+            name=name, promote=self.required(el, "promote") or "",
             interface=iface, bindings=b, loc=self.loc(el)))
 
     def read_composite_reference(self, el: etree._Element, parent: Composite) -> None:
         """A composite ``<reference name promote target multiplicity>``."""
         iface, b, _ = self._port_children(el, "reference")
+        name = self.required(el, "name") or ""
+        if any(cr.name == name for cr in parent.references):
+            self.problem(E.ASM_DUPLICATE_COMPOSITE_REFERENCE, f"duplicate composite reference {name!r}", el)
+            return
         parent.references.append(CompositeReference(
-            name=self.required(el, "name") or "", promote=(self.required(el, "promote") or "").split(),
+            name=name, promote=(self.required(el, "promote") or "").split(),
             targets=(el.get("target") or "").split(), multiplicity=el.get("multiplicity"),
             interface=iface, bindings=b, loc=self.loc(el)))
 

@@ -29,7 +29,7 @@ def test_public_exports_are_curated() -> None:
     public = {n for n in vars(scart) if not n.startswith("_")}
     # submodules may appear as attributes once imported; nothing else leaks
     assert public - EXPECTED <= {"api", "errors", "runtime", "assembly", "bindings", "contribution",
-                                 "implementations", "model", "scdl", "commands", "cli", "extensions", "values", "schema",
+                                 "implementations", "model", "scdl", "commands", "cli", "extensions", "values", "schema", "checks",
                                  "tasks"}
 
 

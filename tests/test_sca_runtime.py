@@ -278,7 +278,7 @@ def test_stop_from_a_oneway_worker_does_not_deadlock(tmp_path: Path) -> None:
     rt.submit(lambda: (rt.stop(), done.set()))
     assert done.wait(10)
     assert rt.state is scart.RuntimeState.STOPPED
-    rt._pool.shutdown(wait=True)
+    rt._pool.join(10)
 
 
 def test_failing_init_is_a_scart_error_and_stops_what_started(tmp_path: Path) -> None:

@@ -10,7 +10,9 @@ one. The start summary then has the lines ``scart: dataflow server at HOST:PORT`
 
 Exit codes: 0 success (``run``: after a clean stop on SIGINT/SIGTERM), 2 an invalid
 composite (every problem listed on stderr as ``path:line: message [CODE]``, nothing
-started), 1 a failure while starting or stopping.
+started), 1 a failure while starting or stopping. A second SIGINT/SIGTERM while ``run``
+stops exits at once with 128+signal (130/143) after a message on stderr. One-way calls
+still running ``--stop-timeout`` seconds into the stop are logged and left behind.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 from scart.assembly import Assembly, Bound, Target, assemble
 from scart.errors import ScartError, ScdlError
+from scart.model import Composite
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -36,6 +39,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.add_argument("file", help="the .composite file")
     _add_set(run)
     run.add_argument("--workers", type=int, default=8, help="size of the one-way worker pool (default 8)")
+    run.add_argument("--stop-timeout", type=float, default=10.0, metavar="SECONDS",
+                     help="on stop, how long one-way calls may still run before they are left behind "
+                          "(logged by operation; default 10)")
     run.add_argument("--ns", default=None, metavar="HOST:PORT",
                      help="name service of data-flow tasks: where the embedded one listens, or the running one "
                           "to join (default: $SCART_NS, else 127.0.0.1:7850)")
@@ -68,13 +74,22 @@ def parse_overrides(items: list[str]) -> dict[str, str]:
     return out
 
 
-def _assemble(file: str, raw_overrides: list[str]) -> Assembly | None:
+def _assemble(file: str, raw_overrides: list[str], unused: set[str] | None = None) -> Assembly | None:
+    """Assemble ``file`` or print its problems. With ``unused`` (a set), overrides naming no
+    property of this file are no problem: their keys are added to ``unused`` instead."""
     try:
-        return assemble(file, parse_overrides(raw_overrides))
+        result = assemble(file, parse_overrides(raw_overrides), strict_overrides=unused is None)
+        if unused is not None:
+            unused |= result.unused_overrides
+        return result
     except ScdlError as exc:
+        if unused is not None:
+            unused |= exc.unused_overrides
         print(str(exc), file=sys.stderr)
         print(f"scart: {file}: {len(exc.errors)} problem(s); nothing started", file=sys.stderr)
     except ValueError as exc:
+        if unused is not None:
+            unused.add("")  # malformed --set: fails every file
         print(f"scart: {exc}", file=sys.stderr)
     return None
 
@@ -87,6 +102,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
+        if stop.is_set():  # a second Ctrl-C/SIGTERM while stopping: give up at once
+            os.write(2, f"scart: {signal.Signals(signum).name} again while stopping; exiting at once "
+                        "(components not destroyed)\n".encode())
+            os._exit(128 + signum)
         stop.set()
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -96,7 +115,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         assembly = _assemble(args.file, args.overrides)
         if assembly is None:
             return 2
-        runtime = Runtime(assembly, max_workers=args.workers)
+        runtime = Runtime(assembly, max_workers=args.workers, drain_timeout=args.stop_timeout)
         host = host_of(runtime)
         host.use_ns(ns)
         try:
@@ -179,12 +198,26 @@ def _endpoint_text(ep: Target | Bound) -> str:
 def cmd_validate(args: argparse.Namespace) -> int:
     """Check each file; print "ok" lines or every problem; 0 if all valid, else 2."""
     failed = 0
+    several = len(args.files) > 1
+    unused_in: list[set[str]] = []
     for file in args.files:
-        assembly = _assemble(file, args.overrides)
+        unused: set[str] | None = set() if several else None
+        assembly = _assemble(file, args.overrides, unused)
+        if unused is not None:
+            unused_in.append(unused)
         if assembly is None:
             failed += 1
         else:
             print(f"{file}: ok ({len(assembly.nodes)} component(s))")
+    if several and args.overrides:  # an override must fit at least one of the files
+        try:
+            keys = parse_overrides(args.overrides)
+        except ValueError:
+            keys = {}
+        for key in sorted(k for k in keys if all(k in u for u in unused_in)):
+            print(f"<command line>:0: --set {key}: no such component property in any of the files "
+                  f"[SCART-C005]", file=sys.stderr)
+            failed += 1
     return 2 if failed else 0
 
 
@@ -244,10 +277,38 @@ def to_dot(assembly: Assembly) -> str:
     for name, t in assembly.services.items():
         out.append(f"  {_q('service:' + name)} [shape=cds, label={_q(name)}];")
         out.append(f"  {_q('service:' + name)} -> {_q(t.node)} [style=dashed, label={_q('promotes ' + t.service)}];")
-    for cr in c.references:
-        out.append(f"  {_q('reference:' + cr.name)} [shape=cds, label={_q(cr.name)}];")
-        for uri in cr.promote:
-            comp = uri.partition("/")[0]
-            out.append(f"  {_q(comp)} -> {_q('reference:' + cr.name)} [style=dashed, label={_q('promoted')}];")
+    out += _promotions(c, "")
     out.append("}")
     return "\n".join(out)
+
+
+def _promotions(composite: Composite, prefix: str) -> list[str]:
+    """Composite references (this level and nested levels): a node each, a dashed edge from
+    each leaf component whose reference it promotes (through nested composites)."""
+    out: list[str] = []
+    for cr in composite.references:
+        rid = "reference:" + prefix + cr.name
+        out.append(f"  {_q(rid)} [shape=cds, label={_q(prefix + cr.name)}];")
+        for uri in cr.promote:
+            for leaf in _promoted_leaves(composite, prefix, uri, 0):
+                out.append(f"  {_q(leaf)} -> {_q(rid)} [style=dashed, label={_q('promoted')}];")
+    for comp in composite.components:
+        impl = comp.implementation
+        if impl is not None and impl.kind == "implementation.composite" and impl.composite is not None:
+            if prefix.count("/") < 32:  # bounded (cycles are refused at load, this is a guard)
+                out += _promotions(impl.composite, f"{prefix}{comp.name}/")
+    return out
+
+
+def _promoted_leaves(composite: Composite, prefix: str, uri: str, depth: int) -> list[str]:
+    """Leaf component paths behind ``uri`` ("Comp/ref"), following nested promotions."""
+    name, _, ref = uri.partition("/")
+    comp = next((c for c in composite.components if c.name == name), None)
+    if comp is None or depth > 32:
+        return []
+    impl = comp.implementation
+    if impl is None or impl.kind != "implementation.composite" or impl.composite is None:
+        return [prefix + name]
+    inner = impl.composite
+    return [leaf for cr in inner.references if cr.name == ref.split("/")[0]
+            for u in cr.promote for leaf in _promoted_leaves(inner, f"{prefix}{name}/", u, depth + 1)]
