@@ -211,3 +211,27 @@ def test_bridge_composites_validate() -> None:
     bridge = Path(__file__).resolve().parent.parent / "composites" / "bridge"
     for name in ("thermostat.composite", "bridge-proxy.composite", "bridge-binding.composite"):
         scart.Runtime.from_file(bridge / name)  # loads and checks; nothing starts
+
+
+def test_default_name_service_port_taken_falls_back_and_says_where(tmp_path: Path) -> None:
+    """Without --ns, a busy default port embeds the name service elsewhere, and the
+    runtime's components are told the real address (not the busy one)."""
+    import socket
+
+    from scart.bindings._dataflow_host import AMBIENT_NS, ambient_ns
+    from scart.commands.run import serve_tasks
+
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen()  # something that is not a name service holds the "default" port
+    taken = f"127.0.0.1:{busy.getsockname()[1]}"
+    try:
+        with scart.Runtime.from_file(make(tmp_path, TWO)) as rt:
+            AMBIENT_NS["address"] = taken
+            lines = serve_tasks(rt, taken, explicit=False)
+            real = host_of(rt).ns_address
+            assert real != taken and f"name service at {real} (embedded)" in lines[-1]
+            assert ambient_ns() == real
+    finally:
+        AMBIENT_NS.pop("address", None)
+        busy.close()

@@ -166,6 +166,11 @@ def serve_tasks(runtime: Any, ns: str, explicit: bool = True) -> list[str]:
             if explicit:
                 raise
             server = host.serve("127.0.0.1:0")
+    if server.ns_address != ns:  # embedded at a free port: say where it really is
+        from scart.bindings._dataflow_host import AMBIENT_NS
+
+        host.use_ns(server.ns_address)
+        AMBIENT_NS["address"] = server.ns_address
     how = "joined" if joined else "embedded"
     return [f"scart: dataflow server at {server.address} ({len(host.deployer.names())} task(s))",
             f"scart: name service at {server.ns_address} ({how})"]
