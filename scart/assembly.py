@@ -15,6 +15,7 @@ compatibility. Leaf components are named by their path ("Outer/Inner").
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,6 +60,8 @@ class Node:
     properties: dict[str, Any] = field(default_factory=dict)
     references: dict[str, list[Endpoint]] = field(default_factory=dict)
     service_bindings: dict[str, list[Binding]] = field(default_factory=dict)
+    # service -> the paths it is promoted as out of nested composites whose bindings it carries
+    service_aliases: dict[str, list[str]] = field(default_factory=dict)
     ref_interfaces: dict[str, InterfaceInfo] = field(default_factory=dict)  # as declared in the composite
 
 
@@ -127,6 +130,9 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
         raise err
     result.unused_overrides = unused
     return result
+
+
+_REFUSED = re.compile(r"refused by its check: (.*?)(?: \[type=|$)", re.S)
 
 
 class _Assembler(Checks):
@@ -200,7 +206,10 @@ class _Assembler(Checks):
             ctype = kind.component_type(impl, self.contribution)
         except ImplementationProblem as exc:
             self.problem(exc.code, str(exc), impl.loc)
-            return Failed(comp)
+            partial = getattr(exc, "partial", None)  # enough of a type to check the rest of the component
+            if partial is None:
+                return Failed(comp)
+            ctype = partial
         self.check_type(ctype, impl.loc)
         ctype = self.check_component_names(comp, ctype)
         node = Node(path, comp, impl.kind, ctype)
@@ -227,15 +236,32 @@ class _Assembler(Checks):
         child = self.build(inner, path + "/", props)
         child.component = comp
         services: dict[str, InterfaceInfo] = {}
+        targets: dict[str, Target] = {}
         for cs in inner.services:
             target = self.resolve_service(child, cs.promote, cs.loc, E.ASM_PROMOTED_SERVICE)
             if target is not None:
                 services[cs.name] = self.nodes[target.node].ctype.services[target.service]
+                targets[cs.name] = target
+                self.bind_promoted(target, f"{path}/{cs.name}", cs.bindings)
+        for s in comp.services:  # the outer component's bindings on a promoted service
+            if s.name in targets:
+                self.bind_promoted(targets[s.name], f"{path}/{s.name}", s.bindings)
         refs = {cr.name: (RefSpec(_required(cr.multiplicity), _multiple(cr.multiplicity)), None)
                 for cr in inner.references}
         child.ctype = ComponentType(object, services, refs, fake.properties, (), (), (), (), "composite", True)
         self.check_component_names(comp, child.ctype, check_properties=False)
         return child
+
+    def bind_promoted(self, target: Target, alias: str, bindings: list[Binding]) -> None:
+        """Record ``bindings`` of a service promoted out of a nested composite on its leaf
+        target (as a root-level promoted service's bindings are), named also ``alias``."""
+        if not bindings:
+            return
+        node = self.nodes[target.node]
+        node.service_bindings.setdefault(target.service, []).extend(bindings)
+        aliases = node.service_aliases.setdefault(target.service, [])
+        if alias not in aliases:
+            aliases.append(alias)
 
     def check_component_names(self, comp: Component, ctype: ComponentType, *, check_services: bool = True,
                               check_properties: bool = True) -> ComponentType:
@@ -328,7 +354,11 @@ class _Assembler(Checks):
         try:
             return parse_value(raw, py_type)
         except ValueError as exc:
-            self.problem(E.ASM_PROPERTY_VALUE, f"property {name!r}: {exc}", where)
+            msg = str(exc)
+            refused = _REFUSED.search(msg)  # a task Property's own check: say so, without pydantic's noise
+            if refused is not None:
+                msg = f"{' '.join(raw)!r} refused by its check: {refused.group(1).strip()}"
+            self.problem(E.ASM_PROPERTY_VALUE, f"property {name!r}: {msg}", where)
             return _Default
 
     # --- phase 2: wire ------------------------------------------------------------------

@@ -9,6 +9,7 @@ value → output port) or ``"deliver"`` (service, one argument ← output port).
 from __future__ import annotations
 
 import inspect
+import re
 import typing
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +49,10 @@ class Settings:
     problems: tuple[str, ...]
 
 
+MIN_PERIOD_S = 0.001  # smallest polling period of a service binding
+_ADDRESS = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
+
+
 def settings(model: Binding) -> Settings:
     """Parse attributes and ``<scart:map>`` children (problems as messages, never raises)."""
     a = model.attributes
@@ -69,6 +74,10 @@ def settings(model: Binding) -> Settings:
         except ValueError:
             problems.append(f"period {a.get('period')!r}: expected seconds > 0")
             period = None
+        else:
+            if period < MIN_PERIOD_S:  # polling faster than this is a busy loop
+                problems.append(f"period {a.get('period')!r}: at least {MIN_PERIOD_S} s")
+                period = None
     mapping: dict[str, str] = {}
     for item in (a.get("ports") or "").split(","):
         if item.strip():
@@ -83,6 +92,11 @@ def settings(model: Binding) -> Settings:
             if op and port:
                 mapping[op] = port
     ns = (a.get("ns") or "").strip() or None
+    if ns is not None:
+        m = _ADDRESS.match(ns)
+        if m is None or not 1 <= int(m["port"]) <= 65535:
+            problems.append(f'ns {ns!r}: expected the name service as "host:port" (port 1..65535)')
+            ns = None
     return Settings(component, ns, policy, period, mapping, tuple(problems))
 
 

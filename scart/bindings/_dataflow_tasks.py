@@ -49,6 +49,7 @@ from pydantic_core import core_schema
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
 from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, Operation, PropSpec
+from scart.bindings._dataflow_plan import MIN_PERIOD_S
 from scart.bindings._dataflow_host import PortInfo, Watcher, ambient_ns, class_ports, host_of, remote_ports
 from scart.errors import Problem
 from scart.extensions import register_composite_extension
@@ -89,9 +90,12 @@ def _period(impl: Implementation) -> float | None:
     if raw is None:
         return None
     try:
-        return PeriodicActivity._checked(float(raw))
+        period = PeriodicActivity._checked(float(raw))
     except ValueError:
         raise ImplementationProblem(TASK_NOT_A_TASK, f"period {raw!r}: expected seconds > 0") from None
+    if period < MIN_PERIOD_S:  # a busy loop, not a period
+        raise ImplementationProblem(TASK_NOT_A_TASK, f"period {raw!r}: at least {MIN_PERIOD_S} s")
+    return period
 
 
 def _checked_type(prop: Any) -> Any:
@@ -103,7 +107,10 @@ def _checked_type(prop: Any) -> Any:
     base = prop.type
 
     def check(value: Any) -> Any:
-        prop.check(value)
+        try:
+            prop.check(value)
+        except ValueError as exc:
+            raise ValueError(f"refused by its check: {exc}") from None
         return value
 
     def schema(cls: type, source: Any, handler: pydantic.GetCoreSchemaHandler) -> Any:
@@ -128,13 +135,18 @@ class TaskImplementation:
     def component_type(self, impl: Implementation, contribution: Contribution) -> ComponentType:
         """The task's service (its operations) and properties; raises ``ImplementationProblem``."""
         cls = task_class(impl, contribution)
-        _period(impl)
         props: dict[str, tuple[PropSpec, Any]] = {}
         for name, prop in cls._property_decls.items():
             spec = PropSpec(prop.default, False)
             spec.name = name
             props[name] = (spec, _checked_type(prop))
-        return ComponentType(cls, {cls.__name__: task_interface(cls)}, {}, props, (), (), (), (), "composite", True)
+        ctype = ComponentType(cls, {cls.__name__: task_interface(cls)}, {}, props, (), (), (), (), "composite", True)
+        try:
+            _period(impl)
+        except ImplementationProblem as exc:
+            exc.partial = ctype  # type: ignore[attr-defined]  # the assembler still checks the rest
+            raise
+        return ctype
 
     def manager(self, node: Node, host: Any) -> ComponentManager:
         """A :class:`TaskManager`."""
@@ -342,6 +354,8 @@ class ConnectParticipant:
         self._made: dict[Link, str] = {}  # link -> deployer id of the remote end it was made with
         self._watcher: Watcher | None = None
         self._clients: dict[str, Any] = {}
+        self._waiting_logged: set[Link] = set()
+        self._link_ns: dict[Link, str] = {}  # the name service each made link was made through
 
     def _is_local(self, link: Link) -> bool:
         nodes = self.runtime.assembly.nodes
@@ -378,7 +392,12 @@ class ConnectParticipant:
                 if link in self._made:
                     log.info("connect %s: %s is gone from the name service %s", link.text, remote, ns)
                     del self._made[link]
+                elif link not in self._waiting_logged:  # once: a typo would be silent otherwise
+                    self._waiting_logged.add(link)
+                    log.warning("connect %s (%s): waiting for %s in name service %s", link.text, link.where,
+                                remote, ns)
                 continue
+            self._waiting_logged.discard(link)
             if self._made.get(link) == entry.deployer_id:
                 continue
             try:
@@ -389,6 +408,23 @@ class ConnectParticipant:
                 log.info("connect %s: not yet: %s", link.text, exc)
                 continue
             self._made[link] = entry.deployer_id
+            self._link_ns[link] = ns
+
+    def _disconnect(self, link: Link, ns: str) -> None:
+        from dataflow.remote.client import GrpcSystem
+
+        try:
+            system = GrpcSystem(ns, timeout=1.0)
+        except Exception as exc:  # noqa: BLE001 - stopping: log and go on
+            log.info("connect %s: not disconnected at stop: %s", link.text, exc)
+            return
+        try:
+            system.disconnect_ports(".".join(link.source), ".".join(link.sink))
+            log.info("connect %s: disconnected at stop", link.text)
+        except Exception as exc:  # noqa: BLE001 - the other end may be gone already
+            log.info("connect %s: not disconnected at stop: %s", link.text, exc)
+        finally:
+            system.close()
 
     def _connect(self, host: Any, link: Link, ns: str) -> None:
         from dataflow.remote.client import GrpcSystem
@@ -403,9 +439,12 @@ class ConnectParticipant:
         log.info("connect %s: connected across deployers", link.text)
 
     def stop(self) -> None:
-        """Stop the connector and close its clients (idempotent)."""
+        """Stop the connector, undo the remote links it made, close its clients (idempotent)."""
         if self._watcher is not None:
             self._watcher.stop()
+        made, self._made = dict(self._made), {}
+        for link in made:
+            self._disconnect(link, self._link_ns.get(link) or link.ns or host_of(self.runtime).ns_address)
         for client in self._clients.values():
             client.close()
         self._clients.clear()

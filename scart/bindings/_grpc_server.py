@@ -1,11 +1,15 @@
 """The provider side of ``binding.grpc`` (private): one gRPC server per address, shared by
 the service bindings of a runtime that name that address, and the callback proxies.
 
-Threads: gRPC's server pool (``MAX_WORKERS``; each open callback session holds one of
-its threads for its life), a small pool running ``Invoke`` calls (the stream handler
-must stay free to send callback requests while the operation runs), and one reader
-thread per callback session (matches replies to waiting callers, so a callback's wait
-is bounded by ``timeout``). All of them end in :meth:`GrpcServer.stop`.
+Threads: gRPC's server pool (``MAX_WORKERS``; each open ``Invoke`` call and callback
+session holds one of its threads for its life, so at most ``MAX_STREAMS`` of them are open
+at once, beyond that RESOURCE_EXHAUSTED, and the rest of the pool stays free for unary
+calls), a small pool running ``Invoke`` calls (the stream handler must stay free to send
+callback requests while the operation runs; a queued call whose RPC already ended is
+skipped, "cancelled before start"), and one reader thread per callback session (matches
+replies to waiting callers, so a callback's wait is bounded by ``timeout``). All of them
+end in :meth:`GrpcServer.stop`, which waits for running calls at most the runtime's drain
+deadline (then logs and abandons them).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import itertools
 import logging
 import queue
 import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -29,9 +34,9 @@ from scart.errors import InvocationError, ScartError, ServiceNotFoundError
 
 log = logging.getLogger("scart.bindings.grpc")
 
-MAX_WORKERS = 32
+MAX_WORKERS = 64
+MAX_STREAMS = 48  # Invoke calls + callback sessions open at once: the rest of the pool stays for unary calls
 INVOKE_WORKERS = 16
-STOP_GRACE_S = 1.0
 _MAX_CALL_S = 3600.0  # bound of a handler's wait when the client set no deadline
 
 SERVER_OPTIONS: list[tuple[str, int]] = [
@@ -259,8 +264,12 @@ class _Session:
 class GrpcServer:
     """A gRPC server exporting component services (``Exported``) under their names."""
 
-    def __init__(self, address: str) -> None:
+    def __init__(self, address: str, drain_timeout: float = 10.0) -> None:
         self.configured = address
+        self.drain_timeout = drain_timeout  # the runtime's: bounds how long stop waits for running calls
+        self._running: dict[int, str] = {}  # operations running now (for stop's report)
+        self._idle = threading.Condition()
+        self._run_ids = itertools.count(1)
         self.address: str | None = None
         self._services: dict[str, Exported] = {}
         self._exported: list[Exported] = []
@@ -270,6 +279,7 @@ class GrpcServer:
         self._server: grpc.Server | None = None
         self._invoke_pool: ThreadPoolExecutor | None = None
         self._server_pool: ThreadPoolExecutor | None = None
+        self._streams = threading.BoundedSemaphore(MAX_STREAMS)
 
     # --- lifecycle --------------------------------------------------------------------
 
@@ -309,23 +319,45 @@ class GrpcServer:
         server.start()
 
     def stop(self) -> None:
-        """Stop serving (in-flight calls get ``STOP_GRACE_S``), close sessions, join threads. Idempotent."""
+        """Stop serving: running calls get the runtime's drain deadline, then are abandoned
+        (logged, their threads finish on their own); close sessions, join threads. Idempotent."""
         server, self._server = self._server, None
         if server is None:
             return
+        deadline = time.monotonic() + self.drain_timeout
         with self._lock:
             sessions = list(self._sessions.values())
             self._sessions.clear()
         for s in sessions:  # first, so their streams end now instead of using up the grace period
             s.close()
-        server.stop(STOP_GRACE_S).wait(STOP_GRACE_S + 5.0)
+        server.stop(self.drain_timeout).wait(self.drain_timeout + 1.0)
+        with self._idle:
+            self._idle.wait_for(lambda: not self._running, max(0.0, deadline - time.monotonic()))
+            abandoned = sorted(self._running.values())
+        if abandoned:
+            log.warning("binding.grpc at %s: stop: %d call(s) still running after %.1f s abandoned: %s",
+                        self.address, len(abandoned), self.drain_timeout, ", ".join(abandoned))
         for s in sessions:
             if s.reader.is_alive():
-                s.reader.join(5.0)
+                s.reader.join(max(0.0, deadline - time.monotonic()))
         if self._invoke_pool is not None:
-            self._invoke_pool.shutdown(wait=True)
+            self._invoke_pool.shutdown(wait=not abandoned, cancel_futures=True)
         if self._server_pool is not None:
-            self._server_pool.shutdown(wait=True)  # gRPC does not shut down a pool it was given
+            self._server_pool.shutdown(wait=not abandoned)  # gRPC does not shut down a pool it was given
+
+    def _tracked(self, label: str, fn: Callable[[], Any]) -> Callable[[], Any]:
+        """``fn`` counted as a running call while it runs (stop waits for it, bounded)."""
+        def run() -> Any:
+            key = next(self._run_ids)
+            with self._idle:
+                self._running[key] = label
+            try:
+                return fn()
+            finally:
+                with self._idle:
+                    del self._running[key]
+                    self._idle.notify_all()
+        return run
 
     def add(self, exported: Exported) -> None:
         """Export a service under its names (a later service does not steal a taken name)."""
@@ -369,11 +401,15 @@ class GrpcServer:
 
     def _call(self, request: Any, context: grpc.ServicerContext) -> Any:
         inv = request.invocation
+        if not context.is_active():  # waited for a server thread past the caller's deadline
+            log.warning("binding.grpc: %s.%s at %s: cancelled before start (the caller gave up)",
+                        inv.service, inv.operation, self.address)
+            return pb.CallResponse()
 
         def run() -> Any:
             exported = self._find(inv.service)
             return exported.call(inv, self._callback_for(exported, inv))
-        return pb.CallResponse(outcome=outcome_of(run))
+        return pb.CallResponse(outcome=outcome_of(self._tracked(f"{inv.service}.{inv.operation}", run)))
 
     def _send(self, request: Any, context: grpc.ServicerContext) -> Any:
         inv = request.invocation
@@ -386,7 +422,20 @@ class GrpcServer:
             return pb.SendResponse(fault=fault(exc))
         return pb.SendResponse()
 
+    def _take_stream(self, context: grpc.ServicerContext) -> None:
+        """Take one of the ``MAX_STREAMS`` stream slots, or refuse the RPC (RESOURCE_EXHAUSTED)."""
+        if not self._streams.acquire(blocking=False):
+            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED,
+                          f"too many callback streams at {self.address} (at most {MAX_STREAMS} open at once)")
+
     def _invoke(self, request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
+        self._take_stream(context)
+        try:
+            yield from self._invoke_stream(request, context)
+        finally:
+            self._streams.release()
+
+    def _invoke_stream(self, request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
         inv, call_id = request.invocation, request.call_id
         out: queue.SimpleQueue[Any] = queue.SimpleQueue()
         cb: _StreamCallback | None = None
@@ -409,7 +458,12 @@ class GrpcServer:
             return exported.call(inv, target)
 
         def run() -> None:
-            outcome = outcome_of(call)
+            if not context.is_active():  # the client was already told it failed (deadline, cancel)
+                log.warning("binding.grpc: %s.%s at %s: cancelled before start (the caller gave up)",
+                            inv.service, inv.operation, self.address)
+                out.put(None)
+                return
+            outcome = outcome_of(self._tracked(f"{inv.service}.{inv.operation}", call))
             if cb is not None:
                 cb.finish()
                 with self._lock:
@@ -440,6 +494,13 @@ class GrpcServer:
         return pb.ReplyCallbackResponse(delivered=cb is not None and cb.deliver(request.reply))
 
     def _open_session(self, requests: Iterator[Any], context: grpc.ServicerContext) -> Iterator[Any]:
+        self._take_stream(context)
+        try:
+            yield from self._session_stream(requests, context)
+        finally:
+            self._streams.release()
+
+    def _session_stream(self, requests: Iterator[Any], context: grpc.ServicerContext) -> Iterator[Any]:
         first = next(requests, None)
         if first is None or not first.session_id:
             return
@@ -476,16 +537,17 @@ class GrpcServer:
 class ServerTable:
     """The servers of one runtime, by configured address; reference-counted. Thread-safe."""
 
-    def __init__(self) -> None:
+    def __init__(self, drain_timeout: float = 10.0) -> None:
         self._lock = threading.Lock()
         self._servers: dict[str, GrpcServer] = {}
+        self.drain_timeout = drain_timeout
 
     def acquire(self, address: str, exported: Exported) -> GrpcServer:
         """The (started) server for ``address`` with ``exported`` added; raises ``ScartError``."""
         with self._lock:
             server = self._servers.get(address)
             if server is None:
-                server = GrpcServer(address)
+                server = GrpcServer(address, self.drain_timeout)
                 server.start()
                 self._servers[address] = server
             server.add(exported)

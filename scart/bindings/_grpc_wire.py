@@ -118,6 +118,8 @@ def decode(value: Any) -> Any:
         return None
     if name == FLOAT_LIST:
         data = value.data
+        if len(data) % 8:
+            raise InvocationError(f"malformed {FLOAT_LIST} value: {len(data)} bytes is not a whole number of doubles")
         return list(struct.unpack(f"<{len(data) // 8}d", data))
     if name == JSON_TYPE:
         return pydantic_core.from_json(value.data, allow_inf_nan=True)

@@ -45,6 +45,8 @@ change (appeared, connected, gone, restarted) is logged on ``scart.dataflow``.
 
 from __future__ import annotations
 
+import dataclasses
+import inspect
 import logging
 import threading
 import time
@@ -87,6 +89,32 @@ def _check(model: Binding, iface: InterfaceInfo | None, contribution: Any, side:
     _, problems = check_ports(steps, ports, s.component)
     out += [Problem(code, f"{m} (from {source})", *where) for code, m in problems]
     return out
+
+
+def _owner_prefix(runtime: Any, model: Binding) -> str:
+    """The path prefix ("Cell/" or "") of the component whose reference or service carries ``model``."""
+    assembly = getattr(runtime, "assembly", None)
+    for path, node in (assembly.nodes.items() if assembly is not None else ()):
+        found = any(getattr(ep, "binding", None) is model for eps in node.references.values() for ep in eps)
+        found = found or any(b is model for bs in node.service_bindings.values() for b in bs)
+        if found:
+            head, _, _ = path.rpartition("/")
+            return f"{head}/" if head else ""
+    return ""
+
+
+def resolve_component(runtime: Any, model: Binding, s: Settings) -> Settings:
+    """``s`` with ``component`` resolved: a task next to the owning component (its nested
+    composite's prefix) first, then a top-level one; otherwise as written (name service)."""
+    assembly = getattr(runtime, "assembly", None)
+    if s.ns is not None or not s.component or assembly is None:
+        return s
+    prefix = _owner_prefix(runtime, model)
+    for name in (prefix + s.component, s.component):
+        node = assembly.nodes.get(name)
+        if node is not None and node.kind == "implementation.task":
+            return dataclasses.replace(s, component=name) if name != s.component else s
+    return s
 
 
 class _Link:
@@ -187,7 +215,7 @@ class DataflowReferenceBinding(ReferenceBinding):
     def __init__(self, model: Binding | None, interface: InterfaceInfo, host: BindingHost) -> None:
         super().__init__(model, interface, host)
         assert model is not None
-        self.settings = settings(model)
+        self.settings = resolve_component(host, model, settings(model))
         self.steps = {st.operation: st for st in plan(interface, "reference", self.settings)[0]}
         self._link = _Link(host, self.settings, f"reference {interface.name}")
         self._writers: dict[str, Any] = {}
@@ -233,12 +261,56 @@ class DataflowReferenceBinding(ReferenceBinding):
                 raise InvocationError(f"binding.dataflow: operation {operation.name!r} maps to no port")
             return unusable
         port = step.port
+        bind = self._binder(operation.name, port, step.kind == "read")
         if step.kind == "read":
-            return lambda: self.read(port)
+            def read(*args: Any, **kwargs: Any) -> Any:
+                bind(args, kwargs)
+                return self.read(port)
+            return read
         if operation.oneway:
             submit = self.host.submit
-            return lambda value: submit(self.write, port, value)
-        return lambda value: self.write(port, value)
+
+            def send(*args: Any, **kwargs: Any) -> None:
+                submit(self.write, port, bind(args, kwargs))
+            return send
+
+        def write(*args: Any, **kwargs: Any) -> Any:
+            return self.write(port, bind(args, kwargs))
+        return write
+
+    def _binder(self, name: str, port: str, read: bool) -> Callable[[tuple, dict], Any]:
+        """Binds a call's arguments as the interface method's signature does (so the
+        interface's own parameter names work); returns the one value written (reads: none).
+        A wrong call raises ``InvocationError`` naming the operation and the port."""
+        method = getattr(self.interface.python_type, name, None) if self.interface.python_type else None
+        sig: inspect.Signature | None = None
+        try:
+            if method is not None:
+                sig = inspect.signature(method)
+                params = list(sig.parameters.values())
+                if params and params[0].name in ("self", "cls"):
+                    sig = sig.replace(parameters=params[1:])
+        except (TypeError, ValueError):
+            sig = None
+        where = f"binding.dataflow: {self.interface.name}.{name} (port {self.settings.component}.{port})"
+
+        def bind(args: tuple, kwargs: dict) -> Any:
+            if sig is not None:
+                try:
+                    bound = sig.bind(*args, **kwargs)
+                except TypeError as exc:
+                    raise InvocationError(f"{where}: {exc}") from None
+                values = list(bound.arguments.values())
+            else:
+                values = [*args, *kwargs.values()]
+            if read:
+                if values:
+                    raise InvocationError(f"{where}: reads the port and takes no argument, got {len(values)}")
+                return None
+            if len(values) != 1:
+                raise InvocationError(f"{where}: writes one value to the port, got {len(values)} argument(s)")
+            return values[0]
+        return bind
 
     def start(self) -> None:
         """Start the connector (remote tasks: connect when it appears, log changes)."""
@@ -281,7 +353,7 @@ class DataflowServiceBinding(ServiceBinding):
 
     def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: BindingHost) -> None:
         super().__init__(model, endpoint, host)
-        self.settings = settings(model)
+        self.settings = resolve_component(host, model, settings(model))
         self.steps: list[Step] = plan(endpoint.interface, "service", self.settings)[0]
         self._link = _Link(host, self.settings, f"service {endpoint.component}/{endpoint.service}")
         self._subs: list[Any] = []

@@ -162,6 +162,8 @@ class GrpcServiceBinding(ServiceBinding):
         node = assembly.nodes.get(ep.component) if assembly is not None else None
         if node is not None and len(node.ctype.services) == 1:
             names.append(ep.component)
+        if node is not None:
+            names.extend(a for a in getattr(node, "service_aliases", {}).get(ep.service, ()) if a not in names)
         for name, models in (assembly.service_bindings.items() if assembly is not None else ()):
             if any(m is self.model for m in models):
                 names.append(name)
@@ -170,7 +172,9 @@ class GrpcServiceBinding(ServiceBinding):
     def start(self) -> None:
         """Listen (or join this runtime's server on the same address)."""
         shared = getattr(self.host, "shared", None)
-        self._table = shared("scart.bindings.grpc.servers", ServerTable) if shared is not None else ServerTable()
+        drain = float(getattr(self.host, "drain_timeout", 10.0))
+        self._table = (shared("scart.bindings.grpc.servers", lambda: ServerTable(drain)) if shared is not None
+                       else ServerTable(drain))
         self._server = self._table.acquire(self.configured_address, self._exported)
 
     def stop(self) -> None:
@@ -284,7 +288,7 @@ class GrpcReferenceBinding(ReferenceBinding):
                 raise InvocationError(f"{where}: {name}: the reference is stopped") from None
             if out.HasField("fault"):
                 raise failure(f"{where}: {name}", out.fault)
-            return convert(out.value)
+            return _converted(convert, out.value, where, name)
         call.__qualname__ = f"grpc.{name}"
         return call
 
@@ -330,7 +334,7 @@ class GrpcReferenceBinding(ReferenceBinding):
             session = self._session
             if session is not None and not session.closed.is_set():
                 inv.session_id, inv.target_id = session.id, target_id
-            return convert(self._run_stream(name, req, callback))
+            return _converted(convert, self._run_stream(name, req, callback), self.where, name)
         call.__qualname__ = f"grpc.{name}"
         return call
 
@@ -413,12 +417,24 @@ class GrpcReferenceBinding(ReferenceBinding):
 
     def _rpc_failure(self, name: str, exc: grpc.RpcError) -> InvocationError:
         code = exc.code() if isinstance(exc, grpc.Call) else None
-        if code in (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED):
+        if code == grpc.StatusCode.DEADLINE_EXCEEDED:
             return ServiceUnavailableError(
-                f"binding.grpc: {self.where}: {name}: unreachable or no answer within {self.timeout} s "
-                f"({code.name if code else 'error'})")
+                f"binding.grpc: {self.where}: {name}: no answer within {self.timeout} s "
+                f"(the operation may have run) (DEADLINE_EXCEEDED)")
+        if code == grpc.StatusCode.UNAVAILABLE:
+            return ServiceUnavailableError(f"binding.grpc: {self.where}: {name}: unreachable (UNAVAILABLE)")
         details = exc.details() if isinstance(exc, grpc.Call) else str(exc)
         return InvocationError(f"binding.grpc: {self.where}: {name}: {code.name if code else 'error'}: {details}")
+
+
+def _converted(convert: Callable[[Any], Any], value: Any, where: str, name: str) -> Any:
+    """``convert(value)``; a result this side cannot decode or coerce is an ``InvocationError``
+    naming the service and operation."""
+    try:
+        return convert(value)
+    except Exception as exc:  # noqa: BLE001 - any decoder/coercion failure
+        raise InvocationError(f"binding.grpc: {where}: {name}: cannot convert the result "
+                              f"({value.type_name or 'untyped'}): {type(exc).__name__}: {exc}") from exc
 
 
 def _drain(outbox: queue.SimpleQueue[Any]) -> Iterator[Any]:
@@ -440,6 +456,7 @@ class _ClientSession:
         self.opened = threading.Event()
         self.closed = threading.Event()
         self._call: Any = None
+        self.error: str = ""
         self._thread = threading.Thread(target=self._read, name=f"scart-grpc-callbacks-{self.id[:8]}", daemon=True)
 
     def open(self, timeout: float) -> None:
@@ -448,6 +465,9 @@ class _ClientSession:
         self._call = self._binding._open(_drain(self._outbox), wait_for_ready=True)
         self._thread.start()
         if not self.opened.wait(timeout) or self.closed.is_set():
+            if self.error:
+                raise InvocationError(f"binding.grpc: {self._binding.where}: cannot open a callback session: "
+                                      f"{self.error}")
             raise ServiceUnavailableError(f"binding.grpc: {self._binding.where}: cannot open a callback session "
                                           f"within {timeout} s")
 
@@ -461,10 +481,13 @@ class _ClientSession:
                 if reply is not None:
                     self._outbox.put(pb.OpenCallbackSessionRequest(callback_reply=reply))
         except grpc.RpcError as exc:
+            if isinstance(exc, grpc.Call) and exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED:
+                self.error = f"RESOURCE_EXHAUSTED: {exc.details()}"
             if not self.closed.is_set():
                 log.info("callback session with %s ended: %s", self._binding.where, exc.code() if isinstance(exc, grpc.Call) else exc)
         finally:
             self.closed.set()
+            self.opened.set()  # wake open(): it sees closed
             self._outbox.put(None)
 
     def close(self) -> None:
