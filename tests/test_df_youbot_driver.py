@@ -143,3 +143,71 @@ def test_reset_operation():
     run(d, 1)
     assert last(status).sequence == 1
     assert d.positions == [0.0] * 5  # back to the candle pose, set-point cleared
+
+
+def test_period_lower_bound_and_read_only_status():
+    from dataflow.errors import PropertyValueError
+    from driver import MIN_PERIOD
+
+    d, _, per, _ = rig()
+    per.write(1e-12)
+    run(d, 1)
+    assert d.accepted_period == 0.01 and d.period_status.startswith("rejected 1e-12")
+    assert f"[{MIN_PERIOD:g}, 1] s" in d.period_status
+    per.write(MIN_PERIOD)
+    run(d, 1)
+    assert d.accepted_period == MIN_PERIOD and d.period_status == "accepted 0.001 s"
+    for name, value in (("accepted_period", 0.5), ("period_status", "x"), ("command_status", "x")):
+        with pytest.raises(PropertyValueError, match="read-only"):
+            d.properties()[name].set(value)
+    assert d.accepted_period == MIN_PERIOD
+
+
+def test_malformed_command_reported(caplog):
+    d, cmd, _, status = rig()
+    for bad, why in (([1, 2, 3, 4], "got 4"), ([0.1, float("nan"), 0, 0, 0], "1 not finite")):
+        with caplog.at_level("WARNING", logger="youbot.driver"):
+            cmd.write(bad)
+            run(d, 2)
+        assert d.command_status.startswith("rejected: expected 5 finite values") and why in d.command_status
+        assert "rejected" in caplog.text
+        assert [j.position for j in last(status).joints] == [0.0] * N_JOINTS
+    cmd.write([0.1, 0, 0, 0, 0])
+    run(d, 2)
+    assert d.command_status.startswith("accepted")
+
+
+def test_negative_max_velocity_and_limits_hold():
+    d, cmd, _, status = rig(max_velocity=-5.0)
+    cmd.write([2.0] * N_JOINTS)
+    run(d, 20)
+    assert [j.position for j in last(status).joints] == [0.0] * N_JOINTS
+    d.max_velocity = 1000.0
+    cmd.write([100.0] * N_JOINTS)
+    run(d, 20)
+    for j, (lo, hi) in zip(last(status).joints, JOINT_LIMITS):
+        assert lo <= j.position <= hi
+
+
+def test_error_names_range():
+    d, _, _, _ = rig()
+    assert d.error_names(0) == []
+    with pytest.raises(ValueError, match=r"0\.\.4, got 7"):
+        d.error_names(7)
+
+
+def test_motor_halted_clears_with_threshold_near_ambient():
+    d, cmd, _, status = rig(noise=0.0, max_temperature=26.0, max_velocity=5.0)
+    for i in range(3000):  # bounded: fast back-and-forth moves heat joint 0 over 26 °C: halted
+        cmd.write([0.5 if i % 2 else -0.5, 0, 0, 0, 0])
+        run(d, 20)
+        flags = last(status).joints[0].error_flags
+        if flags & BIT["MOTOR_HALTED"]:
+            break
+    assert flags & BIT["MOTOR_HALTED"]
+    for _ in range(3000):  # bounded: cools at holding current and the halt clears
+        run(d, 50)
+        flags = last(status).joints[0].error_flags
+        if not flags & BIT["MOTOR_HALTED"]:
+            break
+    assert not flags & BIT["MOTOR_HALTED"]

@@ -158,3 +158,22 @@ def test_graph_shows_nested_composites_as_clusters(tmp_path: Path) -> None:
     assert '"M/G" [label="G\\n[Greeter]"];' in out.stdout
     assert '"S" -> "M/G" [label="one -> Greeter"];' in out.stdout
     assert '"service:Front" -> "M/G"' in out.stdout
+
+
+def test_stdout_closed_early_exits_quietly() -> None:
+    """``scart ... | head``: the reader goes away; no BrokenPipeError traceback."""
+    files = [str(Path(__file__).resolve().parent.parent / "composites" / "youbot" / f)
+             for f in ("youbot.composite", "robot.composite", "workstation.composite")] * 200
+    proc = subprocess.Popen(scart_cmd("validate", *files), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # before scart writes anything: every write meets a closed pipe
+    try:
+        err = proc.stderr.read().decode()
+        code = proc.wait(60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
+        proc.stderr.close()
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+    assert code in (0, 141)

@@ -88,6 +88,9 @@ def test_two_processes_robot_and_workstation() -> None:
 
         assert robot.stop(signal.SIGINT) == 0  # the robot goes away: the workstation notices ...
         wait_until(lambda: not monitor_state(url)["driver"]["connected"], 10, 0.05, "outage not shown")
+        assert monitor_state(url)["driver"]["state"] == "OFFLINE"  # not the last known RUNNING
+        answer = post_json(url + "api/period", {"seconds": 0.02})
+        assert answer["ok"] is False and answer["message"].startswith("driver offline"), answer
         robot = Demo("robot.composite", ns)  # ... and picks the restarted one up by itself
         wait_until(lambda: _running(url), 20, 0.05, "the workstation did not reconnect")
         seq = monitor_state(url)["status"]["sequence"]
@@ -104,3 +107,37 @@ def test_composites_validate() -> None:
                             env=env(), cwd=ROOT, timeout=60)
     assert result.returncode == 0, result.stderr
     assert result.stdout.count(": ok") == len(names)
+
+
+def test_stop_during_a_move_is_clean_and_prompt() -> None:
+    """Ctrl-C while the arm moves: the SCA side stops before the driver it uses, so the
+    proxy's one-way command never waits out its command_timeout."""
+    demo = start_serving("youbot.composite")
+    try:
+        url = demo.monitor_url()
+        wait_until(lambda: _running(url), 20, 0.05, "monitor never showed a running driver")
+        assert post_json(url + "api/pose", {"pose": "folded"})["ok"] is True
+        wait_until(lambda: any(e["name"] == "busy" for e in monitor_state(url)["events"]), 5, 0.02,
+                   "the move never started")
+    finally:
+        code = demo.stop(signal.SIGINT, timeout=9.0)  # generous; before the fix: > 10 s
+    out = demo.output()
+    assert code == 0, out
+    assert "not reached: timeout" not in out and "still running after" not in out, out
+    assert "scart: stopped" in out
+
+
+def test_second_demo_on_the_same_name_service_prints_no_url() -> None:
+    first = start_serving("youbot.composite")
+    try:
+        first.monitor_url()
+        second = Demo("youbot.composite", first.ns)
+        try:
+            code = second.proc.wait(60)
+        finally:
+            second.stop()
+        out = second.output()
+        assert code == 1 and "start failed" in out, out
+        assert "youBot Monitor:" not in out, out
+    finally:
+        assert first.stop() == 0

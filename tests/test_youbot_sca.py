@@ -107,7 +107,7 @@ def test_set_period_accepted_and_refused(probe_rt: scart.Runtime, robot: Robot) 
     assert isinstance(robot.driver.activity, PeriodicActivity) and robot.driver.activity.period == 0.02
     refused = probe.set_period(3.0)
     assert refused["accepted"] is False and refused["period"] == 0.02
-    assert "must be in (0, 1]" in refused["message"]
+    assert "must be in [0.001, 1] s" in refused["message"]
     wait_until(lambda: probe.info()["period"] == 0.02, 5)
     wait_until(lambda: 40 <= probe.info()["measured_rate"] <= 55, 5, message="rate does not follow 20 ms")
 
@@ -171,11 +171,18 @@ def test_workstation_monitor_receives_and_serves(robot: Robot) -> None:
         with urllib.request.urlopen(request, timeout=5) as reply:
             assert json.load(reply) == {"ok": True, "message": "moving to folded"}
         wait_until(lambda: ["reached", "folded"] in stats.statistics()["events"], 10)
+        for pose in ("candle", "reach"):  # the second supersedes the first: the page is told
+            request = urllib.request.Request(url + "api/pose", json.dumps({"pose": pose}).encode(),
+                                             {"Content-Type": "application/json"})
+            with urllib.request.urlopen(request, timeout=5) as reply:
+                assert json.load(reply)["ok"] is True
+        wait_until(lambda: ["reached", "reach"] in stats.statistics()["events"], 10)
+        assert ["idle", "candle superseded"] in stats.statistics()["events"]
         request = urllib.request.Request(url + "api/period", json.dumps({"seconds": 2}).encode(),
                                          {"Content-Type": "application/json"})
         with urllib.request.urlopen(request, timeout=5) as reply:
             answer = json.load(reply)
-        assert answer["ok"] is False and "must be in (0, 1]" in answer["message"]
+        assert answer["ok"] is False and "must be in [0.001, 1] s" in answer["message"]
         latencies = stats.statistics()["latencies"]
         assert latencies and sorted(latencies)[len(latencies) // 2] < 0.1
 
@@ -202,3 +209,20 @@ def test_proxy_survives_the_robot_restarting() -> None:
             wait_until(lambda: any(e == ["idle", ""] for e in probe.events()), 10, message=str(probe.events()))
         finally:
             second.stop()
+
+
+def test_a_waiting_command_ends_at_once_when_the_driver_goes_away() -> None:
+    address = f"127.0.0.1:{free_port()}"
+    robot = Robot(address)
+    robot.driver.max_velocity = 0.05  # the move would take ~20 s; command_timeout is 10 s
+    try:
+        with runtime_for(PROBE, address) as rt:
+            probe = rt.service("Probe")
+            wait_until(lambda: probe.info()["connected"], 10)
+            probe.command([1.0, 1.0, 1.0, 1.0, 1.0])
+            wait_until(lambda: any(e[0] == "busy" for e in probe.events()), 5, message=str(probe.events()))
+            robot.stop()
+            idle = wait_until(lambda: [e for e in probe.events() if e[0] == "idle"], 8, message=str(probe.events()))
+            assert idle == [["idle", "disconnected"]]
+    finally:
+        robot.stop()

@@ -24,7 +24,7 @@ from typing import Any, Protocol
 import scart
 from interfaces import RetrievingStatus, SendingCommands, SettingPeriod
 from proxy_core import DriverProxyCore
-from youbot_model import YouBotStatus
+from youbot_model import MAX_PERIOD, MIN_PERIOD, YouBotStatus
 
 __all__ = ["BoundYouBotDriver", "DriverPorts", "DriverOperations", "StatusFeed"]
 
@@ -118,7 +118,7 @@ class BoundYouBotDriver(DriverProxyCore):
             else:
                 accepted = bool(self.operations.set_period(value))
                 message = f"accepted {value:g} s" if accepted else \
-                    f"rejected {value!r}: the period must be in (0, 1] s"
+                    f"rejected {value!r}: the period must be in [{MIN_PERIOD:g}, {MAX_PERIOD:g}] s"
         except Exception as exc:  # noqa: BLE001 - reported, not raised
             return {"accepted": False, "period": self._period, "message": f"{type(exc).__name__}: {exc}"}
         if accepted:

@@ -15,15 +15,19 @@ a plausible one:
   ``command_timeout`` s while a set-point is pending) — plus rare random ones (rate
   ``random_error_rate`` per joint per cycle) that last one sample.
 
-``period`` (input port) changes the task's own activity period: a value in (0, 1] s is
-accepted, anything else is refused; ``accepted_period`` and ``period_status`` (properties)
-say what was accepted, or why not. The random source is seeded with the ``seed``
+``period`` (input port) changes the task's own activity period: a value in
+[``MIN_PERIOD``, ``MAX_PERIOD``] = [0.001, 1] s is accepted, anything else is refused;
+``accepted_period`` and ``period_status`` (read-only properties: an outside set is refused)
+say what was accepted, or why not. A malformed command (not 5 finite numbers) is refused
+with a warning and ``command_status`` says why. Settings are sanitised where they are
+used: a negative ``max_velocity`` counts as 0, positions never leave ``JOINT_LIMITS``. The random source is seeded with the ``seed``
 property at configure time and by ``reset()``: with a :class:`SlaveActivity` the whole
 simulation is deterministic (the time step is the nominal period, never wall time).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import random
 import time
@@ -39,12 +43,22 @@ from dataflow import (
     operation,
 )
 
-from youbot_model import ERROR_BITS, JOINT_LIMITS, N_JOINTS, JointStatus, YouBotStatus, error_names
+from youbot_model import (
+    ERROR_BITS,
+    JOINT_LIMITS,
+    MAX_PERIOD,
+    MIN_PERIOD,
+    N_JOINTS,
+    JointStatus,
+    YouBotStatus,
+    error_names,
+)
 
-__all__ = ["YouBotDriver", "ERROR_BITS", "JointStatus", "YouBotStatus", "error_names", "N_JOINTS"]
+__all__ = ["YouBotDriver", "MIN_PERIOD", "MAX_PERIOD", "ERROR_BITS", "JointStatus", "YouBotStatus", "error_names", "N_JOINTS"]
+
+log = logging.getLogger("youbot.driver")
 
 BIT = {name: 1 << bit for bit, name in ERROR_BITS.items()}
-MAX_PERIOD = 1.0
 AMBIENT = 25.0
 HOLD_CURRENT = 0.15  # A, holding a pose
 CURRENT_PER_VELOCITY = 1.2  # A per rad/s
@@ -55,11 +69,16 @@ NOMINAL_CURRENT = 1.5
 RANDOM_BITS = ("UNDER_VOLTAGE", "OVER_VOLTAGE", "HALL_SENSOR_ERROR", "ENCODER_ERROR")
 
 
+def _read_only(value: object) -> None:
+    raise ValueError("read-only: set by the driver itself")
+
+
 class YouBotDriver(TaskContext):
     """Dummy KUKA youBot arm driver (5 joints), periodic (default 10 ms)."""
 
     commands = InputPort(list[float], doc="joint position set-points [rad], 5 values")
-    new_period = InputPort(float, name="period", doc="new period of the driver [s], in (0, 1]")
+    new_period = InputPort(float, name="period",
+                           doc=f"new period of the driver [s], in [{MIN_PERIOD:g}, {MAX_PERIOD:g}]")
     status = OutputPort(YouBotStatus, name="jointStatus", doc="joint status, every period")
 
     seed = Property(int, 0, doc="seed of the random source (applied on configure and reset)")
@@ -69,14 +88,14 @@ class YouBotDriver(TaskContext):
     command_timeout = Property(float, 10.0, doc="TIMEOUT when a set-point is pending this long [s]")
     noise = Property(float, 1.0, doc="noise scale (0 = noiseless)")
     random_error_rate = Property(float, 1e-5, doc="probability of a random error bit per joint per cycle")
-    accepted_period = Property(float, 0.01, doc="the period currently in use [s]")
-    period_status = Property(str, "", doc="outcome of the last period request")
+    accepted_period = Property(float, 0.01, doc="the period currently in use [s] (read-only)", check=_read_only)
+    period_status = Property(str, "", doc="outcome of the last period request (read-only)", check=_read_only)
+    command_status = Property(str, "", doc="outcome of the last command (read-only)", check=_read_only)
 
     def __init__(self, name: str = "youBotDriver", period: float = 0.01) -> None:
         super().__init__(name)
         self.set_activity(PeriodicActivity(period))
-        self.accepted_period = period
-        self.period_status = f"accepted {period:g} s"
+        self._set_status(accepted_period=period, period_status=f"accepted {period:g} s")
         self._reset_state()
 
     # -- operations -------------------------------------------------------------
@@ -93,6 +112,8 @@ class YouBotDriver(TaskContext):
     @operation
     def error_names(self, joint: int) -> list[str]:
         """Names of the error bits set on ``joint`` (0..4) in the last sample."""
+        if isinstance(joint, bool) or not isinstance(joint, int) or not 0 <= joint < N_JOINTS:
+            raise ValueError(f"joint must be an integer in 0..{N_JOINTS - 1}, got {joint!r}")
         return error_names(self._flags[joint])
 
     # -- lifecycle --------------------------------------------------------------
@@ -101,8 +122,7 @@ class YouBotDriver(TaskContext):
         # what is in use is what the properties report.
         act = self.activity
         if isinstance(act, PeriodicActivity) and act.period != self.accepted_period:
-            self.accepted_period = act.period
-            self.period_status = f"accepted {act.period:g} s"
+            self._set_status(accepted_period=act.period, period_status=f"accepted {act.period:g} s")
         self._reset_state()
         return True
 
@@ -118,6 +138,11 @@ class YouBotDriver(TaskContext):
         self.status.write(self._sample())
 
     # -- simulation -------------------------------------------------------------
+    def _set_status(self, **values: object) -> None:
+        """Update read-only properties (their ``check`` refuses every outside set)."""
+        for name, value in values.items():
+            self._prop_values[name] = getattr(type(self), name)._adapter.validate_python(value)
+
     def _reset_state(self) -> None:
         self._rng = random.Random(self.seed)
         self._pos = [0.0] * N_JOINTS
@@ -137,19 +162,23 @@ class YouBotDriver(TaskContext):
             value = float(seconds)  # type: ignore[arg-type]
         except (TypeError, ValueError):
             value = math.nan
-        if not (0.0 < value <= MAX_PERIOD):
-            self.period_status = f"rejected {seconds!r}: the period must be in (0, {MAX_PERIOD:g}] s"
+        if not (MIN_PERIOD <= value <= MAX_PERIOD):
+            self._set_status(period_status=f"rejected {seconds!r}: the period must be in "
+                                           f"[{MIN_PERIOD:g}, {MAX_PERIOD:g}] s")
             return False
         act = self.activity
         if isinstance(act, PeriodicActivity):
             act.period = value
-        self.accepted_period = value
-        self.period_status = f"accepted {value:g} s"
+        self._set_status(accepted_period=value, period_status=f"accepted {value:g} s")
         return True
 
     def _apply_command(self, cmd: list[float] | None) -> None:
-        if cmd is None or len(cmd) != N_JOINTS or not all(math.isfinite(x) for x in cmd):
-            return  # a malformed command is ignored; the previous set-point stays
+        problem = command_problem(cmd)
+        if problem is not None:  # refused: the previous set-point stays
+            log.warning("%s: command %.80r rejected: %s", self.name, cmd, problem)
+            self._set_status(command_status=f"rejected: {problem}")
+            return
+        self._set_status(command_status=f"accepted {[round(float(x), 4) for x in cmd]}")
         for j, (lo, hi) in enumerate(JOINT_LIMITS):
             self._target[j] = min(max(cmd[j], lo), hi)
             self._clipped[j] = not lo <= cmd[j] <= hi
@@ -162,19 +191,19 @@ class YouBotDriver(TaskContext):
             flags = 0
             if self._temp[j] > self.max_temperature:
                 self._halted[j] = True
-            elif self._temp[j] < self.max_temperature - 5.0:
+            elif self._temp[j] < max(self.max_temperature - 5.0, (AMBIENT + self.max_temperature) / 2):  # reachable
                 self._halted[j] = False
-            max_step = 0.0 if self._halted[j] else self.max_velocity * dt
+            max_step = 0.0 if self._halted[j] else max(0.0, self.max_velocity) * dt
             err = self._target[j] - self._pos[j]
             step = min(max(err, -max_step), max_step)
-            self._pos[j] += step
+            lo, hi = JOINT_LIMITS[j]
+            self._pos[j] = min(max(self._pos[j] + step, lo), hi)
             self._vel[j] = step / dt + rng.gauss(0.0, 0.002) * noise
             accel_free = HOLD_CURRENT + CURRENT_PER_VELOCITY * abs(step / dt)
             self._cur[j] = max(0.0, accel_free + rng.gauss(0.0, 0.01) * noise)
             cur = self._cur[j]
             self._temp[j] += (HEATING * cur * cur - COOLING * (self._temp[j] - AMBIENT)) * dt
             self._i2t[j] = max(0.0, self._i2t[j] + (cur * cur - NOMINAL_CURRENT**2) * dt)
-            lo, hi = JOINT_LIMITS[j]
             if self._clipped[j] or self._pos[j] <= lo or self._pos[j] >= hi:
                 flags |= BIT["POSITION_LIMIT"]
             if self._temp[j] > self.max_temperature:
@@ -214,3 +243,16 @@ class YouBotDriver(TaskContext):
     def is_halted(self) -> bool:
         """True when any joint motor is halted (over-temperature)."""
         return any(self._halted) and self.state >= TaskState.RUNNING
+
+
+def command_problem(cmd: object) -> str | None:
+    """Why ``cmd`` is not a valid command (5 finite numbers), or None."""
+    try:
+        values = [float(x) for x in cmd]  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        return f"expected {N_JOINTS} finite values, got {cmd!r:.60}"
+    bad = sum(1 for v in values if not math.isfinite(v))
+    if len(values) != N_JOINTS or bad:
+        extra = f" ({bad} not finite)" if bad else ""
+        return f"expected {N_JOINTS} finite values, got {len(values)}{extra}"
+    return None

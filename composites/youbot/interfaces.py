@@ -96,3 +96,7 @@ class Moving(Protocol):
     def target_reached(self) -> bool:
         """True when the newest positions are within tolerance of the last target."""
         ...
+
+    def outcome(self) -> str:
+        """The newest move's report ("target X reached" / "target X not reached: why"; "" before any)."""
+        ...

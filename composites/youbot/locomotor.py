@@ -122,6 +122,10 @@ class Locomotor:
                 log.warning(report)
             self.reports.append(report)
 
+    def outcome(self) -> str:
+        """The newest report (``Moving.outcome``)."""
+        return self.last_report
+
     @property
     def last_report(self) -> str:
         """The newest report ("" before any)."""

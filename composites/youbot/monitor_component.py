@@ -108,7 +108,9 @@ class YouBotMonitor:
         except ValueError as exc:
             return False, str(exc)
         with self._lock:
-            self._moving = message
+            previous, self._moving = self._moving, message
+        if previous:  # the page's previous move never finished: say so
+            self._show("idle", f"{previous.removeprefix('moving to ')} superseded")
         self._show("busy", message)
         return True, message
 
@@ -130,6 +132,8 @@ class YouBotMonitor:
         if event in ("connected", "disconnected"):  # the page logs changes of the driver info itself
             self._events.append((event, detail))
             self._refresh_info()
+            if event == "disconnected" and self._moving:
+                self._check_move(offline=True)
             return
         self._show(event, detail)
 
@@ -137,10 +141,10 @@ class YouBotMonitor:
         self._events.append((event, detail))
         self.server.publish_event(event, detail)
 
-    def _check_move(self) -> None:
+    def _check_move(self, offline: bool = False) -> None:
         """While a move sent from the page runs: show ``idle`` (and ``reached``) when the
-        Locomotor is no longer busy."""
-        if self.locomotor.is_busy():
+        Locomotor is no longer busy (or the driver went offline), with why it ended."""
+        if not offline and self.locomotor.is_busy():
             return
         with self._lock:
             message, self._moving = self._moving, ""
@@ -151,7 +155,14 @@ class YouBotMonitor:
             self._show("idle", f"at {target}")
             self._show("reached", target)
         else:
-            self._show("idle", f"{target} not reached")
+            why = "driver offline" if offline else ""
+            if not why:
+                try:
+                    report = str(self.locomotor.outcome())
+                except Exception:  # noqa: BLE001 - an older Locomotor: no reason known
+                    report = ""
+                why = report.partition("not reached: ")[2]
+            self._show("idle", f"{target} not reached" + (f": {why}" if why else ""))
 
     # --- MonitorStatistics -------------------------------------------------------------
 
@@ -192,13 +203,14 @@ class YouBotMonitor:
             info = self.status.get_driver_info()
         except Exception as exc:  # noqa: BLE001 - shown as disconnected
             log.debug("driver info: %s", exc)
-            self.server.set_driver_info("UNKNOWN", 0.0, False)
+            self.server.set_driver_info("OFFLINE", 0.0, False)
             return
         period = info.get("period")
+        connected = bool(info.get("connected"))
         self.server.set_driver_info(
-            str(info.get("state") or "UNKNOWN"),
+            str(info.get("state") or "UNKNOWN") if connected else "OFFLINE",  # never a stale RUNNING
             float(period) if isinstance(period, (int, float)) else 0.0,
-            bool(info.get("connected")),
+            connected,
         )
 
     def _info_loop(self) -> None:

@@ -127,6 +127,14 @@ class DriverProxyCore:
         self._listeners: dict[Any, Listener] = {}
         self._listener_count = 0
         self._command_id = 0
+        self._link_down = False
+
+    def _core_link(self, up: bool) -> None:
+        """The connection to the driver changed: a command waiting for its target ends at
+        once with ``disconnected`` when the link goes down."""
+        with self._sample_cond:
+            self._link_down = not up
+            self._sample_cond.notify_all()
 
     def _core_close(self) -> None:
         """Signal waiters, stop and join every notifier (idempotent)."""
@@ -213,7 +221,8 @@ class DriverProxyCore:
         (≤ ``command_timeout``) until within ``tolerance`` of the clipped target, ``idle``.
 
         ``idle`` details: ``""`` reached, ``"timeout"``, ``"superseded"`` (a newer command
-        arrived), ``"rejected: ..."`` (malformed values or not connected), ``"stopped"``."""
+        arrived), ``"rejected: ..."`` (malformed values or not connected), ``"disconnected"`` (the link to
+        the driver went down while waiting), ``"stopped"`` (the proxy is being destroyed)."""
         listener = self._register()
         emit = listener.push if listener is not None else (lambda event, detail="": None)
         with self._lock:
@@ -238,6 +247,8 @@ class DriverProxyCore:
             for _ in range(10_000_000):  # bounded by the deadline; one pass per sample
                 if self._stop.is_set():
                     return "stopped"
+                if self._link_down:
+                    return "disconnected"
                 if self._command_id != my_id:
                     return "superseded"
                 if self._sample is not None and within(self._sample, target, self.tolerance):

@@ -117,8 +117,10 @@ class SCAYouBotDriver(DriverProxyCore):
     def set_period(self, seconds: float) -> dict:
         """Write the driver's ``period`` port, then wait (≤ 2 s) for ``period_status``."""
         proxy = self._proxy
-        if proxy is None:
-            return self._refused(f"not connected to {self.component} at {self._address}")
+        with self._lock:
+            connected = bool(self._info.get("connected"))
+        if proxy is None or not connected:
+            return self._refused(f"driver offline: not connected to {self.component} at {self._address}")
         try:
             value = float(seconds)
         except (TypeError, ValueError):
@@ -128,7 +130,7 @@ class SCAYouBotDriver(DriverProxyCore):
         try:
             written = proxy.write("period", value)
             if written is not WriteStatus.WRITE_SUCCESS:
-                return self._refused(f"writing {self.component}.period: {written.name}")
+                return self._refused(f"driver offline? writing {self.component}.period: {written.name}")
             deadline = time.monotonic() + PERIOD_ANSWER_TIMEOUT
             status = ""
             for _ in range(10_000):  # bounded by the deadline too
@@ -140,6 +142,10 @@ class SCAYouBotDriver(DriverProxyCore):
                                          f"(state {proxy.state}); last status: {status}")
             period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
         except Exception as exc:  # noqa: BLE001 - reported, not raised
+            log.debug("set_period(%r): %s", seconds, exc)
+            if isinstance(exc, (ConnectionError, TimeoutError)) or "navailable" in str(exc) \
+                    or "grpc" in type(exc).__module__.lower() or "remote" in type(exc).__module__:
+                return self._refused(f"driver offline: {self.component} at {self._address} does not answer")
             return self._refused(f"{type(exc).__name__}: {exc}")
         with self._lock:
             self._info.update(period=period, period_status=status)
@@ -166,6 +172,7 @@ class SCAYouBotDriver(DriverProxyCore):
                 connected = ok
                 log.log(logging.INFO if ok else logging.WARNING, "%s at %s: %s", self.component, self._address,
                         "connected" if ok else "disconnected")
+                self._core_link(ok)
                 self._broadcast("connected" if ok else "disconnected", f"{self.component} at {self._address}")
             if self._stop.wait(self.info_interval if ok else self.retry_interval):
                 return
@@ -233,8 +240,8 @@ class SCAYouBotDriver(DriverProxyCore):
             status = proxy.get_property("period_status")
         except Exception as exc:  # noqa: BLE001 - the driver went away: report, keep retrying
             log.debug("driver info: %s", exc)
-            with self._lock:
-                self._info["connected"] = False
+            with self._lock:  # nothing known about a driver we cannot reach
+                self._info.update(connected=False, state=None)
             return False
         sub = self._subscription
         live = bool(sub is None or getattr(sub, "connected", True))

@@ -7,6 +7,8 @@ from pydantic import BaseModel, Field
 from dataflow import register_type
 
 __all__ = [
+    "MIN_PERIOD",
+    "MAX_PERIOD",
     "N_JOINTS",
     "ERROR_BITS",
     "ERROR_MASK",
@@ -66,3 +68,8 @@ class YouBotStatus(BaseModel):
     joints: list[JointStatus] = Field(default_factory=list)
     timestamp: float = 0.0
     sequence: int = 0
+
+MIN_PERIOD = 0.001
+"""Shortest driver period [s] accepted (1 ms: below it the simulation only burns CPU)."""
+MAX_PERIOD = 1.0
+"""Longest driver period [s] accepted."""

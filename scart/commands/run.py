@@ -18,6 +18,8 @@ still running ``--stop-timeout`` seconds into the stop are logged and left behin
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import os
 import signal
 import sys
@@ -118,14 +120,20 @@ def cmd_run(args: argparse.Namespace) -> int:
         runtime = Runtime(assembly, max_workers=args.workers, drain_timeout=args.stop_timeout)
         host = host_of(runtime)
         host.use_ns(ns)
+        # What components print while starting (e.g. the youBot monitor's URL) is held back
+        # and shown only once the whole start succeeded: no URL of a demo that then fails.
+        announced = io.StringIO()
         try:
-            runtime.start()
-            served = serve_tasks(runtime, ns, explicit=bool(args.ns or os.environ.get(NS_ENV)))
+            with contextlib.redirect_stdout(announced):
+                runtime.start()
+                served = serve_tasks(runtime, ns, explicit=bool(args.ns or os.environ.get(NS_ENV)))
         except (ScartError, DataflowError) as exc:
             runtime.stop()
+            host.close()
             print(f"scart: start failed: {exc}", file=sys.stderr)
             return 1
         try:
+            sys.stdout.write(announced.getvalue())
             print(summary(assembly, runtime.addresses()), flush=True)
             for line in served:
                 print(line, flush=True)
@@ -134,8 +142,11 @@ def cmd_run(args: argparse.Namespace) -> int:
                 pass
             print("scart: stopping", flush=True)
         finally:
-            host.close()
+            # SCA components first (their one-way calls drain while the tasks they use
+            # still run; then the components, task components included, are destroyed in
+            # reverse start order), the data-flow server last.
             runtime.stop()
+            host.close()
         print("scart: stopped", flush=True)
         return 0
     finally:

@@ -289,7 +289,7 @@
 
   function updateHeader(msg) {
     const d = msg.driver || {};
-    $("driver-state").textContent = d.state || "—";
+    $("driver-state").textContent = d.connected ? (d.state || "—") : "offline";
     $("set-period").textContent = fmtPeriod(d.period);
     const rate = $("measured-rate");
     rate.textContent = msg.rate.toFixed(1) + " Hz";
@@ -342,6 +342,11 @@
       if (ev.name === "busy" || ev.name === "idle") {
         $("arm-state").textContent = ev.name;
         $("arm-pill").dataset.state = ev.name;
+      }
+      if (ev.name === "idle" && ev.detail && ev.detail !== "arm ready") {   // why the move ended
+        const out = $("pose-result");
+        out.dataset.ok = String(!/not reached|superseded/.test(ev.detail));
+        out.textContent = ev.detail;
       }
     }
     while (log.children.length > MAX_LOG_ROWS) log.lastElementChild.remove();
@@ -446,7 +451,12 @@
         return;
       }
       periodTouched = false;
-      post("/api/period", { seconds: ms / 1000 }, "period-result", $("period-apply"));
+      post("/api/period", { seconds: ms / 1000 }, "period-result", $("period-apply")).then(() => {
+        const out = $("period-result");   // the driver speaks seconds; the user typed ms
+        if (out.dataset.ok === "false" && /^rejected /.test(out.textContent)) {
+          out.textContent = ms + " ms refused: the period must be between 1 ms and 1000 ms";
+        }
+      });
     });
     $("pose-form").addEventListener("submit", (e) => {
       e.preventDefault();
@@ -455,6 +465,7 @@
     });
     window.addEventListener("hashchange", () => {
       readHash();
+      writeHash();
       $("window-select").value = String(view.window);
       showTab(view.tab);
     });
@@ -462,6 +473,7 @@
 
   document.addEventListener("DOMContentLoaded", () => {
     readHash();
+    writeHash();   // a bad or partial hash is rewritten to the view really shown
     buildTable();
     wire();
     showTab(view.tab);
