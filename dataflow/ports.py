@@ -61,6 +61,7 @@ that raises is logged and never disturbs the writer.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import threading
 from collections.abc import Callable
@@ -186,7 +187,10 @@ class OutputPort(Port[T]):
 
     def __init__(self, type: Any, name: str | None = None, doc: str = "") -> None:
         super().__init__(type, name, doc)
-        self._last: Any = _NONE
+        # (number of writes, last value): one tuple, so a reader on another thread always
+        # sees a value with its own write number (remote polling tells new from old by it).
+        self._sample: tuple[int, Any] = (0, _NONE)
+        self._writes = itertools.count(1)
         self._storages: tuple[Storage, ...] = ()
         self._single_data: DataObject | None = None  # the one lock-free DATA storage, if so
         self._port_storage: Storage | None = None  # PER_OUTPUT_PORT
@@ -205,7 +209,7 @@ class OutputPort(Port[T]):
         """
         if type(value) is not self.type:
             value = self._checked(value)
-        self._last = value
+        self._sample = (next(self._writes), value)
         cell_store = self._single_data
         if cell_store is not None:  # hot path, inlined DataObject.write (keep the two in sync)
             prev = cell_store._cell
@@ -244,8 +248,15 @@ class OutputPort(Port[T]):
 
     def last_written_value(self) -> T | None:
         """The last value written (kept also while unconnected), or None if never written."""
-        last = self._last
+        last = self._sample[1]
         return None if last is _NONE else last
+
+    def last_sample(self) -> tuple[int, T | None]:
+        """``(n, value)``: the last value written and how many writes there have been so far
+        (0 and None before any). Thread-safe: ``n`` always belongs to ``value``, so a poller
+        tells a new sample from an old one even when the same object is written again."""
+        n, last = self._sample
+        return n, (None if last is _NONE else last)
 
     def connect_to(self, other: InputPort[T], policy: ConnPolicy | None = None) -> Connection:
         """Connect to ``other`` with ``policy`` (default ``ConnPolicy()``); returns the connection.
@@ -268,8 +279,9 @@ class OutputPort(Port[T]):
                     f"{other.qualname} ({other.type_name}): types differ"
                 )
             storage = self._storage_for(other, policy)
-            if policy.init and self._last is not _NONE:
-                storage.write(self._last)
+            last = self._sample[1]
+            if policy.init and last is not _NONE:
+                storage.write(last)
             conn = Connection(self, other, policy, storage)
             self._conns[other] = conn
             other._conns[self] = conn

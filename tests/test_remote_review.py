@@ -133,6 +133,28 @@ def test_failed_write_and_reads_leave_no_connection(served) -> None:
         assert ports["input"].connections == 0 and ports["output"].connections == 0
 
 
+def test_reads_and_polling_see_the_same_object_written_again(served) -> None:
+    """A task writing one constant object every cycle still produces new samples."""
+    _, task, server = served
+    same = 1.5
+    with connect(server.address, timeout=5.0) as system:
+        proxy = system.component("p")
+        task.output.write(same)
+        _, _, seq1, _ = proxy.read_sample("output")
+        assert proxy.read_sample("output")[0].name == "OLD_DATA"
+        task.output.write(same)
+        flow, value, seq2, _ = proxy.read_sample("output")
+        assert (flow.name, value, seq2) == ("NEW_DATA", same, seq1 + 1)
+        got: list[float] = []
+        sub = proxy.subscribe("output", lambda ev: got.append(ev.value), period=0.01)
+        try:
+            for n in range(1, 4):  # bounded: three writes of the same object, each seen
+                task.output.write(same)
+                wait_until(lambda n=n: len(got) >= n, timeout=10, message=f"poll {n} not delivered")
+        finally:
+            sub.close()
+
+
 # ---- 4. in-process subscription survives its observer ---------------------------------------
 def test_local_subscription_survives_observer_exception_and_stamps_on_store() -> None:
     deployer = Deployer()

@@ -8,7 +8,7 @@ drains the inbox and sends. A slow subscriber therefore fills its own inbox (dro
 counted there) and nothing else. A batch of samples stays under half the largest
 message; a sample too large on its own is counted as dropped and logged, never sent.
 
-ReadPort attaches nothing to the task (it reads ``last_written_value()``), and the one
+ReadPort attaches nothing to the task (it reads ``last_sample()``), and the one
 connection the server keeps per input port for plain remote writes is not counted in
 DescribeTask, so introspection shows only the connections users made.
 """
@@ -46,13 +46,14 @@ _TRANSITIONS = {
 
 
 class _Seen:
-    """ReadPort bookkeeping of one output port without any connection: the last value
-    object seen, its sequence number and when it was first seen (a new object = a new sample)."""
+    """ReadPort bookkeeping of one output port without any connection: the port's write
+    number last seen, the sequence number given to it, and when it was first seen (any
+    write since — even of the same object — is a new sample)."""
 
-    __slots__ = ("value", "sequence", "stamp")
+    __slots__ = ("written", "sequence", "stamp")
 
     def __init__(self) -> None:
-        self.value: Any = None
+        self.written = 0
         self.sequence = 0
         self.stamp = 0
 
@@ -282,14 +283,14 @@ class DeployerServicer:
             port = self._port(request.task, request.port, want_input=False)
             key = (request.task, port.name)
             with self._lock:  # value, sequence and stamp taken together
-                value = port.last_written_value()
-                if value is None:
+                written, value = port.last_sample()
+                if written == 0:
                     return pb.ReadPortResponse(flow_status=cv.flow_to_msg(FlowStatus.NO_DATA))
                 seen = self._seen.get(key)
                 if seen is None:
                     seen = self._seen[key] = _Seen()
-                if seen.sequence == 0 or value is not seen.value:  # a new object: a new sample
-                    seen.value, seen.sequence, seen.stamp = value, seen.sequence + 1, time.time_ns()
+                if seen.sequence == 0 or written != seen.written:  # a write since the last read
+                    seen.written, seen.sequence, seen.stamp = written, seen.sequence + 1, time.time_ns()
                 sequence, stamp = seen.sequence, seen.stamp
             return pb.ReadPortResponse(
                 flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=cv.encode(value, port.type),
