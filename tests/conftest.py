@@ -1,4 +1,9 @@
-"""Suite-wide guards: tests leave no non-daemon thread behind."""
+"""Suite-wide guards: tests leave no thread behind.
+
+Each test must end every non-daemon thread it started; at the end of the session no
+thread started during the session (daemon or not: activities, servers, connections)
+may still be alive.
+"""
 
 from __future__ import annotations
 
@@ -30,3 +35,17 @@ def _no_leaked_threads():
             break
         time.sleep(0.01)
     assert not leaked, f"test left threads running: {[t.name for t in leaked]}"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _no_threads_left_at_the_end():
+    """After the whole session, every thread our code started has ended (bounded wait)."""
+    before = set(threading.enumerate())
+    yield
+    deadline = time.monotonic() + 10.0
+    while True:
+        left = [t for t in threading.enumerate() if t not in before and t.is_alive()]
+        if not left or time.monotonic() >= deadline:
+            break
+        time.sleep(0.05)
+    assert not left, f"the test session left threads running: {sorted(t.name for t in left)}"
