@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .errors import DeploymentError, NotFoundError
 from .policy import ConnPolicy
 from .ports import Connection, InputPort, OutputPort
 from .task import TaskContext, TaskState
+
+if TYPE_CHECKING:  # the remote layer is imported only when serving
+    from .remote.server import DeployerServer
 
 __all__ = ["Deployer"]
 
@@ -106,7 +109,7 @@ class Deployer:
             if task.state is TaskState.STOPPED:
                 task.cleanup()
 
-    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> Any:
+    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> DeployerServer:
         """Serve these tasks over gRPC (see :mod:`dataflow.remote`); returns the server."""
         from dataflow.remote.server import serve_deployer
 

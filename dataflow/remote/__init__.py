@@ -24,6 +24,7 @@ from dataflow.remote.errors import (
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
 
 if TYPE_CHECKING:
+    from dataflow.deployer import Deployer
     from dataflow.remote.client import GrpcSystem
     from dataflow.remote.naming import NameServer
     from dataflow.remote.server import DeployerServer
@@ -43,14 +44,14 @@ def connect(address: str, timeout: float = 2.0, heartbeat_ms: int = 500) -> Grpc
     return _connect(address, timeout=timeout, heartbeat_ms=heartbeat_ms)
 
 
-def local_system(deployer: Any) -> System:
+def local_system(deployer: Deployer) -> System:
     """The same proxy API over an in-process ``Deployer`` (no gRPC)."""
     from dataflow.remote.local import LocalSystem
 
     return LocalSystem(deployer)
 
 
-def serve_deployer(deployer: Any, address: str = "127.0.0.1:0", ns: str | None = None, **options: Any) -> DeployerServer:
+def serve_deployer(deployer: Deployer, address: str = "127.0.0.1:0", ns: str | None = None, **options: Any) -> DeployerServer:
     """Serve ``deployer`` over gRPC; see :func:`dataflow.remote.server.serve_deployer`."""
     from dataflow.remote.server import serve_deployer as _serve
 

@@ -13,6 +13,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+from dataflow.deployer import Deployer
 from dataflow.errors import DataflowError, NotFoundError, PortTypeError
 from dataflow.introspection import TaskDescription
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
@@ -228,7 +229,7 @@ class LocalComponentProxy(ComponentProxy):
 class LocalSystem(System):
     """The tasks of one in-process ``Deployer`` as a :class:`System`. Thread-safe; close idempotent."""
 
-    def __init__(self, deployer: Any) -> None:
+    def __init__(self, deployer: Deployer) -> None:
         self.deployer = deployer
         self._owned: list[Any] = []
         self._lock = threading.Lock()

@@ -24,6 +24,7 @@ from typing import Any
 
 import grpc
 
+from dataflow.deployer import Deployer
 from dataflow.errors import NotFoundError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
@@ -129,7 +130,7 @@ class DeployerServer:
 
     def __init__(
         self,
-        deployer: Any,
+        deployer: Deployer,
         address: str = "127.0.0.1:0",
         ns: str | None = None,
         lease_seconds: float = DEFAULT_LEASE,
@@ -316,7 +317,7 @@ class DeployerServer:
 
 
 def serve_deployer(
-    deployer: Any,
+    deployer: Deployer,
     address: str = "127.0.0.1:0",
     ns: str | None = None,
     *,
