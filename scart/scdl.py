@@ -20,6 +20,7 @@ import os
 import re
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from lxml import etree
 
@@ -167,6 +168,14 @@ class Loader:
         """Record a problem at ``el``."""
         self.problems.append(Problem(code, message, self.path, el.sourceline or 0))
 
+    def append_unique(self, items: list[Any], item: Any, code: str, what: str, el: etree._Element) -> None:
+        """Append ``item`` unless one of ``items`` has its name: then report ``code`` at ``el``
+        (the second occurrence) and keep the first."""
+        if any(i.name == item.name for i in items):
+            self.problem(code, f"{what} {item.name!r}", el)
+        else:
+            items.append(item)
+
     def load(self) -> Composite | None:
         """Parse the file and read its ``<composite>``; None if it cannot be parsed at all."""
         root = parse_xml(self.path, self.problems)
@@ -218,17 +227,11 @@ class Loader:
                     self.problem(E.ASM_SCHEMA, f"component {comp.name!r} has more than one implementation", child)
                 comp.implementation = self.read_implementation(child)
             elif ns in SCA_NAMESPACES and local == "service":
-                service = self.read_component_service(child)
-                if any(s.name == service.name for s in comp.services):
-                    self.problem(E.ASM_DUPLICATE_SERVICE, f"component {comp.name!r}: duplicate service {service.name!r}", child)
-                    continue
-                comp.services.append(service)
+                self.append_unique(comp.services, self.read_component_service(child), E.ASM_DUPLICATE_SERVICE,
+                                   f"component {comp.name!r}: duplicate service", child)
             elif ns in SCA_NAMESPACES and local == "reference":
-                ref = self.read_component_reference(child)
-                if any(r.name == ref.name for r in comp.references):
-                    self.problem(E.ASM_DUPLICATE_REFERENCE, f"component {comp.name!r}: duplicate reference {ref.name!r}", child)
-                    continue
-                comp.references.append(ref)
+                self.append_unique(comp.references, self.read_component_reference(child), E.ASM_DUPLICATE_REFERENCE,
+                                   f"component {comp.name!r}: duplicate reference", child)
             elif ns in SCA_NAMESPACES and local == "property":
                 comp.properties.append(self.read_property(child))
             elif local not in _IGNORED:
@@ -356,25 +359,21 @@ class Loader:
     def read_composite_service(self, el: etree._Element, parent: Composite) -> None:
         """A composite ``<service name promote>``."""
         iface, b, _ = self._port_children(el, "service")
-        name = self.required(el, "name") or ""
-        if any(cs.name == name for cs in parent.services):
-            self.problem(E.ASM_DUPLICATE_COMPOSITE_SERVICE, f"duplicate composite service {name!r}", el)
-            return
-        parent.services.append(CompositeService(
-            name=name, promote=self.required(el, "promote") or "",
-            interface=iface, bindings=b, loc=self.loc(el)))
+        service = CompositeService(
+            name=self.required(el, "name") or "", promote=self.required(el, "promote") or "",
+            interface=iface, bindings=b, loc=self.loc(el))
+        self.append_unique(parent.services, service, E.ASM_DUPLICATE_COMPOSITE_SERVICE,
+                           "duplicate composite service", el)
 
     def read_composite_reference(self, el: etree._Element, parent: Composite) -> None:
         """A composite ``<reference name promote target multiplicity>``."""
         iface, b, _ = self._port_children(el, "reference")
-        name = self.required(el, "name") or ""
-        if any(cr.name == name for cr in parent.references):
-            self.problem(E.ASM_DUPLICATE_COMPOSITE_REFERENCE, f"duplicate composite reference {name!r}", el)
-            return
-        parent.references.append(CompositeReference(
-            name=name, promote=(self.required(el, "promote") or "").split(),
+        reference = CompositeReference(
+            name=self.required(el, "name") or "", promote=(self.required(el, "promote") or "").split(),
             targets=(el.get("target") or "").split(), multiplicity=el.get("multiplicity"),
-            interface=iface, bindings=b, loc=self.loc(el)))
+            interface=iface, bindings=b, loc=self.loc(el))
+        self.append_unique(parent.references, reference, E.ASM_DUPLICATE_COMPOSITE_REFERENCE,
+                           "duplicate composite reference", el)
 
     def read_wire(self, el: etree._Element, parent: Composite) -> None:
         """``<wire source target replace>``."""

@@ -9,85 +9,40 @@ publishing statuses at 50 Hz and a fake backend). Screenshots of every tab go to
 from __future__ import annotations
 
 import re
-import shutil
 from collections.abc import Iterator
-from pathlib import Path
-from typing import Any
 
 import pytest
+from browser import BrowserPage, expect, needs_chromium, open_page
 
 from composites.youbot.monitor import MonitorServer
 from composites.youbot.monitor.demo import POSES, SyntheticArm
 
-CHROMIUM = shutil.which("chromium")
-pytestmark = pytest.mark.skipif(
-    CHROMIUM is None, reason="Debian's chromium is not installed (CI installs it: apt-get install chromium)"
-)
-
-ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
+pytestmark = needs_chromium
 TIMEOUT_MS = 30_000
 
 
-class Monitor:
+class Monitor(BrowserPage):
     """What the tests share: the server, the synthetic arm, the page and its console errors."""
 
-    def __init__(self, server: MonitorServer, arm: SyntheticArm, page: Any, errors: list[str]) -> None:
-        self.server, self.arm, self.page, self.errors = server, arm, page, errors
+    prefix = "monitor"
 
-    def js(self, expression: str) -> Any:
-        return self.page.evaluate(expression)
-
-    def wait(self, expression: str, arg: Any = None) -> Any:
-        return self.page.wait_for_function(expression, arg=arg, timeout=TIMEOUT_MS)
-
-    def shot(self, name: str) -> Path:
-        ARTIFACTS.mkdir(exist_ok=True)
-        path = ARTIFACTS / f"monitor-{name}.png"
-        # bytes, written here: screenshot(path=...) would leave an executor thread in playwright's loop
-        path.write_bytes(self.page.screenshot())
-        return path
+    def __init__(self, server: MonitorServer, arm: SyntheticArm, page: object, errors: list[str]) -> None:
+        super().__init__(page, errors, TIMEOUT_MS)
+        self.server, self.arm = server, arm
 
 
 @pytest.fixture(scope="module")
 def monitor() -> Iterator[Monitor]:
-    from playwright.sync_api import sync_playwright
-
     arm = SyntheticArm(period=0.02, seed=1)
     server = MonitorServer(arm)
-    pw = browser = None
     try:
         server.start()
         arm.start(server)
-        pw = sync_playwright().start()
-        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-        page = browser.new_page(viewport={"width": 1400, "height": 860})
-        page.set_default_timeout(TIMEOUT_MS)
-        errors: list[str] = []
-        page.on("pageerror", lambda exc: errors.append(str(exc)))
-        page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
-        page.goto(server.url)
-        yield Monitor(server, arm, page, errors)
+        with open_page(server.url, TIMEOUT_MS) as (page, errors):
+            yield Monitor(server, arm, page, errors)
     finally:
-        if browser is not None:
-            browser.close()
-        if pw is not None:
-            pw.stop()
         arm.stop()
         server.stop()
-
-
-def expect(locator: Any) -> Any:
-    from playwright.sync_api import expect as pw_expect
-
-    return pw_expect(locator)
 
 
 def test_global_table_fills_and_updates(monitor: Monitor) -> None:

@@ -10,83 +10,38 @@ driven by playwright, opens the URL it printed. Screenshots of every tab go to
 from __future__ import annotations
 
 import re
-import shutil
 import signal
 from collections.abc import Iterator
-from pathlib import Path
-from typing import Any
 
 import pytest
-from test_youbot_support import ROOT, Demo, start_serving
+from browser import BrowserPage, expect, needs_chromium, open_page
+from test_youbot_support import Demo, start_serving
 
 from locomotor import POSES
 
-CHROMIUM = shutil.which("chromium")
-pytestmark = pytest.mark.skipif(
-    CHROMIUM is None, reason="Debian's chromium is not installed (CI installs it: apt-get install chromium)"
-)
-
-ARTIFACTS = ROOT / "test-artifacts"
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
+pytestmark = needs_chromium
 TIMEOUT_MS = 20_000
 
 
-class Session:
+class Session(BrowserPage):
     """The demo process, the page and the page's console errors."""
 
-    def __init__(self, demo: Demo, page: Any, errors: list[str]) -> None:
-        self.demo, self.page, self.errors = demo, page, errors
+    prefix = "youbot"
 
-    def wait(self, expression: str, arg: Any = None) -> Any:
-        return self.page.wait_for_function(expression, arg=arg, timeout=TIMEOUT_MS)
-
-    def number(self, element_id: str) -> float:
-        return float(self.page.evaluate(f"Number(document.getElementById('{element_id}').dataset.value)"))
-
-    def shot(self, name: str) -> Path:
-        ARTIFACTS.mkdir(exist_ok=True)
-        path = ARTIFACTS / f"youbot-{name}.png"
-        path.write_bytes(self.page.screenshot())  # bytes: screenshot(path=) leaves a thread behind
-        return path
+    def __init__(self, demo: Demo, page: object, errors: list[str]) -> None:
+        super().__init__(page, errors, TIMEOUT_MS)
+        self.demo = demo
 
 
 @pytest.fixture(scope="module")
 def session() -> Iterator[Session]:
-    from playwright.sync_api import sync_playwright
-
     demo = start_serving("youbot.composite")
-    pw = browser = None
     try:
-        url = demo.monitor_url()
-        pw = sync_playwright().start()
-        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-        page = browser.new_page(viewport={"width": 1400, "height": 860})
-        page.set_default_timeout(TIMEOUT_MS)
-        errors: list[str] = []
-        page.on("pageerror", lambda exc: errors.append(str(exc)))
-        page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
-        page.goto(url)
-        yield Session(demo, page, errors)
+        with open_page(demo.monitor_url(), TIMEOUT_MS) as (page, errors):
+            yield Session(demo, page, errors)
     finally:
-        if browser is not None:
-            browser.close()
-        if pw is not None:
-            pw.stop()
         code = demo.stop(signal.SIGINT)
         assert code == 0, demo.output()
-
-
-def expect(locator: Any) -> Any:
-    from playwright.sync_api import expect as pw_expect
-
-    return pw_expect(locator)
 
 
 def test_global_table_fills_and_updates(session: Session) -> None:

@@ -63,28 +63,35 @@ def _member(enum: Any, field: str, name: str, default: Any) -> Any:
     return enum[name]
 
 
+def _enum_maps(proto_enum: Any, prefix: str, py_enum: Any) -> tuple[dict[Any, int], dict[int, Any]]:
+    """Both directions between a Python enum and the proto enum whose values are named
+    ``PREFIX_MEMBER`` — built once, so the per-sample conversions are one dict lookup."""
+    to_msg = {member: proto_enum[prefix + member.name] for member in py_enum}
+    return to_msg, {number: member for member, number in to_msg.items()}
+
+
+_FLOW_TO, _FLOW_FROM = _enum_maps(pb.FlowStatus, "FLOW_STATUS_", FlowStatus)
+_WRITE_TO, _WRITE_FROM = _enum_maps(pb.WriteStatus, "WRITE_STATUS_", WriteStatus)
+
+
 def flow_to_msg(status: FlowStatus) -> int:
     """FlowStatus → proto enum number."""
-    return pb.FlowStatus[f"FLOW_STATUS_{status.name}"]
+    return _FLOW_TO[status]
 
 
 def flow_from_msg(number: int) -> FlowStatus:
     """Proto enum number → FlowStatus (unspecified → NO_DATA)."""
-    names = {v: k for k, v in pb.FlowStatus.items()}
-    name = names.get(number, "FLOW_STATUS_NO_DATA").removeprefix("FLOW_STATUS_")
-    return FlowStatus[name] if name in FlowStatus.__members__ else FlowStatus.NO_DATA
+    return _FLOW_FROM.get(number, FlowStatus.NO_DATA)
 
 
 def write_to_msg(status: WriteStatus) -> int:
     """WriteStatus → proto enum number."""
-    return pb.WriteStatus[f"WRITE_STATUS_{status.name}"]
+    return _WRITE_TO[status]
 
 
 def write_from_msg(number: int) -> WriteStatus:
-    """Proto enum number → WriteStatus."""
-    names = {v: k for k, v in pb.WriteStatus.items()}
-    name = names.get(number, "WRITE_STATUS_WRITE_FAILURE").removeprefix("WRITE_STATUS_")
-    return WriteStatus[name] if name in WriteStatus.__members__ else WriteStatus.WRITE_FAILURE
+    """Proto enum number → WriteStatus (unspecified → WRITE_FAILURE)."""
+    return _WRITE_FROM.get(number, WriteStatus.WRITE_FAILURE)
 
 
 def encode(value: Any, py_type: Any = None) -> Any:

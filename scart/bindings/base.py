@@ -71,19 +71,23 @@ class ServiceEndpoint(Protocol):
         """Perform ``invocation``; returns the result (None at once for one-way)."""
 
 
-class ServiceBinding(ABC):
-    """Service side of a binding: exports ``endpoint`` until stopped."""
-
-    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: BindingHost) -> None:
-        self.model = model
-        self.endpoint = endpoint
-        self.host = host
+class _Checked:
+    """What both sides of a binding share: the static check of their XML element."""
 
     @classmethod
     def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
         """Static problems of this binding element (before anything starts); default none.
         ``contribution`` is the :class:`scart.contribution.Contribution` (folder, imports)."""
         return []
+
+
+class ServiceBinding(_Checked, ABC):
+    """Service side of a binding: exports ``endpoint`` until stopped."""
+
+    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: BindingHost) -> None:
+        self.model = model
+        self.endpoint = endpoint
+        self.host = host
 
     @abstractmethod
     def start(self) -> None:
@@ -99,19 +103,13 @@ class ServiceBinding(ABC):
         return None
 
 
-class ReferenceBinding(ABC):
+class ReferenceBinding(_Checked, ABC):
     """Reference side of a binding: one callable per operation of ``interface``."""
 
     def __init__(self, model: Binding | None, interface: InterfaceInfo, host: BindingHost) -> None:
         self.model = model
         self.interface = interface
         self.host = host
-
-    @classmethod
-    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
-        """Static problems of this binding element (before anything starts); default none.
-        ``contribution`` is the :class:`scart.contribution.Contribution` (folder, imports)."""
-        return []
 
     @abstractmethod
     def invoker(self, operation: Operation, callback: object | None) -> Callable[..., Any]:
