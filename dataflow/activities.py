@@ -220,6 +220,13 @@ class EventActivity(_ThreadedActivity):
         super().__init__()
         self._pending = False
 
+    def start(self) -> bool:
+        """Start, then run one cycle at once (RTT: starting an event-driven task triggers it)."""
+        if not super().start():
+            return False
+        self.trigger()
+        return True
+
     def trigger(self) -> bool:
         if not self._active:
             return False

@@ -108,8 +108,9 @@ class Connection:
         return self.storage.dropped
 
     def close(self) -> None:
-        """Disconnect; a no-op if already disconnected."""
-        self.output.disconnect(self.input)
+        """Disconnect this connection; a no-op if already disconnected (also when the same
+        pair was connected again since: that newer connection stays)."""
+        self.output._remove(self)
 
     def __repr__(self) -> str:
         return f"<Connection {self.output.qualname} -> {self.input.qualname} [{self.policy}]>"

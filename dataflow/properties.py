@@ -38,7 +38,7 @@ class Property(Generic[T]):
         self.doc = doc
         self.check = check
         self.name = ""
-        self._adapter: pydantic.TypeAdapter[T] = pydantic.TypeAdapter(type)
+        self._adapter: pydantic.TypeAdapter[T] = registry._adapter(type)  # one per type, cached
         self.default = self._adapter.validate_python(default)
 
     @property

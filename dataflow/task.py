@@ -51,7 +51,7 @@ from concurrent.futures import Future
 from collections.abc import Callable
 from typing import Any
 
-from .activities import Activity, EventActivity, _ThreadedActivity
+from .activities import Activity, EventActivity
 from .errors import NotFoundError
 from .introspection import (
     OperationDescription,
@@ -236,8 +236,6 @@ class TaskContext:
             if self._tc_state is not S.RUN_TIME_ERROR:  # error() from start_hook keeps RTE
                 self._tc_state = S.RUNNING
             self._tc_activity.start()
-            if isinstance(self._tc_activity, EventActivity):
-                self._tc_activity.trigger()  # RTT: start() triggers one cycle
             return True
 
     def stop(self) -> bool:
@@ -451,7 +449,7 @@ class TaskContext:
             )
         fn = getattr(self, attr)
         spec = spec_of(fn)
-        if spec is not None and spec.own_thread and isinstance(self._tc_activity, _ThreadedActivity):
+        if spec is not None and spec.own_thread:  # queued where the activity has a live thread
             fut = self._tc_activity._submit(lambda: fn(*args, **kwargs))
             if fut is not None:
                 return fut

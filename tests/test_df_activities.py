@@ -117,7 +117,8 @@ def test_periodic_activity_runs_and_stops():
     assert t.state is TaskState.STOPPED
     n = act.cycles
     assert t.stop() is False
-    assert act.cycles == n  # no cycle after stop returned
+    assert not act._run.thread.is_alive()  # stop() joined the thread: no cycle can follow
+    assert act.cycles == n
 
 
 def test_period_writable_while_running():

@@ -287,3 +287,12 @@ def test_connecting_another_writer_keeps_the_current_channel():
     assert inp.read() == (FlowStatus.OLD_DATA, 1.0)
     b.disconnect(inp)
     assert inp.read() == (FlowStatus.NO_DATA, None)
+
+
+def test_closing_an_old_connection_leaves_the_newer_one():
+    out, inp = OutputPort(float, name="out"), InputPort(float, name="in")
+    old = out.connect_to(inp, ConnPolicy.data())
+    out.disconnect(inp)
+    out.connect_to(inp, ConnPolicy.buffer(2))
+    old.close()
+    assert out.connected() and out.write(1.0) is WriteStatus.WRITE_SUCCESS
