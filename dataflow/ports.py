@@ -150,11 +150,6 @@ class Port(Generic[T]):
         if not self.name:
             self.name = attr
 
-    def __get__(self, obj: Any, owner: type | None = None) -> Any:
-        if obj is None:
-            return self
-        return obj.ports_by_attr()[self.attr]  # instances normally shadow this via __dict__
-
     def _clone(self) -> Port[T]:
         raise NotImplementedError
 

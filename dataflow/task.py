@@ -136,11 +136,9 @@ class TaskContext:
         self._tc_stopping = False
         self._prop_values: dict[str, Any] = {n: p.default for n, p in self._property_decls.items()}
         self._tc_ports: dict[str, Port[Any]] = {}
-        self._tc_by_attr: dict[str, Port[Any]] = {}
         for attr, template in self._port_templates.items():
             port = template._clone()
-            self._tc_by_attr[attr] = port
-            self.__dict__[attr] = port  # shadows the class descriptor: fast attribute access
+            self.__dict__[attr] = port  # this task's own port; the class keeps the template
             self.add_port(port)
         self._tc_activity: Activity = EventActivity()
         self._tc_activity.task = self
@@ -348,10 +346,6 @@ class TaskContext:
                 self._exception(exc, "error_hook")
 
     # -- ports ----------------------------------------------------------------
-    def ports_by_attr(self) -> dict[str, Port[Any]]:
-        """Declared ports by class attribute name."""
-        return self._tc_by_attr
-
     def ports(self) -> dict[str, Port[Any]]:
         """Every port by port name (a copy)."""
         return dict(self._tc_ports)
