@@ -117,7 +117,7 @@ class Connection:
 
 
 class Port(Generic[T]):
-    """Common part of ports: name, type, doc, owning task; a descriptor on a TaskContext class.
+    """Common part of ports: name, type, doc, owning task; declared on a TaskContext class as a template.
 
     Declared on a class, ``task.port_attr`` is that task's own port (a copy made when
     the task is created); created free-standing, it belongs to no task.
