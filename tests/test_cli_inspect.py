@@ -29,8 +29,8 @@ def system():
     try:
         yield ns, address_of(line)
     finally:
-        assert stop_process(far) == 0
-        assert stop_process(robot) == 0
+        rc = (stop_process(far), stop_process(robot))
+        assert rc == (0, 0)
 
 
 def scart(ns: str | None, *args: str, check: bool = True) -> subprocess.CompletedProcess:

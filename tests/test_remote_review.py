@@ -175,7 +175,6 @@ def test_local_subscription_survives_observer_exception_and_stamps_on_store() ->
         wait_until(lambda: events, timeout=5)
         task.output.write(2.0)  # stored while the observer is busy
         stored_by = time.time()
-        wait_until(lambda: time.time() > stored_by + 0.01, timeout=5)
         release.set()
         wait_until(lambda: len(events) >= 2, timeout=5, message="the subscription died with its observer")
         assert sub.connected
@@ -198,13 +197,17 @@ def test_servers_end_their_worker_threads() -> None:
     deployer = Deployer()
     _started(deployer, Pinger("p"))
     ns = serve_nameserver("127.0.0.1:0")
-    server = deployer.serve("127.0.0.1:0", ns=ns.address)
-    with connect(ns.address, timeout=5.0) as system:
-        assert system.component("p").get_property("gain") == 1.0
-    assert _rpc_threads() - before, "the servers should have started workers"
-    server.stop()
-    ns.stop()
-    deployer.stop_all()
+    try:
+        server = deployer.serve("127.0.0.1:0", ns=ns.address)
+        try:
+            with connect(ns.address, timeout=5.0) as system:
+                assert system.component("p").get_property("gain") == 1.0
+            assert _rpc_threads() - before, "the servers should have started workers"
+        finally:
+            server.stop()
+    finally:
+        ns.stop()
+        deployer.stop_all()
     wait_until(lambda: not (_rpc_threads() - before), timeout=10, message=f"left: {_rpc_threads() - before}")
 
 

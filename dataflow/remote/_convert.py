@@ -118,13 +118,3 @@ def to_json_text(value: Any) -> str:
     from dataflow.types import registry
 
     return json.dumps(registry.to_jsonable(value))
-
-
-def type_label(value: Any) -> str:
-    """A short name of a value's type for error messages (registry name when known)."""
-    from dataflow.types import registry
-
-    try:
-        return registry.type_name(type(value))
-    except Exception:  # noqa: BLE001 - only for messages
-        return type(value).__name__

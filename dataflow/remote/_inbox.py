@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
 from dataflow.policy import ConnPolicy, FlowStatus
@@ -30,13 +29,10 @@ Tagged = tuple[int, int, Any]  # (sequence, source_time_ns, value)
 class Inbox:
     """Samples of ``port`` tagged on arrival; :meth:`take` drains them (non-blocking)."""
 
-    def __init__(
-        self, port: OutputPort, policy: ConnPolicy, name: str, on_new: Callable[[], None] | None = None
-    ) -> None:
+    def __init__(self, port: OutputPort, policy: ConnPolicy, name: str) -> None:
         self.port = port
         self.policy = policy
         self.wake = threading.Event()
-        self._on_new = on_new
         self._lock = threading.Lock()
         self._mailbox: Mailbox[Tagged] = Mailbox(policy)
         self._seq = 0
@@ -58,13 +54,6 @@ class Inbox:
                 got = True
         if got:
             self.wake.set()
-            if self._on_new is not None:
-                self._on_new()
-
-    @property
-    def sequence(self) -> int:
-        """Number of samples that arrived so far."""
-        return self._seq
 
     @property
     def dropped(self) -> int:

@@ -66,7 +66,6 @@ class GrpcSubscription(Subscription):
         self._closed = threading.Event()
         self._call: Any = None
         self._connected = False
-        self._up = threading.Event()
         self._settled = threading.Event()  # connected, or failed for good (first attempt)
         self._first_error: BaseException | None = None
         self._gap_start: float | None = None
@@ -126,7 +125,6 @@ class GrpcSubscription(Subscription):
         if self._connected:
             return
         self._connected = True
-        self._up.set()
         self._settled.set()
         if self._gap_start is not None:
             gap = GapEvent(self.component, self.port, self._gap_start, time.time(), self._gap_reason)
@@ -145,7 +143,6 @@ class GrpcSubscription(Subscription):
             self._gap_start = time.time()
             self._gap_reason = reason
         self._connected = False
-        self._up.clear()
 
     # ---- receiver ----------------------------------------------------------------------
     def _run(self) -> None:
@@ -226,10 +223,6 @@ class GrpcSubscription(Subscription):
                 self.wasted_polls += 1
             if self._closed.wait(self.period):
                 return
-
-    def wait_connected(self, timeout: float) -> bool:
-        """Block until samples can flow (≤ ``timeout`` s); True if connected."""
-        return self._up.wait(timeout)
 
     def close(self) -> None:
         """Cancel the stream, end both threads (joins ≤ 5 s each); idempotent."""

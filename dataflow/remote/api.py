@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # the core's description models
     from dataflow import OperationDescription, PortDescription, PropertyDescription, TaskDescription
 
 __all__ = [
+    "TRANSITIONS",
     "SampleEvent",
     "GapEvent",
     "ComponentInfo",
@@ -36,6 +37,9 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+#: The lifecycle transitions :meth:`ComponentProxy.change_state` accepts.
+TRANSITIONS = ("configure", "start", "stop", "cleanup", "recover")
 
 
 @dataclass(frozen=True)
@@ -274,6 +278,10 @@ class ComponentProxy(ABC):
     @abstractmethod
     def last_values(self) -> dict[str, object]:
         """The last value written on each output port that has one."""
+
+    def describe_with_values(self) -> tuple[TaskDescription, dict[str, object]]:
+        """The description and the output ports' last values (one call where the transport allows)."""
+        return self.describe(), self.last_values()
 
     def ports(self) -> dict[str, PortDescription]:
         """The ports by name."""

@@ -32,7 +32,7 @@ from dataflow.remote._proto import DEPLOYER_SERVICE
 from dataflow.remote._proto import df as pb
 from dataflow.remote._subscription import GrpcSubscription
 from dataflow.remote.api import (
-    ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, System, split_port,
+    TRANSITIONS, ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, System, split_port,
 )
 from dataflow.remote.naming import NameClient
 
@@ -51,10 +51,6 @@ def _never_sent(exc: errors.RemoteError) -> bool:
     """True when ``exc`` says the call failed before its request reached any server."""
     text = str(exc).lower()
     return any(marker in text for marker in _NOT_SENT)
-_TRANSITIONS = {
-    "configure": "TRANSITION_CONFIGURE", "start": "TRANSITION_START", "stop": "TRANSITION_STOP",
-    "cleanup": "TRANSITION_CLEANUP", "recover": "TRANSITION_RECOVER",
-}
 
 
 class GrpcSystem(System):
@@ -247,9 +243,9 @@ class GrpcComponentProxy(ComponentProxy):
         return self.describe_with_values()[1]
 
     def change_state(self, transition: str) -> bool:
-        if transition not in _TRANSITIONS:
-            raise ValueError(f"unknown transition {transition!r}; expected one of {', '.join(_TRANSITIONS)}")
-        req = pb.ChangeStateRequest(task=self.name, transition=pb.Transition[_TRANSITIONS[transition]])
+        if transition not in TRANSITIONS:
+            raise ValueError(f"unknown transition {transition!r}; expected one of {', '.join(TRANSITIONS)}")
+        req = pb.ChangeStateRequest(task=self.name, transition=pb.Transition[f"TRANSITION_{transition.upper()}"])
         return bool(self._invoke("ChangeState", req).accepted)
 
     def connect_input(self, port: str, policy: ConnPolicy = ConnPolicy.data()) -> GrpcPortWriter:

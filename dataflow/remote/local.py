@@ -19,7 +19,8 @@ from dataflow.introspection import TaskDescription
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote.api import (
-    ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, SampleEvent, Subscription, System, split_port,
+    TRANSITIONS, ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, SampleEvent, Subscription, System,
+    split_port,
 )
 from dataflow.remote._inbox import Inbox
 from dataflow.remote.errors import ClosedError
@@ -152,7 +153,7 @@ class LocalComponentProxy(ComponentProxy):
         return out
 
     def change_state(self, transition: str) -> bool:
-        if transition not in ("configure", "start", "stop", "cleanup", "recover"):
+        if transition not in TRANSITIONS:
             raise ValueError(f"unknown transition {transition!r}")
         return bool(getattr(self.task, transition)())
 

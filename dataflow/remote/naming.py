@@ -152,7 +152,7 @@ class NameRegistry:
             if components is not None:
                 free = {c for c in components if (h := self._holder(c)) is None or h is lease}
                 refused = sorted(set(components) - free)
-                if refused and refused != getattr(lease, "refused", None):
+                if refused and refused != lease.refused:
                     holders = {c: h.address for c in refused if (h := self._holder(c)) is not None}
                     log.warning(
                         "deployer at %s: name(s) %s refused, held by %s",
@@ -350,6 +350,20 @@ def _entry_from_msg(msg: Any) -> NameEntry:
     return NameEntry(msg.component, msg.address, msg.deployer_id, left)
 
 
+def held_elsewhere(resolve: Callable[[str], NameEntry], names: list[str], deployer_id: str) -> dict[str, str]:
+    """``{name: address}`` of ``names`` registered by a deployer other than ``deployer_id``
+    (``resolve`` is a registry's or a name client's; unknown names are skipped)."""
+    held: dict[str, str] = {}
+    for name in names:
+        try:
+            entry = resolve(name)
+        except NotFoundError:  # errors.RemoteNotFoundError too
+            continue
+        if entry.deployer_id != deployer_id:
+            held[name] = entry.address
+    return held
+
+
 class Registration:
     """Keeps one deployer's components registered with a remote name service.
 
@@ -399,7 +413,7 @@ class Registration:
             if not self.registrations:
                 raise  # at start: a duplicate name fails the deployer loudly
             # registering again (lease lost): keep the free names, report the others
-            held = self._held_elsewhere(names)
+            held = held_elsewhere(self._client.resolve, names, self.deployer_id)
             refused = sorted(held)
             self._warn_refused(held)
             self.lease_id, self._lease_seconds = self._client.register(
@@ -407,18 +421,6 @@ class Registration:
             )
         self.registrations += 1
         self.refused, self._checked = refused, names
-
-    def _held_elsewhere(self, names: list[str]) -> dict[str, str]:
-        """``{name: address}`` of ``names`` registered by another deployer."""
-        held: dict[str, str] = {}
-        for name in names:
-            try:
-                entry = self._client.resolve(name)
-            except errors.RemoteNotFoundError:
-                continue
-            if entry.deployer_id != self.deployer_id:
-                held[name] = entry.address
-        return held
 
     def _warn_refused(self, held: dict[str, str]) -> None:
         if held and sorted(held) != self.refused:
@@ -435,7 +437,7 @@ class Registration:
         self._client.heartbeat(self.lease_id, names)
         if names == self._checked:
             return
-        held = self._held_elsewhere(names)
+        held = held_elsewhere(self._client.resolve, names, self.deployer_id)
         self._warn_refused(held)
         self.refused, self._checked = sorted(held), names
 

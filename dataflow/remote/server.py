@@ -33,7 +33,9 @@ from dataflow.remote import _rpc, errors
 from dataflow.remote._proto import DEPLOYER_SERVICE, DEPLOYER_SERVICE_NAME, NAMING_SERVICE, NAMING_SERVICE_NAME
 from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
-from dataflow.remote.naming import DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration
+from dataflow.remote.naming import (
+    DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration, held_elsewhere,
+)
 
 __all__ = ["DeployerServer", "serve_deployer"]
 
@@ -188,14 +190,7 @@ class DeployerServer:
             self.registry.register(self.deployer_id, self.address, names, permanent=True)
             self._refused = []
         except errors.AlreadyRegisteredError:
-            held: dict[str, str] = {}
-            for name in names:
-                try:
-                    entry = self.registry.resolve(name)
-                except NotFoundError:
-                    continue
-                if entry.deployer_id != self.deployer_id:
-                    held[name] = entry.address
+            held = held_elsewhere(self.registry.resolve, names, self.deployer_id)
             free = [n for n in names if n not in held]
             for name, where in sorted(held.items()):
                 log.warning(
@@ -301,9 +296,7 @@ class DeployerServer:
         if self._ns_client is not None:
             self._ns_client.close()
         self._servicer.stop()
-        server = getattr(self, "_server", None)
-        if server is not None:
-            _rpc.stop_server(server, self._executor, grace)
+        _rpc.stop_server(self._server, self._executor, grace)
 
     def wait(self, timeout: float | None = None) -> bool:
         """Block until the server terminates or ``timeout`` s pass; True if terminated."""

@@ -134,35 +134,35 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     listen = args.listen or ("127.0.0.1:0" if ns else DEFAULT_NS_ADDRESS)
     stop = _stop_event()
     deployer = Deployer()
+    server = None
+    serving = False
     try:
-        for task in _make_tasks(args):
-            deployer.add(task)
-        deployer.configure_all()
-        if not args.no_start:
-            deployer.start_all()
-        server = serve_deployer(deployer, listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms)
-    except (ImportError, ValueError, DataflowError) as exc:
-        _err(f"scart deploy: {exc}")
-        deployer.stop_all()
-        deployer.cleanup_all()
-        return 1
-    try:
-        _connect_at_start(server, args)
-    except (ValueError, DataflowError) as exc:
-        _err(f"scart deploy: --connect: {exc}")
-        server.stop()
-        deployer.stop_all()
-        deployer.cleanup_all()
-        return 1
-    where = "embedded" if ns is None else "joined"
-    _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.address} "
-         f"(name service {server.ns_address}, {where})")
-    try:
+        try:
+            for task in _make_tasks(args):
+                deployer.add(task)
+            deployer.configure_all()
+            if not args.no_start:
+                deployer.start_all()
+            server = serve_deployer(deployer, listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms)
+        except (ImportError, ValueError, DataflowError) as exc:
+            _err(f"scart deploy: {exc}")
+            return 1
+        try:
+            _connect_at_start(server, args)
+        except (ValueError, DataflowError) as exc:
+            _err(f"scart deploy: --connect: {exc}")
+            return 1
+        where = "embedded" if ns is None else "joined"
+        _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.address} "
+             f"(name service {server.ns_address}, {where})")
+        serving = True
         while not stop.wait(1.0):
             pass
     finally:
-        _err("scart deploy: stopping")
-        server.stop()
+        if serving:
+            _err("scart deploy: stopping")
+        if server is not None:
+            server.stop()
         deployer.stop_all()
         deployer.cleanup_all()
     return 0

@@ -25,6 +25,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from dataflow.remote.api import TRANSITIONS
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 
@@ -66,7 +67,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("value", nargs="?", help="JSON value (set)")
     p = verb("state", "show or change a component's lifecycle state", cmd_state)
     p.add_argument("component")
-    p.add_argument("transition", nargs="?", choices=["configure", "start", "stop", "cleanup", "recover"])
+    p.add_argument("transition", nargs="?", choices=TRANSITIONS)
     p = verb("connect", "connect an output port to an input port (any deployers)", cmd_connect)
     p.add_argument("source", metavar="A.out")
     p.add_argument("sink", metavar="B.in")
@@ -190,10 +191,7 @@ def cmd_ls(args: argparse.Namespace) -> int:
 def cmd_describe(args: argparse.Namespace) -> int:
     """``scart describe COMP``."""
     proxy = args.system.component(args.component)
-    if hasattr(proxy, "describe_with_values"):
-        desc, last = proxy.describe_with_values()
-    else:
-        desc, last = proxy.describe(), proxy.last_values()
+    desc, last = proxy.describe_with_values()
     if args.json:
         doc = desc.model_dump(mode="json")
         for port in doc["ports"]:
