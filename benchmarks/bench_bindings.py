@@ -32,6 +32,8 @@ import scart  # noqa: E402
 from dataflow import registry  # noqa: E402
 from scart.bindings._grpc_wire import pb  # noqa: E402
 
+from _common import pct  # noqa: E402
+
 Row = tuple[str, str, str]
 
 MODULE = '''
@@ -133,11 +135,6 @@ def _per_call_us(fn: Callable[[], Any], n: int) -> list[float]:
     return out
 
 
-def _p(samples: list[float], q: float) -> float:
-    s = sorted(samples)
-    return s[min(len(s) - 1, int(q * len(s)))]
-
-
 class BareEcho:
     """A hand-written grpcio unary echo of a ``Value`` message (the baseline)."""
 
@@ -190,21 +187,21 @@ def bench_grpc(quick: bool) -> list[Row]:
                             ours += _per_call_us(lambda: client_obj.echo.echo(payload), n // blocks)
                         ratio = statistics.median(ours) / statistics.median(base)
                         rows.append((f"bare grpcio unary, {size} floats", f"p50 {statistics.median(base):.0f} us",
-                                     f"p99 {_p(base, 0.99):.0f} us"))
+                                     f"p99 {pct(base, 0.99):.0f} us"))
                         rows.append((f"binding.grpc call, {size} floats", f"p50 {statistics.median(ours):.0f} us",
-                                     f"p99 {_p(ours, 0.99):.0f} us; {ratio:.2f}x bare (goal <= 1.3x)"))
+                                     f"p99 {pct(ours, 0.99):.0f} us; {ratio:.2f}x bare (goal <= 1.3x)"))
                     rows += _oneway(client_obj, sys.modules["benchmod"], n)
                     ping = client._managers["C"].instance().ping
                     assert ping(1) == 3
                     _per_call_us(lambda: ping(1), n // 4)
                     cb = _per_call_us(lambda: ping(1), n)
                     rows.append(("binding.grpc call + 1 sync callback", f"p50 {statistics.median(cb):.0f} us",
-                                 f"p99 {_p(cb, 0.99):.0f} us (Invoke stream: call, callback, reply, result)"))
+                                 f"p99 {pct(cb, 0.99):.0f} us (Invoke stream: call, callback, reply, result)"))
                     quiet = client._managers["C"].instance().quiet
                     _per_call_us(lambda: quiet(1), n // 4)
                     qs = _per_call_us(lambda: quiet(1), n)
                     rows.append(("binding.grpc call, callback interface, none made", f"p50 {statistics.median(qs):.0f} us",
-                                 f"p99 {_p(qs, 0.99):.0f} us (the Invoke stream's own cost)"))
+                                 f"p99 {pct(qs, 0.99):.0f} us (the Invoke stream's own cost)"))
                 finally:
                     bare.close()
     return rows

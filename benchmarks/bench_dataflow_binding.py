@@ -34,6 +34,8 @@ if str(ROOT) not in sys.path:
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.remote import connect  # noqa: E402
 
+from _common import pct, wait_until  # noqa: E402
+
 Row = tuple[str, str, str]
 
 COMPONENTS = '''
@@ -105,11 +107,6 @@ class Probe(TaskContext):
             self.arrived.set()
 
 
-def pct(values: list[float], p: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, int(p / 100 * len(s)))] if s else float("nan")
-
-
 def _latency(send: object, value: float, seen: dict[float, float], event: threading.Event) -> float | None:
     """Send ``value`` and wait (≤ 5 s) until it is in ``seen``; its latency, or None if lost."""
     event.clear()
@@ -156,7 +153,7 @@ def _shared_pushes(n: int, write: object, sinks: list[tuple[dict[float, float], 
 def _rows(label: str, got: list[float], base: list[float]) -> list[Row]:
     rows = []
     for p in (50, 99):
-        v, b = pct(got, p), pct(base, p)
+        v, b = pct(got, p / 100), pct(base, p / 100)
         rows.append((f"{label} p{p}", f"{v * 1e6:.0f} µs", f"{v / b:.2f}x (raw {b * 1e6:.0f} µs)"))
     return rows
 
@@ -209,12 +206,9 @@ def run(quick: bool = False) -> list[Row]:
 def _wait_subscribed(rt: object) -> None:
     from scart.bindings.dataflow import DataflowServiceBinding, bindings_of
 
-    deadline = time.monotonic() + 10.0
-    while time.monotonic() < deadline:
-        if all(b.connected for b in bindings_of(rt) if isinstance(b, DataflowServiceBinding)):
-            return
-        time.sleep(0.01)
-    raise RuntimeError("binding.dataflow service never subscribed")
+    if not wait_until(lambda: all(b.connected for b in bindings_of(rt) if isinstance(b, DataflowServiceBinding)),
+                      timeout=10.0, interval=0.01):
+        raise RuntimeError("binding.dataflow service never subscribed")
 
 
 def main() -> None:

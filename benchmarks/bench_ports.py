@@ -16,6 +16,8 @@ from collections.abc import Callable
 
 from dataflow import ConnPolicy, FlowStatus, InputPort, OutputPort, PeriodicActivity, TaskContext
 
+from _common import pct
+
 Row = tuple[str, str, str]
 
 
@@ -72,11 +74,6 @@ def bench_costs(n: int) -> list[Row]:
     return rows
 
 
-def pct(values: list[float], p: float) -> float:
-    values = sorted(values)
-    return values[min(len(values) - 1, int(p / 100 * len(values)))] if values else float("nan")
-
-
 def bench_latency(samples: int) -> list[Row]:
     rows = []
     for mode in ("busy reader", "event-waiting reader"):
@@ -105,8 +102,8 @@ def bench_latency(samples: int) -> list[Row]:
             time.sleep(0.0005)
         done.set()
         th.join(5.0)
-        rows.append((f"cross-thread latency, {mode}", f"p50 {pct(lat, 50):.0f} µs",
-                     f"p99 {pct(lat, 99):.0f} µs (n={len(lat)})"))
+        rows.append((f"cross-thread latency, {mode}", f"p50 {pct(lat, 0.5):.0f} µs",
+                     f"p99 {pct(lat, 0.99):.0f} µs (n={len(lat)})"))
     return rows
 
 
@@ -141,7 +138,7 @@ def bench_periodic(duration: float) -> list[Row]:
             cycles = sum(t.activity.cycles for t in tasks)
             rows.append((
                 f"PeriodicActivity {hz} Hz x {ntasks} task{'s' if ntasks > 1 else ''}",
-                f"jitter p50 {pct(jitter, 50):.0f} / p99 {pct(jitter, 99):.0f} / "
+                f"jitter p50 {pct(jitter, 0.5):.0f} / p99 {pct(jitter, 0.99):.0f} / "
                 f"max {max(jitter, default=0):.0f} µs",
                 f"overruns {overruns} of {cycles} cycles",
             ))

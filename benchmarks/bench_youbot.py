@@ -49,6 +49,8 @@ sys.path.insert(0, str(YOUBOT))  # a contribution: its modules are imported by p
 import scart  # noqa: E402
 from dataflow.remote import connect  # noqa: E402
 
+from _common import pct, wait_until  # noqa: E402
+
 PERIODS = (0.01, 0.002, 0.001)
 
 
@@ -79,14 +81,16 @@ class Proc:
 
     def wait_for(self, pattern: str, timeout: float = 30.0) -> re.Match[str]:
         rx = re.compile(pattern)
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
+
+        def found() -> re.Match[str] | bool:  # the match, or True once the process has exited
             for line in list(self.lines):
                 if m := rx.search(line):
                     return m
-            if self.proc.poll() is not None:
-                break
-            time.sleep(0.05)
+            return self.proc.poll() is not None
+
+        m = wait_until(found, timeout, interval=0.05)
+        if isinstance(m, re.Match):
+            return m
         raise RuntimeError(f"no /{pattern}/ in output:\n" + "\n".join(self.lines))
 
     def stop(self) -> int:
@@ -103,19 +107,9 @@ def driver_counters(system: Any) -> tuple[int, int]:
     return info.cycles, info.overruns
 
 
-def pct(values: list[float], q: float) -> float:
-    if not values:
-        return float("nan")
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
-
-
 def wait(predicate: Any, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"timed out waiting for {what}")
-        time.sleep(0.05)
+    if not wait_until(predicate, timeout, interval=0.05):
+        raise RuntimeError(f"timed out waiting for {what}")
 
 
 def two_process(window: float, poll: bool = False) -> list[list[str]]:

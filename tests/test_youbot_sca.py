@@ -37,8 +37,13 @@ class Robot:
         self.deployer.start_all()
         self.server = self.deployer.serve(address)
         self.address: str = self.server.address
+        self._stopped = False
 
     def stop(self) -> None:
+        """Stop serving and tear the deployer down; a second call does nothing."""
+        if self._stopped:
+            return
+        self._stopped = True
         self.server.stop()
         self.deployer.stop_all()
         self.deployer.cleanup_all()

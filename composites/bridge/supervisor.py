@@ -18,7 +18,8 @@ from typing import Protocol
 
 import scart
 from dataflow import ConnPolicy
-from dataflow.remote import DEFAULT_NS_ADDRESS, SampleEvent, connect
+from dataflow.remote import SampleEvent, connect
+from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 
 @scart.interface
@@ -67,7 +68,7 @@ class ThermostatProxy:
     @scart.init
     def open(self) -> None:
         self._record = _Record()
-        self._system = connect(self.ns or os.environ.get("SCART_NS") or DEFAULT_NS_ADDRESS)
+        self._system = connect(self.ns.strip() or os.environ.get(NS_ENV, "").strip() or DEFAULT_NS_ADDRESS)
         proxy = self._system.component(self.task)
         self._proxy = proxy
         self._writer = proxy.connect_input("setpoint", ConnPolicy.data())
@@ -87,7 +88,7 @@ class ThermostatProxy:
         return self._record.all()
 
     def latest(self) -> float | None:
-        flow, value = self._proxy.read("temperature")
+        _, value = self._proxy.read("temperature")
         return None if value is None else float(value)  # type: ignore[arg-type]
 
 

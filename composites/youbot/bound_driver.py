@@ -18,6 +18,7 @@ is younger than ``stale_after`` s. See ``youbot-binding.composite``.
 
 from __future__ import annotations
 
+import itertools
 import time
 from typing import Any, Protocol
 
@@ -93,7 +94,7 @@ class BoundYouBotDriver(DriverProxyCore):
     def _driver_info(self) -> dict[str, Any]:
         with self._lock:
             age = time.monotonic() - self._received_at if self._sample is not None else None
-            stamps = [t for t in list(self._arrivals)[-50:]]
+            stamps = list(itertools.islice(reversed(self._arrivals), 50))[::-1]
         live = age is not None and age < self.stale_after
         period = self._period
         if period is None and len(stamps) > 10:  # not told yet: the median spacing of arrivals

@@ -47,9 +47,7 @@ class Locomotor:
         self._busy = False
         self._target: list[float] | None = None
         self._target_name = ""
-        self._last_idle = ""
         self.reports: deque[str] = deque(maxlen=100)
-        self.events: deque[tuple[str, str]] = deque(maxlen=200)
         self.refreshes = 0
         self._table = {str(k): [float(x) for x in v] for k, v in dict(self.poses_table or POSES).items()}
 
@@ -105,7 +103,6 @@ class Locomotor:
         if event == "refresh":
             self.refreshes += 1
             return
-        self.events.append((event, detail))
         if event == "busy":
             with self._lock:
                 self._busy = True
@@ -113,7 +110,6 @@ class Locomotor:
             with self._lock:
                 self._busy = False
                 name = self._target_name
-                self._last_idle = detail
             if detail == "":
                 report = f"target {name} reached"
                 log.info(report)

@@ -18,6 +18,7 @@ through a wired reference: ``self.client`` is that caller's callback proxy.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import threading
@@ -49,7 +50,6 @@ class Listener:
         self._events: deque[tuple[str, str]] = deque(maxlen=256)
         self._refresh = False
         self._stopped = False
-        self.delivered = 0
         self._thread = threading.Thread(target=self._run, name=f"scart-youbot-notify-{index}", daemon=True)
         self._thread.start()
 
@@ -88,7 +88,6 @@ class Listener:
                 continue
             try:
                 self.target.notify(*item)
-                self.delivered += 1
             except Exception:  # noqa: BLE001 - a client bug must not end its notifier
                 log.exception("notify(%r) to a client failed", item[0])
 
@@ -206,7 +205,8 @@ class DriverProxyCore:
         info = dict(self._driver_info())
         with self._lock:
             cutoff = now - 1.0
-            rate = sum(1 for t in reversed(self._arrivals) if t >= cutoff) if self._arrivals else 0
+            # arrivals are appended in time order: count back until the first older one
+            rate = sum(1 for _ in itertools.takewhile(lambda t: t >= cutoff, reversed(self._arrivals)))
             info["sample_age"] = (now - self._received_at) if self._sample is not None else None
             info["sequence"] = self._sample.sequence if self._sample is not None else None
         info["measured_rate"] = float(rate)

@@ -32,6 +32,7 @@ import scart
 from dataflow import ConnPolicy, WriteStatus
 from dataflow.remote import System, connect
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from dataflow.remote.errors import ClosedError, RemoteTimeoutError, UnavailableError
 from interfaces import RetrievingStatus, SendingCommands, SettingPeriod
 from proxy_core import DriverProxyCore
 
@@ -41,6 +42,11 @@ log = logging.getLogger("youbot.sca_driver")
 
 PERIOD_ANSWER_TIMEOUT = 2.0
 """How long ``set_period`` waits for the driver's ``period_status`` to reflect a request."""
+
+# errors meaning "the driver does not answer" (RemoteTimeoutError is also a TimeoutError)
+_OFFLINE_ERRORS: tuple[type[BaseException], ...] = (
+    UnavailableError, ClosedError, RemoteTimeoutError, TimeoutError, ConnectionError,
+)
 
 
 def resolve_name_service(value: str) -> str:
@@ -143,8 +149,7 @@ class SCAYouBotDriver(DriverProxyCore):
             period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
         except Exception as exc:  # noqa: BLE001 - reported, not raised
             log.debug("set_period(%r): %s", seconds, exc)
-            if isinstance(exc, (ConnectionError, TimeoutError)) or "navailable" in str(exc) \
-                    or "grpc" in type(exc).__module__.lower() or "remote" in type(exc).__module__:
+            if isinstance(exc, _OFFLINE_ERRORS):
                 return self._refused(f"driver offline: {self.component} at {self._address} does not answer")
             return self._refused(f"{type(exc).__name__}: {exc}")
         with self._lock:

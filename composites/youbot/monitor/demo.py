@@ -42,6 +42,7 @@ DEMO_FLAG_NAMES: dict[int, str] = {
     8: "TIMEOUT",
     9: "I2T_EXCEEDED",
 }
+_FLAG_BIT: dict[str, int] = {name: 1 << bit for bit, name in DEMO_FLAG_NAMES.items()}
 
 POSES: dict[str, list[float]] = {
     "home": [0.0, 0.0, 0.0, 0.0, 0.0],
@@ -165,11 +166,11 @@ class SyntheticArm:
             self._temp[i] += (equilibrium - self._temp[i]) * min(1.0, dt / TAU_S)
             flags = 0
             if abs(self._pos[i]) >= LIMIT:
-                flags |= 1 << 7
+                flags |= _FLAG_BIT["POSITION_LIMIT"]
             if self._temp[i] > OVER_TEMPERATURE:
-                flags |= 1 << 3
+                flags |= _FLAG_BIT["OVER_TEMPERATURE"]
             if current > 2.5:
-                flags |= 1 << 0
+                flags |= _FLAG_BIT["OVER_CURRENT"]
             joints.append(
                 {
                     "position": self._pos[i],

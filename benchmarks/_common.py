@@ -1,0 +1,35 @@
+"""Helpers shared by the benchmark scripts (imported by plain name: ``from _common import ...``;
+the scripts run as ``python benchmarks/bench_*.py``, so this directory is on ``sys.path``)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TypeVar
+
+T = TypeVar("T")
+
+__all__ = ["pct", "wait_until"]
+
+
+def pct(values: list[float], q: float) -> float:
+    """The ``q`` quantile (a fraction, 0-1: ``0.99`` for p99) of ``values`` by nearest rank
+    (the sorted value at index ``int(q * n)``, clamped); NaN if ``values`` is empty."""
+    if not values:
+        return float("nan")
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def wait_until(predicate: Callable[[], T], timeout: float, interval: float = 0.01) -> T | None:
+    """Poll ``predicate`` every ``interval`` s until it returns something truthy (returned) or
+    ``timeout`` s have passed (``None``; the caller decides whether that is an error)."""
+    deadline = time.monotonic() + timeout
+    for _ in range(1_000_000_000):  # bounded; ends at the deadline
+        result = predicate()
+        if result:
+            return result
+        if time.monotonic() >= deadline:
+            break
+        time.sleep(interval)
+    return None
