@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from lxml import etree
@@ -75,12 +76,18 @@ class Contribution:
             self._loaded[qname] = self._load(path)
         return self._loaded[qname]
 
+    def _parse_all(self, pattern: str) -> Iterator[tuple[Path, etree._Element | None, list[Problem]]]:
+        """Each file of the folder matching ``pattern`` (sorted), parsed: ``(file, root or
+        None, its parse problems)``; the caller decides where the problems go."""
+        for file in sorted(self.folder.glob(pattern)):
+            problems: list[Problem] = []
+            root = parse_xml(str(file), problems)
+            yield file, root, problems
+
     def _index(self) -> dict[str, str]:
         if self._by_qname is None:
             self._by_qname = {}
-            for file in sorted(self.folder.glob("*.composite")):
-                problems: list[Problem] = []
-                root = parse_xml(str(file), problems)
+            for file, root, problems in self._parse_all("*.composite"):
                 if root is None:
                     self._sibling_problems.extend(problems)
                     continue
@@ -107,9 +114,7 @@ class Contribution:
     def _wsdl_index(self) -> dict[str, InterfaceInfo]:
         if self._wsdl is None:
             self._wsdl = {}
-            for file in sorted(self.folder.glob("*.wsdl")):
-                problems: list[Problem] = []
-                root = parse_xml(str(file), problems)
+            for _, root, problems in self._parse_all("*.wsdl"):
                 self.problems.extend(problems)
                 if root is not None:
                     self._wsdl.update(read_port_types(root))

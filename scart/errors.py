@@ -54,7 +54,6 @@ SCART_CALLBACK_MISSING = "SCART-I006"  # caller lacks a method of the target's c
 SCART_COMPOSITE_CYCLE = "SCART-C001"  # implementation.composite / include cycle
 SCART_UNKNOWN_KIND = "SCART-C002"  # implementation or binding kind not registered
 SCART_BAD_SOURCE = "SCART-C003"  # property @source names no composite property
-SCART_BAD_WIRE = "SCART-C004"  # wire source names no component reference
 SCART_DUPLICATE_COMPOSITE = "SCART-C006"  # two composites of the contribution share a QName
 SCART_OVERRIDE = "SCART-C005"  # --set names no component/property
 

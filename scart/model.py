@@ -87,11 +87,6 @@ class PropertyValue(_Node):
     many: bool = False
     must_supply: bool = False
 
-    @property
-    def has_value(self) -> bool:
-        """True when a value is supplied in any form."""
-        return self.values is not None or self.file is not None or self.source is not None
-
 
 class ComponentService(_Node):
     """A ``<service>`` of a component: optional interface and bindings."""

@@ -107,6 +107,7 @@ class _OnewayPool:
         self._max_pending = max_pending
         self._run = run
         self._lock = threading.Lock()
+        self._progress = threading.Condition(self._lock)  # notified when a worker takes or finishes a call
         self._closed = False
         self.running: dict[threading.Thread, str] = {}
         self._workers = max(1, workers)
@@ -132,6 +133,7 @@ class _OnewayPool:
             item = self._queue.get()
             with self._lock:
                 self._idle -= 1
+                self._progress.notify_all()
             if item is None:
                 return
             label, fn, args, kwargs = item
@@ -142,6 +144,7 @@ class _OnewayPool:
                 self.running.pop(me, None)
                 with self._lock:
                     self._idle += 1
+                    self._progress.notify_all()
 
     def close(self, deadline: float) -> tuple[int, list[str]]:
         """Stop accepting calls; wait (until ``deadline``, a monotonic time) for the queue to
@@ -151,8 +154,12 @@ class _OnewayPool:
             threads = list(self._threads)
         me = threading.current_thread()
         others = [t for t in threads if t is not me]
-        while self._queue.qsize() and time.monotonic() < deadline:
-            time.sleep(0.01)
+        with self._progress:  # a worker's get() is followed by a notify under this lock
+            while self._queue.qsize():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._progress.wait(remaining)
         dropped = 0
         while True:  # bounded: the pool is closed, nothing is added any more
             try:

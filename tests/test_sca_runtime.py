@@ -350,3 +350,26 @@ def test_set_override_of_a_nested_component(tmp_path: Path) -> None:
     path = write(tmp_path, {"outer.composite": outer, "inner.composite": inner})
     with scart.Runtime.from_file(str(path), overrides={"M/G.greeting": "Ahoy"}) as rt:
         assert rt.service("M").greet("x") == "Ahoy, x"
+
+
+def test_remotable_oneway_copies_arguments_once_before_the_caller_returns() -> None:
+    """A by-value one-way call: the callee gets a private copy taken at submit time (the
+    caller may mutate its value after return), and only that one copy is made."""
+    import copy as copy_module
+    from unittest import mock
+
+    from scart.api import Operation
+    from scart.bindings.base import wrap_operation
+
+    queued: list[tuple] = []
+    seen: list[list[str]] = []
+    wrapped = wrap_operation(seen.append, Operation("put", oneway=True), callback=None, by_value=True,
+                             submit=lambda fn, *a, **k: queued.append((fn, a, k)))
+    mine = ["caller"]
+    with mock.patch("scart.bindings.base.copy.deepcopy", wraps=copy_module.deepcopy) as deepcopy:
+        assert wrapped(mine) is None
+        mine.append("after return")
+        fn, args, kwargs = queued.pop()
+        fn(*args, **kwargs)
+    assert seen == [["caller"]] and seen[0] is not mine
+    assert deepcopy.call_count == 1

@@ -235,3 +235,17 @@ def test_default_name_service_port_taken_falls_back_and_says_where(tmp_path: Pat
     finally:
         AMBIENT_NS.pop("address", None)
         busy.close()
+
+
+def test_checked_property_type_built_once_per_declaration() -> None:
+    """The checked type of a Property is memoised: the TypeAdapter cache is not defeated."""
+    from dataflow import Property
+    from scart.bindings._dataflow_tasks import _checked_type
+
+    def positive(value: float) -> None:
+        if value <= 0:
+            raise ValueError("must be > 0")
+
+    prop = Property(float, 1.0, check=positive)
+    assert _checked_type(prop) is _checked_type(prop)
+    assert _checked_type(Property(float, 1.0, check=positive)) is not _checked_type(prop)

@@ -9,7 +9,6 @@ value → output port) or ``"deliver"`` (service, one argument ← output port).
 from __future__ import annotations
 
 import inspect
-import re
 import typing
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import Any
 from dataflow import ConnPolicy
 from scart.api import InterfaceInfo
 from scart.bindings._dataflow_host import PortInfo, ambient_ns, class_ports, remote_ports, type_name_of
+from scart.bindings.base import parse_host_port, port_in_range
 from scart.model import SCART_NS, Binding
 
 #: Problem codes.
@@ -50,7 +50,6 @@ class Settings:
 
 
 MIN_PERIOD_S = 0.001  # smallest polling period of a service binding
-_ADDRESS = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
 
 
 def settings(model: Binding) -> Settings:
@@ -93,8 +92,8 @@ def settings(model: Binding) -> Settings:
                 mapping[op] = port
     ns = (a.get("ns") or "").strip() or None
     if ns is not None:
-        m = _ADDRESS.match(ns)
-        if m is None or not 1 <= int(m["port"]) <= 65535:
+        parsed = parse_host_port(ns)
+        if parsed is None or not port_in_range(parsed[1]):
             problems.append(f'ns {ns!r}: expected the name service as "host:port" (port 1..65535)')
             ns = None
     return Settings(component, ns, policy, period, mapping, tuple(problems))

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import logging
 import typing
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -98,9 +99,22 @@ def _period(impl: Implementation) -> float | None:
     return period
 
 
+_CHECKED_TYPES: weakref.WeakKeyDictionary[Any, Any] = weakref.WeakKeyDictionary()
+
+
 def _checked_type(prop: Any) -> Any:
     """The type the assembler parses a property value as: the Property's type, with its
-    ``check`` attached (so a value the task would refuse is a load-time problem)."""
+    ``check`` attached (so a value the task would refuse is a load-time problem).
+
+    Built once per Property declaration: ``scart.values`` caches a TypeAdapter per type,
+    so a fresh class on every ``component_type()`` would miss that cache and grow it."""
+    checked = _CHECKED_TYPES.get(prop)
+    if checked is None:
+        checked = _CHECKED_TYPES[prop] = _make_checked_type(prop)
+    return checked
+
+
+def _make_checked_type(prop: Any) -> Any:
     if prop.check is None or prop.type is str or typing.get_origin(prop.type) in (list, tuple, set):
         return prop.type
 

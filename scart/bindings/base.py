@@ -23,6 +23,7 @@ The local binding (:mod:`scart.bindings.local`) is the reference implementation.
 from __future__ import annotations
 
 import copy
+import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -158,7 +159,7 @@ def wrap_operation(
     ``call`` itself, so a plain local call costs what a direct method call costs.
     """
     inner = call
-    if by_value:
+    if by_value and not op.oneway:  # a one-way call is copied once, at submit (below)
         def inner(*args: Any, _c: Callable[..., Any] = call, **kwargs: Any) -> Any:
             return by_value_copy(_c(*by_value_copy(args), **by_value_copy(kwargs)))
     if callback is not None:
@@ -181,6 +182,22 @@ def wrap_operation(
                 submit(work, *args, **kwargs)
         return oneway
     return inner
+
+
+_HOST_PORT = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
+
+
+def parse_host_port(text: str) -> tuple[str, int] | None:
+    """``(host, port)`` of a "host:port" address (host a name, IPv4 or bracketed IPv6),
+    or None when ``text`` is not of that shape. The port is not range-checked: see
+    :func:`port_in_range`."""
+    m = _HOST_PORT.match(text)
+    return None if m is None else (m["host"], int(m["port"]))
+
+
+def port_in_range(port: int, *, zero_ok: bool = False) -> bool:
+    """Whether ``port`` is 1..65535 (0..65535 with ``zero_ok``: "any free port")."""
+    return (0 if zero_ok else 1) <= port <= 65535
 
 
 _ATOMIC = frozenset({int, float, str, bool, bytes, complex, type(None)})

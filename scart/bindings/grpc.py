@@ -69,7 +69,15 @@ from scart.bindings._grpc_server import Exported, GrpcServer, ServerTable
 from scart.bindings._grpc_wire import (
     PATHS, RemoteError, UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, signatures,
 )
-from scart.bindings.base import BindingHost, ReferenceBinding, ServiceBinding, ServiceEndpoint, register_binding
+from scart.bindings.base import (
+    BindingHost,
+    ReferenceBinding,
+    ServiceBinding,
+    ServiceEndpoint,
+    parse_host_port,
+    port_in_range,
+    register_binding,
+)
 from scart.errors import InvocationError, Problem, ServiceUnavailableError
 from scart.model import Binding
 
@@ -91,7 +99,6 @@ CHANNEL_OPTIONS: list[tuple[str, int]] = [
     ("grpc.enable_retries", 0),
 ]
 
-_ADDRESS = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
 _SERVICE = re.compile(r"^[^\s/]+(/[^\s/]+)*$")
 
 
@@ -106,10 +113,10 @@ def _problems(model: Binding, *, reference: bool) -> list[Problem]:
         if reference:
             out.append('binding.grpc on a reference needs address="host:port"')
     else:
-        m = _ADDRESS.match(address)
-        if m is None:
+        parsed = parse_host_port(address)
+        if parsed is None:
             out.append(f'binding.grpc: address {address!r} is not "host:port"')
-        elif not 0 <= int(m["port"]) <= 65535 or (reference and int(m["port"]) == 0):
+        elif not port_in_range(parsed[1], zero_ok=not reference):
             out.append(f"binding.grpc: address {address!r}: port must be 1..65535" + ("" if reference else " or 0"))
     timeout = attrs.get("timeout")
     if timeout is not None:

@@ -111,22 +111,24 @@ def cmd_run(args: argparse.Namespace) -> int:
         stop.set()
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    ns = args.ns or os.environ.get(NS_ENV) or DEFAULT_NS_ADDRESS
-    AMBIENT_NS["address"] = ns
+    given = args.ns or os.environ.get(NS_ENV)
+    explicit = bool(given)
+    ns = given or DEFAULT_NS_ADDRESS
+    AMBIENT_NS["address"] = ns  # before assembling: the binding checks may resolve it
     try:
         assembly = _assemble(args.file, args.overrides)
         if assembly is None:
             return 2
         runtime = Runtime(assembly, max_workers=args.workers, drain_timeout=args.stop_timeout)
         host = host_of(runtime)
-        host.use_ns(ns)
+        _use_ns(host, ns)
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.
         announced = io.StringIO()
         try:
             with contextlib.redirect_stdout(announced):
                 runtime.start()
-                served = serve_tasks(runtime, ns, explicit=bool(args.ns or os.environ.get(NS_ENV)))
+                served = serve_tasks(runtime, ns, explicit=explicit)
         except (ScartError, DataflowError) as exc:
             runtime.stop()
             host.close()
@@ -178,13 +180,18 @@ def serve_tasks(runtime: Any, ns: str, explicit: bool = True) -> list[str]:
                 raise
             server = host.serve("127.0.0.1:0")
     if server.ns_address != ns:  # embedded at a free port: say where it really is
-        from scart.bindings._dataflow_host import AMBIENT_NS
-
-        host.use_ns(server.ns_address)
-        AMBIENT_NS["address"] = server.ns_address
+        _use_ns(host, server.ns_address)
     how = "joined" if joined else "embedded"
     return [f"scart: dataflow server at {server.address} ({len(host.deployer.names())} task(s))",
             f"scart: name service at {server.ns_address} ({how})"]
+
+
+def _use_ns(host: Any, address: str) -> None:
+    """Point the runtime's data-flow host and the ambient name service at ``address``."""
+    from scart.bindings._dataflow_host import AMBIENT_NS
+
+    host.use_ns(address)
+    AMBIENT_NS["address"] = address
 
 
 def summary(assembly: Assembly, addresses: dict[str, str | None]) -> str:
