@@ -1,5 +1,5 @@
-"""binding.grpc's wire format: the proto (buf style, built from proto/, never generated
-code), and values through the type registry plus the None / JSON additions."""
+"""binding.grpc's wire format: the proto (buf style), and values through the one codec
+(the type registry plus the None / JSON additions)."""
 
 from __future__ import annotations
 
@@ -8,11 +8,9 @@ import math
 import pytest
 from pydantic import BaseModel
 
-from dataflow.remote import _proto
+from dataflow.codec import Value
 from dataflow.types import UnknownValue
-from scart.bindings._grpc_wire import (
-    JSON_TYPE, NONE_TYPE, SCA_PROTO, SCA_SERVICE, Signature, converter, decode, encode, fault, pb,
-)
+from scart.bindings._grpc_wire import JSON_TYPE, NONE_TYPE, SCA_SERVICE, Signature, converter, decode, encode, fault, pb
 from scart.errors import InvocationError
 
 
@@ -21,9 +19,8 @@ class Pose(BaseModel):
     theta: float
 
 
-def test_proto_is_buf_style_and_built_from_proto_folder() -> None:
-    assert SCA_PROTO in _proto.proto_files()
-    assert [f.name for f in _proto.compile_protos([SCA_PROTO]).file] == [SCA_PROTO]
+def test_proto_is_buf_style() -> None:
+    assert SCA_SERVICE.file.name == "scart/sca/v1/sca.proto"
     assert SCA_SERVICE.full_name == "scart.sca.v1.ScaService"
     for method in SCA_SERVICE.methods:
         assert method.input_type.name == f"{method.name}Request"
@@ -38,7 +35,7 @@ def test_proto_is_buf_style_and_built_from_proto_folder() -> None:
     {"k": [1, "x"], "n": None}, [1, "mixed"], 2**70, [True, False], Pose(x=1.0, theta=0.5),
 ])
 def test_values_round_trip(value: object) -> None:
-    msg = pb.Value.FromString(encode(value).SerializeToString())
+    msg = Value.FromString(encode(value).SerializeToString())
     back = decode(msg)
     if isinstance(value, BaseModel):
         assert converter(Pose)(back) == value  # unregistered model: a mapping, coerced by annotation
@@ -53,7 +50,7 @@ def test_none_and_json_have_their_own_names() -> None:
 
 
 def test_unknown_type_names_decode_to_mappings() -> None:
-    back = decode(pb.Value(type_name="Elsewhere", data=b'{"a": 1}'))
+    back = decode(Value(type_name="Elsewhere", data=b'{"a": 1}'))
     assert isinstance(back, UnknownValue) and back == {"a": 1} and back.type_name == "Elsewhere"
 
 

@@ -11,6 +11,7 @@ import grpc
 import pytest
 
 from scart.bindings import _grpc_server
+from dataflow.codec import Value
 from scart.bindings._grpc_wire import PATHS, pb
 from scart.errors import InvocationError
 from test_bind_grpc_support import gpy, grpc_bindings, grpc_reference, grpc_service, provider_and_client
@@ -281,11 +282,11 @@ def test_a_result_the_client_cannot_convert_names_service_and_operation(tmp_path
     from scart.bindings._grpc_wire import decode
     from test_bind_grpc_support import composite, gwrite, instance
 
-    with pytest.raises(InvocationError, match="malformed float64"):
-        decode(pb.Value(type_name="float64[]", data=b"\0" * 12))
+    with pytest.raises(InvocationError, match="malformed value: cannot decode float64"):
+        decode(Value(type_name="float64[]", data=b"\0" * 12))
 
     def call(request, context):  # a provider answering with a malformed float64[] payload
-        return pb.CallResponse(outcome=pb.Outcome(value=pb.Value(type_name="float64[]", data=b"\0" * 12)))
+        return pb.CallResponse(outcome=pb.Outcome(value=Value(type_name="float64[]", data=b"\0" * 12)))
     handler = grpc.method_handlers_generic_handler("scart.sca.v1.ScaService", {
         "Call": grpc.unary_unary_rpc_method_handler(call, pb.CallRequest.FromString, pb.CallResponse.SerializeToString)})
     pool = ThreadPoolExecutor(2)
@@ -299,7 +300,7 @@ def test_a_result_the_client_cannot_convert_names_service_and_operation(tmp_path
         with scart.Runtime.from_file(str(gwrite(tmp_path, {"c.composite": composite(body)}))) as rt:
             with pytest.raises(InvocationError, match=r"G/Geometry at 127\.0\.0\.1:\d+: scale: cannot convert") as info:
                 instance(rt, "C").geo.scale([1.0], 2.0)
-            assert "malformed float64[]" in str(info.value)
+            assert "cannot decode float64[]" in str(info.value)
     finally:
         server.stop(None).wait(5)
         pool.shutdown(wait=True)

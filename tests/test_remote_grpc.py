@@ -13,6 +13,7 @@ import pytest
 from dataflow import (
     ConnPolicy, Deployer, FlowStatus, NotFoundError, PeriodicActivity, PortTypeError, SlaveActivity, WriteStatus,
 )
+from dataflow.codec import Value
 from dataflow.remote import RemoteError, connect, local_system
 from dataflow.remote import _proto
 from helpers import wait_until
@@ -260,7 +261,7 @@ def _raw(address: str, method: str, request, **options):
 def test_status_codes_are_precise(served) -> None:
     task, server = served
     df = _proto.df
-    bad = df.WritePortRequest(task="p", port="input", value=df.Value(type_name="string", data=b"x"))
+    bad = df.WritePortRequest(task="p", port="input", value=Value(type_name="string", data=b"x"))
     with pytest.raises(grpc.RpcError) as info:
         _raw(server.address, "WritePort", bad)
     assert info.value.code() == grpc.StatusCode.INVALID_ARGUMENT
@@ -281,7 +282,7 @@ def test_status_codes_are_precise(served) -> None:
 def test_oversized_message_refused(served) -> None:
     task, server = served
     df = _proto.df
-    huge = df.WritePortRequest(task="p", port="samples", value=df.Value(type_name="float64[]", data=b"\0" * (5 << 20)))
+    huge = df.WritePortRequest(task="p", port="samples", value=Value(type_name="float64[]", data=b"\0" * (5 << 20)))
     with pytest.raises(grpc.RpcError) as info:
         _raw(server.address, "WritePort", huge, **{"grpc.max_send_message_length": 64 << 20})
     assert info.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED

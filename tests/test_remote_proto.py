@@ -1,9 +1,10 @@
-"""The wire format: every .proto compiles, version bounds agree with grpcio-tools, and the
-services the servers register are exactly the proto's (names and streaming kinds)."""
+"""The wire format: the committed code is what protoc makes of the .proto files, buf
+style, its version stamps agree with pyproject's bounds, and the services the servers
+register are exactly the proto's (names and streaming kinds)."""
 
 from __future__ import annotations
 
-import importlib.metadata as md
+import re
 import tomllib
 from pathlib import Path
 
@@ -14,16 +15,15 @@ from packaging.requirements import Requirement
 from packaging.version import Version
 
 from dataflow import Deployer
+from dataflow.proto import _generate
 from dataflow.remote import _proto, serve_nameserver
 from test_remote_support import Pinger
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _pyproject_requirements() -> dict[str, Requirement]:
-    data = tomllib.loads((ROOT / "pyproject.toml").read_text())
-    reqs = [Requirement(r) for r in data["project"]["dependencies"]]
-    return {r.name: r for r in reqs}
+def _pyproject_requirements(table: list[str]) -> dict[str, Requirement]:
+    return {r.name: r for r in map(Requirement, table)}
 
 
 def _lower(req: Requirement) -> Version | None:
@@ -31,18 +31,35 @@ def _lower(req: Requirement) -> Version | None:
     return max(bounds) if bounds else None
 
 
-@pytest.mark.parametrize("proto", _proto.proto_files())
-def test_every_proto_file_compiles(proto: str) -> None:
-    fds = _proto.compile_protos([proto])
-    assert [f.name for f in fds.file] == [proto]
-    package = fds.file[0].package
+def test_committed_wire_code_is_what_protoc_makes() -> None:
+    stale = _generate.stale()
+    assert not stale, f"regenerate with `python -m dataflow.proto._generate`: {stale}"
+
+
+def test_freshness_check_sees_an_edit(tmp_path: Path) -> None:
+    """The check above can fail: a changed .proto makes the committed code stale."""
+    import shutil
+
+    copy = tmp_path / "proto"
+    shutil.copytree(_generate.ROOT, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    assert _generate.stale(copy) == []
+    value = copy / "scart/dataflow/v1/value.proto"
+    value.write_text(value.read_text().replace("bytes data = 2;", "bytes data = 2;\n  string unit = 3;"))
+    assert "scart/dataflow/v1/value_pb2.py" in _generate.stale(copy)
+
+
+@pytest.mark.parametrize("proto", _generate.proto_files())
+def test_every_proto_file_is_buf_style(proto: str) -> None:
+    text = (_generate.ROOT / proto).read_text()
+    package = re.search(r"^package ([\w.]+);", text, re.M)[1]
     assert package.startswith("scart.") and package.endswith(".v1")
     assert proto.startswith(package.replace(".", "/") + "/"), "buf style: directory matches package"
 
 
-def test_proto_folder_has_both_packages() -> None:
-    assert "scart/dataflow/v1/dataflow.proto" in _proto.proto_files()
-    assert "scart/naming/v1/naming.proto" in _proto.proto_files()
+def test_sca_imports_only_the_value_message() -> None:
+    from dataflow.proto.scart.sca.v1 import sca_pb2
+
+    assert [d.name for d in sca_pb2.DESCRIPTOR.dependencies] == ["scart/dataflow/v1/value.proto"]
 
 
 def test_buf_style_one_request_response_pair_per_rpc() -> None:
@@ -53,22 +70,19 @@ def test_buf_style_one_request_response_pair_per_rpc() -> None:
             assert method.output_type.name == f"{method.name}Response"
 
 
-def test_version_bounds_consistent_with_grpcio_tools() -> None:
-    pyreqs = _pyproject_requirements()
-    for name in ("grpcio", "grpcio-tools", "protobuf"):
-        assert name in pyreqs, f"pyproject lacks {name}"
-        assert Version(md.version(name)) in pyreqs[name].specifier, f"installed {name} outside pyproject bounds"
-    # grpcio and grpcio-tools move together
-    assert _lower(pyreqs["grpcio"]) == _lower(pyreqs["grpcio-tools"])
-    # what the installed grpcio-tools (whose protoc builds our messages) needs is installed,
-    # and the pyproject does not forbid it
-    for text in md.requires("grpcio-tools") or []:
-        req = Requirement(text)
-        if req.name in ("protobuf", "grpcio"):
-            installed = Version(md.version(req.name))
-            assert installed in req.specifier, f"grpcio-tools needs {req}, {installed} installed"
-            low = _lower(req)
-            assert low is None or low in pyreqs[req.name].specifier or low >= _lower(pyreqs[req.name])
+def test_version_bounds_match_the_generated_code() -> None:
+    """The generated modules refuse an older grpcio/protobuf than made them: pyproject's lower
+    bounds are exactly those versions, and grpcio-tools is no runtime dependency."""
+    data = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    runtime = _pyproject_requirements(data["project"]["dependencies"])
+    test = _pyproject_requirements(data["project"]["optional-dependencies"]["test"])
+    assert "grpcio-tools" not in runtime and "grpcio-tools" in test
+    grpc_code = (_generate.ROOT / "scart/dataflow/v1/dataflow_pb2_grpc.py").read_text()
+    pb_code = (_generate.ROOT / "scart/dataflow/v1/dataflow_pb2.py").read_text()
+    grpc_made = re.search(r"^GRPC_GENERATED_VERSION = '([\d.]+)'", grpc_code, re.M)[1]
+    pb_made = ".".join(re.search(r"Domain\.PUBLIC,\s*(\d+),\s*(\d+),\s*(\d+),", pb_code).groups())
+    assert _lower(runtime["grpcio"]) == Version(grpc_made) == _lower(test["grpcio-tools"])
+    assert _lower(runtime["protobuf"]) == Version(pb_made)
 
 
 def _reflected_services(address: str) -> set[str]:

@@ -16,9 +16,11 @@ import pytest
 
 from dataflow import ConnPolicy, Deployer, OutputPort, SlaveActivity, TaskContext, WriteStatus
 from dataflow.remote import RemoteTimeoutError, RemoteTypeError, UnavailableError, connect, local_system
+from dataflow import codec
 from dataflow.remote import _convert as cv
+from dataflow.remote import _proto
 from dataflow.remote import _rpc, _subscription
-from dataflow.remote._proto import DEPLOYER_SERVICE, DEPLOYER_SERVICE_NAME, NAMING_SERVICE, NAMING_SERVICE_NAME
+from dataflow.remote._proto import DEPLOYER_SERVICE, DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME
 from dataflow.remote._proto import df as pb
 from dataflow.remote.client import GrpcSystem
 from dataflow.remote.naming import NameRegistry, NamingServicer, serve_nameserver
@@ -242,19 +244,16 @@ class _Flaky:
 def flaky() -> Iterator[tuple[_Flaky, str]]:
     fake = _Flaky()
     registry = NameRegistry()
-    handlers = [_rpc.generic_handler(DEPLOYER_SERVICE, fake), _rpc.generic_handler(NAMING_SERVICE, NamingServicer(registry))]
-    made = _rpc.make_server("127.0.0.1:0", handlers, [DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME], 8)
-    server, port = made[0], made[1]
-    executor = made[3] if len(made) > 3 else None
+    servicers = [(_proto.df_grpc.add_DeployerServiceServicer_to_server, fake),
+                 (_proto.ns_grpc.add_NamingServiceServicer_to_server, NamingServicer(registry))]
+    server, port, _health, executor = _rpc.make_server(
+        "127.0.0.1:0", servicers, [DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME], 8)
     address = f"127.0.0.1:{port}"
     registry.register("fake", address, ["x"], permanent=True)
     try:
         yield fake, address
     finally:
-        if executor is None:
-            server.stop(0).wait(5)
-        else:
-            _rpc.stop_server(server, executor, 0.0)
+        _rpc.stop_server(server, executor, 0.0)
 
 
 def test_only_idempotent_calls_are_retried(flaky) -> None:
@@ -333,12 +332,12 @@ def test_deploy_without_name_uses_the_class_default(spec: str, name: str) -> Non
 def test_bad_policy_is_invalid_argument_and_mandatory_travels(served) -> None:
     _, task, server = served
     with grpc.insecure_channel(server.address) as channel:
-        stub = _rpc.Stub(channel, DEPLOYER_SERVICE)
+        stub = _proto.df_grpc.DeployerServiceStub(channel)
         for policy in (
             pb.ConnPolicy(type=99),
-            pb.ConnPolicy(type=pb.ConnType["CONN_TYPE_BUFFER"], size=4, lock_policy="BOGUS"),
-            pb.ConnPolicy(type=pb.ConnType["CONN_TYPE_BUFFER"], size=4, buffer_policy="NOPE"),
-            pb.ConnPolicy(type=pb.ConnType["CONN_TYPE_BUFFER"], size=0),
+            pb.ConnPolicy(type=pb.ConnType.Value("CONN_TYPE_BUFFER"), size=4, lock_policy="BOGUS"),
+            pb.ConnPolicy(type=pb.ConnType.Value("CONN_TYPE_BUFFER"), size=4, buffer_policy="NOPE"),
+            pb.ConnPolicy(type=pb.ConnType.Value("CONN_TYPE_BUFFER"), size=0),
         ):
             with pytest.raises(grpc.RpcError) as info:
                 stub.OpenWriter(pb.OpenWriterRequest(task="p", port="input", policy=policy), timeout=5)
@@ -359,7 +358,7 @@ def test_bad_policy_is_invalid_argument_and_mandatory_travels(served) -> None:
 
 def test_undecodable_sample_does_not_kill_the_subscription(served, monkeypatch) -> None:
     _, task, server = served
-    real = cv.decode
+    real = codec.decode
     bad = {"count": 0}
 
     def decode(msg):
@@ -369,7 +368,7 @@ def test_undecodable_sample_does_not_kill_the_subscription(served, monkeypatch) 
             raise ValueError("corrupt sample")
         return value
 
-    monkeypatch.setattr(_subscription.cv, "decode", decode)
+    monkeypatch.setattr(_subscription.codec, "decode", decode)
     got = []
     with connect(server.address, timeout=5.0) as system:
         sub = system.component("p").subscribe("output", lambda e: got.append(e.value), ConnPolicy.buffer(10))

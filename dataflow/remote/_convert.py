@@ -1,4 +1,6 @@
-"""Conversions between the core's values/policies/descriptions and proto messages (private)."""
+"""Conversions between the core's policies and statuses and their proto messages (private).
+
+Values have their own public codec, :mod:`dataflow.codec`."""
 
 from __future__ import annotations
 
@@ -9,9 +11,9 @@ from dataflow.policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, Lock
 from dataflow.remote._proto import df as pb
 
 _CONN_TO_MSG = {
-    ConnType.DATA: pb.ConnType["CONN_TYPE_DATA"],
-    ConnType.BUFFER: pb.ConnType["CONN_TYPE_BUFFER"],
-    ConnType.CIRCULAR_BUFFER: pb.ConnType["CONN_TYPE_CIRCULAR_BUFFER"],
+    ConnType.DATA: pb.ConnType.Value("CONN_TYPE_DATA"),
+    ConnType.BUFFER: pb.ConnType.Value("CONN_TYPE_BUFFER"),
+    ConnType.CIRCULAR_BUFFER: pb.ConnType.Value("CONN_TYPE_CIRCULAR_BUFFER"),
 }
 _CONN_FROM_MSG = {v: k for k, v in _CONN_TO_MSG.items()}
 
@@ -66,7 +68,7 @@ def _member(enum: Any, field: str, name: str, default: Any) -> Any:
 def _enum_maps(proto_enum: Any, prefix: str, py_enum: Any) -> tuple[dict[Any, int], dict[int, Any]]:
     """Both directions between a Python enum and the proto enum whose values are named
     ``PREFIX_MEMBER`` — built once, so the per-sample conversions are one dict lookup."""
-    to_msg = {member: proto_enum[prefix + member.name] for member in py_enum}
+    to_msg = {member: proto_enum.Value(prefix + member.name) for member in py_enum}
     return to_msg, {number: member for member, number in to_msg.items()}
 
 
@@ -92,25 +94,6 @@ def write_to_msg(status: WriteStatus) -> int:
 def write_from_msg(number: int) -> WriteStatus:
     """Proto enum number → WriteStatus (unspecified → WRITE_FAILURE)."""
     return _WRITE_FROM.get(number, WriteStatus.WRITE_FAILURE)
-
-
-def encode(value: Any, py_type: Any = None) -> Any:
-    """A value → ``Value`` through the core registry; ``None`` → empty type name."""
-    from dataflow.types import registry
-
-    if value is None:
-        return pb.Value(type_name="", data=b"")
-    enc = registry.encode(value, py_type)
-    return pb.Value(type_name=enc.type_name, data=enc.data)
-
-
-def decode(msg: Any) -> Any:
-    """``Value`` → a value (unknown type → ``UnknownValue``; empty type name → None)."""
-    from dataflow.types import registry
-
-    if not msg.type_name:
-        return None
-    return registry.decode(msg.type_name, msg.data)
 
 
 def to_json_text(value: Any) -> str:

@@ -1,6 +1,6 @@
 """gRPC plumbing shared by the server and the client (private; the only place that maps
-gRPC statuses to scart errors). Method tables are derived from the proto service
-descriptors, so registered names always equal the proto's.
+gRPC statuses to scart errors). Servicers and stubs are the generated ones of
+:mod:`dataflow.proto`, so registered names always equal the proto's.
 """
 
 from __future__ import annotations
@@ -9,8 +9,6 @@ from collections.abc import Callable
 from typing import Any
 
 import grpc
-from google.protobuf import message_factory
-from google.protobuf.descriptor import ServiceDescriptor
 
 from dataflow.remote import errors
 
@@ -47,55 +45,6 @@ def server_options() -> list[tuple[str, int]]:
         ("grpc.http2.max_ping_strikes", 0),
         ("grpc.so_reuseport", 0),
     ]
-
-
-def _classes(method: Any) -> tuple[type, type]:
-    return (
-        message_factory.GetMessageClass(method.input_type),
-        message_factory.GetMessageClass(method.output_type),
-    )
-
-
-def generic_handler(service: ServiceDescriptor, servicer: object) -> grpc.GenericRpcHandler:
-    """A handler serving every method of ``service`` by ``servicer.<MethodName>``.
-
-    Raises ``AttributeError`` naming the first method ``servicer`` lacks.
-    """
-    table: dict[str, grpc.RpcMethodHandler] = {}
-    for method in service.methods:
-        fn = getattr(servicer, method.name)
-        req, resp = _classes(method)
-        kinds = {
-            (False, False): grpc.unary_unary_rpc_method_handler,
-            (False, True): grpc.unary_stream_rpc_method_handler,
-            (True, False): grpc.stream_unary_rpc_method_handler,
-            (True, True): grpc.stream_stream_rpc_method_handler,
-        }
-        factory = kinds[(method.client_streaming, method.server_streaming)]
-        table[method.name] = factory(
-            fn, request_deserializer=req.FromString, response_serializer=resp.SerializeToString
-        )
-    return grpc.method_handlers_generic_handler(service.full_name, table)
-
-
-class Stub:
-    """Callables per method of ``service`` on ``channel`` (attribute = method name)."""
-
-    def __init__(self, channel: grpc.Channel, service: ServiceDescriptor) -> None:
-        for method in service.methods:
-            req, resp = _classes(method)
-            path = f"/{service.full_name}/{method.name}"
-            make = {
-                (False, False): channel.unary_unary,
-                (False, True): channel.unary_stream,
-                (True, False): channel.stream_unary,
-                (True, True): channel.stream_stream,
-            }[(method.client_streaming, method.server_streaming)]
-            setattr(
-                self,
-                method.name,
-                make(path, request_serializer=req.SerializeToString, response_deserializer=resp.FromString),
-            )
 
 
 _MAP: dict[grpc.StatusCode, type[errors.RemoteError]] = {
@@ -154,13 +103,18 @@ def abort(context: grpc.ServicerContext, exc: BaseException) -> None:
     context.abort(grpc.StatusCode.INTERNAL, f"{type(exc).__name__}: {exc}")
 
 
+#: A servicer and the generated function that adds it to a server
+#: (``dataflow_pb2_grpc.add_DeployerServiceServicer_to_server``, ...).
+Servicer = tuple[Callable[[Any, grpc.Server], None], object]
+
+
 def make_server(
     address: str,
-    handlers: list[grpc.GenericRpcHandler],
+    servicers: list[Servicer],
     service_names: list[str],
     max_workers: int = 32,
 ) -> tuple[grpc.Server, int, Any, Any]:
-    """Create, bind and start a server with health checking and reflection.
+    """Create, bind and start a server with ``servicers``, health checking and reflection.
 
     Returns ``(server, bound_port, health_servicer, executor)``; the caller owns the
     executor and ends it with :func:`stop_server` (grpc does not shut it down).
@@ -174,12 +128,9 @@ def make_server(
     from grpc_reflection.v1alpha import reflection
 
     executor = futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix=THREAD_PREFIX)
-    server = grpc.server(
-        executor,
-        handlers=handlers,
-        options=server_options(),
-        maximum_concurrent_rpcs=max_workers,
-    )
+    server = grpc.server(executor, options=server_options(), maximum_concurrent_rpcs=max_workers)
+    for add, servicer in servicers:
+        add(servicer, server)
     health_servicer = health.HealthServicer()
     health_pb2_grpc.add_HealthServicer_to_server(health_servicer, server)
     for name in service_names:

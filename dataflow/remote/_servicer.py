@@ -23,12 +23,14 @@ from typing import TYPE_CHECKING, Any
 
 import grpc
 
+from dataflow import codec
 from dataflow.errors import NotFoundError, PortTypeError
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote import _convert as cv
 from dataflow.remote._inbox import Inbox
 from dataflow.remote._proto import df as pb
+from dataflow.remote._proto import df_grpc
 from dataflow.remote._rpc import MAX_MESSAGE_BYTES, Abort, abort
 
 if TYPE_CHECKING:
@@ -37,11 +39,11 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 _TRANSITIONS = {
-    pb.Transition["TRANSITION_CONFIGURE"]: "configure",
-    pb.Transition["TRANSITION_START"]: "start",
-    pb.Transition["TRANSITION_STOP"]: "stop",
-    pb.Transition["TRANSITION_CLEANUP"]: "cleanup",
-    pb.Transition["TRANSITION_RECOVER"]: "recover",
+    pb.Transition.Value("TRANSITION_CONFIGURE"): "configure",
+    pb.Transition.Value("TRANSITION_START"): "start",
+    pb.Transition.Value("TRANSITION_STOP"): "stop",
+    pb.Transition.Value("TRANSITION_CLEANUP"): "cleanup",
+    pb.Transition.Value("TRANSITION_RECOVER"): "recover",
 }
 
 
@@ -79,7 +81,7 @@ class _Writer:
         self.out.disconnect(self.target)
 
 
-class DeployerServicer:
+class DeployerServicer(df_grpc.DeployerServiceServicer):
     """Implements every method of ``scart.dataflow.v1.DeployerService`` for one server."""
 
     def __init__(self, owner: DeployerServer, heartbeat_ms: int, max_streams: int) -> None:
@@ -123,7 +125,7 @@ class DeployerServicer:
                 raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, got {json_text!r}: {exc}") from None
         given = msg.type_name or "None"
         try:
-            value = cv.decode(msg)
+            value = codec.decode(msg)
             return registry.validate(py_type, value)
         except (PortTypeError, TypeError, ValueError) as exc:
             raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, given {given}: {exc}") from None
@@ -173,7 +175,7 @@ class DeployerServicer:
                     port = task.port(p.name)
                     last = port.last_written_value()
                     if last is not None:
-                        info.last_value.CopyFrom(cv.encode(last, port.type))
+                        info.last_value.CopyFrom(codec.encode(last, port.type))
                         info.has_last_value = True
                 ports.append(info)
             props = [
@@ -293,7 +295,7 @@ class DeployerServicer:
                     seen.written, seen.sequence, seen.stamp = written, seen.sequence + 1, time.time_ns()
                 sequence, stamp = seen.sequence, seen.stamp
             return pb.ReadPortResponse(
-                flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=cv.encode(value, port.type),
+                flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=codec.encode(value, port.type),
                 sequence=sequence, source_time_ns=stamp,
             )
         except Exception as exc:  # noqa: BLE001
@@ -333,7 +335,7 @@ class DeployerServicer:
         batch: list[Any] = []
         size = 0
         for seq, stamp, value in stream.take():
-            sample = pb.Sample(value=cv.encode(value, stream.port.type), sequence=seq, source_time_ns=stamp)
+            sample = pb.Sample(value=codec.encode(value, stream.port.type), sequence=seq, source_time_ns=stamp)
             n = sample.ByteSize() + 8  # + the field's tag and length
             if n > self.batch_bytes:
                 stream.count_dropped()
@@ -377,14 +379,14 @@ class DeployerServicer:
                 elif py_type is not None:
                     args.append(self._value_for(where, py_type, tname, arg, ""))
                 else:
-                    args.append(cv.decode(arg))
+                    args.append(codec.decode(arg))
             try:
                 result = task.call(desc.name, *args)
             except (NotFoundError, PortTypeError, Abort):
                 raise
             except Exception as exc:  # noqa: BLE001 - the operation's own failure
                 raise Abort("UNKNOWN", f"{task.name}.{desc.name} raised {type(exc).__name__}: {exc}") from None
-            return pb.CallOperationResponse(result=cv.encode(result))
+            return pb.CallOperationResponse(result=codec.encode(result))
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
@@ -399,7 +401,7 @@ class DeployerServicer:
             task = self._task(request.task)
             prop = self._property(task, request.name)
             value = task.get_property(request.name)
-            return pb.GetPropertyResponse(value=cv.encode(value, prop.type), json_value=cv.to_json_text(value))
+            return pb.GetPropertyResponse(value=codec.encode(value, prop.type), json_value=cv.to_json_text(value))
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import grpc
 
+from dataflow import codec
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.remote import _convert as cv
@@ -192,7 +193,7 @@ class GrpcSubscription(Subscription):
                 self._server_dropped_now = msg.dropped
                 for sample in msg.samples:
                     try:
-                        value = cv.decode(sample.value)
+                        value = codec.decode(sample.value)
                     except Exception:  # noqa: BLE001 - one bad sample must not end the stream
                         self.decode_errors += 1
                         log.exception(

@@ -23,12 +23,13 @@ from typing import Any
 
 import grpc
 
+from dataflow import codec
 from dataflow.errors import DataflowError
 from dataflow.introspection import OperationDescription, PortDescription, PropertyDescription, TaskDescription
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.remote import _convert as cv
 from dataflow.remote import _rpc, errors
-from dataflow.remote._proto import DEPLOYER_SERVICE
+from dataflow.remote._proto import df_grpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._subscription import GrpcSubscription
 from dataflow.remote.api import (
@@ -67,13 +68,13 @@ class GrpcSystem(System):
         self.heartbeat_ms = heartbeat_ms
         self._ns = NameClient(address, timeout=timeout)
         self._lock = threading.Lock()
-        self._channels: dict[str, tuple[grpc.Channel, _rpc.Stub]] = {}
+        self._channels: dict[str, tuple[grpc.Channel, df_grpc.DeployerServiceStub]] = {}
         self._where: dict[str, str] = {}
         self._owned: set[Any] = set()
         self._closed = False
 
     # ---- plumbing ----------------------------------------------------------------------
-    def _stub(self, address: str) -> _rpc.Stub:
+    def _stub(self, address: str) -> df_grpc.DeployerServiceStub:
         """The DeployerService stub for ``address`` (one channel per address, cached)."""
         with self._lock:
             if self._closed:
@@ -81,7 +82,7 @@ class GrpcSystem(System):
             entry = self._channels.get(address)
             if entry is None:
                 channel = grpc.insecure_channel(address, options=_rpc.channel_options())
-                entry = self._channels[address] = (channel, _rpc.Stub(channel, DEPLOYER_SERVICE))
+                entry = self._channels[address] = (channel, df_grpc.DeployerServiceStub(channel))
             return entry[1]
 
     def resolve(self, component: str, fresh: bool = False) -> str:
@@ -212,7 +213,7 @@ def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
         name=s.name, state=s.state, activity=s.activity, period=s.period, cycles=s.cycles,
         overruns=s.overruns, ports=ports, properties=props, operations=ops,
     )
-    last = {p.name: cv.decode(p.last_value) for p in info.ports if p.has_last_value}
+    last = {p.name: codec.decode(p.last_value) for p in info.ports if p.has_last_value}
     return desc, last
 
 
@@ -245,14 +246,14 @@ class GrpcComponentProxy(ComponentProxy):
     def change_state(self, transition: str) -> bool:
         if transition not in TRANSITIONS:
             raise ValueError(f"unknown transition {transition!r}; expected one of {', '.join(TRANSITIONS)}")
-        req = pb.ChangeStateRequest(task=self.name, transition=pb.Transition[f"TRANSITION_{transition.upper()}"])
+        req = pb.ChangeStateRequest(task=self.name, transition=pb.Transition.Value(f"TRANSITION_{transition.upper()}"))
         return bool(self._invoke("ChangeState", req).accepted)
 
     def connect_input(self, port: str, policy: ConnPolicy = ConnPolicy.data()) -> GrpcPortWriter:
         return GrpcPortWriter(self, port, policy)
 
     def write(self, port: str, value: object) -> WriteStatus:
-        req = pb.WritePortRequest(task=self.name, port=port, value=cv.encode(value))
+        req = pb.WritePortRequest(task=self.name, port=port, value=codec.encode(value))
         return cv.write_from_msg(self._invoke("WritePort", req).status)
 
     def write_json(self, port: str, json_value: object) -> WriteStatus:
@@ -272,7 +273,7 @@ class GrpcComponentProxy(ComponentProxy):
             new = self._seen.get(port) != reply.sequence
             self._seen[port] = reply.sequence
         flow = FlowStatus.NEW_DATA if new else FlowStatus.OLD_DATA
-        return flow, cv.decode(reply.value), reply.sequence, reply.source_time_ns
+        return flow, codec.decode(reply.value), reply.sequence, reply.source_time_ns
 
     def subscribe(
         self,
@@ -288,20 +289,20 @@ class GrpcComponentProxy(ComponentProxy):
         return GrpcSubscription(self, port, observer, policy, period, on_gap)
 
     def call(self, operation: str, *args: object, timeout: float | None = None) -> object:
-        req = pb.CallOperationRequest(task=self.name, operation=operation, args=[cv.encode(a) for a in args])
-        return cv.decode(self._invoke("CallOperation", req, timeout).result)
+        req = pb.CallOperationRequest(task=self.name, operation=operation, args=[codec.encode(a) for a in args])
+        return codec.decode(self._invoke("CallOperation", req, timeout).result)
 
     def call_json(self, operation: str, json_args: list[object], timeout: float | None = None) -> object:
         req = pb.CallOperationRequest(
             task=self.name, operation=operation, json_args=[json.dumps(a) for a in json_args], use_json=True
         )
-        return cv.decode(self._invoke("CallOperation", req, timeout).result)
+        return codec.decode(self._invoke("CallOperation", req, timeout).result)
 
     def get_property(self, name: str) -> object:
-        return cv.decode(self._invoke("GetProperty", pb.GetPropertyRequest(task=self.name, name=name)).value)
+        return codec.decode(self._invoke("GetProperty", pb.GetPropertyRequest(task=self.name, name=name)).value)
 
     def set_property(self, name: str, value: object) -> None:
-        self._invoke("SetProperty", pb.SetPropertyRequest(task=self.name, name=name, value=cv.encode(value)))
+        self._invoke("SetProperty", pb.SetPropertyRequest(task=self.name, name=name, value=codec.encode(value)))
 
     def set_property_json(self, name: str, json_value: object) -> object:
         req = pb.SetPropertyRequest(task=self.name, name=name, json=json.dumps(json_value))
@@ -326,7 +327,7 @@ class GrpcPortWriter(PortWriter):
     def write(self, value: object) -> WriteStatus:
         if self._closed:
             raise errors.ClosedError(f"writer to {self.component}.{self.port} is closed")
-        req = pb.WritePortRequest(writer_id=self._id, value=cv.encode(value))
+        req = pb.WritePortRequest(writer_id=self._id, value=codec.encode(value))
         try:
             return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
         except errors.RemoteNotFoundError:

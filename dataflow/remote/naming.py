@@ -27,7 +27,8 @@ import grpc
 from dataflow.errors import DataflowError, NotFoundError
 from dataflow.remote import _rpc, errors
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
-from dataflow.remote._proto import NAMING_SERVICE, NAMING_SERVICE_NAME, ns as pb
+from dataflow.remote._proto import NAMING_SERVICE_NAME, ns_grpc
+from dataflow.remote._proto import ns as pb
 
 __all__ = [
     "DEFAULT_NS_PORT",
@@ -200,7 +201,7 @@ def _entry_msg(entry: NameEntry) -> Any:
     return pb.Entry(component=entry.component, address=entry.address, deployer_id=entry.deployer_id, expires_in=left)
 
 
-class NamingServicer:
+class NamingServicer(ns_grpc.NamingServiceServicer):
     """gRPC face of a :class:`NameRegistry` (methods named as in naming.proto)."""
 
     def __init__(self, registry: NameRegistry) -> None:
@@ -272,8 +273,8 @@ def serve_nameserver(
     Raises :class:`errors.UnavailableError` when ``address`` cannot be bound.
     """
     registry = NameRegistry(default_lease=default_lease)
-    handler = _rpc.generic_handler(NAMING_SERVICE, NamingServicer(registry))
-    server, port, _health, executor = _rpc.make_server(address, [handler], [NAMING_SERVICE_NAME], max_workers)
+    servicer = (ns_grpc.add_NamingServiceServicer_to_server, NamingServicer(registry))
+    server, port, _health, executor = _rpc.make_server(address, [servicer], [NAMING_SERVICE_NAME], max_workers)
     return NameServer(server, _rpc.bound_address(address, port), registry, executor)
 
 
@@ -289,7 +290,7 @@ class NameClient:
         self.address = address
         self.timeout = timeout
         self._channel = grpc.insecure_channel(address, options=_rpc.channel_options())
-        self._stub = _rpc.Stub(self._channel, NAMING_SERVICE)
+        self._stub = ns_grpc.NamingServiceStub(self._channel)
 
     def _call(self, name: str, request: Any, timeout: float | None) -> Any:
         return _rpc.call(getattr(self._stub, name), request, timeout or self.timeout, self.address)

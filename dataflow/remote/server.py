@@ -24,13 +24,14 @@ from typing import Any
 
 import grpc
 
+from dataflow import codec
 from dataflow.deployer import Deployer
 from dataflow.errors import NotFoundError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
 from dataflow.remote import _convert as cv
 from dataflow.remote import _rpc, errors
-from dataflow.remote._proto import DEPLOYER_SERVICE, DEPLOYER_SERVICE_NAME, NAMING_SERVICE, NAMING_SERVICE_NAME
+from dataflow.remote._proto import DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME, df_grpc, ns_grpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
 from dataflow.remote.naming import (
@@ -77,7 +78,7 @@ class _RemoteLink:
                 status, value = self.inp.read()
                 if status is not FlowStatus.NEW_DATA:
                     break
-                yield pb.WritePortStreamRequest(value=cv.encode(value, self.out.type))
+                yield pb.WritePortStreamRequest(value=codec.encode(value, self.out.type))
 
     def _run(self) -> None:
         backoff = 0.05
@@ -85,7 +86,7 @@ class _RemoteLink:
             try:
                 address = self.server.resolve(self.sink_task)
                 with grpc.insecure_channel(address, options=_rpc.channel_options()) as channel:
-                    stub = _rpc.Stub(channel, DEPLOYER_SERVICE)
+                    stub = df_grpc.DeployerServiceStub(channel)
                     self._call = stub.WritePortStream.future(self._requests())
                     self._call.result()
                 backoff = 0.05
@@ -144,12 +145,12 @@ class DeployerServer:
         self.deployer_id = uuid.uuid4().hex
         self.registry: NameRegistry | None = None if ns else NameRegistry(default_lease=lease_seconds)
         self._servicer = DeployerServicer(self, heartbeat_ms=heartbeat_ms, max_streams=max(1, max_workers - 8))
-        handlers = [_rpc.generic_handler(DEPLOYER_SERVICE, self._servicer)]
+        servicers: list[_rpc.Servicer] = [(df_grpc.add_DeployerServiceServicer_to_server, self._servicer)]
         names = [DEPLOYER_SERVICE_NAME]
         if self.registry is not None:
-            handlers.append(_rpc.generic_handler(NAMING_SERVICE, _EmbeddedNaming(self)))
+            servicers.append((ns_grpc.add_NamingServiceServicer_to_server, _EmbeddedNaming(self)))
             names.append(NAMING_SERVICE_NAME)
-        self._server, port, _health, self._executor = _rpc.make_server(address, handlers, names, max_workers)
+        self._server, port, _health, self._executor = _rpc.make_server(address, servicers, names, max_workers)
         self.address = _rpc.bound_address(address, port)
         self.ns_address = ns or self.address
         self._links: dict[tuple[str, str, str, str], _RemoteLink] = {}

@@ -27,7 +27,7 @@ import grpc
 
 from scart.api import CURRENT_CALLBACK, InterfaceInfo
 from scart.bindings._grpc_wire import (
-    PATHS, Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, signatures,
+    Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
 from scart.bindings.base import BindingHost, ServiceEndpoint
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
@@ -287,23 +287,7 @@ class GrpcServer:
         """Listen on the configured address; raises ``ScartError`` naming it if that fails."""
         self._server_pool = ThreadPoolExecutor(MAX_WORKERS, thread_name_prefix="scart-grpc-server")
         server = grpc.server(self._server_pool, options=SERVER_OPTIONS)
-        handlers = {
-            "Call": grpc.unary_unary_rpc_method_handler(
-                self._call, pb.CallRequest.FromString, pb.CallResponse.SerializeToString),
-            "Send": grpc.unary_unary_rpc_method_handler(
-                self._send, pb.SendRequest.FromString, pb.SendResponse.SerializeToString),
-            "Invoke": grpc.unary_stream_rpc_method_handler(
-                self._invoke, pb.InvokeRequest.FromString, pb.InvokeResponse.SerializeToString),
-            "ReplyCallback": grpc.unary_unary_rpc_method_handler(
-                self._reply, pb.ReplyCallbackRequest.FromString, pb.ReplyCallbackResponse.SerializeToString),
-            "OpenCallbackSession": grpc.stream_stream_rpc_method_handler(
-                self._open_session, pb.OpenCallbackSessionRequest.FromString,
-                pb.OpenCallbackSessionResponse.SerializeToString),
-            "ListServices": grpc.unary_unary_rpc_method_handler(
-                self._list, pb.ListServicesRequest.FromString, pb.ListServicesResponse.SerializeToString),
-        }
-        assert set(handlers) == set(PATHS), "handlers must match the proto's ScaService"
-        server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler("scart.sca.v1.ScaService", handlers),))
+        pb_grpc.add_ScaServiceServicer_to_server(_Servicer(self), server)
         try:
             port = server.add_insecure_port(self.configured)
         except RuntimeError:
@@ -532,6 +516,18 @@ class GrpcServer:
         with self._lock:
             exported = list(self._exported)
         return pb.ListServicesResponse(services=[e.info() for e in exported])
+
+
+class _Servicer(pb_grpc.ScaServiceServicer):
+    """The generated servicer interface, answered by a :class:`GrpcServer`."""
+
+    def __init__(self, server: GrpcServer) -> None:
+        self.Call = server._call
+        self.Send = server._send
+        self.Invoke = server._invoke
+        self.ReplyCallback = server._reply
+        self.OpenCallbackSession = server._open_session
+        self.ListServices = server._list
 
 
 class ServerTable:

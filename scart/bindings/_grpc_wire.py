@@ -1,14 +1,8 @@
-"""The wire side of ``binding.grpc`` (private): messages from ``proto/``, values, faults.
+"""The wire side of ``binding.grpc`` (private): its messages, values, faults.
 
-Messages are built at import time from ``proto/scart/sca/v1/sca.proto`` (never generated
-code): :mod:`dataflow.remote._proto` compiles every ``.proto`` under ``proto/`` into the
-default descriptor pool, and the classes here are made from that pool. Should that
-loader not have the file (it was imported before the file existed), the file is compiled
-here the same way.
-
-Values go through the data-flow type registry (``registry.encode`` / ``decode``); two
-names are added on top of it: ``""`` is ``None`` and ``"scart.json"`` is JSON text, for
-values the registry has no name for (dicts, mixed lists, lists of models). On the
+Messages are the code protoc made of ``scart/sca/v1/sca.proto`` (:mod:`dataflow.proto`).
+Values go through the one codec, :mod:`dataflow.codec` (the type registry, plus ``""``
+for None and ``"scart.json"`` for values the registry has no name for). On the
 receiving side, values are coerced to the parameter / return annotations of the
 interface (pydantic, lax), so an unregistered pydantic model arrives as that model.
 """
@@ -16,114 +10,40 @@ interface (pydantic, lax), so an unregistered pydantic model arrives as that mod
 from __future__ import annotations
 
 import inspect
-import struct
 import traceback
 import typing
 from collections.abc import Callable
-from types import SimpleNamespace
 from typing import Any
 
 import pydantic
-import pydantic_core
-from google.protobuf import descriptor_pool, message_factory
-from google.protobuf.descriptor import ServiceDescriptor
 
-from dataflow import registry
-from dataflow.types import UnknownValue
+from dataflow import codec
+from dataflow.errors import PortTypeError
+from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
+from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc
+from dataflow.types import registry
 from scart.errors import InvocationError, RemoteError
 
-SCA_PROTO = "scart/sca/v1/sca.proto"
-SCA_SERVICE_NAME = "scart.sca.v1.ScaService"
-NONE_TYPE = ""
-JSON_TYPE = "scart.json"
-FLOAT_LIST = registry.type_name(list[float])  # "float64[]": packed little-endian doubles
-
-
-def _load() -> tuple[SimpleNamespace, ServiceDescriptor]:
-    from dataflow.remote import _proto  # compiles every proto/ file into the default pool
-
-    pool = descriptor_pool.Default()
-    try:
-        file_desc = pool.FindFileByName(SCA_PROTO)
-    except KeyError:
-        for file_proto in _proto.compile_protos([SCA_PROTO]).file:
-            pool.Add(file_proto)
-        file_desc = pool.FindFileByName(SCA_PROTO)
-    space = SimpleNamespace()
-    for name, desc in file_desc.message_types_by_name.items():
-        setattr(space, name, message_factory.GetMessageClass(desc))
-    space.Value = message_factory.GetMessageClass(pool.FindMessageTypeByName("scart.dataflow.v1.Value"))
-    return space, pool.FindServiceByName(SCA_SERVICE_NAME)
-
-
-pb, SCA_SERVICE = _load()
-PATHS: dict[str, str] = {m.name: f"/{SCA_SERVICE_NAME}/{m.name}" for m in SCA_SERVICE.methods}
-
-# --- values ---------------------------------------------------------------------------
-
-_PLAIN = (float, int, bool, str, bytes)
+SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
+PATHS: dict[str, str] = {m.name: f"/{SCA_SERVICE.full_name}/{m.name}" for m in SCA_SERVICE.methods}
+NONE_TYPE = codec.NONE_TYPE
+JSON_TYPE = codec.JSON_TYPE
 
 
 def encode(value: Any) -> Any:
     """``value`` as a ``scart.dataflow.v1.Value``; raises ``InvocationError`` if it cannot be sent."""
     try:
-        return _encode(value)
-    except (struct.error, OverflowError):  # e.g. an int beyond int64: JSON has no such limit
-        return _json(value)
-
-
-def _encode(value: Any) -> Any:
-    kind = type(value)
-    if value is None:
-        return pb.Value(type_name=NONE_TYPE)
-    if kind in _PLAIN or isinstance(value, (pydantic.BaseModel, UnknownValue)):
-        enc = registry.encode(value)
-        return pb.Value(type_name=enc.type_name, data=enc.data)
-    if kind is list or kind is tuple:
-        if value and type(value[0]) is float:  # the hot case (joint vectors...): pack directly
-            try:
-                return pb.Value(type_name=FLOAT_LIST, data=struct.pack(f"<{len(value)}d", *value))
-            except struct.error:  # not all numbers: the general path below
-                pass
-        py_type = _list_type(value)
-        if py_type is not None:
-            enc = registry.encode(list(value), py_type)
-            return pb.Value(type_name=enc.type_name, data=enc.data)
-    elif registry.python_type(registry.type_name(kind)) is kind:
-        enc = registry.encode(value)
-        return pb.Value(type_name=enc.type_name, data=enc.data)
-    return _json(value)
-
-
-def _json(value: Any) -> Any:
-    try:
-        return pb.Value(type_name=JSON_TYPE, data=pydantic_core.to_json(value, inf_nan_mode="constants"))
-    except pydantic_core.PydanticSerializationError as exc:
+        return codec.encode(value)
+    except PortTypeError as exc:
         raise InvocationError(f"binding.grpc: cannot send a value of type {type(value).__qualname__}: {exc}") from None
 
 
-def _list_type(value: list[Any] | tuple[Any, ...]) -> Any:
-    if not value:
-        return list[float]
-    first = type(value[0])
-    if first in (float, int, str) and all(type(v) is first for v in value):
-        return {float: list[float], int: list[int], str: list[str]}[first]
-    return None
-
-
 def decode(value: Any) -> Any:
-    """The Python value of a ``Value`` message (``UnknownValue`` for an unknown type name)."""
-    name = value.type_name
-    if name == NONE_TYPE:
-        return None
-    if name == FLOAT_LIST:
-        data = value.data
-        if len(data) % 8:
-            raise InvocationError(f"malformed {FLOAT_LIST} value: {len(data)} bytes is not a whole number of doubles")
-        return list(struct.unpack(f"<{len(data) // 8}d", data))
-    if name == JSON_TYPE:
-        return pydantic_core.from_json(value.data, allow_inf_nan=True)
-    return registry.decode(name, value.data)
+    """The Python value of a ``Value`` message; raises ``InvocationError`` for malformed bytes."""
+    try:
+        return codec.decode(value)
+    except PortTypeError as exc:
+        raise InvocationError(f"binding.grpc: malformed value: {exc}") from None
 
 
 # --- coercion to annotations -----------------------------------------------------------

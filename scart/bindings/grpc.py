@@ -67,7 +67,7 @@ import grpc
 from scart.api import InterfaceInfo, Operation
 from scart.bindings._grpc_server import Exported, GrpcServer, ServerTable
 from scart.bindings._grpc_wire import (
-    PATHS, RemoteError, UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, signatures,
+    RemoteError, UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
 from scart.bindings.base import (
     BindingHost,
@@ -237,18 +237,10 @@ class GrpcReferenceBinding(ReferenceBinding):
 
     def start(self) -> None:
         """Create the channel (it connects lazily: an absent provider is not an error yet)."""
-        ch = self._channel = grpc.insecure_channel(self.target_address, options=CHANNEL_OPTIONS)
-        self._call = ch.unary_unary(PATHS["Call"], request_serializer=pb.CallRequest.SerializeToString,
-                                    response_deserializer=pb.CallResponse.FromString)
-        self._send = ch.unary_unary(PATHS["Send"], request_serializer=pb.SendRequest.SerializeToString,
-                                    response_deserializer=pb.SendResponse.FromString)
-        self._invoke = ch.unary_stream(PATHS["Invoke"], request_serializer=pb.InvokeRequest.SerializeToString,
-                                       response_deserializer=pb.InvokeResponse.FromString)
-        self._reply = ch.unary_unary(PATHS["ReplyCallback"], request_serializer=pb.ReplyCallbackRequest.SerializeToString,
-                                     response_deserializer=pb.ReplyCallbackResponse.FromString)
-        self._open = ch.stream_stream(PATHS["OpenCallbackSession"],
-                                      request_serializer=pb.OpenCallbackSessionRequest.SerializeToString,
-                                      response_deserializer=pb.OpenCallbackSessionResponse.FromString)
+        self._channel = grpc.insecure_channel(self.target_address, options=CHANNEL_OPTIONS)
+        stub = pb_grpc.ScaServiceStub(self._channel)
+        self._call, self._send, self._invoke = stub.Call, stub.Send, stub.Invoke
+        self._reply, self._open = stub.ReplyCallback, stub.OpenCallbackSession
 
     def stop(self) -> None:
         """Close the callback session (joins its thread) and the channel. Idempotent."""

@@ -1,0 +1,116 @@
+"""The one codec between Python values and the wire's ``scart.dataflow.v1.Value``.
+
+Every value that crosses a process (port samples, properties, operation arguments and
+results, binding.grpc calls) goes through :func:`encode` and :func:`decode`:
+
+================  ===========================================================
+type name         what it holds
+================  ===========================================================
+``""``            ``None``
+registered name   a value of a registered type, encoded by :data:`dataflow.registry`
+                  (``float64``, ``float64[]``, pydantic models...; see
+                  :mod:`dataflow.types`)
+``scart.json``    JSON text, for a value the registry has no name for (a dict, a
+                  mixed list, a list of models, an int beyond int64)
+anything else     decodes to :class:`~dataflow.types.UnknownValue`, a mapping that
+                  keeps its type name: never an error
+================  ===========================================================
+
+``encode(value, py_type)`` with a port's or property's type encodes the value as that
+type (the data-flow side, where types are declared). Without one, the value's own type
+decides, as in the table. inf and NaN survive both ways.
+
+Importing this module imports protobuf (the ``Value`` message class), never grpc.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+import pydantic
+import pydantic_core
+
+from dataflow.errors import PortTypeError
+from dataflow.proto.scart.dataflow.v1.value_pb2 import Value
+from dataflow.types import UnknownValue, registry
+
+__all__ = ["FLOAT_LIST", "JSON_TYPE", "NONE_TYPE", "Value", "decode", "encode"]
+
+NONE_TYPE = ""
+JSON_TYPE = "scart.json"
+FLOAT_LIST = registry.type_name(list[float])  # "float64[]": packed little-endian doubles
+
+_PLAIN = (float, int, bool, str, bytes)
+
+
+def encode(value: Any, py_type: Any = None) -> Value:
+    """``value`` as a ``Value`` message (as ``py_type`` when given, see the module docstring).
+
+    Raises :class:`~dataflow.PortTypeError` naming the type when the value cannot be sent."""
+    if value is None:
+        return Value(type_name=NONE_TYPE)
+    try:
+        if py_type is not None:
+            enc = registry.encode(value, py_type)
+            return Value(type_name=enc.type_name, data=enc.data)
+        return _encode_untyped(value)
+    except (struct.error, OverflowError):  # e.g. an int beyond int64: JSON has no such limit
+        return _json(value)
+
+
+def _encode_untyped(value: Any) -> Value:
+    kind = type(value)
+    if kind in _PLAIN or isinstance(value, (pydantic.BaseModel, UnknownValue)):
+        enc = registry.encode(value)
+        return Value(type_name=enc.type_name, data=enc.data)
+    if kind is list or kind is tuple:
+        if value and type(value[0]) is float:  # the hot case (joint vectors...): pack directly
+            try:
+                return Value(type_name=FLOAT_LIST, data=struct.pack(f"<{len(value)}d", *value))
+            except struct.error:  # not all numbers: the general path below
+                pass
+        list_type = _list_type(value)
+        if list_type is not None:
+            enc = registry.encode(list(value), list_type)
+            return Value(type_name=enc.type_name, data=enc.data)
+    elif registry.python_type(registry.type_name(kind)) is kind:
+        enc = registry.encode(value)
+        return Value(type_name=enc.type_name, data=enc.data)
+    return _json(value)
+
+
+def _json(value: Any) -> Value:
+    try:
+        return Value(type_name=JSON_TYPE, data=pydantic_core.to_json(value, inf_nan_mode="constants"))
+    except pydantic_core.PydanticSerializationError as exc:
+        raise PortTypeError(f"cannot encode a value of type {type(value).__qualname__}: {exc}") from None
+
+
+def _list_type(value: list[Any] | tuple[Any, ...]) -> Any:
+    if not value:
+        return list[float]
+    first = type(value[0])
+    if first in (float, int, str) and all(type(v) is first for v in value):
+        return {float: list[float], int: list[int], str: list[str]}[first]
+    return None
+
+
+def decode(msg: Value) -> Any:
+    """The Python value of a ``Value`` message (see the module docstring).
+
+    Raises :class:`~dataflow.PortTypeError` when the bytes do not fit their type name."""
+    name = msg.type_name
+    if name == NONE_TYPE:
+        return None
+    if name == FLOAT_LIST:  # the hot case, without the registry's lookups
+        data = msg.data
+        if len(data) % 8:
+            raise PortTypeError(f"cannot decode {FLOAT_LIST}: {len(data)} bytes is not a whole number of doubles")
+        return list(struct.unpack(f"<{len(data) // 8}d", data))
+    if name == JSON_TYPE:
+        try:
+            return pydantic_core.from_json(msg.data, allow_inf_nan=True)
+        except ValueError as exc:
+            raise PortTypeError(f"cannot decode {JSON_TYPE}: {exc}") from None
+    return registry.decode(name, msg.data)

@@ -1,0 +1,407 @@
+from dataflow.proto.scart.dataflow.v1 import value_pb2 as _value_pb2
+from google.protobuf.internal import containers as _containers
+from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
+from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
+
+DESCRIPTOR: _descriptor.FileDescriptor
+
+class ConnType(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    CONN_TYPE_UNSPECIFIED: _ClassVar[ConnType]
+    CONN_TYPE_DATA: _ClassVar[ConnType]
+    CONN_TYPE_BUFFER: _ClassVar[ConnType]
+    CONN_TYPE_CIRCULAR_BUFFER: _ClassVar[ConnType]
+
+class FlowStatus(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    FLOW_STATUS_UNSPECIFIED: _ClassVar[FlowStatus]
+    FLOW_STATUS_NO_DATA: _ClassVar[FlowStatus]
+    FLOW_STATUS_OLD_DATA: _ClassVar[FlowStatus]
+    FLOW_STATUS_NEW_DATA: _ClassVar[FlowStatus]
+
+class WriteStatus(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    WRITE_STATUS_UNSPECIFIED: _ClassVar[WriteStatus]
+    WRITE_STATUS_WRITE_SUCCESS: _ClassVar[WriteStatus]
+    WRITE_STATUS_WRITE_FAILURE: _ClassVar[WriteStatus]
+    WRITE_STATUS_NOT_CONNECTED: _ClassVar[WriteStatus]
+
+class Transition(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    TRANSITION_UNSPECIFIED: _ClassVar[Transition]
+    TRANSITION_CONFIGURE: _ClassVar[Transition]
+    TRANSITION_START: _ClassVar[Transition]
+    TRANSITION_STOP: _ClassVar[Transition]
+    TRANSITION_CLEANUP: _ClassVar[Transition]
+    TRANSITION_RECOVER: _ClassVar[Transition]
+CONN_TYPE_UNSPECIFIED: ConnType
+CONN_TYPE_DATA: ConnType
+CONN_TYPE_BUFFER: ConnType
+CONN_TYPE_CIRCULAR_BUFFER: ConnType
+FLOW_STATUS_UNSPECIFIED: FlowStatus
+FLOW_STATUS_NO_DATA: FlowStatus
+FLOW_STATUS_OLD_DATA: FlowStatus
+FLOW_STATUS_NEW_DATA: FlowStatus
+WRITE_STATUS_UNSPECIFIED: WriteStatus
+WRITE_STATUS_WRITE_SUCCESS: WriteStatus
+WRITE_STATUS_WRITE_FAILURE: WriteStatus
+WRITE_STATUS_NOT_CONNECTED: WriteStatus
+TRANSITION_UNSPECIFIED: Transition
+TRANSITION_CONFIGURE: Transition
+TRANSITION_START: Transition
+TRANSITION_STOP: Transition
+TRANSITION_CLEANUP: Transition
+TRANSITION_RECOVER: Transition
+
+class ConnPolicy(_message.Message):
+    __slots__ = ("type", "size", "init", "lock_policy", "buffer_policy", "mandatory")
+    TYPE_FIELD_NUMBER: _ClassVar[int]
+    SIZE_FIELD_NUMBER: _ClassVar[int]
+    INIT_FIELD_NUMBER: _ClassVar[int]
+    LOCK_POLICY_FIELD_NUMBER: _ClassVar[int]
+    BUFFER_POLICY_FIELD_NUMBER: _ClassVar[int]
+    MANDATORY_FIELD_NUMBER: _ClassVar[int]
+    type: ConnType
+    size: int
+    init: bool
+    lock_policy: str
+    buffer_policy: str
+    mandatory: bool
+    def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ...) -> None: ...
+
+class TaskSummary(_message.Message):
+    __slots__ = ("name", "state", "activity", "period", "cycles", "overruns")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    STATE_FIELD_NUMBER: _ClassVar[int]
+    ACTIVITY_FIELD_NUMBER: _ClassVar[int]
+    PERIOD_FIELD_NUMBER: _ClassVar[int]
+    CYCLES_FIELD_NUMBER: _ClassVar[int]
+    OVERRUNS_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    state: str
+    activity: str
+    period: float
+    cycles: int
+    overruns: int
+    def __init__(self, name: _Optional[str] = ..., state: _Optional[str] = ..., activity: _Optional[str] = ..., period: _Optional[float] = ..., cycles: _Optional[int] = ..., overruns: _Optional[int] = ...) -> None: ...
+
+class PortInfo(_message.Message):
+    __slots__ = ("name", "direction", "type_name", "doc", "connections", "event", "last_value", "has_last_value")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    DIRECTION_FIELD_NUMBER: _ClassVar[int]
+    TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
+    DOC_FIELD_NUMBER: _ClassVar[int]
+    CONNECTIONS_FIELD_NUMBER: _ClassVar[int]
+    EVENT_FIELD_NUMBER: _ClassVar[int]
+    LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
+    HAS_LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    direction: str
+    type_name: str
+    doc: str
+    connections: int
+    event: bool
+    last_value: _value_pb2.Value
+    has_last_value: bool
+    def __init__(self, name: _Optional[str] = ..., direction: _Optional[str] = ..., type_name: _Optional[str] = ..., doc: _Optional[str] = ..., connections: _Optional[int] = ..., event: _Optional[bool] = ..., last_value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., has_last_value: _Optional[bool] = ...) -> None: ...
+
+class PropertyInfo(_message.Message):
+    __slots__ = ("name", "type_name", "json_value", "doc")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
+    JSON_VALUE_FIELD_NUMBER: _ClassVar[int]
+    DOC_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    type_name: str
+    json_value: str
+    doc: str
+    def __init__(self, name: _Optional[str] = ..., type_name: _Optional[str] = ..., json_value: _Optional[str] = ..., doc: _Optional[str] = ...) -> None: ...
+
+class Parameter(_message.Message):
+    __slots__ = ("name", "type_name")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    type_name: str
+    def __init__(self, name: _Optional[str] = ..., type_name: _Optional[str] = ...) -> None: ...
+
+class OperationInfo(_message.Message):
+    __slots__ = ("name", "params", "returns", "doc", "own_thread", "signature")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    PARAMS_FIELD_NUMBER: _ClassVar[int]
+    RETURNS_FIELD_NUMBER: _ClassVar[int]
+    DOC_FIELD_NUMBER: _ClassVar[int]
+    OWN_THREAD_FIELD_NUMBER: _ClassVar[int]
+    SIGNATURE_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    params: _containers.RepeatedCompositeFieldContainer[Parameter]
+    returns: str
+    doc: str
+    own_thread: bool
+    signature: str
+    def __init__(self, name: _Optional[str] = ..., params: _Optional[_Iterable[_Union[Parameter, _Mapping]]] = ..., returns: _Optional[str] = ..., doc: _Optional[str] = ..., own_thread: _Optional[bool] = ..., signature: _Optional[str] = ...) -> None: ...
+
+class TaskInfo(_message.Message):
+    __slots__ = ("summary", "ports", "properties", "operations")
+    SUMMARY_FIELD_NUMBER: _ClassVar[int]
+    PORTS_FIELD_NUMBER: _ClassVar[int]
+    PROPERTIES_FIELD_NUMBER: _ClassVar[int]
+    OPERATIONS_FIELD_NUMBER: _ClassVar[int]
+    summary: TaskSummary
+    ports: _containers.RepeatedCompositeFieldContainer[PortInfo]
+    properties: _containers.RepeatedCompositeFieldContainer[PropertyInfo]
+    operations: _containers.RepeatedCompositeFieldContainer[OperationInfo]
+    def __init__(self, summary: _Optional[_Union[TaskSummary, _Mapping]] = ..., ports: _Optional[_Iterable[_Union[PortInfo, _Mapping]]] = ..., properties: _Optional[_Iterable[_Union[PropertyInfo, _Mapping]]] = ..., operations: _Optional[_Iterable[_Union[OperationInfo, _Mapping]]] = ...) -> None: ...
+
+class ListTasksRequest(_message.Message):
+    __slots__ = ()
+    def __init__(self) -> None: ...
+
+class ListTasksResponse(_message.Message):
+    __slots__ = ("tasks",)
+    TASKS_FIELD_NUMBER: _ClassVar[int]
+    tasks: _containers.RepeatedCompositeFieldContainer[TaskSummary]
+    def __init__(self, tasks: _Optional[_Iterable[_Union[TaskSummary, _Mapping]]] = ...) -> None: ...
+
+class DescribeTaskRequest(_message.Message):
+    __slots__ = ("task",)
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    def __init__(self, task: _Optional[str] = ...) -> None: ...
+
+class DescribeTaskResponse(_message.Message):
+    __slots__ = ("task",)
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    task: TaskInfo
+    def __init__(self, task: _Optional[_Union[TaskInfo, _Mapping]] = ...) -> None: ...
+
+class ChangeStateRequest(_message.Message):
+    __slots__ = ("task", "transition")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    TRANSITION_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    transition: Transition
+    def __init__(self, task: _Optional[str] = ..., transition: _Optional[_Union[Transition, str]] = ...) -> None: ...
+
+class ChangeStateResponse(_message.Message):
+    __slots__ = ("accepted", "state")
+    ACCEPTED_FIELD_NUMBER: _ClassVar[int]
+    STATE_FIELD_NUMBER: _ClassVar[int]
+    accepted: bool
+    state: str
+    def __init__(self, accepted: _Optional[bool] = ..., state: _Optional[str] = ...) -> None: ...
+
+class WritePortRequest(_message.Message):
+    __slots__ = ("task", "port", "value", "json", "writer_id")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    VALUE_FIELD_NUMBER: _ClassVar[int]
+    JSON_FIELD_NUMBER: _ClassVar[int]
+    WRITER_ID_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    value: _value_pb2.Value
+    json: str
+    writer_id: int
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., json: _Optional[str] = ..., writer_id: _Optional[int] = ...) -> None: ...
+
+class WritePortResponse(_message.Message):
+    __slots__ = ("status",)
+    STATUS_FIELD_NUMBER: _ClassVar[int]
+    status: WriteStatus
+    def __init__(self, status: _Optional[_Union[WriteStatus, str]] = ...) -> None: ...
+
+class WritePortStreamRequest(_message.Message):
+    __slots__ = ("task", "port", "policy", "value")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    VALUE_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    policy: ConnPolicy
+    value: _value_pb2.Value
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ...) -> None: ...
+
+class WritePortStreamResponse(_message.Message):
+    __slots__ = ("written", "failures")
+    WRITTEN_FIELD_NUMBER: _ClassVar[int]
+    FAILURES_FIELD_NUMBER: _ClassVar[int]
+    written: int
+    failures: int
+    def __init__(self, written: _Optional[int] = ..., failures: _Optional[int] = ...) -> None: ...
+
+class OpenWriterRequest(_message.Message):
+    __slots__ = ("task", "port", "policy")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    policy: ConnPolicy
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ...) -> None: ...
+
+class OpenWriterResponse(_message.Message):
+    __slots__ = ("writer_id",)
+    WRITER_ID_FIELD_NUMBER: _ClassVar[int]
+    writer_id: int
+    def __init__(self, writer_id: _Optional[int] = ...) -> None: ...
+
+class CloseWriterRequest(_message.Message):
+    __slots__ = ("writer_id",)
+    WRITER_ID_FIELD_NUMBER: _ClassVar[int]
+    writer_id: int
+    def __init__(self, writer_id: _Optional[int] = ...) -> None: ...
+
+class CloseWriterResponse(_message.Message):
+    __slots__ = ()
+    def __init__(self) -> None: ...
+
+class ReadPortRequest(_message.Message):
+    __slots__ = ("task", "port")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ...) -> None: ...
+
+class ReadPortResponse(_message.Message):
+    __slots__ = ("flow_status", "value", "sequence", "source_time_ns")
+    FLOW_STATUS_FIELD_NUMBER: _ClassVar[int]
+    VALUE_FIELD_NUMBER: _ClassVar[int]
+    SEQUENCE_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    flow_status: FlowStatus
+    value: _value_pb2.Value
+    sequence: int
+    source_time_ns: int
+    def __init__(self, flow_status: _Optional[_Union[FlowStatus, str]] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., sequence: _Optional[int] = ..., source_time_ns: _Optional[int] = ...) -> None: ...
+
+class SubscribeRequest(_message.Message):
+    __slots__ = ("task", "port", "policy", "heartbeat_ms")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    HEARTBEAT_MS_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    policy: ConnPolicy
+    heartbeat_ms: int
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
+
+class SubscribeResponse(_message.Message):
+    __slots__ = ("heartbeat", "samples", "dropped")
+    HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
+    SAMPLES_FIELD_NUMBER: _ClassVar[int]
+    DROPPED_FIELD_NUMBER: _ClassVar[int]
+    heartbeat: bool
+    samples: _containers.RepeatedCompositeFieldContainer[Sample]
+    dropped: int
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ...) -> None: ...
+
+class Sample(_message.Message):
+    __slots__ = ("value", "sequence", "source_time_ns")
+    VALUE_FIELD_NUMBER: _ClassVar[int]
+    SEQUENCE_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    value: _value_pb2.Value
+    sequence: int
+    source_time_ns: int
+    def __init__(self, value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., sequence: _Optional[int] = ..., source_time_ns: _Optional[int] = ...) -> None: ...
+
+class CallOperationRequest(_message.Message):
+    __slots__ = ("task", "operation", "args", "json_args", "use_json")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    OPERATION_FIELD_NUMBER: _ClassVar[int]
+    ARGS_FIELD_NUMBER: _ClassVar[int]
+    JSON_ARGS_FIELD_NUMBER: _ClassVar[int]
+    USE_JSON_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    operation: str
+    args: _containers.RepeatedCompositeFieldContainer[_value_pb2.Value]
+    json_args: _containers.RepeatedScalarFieldContainer[str]
+    use_json: bool
+    def __init__(self, task: _Optional[str] = ..., operation: _Optional[str] = ..., args: _Optional[_Iterable[_Union[_value_pb2.Value, _Mapping]]] = ..., json_args: _Optional[_Iterable[str]] = ..., use_json: _Optional[bool] = ...) -> None: ...
+
+class CallOperationResponse(_message.Message):
+    __slots__ = ("result",)
+    RESULT_FIELD_NUMBER: _ClassVar[int]
+    result: _value_pb2.Value
+    def __init__(self, result: _Optional[_Union[_value_pb2.Value, _Mapping]] = ...) -> None: ...
+
+class GetPropertyRequest(_message.Message):
+    __slots__ = ("task", "name")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    name: str
+    def __init__(self, task: _Optional[str] = ..., name: _Optional[str] = ...) -> None: ...
+
+class GetPropertyResponse(_message.Message):
+    __slots__ = ("value", "json_value")
+    VALUE_FIELD_NUMBER: _ClassVar[int]
+    JSON_VALUE_FIELD_NUMBER: _ClassVar[int]
+    value: _value_pb2.Value
+    json_value: str
+    def __init__(self, value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., json_value: _Optional[str] = ...) -> None: ...
+
+class SetPropertyRequest(_message.Message):
+    __slots__ = ("task", "name", "value", "json")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    VALUE_FIELD_NUMBER: _ClassVar[int]
+    JSON_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    name: str
+    value: _value_pb2.Value
+    json: str
+    def __init__(self, task: _Optional[str] = ..., name: _Optional[str] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., json: _Optional[str] = ...) -> None: ...
+
+class SetPropertyResponse(_message.Message):
+    __slots__ = ("json_value",)
+    JSON_VALUE_FIELD_NUMBER: _ClassVar[int]
+    json_value: str
+    def __init__(self, json_value: _Optional[str] = ...) -> None: ...
+
+class ConnectPortsRequest(_message.Message):
+    __slots__ = ("source_task", "source_port", "sink_task", "sink_port", "policy")
+    SOURCE_TASK_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_PORT_FIELD_NUMBER: _ClassVar[int]
+    SINK_TASK_FIELD_NUMBER: _ClassVar[int]
+    SINK_PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    source_task: str
+    source_port: str
+    sink_task: str
+    sink_port: str
+    policy: ConnPolicy
+    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ...) -> None: ...
+
+class ConnectPortsResponse(_message.Message):
+    __slots__ = ("local", "sink_address")
+    LOCAL_FIELD_NUMBER: _ClassVar[int]
+    SINK_ADDRESS_FIELD_NUMBER: _ClassVar[int]
+    local: bool
+    sink_address: str
+    def __init__(self, local: _Optional[bool] = ..., sink_address: _Optional[str] = ...) -> None: ...
+
+class DisconnectPortsRequest(_message.Message):
+    __slots__ = ("source_task", "source_port", "sink_task", "sink_port")
+    SOURCE_TASK_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_PORT_FIELD_NUMBER: _ClassVar[int]
+    SINK_TASK_FIELD_NUMBER: _ClassVar[int]
+    SINK_PORT_FIELD_NUMBER: _ClassVar[int]
+    source_task: str
+    source_port: str
+    sink_task: str
+    sink_port: str
+    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ...) -> None: ...
+
+class DisconnectPortsResponse(_message.Message):
+    __slots__ = ("disconnected",)
+    DISCONNECTED_FIELD_NUMBER: _ClassVar[int]
+    disconnected: bool
+    def __init__(self, disconnected: _Optional[bool] = ...) -> None: ...
