@@ -3,7 +3,7 @@
 Tasks are kept in the order they were added: ``configure_all``/``start_all`` walk that
 order, ``stop_all``/``cleanup_all`` the reverse. Used as a context manager it stops and
 cleans up everything on exit. ``serve()`` exposes the tasks over gRPC (implemented in
-:mod:`dataflow.remote`, imported only when called).
+:mod:`dataflow.remote.server`, imported only when called).
 """
 
 from __future__ import annotations
@@ -109,11 +109,22 @@ class Deployer:
             if task.state is TaskState.STOPPED:
                 task.cleanup()
 
-    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> DeployerServer:
-        """Serve these tasks over gRPC (see :mod:`dataflow.remote`); returns the server."""
-        from dataflow.remote.server import serve_deployer
+    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None, *, lease_seconds: float = 10.0,
+              heartbeat_ms: int = 500, max_workers: int = 64) -> DeployerServer:
+        """Serve these tasks over gRPC at ``address``; returns the running server once it
+        listens (does not block). The one public way to serve a deployer.
 
-        return serve_deployer(self, address, ns=ns)
+        ``ns=None`` embeds a name service in the server; otherwise the tasks are registered
+        with the name service at ``ns`` under a lease of ``lease_seconds`` (renewed by
+        heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
+        heartbeats; ``max_workers``: concurrent RPCs. Raises
+        :class:`dataflow.remote.AlreadyRegisteredError` for a name held by another live
+        deployer, :class:`dataflow.remote.UnavailableError` when nothing answers at ``ns``
+        or ``address`` cannot be bound. See :mod:`dataflow.remote.server`."""
+        from dataflow.remote.server import DeployerServer
+
+        return DeployerServer(self, address, ns=ns, lease_seconds=lease_seconds, heartbeat_ms=heartbeat_ms,
+                              max_workers=max_workers)
 
     def __enter__(self) -> Deployer:
         return self

@@ -14,6 +14,10 @@ the ``with`` creates the components and runs their ``@init`` (targets first); le
 runs ``@destroy`` in reverse. Components are plain classes declared with
 :func:`component`, :func:`interface`, :func:`prop`, :func:`reference`,
 :func:`callback`, :func:`oneway`, :func:`init` and :func:`destroy`.
+
+A runtime is configured by a :class:`Settings` (name service, timeouts...) and runs the
+extensions of its :class:`ExtensionRegistry` (found through entry points; see
+:mod:`scart.spi` to write one): ``Runtime.from_file(path, settings=..., extensions=...)``.
 """
 
 from scart.api import (
@@ -39,10 +43,14 @@ from scart.errors import (
     ServiceNotFoundError,
     ServiceUnavailableError,
 )
+from scart.extensions import ExtensionError, ExtensionRegistry
 from scart.runtime import Runtime, RuntimeState, ServiceProxy
+from scart.settings import Settings
 
 __all__ = [
     "ComponentContext",
+    "ExtensionError",
+    "ExtensionRegistry",
     "InvocationError",
     "NoCallbackError",
     "Problem",
@@ -55,6 +63,7 @@ __all__ = [
     "ServiceNotFoundError",
     "ServiceProxy",
     "ServiceUnavailableError",
+    "Settings",
     "callback",
     "component",
     "context",

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from scart.errors import NoCallbackError
+from scart.settings import Settings
 
 T = TypeVar("T")
 C = TypeVar("C", bound=type)
@@ -187,10 +188,12 @@ def context() -> Any:
 @dataclass(frozen=True)
 class ComponentContext:
     """What a component knows of itself: its ``name`` (qualified by enclosing components with
-    "/") and ``service(name)`` to look up a service of the runtime, like ``Runtime.service``."""
+    "/"), ``service(name)`` to look up a service of the runtime, like ``Runtime.service``,
+    and the runtime's ``settings`` (:class:`scart.Settings`: name service, timeouts...)."""
 
     name: str
     lookup: Callable[[str], Any] = field(repr=False)
+    settings: Settings = field(default_factory=Settings, repr=False)
 
     def service(self, name: str) -> Any:
         """A proxy to the named service (see ``Runtime.service``)."""

@@ -1,8 +1,10 @@
 """Assembly: the static checks, and the flat, resolved component graph the runtime runs.
 
 :func:`assemble` loads a composite and its contribution, introspects every
-implementation, checks every SCA assembly rule, and returns an :class:`Assembly` — or
-raises one :class:`~scart.errors.ScdlError` listing every problem. Nothing is started.
+implementation, checks every SCA assembly rule (and each extension's own checks), and
+returns an :class:`~scart.graph.Assembly` — or raises one
+:class:`~scart.errors.ScdlError` listing every problem. Nothing is started, and
+nothing touches the network unless the settings say ``online``.
 
 Two phases. *Build* walks composites top-down (nesting through
 ``implementation.composite``), introspects implementations and resolves property values
@@ -22,47 +24,17 @@ from typing import Any
 
 from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, PropSpec, RefSpec, interface_info
-from scart.checks import NARROWINGS as _NARROWINGS, Checks
+from scart.checks import NARROWINGS as _NARROWINGS
+from scart.checks import Checks
 from scart.contribution import Contribution, import_object
 from scart.errors import Problem, ScdlError
-from scart.implementations import IMPLEMENTATION_KINDS, ImplementationProblem
+from scart.extensions import ExtensionError, ExtensionRegistry
+from scart.graph import DEFAULT, Assembly, Bound, Endpoint, Node, Target
 from scart.model import Binding, Component, Composite, Element, Interface, Location, PropertyValue
+from scart.settings import Settings
+from scart.spi import CheckContext, ImplementationProblem, ImplementationProvider
 from scart.values import XSD_TYPES, is_many, parse_value
 
-
-
-@dataclass(frozen=True)
-class Target:
-    """A reference endpoint in this runtime: leaf component path and service name."""
-
-    node: str
-    service: str
-
-
-@dataclass(frozen=True)
-class Bound:
-    """A reference endpoint reached through a binding (no local target)."""
-
-    binding: Binding
-
-
-Endpoint = Target | Bound
-
-
-@dataclass
-class Node:
-    """A leaf component: implementation kind and type, values to inject, resolved references."""
-
-    path: str
-    model: Component
-    kind: str
-    ctype: ComponentType
-    properties: dict[str, Any] = field(default_factory=dict)
-    references: dict[str, list[Endpoint]] = field(default_factory=dict)
-    service_bindings: dict[str, list[Binding]] = field(default_factory=dict)
-    # service -> the paths it is promoted as out of nested composites whose bindings it carries
-    service_aliases: dict[str, list[str]] = field(default_factory=dict)
-    ref_interfaces: dict[str, InterfaceInfo] = field(default_factory=dict)  # as declared in the composite
 
 
 @dataclass
@@ -86,34 +58,21 @@ class Scope:
     ctype: ComponentType | None = None
 
 
-@dataclass
-class Assembly:
-    """The checked, resolved graph: leaf ``nodes`` by path, ``order`` (targets first),
-    top-level promoted ``services`` and their ``service_bindings``."""
-
-    composite: Composite
-    contribution: Contribution
-    nodes: dict[str, Node]
-    order: list[str]
-    services: dict[str, Target]
-    service_bindings: dict[str, list[Binding]]
-    aliases: dict[str, Target] = field(default_factory=dict)  # "Comp", "Comp/Service" of top-level components
-    extensions: list[tuple[str, Element]] = field(default_factory=list)  # (prefix, <scart:...>) of all composites
-    unused_overrides: set[str] = field(default_factory=set)  # overrides naming no property (non-strict mode)
-
-
-def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overrides: bool = True) -> Assembly:
+def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overrides: bool = True,
+             extensions: ExtensionRegistry | None = None, settings: Settings | None = None) -> Assembly:
     """Load, check and resolve the composite at ``path``; ``overrides`` maps
     "Component.prop" (or "Outer/Inner.prop") to a raw value. Raises ``ScdlError``.
 
+    ``extensions`` is the registry of kinds to check against (default: the entry points);
+    ``settings`` are given to the extensions' checks (offline unless ``settings.online``).
     With ``strict_overrides=False`` an override naming no component property is no
     problem; the keys not used are then in ``unused_overrides`` of the result (or of the
     ``ScdlError``), for callers checking several files (``scart validate --set``)."""
-    import scart.bindings.local  # noqa: F401  (registers binding.sca)
-
-    contribution = Contribution(path)
+    registry = extensions if extensions is not None else ExtensionRegistry()
+    contribution = Contribution(path, is_element=lambda name: _is_element(registry, name))
     root = contribution.load_root()
-    assembler = _Assembler(contribution, dict(overrides or {}), strict_overrides)
+    context = CheckContext(contribution.folder, contribution.root_file, settings or Settings(), contribution.import_object)
+    assembler = _Assembler(contribution, registry, context, dict(overrides or {}), strict_overrides)
     if root is None:
         err = ScdlError(contribution.problems)
         err.unused_overrides = set(overrides or {})  # type: ignore[attr-defined]
@@ -135,9 +94,19 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
 _REFUSED = re.compile(r"refused by its check: (.*?)(?: \[type=|$)", re.S)
 
 
+def _is_element(registry: ExtensionRegistry, name: str) -> bool:
+    try:
+        return registry.element(name) is not None
+    except ExtensionError:
+        return True  # known but broken: read it, and let the check report why it cannot be used
+
+
 class _Assembler(Checks):
-    def __init__(self, contribution: Contribution, overrides: dict[str, str], strict_overrides: bool = True) -> None:
+    def __init__(self, contribution: Contribution, registry: ExtensionRegistry, context: CheckContext,
+                 overrides: dict[str, str], strict_overrides: bool = True) -> None:
         self.contribution = contribution
+        self.registry = registry
+        self.context = context
         self.overrides = overrides
         self.strict_overrides = strict_overrides
         self.used_overrides: set[str] = set()
@@ -170,8 +139,8 @@ class _Assembler(Checks):
                     aliases[f"{name}/{sname}"] = t
                     if len(offered) == 1:
                         aliases[name] = t
-        result = Assembly(root, self.contribution, self.nodes, self.init_order(), services, bindings, aliases,
-                          self.extensions)
+        result = Assembly(root, self.contribution, self.registry, self.nodes, self.init_order(), services, bindings,
+                          aliases, self.extensions)
         self.check_bindings(result)
         self.check_extensions(result)
         return result
@@ -197,19 +166,23 @@ class _Assembler(Checks):
             if impl.composite is None:
                 return Failed(comp)
             return self.build_nested(comp, impl.composite, scope, path)
-        kind = IMPLEMENTATION_KINDS.get(impl.kind)
+        try:
+            kind = self.registry.implementation(impl.kind)
+        except ExtensionError as exc:
+            self.problem(E.SCART_UNKNOWN_KIND, str(exc), impl.loc)
+            return Failed(comp)
         if kind is None:
+            known = [*self.registry.known(ImplementationProvider), "implementation.composite"]
             self.problem(E.SCART_UNKNOWN_KIND, f"unknown implementation kind <{impl.kind}>; known: "
-                         f"{', '.join(sorted(IMPLEMENTATION_KINDS))}, implementation.composite", impl.loc)
+                         f"{', '.join(sorted(known))}", impl.loc)
             return Failed(comp)
         try:
-            ctype = kind.component_type(impl, self.contribution)
+            ctype = kind.component_type(impl, self.context)
         except ImplementationProblem as exc:
             self.problem(exc.code, str(exc), impl.loc)
-            partial = getattr(exc, "partial", None)  # enough of a type to check the rest of the component
-            if partial is None:
+            if exc.partial is None:  # else enough of a type to check the rest of the component
                 return Failed(comp)
-            ctype = partial
+            ctype = exc.partial
         self.check_type(ctype, impl.loc)
         ctype = self.check_component_names(comp, ctype)
         node = Node(path, comp, impl.kind, ctype)
@@ -347,10 +320,10 @@ class _Assembler(Checks):
             if spec.required:
                 self.problem(E.ASM_MUST_SUPPLY, f"component {comp.name!r}: required property {name!r} "
                              "not supplied", comp.loc)
-            return _Default
+            return DEFAULT
         if len(raw) > 1 and not is_many(py_type):
             self.problem(E.ASM_SINGLE_VALUED, f"property {name!r} is single-valued but has {len(raw)} values", where)
-            return _Default
+            return DEFAULT
         try:
             return parse_value(raw, py_type)
         except ValueError as exc:
@@ -359,7 +332,7 @@ class _Assembler(Checks):
             if refused is not None:
                 msg = f"{' '.join(raw)!r} refused by its check: {refused.group(1).strip()}"
             self.problem(E.ASM_PROPERTY_VALUE, f"property {name!r}: {msg}", where)
-            return _Default
+            return DEFAULT
 
     # --- phase 2: wire ------------------------------------------------------------------
 
@@ -541,14 +514,6 @@ class _Assembler(Checks):
         return order
 
 
-class _DefaultType:
-    def __repr__(self) -> str:
-        return "<default>"
-
-
-_Default: Any = _DefaultType()
-
-
 def _required(mult: str | None) -> bool:
     return (mult or "1..1").startswith("1")
 
@@ -557,4 +522,4 @@ def _multiple(mult: str | None) -> bool:
     return (mult or "1..1").endswith("n")
 
 
-__all__ = ["Assembly", "Bound", "Endpoint", "Node", "Target", "assemble", "parse_value"]
+__all__ = ["assemble"]

@@ -4,41 +4,38 @@ interface compatibility of a wired reference."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from types import MappingProxyType
 
 from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, interface_info
-from scart.bindings.base import BINDING_KINDS
 from scart.errors import Problem
-from scart.extensions import COMPOSITE_EXTENSIONS
-from scart.model import Binding, Component, Location
-
-if TYPE_CHECKING:
-    from scart.assembly import Assembly, Endpoint, Target
+from scart.extensions import ExtensionError, ExtensionRegistry
+from scart.graph import Assembly, Bound, Endpoint, Target
+from scart.model import Binding, Component, Element, Location
+from scart.spi import BindingProvider, CheckContext, Side
 
 #: For each declared multiplicity, the ones a component may narrow it to (ASM50009).
-NARROWINGS: dict[str, tuple[str, ...]] = {
+NARROWINGS: MappingProxyType[str, tuple[str, ...]] = MappingProxyType({
     "0..n": ("0..n", "1..n", "0..1", "1..1"),
     "1..n": ("1..n", "1..1"),
     "0..1": ("0..1", "1..1"),
     "1..1": ("1..1",),
-}
+})
 
 
 class Checks:
-    """Mixin: needs ``self.problems`` (a list of ``Problem``), ``self.problem(code, message, loc)``
-    and ``self.contribution``."""
+    """Mixin: needs ``self.problems`` (a list of ``Problem``), ``self.problem(code, message, loc)``,
+    ``self.registry`` (the extension registry) and ``self.context`` (what checks may see)."""
 
     problems: list[Problem]
-    contribution: Any
+    registry: ExtensionRegistry
+    context: CheckContext
 
     def problem(self, code: str, message: str, loc: Location) -> None:
         raise NotImplementedError
 
     def check_bindings(self, result: Assembly) -> None:
         """Every binding's kind is registered for its side; the kind's own ``check`` runs."""
-        from scart.assembly import Bound  # (a cycle at import time otherwise)
-
         for node in result.nodes.values():
             for sname, models in node.service_bindings.items():
                 for model in models:
@@ -53,27 +50,44 @@ class Checks:
             for model in models:
                 self.check_binding(model, "service", result.nodes[t.node].ctype.services[t.service])
 
-    def check_binding(self, model: Binding, side: str, iface: InterfaceInfo | None) -> None:
-        kind = BINDING_KINDS.get(model.kind)
-        impl = getattr(kind, side, None) if kind is not None else None
-        if impl is None:
-            usable = sorted(k for k, v in BINDING_KINDS.items() if getattr(v, side) is not None)
-            self.problem(E.SCART_UNKNOWN_KIND, f"binding <{model.kind}> cannot be used on a {side}; "
-                         f"known: {', '.join(usable)}", model.loc)
+    def check_binding(self, model: Binding, side: Side, iface: InterfaceInfo | None) -> None:
+        try:
+            provider = self.registry.binding(model.kind)
+        except ExtensionError as exc:
+            self.problem(E.SCART_UNKNOWN_KIND, str(exc), model.loc)
             return
-        self.problems.extend(impl.check(model, iface, self.contribution))
+        if provider is None or side not in provider.sides:
+            self.problem(E.SCART_UNKNOWN_KIND, f"binding <{model.kind}> cannot be used on a {side}; "
+                         f"known: {', '.join(self._usable(side))}", model.loc)
+            return
+        self.problems.extend(provider.check(model, iface, side, self.context))
+
+    def _usable(self, side: Side) -> list[str]:
+        usable = []
+        for name in self.registry.known(BindingProvider):
+            try:
+                provider = self.registry.binding(name)
+            except ExtensionError:
+                continue
+            if provider is not None and side in provider.sides:
+                usable.append(name)
+        return usable
 
     def check_extensions(self, result: Assembly) -> None:
-        """Run each registered composite extension's static check on its elements."""
+        """Run each registered composite element's static check on its elements."""
         by_kind: dict[str, list[tuple[str, Element]]] = {}
-        for prefix, el in result.extensions:
+        for prefix, el in result.elements:
             by_kind.setdefault(el.kind, []).append((prefix, el))
         for kind, elements in by_kind.items():
-            ext = COMPOSITE_EXTENSIONS.get(kind)
-            if ext is None:
+            try:
+                provider = self.registry.element(kind)
+            except ExtensionError as exc:
+                self.problem(E.SCART_UNKNOWN_KIND, str(exc), elements[0][1].loc)
+                continue
+            if provider is None:
                 self.problem(E.SCART_UNKNOWN_KIND, f"no handler for <scart:{kind}>", elements[0][1].loc)
                 continue
-            self.problems.extend(ext.check(elements, result))
+            self.problems.extend(provider.check(elements, result, self.context))
 
 
     def check_type(self, ctype: ComponentType, loc: Location) -> None:

@@ -1,34 +1,43 @@
-"""The ``scart`` command line: one dispatcher, one module per group of verbs.
+"""The ``scart`` command line: one dispatcher; the verbs come in groups found through the
+``scart.commands`` entry points, as ros2cli finds its verbs.
 
-Each module in :data:`COMMAND_MODULES` exposes ``register(subparsers)``, which adds
-its verbs and sets ``func`` (returning the exit code) on each sub-parser. Keeping
-the verbs in separate modules keeps this file small and lets each group import
-only what it needs (``scart validate`` never imports gRPC).
+Each entry point names a ``register(subparsers)`` function that adds its verbs and sets
+``func`` (returning the exit code) on each sub-parser: ``sca`` (``run``, ``validate``,
+``graph``: :mod:`scart.commands.run`) first, then the others by name (``dataflow``: the
+inspection and deployment verbs of :mod:`dataflow.cli`). A group imports only what its
+verbs need, when they run: ``scart --help`` and ``scart validate`` import no gRPC.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 from collections.abc import Sequence
+from importlib.metadata import entry_points
 
-COMMAND_MODULES: tuple[str, ...] = (
-    "scart.commands.run",  # run, validate, graph
-    "scart.commands.inspect",  # ls, describe, echo, hz, write, call, prop, state, connect, disconnect
-    "scart.commands.deploy",  # deploy, nameserver
-)
+COMMANDS_GROUP = "scart.commands"
+CORE_GROUP = "sca"
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Build the full argument parser (all verbs)."""
+    """Build the full argument parser (every group's verbs). A group that fails to load is
+    reported on stderr and left out: the other verbs still work."""
     parser = argparse.ArgumentParser(
         prog="scart",
         description="SCA runtime with an Orocos-style data-flow bridge.",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).register(subparsers)
+    groups = sorted(entry_points(group=COMMANDS_GROUP), key=lambda ep: (ep.name != CORE_GROUP, ep.name))
+    seen: set[str] = set()
+    for ep in groups:
+        if ep.name in seen:  # the same distribution seen twice on sys.path
+            continue
+        seen.add(ep.name)
+        try:
+            ep.load()(subparsers)
+        except Exception as exc:  # noqa: BLE001 - a broken plug-in must not break the others
+            print(f"scart: command group {ep.name!r} ({ep.value}) not loaded: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
     return parser
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import importlib
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from lxml import etree
@@ -30,9 +30,10 @@ WSDL_NS = "http://schemas.xmlsoap.org/wsdl/"
 class Contribution:
     """The folder of a root composite. Not thread-safe (loading is single-threaded)."""
 
-    def __init__(self, root_file: str) -> None:
+    def __init__(self, root_file: str, is_element: Callable[[str], bool] = lambda name: False) -> None:
         self.root_file = root_file
         self.folder = Path(root_file).resolve().parent
+        self.is_element = is_element  # which <scart:NAME> composite children are extension elements
         self.problems: list[Problem] = []
         self._by_qname: dict[str, str] | None = None
         self._same_qname: dict[str, list[str]] = {}  # QName -> every file declaring it (when more than one)
@@ -46,7 +47,7 @@ class Contribution:
         return self._load(self.root_file)
 
     def _load(self, path: str) -> Composite | None:
-        loader = Loader(path, self.resolve)
+        loader = Loader(path, self.resolve, self.is_element)
         self._loading.append(str(Path(path).resolve()))
         try:
             comp = loader.load()
@@ -98,6 +99,10 @@ class Contribution:
                     continue
                 self._by_qname[qname] = shown
         return self._by_qname
+
+    def import_object(self, ref: str) -> object:
+        """Import ``"pkg.mod:Attr"`` from this contribution (see :func:`import_object`)."""
+        return import_object(ref, self.folder)
 
     # --- WSDL ---------------------------------------------------------------------------
 

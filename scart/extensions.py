@@ -1,53 +1,155 @@
-"""Composite-level extension elements (for example ``<scart:connect from=... to=.../>``).
+"""The extension registry of one runtime: which provider handles which XML element.
 
-An extension kind is registered under the local name of its ``urn:scart:1.0`` element
-with :func:`register_composite_extension`. The loader then accepts the element as a
-child of any ``<composite>`` (read generically into ``Composite.extensions``; declare it
-in ``scart/schema/scart-1.0.xsd`` too), the assembler calls ``check`` with every such
-element of the assembly (problems are reported with the others, before anything
-starts), and the runtime calls ``participant`` once at start: the participant is
-started after every component's ``@init`` and before service bindings, and stopped
-(reverse order) after service bindings stop and before any ``@destroy``.
+Providers are found through the ``scart.extensions`` entry points, by the local name of
+their element; scart's own are registered the same way (``implementation.python``,
+``binding.sca`` in the core; ``binding.grpc``, ``binding.dataflow``,
+``implementation.task`` and ``connect`` in :mod:`scart.ext`). A third-party package adds
+a kind with one line in its ``pyproject.toml``, and no change to scart::
+
+    [project.entry-points."scart.extensions"]
+    "binding.foo" = "foo_binding:FooBinding"
+
+An entry point names a provider class (a :class:`scart.spi.Extension` subclass, made
+with no arguments) or instance. It is loaded only when a composite uses its name, so
+``scart validate`` of a composite without remote bindings imports no gRPC. The kind of
+a name follows its prefix: ``binding.*``, ``implementation.*``, anything else a
+composite element.
+
+A registry belongs to a runtime (``Runtime.from_file(path, extensions=...)``); tests
+build their own with :meth:`ExtensionRegistry.with_providers`. Thread-safe.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+import logging
+import threading
+from collections.abc import Iterable
+from importlib.metadata import EntryPoint, entry_points
+from typing import TypeVar
 
-from scart.errors import Problem
-from scart.model import Element
-from scart.scdl import register_composite_element
+from scart.errors import ScartError
+from scart.spi import BindingProvider, ElementProvider, Extension, ImplementationProvider
 
-if TYPE_CHECKING:
-    from scart.assembly import Assembly
-    from scart.runtime import Runtime
+__all__ = ["ENTRY_POINT_GROUP", "ExtensionError", "ExtensionRegistry"]
 
+log = logging.getLogger("scart.extensions")
 
-class Participant(Protocol):
-    """Something an extension runs with the composite."""
+ENTRY_POINT_GROUP = "scart.extensions"
 
-    def start(self) -> None:
-        """Start (components are initialised already)."""
-
-    def stop(self) -> None:
-        """Stop; idempotent."""
+P = TypeVar("P", bound=Extension)
 
 
-class CompositeExtension(Protocol):
-    """A registered extension kind. ``elements`` are ``(prefix, element)`` pairs, where
-    ``prefix`` is the path of the enclosing component ("" at top level, else "Outer/")."""
-
-    def check(self, elements: list[tuple[str, Element]], assembly: Assembly) -> list[Problem]:
-        """Static problems (empty list when fine)."""
-
-    def participant(self, elements: list[tuple[str, Element]], runtime: Runtime) -> Participant:
-        """What runs with the composite."""
+class ExtensionError(ScartError):
+    """An extension could not be loaded, or is not what its name says it is."""
 
 
-COMPOSITE_EXTENSIONS: dict[str, CompositeExtension] = {}
+def _kind_of(name: str) -> type[Extension]:
+    if name.startswith("binding."):
+        return BindingProvider
+    if name.startswith("implementation."):
+        return ImplementationProvider
+    return ElementProvider
 
 
-def register_composite_extension(local_name: str, extension: CompositeExtension) -> None:
-    """Register (or replace) the handler of ``<scart:LOCAL_NAME>`` composite children."""
-    COMPOSITE_EXTENSIONS[local_name] = extension
-    register_composite_element(local_name)
+class ExtensionRegistry:
+    """Providers by element local name (see the module docstring).
+
+    ``providers`` are registered as given (replacing an entry point of the same name);
+    ``discover=False`` ignores the entry points (only ``providers``)."""
+
+    def __init__(self, providers: Iterable[Extension] = (), *, discover: bool = True) -> None:
+        self._lock = threading.Lock()
+        self._found: dict[str, EntryPoint] = _discover() if discover else {}
+        self._loaded: dict[str, Extension] = {}
+        for provider in providers:
+            self._add(provider)
+
+    def _add(self, provider: Extension) -> None:
+        if not provider.name:
+            raise ExtensionError(f"{type(provider).__qualname__} has no name (the local name of its element)")
+        self._check_kind(provider.name, provider, "given")
+        self._loaded[provider.name] = provider
+
+    def with_providers(self, *providers: Extension) -> ExtensionRegistry:
+        """A copy with ``providers`` added (or replacing those of the same name)."""
+        copy = ExtensionRegistry(discover=False)
+        with self._lock:
+            copy._found = dict(self._found)
+            copy._loaded = dict(self._loaded)
+        for provider in providers:
+            copy._add(provider)
+        return copy
+
+    def names(self) -> list[str]:
+        """Every name this registry knows (loaded or not), sorted."""
+        with self._lock:
+            return sorted(self._found.keys() | self._loaded.keys())
+
+    def get(self, name: str) -> Extension | None:
+        """The provider of ``name``, loaded on first use; None when unknown.
+
+        Raises :class:`ExtensionError` when its entry point cannot be loaded or names
+        something that is not a provider of the right kind."""
+        with self._lock:
+            provider = self._loaded.get(name)
+            if provider is not None:
+                return provider
+            ep = self._found.get(name)
+        if ep is None:
+            return None
+        provider = _load(name, ep)
+        self._check_kind(name, provider, f"entry point {ep.value!r}")
+        with self._lock:
+            return self._loaded.setdefault(name, provider)
+
+    def binding(self, name: str) -> BindingProvider | None:
+        """The provider of ``binding.NAME`` elements, or None."""
+        return self._typed(name, BindingProvider)
+
+    def implementation(self, name: str) -> ImplementationProvider | None:
+        """The provider of ``implementation.NAME`` elements, or None."""
+        return self._typed(name, ImplementationProvider)
+
+    def element(self, name: str) -> ElementProvider | None:
+        """The provider of ``<scart:NAME>`` composite children, or None."""
+        return self._typed(name, ElementProvider)
+
+    def known(self, kind: type[Extension]) -> list[str]:
+        """The names of ``kind`` this registry knows (by prefix; nothing is loaded), sorted."""
+        return [n for n in self.names() if _kind_of(n) is kind]
+
+    def _typed(self, name: str, kind: type[P]) -> P | None:
+        if _kind_of(name) is not kind:
+            return None
+        provider = self.get(name)
+        return provider if isinstance(provider, kind) else None
+
+    @staticmethod
+    def _check_kind(name: str, provider: object, where: str) -> None:
+        kind = _kind_of(name)
+        if not isinstance(provider, kind):
+            raise ExtensionError(f"extension {name!r} ({where}) is a {type(provider).__qualname__}, "
+                                 f"not a scart.spi.{kind.__name__}")
+        if getattr(provider, "name", None) != name:
+            raise ExtensionError(f"extension {name!r} ({where}) says its name is {provider.name!r}")  # type: ignore[attr-defined]
+
+
+def _discover() -> dict[str, EntryPoint]:
+    found: dict[str, EntryPoint] = {}
+    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: (e.name, e.value)):
+        if ep.name in found and found[ep.name].value != ep.value:
+            log.warning("extension %r is provided twice (%s and %s); using %s", ep.name, found[ep.name].value,
+                        ep.value, found[ep.name].value)
+            continue
+        found.setdefault(ep.name, ep)
+    return found
+
+
+def _load(name: str, ep: EntryPoint) -> Extension:
+    try:
+        obj = ep.load()
+        return obj() if isinstance(obj, type) else obj
+    except Exception as exc:
+        dist = getattr(getattr(ep, "dist", None), "name", None) or "?"
+        raise ExtensionError(f"extension {name!r} (entry point {ep.value!r} of {dist}) cannot be loaded: "
+                             f"{type(exc).__name__}: {exc}") from exc

@@ -1,90 +1,29 @@
-"""Implementation kinds: how a component's implementation is introspected and run.
+"""``implementation.python``: a plain Python class as a component (built into the core).
 
-A kind is registered under its XML element's local name with
-:func:`register_implementation`. It answers two questions:
-
-* ``component_type(impl, contribution)`` — at load time, what the implementation
-  declares (services, references, properties) for the static checks; raises
-  :class:`ImplementationProblem` (code + message) when it cannot be used;
-* ``manager(node, host)`` — at start, a :class:`ComponentManager` that creates, configures
-  and destroys instances and gives the raw callable of each service operation.
-
-``implementation.python`` is built in; ``implementation.composite`` is handled by the
-assembler itself (nesting). Issue 5 adds ``implementation.task`` the same way.
+:class:`PythonImplementation` is the provider (see :mod:`scart.spi`): at load time it
+imports the class from the contribution and reads its declarations
+(:func:`scart.api.component_type`); at start it gives each component a manager by scope:
+:class:`CompositeScopeManager` (one instance for the component's life) or
+:class:`StatelessManager` (one instance per call). ``implementation.composite`` is
+handled by the assembler itself (nesting).
 """
 
 from __future__ import annotations
 
 import threading
-from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from scart import errors as E
 from scart.api import ComponentType, component_type
 from scart.errors import RuntimeStateError, ScartError
 from scart.model import Implementation
+from scart.spi import CheckContext, ComponentManager, Host, ImplementationProblem, ImplementationProvider
 
 if TYPE_CHECKING:
-    from scart.assembly import Node
-    from scart.contribution import Contribution
+    from scart.graph import Node
 
-
-class ImplementationProblem(Exception):
-    """Raised by ``component_type`` : the implementation cannot be used (``code``, message)."""
-
-    def __init__(self, code: str, message: str) -> None:
-        super().__init__(message)
-        self.code = code
-
-
-class ManagerHost(Protocol):
-    """What the runtime offers component managers."""
-
-    def configure(self, node: Node, instance: object) -> None:
-        """Inject properties, references, and context into a fresh ``instance``."""
-
-
-class ComponentManager(ABC):
-    """Owns the instances of one component. ``start``/``stop`` are called once each."""
-
-    def __init__(self, node: Node, host: ManagerHost) -> None:
-        self.node = node
-        self.host = host
-
-    @abstractmethod
-    def method(self, operation: str) -> Callable[..., Any]:
-        """The raw callable running ``operation`` on the right instance."""
-
-    @abstractmethod
-    def start(self) -> None:
-        """Create eager instances and run their @init."""
-
-    @abstractmethod
-    def stop(self) -> None:
-        """Run @destroy of live instances; idempotent."""
-
-    def instance(self) -> object | None:
-        """The current instance (composite scope), or None."""
-        return None
-
-
-class ImplementationKind(Protocol):
-    """A registered implementation kind."""
-
-    def component_type(self, impl: Implementation, contribution: Contribution) -> ComponentType:
-        """What the implementation declares; raises :class:`ImplementationProblem`."""
-
-    def manager(self, node: Node, host: ManagerHost) -> ComponentManager:
-        """A manager for the component ``node``."""
-
-
-IMPLEMENTATION_KINDS: dict[str, ImplementationKind] = {}
-
-
-def register_implementation(name: str, kind: ImplementationKind) -> None:
-    """Register (or replace) the implementation kind whose XML element is ``name``."""
-    IMPLEMENTATION_KINDS[name] = kind
+__all__ = ["CompositeScopeManager", "PythonImplementation", "StatelessManager"]
 
 
 def _call_all(instance: object, names: tuple[str, ...]) -> None:
@@ -96,7 +35,7 @@ class CompositeScopeManager(ComponentManager):
     """One instance for the component's life: created at start (or first use when
     ``eager_init=False``); thread-safe creation; @destroy once on stop."""
 
-    def __init__(self, node: Node, host: ManagerHost) -> None:
+    def __init__(self, node: Node, host: Host) -> None:
         super().__init__(node, host)
         self._instance: object | None = None
         self._lock = threading.RLock()  # re-entrant: a cycle is reported, not deadlocked
@@ -181,27 +120,24 @@ class StatelessManager(ComponentManager):
         """Nothing to destroy."""
 
 
-class PythonImplementation:
+class PythonImplementation(ImplementationProvider):
     """``<scart:implementation.python class="pkg.mod:Class"/>``."""
 
-    def component_type(self, impl: Implementation, contribution: Contribution) -> ComponentType:
-        """Import the class (contribution folder first on ``sys.path``) and read its declarations."""
-        from scart.contribution import import_object
+    name = "implementation.python"
 
+    def component_type(self, impl: Implementation, context: CheckContext) -> ComponentType:
+        """Import the class (contribution folder first on ``sys.path``) and read its declarations."""
         ref = impl.attributes.get("class", "")
         try:
-            cls = import_object(ref, contribution.folder)
+            cls = context.import_object(ref)
         except Exception as exc:  # any import-time failure is a composite problem
             raise ImplementationProblem(E.SCART_IMPORT, f"cannot import {ref!r}: {type(exc).__name__}: {exc}") from exc
         if not isinstance(cls, type):
             raise ImplementationProblem(E.SCART_NOT_A_COMPONENT, f"{ref!r} is not a class")
         return component_type(cls)
 
-    def manager(self, node: Node, host: ManagerHost) -> ComponentManager:
+    def manager(self, node: Node, host: Host) -> ComponentManager:
         """Composite- or stateless-scoped manager, per the class's scope."""
         if node.ctype.scope == "stateless":
             return StatelessManager(node, host)
         return CompositeScopeManager(node, host)
-
-
-register_implementation("implementation.python", PythonImplementation())

@@ -9,10 +9,11 @@ Lifecycle (one table; anything else raises ``RuntimeStateError``)::
 
 ``start()``: creates the bounded one-way pool, starts reference bindings, creates
 composite-scoped instances and runs their ``@init`` targets first (dependency order),
-starts composite extensions (``scart.extensions``), then service bindings. A failing
-``@init`` raises ``ScartError`` (the cause chained) after stopping what started.
+starts the participants of the extensions the composite uses (``Extension.activate``,
+see :mod:`scart.spi`), then service bindings. A failing ``@init`` raises ``ScartError``
+(the cause chained) after stopping what started.
 
-``stop()``: stops service bindings, then composite extensions (reverse), closes the
+``stop()``: stops service bindings, then extension participants (reverse), closes the
 one-way pool and drains it with a deadline (``drain_timeout``, default 10 s): queued and
 in-flight one-way calls may finish until then; after it, queued calls are dropped (logged
 and counted) and calls still running are logged by operation and left behind on their
@@ -41,24 +42,25 @@ import threading
 import time
 import weakref
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from pydantic import BaseModel
 
-import scart.bindings.local  # noqa: F401  (registers binding.sca)
-import scart.bindings.grpc  # noqa: F401  (registers binding.grpc)
-import scart.bindings.dataflow  # noqa: F401  (registers binding.dataflow, implementation.task, scart:connect)
 from scart.api import ComponentContext, InterfaceInfo, interface_info
-from scart.assembly import Assembly, Bound, Node, Target, _Default, assemble
-from scart.bindings.base import BINDING_KINDS, Invocation, ReferenceBinding, ServiceBinding, wrap_operation
-from scart.bindings.local import LocalReferenceBinding
+from scart.assembly import assemble
 from scart.errors import InvocationError, RuntimeStateError, ScartError, ServiceNotFoundError
-from scart.extensions import COMPOSITE_EXTENSIONS, Participant
-from scart.implementations import IMPLEMENTATION_KINDS, ComponentManager
-from scart.model import Element
+from scart.extensions import ExtensionRegistry
+from scart.graph import DEFAULT, Assembly, Bound, Node, Target
+from scart.local import LocalReferenceBinding, wrap_operation
+from scart.model import Binding
+from scart.settings import Settings
+from scart.spi import (
+    ComponentManager, Extension, Invocation, Participant, ReferenceBinding, ServiceBinding,
+)
 
 log = logging.getLogger("scart.runtime")
 _WORKER_PREFIX = "scart-oneway"
+T = TypeVar("T")
 
 
 class RuntimeState(enum.Enum):
@@ -184,7 +186,7 @@ class _OnewayPool:
 
 
 class _Endpoint:
-    """A component service inside this runtime (the ``ServiceEndpoint`` of bindings)."""
+    """A component service inside this runtime (the ``ServiceEndpoint`` of the SPI)."""
 
     def __init__(self, runtime: Runtime, node: Node, service: str, manager: ComponentManager) -> None:
         self.component = node.path
@@ -206,7 +208,7 @@ class _Endpoint:
         return self._manager.method(operation)
 
     def operation(self, name: str, callback: object | None) -> Callable[..., Any]:
-        """The full per-operation callable (see ``scart.bindings.base.wrap_operation``)."""
+        """The full per-operation callable (see :func:`scart.local.wrap_operation`)."""
         op = self.interface.operations.get(name)
         if op is None:
             raise InvocationError(f"{self.component}/{self.service} has no operation {name!r}")
@@ -220,11 +222,15 @@ class _Endpoint:
 
 
 class Runtime:
-    """Runs one assembled composite. Use ``with Runtime.from_file(path) as rt:``."""
+    """Runs one assembled composite. Use ``with Runtime.from_file(path) as rt:``.
 
-    def __init__(self, assembly: Assembly, *, max_workers: int = 8, max_pending: int = 10_000,
-                 drain_timeout: float = 10.0) -> None:
+    The runtime is the :class:`scart.spi.Host` of its extensions: ``settings``,
+    ``assembly``, ``submit``, ``endpoint``, ``shared``, ``add_stop_hook``."""
+
+    def __init__(self, assembly: Assembly, *, settings: Settings | None = None, max_workers: int = 8,
+                 max_pending: int = 10_000, drain_timeout: float = 10.0) -> None:
         self.assembly = assembly
+        self._settings = settings if settings is not None else Settings.from_env()
         self.max_workers = max_workers
         self.max_pending = max_pending
         self.drain_timeout = drain_timeout
@@ -241,6 +247,7 @@ class Runtime:
         self._service_bindings: list[ServiceBinding] = []
         self._started: list[str] = []
         self._participants: list[Participant] = []
+        self._shared_lock = threading.RLock()
         self._stopped = threading.Event()
         self._shared: dict[str, Any] = {}
         self._stop_hooks: list[Callable[[], None]] = []
@@ -248,12 +255,24 @@ class Runtime:
         self._proxies: dict[str, ServiceProxy] = {}
 
     @classmethod
-    def from_file(cls, path: str | os.PathLike[str], *, overrides: dict[str, str] | None = None, max_workers: int = 8,
-                  **options: Any) -> Runtime:
+    def from_file(cls, path: str | os.PathLike[str], *, overrides: dict[str, str] | None = None,
+                  settings: Settings | None = None, extensions: ExtensionRegistry | None = None,
+                  max_workers: int = 8, max_pending: int = 10_000, drain_timeout: float = 10.0) -> Runtime:
         """Load and check the composite at ``path`` (raises ``ScdlError``); nothing starts yet.
-        ``overrides`` maps "Component.property" to a raw value (like ``--set``); ``options``
-        are the other keyword arguments of ``Runtime`` (``max_pending``, ``drain_timeout``)."""
-        return cls(assemble(str(path), overrides), max_workers=max_workers, **options)
+
+        ``overrides`` maps "Component.property" to a raw value (like ``--set``);
+        ``settings`` configure the runtime and its extensions (default:
+        ``Settings.from_env()``); ``extensions`` is the registry of kinds (default: the
+        installed entry points)."""
+        settings = settings if settings is not None else Settings.from_env()
+        assembly = assemble(str(path), overrides, extensions=extensions, settings=settings)
+        return cls(assembly, settings=settings, max_workers=max_workers, max_pending=max_pending,
+                   drain_timeout=drain_timeout)
+
+    @property
+    def settings(self) -> Settings:
+        """The settings this runtime and its extensions run with."""
+        return self._settings
 
     def __enter__(self) -> Runtime:
         self.start()
@@ -280,7 +299,7 @@ class Runtime:
                         self._managers[path].start()
                     except Exception as exc:
                         raise ScartError(f"starting component {path} failed: {type(exc).__name__}: {exc}") from exc
-                self._start_extensions()
+                self._start_participants()
                 self._start_service_bindings()
             except BaseException:
                 self.stop()
@@ -309,7 +328,7 @@ class Runtime:
             for binding in reversed(self._service_bindings):
                 _quietly(binding.stop, "stopping a service binding")
             for participant in reversed(self._participants):
-                _quietly(participant.stop, "stopping a composite extension")
+                _quietly(participant.stop, "stopping an extension participant")
             if self._pool is not None:
                 self._drain_pool(self._pool)
             for path in reversed(self._started):
@@ -341,8 +360,12 @@ class Runtime:
             proxy._scart_disable(why)
 
     def _create_managers(self) -> None:
+        registry = self.assembly.registry
         for path, node in self.assembly.nodes.items():
-            manager = IMPLEMENTATION_KINDS[node.kind].manager(node, self)
+            provider = registry.implementation(node.kind)
+            if provider is None:
+                raise ScartError(f"{node.model.loc}: {path}: no implementation kind <{node.kind}> in this runtime")
+            manager = provider.manager(node, self)
             self._managers[path] = manager
             for service in node.ctype.services:
                 self._endpoints[(path, service)] = _Endpoint(self, node, service, manager)
@@ -366,41 +389,56 @@ class Runtime:
                 rb.start()
 
     def _binding_reference(self, ep: Bound, iface: InterfaceInfo | None, where: str) -> ReferenceBinding:
-        kind = BINDING_KINDS.get(ep.binding.kind)
-        if kind is None or kind.reference is None:
+        provider = self.assembly.registry.binding(ep.binding.kind)
+        if provider is None or "reference" not in provider.sides:
             raise ScartError(f"{ep.binding.loc}: {where}: binding <{ep.binding.kind}> cannot be used on a reference")
-        return kind.reference(ep.binding, iface or InterfaceInfo("?", {}), self)
+        return provider.reference(ep.binding, iface or InterfaceInfo("?", {}), self)
 
-    def _start_extensions(self) -> None:
-        by_kind: dict[str, list[tuple[str, Element]]] = {}
-        for prefix, el in self.assembly.extensions:
-            by_kind.setdefault(el.kind, []).append((prefix, el))
-        for kind, elements in by_kind.items():
-            participant = COMPOSITE_EXTENSIONS[kind].participant(elements, self)
-            participant.start()
-            self._participants.append(participant)
-
-    def _start_service_bindings(self) -> None:
+    def _service_binding_models(self) -> list[tuple[tuple[str, str], Binding]]:
         todo = [((p, s), b) for p, n in self.assembly.nodes.items() for s, bs in n.service_bindings.items() for b in bs]
         todo += [((t.node, t.service), b) for name, t in self.assembly.services.items()
                  for b in self.assembly.service_bindings.get(name, [])]
-        for key, model in todo:
-            kind = BINDING_KINDS.get(model.kind)
-            if kind is None or kind.service is None:
+        return todo
+
+    def _used_extensions(self) -> list[Extension]:
+        """The providers this composite uses, each once, in a stable order."""
+        registry = self.assembly.registry
+        names = [n.kind for n in self.assembly.nodes.values()]
+        names += [ep.binding.kind for n in self.assembly.nodes.values() for eps in n.references.values()
+                  for ep in eps if isinstance(ep, Bound)]
+        names += [model.kind for _, model in self._service_binding_models()]
+        names += [el.kind for _, el in self.assembly.elements]
+        return [p for p in map(registry.get, dict.fromkeys(names)) if p is not None]
+
+    def _start_participants(self) -> None:
+        for provider in self._used_extensions():
+            participant = provider.activate(self)
+            if participant is None or any(p is participant for p in self._participants):
+                continue
+            self._participants.append(participant)
+            try:
+                participant.start()
+            except Exception as exc:
+                raise ScartError(f"starting {provider.name} failed: {type(exc).__name__}: {exc}") from exc
+
+    def _start_service_bindings(self) -> None:
+        for key, model in self._service_binding_models():
+            provider = self.assembly.registry.binding(model.kind)
+            if provider is None or "service" not in provider.sides:
                 raise ScartError(f"{model.loc}: binding <{model.kind}> cannot be used on a service")
-            binding = kind.service(model, self._endpoints[key], self)
+            binding = provider.service(model, self._endpoints[key], self)
             binding.start()
             self._service_bindings.append(binding)
 
     # --- what bindings and managers use ------------------------------------------------
 
-    def shared(self, key: str, factory: Callable[[], Any]) -> Any:
-        """A per-runtime singleton for extensions (e.g. issue 5's data-flow ``Deployer``):
-        created by ``factory`` on first use; thread-safe."""
-        with self._lock:
+    def shared(self, key: str, factory: Callable[[], T]) -> T:
+        """A per-runtime resource for extensions (e.g. the data-flow ``Deployer``), created
+        by ``factory`` on first use, once; thread-safe (``factory`` may call ``shared``)."""
+        with self._shared_lock:  # re-entrant: a factory may use another shared resource
             if key not in self._shared:
                 self._shared[key] = factory()
-            return self._shared[key]
+            return self._shared[key]  # type: ignore[no-any-return]
 
     def add_stop_hook(self, hook: Callable[[], None]) -> None:
         """Run ``hook`` at the very end of ``stop()`` (after every @destroy and binding stop),
@@ -455,7 +493,7 @@ class Runtime:
         """Inject properties, references and context into ``instance`` (before its @init)."""
         ctype = node.ctype
         for name, value in node.properties.items():
-            if value is _Default:
+            if value is DEFAULT:
                 value = ctype.properties[name][0].default_value()
             elif isinstance(value, (list, dict, set, BaseModel)):
                 value = copy.deepcopy(value)
@@ -464,7 +502,7 @@ class Runtime:
             proxies = [self._reference_proxy(instance, node, ref, rb) for rb in self._ref_bindings.get((node.path, ref), [])]
             setattr(instance, ref, proxies if spec.multiple else (proxies[0] if proxies else None))
         for name in ctype.contexts:
-            setattr(instance, name, ComponentContext(node.path, self.service))
+            setattr(instance, name, ComponentContext(node.path, self.service, self._settings))
 
     def _reference_proxy(self, instance: object, node: Node, ref: str, rb: ReferenceBinding) -> ServiceProxy:
         iface = rb.interface
@@ -520,6 +558,14 @@ class Runtime:
     def addresses(self) -> dict[str, str | None]:
         """Started service bindings: "Component/Service (kind)" -> real address."""
         return {f"{b.endpoint.component}/{b.endpoint.service} ({b.model.kind})": b.address for b in self._service_bindings}
+
+    def served(self) -> dict[str, str]:
+        """What the extensions' participants serve, once started: ``{"what": "where"}``
+        (for example ``{"dataflow server": "127.0.0.1:40101 (1 task(s))"}``)."""
+        out: dict[str, str] = {}
+        for participant in self._participants:
+            out.update(participant.addresses())
+        return out
 
 
 class _LocalCallback:

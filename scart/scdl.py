@@ -8,18 +8,20 @@ Elements of ``urn:scart:1.0`` are validated against the XSD shipped in
 The loader never raises on a bad composite: it appends :class:`~scart.errors.Problem` s
 to ``Loader.problems`` and goes on, so every problem is reported together.
 One small reader per element type; the table :data:`COMPOSITE_CHILDREN` dispatches the
-children of ``<composite>``; :func:`register_composite_element` adds extension elements
-of the scart namespace (for example ``scart:connect``). ``implementation.*`` and
-``binding.*`` elements of any known namespace are read generically (see ``scart.model``),
-so new kinds are added by registering them with the runtime, not here.
+children of ``<composite>``. Children of ``<composite>`` in the scart namespace that the
+runtime's extension registry knows (for example ``scart:connect``) are read generically
+into ``Composite.extensions``, as are ``implementation.*`` and ``binding.*`` elements of
+any namespace (see ``scart.model``): new kinds are added as extensions, not here.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from collections.abc import Callable
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from lxml import etree
@@ -50,7 +52,6 @@ MAX_BYTES = 8 * 1024 * 1024  #: size bound of any XML file read (composite or WS
 SCA_NAMESPACES = (SCA11_NS, SCA10_NS)
 _IGNORED = {"documentation", "requires", "policySetAttachment", "extensions", "description"}
 _SCHEMA_PATH = Path(__file__).with_name("schema") / "scart-1.0.xsd"
-_schema: etree.XMLSchema | None = None
 _PROLOG_LIMIT = 64 * 1024  #: how much of a file's head is scanned for a DOCTYPE before its root element
 
 
@@ -129,11 +130,10 @@ def parse_xml(path: str, problems: list[Problem], max_bytes: int = MAX_BYTES) ->
     return root
 
 
+@functools.cache
 def _xsd() -> etree.XMLSchema:
-    global _schema
-    if _schema is None:
-        _schema = etree.XMLSchema(etree.parse(str(_SCHEMA_PATH), _parser()))
-    return _schema
+    """The shipped XSD of ``urn:scart:1.0`` (parsed once)."""
+    return etree.XMLSchema(etree.parse(str(_SCHEMA_PATH), _parser()))
 
 
 def _bool(value: str | None, default: bool = False) -> bool:
@@ -152,12 +152,16 @@ class Loader:
 
     ``resolve_composite`` is given by the contribution to find composites by QName
     (for ``implementation.composite`` and ``include``); it returns None when unknown.
+    ``is_element(local_name)`` says whether a ``<scart:NAME>`` child of ``<composite>``
+    is an extension element the runtime knows.
     """
 
-    def __init__(self, path: str, resolve_composite: Callable[[str, Location], Composite | None]) -> None:
+    def __init__(self, path: str, resolve_composite: Callable[[str, Location], Composite | None],
+                 is_element: Callable[[str], bool] = lambda name: False) -> None:
         self.path = path
         self.problems: list[Problem] = []
         self.resolve_composite = resolve_composite
+        self.is_element = is_element
         self._tns = ""
 
     def loc(self, el: etree._Element) -> Location:
@@ -200,9 +204,9 @@ class Loader:
             ns, local = _local(child)
             if ns in SCA_NAMESPACES and local in COMPOSITE_CHILDREN:
                 COMPOSITE_CHILDREN[local](self, child, comp)
-            elif ns == SCART_NS and local in EXTENSION_ELEMENTS:
+            elif ns == SCART_NS and self.is_element(local):
                 if self.validate_scart(child):
-                    comp.extensions.append(EXTENSION_ELEMENTS[local](self, child))
+                    comp.extensions.append(self.read_element(child))
             elif local not in _IGNORED:
                 self.problem(E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> in {ns!r} inside <composite>", child)
         return comp
@@ -222,7 +226,7 @@ class Loader:
             comp.autowire = _bool(el.get("autowire"))
         for child in el.iterchildren(tag=etree.Element):
             ns, local = _local(child)
-            if local.startswith("implementation.") and ns in (*SCA_NAMESPACES, SCART_NS):
+            if local.startswith("implementation."):
                 if comp.implementation is not None:
                     self.problem(E.ASM_SCHEMA, f"component {comp.name!r} has more than one implementation", child)
                 comp.implementation = self.read_implementation(child)
@@ -418,23 +422,11 @@ def _detached(el: etree._Element) -> etree._Element:
 
 
 #: Readers of the SCA-namespace children of ``<composite>``, by local name.
-COMPOSITE_CHILDREN: dict[str, Callable[[Loader, etree._Element, Composite], None]] = {
+COMPOSITE_CHILDREN: MappingProxyType[str, Callable[[Loader, etree._Element, Composite], None]] = MappingProxyType({
     "component": Loader.read_component,
     "service": Loader.read_composite_service,
     "reference": Loader.read_composite_reference,
     "property": Loader.read_composite_property,
     "wire": Loader.read_wire,
     "include": Loader.read_include,
-}
-
-#: Readers of ``urn:scart:1.0`` children of ``<composite>`` (extension elements), by local name.
-EXTENSION_ELEMENTS: dict[str, Callable[[Loader, etree._Element], Element]] = {}
-
-
-def register_composite_element(
-    local_name: str, reader: Callable[[Loader, etree._Element], Element] = Loader.read_element
-) -> None:
-    """Allow ``<scart:LOCAL_NAME>`` as a child of ``<composite>``; it lands in
-    ``Composite.extensions`` (read generically unless ``reader`` is given). Idempotent.
-    The element must also be declared in the shipped XSD."""
-    EXTENSION_ELEMENTS[local_name] = reader
+})

@@ -10,15 +10,8 @@ from helpers import wait_until
 from test_sca_support import composite, line_of, write
 
 import scart
-from scart.bindings._dataflow_tasks import ensure_registered
-from scart.bindings._dataflow_host import host_of
-from scart.bindings.dataflow import DataflowServiceBinding, bindings_of
-
-
-@pytest.fixture(autouse=True)
-def _real_handlers() -> None:
-    """Another suite swaps in a stand-in scart:connect handler and then removes it: restore ours."""
-    ensure_registered()
+from scart.ext.dataflow import host_of
+from scart.ext.dataflow import DataflowServiceBinding, bindings_of
 
 
 TASKS = '''

@@ -19,15 +19,8 @@ from test_sca_cli import finish, read_until
 from test_sca_support import composite, line_of, write
 
 import scart
-from scart.bindings._dataflow_tasks import ensure_registered
 from dataflow.remote import connect
-from scart.bindings.dataflow import DataflowServiceBinding, bindings_of
-
-
-@pytest.fixture(autouse=True)
-def _real_handlers() -> None:
-    """Another suite swaps in a stand-in scart:connect handler and then removes it: restore ours."""
-    ensure_registered()
+from scart.ext.dataflow import DataflowServiceBinding, bindings_of
 
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -166,7 +159,9 @@ def test_proxy_way_and_binding_way_behave_the_same(robot: Robot) -> None:
     assert results[0] == results[1] == ([25.0, 27.5, 18.75, 20.625], 20.625)
 
 
-def test_remote_type_mismatch_is_a_static_error(robot: Robot, tmp_path: Path) -> None:
+def test_remote_type_mismatch_is_a_static_error_online_only(robot: Robot, tmp_path: Path) -> None:
+    """Loading is offline: the remote port is checked against the running name service only
+    with ``Settings(online=True)`` (``scart validate --online``), else when it connects."""
     robot.start()
     (tmp_path / "wrong.py").write_text(
         "from typing import Protocol\nimport scart\n\n"
@@ -178,8 +173,9 @@ def test_remote_type_mismatch_is_a_static_error(robot: Robot, tmp_path: Path) ->
         </component>
     """)
     path = write(tmp_path, {"w.composite": text}, with_components=False)
+    scart.Runtime.from_file(path)  # offline: nothing to check against, no error
     with pytest.raises(scart.ScdlError) as err:
-        scart.Runtime.from_file(path)
+        scart.Runtime.from_file(path, settings=scart.Settings(online=True))
     (problem,) = err.value.errors
     assert (problem.code, problem.line) == ("SCART-D003", line_of(text, "binding.dataflow"))
     assert "interface type string does not match port thermostat.setpoint of type float64" in problem.message
@@ -305,13 +301,12 @@ def test_composite_mixing_wire_binding_dataflow_task_connect_and_grpc(robot: Rob
           <reference name="panel" target="panel"/></component>
     """)
     path = write(tmp_path, {"m.composite": text, "mixed.py": MIXED_TASKS}, with_components=False)
-    rt = scart.Runtime.from_file(path)
-    from scart.bindings._dataflow_host import host_of
-    from scart.commands.run import serve_tasks
+    # as scart run --ns does: joins the robot's name service
+    rt = scart.Runtime.from_file(path, settings=scart.Settings(ns=robot.ns, serve=True))
+    from scart.ext.dataflow import host_of
 
     with rt:
-        lines = serve_tasks(rt, robot.ns)  # as scart run does: joins the robot's name service
-        assert "(joined)" in lines[1]
+        assert rt.served()["name service"] == f"{robot.ns} (joined)"
         with connect(robot.ns) as system:
             assert "logger" in system.component_names()
         front = rt.service("front")

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import scart
-from scart.bindings.grpc import RemoteError, ServiceUnavailableError
+from scart import RemoteError, ServiceUnavailableError
 from scart.errors import InvocationError
 from test_bind_grpc_support import (
     composite, gpy, grpc_bindings, grpc_reference, grpc_service, gwrite, instance, module, provider_and_client, py,
@@ -253,7 +253,7 @@ def test_a_port_in_use_is_a_start_error_naming_the_address(tmp_path: Path) -> No
 def test_services_listed_by_the_server(tmp_path: Path) -> None:
     import grpc
 
-    from scart.bindings._grpc_wire import PATHS, pb
+    from scart.ext.grpc._wire import PATHS, pb
     with provider_and_client(tmp_path, GEOMETRY + DESK, geo_client) as (provider, _):
         with grpc.insecure_channel(grpc_bindings(provider)[0].address) as channel:
             stub = channel.unary_unary(PATHS["ListServices"], request_serializer=pb.ListServicesRequest.SerializeToString,

@@ -103,7 +103,7 @@ def test_callbacks_and_oneway_across_processes(tmp_path: Path, processes: list[s
 
 def test_provider_killed_and_restarted_is_reached_again(tmp_path: Path, processes: list[subprocess.Popen[bytes]]) -> None:
     import scart
-    from scart.bindings.grpc import ServiceUnavailableError
+    from scart import ServiceUnavailableError
 
     port = free_port()
     provider_file = _with_port(DATA / "provider.composite", tmp_path / "provider.composite", port)

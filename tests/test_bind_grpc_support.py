@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import scart
-from scart.bindings.grpc import GrpcServiceBinding
+from scart.ext.grpc._binding import GrpcServiceBinding
 from test_sca_support import composite, py, write
 
 GCOMPONENTS = '''

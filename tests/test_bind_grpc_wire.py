@@ -10,7 +10,7 @@ from pydantic import BaseModel
 
 from dataflow.codec import Value
 from dataflow.types import UnknownValue
-from scart.bindings._grpc_wire import JSON_TYPE, NONE_TYPE, SCA_SERVICE, Signature, converter, decode, encode, fault, pb
+from scart.ext.grpc._wire import JSON_TYPE, NONE_TYPE, SCA_SERVICE, Signature, converter, decode, encode, fault, pb
 from scart.errors import InvocationError
 
 

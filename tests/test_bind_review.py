@@ -10,9 +10,9 @@ from pathlib import Path
 import grpc
 import pytest
 
-from scart.bindings import _grpc_server
+from scart.ext.grpc import _server as _grpc_server
 from dataflow.codec import Value
-from scart.bindings._grpc_wire import PATHS, pb
+from scart.ext.grpc._wire import PATHS, pb
 from scart.errors import InvocationError
 from test_bind_grpc_support import gpy, grpc_bindings, grpc_reference, grpc_service, provider_and_client
 
@@ -85,7 +85,7 @@ def test_a_call_that_timed_out_while_queued_never_runs(tmp_path: Path, monkeypat
     from helpers import wait_until
     from test_bind_grpc_support import instance
     monkeypatch.setattr(_grpc_server, "INVOKE_WORKERS", 1)
-    caplog.set_level(logging.WARNING, logger="scart.bindings.grpc")
+    caplog.set_level(logging.WARNING, logger="scart.ext.grpc")
 
     def client(addr: str) -> str:
         ref = grpc_reference(addr, "D/Desk", timeout=0.5)
@@ -97,7 +97,7 @@ def test_a_call_that_timed_out_while_queued_never_runs(tmp_path: Path, monkeypat
                                         response_deserializer=pb.InvokeResponse.FromString)
             req = pb.InvokeRequest(call_id="blocker")
             req.invocation.service, req.invocation.operation = "D/Desk", "decide"
-            from scart.bindings._grpc_wire import fill_invocation
+            from scart.ext.grpc._wire import fill_invocation
             fill_invocation(req.invocation, ("hold",), {})
             blocker = stub(req, timeout=20)
             assert next(blocker).HasField("callback_call")  # the only Invoke worker is busy now
@@ -159,7 +159,7 @@ def test_provider_stop_is_bounded_by_the_drain_deadline(tmp_path: Path, caplog: 
 
     import scart
     from test_bind_grpc_support import composite, gwrite
-    caplog.set_level(logging.WARNING, logger="scart.bindings.grpc")
+    caplog.set_level(logging.WARNING, logger="scart.ext.grpc")
     (tmp_path / "rv5hold.py").write_text(HOLD)
     body = ('<component name="H"><scart:implementation.python class="rv5hold:HoldImpl"/>'
             f'<service name="Hold">{grpc_service()}</service></component>')
@@ -245,9 +245,7 @@ CLIENT = '''<component name="client"><scart:implementation.python class="rv5task
 def test_dataflow_reference_takes_the_interface_parameter_names_and_names_a_wrong_call(tmp_path: Path) -> None:
     import scart
     from helpers import wait_until
-    from scart.bindings._dataflow_tasks import ensure_registered
     from test_bind_grpc_support import composite, gwrite
-    ensure_registered()
     (tmp_path / "rv5tasks.py").write_text(RV5TASKS)
     body = f'<component name="scaler"><scart:implementation.task class="rv5tasks:Scaler"/></component>{CLIENT}'
     with scart.Runtime.from_file(str(gwrite(tmp_path, {"t.composite": composite(body)}))) as rt:
@@ -261,9 +259,7 @@ def test_dataflow_reference_takes_the_interface_parameter_names_and_names_a_wron
 def test_dataflow_binding_in_a_nested_composite_finds_its_sibling_task(tmp_path: Path) -> None:
     import scart
     from helpers import wait_until
-    from scart.bindings._dataflow_tasks import ensure_registered
     from test_bind_grpc_support import composite, gwrite
-    ensure_registered()
     (tmp_path / "rv5tasks.py").write_text(RV5TASKS)
     inner = composite(f'<component name="scaler"><scart:implementation.task class="rv5tasks:Scaler"/></component>'
                       f'{CLIENT}', name="Inner")
@@ -279,7 +275,7 @@ def test_a_result_the_client_cannot_convert_names_service_and_operation(tmp_path
     from concurrent.futures import ThreadPoolExecutor
 
     import scart
-    from scart.bindings._grpc_wire import decode
+    from scart.ext.grpc._wire import decode
     from test_bind_grpc_support import composite, gwrite, instance
 
     with pytest.raises(InvocationError, match="malformed value: cannot decode float64"):
@@ -312,10 +308,7 @@ def test_connect_to_a_missing_task_says_so_once_and_links_are_undone_at_stop(
 
     import scart
     from helpers import free_port, wait_until
-    from scart.bindings._dataflow_tasks import ensure_registered
-    from scart.commands.run import serve_tasks
     from test_bind_grpc_support import composite, gwrite, instance
-    ensure_registered()
     monkeypatch.delenv("SCART_NS", raising=False)
     caplog.set_level(logging.INFO, logger="scart")
     (tmp_path / "rv5tasks.py").write_text(RV5TASKS)
@@ -329,13 +322,12 @@ def test_connect_to_a_missing_task_says_so_once_and_links_are_undone_at_stop(
     d2.mkdir()
     (d1 / "rv5tasks.py").write_text(RV5TASKS)
     (d2 / "rv5tasks.py").write_text(RV5TASKS)
-    rt1 = scart.Runtime.from_file(str(gwrite(d1, {"one.composite": one})))
-    rt2 = scart.Runtime.from_file(str(gwrite(d2, {"two.composite": two})))
+    served = scart.Settings(ns=ns, serve=True)  # as scart run --ns does
+    rt1 = scart.Runtime.from_file(str(gwrite(d1, {"one.composite": one})), settings=served)
+    rt2 = scart.Runtime.from_file(str(gwrite(d2, {"two.composite": two})), settings=served)
     with rt1:
-        serve_tasks(rt1, ns)
         wait_until(lambda: f"waiting for ghost in name service {ns}" in caplog.text, timeout=5)
         with rt2:
-            serve_tasks(rt2, ns)
             ghost_in = instance(rt2, "ghost").ports()["x"]
             wait_until(lambda: ghost_in.connected(), timeout=10, message="link never made")
             assert caplog.text.count("waiting for ghost") == 1
@@ -346,9 +338,7 @@ def test_connect_to_a_missing_task_says_so_once_and_links_are_undone_at_stop(
 
 def test_a_bad_task_period_hides_no_other_problem_and_checks_say_refused(tmp_path: Path) -> None:
     import scart
-    from scart.bindings._dataflow_tasks import ensure_registered
     from test_bind_grpc_support import composite, gwrite
-    ensure_registered()
     (tmp_path / "rv5ptask.py").write_text('''
 from dataflow import InputPort, Property, TaskContext
 
@@ -382,9 +372,7 @@ class T(TaskContext):
 ])
 def test_binding_dataflow_ns_and_period_are_checked_at_load(tmp_path: Path, attrs: str, words: str) -> None:
     import scart
-    from scart.bindings._dataflow_tasks import ensure_registered
     from test_bind_grpc_support import composite, gwrite
-    ensure_registered()
     (tmp_path / "rv5tasks.py").write_text(RV5TASKS)
     body = ('<component name="scaler"><scart:implementation.task class="rv5tasks:Scaler"/></component>'
             '<component name="client"><scart:implementation.python class="rv5tasks:Client"/>'

@@ -11,7 +11,7 @@ from dataflow.remote import connect
 from test_remote_support import Pinger
 
 EXPORTS = {
-    "connect", "local_system", "serve_deployer", "serve_nameserver",
+    "connect", "local_system", "serve_nameserver",
     "System", "ComponentProxy", "Subscription", "PortWriter", "SampleEvent", "GapEvent", "ComponentInfo",
     "RemoteError", "UnavailableError", "RemoteTimeoutError", "RemoteNotFoundError", "RemoteTypeError",
     "RemoteValueError", "AlreadyRegisteredError", "ClosedError", "DEFAULT_NS_PORT", "DEFAULT_NS_ADDRESS",

@@ -339,9 +339,8 @@ def test_subscription_limit_is_a_precise_error() -> None:
 
     deployer = Deployer()
     deployer.add(Pinger("p"))
-    from dataflow.remote.server import serve_deployer
 
-    server = serve_deployer(deployer, "127.0.0.1:0", max_workers=10)  # 2 subscriptions at most
+    server = deployer.serve("127.0.0.1:0", max_workers=10)  # 2 subscriptions at most
     system = connect(server.address, heartbeat_ms=200)
     try:
         proxy = system.component("p")

@@ -24,7 +24,7 @@ from dataflow.remote._proto import DEPLOYER_SERVICE, DEPLOYER_SERVICE_NAME, NAMI
 from dataflow.remote._proto import df as pb
 from dataflow.remote.client import GrpcSystem
 from dataflow.remote.naming import NameRegistry, NamingServicer, serve_nameserver
-from dataflow.remote.server import serve_deployer
+
 from helpers import free_port, wait_until
 from test_remote_support import Pinger, start_scart, stop_process
 
@@ -292,8 +292,8 @@ def test_heartbeat_reports_names_held_by_another_deployer(caplog) -> None:
     first, second = Deployer(), Deployer()
     _started(first, Pinger("x"))
     _started(second, Pinger("y"))
-    one = serve_deployer(first, ns=ns.address, lease_seconds=0.6)
-    two = serve_deployer(second, ns=ns.address, lease_seconds=0.6)
+    one = first.serve(ns=ns.address, lease_seconds=0.6)
+    two = second.serve(ns=ns.address, lease_seconds=0.6)
     try:
         caplog.set_level(logging.WARNING)
         _started(second, Pinger("x"))

@@ -1,4 +1,5 @@
-"""The binding interface and the extension points, exercised the way issue 5 will use them.
+"""The extension SPI, exercised as an extension author uses it: providers given to a
+runtime's own registry, never a module-level table.
 
 Every binding passes the same behaviour tests: the local binding, and a "loopback"
 binding that goes through the generic path a remote binding uses (an ``Invocation``
@@ -7,7 +8,6 @@ handed to ``ServiceEndpoint.invoke``).
 
 from __future__ import annotations
 
-import contextlib
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -16,18 +16,24 @@ from typing import Any
 import pytest
 
 import scart
-from scart.api import InterfaceInfo, Operation
-from scart.bindings.base import (
-    BINDING_KINDS,
+from scart.spi import (
+    AssemblyView,
+    Binding,
+    BindingProvider,
+    CheckContext,
+    Element,
+    ElementProvider,
+    Host,
+    InterfaceInfo,
     Invocation,
+    Operation,
+    Participant,
+    Problem,
     ReferenceBinding,
     ServiceBinding,
-    register_binding,
+    ServiceEndpoint,
+    Side,
 )
-from scart.errors import Problem
-from scart.extensions import COMPOSITE_EXTENSIONS, register_composite_extension
-from scart.model import Binding
-from scart.scdl import EXTENSION_ELEMENTS
 from test_sca_support import composite, py, write
 
 EXT = "urn:test-ext"
@@ -37,7 +43,7 @@ LOG: list[str] = []
 class LoopReference(ReferenceBinding):
     """Calls the endpoint named by ``uri`` through ``invoke`` (like a remote binding's server side)."""
 
-    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: Any) -> None:
+    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: Host) -> None:
         super().__init__(model, interface, host)
         assert model is not None
         self.target = host.endpoint(model.attributes["uri"])
@@ -53,12 +59,6 @@ class LoopReference(ReferenceBinding):
     def stop(self) -> None:
         LOG.append("reference stop")
 
-    @classmethod
-    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
-        if "uri" not in model.attributes:
-            return [Problem("TEST-1", "binding.loop needs uri", model.loc.path, model.loc.line)]
-        return []
-
 
 class LoopService(ServiceBinding):
     def start(self) -> None:
@@ -72,12 +72,32 @@ class LoopService(ServiceBinding):
         return "loop://" + self.endpoint.component
 
 
+class LoopBinding(BindingProvider):
+    name = "binding.loop"
+
+    def check(self, model: Binding, interface: InterfaceInfo | None, side: Side,
+              context: CheckContext) -> list[Problem]:
+        if side == "reference" and "uri" not in model.attributes:
+            return [Problem("TEST-1", "binding.loop needs uri", model.loc.path, model.loc.line)]
+        return []
+
+    def service(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> ServiceBinding:
+        return LoopService(model, endpoint, host)
+
+    def reference(self, model: Binding, interface: InterfaceInfo, host: Host) -> ReferenceBinding:
+        return LoopReference(model, interface, host)
+
+
+def runtime(path: Path, *providers: scart.spi.Extension) -> scart.Runtime:
+    """A runtime whose registry has the installed kinds plus ``LoopBinding`` and ``providers``."""
+    registry = scart.ExtensionRegistry().with_providers(LoopBinding(), *providers)
+    return scart.Runtime.from_file(str(path), extensions=registry)
+
+
 @pytest.fixture(autouse=True)
-def _registered() -> Iterator[None]:
-    register_binding("binding.loop", service=LoopService, reference=LoopReference)
+def _clear_log() -> Iterator[None]:
     LOG.clear()
     yield
-    BINDING_KINDS.pop("binding.loop", None)
 
 
 def comps():
@@ -101,7 +121,7 @@ def test_sync_call_and_callback(tmp_path: Path, kind: str) -> None:
         <component name="B1">{py("Boss")}{wired(kind, "B1", "worker", "W/Worker")}</component>
         <component name="B2">{py("Boss")}{wired(kind, "B2", "worker", "W/Worker")}</component>
     """)})
-    with scart.Runtime.from_file(str(path)) as rt:
+    with runtime(path) as rt:
         assert rt.service("B1").run_sync(3) == 6
         assert rt.service("B2").run_sync(4) == 8
         assert rt._managers["B1"].instance().received == ["sync 3"]
@@ -113,7 +133,7 @@ def test_oneway_and_callback_from_worker(tmp_path: Path, kind: str) -> None:
         <component name="W">{py("WorkerImpl")}</component>
         <component name="B">{py("Boss")}{wired(kind, "B", "worker", "W/Worker")}</component>
     """)})
-    with scart.Runtime.from_file(str(path)) as rt:
+    with runtime(path) as rt:
         gate = comps().GATE
         gate.clear()
         try:
@@ -130,7 +150,7 @@ def test_calculator_style_chain(tmp_path: Path, kind: str) -> None:
         <component name="A">{py("GreeterImpl")}<property name="greeting">Yo</property></component>
         <component name="S">{py("Single")}{wired(kind, "S", "one", "A/Greeter")}</component>
     """)})
-    with scart.Runtime.from_file(str(path)) as rt:
+    with runtime(path) as rt:
         assert rt.service("S").call("x") == "Yo, x"
 
 
@@ -142,7 +162,7 @@ def test_service_binding_lifecycle_and_address(tmp_path: Path) -> None:
         </component>
     """)})
     events = None
-    with scart.Runtime.from_file(str(path)) as rt:
+    with runtime(path) as rt:
         events = comps().EVENTS
         assert LOG == ["service start A/Tracker", "service start A/Tracker"]
         assert set(rt.addresses().values()) == {"loop://A"}
@@ -163,20 +183,25 @@ def test_unknown_and_misconfigured_bindings_are_static_errors(tmp_path: Path) ->
         </component>
     """)
     with pytest.raises(scart.ScdlError) as info:
-        scart.Runtime.from_file(str(write(tmp_path, {"b.composite": text})))
+        runtime(write(tmp_path, {"b.composite": text}))
     assert info.value.codes == ["SCART-C002", "TEST-1"]
     assert "binding <binding.ws> cannot be used on a reference" in str(info.value)
 
 
-class _Connect:
-    """A stand-in for issue 5's ``scart:connect`` handler."""
+class _Connect(ElementProvider):
+    """A recording stand-in for ``scart:connect``, given to one runtime's registry only."""
 
-    def check(self, elements: list, assembly: Any) -> list[Problem]:
+    name = "connect"
+
+    def check(self, elements: list[tuple[str, Element]], assembly: AssemblyView,
+              context: CheckContext) -> list[Problem]:
         return [Problem("TEST-2", "bad connect", el.loc.path, el.loc.line)
                 for _, el in elements if "from" not in el.attributes]
 
-    def participant(self, elements: list, runtime: Any) -> Any:
-        class P:
+    def activate(self, host: Host) -> Participant:
+        elements = host.assembly.elements_of(self.name)
+
+        class P(Participant):
             def start(self) -> None:
                 LOG.append(f"connect start {[(p, e.attributes['from']) for p, e in elements]}")
 
@@ -185,54 +210,66 @@ class _Connect:
         return P()
 
 
-@pytest.fixture
-def connect_registered() -> Iterator[None]:
-    """Stand a recording handler in for ``scart:connect``; put the real one back after."""
-    with _connect_handler(_Connect()):
-        yield
-
-
-@contextlib.contextmanager
-def _connect_handler(handler: object | None) -> Iterator[None]:
-    """Swap the ``scart:connect`` handler (``None``: unregistered) and restore it after."""
-    tables = (COMPOSITE_EXTENSIONS, EXTENSION_ELEMENTS)
-    saved = [table.pop("connect", None) for table in tables]
-    if handler is not None:
-        register_composite_extension("connect", handler)
-    try:
-        yield
-    finally:
-        for table, entry in zip(tables, saved):
-            table.pop("connect", None)
-            if entry is not None:
-                table["connect"] = entry
-
-
-def test_composite_extension_element(tmp_path: Path, connect_registered: None) -> None:
+def test_composite_extension_element(tmp_path: Path) -> None:
     path = write(tmp_path, {"x.composite": composite(f"""
         <component name="A">{py("Tracker")}</component>
         <scart:connect from="a.out" to="b.in" policy="buffer:8"/>
     """)})
-    with scart.Runtime.from_file(str(path)):
+    with runtime(path, _Connect()):
         assert LOG == ["connect start [('', 'a.out')]"]
         assert comps().EVENTS[-1] == "init A"
     assert LOG[-1] == "connect stop"
     bad = write(tmp_path, {"y.composite": composite('<scart:connect to="b.in"/>')})
     with pytest.raises(scart.ScdlError) as info:
-        scart.Runtime.from_file(str(bad))
+        runtime(bad, _Connect())
     assert info.value.codes == ["TEST-2"] and info.value.line == 3
+
+
+def test_the_registry_is_the_runtimes_own(tmp_path: Path) -> None:
+    """A provider given to one runtime changes no other runtime: the next one uses the
+    installed ``scart:connect`` again (whose check finds no task ``a`` here)."""
+    path = write(tmp_path, {"x.composite": composite(f"""
+        <component name="A">{py("Tracker")}</component>
+        <scart:connect from="a.out" to="b.in"/>
+    """)})
+    with runtime(path, _Connect()):
+        assert LOG == ["connect start [('', 'a.out')]"]
+    with pytest.raises(scart.ScdlError) as info:
+        scart.Runtime.from_file(str(path))
+    assert info.value.codes == ["SCART-T002"]
 
 
 def test_unregistered_extension_element_is_refused(tmp_path: Path) -> None:
     path = write(tmp_path, {"x.composite": composite('<scart:connect from="a.out" to="b.in"/>')})
-    with _connect_handler(None), pytest.raises(scart.ScdlError) as info:
-        scart.Runtime.from_file(str(path))
+    without = scart.ExtensionRegistry(
+        [p for n in ("implementation.python", "binding.sca") if (p := scart.ExtensionRegistry().get(n))],
+        discover=False)
+    with pytest.raises(scart.ScdlError) as info:
+        scart.Runtime.from_file(str(path), extensions=without)
     assert info.value.codes == ["SCART-X004"]
+
+
+def test_a_broken_extension_is_a_problem_naming_it(tmp_path: Path) -> None:
+    """An entry point that cannot be imported is reported where its element is used."""
+    from importlib.metadata import EntryPoint
+
+    registry = scart.ExtensionRegistry()
+    registry._found["binding.broken"] = EntryPoint("binding.broken", "no_such_module_xyz:Nope", "scart.extensions")
+    path = write(tmp_path, {"b.composite": composite(f"""
+        <component name="A">{py("GreeterImpl")}</component>
+        <component name="S">{py("Single")}
+          <reference name="one"><e:binding.broken xmlns:e="{EXT}"/></reference>
+        </component>""")})
+    with pytest.raises(scart.ScdlError) as info:
+        scart.Runtime.from_file(str(path), extensions=registry)
+    assert info.value.codes == ["SCART-C002"]
+    assert "extension 'binding.broken' (entry point 'no_such_module_xyz:Nope'" in str(info.value)
+    assert "ModuleNotFoundError" in str(info.value)
 
 
 def test_shared_objects_and_stop_hooks(tmp_path: Path) -> None:
     path = write(tmp_path, {"x.composite": composite(f'<component name="A">{py("Tracker")}</component>')})
-    with scart.Runtime.from_file(str(path)) as rt:
+    with runtime(path) as rt:
         made = rt.shared("deployer", lambda: ["the deployer"])
         assert rt.shared("deployer", lambda: ["another"]) is made
         rt.add_stop_hook(lambda: LOG.append("hook 1"))

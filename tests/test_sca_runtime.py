@@ -359,14 +359,14 @@ def test_remotable_oneway_copies_arguments_once_before_the_caller_returns() -> N
     from unittest import mock
 
     from scart.api import Operation
-    from scart.bindings.base import wrap_operation
+    from scart.local import wrap_operation
 
     queued: list[tuple] = []
     seen: list[list[str]] = []
     wrapped = wrap_operation(seen.append, Operation("put", oneway=True), callback=None, by_value=True,
                              submit=lambda fn, *a, **k: queued.append((fn, a, k)))
     mine = ["caller"]
-    with mock.patch("scart.bindings.base.copy.deepcopy", wraps=copy_module.deepcopy) as deepcopy:
+    with mock.patch("scart.local.copy.deepcopy", wraps=copy_module.deepcopy) as deepcopy:
         assert wrapped(mine) is None
         mine.append("after return")
         fn, args, kwargs = queued.pop()

@@ -11,14 +11,7 @@ from test_sca_support import composite, line_of, write
 
 import scart
 from dataflow import PeriodicActivity, TaskState
-from scart.bindings._dataflow_tasks import ensure_registered
-from scart.bindings._dataflow_host import host_of
-
-
-@pytest.fixture(autouse=True)
-def _real_handlers() -> None:
-    """Another suite swaps in a stand-in scart:connect handler and then removes it: restore ours."""
-    ensure_registered()
+from scart.ext.dataflow import host_of
 
 
 TASKS = '''
@@ -213,34 +206,47 @@ def test_bridge_composites_validate() -> None:
         scart.Runtime.from_file(bridge / name)  # loads and checks; nothing starts
 
 
-def test_default_name_service_port_taken_falls_back_and_says_where(tmp_path: Path) -> None:
-    """Without --ns, a busy default port embeds the name service elsewhere, and the
-    runtime's components are told the real address (not the busy one)."""
+def test_default_name_service_port_taken_falls_back_and_says_where(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without an ns setting, a busy default port embeds the name service elsewhere, and
+    the runtime says where it really is (extensions resolve tasks through that one)."""
     import socket
 
-    from scart.bindings._dataflow_host import AMBIENT_NS, ambient_ns
-    from scart.commands.run import serve_tasks
+    import scart.settings
 
     busy = socket.socket()
     busy.bind(("127.0.0.1", 0))
     busy.listen()  # something that is not a name service holds the "default" port
     taken = f"127.0.0.1:{busy.getsockname()[1]}"
+    monkeypatch.setattr(scart.settings, "DEFAULT_NS_ADDRESS", taken)
     try:
-        with scart.Runtime.from_file(make(tmp_path, TWO)) as rt:
-            AMBIENT_NS["address"] = taken
-            lines = serve_tasks(rt, taken, explicit=False)
+        with scart.Runtime.from_file(make(tmp_path, TWO), settings=scart.Settings(serve=True)) as rt:
             real = host_of(rt).ns_address
-            assert real != taken and f"name service at {real} (embedded)" in lines[-1]
-            assert ambient_ns() == real
+            assert real != taken and rt.served()["name service"] == f"{real} (embedded)"
     finally:
-        AMBIENT_NS.pop("address", None)
+        busy.close()
+
+
+def test_an_explicit_name_service_that_cannot_be_bound_fails_the_start(tmp_path: Path) -> None:
+    import socket
+
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen()
+    taken = f"127.0.0.1:{busy.getsockname()[1]}"
+    try:
+        rt = scart.Runtime.from_file(make(tmp_path, TWO), settings=scart.Settings(serve=True, ns=taken))
+        with pytest.raises(scart.ScartError, match=f"starting implementation.task failed.*{taken}"):
+            rt.start()
+        assert rt.state is scart.RuntimeState.STOPPED
+    finally:
         busy.close()
 
 
 def test_checked_property_type_built_once_per_declaration() -> None:
     """The checked type of a Property is memoised: the TypeAdapter cache is not defeated."""
     from dataflow import Property
-    from scart.bindings._dataflow_tasks import _checked_type
+    from scart.ext.dataflow.tasks import _checked_type
 
     def positive(value: float) -> None:
         if value <= 0:

@@ -12,14 +12,12 @@ Both offer the :class:`Controller` service, so a test drives them identically.
 
 from __future__ import annotations
 
-import os
 import threading
 from typing import Protocol
 
 import scart
 from dataflow import ConnPolicy
 from dataflow.remote import SampleEvent, connect
-from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 
 @scart.interface
@@ -64,11 +62,13 @@ class ThermostatProxy:
 
     ns: str = scart.prop(default="")
     task: str = scart.prop(default="thermostat")
+    ctx: scart.ComponentContext = scart.context()
 
     @scart.init
     def open(self) -> None:
         self._record = _Record()
-        self._system = connect(self.ns.strip() or os.environ.get(NS_ENV, "").strip() or DEFAULT_NS_ADDRESS)
+        # the property, else the runtime's name service (scart run --ns, SCART_NS, the default)
+        self._system = connect(self.ns.strip() or self.ctx.settings.ns_address)
         proxy = self._system.component(self.task)
         self._proxy = proxy
         self._writer = proxy.connect_input("setpoint", ConnPolicy.data())

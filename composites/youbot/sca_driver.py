@@ -23,20 +23,17 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import threading
 import time
 from typing import Any
 
 import scart
 from dataflow import ConnPolicy, WriteStatus
-from dataflow.remote import System, connect
-from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
-from dataflow.remote.errors import ClosedError, RemoteTimeoutError, UnavailableError
+from dataflow.remote import ClosedError, RemoteTimeoutError, System, UnavailableError, connect
 from interfaces import RetrievingStatus, SendingCommands, SettingPeriod
 from proxy_core import DriverProxyCore
 
-__all__ = ["SCAYouBotDriver", "resolve_name_service"]
+__all__ = ["SCAYouBotDriver"]
 
 log = logging.getLogger("youbot.sca_driver")
 
@@ -49,20 +46,6 @@ _OFFLINE_ERRORS: tuple[type[BaseException], ...] = (
 )
 
 
-def resolve_name_service(value: str) -> str:
-    """The name-service address to use: ``value`` if set; else the one this process's
-    runtime uses (``scart run --ns``), else ``$SCART_NS``, else the default address
-    ``scart run`` embeds its name service at (``127.0.0.1:7850``)."""
-    if value.strip():
-        return value.strip()
-    try:  # set by `scart run --ns` before the composite is loaded
-        from scart.bindings._dataflow_host import ambient_ns
-    except ImportError:  # an older scart: the environment only
-        ambient_ns = None
-    ambient = ambient_ns() if ambient_ns is not None else None
-    return ambient or os.environ.get(NS_ENV, "").strip() or DEFAULT_NS_ADDRESS
-
-
 @scart.component(services=[RetrievingStatus, SendingCommands, SettingPeriod])
 class SCAYouBotDriver(DriverProxyCore):
     """SCA proxy of the data-flow youBot driver (see the module docstring)."""
@@ -71,6 +54,7 @@ class SCAYouBotDriver(DriverProxyCore):
     poll_period: float = scart.prop(default=0.0)
     retry_interval: float = scart.prop(default=0.2)
     info_interval: float = scart.prop(default=0.5)
+    ctx: scart.ComponentContext = scart.context()
 
     # --- lifecycle ---------------------------------------------------------------------
 
@@ -82,7 +66,8 @@ class SCAYouBotDriver(DriverProxyCore):
         self._proxy: Any = None
         self._subscription: Any = None
         self._info: dict[str, Any] = {"state": None, "period": None, "period_status": "", "connected": False}
-        self._address = resolve_name_service(self.name_service)
+        # the property, else the runtime's name service (scart run --ns, SCART_NS, the default)
+        self._address = self.name_service.strip() or self.ctx.settings.ns_address
         self._supervisor = threading.Thread(target=self._supervise, name="scart-youbot-proxy", daemon=True)
         self._supervisor.start()
 

@@ -27,10 +27,9 @@ if TYPE_CHECKING:
     from dataflow.deployer import Deployer
     from dataflow.remote.client import GrpcSystem
     from dataflow.remote.naming import NameServer
-    from dataflow.remote.server import DeployerServer
 
 __all__ = [
-    "connect", "local_system", "serve_deployer", "serve_nameserver",
+    "connect", "local_system", "serve_nameserver",
     "System", "ComponentProxy", "Subscription", "PortWriter", "SampleEvent", "GapEvent", "ComponentInfo",
     "RemoteError", "UnavailableError", "RemoteTimeoutError", "RemoteNotFoundError", "RemoteTypeError",
     "RemoteValueError", "AlreadyRegisteredError", "ClosedError", "DEFAULT_NS_PORT", "DEFAULT_NS_ADDRESS",
@@ -49,13 +48,6 @@ def local_system(deployer: Deployer) -> System:
     from dataflow.remote.local import LocalSystem
 
     return LocalSystem(deployer)
-
-
-def serve_deployer(deployer: Deployer, address: str = "127.0.0.1:0", ns: str | None = None, **options: Any) -> DeployerServer:
-    """Serve ``deployer`` over gRPC; see :func:`dataflow.remote.server.serve_deployer`."""
-    from dataflow.remote.server import serve_deployer as _serve
-
-    return _serve(deployer, address, ns=ns, **options)
 
 
 def serve_nameserver(address: str = "127.0.0.1:0", **options: Any) -> NameServer:

@@ -1,4 +1,4 @@
-"""Serve a :class:`dataflow.Deployer` over gRPC: ``server = serve_deployer(deployer)``.
+"""Serve a :class:`dataflow.Deployer` over gRPC: ``server = deployer.serve(address)``.
 
 The server offers ``scart.dataflow.v1.DeployerService``, standard gRPC health checking
 and server reflection (``grpcurl -plaintext ADDRESS list`` works), and — unless told to
@@ -38,7 +38,7 @@ from dataflow.remote.naming import (
     DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration, held_elsewhere,
 )
 
-__all__ = ["DeployerServer", "serve_deployer"]
+__all__ = ["DeployerServer"]
 
 log = logging.getLogger(__name__)
 
@@ -308,25 +308,3 @@ class DeployerServer:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
-
-
-def serve_deployer(
-    deployer: Deployer,
-    address: str = "127.0.0.1:0",
-    ns: str | None = None,
-    *,
-    lease_seconds: float = DEFAULT_LEASE,
-    heartbeat_ms: int = 500,
-    max_workers: int = 64,
-) -> DeployerServer:
-    """Serve ``deployer`` at ``address`` (returns once listening; does not block).
-
-    ``ns=None`` embeds a name service; otherwise the tasks are registered with the name
-    service at ``ns`` (raises :class:`errors.AlreadyRegisteredError` for a name held by
-    another live deployer, :class:`errors.UnavailableError` when nothing answers there or
-    the address cannot be bound). ``heartbeat_ms``: idle interval of subscription
-    heartbeats; ``lease_seconds``: name-service lease (heartbeats every third of it).
-    """
-    return DeployerServer(
-        deployer, address, ns=ns, lease_seconds=lease_seconds, heartbeat_ms=heartbeat_ms, max_workers=max_workers
-    )

@@ -1,1 +1,2 @@
-"""The verbs of the ``scart`` command line, one module per group (see ``scart.cli``)."""
+"""The SCA verbs of the ``scart`` command line (:mod:`scart.commands.run`); other groups
+come from the ``scart.commands`` entry points (see :mod:`scart.cli`)."""

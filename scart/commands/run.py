@@ -1,12 +1,17 @@
-"""The verbs ``scart run``, ``scart validate`` and ``scart graph``.
+"""The verbs ``scart run``, ``scart validate`` and ``scart graph`` (the ``sca`` group).
 
-When the composite has ``implementation.task`` components, ``scart run`` serves them over
-gRPC after starting the composite, so ``scart ls``/``describe``/``echo`` see them: with the
-name service embedded at ``--ns HOST:PORT`` (else ``SCART_NS``, else the default
-127.0.0.1:7850), or — when a name service already answers there — registered with that
-one. The start summary then has the lines ``scart: dataflow server at HOST:PORT`` and
-``scart: name service at HOST:PORT (embedded|joined)``. ``binding.dataflow`` and
+``scart run`` fills a :class:`scart.Settings` (``--ns``, else ``SCART_NS``; ``serve=True``)
+and runs the composite with it. When the composite has ``implementation.task``
+components, the data-flow extension then serves them over gRPC once every component has
+started, so ``scart ls``/``describe``/``echo`` see them: with the name service embedded
+at ``--ns HOST:PORT`` (else ``SCART_NS``, else the default 127.0.0.1:7850), or — when a
+name service already answers there — registered with that one. The start summary then
+has a line per thing served (``scart: dataflow server at HOST:PORT (N task(s))``,
+``scart: name service at HOST:PORT (embedded|joined)``). ``binding.dataflow`` and
 ``scart:connect`` resolve tasks of other processes through that same name service.
+
+Loading is offline: ``scart validate`` never touches the network unless ``--online``,
+which lets the extensions' checks ask the name service (``--ns``) about remote tasks.
 
 Exit codes: 0 success (``run``: after a clean stop on SIGINT/SIGTERM), 2 an invalid
 composite (every problem listed on stderr as ``path:line: message [CODE]``, nothing
@@ -25,14 +30,15 @@ import signal
 import sys
 import threading
 from types import FrameType
-from typing import Any
 
-from dataflow import DataflowError
+import pydantic
+
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
-
-from scart.assembly import Assembly, Bound, Target, assemble
+from scart.assembly import assemble
 from scart.errors import ScartError, ScdlError
+from scart.graph import Assembly, Bound, Target
 from scart.model import Composite
+from scart.settings import Settings
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -46,12 +52,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
                           "(logged by operation; default 10)")
     run.add_argument("--ns", default=None, metavar="HOST:PORT",
                      help="name service of data-flow tasks: where the embedded one listens, or the running one "
-                          "to join (default: $SCART_NS, else 127.0.0.1:7850)")
+                          f"to join (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
     run.set_defaults(func=cmd_run)
 
-    validate = subparsers.add_parser("validate", help="check composites without running them")
+    validate = subparsers.add_parser("validate", help="check composites without running them (offline)")
     validate.add_argument("files", nargs="+", help=".composite files")
     _add_set(validate)
+    validate.add_argument("--online", action="store_true",
+                          help="also check remote data-flow tasks against the running name service")
+    validate.add_argument("--ns", default=None, metavar="HOST:PORT",
+                          help=f"name service for --online (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
     validate.set_defaults(func=cmd_validate)
 
     graph = subparsers.add_parser("graph", help="print a composite as Graphviz DOT")
@@ -76,11 +86,22 @@ def parse_overrides(items: list[str]) -> dict[str, str]:
     return out
 
 
-def _assemble(file: str, raw_overrides: list[str], unused: set[str] | None = None) -> Assembly | None:
+def settings_of(args: argparse.Namespace, **fields: object) -> Settings | None:
+    """The settings of a verb: ``--ns`` (else ``SCART_NS``) and ``fields``; None (after
+    printing why) when a value is invalid."""
+    ns = getattr(args, "ns", None)
+    try:
+        return Settings.from_env(**({"ns": ns} if ns else {}), **fields)
+    except pydantic.ValidationError as exc:
+        print(f"scart: {exc.errors()[0]['msg']}", file=sys.stderr)
+        return None
+
+
+def _assemble(file: str, raw_overrides: list[str], settings: Settings, unused: set[str] | None = None) -> Assembly | None:
     """Assemble ``file`` or print its problems. With ``unused`` (a set), overrides naming no
     property of this file are no problem: their keys are added to ``unused`` instead."""
     try:
-        result = assemble(file, parse_overrides(raw_overrides), strict_overrides=unused is None)
+        result = assemble(file, parse_overrides(raw_overrides), strict_overrides=unused is None, settings=settings)
         if unused is not None:
             unused |= result.unused_overrides
         return result
@@ -97,8 +118,7 @@ def _assemble(file: str, raw_overrides: list[str], unused: set[str] | None = Non
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Install SIGINT/SIGTERM handlers, load, start, serve tasks, print a summary, wait, stop."""
-    from scart.bindings._dataflow_host import AMBIENT_NS, host_of
+    """Install SIGINT/SIGTERM handlers, load, start (tasks served), print a summary, wait, stop."""
     from scart.runtime import Runtime
 
     stop = threading.Event()
@@ -111,34 +131,29 @@ def cmd_run(args: argparse.Namespace) -> int:
         stop.set()
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    given = args.ns or os.environ.get(NS_ENV)
-    explicit = bool(given)
-    ns = given or DEFAULT_NS_ADDRESS
-    AMBIENT_NS["address"] = ns  # before assembling: the binding checks may resolve it
     try:
-        assembly = _assemble(args.file, args.overrides)
+        settings = settings_of(args, serve=True)
+        if settings is None:
+            return 2
+        assembly = _assemble(args.file, args.overrides, settings)
         if assembly is None:
             return 2
-        runtime = Runtime(assembly, max_workers=args.workers, drain_timeout=args.stop_timeout)
-        host = host_of(runtime)
-        _use_ns(host, ns)
+        runtime = Runtime(assembly, settings=settings, max_workers=args.workers, drain_timeout=args.stop_timeout)
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.
         announced = io.StringIO()
         try:
             with contextlib.redirect_stdout(announced):
                 runtime.start()
-                served = serve_tasks(runtime, ns, explicit=explicit)
-        except (ScartError, DataflowError) as exc:
+        except ScartError as exc:
             runtime.stop()
-            host.close()
             print(f"scart: start failed: {exc}", file=sys.stderr)
             return 1
         try:
             sys.stdout.write(announced.getvalue())
             print(summary(assembly, runtime.addresses()), flush=True)
-            for line in served:
-                print(line, flush=True)
+            for what, where in runtime.served().items():
+                print(f"scart: {what} at {where}", flush=True)
             print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
             while not stop.wait(0.5):
                 pass
@@ -146,52 +161,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         finally:
             # SCA components first (their one-way calls drain while the tasks they use
             # still run; then the components, task components included, are destroyed in
-            # reverse start order), the data-flow server last.
+            # reverse start order), the data-flow server last (a stop hook).
             runtime.stop()
-            host.close()
         print("scart: stopped", flush=True)
         return 0
     finally:
-        AMBIENT_NS.pop("address", None)
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-
-
-def serve_tasks(runtime: Any, ns: str, explicit: bool = True) -> list[str]:
-    """Serve the runtime's tasks (if it has any) with the name service at ``ns``: join it
-    when one answers there, else embed one listening at ``ns`` (when ``ns`` was not given
-    explicitly and cannot be bound, at a free port). Returns the summary lines.
-    Raises ``DataflowError`` when serving fails."""
-    from dataflow.remote.errors import UnavailableError
-    from dataflow.remote.naming import name_service_answers
-    from scart.bindings._dataflow_host import host_of
-
-    if not any(n.kind == "implementation.task" for n in runtime.assembly.nodes.values()):
-        return []
-    host = host_of(runtime)
-    joined = name_service_answers(ns)
-    if joined:
-        server = host.serve("127.0.0.1:0", ns=ns)
-    else:
-        try:
-            server = host.serve(ns)
-        except UnavailableError:
-            if explicit:
-                raise
-            server = host.serve("127.0.0.1:0")
-    if server.ns_address != ns:  # embedded at a free port: say where it really is
-        _use_ns(host, server.ns_address)
-    how = "joined" if joined else "embedded"
-    return [f"scart: dataflow server at {server.address} ({len(host.deployer.names())} task(s))",
-            f"scart: name service at {server.ns_address} ({how})"]
-
-
-def _use_ns(host: Any, address: str) -> None:
-    """Point the runtime's data-flow host and the ambient name service at ``address``."""
-    from scart.bindings._dataflow_host import AMBIENT_NS
-
-    host.use_ns(address)
-    AMBIENT_NS["address"] = address
 
 
 def summary(assembly: Assembly, addresses: dict[str, str | None]) -> str:
@@ -220,12 +196,15 @@ def _endpoint_text(ep: Target | Bound) -> str:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     """Check each file; print "ok" lines or every problem; 0 if all valid, else 2."""
+    settings = settings_of(args, online=args.online)
+    if settings is None:
+        return 2
     failed = 0
     several = len(args.files) > 1
     unused_in: list[set[str]] = []
     for file in args.files:
         unused: set[str] | None = set() if several else None
-        assembly = _assemble(file, args.overrides, unused)
+        assembly = _assemble(file, args.overrides, settings, unused)
         if unused is not None:
             unused_in.append(unused)
         if assembly is None:
@@ -246,7 +225,10 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_graph(args: argparse.Namespace) -> int:
     """Print the composite as Graphviz DOT; 2 (problems on stderr) if invalid."""
-    assembly = _assemble(args.file, args.overrides)
+    settings = settings_of(args)
+    if settings is None:
+        return 2
+    assembly = _assemble(args.file, args.overrides, settings)
     if assembly is None:
         return 2
     print(to_dot(assembly))

@@ -1,6 +1,6 @@
 """How ``binding.dataflow`` maps interface operations to ports, and its static checks.
 
-Private to :mod:`scart.bindings.dataflow` (whose docstring documents the XML forms).
+Private to :mod:`scart.ext.dataflow.binding` (whose docstring documents the XML forms).
 A *plan* maps each operation to ``(kind, port, type_name)``: ``kind`` is ``"write"``
 (reference, one argument → input port), ``"read"`` (reference, no argument and a return
 value → output port) or ``"deliver"`` (service, one argument ← output port).
@@ -15,10 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from dataflow import ConnPolicy
-from scart.api import InterfaceInfo
-from scart.bindings._dataflow_host import PortInfo, ambient_ns, class_ports, remote_ports, type_name_of
-from scart.bindings.base import parse_host_port, port_in_range
-from scart.model import SCART_NS, Binding
+from scart.ext.dataflow._host import PortInfo, class_ports, remote_ports, type_name_of
+from scart.model import SCART_NS
+from scart.spi import Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
 
 #: Problem codes.
 DF_ATTRIBUTE = "SCART-D001"  # missing/invalid attribute or mapping
@@ -38,7 +37,7 @@ class Step:
 
 
 @dataclass(frozen=True)
-class Settings:
+class Attributes:
     """The attributes of one binding element, parsed."""
 
     component: str
@@ -52,7 +51,7 @@ class Settings:
 MIN_PERIOD_S = 0.001  # smallest polling period of a service binding
 
 
-def settings(model: Binding) -> Settings:
+def attributes(model: Binding) -> Attributes:
     """Parse attributes and ``<scart:map>`` children (problems as messages, never raises)."""
     a = model.attributes
     problems: list[str] = []
@@ -96,7 +95,7 @@ def settings(model: Binding) -> Settings:
         if parsed is None or not port_in_range(parsed[1]):
             problems.append(f'ns {ns!r}: expected the name service as "host:port" (port 1..65535)')
             ns = None
-    return Settings(component, ns, policy, period, mapping, tuple(problems))
+    return Attributes(component, ns, policy, period, mapping, tuple(problems))
 
 
 def _signature(iface: InterfaceInfo, op: str) -> tuple[list[Any], Any] | None:
@@ -113,7 +112,7 @@ def _signature(iface: InterfaceInfo, op: str) -> tuple[list[Any], Any] | None:
     return [hints.get(p.name, p.annotation) for p in params], hints.get("return", inspect.Parameter.empty)
 
 
-def plan(iface: InterfaceInfo, side: str, s: Settings) -> tuple[list[Step], list[str]]:
+def plan(iface: InterfaceInfo, side: str, s: Attributes) -> tuple[list[Step], list[str]]:
     """The steps of an interface (reference or service side) and shape problems."""
     steps: list[Step] = []
     problems = [f"<scart:map operation={op!r}>: interface {iface.name} has no such operation"
@@ -165,12 +164,10 @@ def check_ports(steps: list[Step], ports: dict[str, PortInfo], component: str) -
     return good, problems
 
 
-def local_task_class(folder: Path, root_file: str, component: str) -> type | None:
+def local_task_class(context: CheckContext, component: str) -> type | None:
     """The class of an ``implementation.task`` component named ``component`` in the
     contribution's composites (root first); None if there is none."""
-    from scart.contribution import import_object
-    from scart.scdl import parse_xml
-
+    folder, root_file = context.folder, context.root_file
     files = [Path(root_file)] + sorted(p for p in folder.glob("*.composite") if p.resolve() != Path(root_file).resolve())
     leaf = component.rpartition("/")[2]
     for file in files:
@@ -183,20 +180,22 @@ def local_task_class(folder: Path, root_file: str, component: str) -> type | Non
             impl = el.find(f"{{{SCART_NS}}}implementation.task")
             if impl is not None:
                 try:
-                    return import_object(impl.get("class", ""), folder)  # type: ignore[return-value]
+                    return context.import_object(impl.get("class", ""))  # type: ignore[return-value]
                 except Exception:  # noqa: BLE001 - implementation.task reports it
                     return None
     return None
 
 
-def static_ports(s: Settings, contribution: Any) -> tuple[dict[str, PortInfo] | None, str]:
-    """Ports to check against at load time and where they came from ("" when unknown)."""
+def static_ports(s: Attributes, context: CheckContext) -> tuple[dict[str, PortInfo] | None, str]:
+    """Ports to check against at load time and where they came from ("" when unknown):
+    the task class of this contribution, else (only with ``settings.online``) the task as
+    the name service knows it."""
     if s.ns is None:
-        cls = local_task_class(contribution.folder, contribution.root_file, s.component)
+        cls = local_task_class(context, s.component)
         if cls is not None:
             return class_ports(cls), "local"
-    ns = s.ns or ambient_ns()
-    if ns is None:
+    if not context.settings.online:
         return None, ""
+    ns = s.ns or context.settings.ns_address
     ports = remote_ports(ns, s.component, timeout=0.5)
     return ports, (f"name service {ns}" if ports is not None else "")

@@ -20,7 +20,7 @@ import pydantic
 from dataflow import codec
 from dataflow.errors import PortTypeError
 from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
-from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc
+from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
 from dataflow.types import registry
 from scart.errors import InvocationError, RemoteError
 

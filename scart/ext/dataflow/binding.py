@@ -14,7 +14,8 @@ XML (namespace ``urn:scart:1.0``)::
 
 Attributes: ``component`` (required: the task's name), ``ns`` (name service
 ``HOST:PORT``; absent → a task of this composite if there is one, else this runtime's
-name service: ``scart run --ns`` / ``SCART_NS`` / the default), ``policy`` (``data``
+name service: the settings' ``ns``, that is ``scart run --ns`` / ``SCART_NS`` / the
+default), ``policy`` (``data``
 default, ``buffer:N``, ``circular:N``: the connection policy of writes and of
 subscriptions), ``period`` (service only: poll every ``period`` s, JOrocos-style, instead
 of the push subscription), ``ports="op=port,..."`` and/or ``<scart:map operation port/>``
@@ -32,10 +33,11 @@ is busy, DATA keeps only the newest sample, BUFFER(n) queues n and counts the ov
 mapped explicitly) are not data-driven.
 
 Checks: at load time (``file:line``), operation shapes and, by introspecting the task —
-its class for a task of this composite, else through the name service if it answers
-within 0.5 s — port existence, direction and type (the interface annotations' registry
-names against the port types). When the task cannot be introspected at load time, the
-same check runs when it connects; mismatching operations are logged and left out.
+its class for a task of this contribution, else (only with ``settings.online``, as
+``scart validate --online``) through the name service if it answers within 0.5 s — port
+existence, direction and type (the interface annotations' registry names against the
+port types). When the task cannot be introspected at load time, the same check runs
+when it connects; mismatching operations are logged and left out.
 
 Availability: the composite starts whether the task is there or not; a connector thread
 connects when the task appears, and the remote proxies reconnect after it restarts. Each
@@ -55,25 +57,45 @@ from typing import Any
 
 from dataflow import DataflowError, FlowStatus
 from dataflow.remote import local_system
-from scart.api import InterfaceInfo, Operation
-from scart.bindings._dataflow_host import PortInfo, Watcher, host_of
-from scart.bindings._dataflow_plan import DF_ATTRIBUTE, Settings, Step, check_ports, plan, settings, static_ports
-from scart.bindings.base import BindingHost, ReferenceBinding, ServiceBinding, ServiceEndpoint, register_binding
-from scart.errors import InvocationError, Problem
-from scart.model import Binding
+from scart.errors import InvocationError
+from scart.ext.dataflow._host import TASK_KIND, PortInfo, Watcher, host_of
+from scart.ext.dataflow._plan import DF_ATTRIBUTE, Attributes, Step, attributes, check_ports, plan, static_ports
+from scart.spi import (
+    Binding, BindingProvider, CheckContext, Host, InterfaceInfo, Operation, Problem, ReferenceBinding, ServiceBinding,
+    ServiceEndpoint, Side,
+)
 
-__all__ = ["DataflowReferenceBinding", "DataflowServiceBinding", "bindings_of"]
+__all__ = ["DataflowBinding", "DataflowReferenceBinding", "DataflowServiceBinding", "bindings_of"]
 
 log = logging.getLogger("scart.dataflow")
 
 
-def bindings_of(runtime: Any) -> list[Any]:
+def bindings_of(runtime: Host) -> list[DataflowReferenceBinding | DataflowServiceBinding]:
     """The ``binding.dataflow`` instances of ``runtime`` (references and services)."""
-    return runtime.shared("dataflow.bindings", list)
+    return runtime.shared("scart.ext.dataflow.bindings", list)
 
 
-def _check(model: Binding, iface: InterfaceInfo | None, contribution: Any, side: str) -> list[Problem]:
-    s = settings(model)
+class DataflowBinding(BindingProvider):
+    """The ``binding.dataflow`` provider (see the module docstring)."""
+
+    name = "binding.dataflow"
+
+    def check(self, model: Binding, interface: InterfaceInfo | None, side: Side,
+              context: CheckContext) -> list[Problem]:
+        """Static problems (see the module docstring)."""
+        return _check(model, interface, context, side)
+
+    def service(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> ServiceBinding:
+        """A :class:`DataflowServiceBinding`: samples drive the service's operations."""
+        return DataflowServiceBinding(model, endpoint, host)
+
+    def reference(self, model: Binding, interface: InterfaceInfo, host: Host) -> ReferenceBinding:
+        """A :class:`DataflowReferenceBinding`: calls become port writes and reads."""
+        return DataflowReferenceBinding(model, interface, host)
+
+
+def _check(model: Binding, iface: InterfaceInfo | None, context: CheckContext, side: str) -> list[Problem]:
+    s = attributes(model)
     where = (model.loc.path, model.loc.line)
     out = [Problem(DF_ATTRIBUTE, m, *where) for m in s.problems]
     if side == "reference" and model.attributes.get("period") is not None:
@@ -82,7 +104,7 @@ def _check(model: Binding, iface: InterfaceInfo | None, contribution: Any, side:
         return out
     steps, shape = plan(iface, side, s)
     out += [Problem(DF_ATTRIBUTE, m, *where) for m in shape]
-    ports, source = static_ports(s, contribution)
+    ports, source = static_ports(s, context)
     if ports is None:
         log.info("%s:%s: task %r not reachable at load time: ports checked when it connects", *where, s.component)
         return out
@@ -91,10 +113,9 @@ def _check(model: Binding, iface: InterfaceInfo | None, contribution: Any, side:
     return out
 
 
-def _owner_prefix(runtime: Any, model: Binding) -> str:
+def _owner_prefix(runtime: Host, model: Binding) -> str:
     """The path prefix ("Cell/" or "") of the component whose reference or service carries ``model``."""
-    assembly = getattr(runtime, "assembly", None)
-    for path, node in (assembly.nodes.items() if assembly is not None else ()):
+    for path, node in runtime.assembly.nodes.items():
         found = any(getattr(ep, "binding", None) is model for eps in node.references.values() for ep in eps)
         found = found or any(b is model for bs in node.service_bindings.values() for b in bs)
         if found:
@@ -103,16 +124,15 @@ def _owner_prefix(runtime: Any, model: Binding) -> str:
     return ""
 
 
-def resolve_component(runtime: Any, model: Binding, s: Settings) -> Settings:
+def resolve_component(runtime: Host, model: Binding, s: Attributes) -> Attributes:
     """``s`` with ``component`` resolved: a task next to the owning component (its nested
     composite's prefix) first, then a top-level one; otherwise as written (name service)."""
-    assembly = getattr(runtime, "assembly", None)
-    if s.ns is not None or not s.component or assembly is None:
+    if s.ns is not None or not s.component:
         return s
     prefix = _owner_prefix(runtime, model)
     for name in (prefix + s.component, s.component):
-        node = assembly.nodes.get(name)
-        if node is not None and node.kind == "implementation.task":
+        node = runtime.assembly.nodes.get(name)
+        if node is not None and node.kind == TASK_KIND:
             return dataclasses.replace(s, component=name) if name != s.component else s
     return s
 
@@ -124,13 +144,13 @@ class _Link:
     wait). ``watch()`` (connector thread) logs appear / gone / restarted transitions.
     """
 
-    def __init__(self, runtime: Any, s: Settings, what: str) -> None:
+    def __init__(self, runtime: Host, s: Attributes, what: str) -> None:
         self.runtime = runtime
         self.s = s
         self.what = what
         self.host = host_of(runtime)
         node = runtime.assembly.nodes.get(s.component)
-        self.local = s.ns is None and node is not None and node.kind == "implementation.task"
+        self.local = s.ns is None and node is not None and node.kind == TASK_KIND
         self._system: Any = None
         self._proxy: Any = None
         self._lock = threading.Lock()
@@ -207,17 +227,12 @@ class _Link:
 class DataflowReferenceBinding(ReferenceBinding):
     """Reference side (see the module docstring). Thread-safe."""
 
-    @classmethod
-    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
-        """Static problems (see the module docstring)."""
-        return _check(model, interface, contribution, "reference")
-
-    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: BindingHost) -> None:
+    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: Host) -> None:
         super().__init__(model, interface, host)
         assert model is not None
-        self.settings = resolve_component(host, model, settings(model))
-        self.steps = {st.operation: st for st in plan(interface, "reference", self.settings)[0]}
-        self._link = _Link(host, self.settings, f"reference {interface.name}")
+        self.attrs = resolve_component(host, model, attributes(model))
+        self.steps = {st.operation: st for st in plan(interface, "reference", self.attrs)[0]}
+        self._link = _Link(host, self.attrs, f"reference {interface.name}")
         self._writers: dict[str, Any] = {}
         self._lock = threading.Lock()
         self._watcher: Watcher | None = None
@@ -231,7 +246,7 @@ class DataflowReferenceBinding(ReferenceBinding):
             with self._lock:
                 writer = self._writers.get(port)
                 if writer is None:
-                    writer = self._writers[port] = self._link.proxy().connect_input(port, self.settings.policy)
+                    writer = self._writers[port] = self._link.proxy().connect_input(port, self.attrs.policy)
         return writer
 
     def write(self, port: str, value: Any) -> None:
@@ -239,7 +254,7 @@ class DataflowReferenceBinding(ReferenceBinding):
         try:
             self._writer(port).write(value)
         except DataflowError as exc:
-            raise InvocationError(f"binding.dataflow: writing {self.settings.component}.{port} failed: {exc}",
+            raise InvocationError(f"binding.dataflow: writing {self.attrs.component}.{port} failed: {exc}",
                                   type(exc).__name__) from exc
         self.calls += 1
 
@@ -248,7 +263,7 @@ class DataflowReferenceBinding(ReferenceBinding):
         try:
             flow, value = self._link.proxy().read(port)
         except DataflowError as exc:
-            raise InvocationError(f"binding.dataflow: reading {self.settings.component}.{port} failed: {exc}",
+            raise InvocationError(f"binding.dataflow: reading {self.attrs.component}.{port} failed: {exc}",
                                   type(exc).__name__) from exc
         self.calls += 1
         return None if flow is FlowStatus.NO_DATA else value
@@ -292,7 +307,7 @@ class DataflowReferenceBinding(ReferenceBinding):
                     sig = sig.replace(parameters=params[1:])
         except (TypeError, ValueError):
             sig = None
-        where = f"binding.dataflow: {self.interface.name}.{name} (port {self.settings.component}.{port})"
+        where = f"binding.dataflow: {self.interface.name}.{name} (port {self.attrs.component}.{port})"
 
         def bind(args: tuple, kwargs: dict) -> Any:
             if sig is not None:
@@ -314,7 +329,7 @@ class DataflowReferenceBinding(ReferenceBinding):
 
     def start(self) -> None:
         """Start the connector (remote tasks: connect when it appears, log changes)."""
-        self._watcher = Watcher(f"scart-df-ref-{self.settings.component}", self._step, interval=0.25)
+        self._watcher = Watcher(f"scart-df-ref-{self.attrs.component}", self._step, interval=0.25)
         self._watcher.start()
 
     def _step(self) -> None:
@@ -326,7 +341,7 @@ class DataflowReferenceBinding(ReferenceBinding):
             return
         self._checked = True  # the load-time check could not reach the task: check it now, once
         infos = {p.name: PortInfo(p.name, p.direction, p.type_name) for p in ports}
-        for _code, msg in check_ports(list(self.steps.values()), infos, self.settings.component)[1]:
+        for _code, msg in check_ports(list(self.steps.values()), infos, self.attrs.component)[1]:
             log.error("binding.dataflow %s: %s", self.model.loc if self.model else "?", msg)
 
     def stop(self) -> None:
@@ -346,16 +361,11 @@ class DataflowReferenceBinding(ReferenceBinding):
 class DataflowServiceBinding(ServiceBinding):
     """Service side (see the module docstring): samples invoke operations."""
 
-    @classmethod
-    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
-        """Static problems (see the module docstring)."""
-        return _check(model, interface, contribution, "service")
-
-    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: BindingHost) -> None:
+    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> None:
         super().__init__(model, endpoint, host)
-        self.settings = resolve_component(host, model, settings(model))
-        self.steps: list[Step] = plan(endpoint.interface, "service", self.settings)[0]
-        self._link = _Link(host, self.settings, f"service {endpoint.component}/{endpoint.service}")
+        self.attrs = resolve_component(host, model, attributes(model))
+        self.steps: list[Step] = plan(endpoint.interface, "service", self.attrs)[0]
+        self._link = _Link(host, self.attrs, f"service {endpoint.component}/{endpoint.service}")
         self._subs: list[Any] = []
         self._watcher: Watcher | None = None
         self.delivered = 0
@@ -377,11 +387,11 @@ class DataflowServiceBinding(ServiceBinding):
     def address(self) -> str | None:
         """``dataflow:COMPONENT`` (``@NS`` for a remote task)."""
         where = "" if self._link.local else f"@{self._link.ns}"
-        return f"dataflow:{self.settings.component}{where}"
+        return f"dataflow:{self.attrs.component}{where}"
 
     def start(self) -> None:
         """Subscribe now if the task is there, else when it appears (connector thread)."""
-        self._watcher = Watcher(f"scart-df-svc-{self.settings.component}", self._step, interval=0.25)
+        self._watcher = Watcher(f"scart-df-svc-{self.attrs.component}", self._step, interval=0.25)
         self._watcher.start()
 
     def _step(self) -> None:
@@ -394,22 +404,22 @@ class DataflowServiceBinding(ServiceBinding):
         except DataflowError:
             return
         infos = {n: PortInfo(n, p.direction, p.type_name) for n, p in ports.items()}
-        steps, problems = check_ports(self.steps, infos, self.settings.component)
+        steps, problems = check_ports(self.steps, infos, self.attrs.component)
         for _code, msg in problems:
             log.error("binding.dataflow %s: %s (operation left out)", self.model.loc, msg)
         subs = []
         try:
             for st in steps:
-                subs.append(proxy.subscribe(st.port, self._observer(st.operation), policy=self.settings.policy,
-                                            period=self.settings.period, on_gap=self._on_gap))
+                subs.append(proxy.subscribe(st.port, self._observer(st.operation), policy=self.attrs.policy,
+                                            period=self.attrs.period, on_gap=self._on_gap))
         except DataflowError as exc:
             for sub in subs:
                 sub.close()
-            log.info("binding.dataflow %s: subscribing to %s failed: %s", self.model.loc, self.settings.component, exc)
+            log.info("binding.dataflow %s: subscribing to %s failed: %s", self.model.loc, self.attrs.component, exc)
             return
         self._subs = subs
         log.info("binding.dataflow %s: %d operation(s) of %s/%s driven by %s", self.model.loc, len(subs),
-                 self.endpoint.component, self.endpoint.service, self.settings.component)
+                 self.endpoint.component, self.endpoint.service, self.attrs.component)
 
     def _on_gap(self, gap: Any) -> None:
         """The subscription was cut and resumed by itself (the task's deployer restarted or
@@ -441,7 +451,3 @@ class DataflowServiceBinding(ServiceBinding):
             sub.close()
         self._link.close()
 
-
-register_binding("binding.dataflow", service=DataflowServiceBinding, reference=DataflowReferenceBinding)
-
-import scart.bindings._dataflow_tasks  # noqa: E402,F401  (implementation.task and scart:connect)

@@ -1,11 +1,8 @@
 """Data-flow tasks inside a composite: ``implementation.task`` and ``scart:connect``.
 
-(The code behind the public module :mod:`scart.tasks`; it lives under ``scart.bindings``
-so that the runtime registers it together with ``binding.dataflow``.)
-
 ``<scart:implementation.task class="pkg.mod:Driver" period="0.01"/>`` hosts a
 :class:`dataflow.TaskContext` in the runtime's :class:`dataflow.Deployer` (one per
-runtime, ``runtime.shared("deployer", Deployer)``):
+runtime, :func:`~scart.ext.dataflow.deployer_of`):
 
 * the task is created with the component's name (its path "Outer/Inner" when nested);
   ``period`` (seconds, > 0) gives it a ``PeriodicActivity``; without it the task keeps
@@ -26,40 +23,37 @@ runtime, ``runtime.shared("deployer", Deployer)``):
 optional ``ns`` = name service) connects an output port to an input port. Both ends in
 this composite: connected in-process when the second task is added. One end not in this
 composite: it is a task of another deployer, resolved through the name service (``ns``,
-else the runtime's, see :class:`~scart.bindings._dataflow_host.DataflowHost`) at start or
+else the runtime's, see :class:`~scart.ext.dataflow._host.DataflowHost`) at start or
 whenever it appears; the connection is re-made when that deployer restarts (a new
-registration). Cross-deployer connections need this runtime's tasks served (``scart run``
-does it). Static errors (``file:line``): malformed ``comp.port``, a component of this
-composite that is not a task, an unknown port (the message lists the ports), wrong
-direction, a bad policy, type mismatch (for a remote end: when its name service answers
-at load time, else checked when connecting and logged), neither end in this composite.
+registration). Cross-deployer connections need this runtime's tasks served (the
+settings' ``serve``, as ``scart run`` does). Static errors (``file:line``): malformed
+``comp.port``, a component of this composite that is not a task, an unknown port (the
+message lists the ports), wrong direction, a bad policy, type mismatch (for a remote
+end: with ``settings.online`` when its name service answers at load time, else checked
+when connecting and logged), neither end in this composite.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import typing
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import pydantic
 from pydantic_core import core_schema
 
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
 from scart import errors as E
-from scart.api import ComponentType, InterfaceInfo, Operation, PropSpec
-from scart.bindings._dataflow_plan import MIN_PERIOD_S
-from scart.bindings._dataflow_host import PortInfo, Watcher, ambient_ns, class_ports, host_of, remote_ports
-from scart.errors import Problem
-from scart.extensions import register_composite_extension
-from scart.implementations import ComponentManager, ImplementationProblem, register_implementation
-from scart.model import Element, Implementation
-
-if TYPE_CHECKING:
-    from scart.assembly import Assembly, Node
-    from scart.contribution import Contribution
+from scart.errors import RuntimeStateError, ScartError
+from scart.ext.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of, remote_ports
+from scart.ext.dataflow._plan import MIN_PERIOD_S
+from scart.spi import (
+    DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Element, ElementProvider, Host, Implementation,
+    ImplementationProblem, ImplementationProvider, InterfaceInfo, Node, Operation, Participant, Problem, PropSpec,
+)
 
 log = logging.getLogger("scart.tasks")
 
@@ -72,13 +66,11 @@ TASK_CONNECT_TYPE = "SCART-T003"  # scart:connect between ports of different typ
 # --- implementation.task ------------------------------------------------------------------
 
 
-def task_class(impl: Implementation, contribution: Contribution) -> type[TaskContext]:
+def task_class(impl: Implementation, context: CheckContext) -> type[TaskContext]:
     """Import and check the class of an ``implementation.task``; raises ``ImplementationProblem``."""
-    from scart.contribution import import_object
-
     ref = impl.attributes.get("class", "")
     try:
-        cls = import_object(ref, contribution.folder)
+        cls = context.import_object(ref)
     except Exception as exc:  # any import-time failure is a composite problem
         raise ImplementationProblem(E.SCART_IMPORT, f"cannot import {ref!r}: {type(exc).__name__}: {exc}") from exc
     if not (isinstance(cls, type) and issubclass(cls, TaskContext)):
@@ -99,22 +91,13 @@ def _period(impl: Implementation) -> float | None:
     return period
 
 
-_CHECKED_TYPES: weakref.WeakKeyDictionary[Any, Any] = weakref.WeakKeyDictionary()
-
-
+@functools.lru_cache(maxsize=1024)
 def _checked_type(prop: Any) -> Any:
     """The type the assembler parses a property value as: the Property's type, with its
     ``check`` attached (so a value the task would refuse is a load-time problem).
 
     Built once per Property declaration: ``scart.values`` caches a TypeAdapter per type,
     so a fresh class on every ``component_type()`` would miss that cache and grow it."""
-    checked = _CHECKED_TYPES.get(prop)
-    if checked is None:
-        checked = _CHECKED_TYPES[prop] = _make_checked_type(prop)
-    return checked
-
-
-def _make_checked_type(prop: Any) -> Any:
     if prop.check is None or prop.type is str or typing.get_origin(prop.type) in (list, tuple, set):
         return prop.type
 
@@ -143,12 +126,14 @@ def task_interface(cls: type[TaskContext]) -> InterfaceInfo:
     return InterfaceInfo(cls.__name__, ops, None, True, None)
 
 
-class TaskImplementation:
+class TaskImplementation(ImplementationProvider):
     """The ``implementation.task`` kind (see the module docstring)."""
 
-    def component_type(self, impl: Implementation, contribution: Contribution) -> ComponentType:
+    name = TASK_KIND
+
+    def component_type(self, impl: Implementation, context: CheckContext) -> ComponentType:
         """The task's service (its operations) and properties; raises ``ImplementationProblem``."""
-        cls = task_class(impl, contribution)
+        cls = task_class(impl, context)
         props: dict[str, tuple[PropSpec, Any]] = {}
         for name, prop in cls._property_decls.items():
             spec = PropSpec(prop.default, False)
@@ -158,19 +143,23 @@ class TaskImplementation:
         try:
             _period(impl)
         except ImplementationProblem as exc:
-            exc.partial = ctype  # type: ignore[attr-defined]  # the assembler still checks the rest
+            exc.partial = ctype  # the assembler still checks the rest
             raise
         return ctype
 
-    def manager(self, node: Node, host: Any) -> ComponentManager:
+    def manager(self, node: Node, host: Host) -> ComponentManager:
         """A :class:`TaskManager`."""
         return TaskManager(node, host)
+
+    def activate(self, host: Host) -> DataflowHost:
+        """The runtime's data-flow host: it serves the tasks when the settings say ``serve``."""
+        return host_of(host)
 
 
 class TaskManager(ComponentManager):
     """Creates, deploys, starts and stops the one TaskContext of a task component."""
 
-    def __init__(self, node: Node, host: Any) -> None:
+    def __init__(self, node: Node, host: Host) -> None:
         super().__init__(node, host)
         self.task: TaskContext | None = None
 
@@ -180,8 +169,6 @@ class TaskManager(ComponentManager):
         def call(*args: Any, **kwargs: Any) -> Any:
             task = self.task
             if task is None:
-                from scart.errors import RuntimeStateError
-
                 raise RuntimeStateError(f"task component {self.node.path} is not started")
             return task.call(operation, *args, **kwargs)
 
@@ -191,9 +178,6 @@ class TaskManager(ComponentManager):
         """Create, deploy, set properties, configure, connect to present peers, start.
 
         Raises ``ScartError`` naming the task when a step is refused."""
-        from scart.assembly import _Default
-        from scart.errors import ScartError
-
         impl = self.node.model.implementation
         assert impl is not None
         dataflow_host = host_of(self.host)
@@ -202,7 +186,7 @@ class TaskManager(ComponentManager):
         if period is not None:
             task.set_activity(PeriodicActivity(period))
         for name, value in self.node.properties.items():
-            if value is not _Default:
+            if value is not DEFAULT:
                 task.set_property(name, value)
         dataflow_host.deployer.add(task)
         self.task = task
@@ -280,10 +264,13 @@ def links_of(elements: list[tuple[str, Element]]) -> list[Link]:
     return [link for prefix, el in elements if (link := _parse_link(prefix, el)[0]) is not None]
 
 
-class ConnectExtension:
-    """The ``scart:connect`` composite extension (see the module docstring)."""
+class ConnectElement(ElementProvider):
+    """The ``scart:connect`` composite element (see the module docstring)."""
 
-    def check(self, elements: list[tuple[str, Element]], assembly: Assembly) -> list[Problem]:
+    name = "connect"
+
+    def check(self, elements: list[tuple[str, Element]], assembly: AssemblyView,
+              context: CheckContext) -> list[Problem]:
         """Static problems of every connect element."""
         out: list[Problem] = []
         for prefix, el in elements:
@@ -294,38 +281,39 @@ class ConnectExtension:
             for msg in problems:
                 add(TASK_CONNECT, msg)
             if link is not None:
-                self._check_link(link, assembly, add)
+                self._check_link(link, assembly, context, add)
         return out
 
-    def _check_link(self, link: Link, assembly: Assembly, add: Callable[[str, str], None]) -> None:
+    def _check_link(self, link: Link, assembly: AssemblyView, context: CheckContext,
+                    add: Callable[[str, str], None]) -> None:
         ends: list[PortInfo | None] = []
         local = 0
         for (comp, port), want, role in ((link.source, "out", "from"), (link.sink, "in", "to")):
             node = assembly.nodes.get(comp)
             if node is None:
-                ns = link.ns or ambient_ns()
-                ports = remote_ports(ns, comp, timeout=0.5) if ns else None
+                ns = link.ns or context.settings.ns_address
+                ports = remote_ports(ns, comp, timeout=0.5) if context.settings.online else None
                 if ports is None:
                     log.info("%s: %s is not in this composite: resolved through the name service at start", link.where, comp)
                 ends.append(_port_or_problem(ports, comp, port, want, role, add) if ports is not None else None)
                 continue
             local += 1
-            if node.kind != "implementation.task":
+            if node.kind != TASK_KIND:
                 add(TASK_CONNECT, f"<scart:connect> {role}: component {comp!r} is not an implementation.task")
                 ends.append(None)
                 continue
             ends.append(_port_or_problem(class_ports(node.ctype.cls), comp, port, want, role, add))
         if local == 0:
-            known = [p for p, n in assembly.nodes.items() if n.kind == "implementation.task"]
+            known = [p for p, n in assembly.nodes.items() if n.kind == TASK_KIND]
             add(TASK_CONNECT, f"<scart:connect>: neither {link.source[0]!r} nor {link.sink[0]!r} is a task of this "
                 f"composite; tasks: {', '.join(known) or 'none'}")
         src, dst = ends
         if src is not None and dst is not None and src.type_name != dst.type_name:
             add(TASK_CONNECT_TYPE, f"<scart:connect> {link.text}: type mismatch: {src.type_name} -> {dst.type_name}")
 
-    def participant(self, elements: list[tuple[str, Element]], runtime: Any) -> ConnectParticipant:
+    def activate(self, host: Host) -> ConnectParticipant:
         """Makes the links at start (cross-deployer ones in the background)."""
-        return ConnectParticipant(links_of(elements), runtime)
+        return ConnectParticipant(links_of(host.assembly.elements_of(self.name)), host)
 
 
 def _port_or_problem(
@@ -343,7 +331,7 @@ def _port_or_problem(
     return info
 
 
-def connect_present(runtime: Any, task_name: str) -> None:
+def connect_present(runtime: Host, task_name: str) -> None:
     """Make the in-process links of ``task_name`` whose other end is already deployed."""
     deployer = host_of(runtime).deployer
     names = set(deployer.names())
@@ -352,16 +340,16 @@ def connect_present(runtime: Any, task_name: str) -> None:
             deployer.connect(".".join(link.source), ".".join(link.sink), link.policy)
 
 
-def runtime_links(runtime: Any) -> list[Link]:
+def runtime_links(runtime: Host) -> list[Link]:
     """Every link declared in ``runtime``'s assembly."""
-    return links_of([(p, el) for p, el in runtime.assembly.extensions if el.kind == "connect"])
+    return links_of(runtime.assembly.elements_of(ConnectElement.name))
 
 
-class ConnectParticipant:
+class ConnectParticipant(Participant):
     """Runs the links of one runtime: in-process ones at start, remote ones by a connector
     thread that (re)connects whenever the remote end (re)appears in the name service."""
 
-    def __init__(self, links: list[Link], runtime: Any) -> None:
+    def __init__(self, links: list[Link], runtime: Host) -> None:
         self.runtime = runtime
         self.links = links
         self._remote = [lk for lk in links if not self._is_local(lk)]
@@ -462,18 +450,3 @@ class ConnectParticipant:
         for client in self._clients.values():
             client.close()
         self._clients.clear()
-
-
-def ensure_registered() -> None:
-    """(Re-)register ``implementation.task`` and ``scart:connect`` if something replaced them
-    (idempotent; tests that swap handlers use it to restore the real ones)."""
-    from scart.extensions import COMPOSITE_EXTENSIONS
-    from scart.implementations import IMPLEMENTATION_KINDS
-
-    if not isinstance(IMPLEMENTATION_KINDS.get("implementation.task"), TaskImplementation):
-        register_implementation("implementation.task", TaskImplementation())
-    if not isinstance(COMPOSITE_EXTENSIONS.get("connect"), ConnectExtension):
-        register_composite_extension("connect", ConnectExtension())
-
-
-ensure_registered()

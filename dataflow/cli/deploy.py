@@ -121,7 +121,6 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     """Run ``scart deploy``; returns the exit code."""
     from dataflow import DataflowError, Deployer
     from dataflow.remote.naming import name_service_answers
-    from dataflow.remote.server import serve_deployer
 
     ns = args.ns or os.environ.get(NS_ENV) or None
     if ns is not None and not name_service_answers(ns):
@@ -143,7 +142,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
             deployer.configure_all()
             if not args.no_start:
                 deployer.start_all()
-            server = serve_deployer(deployer, listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms)
+            server = deployer.serve(listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms)
         except (ImportError, ValueError, DataflowError) as exc:
             _err(f"scart deploy: {exc}")
             return 1

@@ -1,9 +1,11 @@
 """Shared plumbing of ``implementation.task``, ``scart:connect`` and ``binding.dataflow``.
 
 * :class:`DataflowHost` — one per runtime (``host_of(runtime)``): the runtime's
-  :class:`dataflow.Deployer`, the gRPC server serving it (when ``scart run`` or
-  :meth:`DataflowHost.serve` asked for one) and the name-service address this runtime
-  uses for data-flow components that are not local.
+  :class:`dataflow.Deployer`, the gRPC server serving it (when the settings say
+  ``serve``, as ``scart run`` does, or :meth:`DataflowHost.serve` is called) and the
+  name-service address this runtime uses for data-flow components that are not local.
+  It is the extension's participant: started after every component's ``@init``, it
+  serves the tasks; it closes its server at the very end of the runtime's stop.
 * Port introspection for the static checks: :func:`class_ports` (a TaskContext class,
   from its declared ports) and :func:`remote_ports` (a task found through a name
   service, with a short deadline; None when unreachable).
@@ -17,14 +19,13 @@ idempotent.
 from __future__ import annotations
 
 import logging
-import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from dataflow import Deployer, OutputPort, TaskContext, registry
-from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from scart.spi import Host, Participant
 
 if TYPE_CHECKING:
     from dataflow.remote.client import GrpcSystem
@@ -32,14 +33,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("scart.dataflow")
 
-#: Name service used at load time for checks of remote tasks when an element names none
-#: (``scart run --ns`` sets it before loading; else the ``SCART_NS`` environment variable).
-AMBIENT_NS: dict[str, str] = {}
-
-
-def ambient_ns() -> str | None:
-    """The name service known before a runtime exists (``scart run --ns``, else ``SCART_NS``)."""
-    return AMBIENT_NS.get("address") or os.environ.get(NS_ENV) or None
+TASK_KIND = "implementation.task"
 
 
 @dataclass(frozen=True)
@@ -134,26 +128,24 @@ class Watcher:
             self._thread.join(timeout=5.0)
 
 
-class DataflowHost:
+class DataflowHost(Participant):
     """The data-flow side of one runtime: its deployer, optional server, name service."""
 
-    def __init__(self, deployer: Deployer) -> None:
-        self.deployer = deployer
+    def __init__(self, host: Host) -> None:
+        self.host = host
+        self.deployer = Deployer()
         self.server: DeployerServer | None = None
         self._ns: str | None = None
         self._system: GrpcSystem | None = None
         self._lock = threading.Lock()
         self._closed = False
+        self._served: dict[str, str] = {}
 
     @property
     def ns_address(self) -> str:
-        """The name service for non-local components: the one set by :meth:`serve` /
-        :meth:`use_ns`, else ``SCART_NS``, else the default address."""
-        return self._ns or ambient_ns() or DEFAULT_NS_ADDRESS
-
-    def use_ns(self, address: str) -> None:
-        """Resolve non-local components through the name service at ``address``."""
-        self._ns = address
+        """The name service for non-local components: the one this runtime serves or
+        joined (:meth:`serve`), else the settings' (``ns``, else the default address)."""
+        return self._ns or self.host.settings.ns_address
 
     def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> DeployerServer:
         """Serve the deployer over gRPC (``ns=None``: embedded name service at ``address``;
@@ -164,20 +156,52 @@ class DataflowHost:
             self._ns = server.ns_address
         return server
 
+    def start(self) -> None:
+        """With ``settings.serve`` and tasks in the composite: serve them, joining the name
+        service answering at the settings' address, else embedding one there (at a free
+        port when no address was given and that one cannot be bound). Raises
+        ``DataflowError`` when serving fails."""
+        settings = self.host.settings
+        if not settings.serve or not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()):
+            return
+        from dataflow.remote.errors import UnavailableError
+        from dataflow.remote.naming import name_service_answers
+
+        ns = settings.ns_address
+        joined = name_service_answers(ns)
+        if joined:
+            server = self.serve("127.0.0.1:0", ns=ns)
+        else:
+            try:
+                server = self.serve(ns)
+            except UnavailableError:
+                if settings.ns is not None:  # given explicitly: no other address will do
+                    raise
+                server = self.serve("127.0.0.1:0")
+        self._served = {"dataflow server": f"{server.address} ({len(self.deployer.names())} task(s))",
+                        "name service": f"{server.ns_address} ({'joined' if joined else 'embedded'})"}
+
+    def stop(self) -> None:
+        """Nothing here: the server outlives every component and closes at the end (:meth:`close`)."""
+
+    def addresses(self) -> dict[str, str]:
+        """The data-flow server and the name service, once served."""
+        return dict(self._served)
+
     def refresh(self) -> None:
         """Publish tasks added after serving started (embedded name service)."""
         server = self.server
         if server is not None:
             server.refresh_names()
 
-    def system(self, timeout: float = 2.0) -> GrpcSystem:
+    def system(self, timeout: float | None = None) -> GrpcSystem:
         """A client of the name service (created on first use, shared; raises
         ``UnavailableError`` when nothing answers)."""
         from dataflow.remote.client import GrpcSystem
 
         with self._lock:
             if self._system is None:
-                self._system = GrpcSystem(self.ns_address, timeout=timeout)
+                self._system = GrpcSystem(self.ns_address, timeout=timeout or self.host.settings.timeout)
             return self._system
 
     def close(self) -> None:
@@ -194,12 +218,12 @@ class DataflowHost:
             server.stop()
 
 
-def host_of(runtime: Any) -> DataflowHost:
-    """The :class:`DataflowHost` of ``runtime`` (created, with a stop hook, on first use)."""
+def host_of(host: Host) -> DataflowHost:
+    """The :class:`DataflowHost` of a runtime (created, with a stop hook, on first use)."""
 
     def make() -> DataflowHost:
-        host = DataflowHost(runtime.shared("deployer", Deployer))
-        runtime.add_stop_hook(host.close)
-        return host
+        dataflow_host = DataflowHost(host)
+        host.add_stop_hook(dataflow_host.close)
+        return dataflow_host
 
-    return runtime.shared("dataflow.host", make)
+    return host.shared("scart.ext.dataflow.host", make)

@@ -25,14 +25,14 @@ from typing import Any
 
 import grpc
 
-from scart.api import CURRENT_CALLBACK, InterfaceInfo
-from scart.bindings._grpc_wire import (
+from scart.api import CURRENT_CALLBACK
+from scart.errors import InvocationError, ScartError, ServiceNotFoundError
+from scart.ext.grpc._wire import (
     Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
-from scart.bindings.base import BindingHost, ServiceEndpoint
-from scart.errors import InvocationError, ScartError, ServiceNotFoundError
+from scart.spi import Host, InterfaceInfo, ServiceEndpoint
 
-log = logging.getLogger("scart.bindings.grpc")
+log = logging.getLogger("scart.ext.grpc")
 
 MAX_WORKERS = 64
 MAX_STREAMS = 48  # Invoke calls + callback sessions open at once: the rest of the pool stays for unary calls
@@ -50,7 +50,7 @@ SERVER_OPTIONS: list[tuple[str, int]] = [
 class Exported:
     """One component service on a server: its names, converters and one-way failure count."""
 
-    def __init__(self, endpoint: ServiceEndpoint, names: list[str], host: BindingHost, timeout: float) -> None:
+    def __init__(self, endpoint: ServiceEndpoint, names: list[str], host: Host, timeout: float) -> None:
         self.endpoint = endpoint
         self.names = names
         self.host = host

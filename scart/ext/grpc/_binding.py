@@ -1,61 +1,13 @@
-"""``binding.grpc``: SCA services and references across processes, over gRPC.
-
-XML (namespace ``urn:scart:1.0``)::
-
-    <service name="Calculator">
-      <scart:binding.grpc address="127.0.0.1:50051" timeout="30"/>     <!-- address default 127.0.0.1:0 -->
-    </service>
-    <reference name="calculator">
-      <scart:binding.grpc address="127.0.0.1:50051" service="CalculatorComponent/Calculator" timeout="5"/>
-    </reference>
-
-* **Service side** (:class:`GrpcServiceBinding`): exports a component service (or a
-  promoted composite service) on ``address``; services of one runtime naming the same
-  address share one server (all default ``127.0.0.1:0`` services share one port).
-  ``.address`` is the real "host:port". A service answers to "Component/Service",
-  "Component" (when it is the component's only service) and its promoted names; a
-  server exporting a single service also answers to an empty name. ``timeout`` (s,
-  default 30) bounds each wait for a caller's reply to a synchronous callback.
-* **Reference side** (:class:`GrpcReferenceBinding`): ``address`` (required),
-  ``service`` (optional when the server exports one service), ``timeout`` (s, default
-  5): the per-call deadline. Calls use ``wait_for_ready``: a provider that is down when
-  called is waited for until the deadline, then :class:`ServiceUnavailableError` names
-  the address; the channel (created at start, connecting lazily) reconnects by itself,
-  so a provider that comes back later is reached again without restarting the client.
-* **Errors** raised by the provider arrive as :class:`RemoteError` (``remote_type``,
-  ``remote_message``), a ``scart.InvocationError``.
-
-Callbacks — the client never listens on a port; the calls' own streams carry them back:
-
-* A synchronous call made by a component whose reference has a callback interface uses
-  the server-streaming ``Invoke`` RPC: the server streams ``CallbackCall`` s on the
-  call's own response stream while the operation runs, the client runs each in the
-  calling thread (exactly where a local call would run it) and answers each synchronous
-  one, in order, with a unary ``ReplyCallback`` naming the call; then the server sends
-  the outcome. (Server streaming plus a unary reply is about 2x cheaper in grpcio than a
-  bidirectional stream, whose request iterator costs a thread per call.) Without a
-  callback (e.g. ``Runtime.service(...)``), a plain unary ``Call``.
-* One-way calls (unary ``Send``) return once the provider has *queued* the work on its
-  one-way pool. When the caller has a callback, the reference binding first opens a
-  **callback session**: one long-lived ``OpenCallbackSession`` stream per reference
-  binding (opened at the first such call, reopened after the provider restarts), over
-  which the provider calls back during and after the one-way call. The client runs
-  session callbacks in order on the session's reader thread (one-way callback operations
-  are queued on the caller's own pool); synchronous ones are answered on the stream.
-  ``Invoke`` calls name the session too, so a callback made after a synchronous call
-  returned still arrives when a session is open.
-* One-way failures on the provider are logged and counted: the runtime's
-  ``oneway_failures`` and :attr:`GrpcServiceBinding.oneway_failures`; a one-way call
-  the provider refuses (unknown operation, undecodable argument) or cannot be reached
-  raises at the caller.
-"""
+"""The two sides of ``binding.grpc`` (private; see :mod:`scart.ext.grpc` for the XML and the
+call protocol): :class:`GrpcServiceBinding` exports a component service on a shared
+server (:mod:`._server`), :class:`GrpcReferenceBinding` calls one, with callbacks on the
+calls' own streams."""
 
 from __future__ import annotations
 
 import itertools
 import logging
 import queue
-import re
 import threading
 import uuid
 import weakref
@@ -64,29 +16,18 @@ from typing import Any
 
 import grpc
 
-from scart.api import InterfaceInfo, Operation
-from scart.bindings._grpc_server import Exported, GrpcServer, ServerTable
-from scart.bindings._grpc_wire import (
-    RemoteError, UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, pb_grpc, signatures,
+from scart.errors import InvocationError, ServiceUnavailableError
+from scart.ext.grpc._server import Exported, GrpcServer, ServerTable
+from scart.ext.grpc._wire import (
+    UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
-from scart.bindings.base import (
-    BindingHost,
-    ReferenceBinding,
-    ServiceBinding,
-    ServiceEndpoint,
-    parse_host_port,
-    port_in_range,
-    register_binding,
-)
-from scart.errors import InvocationError, Problem, ServiceUnavailableError
-from scart.model import Binding
+from scart.spi import Binding, Host, InterfaceInfo, Operation, ReferenceBinding, ServiceBinding, ServiceEndpoint
 
-log = logging.getLogger("scart.bindings.grpc")
+log = logging.getLogger("scart.ext.grpc")
 
 DEFAULT_SERVICE_ADDRESS = "127.0.0.1:0"
 DEFAULT_CALL_TIMEOUT_S = 5.0
 DEFAULT_CALLBACK_TIMEOUT_S = 30.0
-BAD_ATTRIBUTE = "SCART-B101"  # a binding.grpc attribute is missing or malformed
 
 CHANNEL_OPTIONS: list[tuple[str, int]] = [
     ("grpc.initial_reconnect_backoff_ms", 100),
@@ -99,39 +40,6 @@ CHANNEL_OPTIONS: list[tuple[str, int]] = [
     ("grpc.enable_retries", 0),
 ]
 
-_SERVICE = re.compile(r"^[^\s/]+(/[^\s/]+)*$")
-
-
-# --- static checks -----------------------------------------------------------------------
-
-
-def _problems(model: Binding, *, reference: bool) -> list[Problem]:
-    attrs, loc = model.attributes, model.loc
-    out: list[str] = []
-    address = attrs.get("address")
-    if address is None:
-        if reference:
-            out.append('binding.grpc on a reference needs address="host:port"')
-    else:
-        parsed = parse_host_port(address)
-        if parsed is None:
-            out.append(f'binding.grpc: address {address!r} is not "host:port"')
-        elif not port_in_range(parsed[1], zero_ok=not reference):
-            out.append(f"binding.grpc: address {address!r}: port must be 1..65535" + ("" if reference else " or 0"))
-    timeout = attrs.get("timeout")
-    if timeout is not None:
-        try:
-            if not 0 < float(timeout) < 1e6:
-                raise ValueError
-        except ValueError:
-            out.append(f"binding.grpc: timeout {timeout!r} must be a positive number of seconds")
-    service = attrs.get("service")
-    if service is not None:
-        if not reference:
-            out.append("binding.grpc: 'service' is an attribute of references only")
-        elif not _SERVICE.match(service):
-            out.append(f'binding.grpc: service {service!r} is not "Component/Service"')
-    return [Problem(BAD_ATTRIBUTE, text, loc.path, loc.line) for text in out]
 
 
 def _timeout(model: Binding | None, default: float) -> float:
@@ -149,7 +57,7 @@ class GrpcServiceBinding(ServiceBinding):
     ``stop()`` is idempotent and blocks until the server (if this was its last service)
     has stopped. Thread-safe."""
 
-    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: BindingHost) -> None:
+    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> None:
         super().__init__(model, endpoint, host)
         self.configured_address = model.attributes.get("address") or DEFAULT_SERVICE_ADDRESS
         self.timeout = _timeout(model, DEFAULT_CALLBACK_TIMEOUT_S)
@@ -157,31 +65,24 @@ class GrpcServiceBinding(ServiceBinding):
         self._server: GrpcServer | None = None
         self._table: ServerTable | None = None
 
-    @classmethod
-    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
-        """Address syntax ("host:port", port 0..65535) and a positive ``timeout``."""
-        return _problems(model, reference=False)
-
     def _names(self) -> list[str]:
         ep = self.endpoint
         names = [f"{ep.component}/{ep.service}"]
-        assembly = getattr(self.host, "assembly", None)
-        node = assembly.nodes.get(ep.component) if assembly is not None else None
+        assembly = self.host.assembly
+        node = assembly.nodes.get(ep.component)
         if node is not None and len(node.ctype.services) == 1:
             names.append(ep.component)
         if node is not None:
-            names.extend(a for a in getattr(node, "service_aliases", {}).get(ep.service, ()) if a not in names)
-        for name, models in (assembly.service_bindings.items() if assembly is not None else ()):
+            names.extend(a for a in node.service_aliases.get(ep.service, ()) if a not in names)
+        for name, models in assembly.service_bindings.items():
             if any(m is self.model for m in models):
                 names.append(name)
         return names
 
     def start(self) -> None:
         """Listen (or join this runtime's server on the same address)."""
-        shared = getattr(self.host, "shared", None)
-        drain = float(getattr(self.host, "drain_timeout", 10.0))
-        self._table = (shared("scart.bindings.grpc.servers", lambda: ServerTable(drain)) if shared is not None
-                       else ServerTable(drain))
+        drain = self.host.drain_timeout
+        self._table = self.host.shared("scart.ext.grpc.servers", lambda: ServerTable(drain))
         self._server = self._table.acquire(self.configured_address, self._exported)
 
     def stop(self) -> None:
@@ -212,7 +113,7 @@ class GrpcServiceBinding(ServiceBinding):
 class GrpcReferenceBinding(ReferenceBinding):
     """Calls a remote service over gRPC (see the module docstring). Invokers are thread-safe."""
 
-    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: BindingHost) -> None:
+    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: Host) -> None:
         super().__init__(model, interface, host)
         attrs = model.attributes if model is not None else {}
         self.target_address = attrs.get("address", "")
@@ -229,11 +130,6 @@ class GrpcReferenceBinding(ReferenceBinding):
         self._target_ids = itertools.count(1)
         self._uid = uuid.uuid4().hex[:12]
         self._call_ids = itertools.count(1)
-
-    @classmethod
-    def check(cls, model: Binding, interface: InterfaceInfo | None, contribution: object) -> list[Problem]:
-        """``address`` present and "host:port"; ``service`` "Component/Service"; positive ``timeout``."""
-        return _problems(model, reference=True)
 
     def start(self) -> None:
         """Create the channel (it connects lazily: an absent provider is not an error yet)."""
@@ -499,6 +395,4 @@ class _ClientSession:
             self._thread.join(5.0)
 
 
-register_binding("binding.grpc", service=GrpcServiceBinding, reference=GrpcReferenceBinding)
-
-__all__ = ["GrpcReferenceBinding", "GrpcServiceBinding", "RemoteError", "ServiceUnavailableError"]
+__all__ = ["GrpcReferenceBinding", "GrpcServiceBinding"]

@@ -1,0 +1,36 @@
+"""The data-flow extension: Orocos-style tasks inside a composite, and SCA meeting ports.
+
+Three kinds, one runtime-wide :class:`~scart.ext.dataflow._host.DataflowHost` (the
+runtime's :class:`dataflow.Deployer`, its gRPC server and name service):
+
+* ``<scart:implementation.task class="pkg.mod:Task" period="0.01"/>`` —
+  :class:`TaskImplementation` (:mod:`scart.ext.dataflow.tasks`);
+* ``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` — :class:`ConnectElement`;
+* ``<scart:binding.dataflow component="task"/>`` on a reference or a service —
+  :class:`DataflowBinding` (:mod:`scart.ext.dataflow.binding`).
+
+With ``Settings(serve=True)`` (``scart run`` sets it) the runtime serves its tasks over
+gRPC after every component started, with a name service embedded at the settings'
+address, or joined there when one answers. For programs and tests:
+:func:`deployer_of` (the runtime's deployer) and :func:`bindings_of` (its
+``binding.dataflow`` instances).
+"""
+
+from __future__ import annotations
+
+from dataflow import Deployer
+from scart.ext.dataflow._host import DataflowHost, host_of
+from scart.ext.dataflow.binding import DataflowBinding, DataflowReferenceBinding, DataflowServiceBinding, bindings_of
+from scart.ext.dataflow.tasks import ConnectElement, ConnectParticipant, Link, TaskImplementation, TaskManager, task_interface
+from scart.spi import Host
+
+__all__ = [
+    "ConnectElement", "ConnectParticipant", "DataflowBinding", "DataflowHost", "DataflowReferenceBinding",
+    "DataflowServiceBinding", "Link", "TaskImplementation", "TaskManager", "bindings_of", "deployer_of", "host_of",
+    "task_interface",
+]
+
+
+def deployer_of(runtime: Host) -> Deployer:
+    """The :class:`dataflow.Deployer` hosting ``runtime``'s ``implementation.task`` components."""
+    return host_of(runtime).deployer

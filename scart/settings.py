@@ -1,0 +1,77 @@
+"""The settings of one runtime: what it and every extension it loads are configured with.
+
+A :class:`Settings` is a frozen value handed to ``Runtime.from_file(path, settings=...)``;
+the runtime gives it to every extension (``host.settings``) and component
+(``ComponentContext.settings``). Nothing in scart reads configuration from a module
+global: ``scart run --ns`` fills a ``Settings``, and :meth:`Settings.from_env` reads the
+environment variables (``SCART_NS``) for callers that want them.
+
+==============  ===========================================================================
+field           meaning
+==============  ===========================================================================
+``ns``          the name service of data-flow tasks, ``HOST:PORT``; None: the default
+                ``127.0.0.1:7850`` (:attr:`ns_address` resolves it)
+``serve``       serve the composite's data-flow tasks over gRPC at start, with a name
+                service embedded at :attr:`ns_address` or joined there (``scart run``)
+``online``      load-time checks may ask a running name service (``scart validate
+                --online``); off by default: loading never touches the network
+``timeout``     deadline (s) of a remote call an extension makes on the runtime's behalf
+==============  ===========================================================================
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+
+from pydantic import BaseModel, ConfigDict, field_validator
+
+from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+
+__all__ = ["Settings"]
+
+
+class Settings(BaseModel):
+    """Runtime configuration (see the module docstring). Frozen; copy with ``model_copy(update=...)``."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    ns: str | None = None
+    serve: bool = False
+    online: bool = False
+    timeout: float = 2.0
+
+    @field_validator("ns")
+    @classmethod
+    def _host_port(cls, value: str | None) -> str | None:
+        from scart.spi import parse_host_port, port_in_range
+
+        if value is None:
+            return None
+        parsed = parse_host_port(value.strip())
+        if parsed is None or not port_in_range(parsed[1], zero_ok=True):
+            raise ValueError(f'name service {value!r}: expected "host:port" (port 0..65535)')
+        return value.strip()
+
+    @field_validator("timeout")
+    @classmethod
+    def _finite(cls, value: float) -> float:
+        if not (math.isfinite(value) and 0 < value <= 3600):
+            raise ValueError(f"timeout {value!r}: expected seconds in (0, 3600]")
+        return value
+
+    @property
+    def ns_address(self) -> str:
+        """The name service to use: ``ns``, else the default address."""
+        return self.ns or DEFAULT_NS_ADDRESS
+
+    @classmethod
+    def from_env(cls, environ: Mapping[str, str] | None = None, **fields: object) -> Settings:
+        """Settings with ``ns`` from ``SCART_NS`` (when set and not given in ``fields``).
+
+        Raises ``pydantic.ValidationError`` naming the bad value."""
+        env = os.environ if environ is None else environ
+        if "ns" not in fields and env.get(NS_ENV, "").strip():
+            fields["ns"] = env[NS_ENV].strip()
+        return cls(**fields)  # type: ignore[arg-type]

@@ -1,0 +1,340 @@
+"""The extension SPI: what a binding, an implementation kind or a composite element
+provides, and what the runtime offers it. The only module an extension imports from scart.
+
+An extension is a *provider* registered under the local name of its XML element, found
+through the ``scart.extensions`` entry points (see :mod:`scart.extensions`)::
+
+    [project.entry-points."scart.extensions"]
+    "binding.foo" = "foo_binding:FooBinding"       # a BindingProvider subclass
+
+=========================  ==================================================================
+provider                   provides
+=========================  ==================================================================
+:class:`BindingProvider`   ``check`` (static, before anything starts), ``service`` (a
+                           :class:`ServiceBinding`: start, stop, its real address),
+                           ``reference`` (a :class:`ReferenceBinding`: one invoker per
+                           operation)
+:class:`ImplementationProvider`  ``component_type`` (what the implementation declares, at
+                           load time) and ``manager`` (a :class:`ComponentManager` creating,
+                           starting and stopping its instances)
+:class:`ElementProvider`   ``check`` of ``<scart:NAME>`` children of ``<composite>``
+every provider             ``activate(host)``: a :class:`Participant` run with the composite
+=========================  ==================================================================
+
+What the runtime offers, :class:`Host`: the :class:`~scart.settings.Settings`, a read-only
+view of the assembly, bounded work submission, service endpoints by name, shared
+resources by key, and stop hooks. Lifecycle, in one table::
+
+    runtime start()                            runtime stop() (reverse)
+    1 reference bindings: start()              5 service bindings: stop()
+    2 components: manager.start() (@init,      4 participants: stop()
+      targets first)                           3 one-way pool drained
+    3 participants: start() (after every       2 components: manager.stop() (@destroy)
+      @init, before any service binding)       1 reference bindings: stop(), then stop hooks
+    4 service bindings: start()
+
+Static checks must not touch the network unless ``context.settings.online`` is set.
+"""
+
+from __future__ import annotations
+
+import re
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar, Literal, Protocol, TypeVar
+
+from scart.api import ComponentType, InterfaceInfo, Operation, PropSpec
+from scart.errors import Problem
+from scart.graph import DEFAULT, Node, Target
+from scart.model import Binding, Element, Implementation
+from scart.scdl import parse_xml
+from scart.settings import Settings
+
+__all__ = [
+    "DEFAULT", "AssemblyView", "Binding", "BindingProvider", "CheckContext", "ComponentManager", "ComponentType", "Element",
+    "ElementProvider", "Extension", "Host", "Implementation", "ImplementationProblem", "ImplementationProvider",
+    "InterfaceInfo", "Invocation", "Node", "Operation", "Participant", "Problem", "PropSpec", "ReferenceBinding",
+    "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target", "parse_host_port", "parse_xml", "port_in_range",
+]
+
+T = TypeVar("T")
+Side = Literal["service", "reference"]
+
+
+# --- what the runtime offers -------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Invocation:
+    """One call: operation name, arguments, and the callback target (or None)."""
+
+    operation: str
+    args: tuple[Any, ...] = ()
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    callback: object | None = None
+
+
+class ServiceEndpoint(Protocol):
+    """A component service as bindings see it (implemented by the runtime)."""
+
+    component: str
+    service: str
+    interface: InterfaceInfo
+
+    def method(self, operation: str) -> Callable[..., Any]:
+        """The raw callable for ``operation`` on the right instance (scope handled); no
+        callback, one-way or pass-by-value handling. Raises ``KeyError`` if unknown."""
+
+    def operation(self, name: str, callback: object | None) -> Callable[..., Any]:
+        """The full callable for ``name`` (callback routed, one-way queued, by-value copied)."""
+
+    def invoke(self, invocation: Invocation) -> Any:
+        """Perform ``invocation``; returns the result (None at once for one-way)."""
+
+
+class AssemblyView(Protocol):
+    """The checked composite, read only: leaf components by path, promoted services, and
+    the extension elements of every composite level as ``(path prefix, element)``."""
+
+    @property
+    def nodes(self) -> Mapping[str, Node]: ...
+
+    @property
+    def services(self) -> Mapping[str, Target]: ...
+
+    @property
+    def service_bindings(self) -> Mapping[str, Sequence[Binding]]: ...
+
+    @property
+    def elements(self) -> Sequence[tuple[str, Element]]: ...
+
+    def elements_of(self, kind: str) -> list[tuple[str, Element]]: ...
+
+
+class Host(Protocol):
+    """What the runtime offers extensions. Every method is thread-safe."""
+
+    @property
+    def settings(self) -> Settings:
+        """The runtime's settings (name service, timeouts...)."""
+
+    @property
+    def assembly(self) -> AssemblyView:
+        """The composite this runtime runs."""
+
+    @property
+    def drain_timeout(self) -> float:
+        """How long (s) stopping waits for work in flight before leaving it behind."""
+
+    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+        """Run ``fn(*args, **kwargs)`` on the runtime's bounded one-way pool; failures are
+        logged and counted; raises ``ScartError`` when the pool is full (backpressure)."""
+
+    def submitter(self, label: str) -> Callable[..., None]:
+        """A :meth:`submit` whose calls are named ``label`` in logs."""
+
+    def endpoint(self, name: str) -> ServiceEndpoint:
+        """The endpoint of a local service ("Component/Service"); raises ``ServiceNotFoundError``."""
+
+    def shared(self, key: str, factory: Callable[[], T]) -> T:
+        """A per-runtime resource, created by ``factory`` on first use (once, even when
+        called from several threads). Keys are namespaced by convention: ``"scart.ext.grpc.servers"``."""
+
+    def add_stop_hook(self, hook: Callable[[], None]) -> None:
+        """Run ``hook`` at the very end of stop (after every @destroy), hooks in reverse order."""
+
+    def configure(self, node: Node, instance: object) -> None:
+        """Inject properties, references and context into a fresh ``instance`` of ``node``."""
+
+
+@dataclass(frozen=True)
+class CheckContext:
+    """What a static check may look at: the contribution (its folder and root composite)
+    and the settings. ``import_object("pkg.mod:Class")`` imports from the contribution."""
+
+    folder: Path
+    root_file: str
+    settings: Settings
+    importer: Callable[[str], object] = field(repr=False)
+
+    def import_object(self, ref: str) -> object:
+        """Import ``"pkg.mod:Attr"`` with the contribution folder first on ``sys.path``;
+        raises what importing raises (``ImportError``, ``AttributeError``, ``ValueError``)."""
+        return self.importer(ref)
+
+
+# --- what extensions run -----------------------------------------------------------------
+
+
+class Participant(ABC):
+    """Something an extension runs with the composite (see the lifecycle table)."""
+
+    @abstractmethod
+    def start(self) -> None:
+        """Start: every component is initialised; no service binding is started yet."""
+
+    @abstractmethod
+    def stop(self) -> None:
+        """Stop: service bindings are stopped; no component is destroyed yet. Idempotent."""
+
+    def addresses(self) -> dict[str, str]:
+        """What it serves, once started: ``{"what": "where"}`` (``scart run`` prints them)."""
+        return {}
+
+
+class ServiceBinding(ABC):
+    """Service side of a binding: exports ``endpoint`` until stopped."""
+
+    def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> None:
+        self.model = model
+        self.endpoint = endpoint
+        self.host = host
+
+    @abstractmethod
+    def start(self) -> None:
+        """Start accepting calls. Called once, after every component is initialised."""
+
+    @abstractmethod
+    def stop(self) -> None:
+        """Stop accepting calls and release resources; idempotent; blocks until done."""
+
+    @property
+    def address(self) -> str | None:
+        """The real address once started (None for bindings without one)."""
+        return None
+
+
+class ReferenceBinding(ABC):
+    """Reference side of a binding: one callable per operation of ``interface``."""
+
+    def __init__(self, model: Binding | None, interface: InterfaceInfo, host: Host) -> None:
+        self.model = model
+        self.interface = interface
+        self.host = host
+
+    @abstractmethod
+    def invoker(self, operation: Operation, callback: object | None) -> Callable[..., Any]:
+        """A callable performing ``operation``; built once, called many times, thread-safe.
+        ``callback`` is the caller's callback target (one attribute per callback operation) or None."""
+
+    def start(self) -> None:
+        """Open connections if needed (default: nothing). Called before components' @init."""
+
+    def stop(self) -> None:
+        """Close connections (default: nothing); idempotent."""
+
+
+class ComponentManager(ABC):
+    """Owns the instances of one component. ``start``/``stop`` are called once each."""
+
+    def __init__(self, node: Node, host: Host) -> None:
+        self.node = node
+        self.host = host
+
+    @abstractmethod
+    def method(self, operation: str) -> Callable[..., Any]:
+        """The raw callable running ``operation`` on the right instance."""
+
+    @abstractmethod
+    def start(self) -> None:
+        """Create eager instances and run their @init."""
+
+    @abstractmethod
+    def stop(self) -> None:
+        """Run @destroy of live instances; idempotent."""
+
+    def instance(self) -> object | None:
+        """The current instance (composite scope), or None."""
+        return None
+
+
+class ImplementationProblem(Exception):
+    """Raised by ``component_type``: the implementation cannot be used (``code``, message).
+
+    ``partial`` may carry enough of a component type for the assembler to check the rest
+    of the component (its properties, references) despite the problem."""
+
+    def __init__(self, code: str, message: str, partial: ComponentType | None = None) -> None:
+        super().__init__(message)
+        self.code = code
+        self.partial = partial
+
+
+# --- providers ---------------------------------------------------------------------------
+
+
+class Extension(ABC):
+    """Base of every provider; ``name`` is the local name of its XML element."""
+
+    name: ClassVar[str] = ""
+
+    def activate(self, host: Host) -> Participant | None:
+        """Once per runtime whose composite uses this extension, at start: what to run with
+        the composite (default: nothing). Several providers may return the same object
+        (for example one shared through ``host.shared``); it is started once."""
+        return None
+
+
+class BindingProvider(Extension):
+    """A binding kind (``binding.NAME`` on a service and/or a reference)."""
+
+    sides: ClassVar[frozenset[str]] = frozenset({"service", "reference"})
+
+    def check(self, model: Binding, interface: InterfaceInfo | None, side: Side,
+              context: CheckContext) -> list[Problem]:
+        """Static problems of this binding element (default none)."""
+        return []
+
+    def service(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> ServiceBinding:
+        """The service side for ``endpoint`` (called only when ``"service" in sides``)."""
+        raise NotImplementedError(f"{self.name} has no service side")
+
+    def reference(self, model: Binding, interface: InterfaceInfo, host: Host) -> ReferenceBinding:
+        """The reference side for ``interface`` (called only when ``"reference" in sides``)."""
+        raise NotImplementedError(f"{self.name} has no reference side")
+
+
+class ImplementationProvider(Extension):
+    """An implementation kind (``implementation.NAME`` in a component)."""
+
+    @abstractmethod
+    def component_type(self, impl: Implementation, context: CheckContext) -> ComponentType:
+        """What the implementation declares; raises :class:`ImplementationProblem`."""
+
+    @abstractmethod
+    def manager(self, node: Node, host: Host) -> ComponentManager:
+        """A manager for the component ``node``."""
+
+
+class ElementProvider(Extension):
+    """A composite-level extension element (``<scart:NAME>`` child of ``<composite>``),
+    read generically into the assembly's ``elements`` (declare it in the shipped XSD)."""
+
+    def check(self, elements: list[tuple[str, Element]], assembly: AssemblyView,
+              context: CheckContext) -> list[Problem]:
+        """Static problems of every such element (``(path prefix, element)`` pairs)."""
+        return []
+
+
+# --- helpers for extension authors -------------------------------------------------------
+
+#: ``parse_xml(path, problems)``: parse an XML file of the contribution safely (size bound,
+#: no DTD, no entities, no network); problems are appended, None returned on failure.
+parse_xml = parse_xml
+
+_HOST_PORT = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
+
+
+def parse_host_port(text: str) -> tuple[str, int] | None:
+    """``(host, port)`` of a "host:port" address (host a name, IPv4 or bracketed IPv6),
+    or None when ``text`` is not of that shape. The port is not range-checked: see
+    :func:`port_in_range`."""
+    m = _HOST_PORT.match(text)
+    return None if m is None else (m["host"], int(m["port"]))
+
+
+def port_in_range(port: int, *, zero_ok: bool = False) -> bool:
+    """Whether ``port`` is 1..65535 (0..65535 with ``zero_ok``: "any free port")."""
+    return (0 if zero_ok else 1) <= port <= 65535
