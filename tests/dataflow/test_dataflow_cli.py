@@ -1,0 +1,216 @@
+"""Every inspection verb as a real subprocess against real deployer processes: text and
+``--json`` output, JSON round trips (what echo/get print, write/set accept), errors."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from support import free_port, wait_until
+from support.remote import address_of, start_scart, stop_process, subprocess_env
+
+ROBOT = ["driver:YouBotDriver", "support.remote:Pinger@pinger", "support.remote:Echo@echo"]
+
+
+@pytest.fixture(scope="module")
+def system():
+    """A deployer (youBot driver + pinger, embedded name service) and a second one joining it."""
+    ns = f"127.0.0.1:{free_port()}"
+    robot, _ = start_scart(["deploy", *ROBOT, "--period", "0.01", "--listen", ns])
+    try:
+        far, line = start_scart(["deploy", "support.remote:Pinger@far", "--period", "0.01", "--ns", ns])
+    except BaseException:
+        stop_process(robot)
+        raise
+    try:
+        yield ns, address_of(line)
+    finally:
+        rc = (stop_process(far), stop_process(robot))
+        assert rc == (0, 0)
+
+
+def scart(ns: str | None, *args: str, check: bool = True) -> subprocess.CompletedProcess:
+    out = subprocess.run(
+        [sys.executable, "-m", "scart", *args], capture_output=True, text=True, timeout=60, env=subprocess_env(ns)
+    )
+    if check:
+        assert out.returncode == 0, f"scart {' '.join(args)} failed ({out.returncode}): {out.stderr}"
+    return out
+
+
+def test_ls_text_and_json(system) -> None:
+    ns, far = system
+    rows = json.loads(scart(ns, "ls", "--json").stdout)
+    by_name = {r["name"]: r for r in rows}
+    assert set(by_name) == {"youBotDriver", "pinger", "echo", "far"}
+    driver = by_name["youBotDriver"]
+    assert driver["state"] == "RUNNING" and driver["period"] == 0.01 and driver["deployer"] == ns
+    assert 30 < driver["rate"] < 200
+    assert by_name["far"]["deployer"] == far
+    text = scart(None, "ls", "--ns", ns).stdout
+    assert "youBotDriver" in text and "RUNNING" in text and ns in text
+
+
+def test_describe_text_and_json(system) -> None:
+    ns, _ = system
+    doc = json.loads(scart(ns, "describe", "youBotDriver", "--json").stdout)
+    ports = {p["name"]: p for p in doc["ports"]}
+    assert ports["commands"]["direction"] == "in" and ports["commands"]["type_name"] == "float64[]"
+    assert ports["jointStatus"]["type_name"] == "YouBotStatus"
+    assert len(ports["jointStatus"]["last_value"]["joints"]) == 5
+    assert {p["name"] for p in doc["properties"]} >= {"max_velocity", "noise", "accepted_period"}
+    assert any(o["signature"] == "set_period(seconds: float64) -> bool" for o in doc["operations"])
+    text = scart(ns, "describe", "youBotDriver").stdout
+    assert "set_period(seconds: float64) -> bool" in text
+    assert "out jointStatus: YouBotStatus" in text and "last = " in text
+    assert "max_velocity: float64 = 1.0" in text
+    # reading and describing attach nothing to the task: untouched ports show no connection
+    # (an ended echo's stream is closed by the server shortly after the client left)
+    scart(ns, "echo", "pinger.ticks", "-n", "1")
+
+    def counts() -> dict[str, int]:
+        pinger = json.loads(scart(ns, "describe", "pinger", "--json").stdout)
+        return {p["name"]: p["connections"] for p in pinger["ports"]}
+
+    wait_until(lambda: counts() == {"input": 0, "samples": 0, "output": 0, "ticks": 0}, timeout=30, interval=0.1)
+    assert "ticks: int64, 0 connection(s)" in scart(ns, "describe", "pinger").stdout
+
+
+def test_echo_json_lines_and_round_trip_into_write(system) -> None:
+    ns, _ = system
+    lines = scart(ns, "echo", "youBotDriver.jointStatus", "-n", "3", "--json").stdout.splitlines()
+    assert len(lines) == 3
+    assert all(len(json.loads(line)["joints"]) == 5 for line in lines)
+    scart(ns, "write", "pinger.input", "2.5")
+    echoed = scart(ns, "echo", "pinger.output", "-n", "1", "--json").stdout.strip()
+    assert json.loads(echoed) == 2.5
+    assert scart(ns, "write", "pinger.input", echoed, "--json").stdout.strip() == '{"status": "WRITE_SUCCESS"}'
+    text = scart(ns, "echo", "pinger.ticks", "-n", "2").stdout.splitlines()
+    assert len(text) == 2 and text[0].startswith("[")
+
+
+def _echo_json(ns: str, port: str) -> object:
+    return json.loads(scart(ns, "echo", port, "-n", "1", "--json").stdout.strip())
+
+
+def test_echo_json_round_trip_of_float_list_and_model(system) -> None:
+    """What ``echo --json`` prints for a float list and a pydantic model, ``write`` accepts."""
+    ns, _ = system
+    sent = [1.5, -2.25, 3e-05, 0.0]
+    assert scart(ns, "write", "echo.floats", json.dumps(sent)).stdout.strip() == "WRITE_SUCCESS"
+    wait_until(lambda: _echo_json(ns, "echo.floats_out") == sent, timeout=30, interval=0.1)
+    line = scart(ns, "echo", "echo.floats_out", "-n", "1", "--json").stdout.strip()
+    assert scart(ns, "write", "echo.floats", line).stdout.strip() == "WRITE_SUCCESS"  # echo → write
+    status_line = scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--json").stdout.strip()
+    status = json.loads(status_line)
+    assert len(status["joints"]) == 5
+    assert scart(ns, "write", "echo.status", status_line).stdout.strip() == "WRITE_SUCCESS"
+    wait_until(lambda: _echo_json(ns, "echo.status_out") == status, timeout=30, interval=0.1)
+    bad = scart(ns, "write", "echo.status", json.dumps({"joints": "many"}), check=False)
+    assert bad.returncode == 1 and "echo.status expects YouBotStatus" in bad.stderr
+
+
+def test_hz(system) -> None:
+    ns, _ = system
+    stats = json.loads(scart(ns, "hz", "youBotDriver.jointStatus", "-n", "30", "--json").stdout.splitlines()[-1])
+    assert set(stats) == {"rate", "min", "max", "std_dev", "window"}
+    assert 50 < stats["rate"] < 200 and stats["window"] >= 31
+    assert 0 < stats["min"] <= stats["max"]
+    assert "average rate:" in scart(ns, "hz", "pinger.ticks", "-n", "5").stdout
+
+
+def test_write_and_wrong_type(system) -> None:
+    ns, _ = system
+    assert scart(ns, "write", "youBotDriver.commands", "[0.1, 0.2, 0.3, 0.4, 0.5]").stdout.strip() == "WRITE_SUCCESS"
+    bad = scart(ns, "write", "youBotDriver.commands", '"fast"', check=False)
+    assert bad.returncode == 1 and bad.stdout == ""
+    assert "youBotDriver.commands expects float64[]" in bad.stderr
+
+
+def test_call_and_prop_round_trip(system) -> None:
+    ns, _ = system
+    assert json.loads(scart(ns, "call", "pinger.add", "1", "2.5").stdout) == 3.5
+    assert json.loads(scart(ns, "call", "youBotDriver.set_period", "0.02").stdout) is True
+    assert json.loads(scart(ns, "prop", "get", "youBotDriver", "accepted_period").stdout) == 0.02
+    scart(ns, "call", "youBotDriver.set_period", "0.01")
+    props = json.loads(scart(ns, "prop", "list", "youBotDriver", "--json").stdout)
+    noise = next(p for p in props if p["name"] == "noise")
+    assert noise["type_name"] == "float64"
+    got = scart(ns, "prop", "get", "pinger", "gain", "--json").stdout.strip()
+    assert scart(ns, "prop", "set", "pinger", "gain", got).stdout.strip() == got
+    assert scart(ns, "prop", "set", "pinger", "label", "hello").stdout.strip() == '"hello"'
+    assert "label: string" in scart(ns, "prop", "list", "pinger").stdout
+    missing = scart(ns, "call", "pinger.nope", check=False)
+    assert missing.returncode == 1 and "add" in missing.stderr and "reset" in missing.stderr
+
+
+def test_state(system) -> None:
+    ns, _ = system
+    assert scart(ns, "state", "pinger", "stop").stdout.strip() == "STOPPED"
+    refused = scart(ns, "state", "pinger", "stop", "--json", check=False)
+    assert refused.returncode == 1
+    assert json.loads(refused.stdout) == {"component": "pinger", "state": "STOPPED", "transition": "stop", "accepted": False}
+    assert scart(ns, "state", "pinger", "start").stdout.strip() == "RUNNING"
+    assert json.loads(scart(ns, "state", "pinger", "--json").stdout)["state"] == "RUNNING"
+
+
+def test_connect_and_disconnect_across_deployers(system) -> None:
+    ns, _ = system
+    out = json.loads(scart(ns, "connect", "pinger.output", "far.input", "--policy", "buffer:8", "--json").stdout)
+    assert out == {"source": "pinger.output", "sink": "far.input", "policy": "buffer:8", "connected": True}
+    scart(ns, "write", "pinger.input", "7.0")
+    # far echoes what arrived from the other deployer (DATA subscription: last written value first)
+    assert json.loads(scart(ns, "echo", "far.output", "-n", "1", "--json").stdout) == 7.0
+    assert json.loads(scart(ns, "disconnect", "pinger.output", "far.input", "--json").stdout)["disconnected"] is True
+    again = scart(ns, "disconnect", "pinger.output", "far.input", check=False)
+    assert again.returncode == 1 and "were not connected" in again.stdout
+
+
+def test_unknown_component_names_the_known_ones(system) -> None:
+    ns, _ = system
+    out = scart(ns, "describe", "ghost", check=False)
+    assert out.returncode == 1 and "ghost" in out.stderr and "youBotDriver" in out.stderr
+
+
+def test_no_name_service_error_names_address_and_remedy() -> None:
+    address = f"127.0.0.1:{free_port()}"
+    for args, env_ns in ((["ls", "--ns", address], None), (["describe", "x"], address)):
+        out = scart(env_ns, *args, "--timeout", "1", check=False)
+        assert out.returncode == 1 and out.stdout == ""
+        assert f"no name service answers at {address}" in out.stderr
+        assert "scart nameserver" in out.stderr and "scart deploy" in out.stderr
+    assert "$SCART_NS" in out.stderr
+
+
+def test_standalone_nameserver_verb() -> None:
+    address = f"127.0.0.1:{free_port()}"
+    proc, line = start_scart(["nameserver", "--listen", address])
+    try:
+        assert address in line
+        assert json.loads(scart(address, "ls", "--json", "--sample", "0").stdout) == []
+    finally:
+        assert stop_process(proc, signal.SIGTERM) == 0
+
+
+def test_echo_until_sigint(system) -> None:
+    import selectors
+
+    ns, _ = system
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "scart", "echo", "pinger.ticks", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=subprocess_env(ns),
+    )
+    try:
+        sel = selectors.DefaultSelector()
+        sel.register(proc.stdout, selectors.EVENT_READ)
+        assert sel.select(timeout=30), "echo printed nothing"
+        assert isinstance(json.loads(proc.stdout.readline()), int)
+        sel.close()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=15) == 0
+    finally:
+        stop_process(proc, signal.SIGKILL)

@@ -1,0 +1,300 @@
+"""The monitor's HTTP side with plain urllib: pages, Plotly from the package, commands, SSE."""
+
+from __future__ import annotations
+
+import importlib.resources
+import json
+import threading
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from support import wait_until
+
+from composites.youbot.monitor import MonitorBackend, MonitorServer
+from composites.youbot.monitor.demo import DEMO_FLAG_NAMES
+from composites.youbot.monitor.hub import StatusHub, flag_names
+
+
+class FakeBackend:
+    """Records calls; answers like a driver that accepts 2 ms … 1 s."""
+
+    def __init__(self) -> None:
+        self.periods: list[float] = []
+        self.poses_sent: list[Any] = []
+
+    def set_period(self, seconds: float) -> tuple[bool, str]:
+        self.periods.append(seconds)
+        if seconds < 0.002:
+            return False, "too fast: the driver's minimum period is 2 ms"
+        return True, f"accepted {seconds * 1000:g} ms"
+
+    def send_pose(self, pose: str | list[float]) -> tuple[bool, str]:
+        self.poses_sent.append(pose)
+        if pose == "broken":
+            raise RuntimeError("locomotor unreachable")
+        return True, f"moving to {pose}"
+
+    def poses(self) -> list[str]:
+        return ["home", "candle"]
+
+
+def sample(seq: int, stamp: float, flags: int = 0) -> dict[str, Any]:
+    joint = {"position": 0.1 * seq, "velocity": 0.0, "current": 0.3, "temperature": 30.0, "error_flags": flags}
+    return {"sequence": seq, "timestamp": stamp, "joints": [dict(joint) for _ in range(5)]}
+
+
+@pytest.fixture
+def backend() -> FakeBackend:
+    return FakeBackend()
+
+
+@pytest.fixture
+def server(backend: FakeBackend) -> Iterator[MonitorServer]:
+    srv = MonitorServer(backend)
+    srv.start()
+    yield srv
+    srv.stop()
+
+
+def get(url: str) -> tuple[int, str, bytes]:
+    with urllib.request.urlopen(url, timeout=10) as resp:
+        return resp.status, resp.headers.get("Content-Type", ""), resp.read()
+
+
+def post(url: str, body: bytes, ctype: str = "application/json") -> tuple[int, dict[str, Any]]:
+    req = urllib.request.Request(url, data=body, method="POST", headers={"Content-Type": ctype})
+    try:
+        with urllib.request.urlopen(req, timeout=10) as resp:
+            return resp.status, json.loads(resp.read())
+    except urllib.error.HTTPError as err:
+        return err.code, json.loads(err.read())
+
+
+def monitor_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name.startswith("scart-monitor")]
+
+
+def test_index_and_our_static_files_are_served(server: MonitorServer) -> None:
+    assert server.url.startswith("http://127.0.0.1:") and server.url.endswith("/")
+    status, ctype, body = get(server.url)
+    assert status == 200 and ctype.startswith("text/html")
+    page = body.decode()
+    for marker in ('id="joint-table"', 'id="tab-joint-5"', "/static/plotly.min.js", "/static/app.js"):
+        assert marker in page
+    assert get(server.url + "static/app.js")[1].startswith("text/javascript")
+    assert get(server.url + "static/style.css")[1].startswith("text/css")
+
+
+def test_plotly_is_served_from_the_installed_package(server: MonitorServer) -> None:
+    status, ctype, body = get(server.url + "static/plotly.min.js")
+    shipped = (importlib.resources.files("plotly") / "package_data" / "plotly.min.js").read_bytes()
+    assert status == 200 and ctype.startswith("text/javascript")
+    assert body == shipped and b"extendTraces" in body
+
+
+def test_unknown_path_is_404_with_a_message(server: MonitorServer) -> None:
+    with pytest.raises(urllib.error.HTTPError) as err:
+        get(server.url + "nope")
+    assert err.value.code == 404
+    assert "no such page: /nope" in json.loads(err.value.read())["message"]
+
+
+def test_post_period_calls_the_backend_and_returns_its_answer(server: MonitorServer, backend: FakeBackend) -> None:
+    assert post(server.url + "api/period", b'{"seconds": 0.02}') == (200, {"ok": True, "message": "accepted 20 ms"})
+    code, answer = post(server.url + "api/period", b'{"seconds": 0.0005}')
+    assert code == 200 and answer == {"ok": False, "message": "too fast: the driver's minimum period is 2 ms"}
+    assert backend.periods == [0.02, 0.0005]
+
+
+def test_post_pose_by_name_and_by_positions(server: MonitorServer, backend: FakeBackend) -> None:
+    assert post(server.url + "api/pose", b'{"pose": "home"}')[1] == {"ok": True, "message": "moving to home"}
+    assert post(server.url + "api/pose", b'{"pose": [0, 1, 2, 3, 4]}')[1]["ok"] is True
+    assert backend.poses_sent == ["home", [0.0, 1.0, 2.0, 3.0, 4.0]]
+    code, answer = post(server.url + "api/pose", b'{"pose": "broken"}')
+    assert code == 200 and answer == {"ok": False, "message": "backend error: RuntimeError: locomotor unreachable"}
+    assert json.loads(get(server.url + "api/poses")[2]) == {"poses": ["home", "candle"]}
+
+
+@pytest.mark.parametrize(
+    ("path", "body", "ctype", "code", "says"),
+    [
+        ("api/period", b"{not json", "application/json", 400, "body is not valid JSON"),
+        ("api/period", b'{"period": 1}', "application/json", 400, 'expected a JSON object like {"seconds": 0.01}'),
+        ("api/period", b'{"seconds": "fast"}', "application/json", 400, "'seconds' must be a finite number"),
+        ("api/period", b'{"seconds": 0.01}', "text/plain", 415, "expected Content-Type application/json"),
+        ("api/pose", b'{"pose": []}', "application/json", 400, "'pose' must be a pose name or a list"),
+        ("api/nothing", b"{}", "application/json", 404, "no such command: /api/nothing"),
+    ],
+)
+def test_bad_requests_are_refused_with_a_clear_message(
+    server: MonitorServer, backend: FakeBackend, path: str, body: bytes, ctype: str, code: int, says: str
+) -> None:
+    got, answer = post(server.url + path, body, ctype)
+    assert got == code and answer["ok"] is False
+    assert says in answer["message"]
+    assert backend.periods == [] and backend.poses_sent == []
+
+
+def read_update(stream: Any, predicate: Any, limit: int = 500, events: list[str] | None = None) -> dict[str, Any]:
+    """Read SSE ``update`` messages (bounded count) until ``predicate(message)``; the names
+    of the events seen on the way (each is sent once per stream) go to ``events``."""
+    for _ in range(limit):
+        line = stream.readline()
+        assert line, "SSE stream closed early"
+        if line.startswith(b"data: "):
+            message = json.loads(line[6:])
+            if events is not None:
+                events.extend(e["name"] for e in message["events"])
+            if predicate(message):
+                return message
+    raise AssertionError(f"no matching SSE message within {limit} lines")
+
+
+def test_sse_stream_delivers_published_status_events_and_driver_info(server: MonitorServer) -> None:
+    server.error_flag_names = {3: "OVER_TEMPERATURE"}
+    server.set_driver_info("RUNNING", 0.01, True)
+    with urllib.request.urlopen(server.url + "events", timeout=10) as stream:
+        assert stream.headers["Content-Type"] == "text/event-stream"
+        now = time.time()
+        for seq in range(1, 11):
+            server.publish_status(sample(seq, now + seq * 0.01, flags=0b1000 if seq == 10 else 0))
+            server.publish_event("refresh")
+        server.publish_event("busy", "moving to home")
+        names: list[str] = []
+        msg = read_update(stream, lambda m: "busy" in names and m["status"]["sequence"] == 10, events=names)
+    assert msg["driver"] == {"state": "RUNNING", "period": 0.01, "connected": True}
+    assert msg["flags"][0] == ["OVER_TEMPERATURE"]
+    assert msg["samples"] == 10 and msg["age"] < 5.0
+    assert msg["rate"] == pytest.approx(100.0, rel=0.01)  # from the sample timestamps, 10 ms apart
+    assert msg["coalesced"]["refresh"]["count"] == 10
+    assert names == ["connected", "busy"]  # refresh is counted, never listed
+
+
+def test_stop_closes_sse_streams_and_leaves_no_threads(backend: FakeBackend) -> None:
+    before = monitor_threads()
+    server = MonitorServer(backend)
+    assert monitor_threads() == before  # nothing started in __init__
+    server.start()
+    stream = urllib.request.urlopen(server.url + "events", timeout=10)
+    server.publish_status(sample(1, time.time()))
+    read_update(stream, lambda m: m["status"] is not None)
+    started = time.monotonic()
+    server.stop()
+    server.stop()  # idempotent
+    assert time.monotonic() - started < 3.0
+    for _ in range(1000):  # the stream ends: EOF within a bounded number of reads
+        if not stream.readline():
+            break
+    else:
+        raise AssertionError("SSE stream still open after stop()")
+    stream.close()
+    assert monitor_threads() == before
+    server.publish_status(sample(2, time.time()))  # publishing after stop is harmless
+
+
+def test_publish_never_blocks_on_a_stalled_reader(server: MonitorServer) -> None:
+    stream = urllib.request.urlopen(server.url + "events", timeout=10)  # opened, never read
+    try:
+        started = time.monotonic()
+        base = time.time()
+        for seq in range(20_000):
+            server.publish_status(sample(seq, base + seq * 0.001))
+        assert time.monotonic() - started < 5.0
+        state = json.loads(get(server.url + "api/state")[2])
+        assert state["status"]["sequence"] == 19_999 and state["samples"] == 20_000
+    finally:
+        stream.close()
+
+
+def test_public_api(backend: FakeBackend) -> None:
+    import composites.youbot.monitor as monitor
+
+    assert monitor.__all__ == ["MonitorBackend", "MonitorServer"]
+    assert isinstance(backend, MonitorBackend)  # the Protocol is runtime-checkable
+    assert "Plotly.js" in (monitor.__doc__ or "")  # the technology choice is explained
+
+
+def test_stop_from_inside_a_request_does_not_deadlock() -> None:
+    class Stopper(FakeBackend):
+        server: MonitorServer
+
+        def set_period(self, seconds: float) -> tuple[bool, str]:
+            self.server.stop(timeout=2.0)
+            return True, "stopping"
+
+    backend = Stopper()
+    server = backend.server = MonitorServer(backend)
+    server.start()
+    assert post(server.url + "api/period", b'{"seconds": 1}') == (200, {"ok": True, "message": "stopping"})
+    wait_until(lambda: not monitor_threads(), timeout=5.0, message="monitor threads left")
+
+
+def test_start_twice_is_refused_and_url_needs_start(backend: FakeBackend) -> None:
+    server = MonitorServer(backend)
+    with pytest.raises(RuntimeError, match="not started"):
+        _ = server.url
+    server.start()
+    try:
+        with pytest.raises(RuntimeError, match="already started"):
+            server.start()
+    finally:
+        server.stop()
+    wait_until(lambda: not monitor_threads(), timeout=5.0, message="monitor threads left")
+
+
+def test_hub_rate_age_and_flag_names() -> None:
+    hub = StatusHub()
+    message, _ = hub.snapshot()
+    assert message["rate"] == 0.0 and message["age"] is None and message["status"] == "null"
+    for seq in range(300):  # 3 s of samples at 100 Hz: only the last second counts
+        hub.publish_status(sample(seq, 1000.0 + seq * 0.01))
+    assert hub.snapshot()[0]["rate"] == pytest.approx(100.0, rel=0.01)
+    hub.publish_status(sample(0, 5.0))  # the source restarted with an earlier clock
+    assert hub.snapshot()[0]["rate"] == 0.0
+    assert flag_names(0b1000001000, {3: "OVER_TEMPERATURE", 9: "JOINT_LIMIT"}) == ["OVER_TEMPERATURE", "JOINT_LIMIT"]
+    assert flag_names(0b100, {}) == ["bit2"] and flag_names(0, {}) == []
+    hub.close()
+    started = time.monotonic()
+    hub.wait(hub.snapshot()[0]["version"], timeout=10.0)
+    assert time.monotonic() - started < 5.0  # closed: returns at once, not after the timeout
+
+
+def test_a_real_youbot_status_sample_is_shown_with_the_driver_bit_names(server: MonitorServer) -> None:
+    """What the host will do: publish ``YouBotStatus.model_dump()`` with the driver's bit names."""
+    model = pytest.importorskip("youbot_model")
+    server.error_flag_names = model.ERROR_BITS
+    assert DEMO_FLAG_NAMES == model.ERROR_BITS  # the demo's stand-alone copy has not drifted
+    joints = [model.JointStatus(position=0.1 * i, error_flags=0) for i in range(5)]
+    joints[2] = model.JointStatus(position=1.0, error_flags=(1 << 3) | (1 << 7))
+    server.publish_status(model.YouBotStatus(joints=joints, timestamp=time.time(), sequence=7).model_dump())
+    state = json.loads(get(server.url + "api/state")[2])
+    assert state["status"]["sequence"] == 7 and state["status"]["joints"][2]["position"] == 1.0
+    assert state["flags"][2] == ["OVER_TEMPERATURE", "POSITION_LIMIT"] and state["flags"][0] == []
+
+
+def test_a_reconnecting_stream_resumes_the_event_log_without_repeats(server: MonitorServer) -> None:
+    server.publish_event("busy", "first")
+    with urllib.request.urlopen(server.url + "events", timeout=10) as stream:
+        names: list[str] = []
+        read_update(stream, lambda m: "busy" in names, events=names)
+        last_id = ""
+        for _ in range(100):  # the id line of the frame just read comes before its data line
+            line = stream.readline()
+            if line.startswith(b"id: "):
+                last_id = line[4:].strip().decode()
+                break
+    server.publish_event("idle", "second")
+    req = urllib.request.Request(server.url + "events", headers={"Last-Event-ID": last_id})
+    with urllib.request.urlopen(req, timeout=10) as stream:
+        again: list[str] = []
+        read_update(stream, lambda m: "idle" in again, events=again)
+    assert again == ["idle"]  # "busy" was not sent twice
+    req = urllib.request.Request(server.url + "events", headers={"Last-Event-ID": "otherserver:99"})
+    with urllib.request.urlopen(req, timeout=10) as stream:
+        fresh: list[str] = []
+        read_update(stream, lambda m: "idle" in fresh, events=fresh)
+    assert fresh == ["busy", "idle"]  # an id from another server instance: the whole log

@@ -1,0 +1,153 @@
+"""Shared fixtures-free helpers for the remote and CLI-inspection suites (no tests here).
+
+Holds a small task used by in-process servers and by ``scart deploy`` subprocesses
+(``scart deploy support.remote:Pinger`` with ``tests/`` on PYTHONPATH), and the
+subprocess helpers that read a deployer's readiness line with a deadline.
+"""
+
+from __future__ import annotations
+
+import os
+import selectors
+import signal
+import subprocess
+import sys
+import time
+
+from dataflow import InputPort, OutputPort, Property, TaskContext, operation
+from support import ROOT, TESTS
+
+if str(ROOT / "composites" / "youbot") not in sys.path:  # the youBot model (Echo's status)
+    sys.path.insert(0, str(ROOT / "composites" / "youbot"))
+from youbot_model import YouBotStatus  # noqa: E402
+
+
+class Pinger(TaskContext):
+    """Echoes ``input`` × ``gain`` on ``output``; counts cycles on ``ticks``."""
+
+    input = InputPort(float, name="input", doc="value to echo")
+    samples = InputPort(list[float], doc="a list input")
+    output = OutputPort(float, name="output", doc="gain × input")
+    ticks = OutputPort(int, doc="cycle counter")
+    gain = Property(float, 1.0, doc="multiplier")
+    label = Property(str, "pinger", doc="free text")
+
+    def __init__(self, name: str = "pinger") -> None:
+        super().__init__(name)
+        self.count = 0
+        self.received: list[float] = []
+
+    @operation
+    def add(self, a: float, b: float) -> float:
+        """Sum of two numbers."""
+        return a + b
+
+    @operation
+    def reset(self) -> None:
+        """Zero the cycle counter."""
+        self.count = 0
+
+    @operation
+    def fail(self, why: str) -> None:
+        """Always raises RuntimeError(why)."""
+        raise RuntimeError(why)
+
+    def update_hook(self) -> None:
+        for _ in range(1000):
+            status, value = self.input.read()
+            if status.name != "NEW_DATA":
+                break
+            self.received.append(value)
+            self.output.write(value * self.gain)
+        self.count += 1
+        self.ticks.write(self.count)
+
+
+class Plain(TaskContext):
+    """A task whose ``__init__`` has no default name (``scart deploy`` names it after the class)."""
+
+    beats = OutputPort(int, doc="always 1")
+
+    def update_hook(self) -> None:
+        self.beats.write(1)
+
+
+class Echo(TaskContext):
+    """Echoes a float list and a youBot status (a pydantic model) to its outputs."""
+
+    floats = InputPort(list[float], doc="a list of floats")
+    floats_out = OutputPort(list[float], doc="the last floats received")
+    status = InputPort(YouBotStatus, doc="a youBot status")
+    status_out = OutputPort(YouBotStatus, doc="the last status received")
+
+    def __init__(self, name: str = "echo") -> None:
+        super().__init__(name)
+
+    def update_hook(self) -> None:
+        flow, value = self.floats.read()
+        if flow.name == "NEW_DATA":
+            self.floats_out.write(value)
+        flow, status = self.status.read()
+        if flow.name == "NEW_DATA":
+            self.status_out.write(status)
+
+
+def subprocess_env(ns: str | None = None) -> dict[str, str]:
+    """Environment for scart subprocesses: tests/ importable, SCART_NS set or removed."""
+    env = dict(os.environ)
+    paths = [str(TESTS), str(ROOT), str(ROOT / "composites" / "youbot"), env.get("PYTHONPATH", "")]
+    env["PYTHONPATH"] = os.pathsep.join(p for p in paths if p)
+    env.pop("SCART_NS", None)
+    if ns:
+        env["SCART_NS"] = ns
+    return env
+
+
+def start_scart(args: list[str], ns: str | None = None, ready: str = "serving", timeout: float = 30.0):
+    """Start ``scart ARGS`` and wait (≤ ``timeout``) for a stderr line containing ``ready``.
+
+    Returns ``(process, line)``. Raises ``AssertionError`` with the output on failure.
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "scart", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        env=subprocess_env(ns), text=True, bufsize=1,
+    )
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stderr, selectors.EVENT_READ)
+    deadline = time.monotonic() + timeout
+    seen = []
+    try:
+        while time.monotonic() < deadline:
+            if not sel.select(timeout=max(0.0, deadline - time.monotonic())):
+                continue
+            line = proc.stderr.readline()
+            if not line:
+                break
+            seen.append(line)
+            if ready in line:
+                return proc, line.strip()
+    finally:
+        sel.close()
+    stop_process(proc)
+    raise AssertionError(f"scart {' '.join(args)} did not get ready: {''.join(seen)}")
+
+
+def stop_process(proc: subprocess.Popen, sig: int = signal.SIGINT, timeout: float = 10.0) -> int:
+    """Signal ``proc`` (continuing it if stopped), wait ≤ ``timeout``, kill if needed."""
+    if proc.poll() is None:
+        try:
+            proc.send_signal(signal.SIGCONT)
+            proc.send_signal(sig)
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=timeout)
+    for stream in (proc.stdout, proc.stderr):
+        if stream is not None:
+            stream.close()
+    return proc.returncode
+
+
+def address_of(line: str) -> str:
+    """The ``127.0.0.1:PORT`` after 'serving ... on' in a readiness line."""
+    return line.split(" on ", 1)[1].split()[0]
