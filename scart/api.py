@@ -20,7 +20,7 @@ Rules: a service declared with ``services=[I]`` is named ``I.__name__``; with no
 class offers its own public methods as one service named after the class. References
 and properties are named by their attribute names; types come from annotations.
 :func:`component_type` reads all of it into a :class:`ComponentType`
-(cached per class; pure introspection, no side effects).
+(cached on the class itself; pure introspection otherwise).
 """
 
 from __future__ import annotations
@@ -73,7 +73,8 @@ def component(
             "scope": scope,
             "eager_init": eager_init,
         }
-        _TYPES.pop(klass, None)
+        if _CTYPE_ATTR in vars(klass):  # declarations changed: read them again
+            delattr(klass, _CTYPE_ATTR)
         return klass
 
     return mark(cls) if cls is not None else mark
@@ -239,8 +240,21 @@ class ComponentType:
     eager_init: bool
 
 
-_TYPES: dict[type, ComponentType] = {}
-_IFACES: dict[type, InterfaceInfo] = {}
+_CTYPE_ATTR = "__scart_component_type__"  # the ComponentType of a class, cached on the class itself
+_IFACE_ATTR = "__scart_interface_info__"
+
+
+def _cached(cls: type, attr: str) -> Any:
+    """What was cached on ``cls`` itself (never inherited from a base class), or None."""
+    return vars(cls).get(attr)
+
+
+def _cache(cls: type, attr: str, value: T) -> T:
+    try:
+        setattr(cls, attr, value)
+    except (TypeError, AttributeError):  # a built-in or extension type: not cached
+        pass
+    return value
 
 
 def interface_info(iface: type) -> InterfaceInfo:
@@ -248,9 +262,9 @@ def interface_info(iface: type) -> InterfaceInfo:
 
     Cached per class. Never raises for a class (an empty class has no operations).
     """
-    cached = _IFACES.get(iface)
+    cached = _cached(iface, _IFACE_ATTR)
     if cached is not None:
-        return cached
+        return cached  # type: ignore[no-any-return]
     meta = getattr(iface, "__scart_interface__", {}) if "__scart_interface__" in vars(iface) else {}
     ops: dict[str, Operation] = {}
     for klass in reversed(iface.__mro__):
@@ -270,8 +284,7 @@ def interface_info(iface: type) -> InterfaceInfo:
         iface.__name__, ops, interface_info(cb) if cb is not None else None,
         bool(meta.get("remotable", False)), iface,
     )
-    _IFACES[iface] = info
-    return info
+    return _cache(iface, _IFACE_ATTR, info)
 
 
 def _returns(func: Callable[..., Any]) -> bool:
@@ -291,9 +304,9 @@ def _hints(cls: type) -> dict[str, Any]:
 
 def component_type(cls: type) -> ComponentType:
     """Read the declarations of ``cls`` (decorated with :func:`component` or not). Cached."""
-    cached = _TYPES.get(cls)
+    cached = _cached(cls, _CTYPE_ATTR)
     if cached is not None:
-        return cached
+        return cached  # type: ignore[no-any-return]
     meta = getattr(cls, "__scart_component__", {})
     hints = _hints(cls)
     props: dict[str, tuple[PropSpec, Any]] = {}
@@ -323,8 +336,7 @@ def component_type(cls: type) -> ComponentType:
         cls, services, refs, props, tuple(callbacks), tuple(contexts), tuple(inits),
         tuple(destroys), meta.get("scope", "composite"), meta.get("eager_init", True),
     )
-    _TYPES[cls] = ctype
-    return ctype
+    return _cache(cls, _CTYPE_ATTR, ctype)
 
 
 def _element_type(ann: Any, multiple: bool) -> type | None:

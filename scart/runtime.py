@@ -52,6 +52,7 @@ from scart.errors import InvocationError, RuntimeStateError, ScartError, Service
 from scart.extensions import ExtensionRegistry
 from scart.graph import DEFAULT, Assembly, Bound, Node, Target
 from scart.local import LocalReferenceBinding, wrap_operation
+from scart.pool import WORKER_PREFIX, OnewayPool
 from scart.model import Binding
 from scart.settings import Settings
 from scart.spi import (
@@ -59,7 +60,6 @@ from scart.spi import (
 )
 
 log = logging.getLogger("scart.runtime")
-_WORKER_PREFIX = "scart-oneway"
 T = TypeVar("T")
 
 
@@ -95,94 +95,6 @@ def _stopped_stub(message: str) -> Callable[..., Any]:
     def stopped(*args: Any, **kwargs: Any) -> Any:
         raise RuntimeStateError(message)
     return stopped
-
-
-class _OnewayPool:
-    """Daemon worker threads fed by a bounded queue; knows which operation each worker runs.
-
-    ``submit`` raises ``queue.Full`` when ``max_pending`` calls wait and ``RuntimeError``
-    once closed. ``close(deadline)`` lets workers drain the queue until ``deadline``, then
-    drops what is still queued; returns (dropped count, labels of calls still running)."""
-
-    def __init__(self, workers: int, max_pending: int, run: Callable[[str, Callable[..., Any], tuple[Any, ...], dict[str, Any]], None]) -> None:
-        self._queue: queue.Queue[Any] = queue.Queue(max_pending + max(1, workers))  # room for the stop sentinels
-        self._max_pending = max_pending
-        self._run = run
-        self._lock = threading.Lock()
-        self._progress = threading.Condition(self._lock)  # notified when a worker takes or finishes a call
-        self._closed = False
-        self.running: dict[threading.Thread, str] = {}
-        self._workers = max(1, workers)
-        self._threads: list[threading.Thread] = []  # started on demand, up to ``workers``
-        self._idle = 0
-
-    def submit(self, label: str, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
-        with self._lock:
-            if self._closed:
-                raise RuntimeError("runtime stopped")
-            if self._queue.qsize() >= self._max_pending:
-                raise queue.Full
-            self._queue.put_nowait((label, fn, args, kwargs))
-            if self._idle < self._queue.qsize() and len(self._threads) < self._workers:
-                t = threading.Thread(target=self._work, name=f"{_WORKER_PREFIX}_{len(self._threads)}", daemon=True)
-                self._threads.append(t)
-                self._idle += 1  # counted idle until it takes its first call
-                t.start()
-
-    def _work(self) -> None:
-        me = threading.current_thread()
-        while True:
-            item = self._queue.get()
-            with self._lock:
-                self._idle -= 1
-                self._progress.notify_all()
-            if item is None:
-                return
-            label, fn, args, kwargs = item
-            self.running[me] = label
-            try:
-                self._run(label, fn, args, kwargs)
-            finally:
-                self.running.pop(me, None)
-                with self._lock:
-                    self._idle += 1
-                    self._progress.notify_all()
-
-    def close(self, deadline: float) -> tuple[int, list[str]]:
-        """Stop accepting calls; wait (until ``deadline``, a monotonic time) for the queue to
-        drain and the workers to finish, except the calling worker itself."""
-        with self._lock:
-            self._closed = True
-            threads = list(self._threads)
-        me = threading.current_thread()
-        others = [t for t in threads if t is not me]
-        with self._progress:  # a worker's get() is followed by a notify under this lock
-            while self._queue.qsize():
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    break
-                self._progress.wait(remaining)
-        dropped = 0
-        while True:  # bounded: the pool is closed, nothing is added any more
-            try:
-                item = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            if item is not None:
-                dropped += 1
-        for _ in threads:
-            self._queue.put(None)  # the queue is empty now and closed: never blocks
-        for t in others:
-            t.join(max(0.0, deadline - time.monotonic()))
-        stuck = [self.running.get(t, "?") for t in others if t.is_alive()]
-        return dropped, stuck
-
-    def join(self, timeout: float) -> None:
-        """Wait (bounded) for every worker thread to end (after ``close``)."""
-        deadline = time.monotonic() + timeout
-        for t in self._threads:
-            if t is not threading.current_thread():
-                t.join(max(0.0, deadline - time.monotonic()))
 
 
 class _Endpoint:
@@ -239,7 +151,7 @@ class Runtime:
         self.oneway_rejected = 0
         self._failures_lock = threading.Lock()
         self._lock = threading.RLock()
-        self._pool: _OnewayPool | None = None
+        self._pool: OnewayPool | None = None
         self._all_proxies: weakref.WeakSet[ServiceProxy] = weakref.WeakSet()
         self._managers: dict[str, ComponentManager] = {}
         self._endpoints: dict[tuple[str, str], _Endpoint] = {}
@@ -289,7 +201,7 @@ class Runtime:
             if self.state is not RuntimeState.CREATED:
                 raise RuntimeStateError(f"cannot start a runtime in state {self.state.value}")
             self.state = RuntimeState.STARTED
-            self._pool = _OnewayPool(self.max_workers, self.max_pending, self._run_oneway)
+            self._pool = OnewayPool(self.max_workers, self.max_pending, self._run_oneway)
             try:
                 self._create_managers()
                 self._create_reference_bindings()
@@ -312,7 +224,7 @@ class Runtime:
         already stopping (then it returns at once instead of deadlocking). The lock is
         held only for the state transition, so a worker calling ``stop()`` while another
         thread drains the pool never deadlocks."""
-        in_worker = threading.current_thread().name.startswith(_WORKER_PREFIX)
+        in_worker = threading.current_thread().name.startswith(WORKER_PREFIX)
         with self._lock:
             first = self.state is not RuntimeState.STOPPED
             self.state = RuntimeState.STOPPED
@@ -342,7 +254,7 @@ class Runtime:
             self._disable_proxies()
             self._stopped.set()
 
-    def _drain_pool(self, pool: _OnewayPool) -> None:
+    def _drain_pool(self, pool: OnewayPool) -> None:
         dropped, stuck = pool.close(time.monotonic() + self.drain_timeout)
         if dropped:
             with self._failures_lock:

@@ -50,7 +50,7 @@ from scart.model import (
 
 MAX_BYTES = 8 * 1024 * 1024  #: size bound of any XML file read (composite or WSDL)
 SCA_NAMESPACES = (SCA11_NS, SCA10_NS)
-_IGNORED = {"documentation", "requires", "policySetAttachment", "extensions", "description"}
+_IGNORED = frozenset({"documentation", "requires", "policySetAttachment", "extensions", "description"})
 _SCHEMA_PATH = Path(__file__).with_name("schema") / "scart-1.0.xsd"
 _PROLOG_LIMIT = 64 * 1024  #: how much of a file's head is scanned for a DOCTYPE before its root element
 

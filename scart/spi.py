@@ -45,15 +45,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Literal, Protocol, TypeVar
 
-from scart.api import ComponentType, InterfaceInfo, Operation, PropSpec
+from scart.api import CURRENT_CALLBACK, ComponentType, InterfaceInfo, Operation, PropSpec
 from scart.errors import Problem
 from scart.graph import DEFAULT, Node, Target
-from scart.model import Binding, Element, Implementation
+from scart.model import SCART_NS, Binding, Element, Implementation
 from scart.scdl import parse_xml
 from scart.settings import Settings
 
 __all__ = [
-    "DEFAULT", "AssemblyView", "Binding", "BindingProvider", "CheckContext", "ComponentManager", "ComponentType", "Element",
+    "CURRENT_CALLBACK", "DEFAULT", "SCART_NS", "AssemblyView", "Binding", "BindingProvider", "CheckContext", "ComponentManager", "ComponentType", "Element",
     "ElementProvider", "Extension", "Host", "Implementation", "ImplementationProblem", "ImplementationProvider",
     "InterfaceInfo", "Invocation", "Node", "Operation", "Participant", "Problem", "PropSpec", "ReferenceBinding",
     "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target", "parse_host_port", "parse_xml", "port_in_range",
@@ -319,6 +319,14 @@ class ElementProvider(Extension):
 
 
 # --- helpers for extension authors -------------------------------------------------------
+
+#: The callback target of the call being executed: a service binding sets it (``set`` /
+#: ``reset``) around a call it runs, so that the provider's ``scart.callback()`` yields the
+#: caller's callback proxy (see :func:`scart.local.wrap_operation`).
+CURRENT_CALLBACK = CURRENT_CALLBACK
+
+#: The namespace of scart's own XML elements, ``urn:scart:1.0``.
+SCART_NS = SCART_NS
 
 #: ``parse_xml(path, problems)``: parse an XML file of the contribution safely (size bound,
 #: no DTD, no entities, no network); problems are appended, None returned on failure.

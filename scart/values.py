@@ -7,17 +7,19 @@ value as ``T`` (one value starting with "[" is read as a JSON array); any other 
 
 from __future__ import annotations
 
+import functools
 import json
 import typing
+from types import MappingProxyType
 from typing import Any
 
 from pydantic import TypeAdapter
 
 #: XSD simple types of composite-level ``<property type="xsd:...">`` and their Python types.
-XSD_TYPES: dict[str, type] = {
+XSD_TYPES: MappingProxyType[str, type] = MappingProxyType({
     "string": str, "anyURI": str, "QName": str, "int": int, "integer": int, "long": int, "short": int,
     "double": float, "float": float, "decimal": float, "boolean": bool,
-}
+})
 
 
 def is_many(py_type: Any) -> bool:
@@ -25,7 +27,9 @@ def is_many(py_type: Any) -> bool:
     return typing.get_origin(py_type) in (list, tuple, set)
 
 
-_ADAPTERS: dict[Any, TypeAdapter[Any]] = {}
+@functools.lru_cache(maxsize=512)
+def _adapter(py_type: Any) -> TypeAdapter[Any]:
+    return TypeAdapter(py_type)
 
 
 def parse_value(raw: list[str], py_type: Any) -> Any:
@@ -61,9 +65,7 @@ def parse_value(raw: list[str], py_type: Any) -> Any:
 
 
 def _adapt(py_type: Any, data: Any) -> Any:
-    adapter = _ADAPTERS.get(py_type)
-    if adapter is None:
-        adapter = _ADAPTERS[py_type] = TypeAdapter(py_type)
+    adapter = _adapter(py_type)
     try:
         return adapter.validate_python(data)
     except Exception as exc:

@@ -5,17 +5,19 @@ Values have their own public codec, :mod:`dataflow.codec`."""
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any
 
 from dataflow.policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
 from dataflow.remote._proto import df as pb
 
-_CONN_TO_MSG = {
+_CONN_TO_MSG = MappingProxyType({
     ConnType.DATA: pb.ConnType.Value("CONN_TYPE_DATA"),
     ConnType.BUFFER: pb.ConnType.Value("CONN_TYPE_BUFFER"),
     ConnType.CIRCULAR_BUFFER: pb.ConnType.Value("CONN_TYPE_CIRCULAR_BUFFER"),
-}
-_CONN_FROM_MSG = {v: k for k, v in _CONN_TO_MSG.items()}
+})
+_CONN_FROM_MSG = MappingProxyType({v: k for k, v in _CONN_TO_MSG.items()})
 
 
 def policy_to_msg(policy: ConnPolicy) -> Any:
@@ -65,11 +67,11 @@ def _member(enum: Any, field: str, name: str, default: Any) -> Any:
     return enum[name]
 
 
-def _enum_maps(proto_enum: Any, prefix: str, py_enum: Any) -> tuple[dict[Any, int], dict[int, Any]]:
+def _enum_maps(proto_enum: Any, prefix: str, py_enum: Any) -> tuple[Mapping[Any, int], Mapping[int, Any]]:
     """Both directions between a Python enum and the proto enum whose values are named
     ``PREFIX_MEMBER`` — built once, so the per-sample conversions are one dict lookup."""
     to_msg = {member: proto_enum.Value(prefix + member.name) for member in py_enum}
-    return to_msg, {number: member for member, number in to_msg.items()}
+    return MappingProxyType(to_msg), MappingProxyType({number: member for member, number in to_msg.items()})
 
 
 _FLOW_TO, _FLOW_FROM = _enum_maps(pb.FlowStatus, "FLOW_STATUS_", FlowStatus)

@@ -6,6 +6,7 @@ gRPC statuses to scart errors). Servicers and stubs are the generated ones of
 from __future__ import annotations
 
 from collections.abc import Callable
+from types import MappingProxyType
 from typing import Any
 
 import grpc
@@ -47,14 +48,14 @@ def server_options() -> list[tuple[str, int]]:
     ]
 
 
-_MAP: dict[grpc.StatusCode, type[errors.RemoteError]] = {
+_MAP: MappingProxyType[grpc.StatusCode, type[errors.RemoteError]] = MappingProxyType({
     grpc.StatusCode.NOT_FOUND: errors.RemoteNotFoundError,
     grpc.StatusCode.INVALID_ARGUMENT: errors.RemoteTypeError,
     grpc.StatusCode.OUT_OF_RANGE: errors.RemoteValueError,
     grpc.StatusCode.UNAVAILABLE: errors.UnavailableError,
     grpc.StatusCode.DEADLINE_EXCEEDED: errors.RemoteTimeoutError,
     grpc.StatusCode.ALREADY_EXISTS: errors.AlreadyRegisteredError,
-}
+})
 
 
 def translate(exc: grpc.RpcError, address: str) -> errors.RemoteError:

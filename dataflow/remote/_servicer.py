@@ -19,6 +19,7 @@ import json
 import logging
 import threading
 import time
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 import grpc
@@ -38,13 +39,13 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-_TRANSITIONS = {
+_TRANSITIONS = MappingProxyType({
     pb.Transition.Value("TRANSITION_CONFIGURE"): "configure",
     pb.Transition.Value("TRANSITION_START"): "start",
     pb.Transition.Value("TRANSITION_STOP"): "stop",
     pb.Transition.Value("TRANSITION_CLEANUP"): "cleanup",
     pb.Transition.Value("TRANSITION_RECOVER"): "recover",
-}
+})
 
 
 class _Seen:

@@ -50,4 +50,4 @@ def finish(proc: subprocess.Popen[bytes]) -> tuple[str, str]:
     except subprocess.TimeoutExpired:
         proc.kill()
         out, err = proc.communicate(timeout=30)
-    return out.decode(), err.decode()
+    return (out or b"").decode(), (err or b"").decode()

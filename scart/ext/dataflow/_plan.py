@@ -16,8 +16,7 @@ from typing import Any
 
 from dataflow import ConnPolicy
 from scart.ext.dataflow._host import PortInfo, class_ports, remote_ports, type_name_of
-from scart.model import SCART_NS
-from scart.spi import Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
+from scart.spi import SCART_NS, Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
 
 #: Problem codes.
 DF_ATTRIBUTE = "SCART-D001"  # missing/invalid attribute or mapping

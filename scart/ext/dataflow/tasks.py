@@ -46,8 +46,7 @@ import pydantic
 from pydantic_core import core_schema
 
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
-from scart import errors as E
-from scart.errors import RuntimeStateError, ScartError
+from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError
 from scart.ext.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of, remote_ports
 from scart.ext.dataflow._plan import MIN_PERIOD_S
 from scart.spi import (
@@ -72,7 +71,7 @@ def task_class(impl: Implementation, context: CheckContext) -> type[TaskContext]
     try:
         cls = context.import_object(ref)
     except Exception as exc:  # any import-time failure is a composite problem
-        raise ImplementationProblem(E.SCART_IMPORT, f"cannot import {ref!r}: {type(exc).__name__}: {exc}") from exc
+        raise ImplementationProblem(SCART_IMPORT, f"cannot import {ref!r}: {type(exc).__name__}: {exc}") from exc
     if not (isinstance(cls, type) and issubclass(cls, TaskContext)):
         raise ImplementationProblem(TASK_NOT_A_TASK, f"{ref!r} is not a dataflow.TaskContext subclass")
     return cls

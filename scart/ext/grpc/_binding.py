@@ -29,7 +29,7 @@ DEFAULT_SERVICE_ADDRESS = "127.0.0.1:0"
 DEFAULT_CALL_TIMEOUT_S = 5.0
 DEFAULT_CALLBACK_TIMEOUT_S = 30.0
 
-CHANNEL_OPTIONS: list[tuple[str, int]] = [
+CHANNEL_OPTIONS: tuple[tuple[str, int], ...] = (
     ("grpc.initial_reconnect_backoff_ms", 100),
     ("grpc.min_reconnect_backoff_ms", 100),
     ("grpc.max_reconnect_backoff_ms", 1000),
@@ -38,7 +38,7 @@ CHANNEL_OPTIONS: list[tuple[str, int]] = [
     ("grpc.keepalive_permit_without_calls", 1),
     ("grpc.http2.max_pings_without_data", 0),
     ("grpc.enable_retries", 0),
-]
+)
 
 
 

@@ -25,12 +25,11 @@ from typing import Any
 
 import grpc
 
-from scart.api import CURRENT_CALLBACK
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
 from scart.ext.grpc._wire import (
     Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
-from scart.spi import Host, InterfaceInfo, ServiceEndpoint
+from scart.spi import CURRENT_CALLBACK, Host, InterfaceInfo, ServiceEndpoint
 
 log = logging.getLogger("scart.ext.grpc")
 
@@ -39,12 +38,12 @@ MAX_STREAMS = 48  # Invoke calls + callback sessions open at once: the rest of t
 INVOKE_WORKERS = 16
 _MAX_CALL_S = 3600.0  # bound of a handler's wait when the client set no deadline
 
-SERVER_OPTIONS: list[tuple[str, int]] = [
+SERVER_OPTIONS: tuple[tuple[str, int], ...] = (
     ("grpc.so_reuseport", 0),  # a port in use is an error, never silently shared
     ("grpc.keepalive_permit_without_calls", 1),
     ("grpc.http2.min_recv_ping_interval_without_data_ms", 1000),
     ("grpc.http2.max_ping_strikes", 0),
-]
+)
 
 
 class Exported:

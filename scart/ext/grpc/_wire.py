@@ -9,9 +9,11 @@ interface (pydantic, lax), so an unregistered pydantic model arrives as that mod
 
 from __future__ import annotations
 
+import functools
 import inspect
 import traceback
 import typing
+from types import MappingProxyType
 from collections.abc import Callable
 from typing import Any
 
@@ -25,7 +27,8 @@ from dataflow.types import registry
 from scart.errors import InvocationError, RemoteError
 
 SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
-PATHS: dict[str, str] = {m.name: f"/{SCA_SERVICE.full_name}/{m.name}" for m in SCA_SERVICE.methods}
+PATHS: MappingProxyType[str, str] = MappingProxyType(
+    {m.name: f"/{SCA_SERVICE.full_name}/{m.name}" for m in SCA_SERVICE.methods})
 NONE_TYPE = codec.NONE_TYPE
 JSON_TYPE = codec.JSON_TYPE
 
@@ -55,7 +58,9 @@ def _identity(value: Any) -> Any:
     return value
 
 
-_ADAPTERS: dict[Any, pydantic.TypeAdapter[Any]] = {}
+@functools.lru_cache(maxsize=512)
+def _adapter(annotation: Any) -> pydantic.TypeAdapter[Any]:
+    return pydantic.TypeAdapter(annotation)
 
 
 def converter(annotation: Any) -> Converter:
@@ -64,12 +69,10 @@ def converter(annotation: Any) -> Converter:
     Raises ``InvocationError`` (from the returned function) when the value does not fit."""
     if annotation in (None, inspect.Parameter.empty, Any, object) or isinstance(annotation, (str, typing.TypeVar)):
         return _identity
-    adapter = _ADAPTERS.get(annotation)
-    if adapter is None:
-        try:
-            adapter = _ADAPTERS[annotation] = pydantic.TypeAdapter(annotation)
-        except Exception:  # an annotation pydantic cannot handle: pass values through
-            return _identity
+    try:
+        adapter = _adapter(annotation)
+    except Exception:  # an annotation pydantic cannot handle (or unhashable): pass values through
+        return _identity
     exact = annotation if isinstance(annotation, type) else None
 
     def convert(value: Any) -> Any:
