@@ -109,22 +109,23 @@ class Deployer:
             if task.state is TaskState.STOPPED:
                 task.cleanup()
 
-    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None, *, lease_seconds: float = 10.0,
+    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None, *, lease_seconds: float | None = None,
               heartbeat_ms: int = 500, max_workers: int = 64) -> DeployerServer:
         """Serve these tasks over gRPC at ``address``; returns the running server once it
         listens (does not block). The one public way to serve a deployer.
 
         ``ns=None`` embeds a name service in the server; otherwise the tasks are registered
-        with the name service at ``ns`` under a lease of ``lease_seconds`` (renewed by
-        heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
+        with the name service at ``ns`` under a lease of ``lease_seconds`` (default
+        ``dataflow.remote.defaults.DEFAULT_LEASE``; renewed by heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
         heartbeats; ``max_workers``: concurrent RPCs. Raises
         :class:`dataflow.remote.AlreadyRegisteredError` for a name held by another live
         deployer, :class:`dataflow.remote.UnavailableError` when nothing answers at ``ns``
         or ``address`` cannot be bound. See :mod:`dataflow.remote.server`."""
+        from dataflow.remote.defaults import DEFAULT_LEASE
         from dataflow.remote.server import DeployerServer
 
-        return DeployerServer(self, address, ns=ns, lease_seconds=lease_seconds, heartbeat_ms=heartbeat_ms,
-                              max_workers=max_workers)
+        return DeployerServer(self, address, ns=ns, lease_seconds=lease_seconds or DEFAULT_LEASE,
+                              heartbeat_ms=heartbeat_ms, max_workers=max_workers)
 
     def __enter__(self) -> Deployer:
         return self

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint, entry_points
 
 COMMANDS_GROUP = "scart.commands"
 CORE_GROUP = "sca"
@@ -28,6 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     groups = sorted(entry_points(group=COMMANDS_GROUP), key=lambda ep: (ep.name != CORE_GROUP, ep.name))
+    if not any(ep.name == CORE_GROUP for ep in groups):  # not installed: the core verbs still work
+        print("scart: the scart.commands entry points are not installed: only run, validate and graph "
+              "are available; install scart (pip install -e .)", file=sys.stderr)
+        groups.insert(0, EntryPoint(CORE_GROUP, "scart.commands.run:register", COMMANDS_GROUP))
     seen: set[str] = set()
     for ep in groups:
         if ep.name in seen:  # the same distribution seen twice on sys.path

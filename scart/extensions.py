@@ -25,6 +25,7 @@ import logging
 import threading
 from collections.abc import Iterable
 from importlib.metadata import EntryPoint, entry_points
+from types import MappingProxyType
 from typing import TypeVar
 
 from scart.errors import ScartError
@@ -35,6 +36,12 @@ __all__ = ["ENTRY_POINT_GROUP", "ExtensionError", "ExtensionRegistry"]
 log = logging.getLogger("scart.extensions")
 
 ENTRY_POINT_GROUP = "scart.extensions"
+
+#: The core's own kinds, used when scart's entry points are not installed (a source tree
+#: on ``sys.path``, or package metadata older than the code), so plain composites still
+#: load; a warning says how to get the extensions back.
+CORE_KINDS = MappingProxyType({"implementation.python": "scart.implementations:PythonImplementation",
+                              "binding.sca": "scart.local:LocalBinding"})
 
 P = TypeVar("P", bound=Extension)
 
@@ -142,6 +149,12 @@ def _discover() -> dict[str, EntryPoint]:
                         ep.value, found[ep.name].value)
             continue
         found.setdefault(ep.name, ep)
+    missing = [name for name in CORE_KINDS if name not in found]
+    if missing:
+        log.warning("scart's own entry points are not installed (%s missing): only the core kinds are "
+                    "available; install scart (pip install -e .) for binding.grpc, implementation.task and "
+                    "the other extensions", ", ".join(missing))
+        found.update((name, EntryPoint(name, CORE_KINDS[name], ENTRY_POINT_GROUP)) for name in missing)
     return found
 
 

@@ -277,7 +277,7 @@ class Runtime:
             provider = registry.implementation(node.kind)
             if provider is None:
                 raise ScartError(f"{node.model.loc}: {path}: no implementation kind <{node.kind}> in this runtime")
-            manager = provider.manager(node, self)
+            manager = _guarded(f"{provider.name} for component {path}", provider.manager, node, self)
             self._managers[path] = manager
             for service in node.ctype.services:
                 self._endpoints[(path, service)] = _Endpoint(self, node, service, manager)
@@ -298,13 +298,14 @@ class Runtime:
                 self._ref_bindings[(path, ref)] = made
         for bindings in self._ref_bindings.values():
             for rb in bindings:
-                rb.start()
+                _guarded(f"starting a {rb.model.kind if rb.model else 'binding.sca'} reference", rb.start)
 
     def _binding_reference(self, ep: Bound, iface: InterfaceInfo | None, where: str) -> ReferenceBinding:
         provider = self.assembly.registry.binding(ep.binding.kind)
         if provider is None or "reference" not in provider.sides:
             raise ScartError(f"{ep.binding.loc}: {where}: binding <{ep.binding.kind}> cannot be used on a reference")
-        return provider.reference(ep.binding, iface or InterfaceInfo("?", {}), self)
+        return _guarded(f"{ep.binding.loc}: {where}: {provider.name}", provider.reference, ep.binding,
+                        iface or InterfaceInfo("?", {}), self)
 
     def _service_binding_models(self) -> list[tuple[tuple[str, str], Binding]]:
         todo = [((p, s), b) for p, n in self.assembly.nodes.items() for s, bs in n.service_bindings.items() for b in bs]
@@ -324,22 +325,20 @@ class Runtime:
 
     def _start_participants(self) -> None:
         for provider in self._used_extensions():
-            participant = provider.activate(self)
+            participant = _guarded(f"starting {provider.name} failed", provider.activate, self)
             if participant is None or any(p is participant for p in self._participants):
                 continue
             self._participants.append(participant)
-            try:
-                participant.start()
-            except Exception as exc:
-                raise ScartError(f"starting {provider.name} failed: {type(exc).__name__}: {exc}") from exc
+            _guarded(f"starting {provider.name} failed", participant.start)
 
     def _start_service_bindings(self) -> None:
         for key, model in self._service_binding_models():
             provider = self.assembly.registry.binding(model.kind)
             if provider is None or "service" not in provider.sides:
                 raise ScartError(f"{model.loc}: binding <{model.kind}> cannot be used on a service")
-            binding = provider.service(model, self._endpoints[key], self)
-            binding.start()
+            where = f"{model.loc}: {key[0]}/{key[1]}: {provider.name}"
+            binding = _guarded(where, provider.service, model, self._endpoints[key], self)
+            _guarded(where, binding.start)
             self._service_bindings.append(binding)
 
     # --- what bindings and managers use ------------------------------------------------
@@ -501,6 +500,17 @@ def _iface_of(node: Node, ref: str) -> InterfaceInfo | None:
         return node.ref_interfaces[ref]
     ref_type = node.ctype.references[ref][1]
     return interface_info(ref_type) if ref_type is not None else None
+
+
+def _guarded(what: str, fn: Callable[..., T], *args: Any) -> T:
+    """``fn(*args)``; an extension's failure other than a ``ScartError`` becomes one that
+    says ``what`` failed (the cause chained), so callers see one error tree."""
+    try:
+        return fn(*args)
+    except ScartError:
+        raise
+    except Exception as exc:
+        raise ScartError(f"{what}: {type(exc).__name__}: {exc}") from exc
 
 
 def _quietly(fn: Callable[[], None], what: str) -> None:

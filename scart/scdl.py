@@ -8,10 +8,12 @@ Elements of ``urn:scart:1.0`` are validated against the XSD shipped in
 The loader never raises on a bad composite: it appends :class:`~scart.errors.Problem` s
 to ``Loader.problems`` and goes on, so every problem is reported together.
 One small reader per element type; the table :data:`COMPOSITE_CHILDREN` dispatches the
-children of ``<composite>``. Children of ``<composite>`` in the scart namespace that the
-runtime's extension registry knows (for example ``scart:connect``) are read generically
-into ``Composite.extensions``, as are ``implementation.*`` and ``binding.*`` elements of
-any namespace (see ``scart.model``): new kinds are added as extensions, not here.
+children of ``<composite>``. Children of ``<composite>`` outside the SCA namespaces that
+the runtime's extension registry knows by local name (``scart:connect``, or a
+third-party ``foo:thing``) are read generically into ``Composite.extensions``, as are
+``implementation.*`` and ``binding.*`` elements of any namespace (see ``scart.model``):
+new kinds are added as extensions, not here. Only scart's own namespace is checked
+against the shipped XSD; an extension checks its own elements.
 """
 
 from __future__ import annotations
@@ -204,8 +206,8 @@ class Loader:
             ns, local = _local(child)
             if ns in SCA_NAMESPACES and local in COMPOSITE_CHILDREN:
                 COMPOSITE_CHILDREN[local](self, child, comp)
-            elif ns == SCART_NS and self.is_element(local):
-                if self.validate_scart(child):
+            elif ns not in SCA_NAMESPACES and self.is_element(local):
+                if ns != SCART_NS or self.validate_scart(child):  # scart's own: the shipped XSD too
                     comp.extensions.append(self.read_element(child))
             elif local not in _IGNORED:
                 self.problem(E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> in {ns!r} inside <composite>", child)

@@ -25,9 +25,10 @@ import math
 import os
 from collections.abc import Mapping
 
-from pydantic import BaseModel, ConfigDict, field_validator
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from scart.errors import ScartError
 
 __all__ = ["Settings"]
 
@@ -70,8 +71,16 @@ class Settings(BaseModel):
     def from_env(cls, environ: Mapping[str, str] | None = None, **fields: object) -> Settings:
         """Settings with ``ns`` from ``SCART_NS`` (when set and not given in ``fields``).
 
-        Raises ``pydantic.ValidationError`` naming the bad value."""
+        Raises :class:`~scart.errors.ScartError` naming the variable (or the field) and
+        what is wrong with its value."""
         env = os.environ if environ is None else environ
+        source = "settings"
         if "ns" not in fields and env.get(NS_ENV, "").strip():
             fields["ns"] = env[NS_ENV].strip()
-        return cls(**fields)  # type: ignore[arg-type]
+            source = f"${NS_ENV}"
+        try:
+            return cls(**fields)  # type: ignore[arg-type]
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            where = source if first["loc"] == ("ns",) else ".".join(map(str, first["loc"]))
+            raise ScartError(f"{where}: {first['msg'].removeprefix('Value error, ')}") from None

@@ -1,5 +1,6 @@
 """The extension SPI: what a binding, an implementation kind or a composite element
-provides, and what the runtime offers it. The only module an extension imports from scart.
+provides, and what the runtime offers it. An extension imports from scart only this
+module and the public error tree (:mod:`scart.errors`).
 
 An extension is a *provider* registered under the local name of its XML element, found
 through the ``scart.extensions`` entry points (see :mod:`scart.extensions`)::
@@ -21,8 +22,8 @@ provider                   provides
 every provider             ``activate(host)``: a :class:`Participant` run with the composite
 =========================  ==================================================================
 
-What the runtime offers, :class:`Host`: the :class:`~scart.settings.Settings`, a read-only
-view of the assembly, bounded work submission, service endpoints by name, shared
+What the runtime offers, :class:`Host`: the :class:`~scart.settings.Settings`, the
+assembly (:class:`AssemblyView`: to read, never to change), bounded work submission, service endpoints by name, shared
 resources by key, and stop hooks. Lifecycle, in one table::
 
     runtime start()                            runtime stop() (reverse)
@@ -95,8 +96,9 @@ class ServiceEndpoint(Protocol):
 
 
 class AssemblyView(Protocol):
-    """The checked composite, read only: leaf components by path, promoted services, and
-    the extension elements of every composite level as ``(path prefix, element)``."""
+    """The checked composite, to read (typed as read-only mappings; extensions never change
+    it): leaf components by path, promoted services, and the extension elements of every
+    composite level as ``(path prefix, element)``."""
 
     @property
     def nodes(self) -> Mapping[str, Node]: ...

@@ -31,8 +31,6 @@ import sys
 import threading
 from types import FrameType
 
-import pydantic
-
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 from scart.assembly import assemble
 from scart.errors import ScartError, ScdlError
@@ -91,9 +89,14 @@ def settings_of(args: argparse.Namespace, **fields: object) -> Settings | None:
     printing why) when a value is invalid."""
     ns = getattr(args, "ns", None)
     try:
-        return Settings.from_env(**({"ns": ns} if ns else {}), **fields)
-    except pydantic.ValidationError as exc:
-        print(f"scart: {exc.errors()[0]['msg']}", file=sys.stderr)
+        if ns:
+            try:
+                return Settings.from_env(ns=ns, **fields)
+            except ScartError as exc:
+                raise ScartError(f"--ns {ns!r}: {str(exc).partition(': ')[2]}") from None
+        return Settings.from_env(**fields)
+    except ScartError as exc:
+        print(f"scart: {exc}", file=sys.stderr)
         return None
 
 

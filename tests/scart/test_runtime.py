@@ -373,3 +373,27 @@ def test_remotable_oneway_copies_arguments_once_before_the_caller_returns() -> N
         fn(*args, **kwargs)
     assert seen == [["caller"]] and seen[0] is not mine
     assert deepcopy.call_count == 1
+
+
+def test_components_read_the_runtimes_settings_through_their_context(tmp_path: Path) -> None:
+    """Settings travel in an object given to the runtime, never a module global: two
+    runtimes in one process each see their own."""
+    path = write(tmp_path, {"c.composite": composite(f'<component name="T">{py("Tracker")}</component>')})
+    with scart.Runtime.from_file(str(path), settings=scart.Settings(ns="127.0.0.1:7001")) as one, \
+            scart.Runtime.from_file(str(path), settings=scart.Settings(ns="127.0.0.1:7002", timeout=0.5)) as two:
+        assert one._managers["T"].instance().ctx.settings.ns_address == "127.0.0.1:7001"
+        assert two._managers["T"].instance().ctx.settings == two.settings
+        assert two.settings.timeout == 0.5
+
+
+@pytest.mark.parametrize("bad", [{"ns": "nohost"}, {"ns": "h:70000"}, {"timeout": float("nan")}, {"timeout": -1.0}])
+def test_settings_refuse_bad_values(bad: dict) -> None:
+    with pytest.raises(ValueError):
+        scart.Settings(**bad)
+
+
+def test_settings_from_env_reads_the_name_service() -> None:
+    assert scart.Settings.from_env({"SCART_NS": " 10.0.0.1:7850 "}).ns == "10.0.0.1:7850"
+    assert scart.Settings.from_env({}).ns_address == "127.0.0.1:7850"
+    assert scart.Settings.from_env({"SCART_NS": "10.0.0.1:7850"}, ns="127.0.0.1:1").ns == "127.0.0.1:1"
+

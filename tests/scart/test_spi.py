@@ -275,3 +275,87 @@ def test_shared_objects_and_stop_hooks(tmp_path: Path) -> None:
         rt.add_stop_hook(lambda: LOG.append("hook 1"))
         rt.add_stop_hook(lambda: LOG.append(f"hook 2 after {comps().EVENTS[-1]}"))
     assert LOG == ["hook 2 after destroy A", "hook 1"]
+
+
+class _Thing(ElementProvider):
+    """A third-party composite element in its own namespace (no XSD of scart's)."""
+
+    name = "thing"
+
+    def check(self, elements: list[tuple[str, Element]], assembly: AssemblyView,
+              context: CheckContext) -> list[Problem]:
+        return [Problem("THING-1", "a thing needs a size", el.loc.path, el.loc.line)
+                for _, el in elements if "size" not in el.attributes]
+
+    def activate(self, host: Host) -> Participant:
+        sizes = [el.attributes["size"] for _, el in host.assembly.elements_of(self.name)]
+
+        class P(Participant):
+            def start(self) -> None:
+                LOG.append(f"things {sizes}")
+
+            def stop(self) -> None:
+                LOG.append("things stop")
+        return P()
+
+
+def test_a_third_party_element_in_its_own_namespace(tmp_path: Path) -> None:
+    path = write(tmp_path, {"t.composite": composite(f"""
+        <component name="A">{py("Tracker")}</component>
+        <t:thing xmlns:t="urn:things" size="3"/>
+    """)})
+    with runtime(path, _Thing()):
+        assert LOG == ["things ['3']"]
+    assert LOG[-1] == "things stop"
+    bad = write(tmp_path, {"b.composite": composite('<t:thing xmlns:t="urn:things"/>')})
+    with pytest.raises(scart.ScdlError) as info:
+        runtime(bad, _Thing())
+    assert info.value.codes == ["THING-1"]
+    with pytest.raises(scart.ScdlError) as info:  # without the provider: an unknown element
+        scart.Runtime.from_file(str(bad))
+    assert info.value.codes == ["SCART-X004"]
+
+
+class _Exploding(BindingProvider):
+    name = "binding.exploding"
+
+    def reference(self, model: Binding, interface: InterfaceInfo, host: Host) -> ReferenceBinding:
+        raise RuntimeError("no such transport here")
+
+
+def test_an_extension_failing_at_start_is_a_scart_error_naming_it(tmp_path: Path) -> None:
+    path = write(tmp_path, {"e.composite": composite(f"""
+        <component name="S">{py("Single")}
+          <reference name="one"><e:binding.exploding xmlns:e="{EXT}"/></reference>
+        </component>""")})
+    rt = runtime(path, _Exploding())
+    with pytest.raises(scart.ScartError, match="S/one: binding.exploding: RuntimeError: no such transport here"):
+        rt.start()
+    assert rt.state is scart.RuntimeState.STOPPED
+
+
+def test_without_installed_entry_points_the_core_kinds_still_load(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
+    """From a source tree (or stale metadata) plain composites still run, and the log says
+    how to get the extensions back."""
+    import scart.extensions
+
+    monkeypatch.setattr(scart.extensions, "entry_points", lambda group: [])
+    registry = scart.ExtensionRegistry()
+    assert registry.names() == ["binding.sca", "implementation.python"]
+    assert "install scart (pip install -e .)" in caplog.text
+    path = write(tmp_path, {"c.composite": composite(f"""
+        <component name="A">{py("GreeterImpl")}</component>
+        <component name="S">{py("Single")}<reference name="one" target="A"/></component>""")})
+    with scart.Runtime.from_file(str(path), extensions=registry) as rt:
+        assert rt.service("S").call("x") == "Hello, x"
+
+
+def test_without_installed_entry_points_the_core_verbs_remain(monkeypatch: pytest.MonkeyPatch,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    import scart.cli
+
+    monkeypatch.setattr(scart.cli, "entry_points", lambda group: [])
+    parser = scart.cli.build_parser()
+    assert "install scart" in capsys.readouterr().err
+    assert parser.parse_args(["validate", "x.composite"]).command == "validate"

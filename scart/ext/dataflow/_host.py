@@ -24,11 +24,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from dataflow import Deployer, OutputPort, TaskContext, registry
+from dataflow import DataflowError, Deployer, OutputPort, TaskContext, registry
 from scart.spi import Host, Participant
 
 if TYPE_CHECKING:
-    from dataflow.remote.client import GrpcSystem
     from dataflow.remote.server import DeployerServer
 
 log = logging.getLogger("scart.dataflow")
@@ -136,7 +135,6 @@ class DataflowHost(Participant):
         self.deployer = Deployer()
         self.server: DeployerServer | None = None
         self._ns: str | None = None
-        self._system: GrpcSystem | None = None
         self._lock = threading.Lock()
         self._closed = False
         self._served: dict[str, str] = {}
@@ -149,9 +147,12 @@ class DataflowHost(Participant):
 
     def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> DeployerServer:
         """Serve the deployer over gRPC (``ns=None``: embedded name service at ``address``;
-        else register with the name service at ``ns``). Raises what ``Deployer.serve`` raises."""
-        server = self.deployer.serve(address, ns=ns)
+        else register with the name service at ``ns``). Raises what ``Deployer.serve``
+        raises, and ``DataflowError`` when already serving or closed (one server per runtime)."""
         with self._lock:
+            if self._closed or self.server is not None:
+                raise DataflowError(f"the runtime's tasks are {'closed' if self._closed else 'served already'}")
+            server = self.deployer.serve(address, ns=ns)
             self.server = server
             self._ns = server.ns_address
         return server
@@ -162,7 +163,9 @@ class DataflowHost(Participant):
         port when no address was given and that one cannot be bound). Raises
         ``DataflowError`` when serving fails."""
         settings = self.host.settings
-        if not settings.serve or not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()):
+        if self.server is not None or not settings.serve:
+            return  # served already (by a program calling serve()), or not asked to
+        if not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()):
             return
         from dataflow.remote.errors import UnavailableError
         from dataflow.remote.naming import name_service_answers
@@ -194,26 +197,13 @@ class DataflowHost(Participant):
         if server is not None:
             server.refresh_names()
 
-    def system(self, timeout: float | None = None) -> GrpcSystem:
-        """A client of the name service (created on first use, shared; raises
-        ``UnavailableError`` when nothing answers)."""
-        from dataflow.remote.client import GrpcSystem
-
-        with self._lock:
-            if self._system is None:
-                self._system = GrpcSystem(self.ns_address, timeout=timeout or self.host.settings.timeout)
-            return self._system
-
     def close(self) -> None:
-        """Close the client and stop the server (idempotent)."""
+        """Stop the server (idempotent); afterwards :meth:`serve` refuses."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
-            system, self._system = self._system, None
             server, self.server = self.server, None
-        if system is not None:
-            system.close()
         if server is not None:
             server.stop()
 

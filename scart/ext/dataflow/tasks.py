@@ -54,7 +54,7 @@ from scart.spi import (
     ImplementationProblem, ImplementationProvider, InterfaceInfo, Node, Operation, Participant, Problem, PropSpec,
 )
 
-log = logging.getLogger("scart.tasks")
+log = logging.getLogger("scart.dataflow")
 
 #: Problem codes of this module.
 TASK_NOT_A_TASK = "SCART-T001"  # implementation.task class is not a TaskContext / bad period
@@ -376,7 +376,7 @@ class ConnectParticipant(Participant):
         from dataflow.remote.naming import NameClient
 
         if ns not in self._clients:
-            self._clients[ns] = NameClient(ns, timeout=1.0)
+            self._clients[ns] = NameClient(ns, timeout=self.runtime.settings.timeout)
         return self._clients[ns]
 
     def _step(self) -> None:
@@ -415,7 +415,7 @@ class ConnectParticipant(Participant):
         from dataflow.remote.client import GrpcSystem
 
         try:
-            system = GrpcSystem(ns, timeout=1.0)
+            system = GrpcSystem(ns, timeout=self.runtime.settings.timeout)
         except Exception as exc:  # noqa: BLE001 - stopping: log and go on
             log.info("connect %s: not disconnected at stop: %s", link.text, exc)
             return
@@ -432,7 +432,7 @@ class ConnectParticipant(Participant):
 
         if host.server is None:
             raise DataflowError(f"connect {link.text}: this runtime's tasks are not served (use scart run)")
-        system = GrpcSystem(ns, timeout=2.0)
+        system = GrpcSystem(ns, timeout=self.runtime.settings.timeout)
         try:
             system.connect_ports(".".join(link.source), ".".join(link.sink), link.policy)
         finally:

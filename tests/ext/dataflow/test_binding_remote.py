@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from support import ROOT, free_port, wait_until
-from support.cli import finish, read_until
+from support.cli import finish, read_until, run
 from support.sca import composite, line_of, write
 
 import scart
@@ -173,6 +173,10 @@ def test_remote_type_mismatch_is_a_static_error_online_only(robot: Robot, tmp_pa
     """)
     path = write(tmp_path, {"w.composite": text}, with_components=False)
     scart.Runtime.from_file(path)  # offline: nothing to check against, no error
+    cli = run("validate", str(path))
+    assert cli.returncode == 0, cli.stderr
+    online = run("validate", "--online", str(path))
+    assert online.returncode == 2 and "SCART-D003" in online.stderr and robot.ns in online.stderr
     with pytest.raises(scart.ScdlError) as err:
         scart.Runtime.from_file(path, settings=scart.Settings(online=True))
     (problem,) = err.value.errors
