@@ -18,6 +18,7 @@ from .ports import Connection, InputPort, OutputPort
 from .task import TaskContext, TaskState
 
 if TYPE_CHECKING:  # the remote layer is imported only when serving
+    from .remote.security import Security
     from .remote.server import DeployerServer
 
 __all__ = ["Deployer"]
@@ -110,14 +111,16 @@ class Deployer:
                 task.cleanup()
 
     def serve(self, address: str = "127.0.0.1:0", ns: str | None = None, *, lease_seconds: float | None = None,
-              heartbeat_ms: int = 500, max_workers: int = 64) -> DeployerServer:
+              heartbeat_ms: int = 500, max_workers: int = 64, security: Security | None = None) -> DeployerServer:
         """Serve these tasks over gRPC at ``address``; returns the running server once it
         listens (does not block). The one public way to serve a deployer.
 
         ``ns=None`` embeds a name service in the server; otherwise the tasks are registered
         with the name service at ``ns`` under a lease of ``lease_seconds`` (default
         ``dataflow.remote.defaults.DEFAULT_LEASE``; renewed by heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
-        heartbeats; ``max_workers``: concurrent RPCs. Raises
+        heartbeats; ``max_workers``: concurrent RPCs; ``security``: TLS and tokens, for this
+        server and for its calls to the name service and other deployers (see
+        :mod:`dataflow.remote.security`; default: plaintext, no tokens, loopback only). Raises
         :class:`dataflow.remote.AlreadyRegisteredError` for a name held by another live
         deployer, :class:`dataflow.remote.UnavailableError` when nothing answers at ``ns``
         or ``address`` cannot be bound. See :mod:`dataflow.remote.server`."""
@@ -125,7 +128,7 @@ class Deployer:
         from dataflow.remote.server import DeployerServer
 
         return DeployerServer(self, address, ns=ns, lease_seconds=lease_seconds or DEFAULT_LEASE,
-                              heartbeat_ms=heartbeat_ms, max_workers=max_workers)
+                              heartbeat_ms=heartbeat_ms, max_workers=max_workers, security=security)
 
     def __enter__(self) -> Deployer:
         return self

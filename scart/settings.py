@@ -16,6 +16,9 @@ field           meaning
 ``online``      load-time checks may ask a running name service (``scart validate
                 --online``); off by default: loading never touches the network
 ``timeout``     deadline (s) of a remote call an extension makes on the runtime's behalf
+``security``    TLS files, the token to send, the auth file to check
+                (:class:`dataflow.remote.Security`): every gRPC server and client the
+                runtime's extensions make uses it
 ==============  ===========================================================================
 """
 
@@ -28,6 +31,7 @@ from collections.abc import Mapping
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from dataflow.remote.security import Security
 from scart.errors import ScartError
 
 __all__ = ["Settings"]
@@ -36,12 +40,13 @@ __all__ = ["Settings"]
 class Settings(BaseModel):
     """Runtime configuration (see the module docstring). Frozen; copy with ``model_copy(update=...)``."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=True)
 
     ns: str | None = None
     serve: bool = False
     online: bool = False
     timeout: float = 2.0
+    security: Security = Security()
 
     @field_validator("ns")
     @classmethod
@@ -69,7 +74,8 @@ class Settings(BaseModel):
 
     @classmethod
     def from_env(cls, environ: Mapping[str, str] | None = None, **fields: object) -> Settings:
-        """Settings with ``ns`` from ``SCART_NS`` (when set and not given in ``fields``).
+        """Settings with ``ns`` from ``SCART_NS`` and ``security`` from the ``SCART_TLS_*``,
+        ``SCART_TOKEN`` and ``SCART_AUTH_FILE`` variables (when not given in ``fields``).
 
         Raises :class:`~scart.errors.ScartError` naming the variable (or the field) and
         what is wrong with its value."""
@@ -78,6 +84,8 @@ class Settings(BaseModel):
         if "ns" not in fields and env.get(NS_ENV, "").strip():
             fields["ns"] = env[NS_ENV].strip()
             source = f"${NS_ENV}"
+        if "security" not in fields:
+            fields["security"] = Security.from_env(env)
         try:
             return cls(**fields)  # type: ignore[arg-type]
         except ValidationError as exc:

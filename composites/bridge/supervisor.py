@@ -68,7 +68,7 @@ class ThermostatProxy:
     def open(self) -> None:
         self._record = _Record()
         # the property, else the runtime's name service (scart run --ns, SCART_NS, the default)
-        self._system = connect(self.ns.strip() or self.ctx.settings.ns_address)
+        self._system = connect(self.ns.strip() or self.ctx.settings.ns_address, security=self.ctx.settings.security)
         proxy = self._system.component(self.task)
         self._proxy = proxy
         self._writer = proxy.connect_input("setpoint", ConnPolicy.data())

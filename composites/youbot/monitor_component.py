@@ -8,12 +8,16 @@ the newest sample and publishes it; ``busy``/``idle`` and connection events are 
 in the page's event log. A small owned thread (~2 Hz) keeps the driver info (state,
 period, connection) up to date.
 
-At start it prints ``youBot Monitor: http://HOST:PORT/`` on stdout (flushed).
+At start it prints ``youBot Monitor: http://HOST:PORT/`` on stdout (flushed). With
+``control_token`` true, a fresh random token is made at each start and the printed URL
+is ``http://HOST:PORT/?token=...``: only a page opened from that URL can send commands
+(see the Security section of :mod:`monitor.server`); the token is printed, never logged.
 """
 
 from __future__ import annotations
 
 import logging
+import secrets
 import threading
 import time
 from collections import deque
@@ -46,13 +50,15 @@ class YouBotMonitor:
     host: str = scart.prop(default="127.0.0.1")
     port: int = scart.prop(default=0)
     info_interval: float = scart.prop(default=0.5)
+    control_token: bool = scart.prop(default=False)
     status: RetrievingStatus = scart.reference()
     period: SettingPeriod = scart.reference()
     locomotor: Moving = scart.reference()
 
     @scart.init
     def open(self) -> None:
-        """Start the web server, print its URL, register for refresh, start the info thread."""
+        """Start the web server (with a fresh control token if ``control_token``), print
+        its page URL, register for refresh, start the info thread."""
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self.published = 0
@@ -62,10 +68,11 @@ class YouBotMonitor:
         self._first_sequence: int | None = None
         self._latencies: deque[float] = deque(maxlen=20_000)
         self._events: deque[tuple[str, str]] = deque(maxlen=200)
-        self.server = MonitorServer(self, host=self.host, port=int(self.port))
+        token = secrets.token_urlsafe(16) if self.control_token else None
+        self.server = MonitorServer(self, host=self.host, port=int(self.port), token=token)
         self.server.error_flag_names = dict(ERROR_BITS)
         self.server.start()
-        self.url = self.server.url
+        self.url = self.server.url  # the base (statistics); never the token
         self._thread = threading.Thread(target=self._info_loop, name="scart-youbot-monitor-info", daemon=True)
         try:
             self._publish_newest(self.status.get_joints_status())  # registers us for refresh
@@ -75,7 +82,7 @@ class YouBotMonitor:
         except BaseException:
             self.server.stop()  # @destroy does not run after a failed @init
             raise
-        print(f"youBot Monitor: {self.url}", flush=True)
+        print(f"youBot Monitor: {self.server.page_url}", flush=True)
 
     @scart.destroy
     def close(self) -> None:

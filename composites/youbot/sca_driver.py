@@ -170,7 +170,7 @@ class SCAYouBotDriver(DriverProxyCore):
     def _try_connect(self) -> None:
         system = None
         try:
-            system = connect(self._address, timeout=2.0)
+            system = connect(self._address, timeout=2.0, security=self.ctx.settings.security)
             proxy = system.component(self.component)
             period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
             sub = proxy.subscribe("jointStatus", self._on_sample, policy=ConnPolicy.data(),

@@ -27,6 +27,7 @@ import threading
 from typing import Any
 
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
+from dataflow.remote.security import add_arguments, from_args
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -46,11 +47,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
         help="connect a hosted output port to an input port here or in another deployer (repeatable)",
     )
     deploy.add_argument("--policy", default="data", help="policy of --connect: data | buffer:N | circular:N")
+    add_arguments(deploy, server=True)
     deploy.set_defaults(func=cmd_deploy)
 
     names = subparsers.add_parser("nameserver", help="run a standalone name service until Ctrl-C")
     names.add_argument("--listen", default=DEFAULT_NS_ADDRESS, help=f"HOST:PORT (default {DEFAULT_NS_ADDRESS})")
     names.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="default lease (s)")
+    add_arguments(names, server=True, client=False)
     names.set_defaults(func=cmd_nameserver)
 
 
@@ -122,8 +125,13 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     from dataflow import DataflowError, Deployer
     from dataflow.remote.naming import name_service_answers
 
+    try:
+        security = from_args(args)
+    except DataflowError as exc:
+        _err(f"scart deploy: {exc}")
+        return 1
     ns = args.ns or os.environ.get(NS_ENV) or None
-    if ns is not None and not name_service_answers(ns):
+    if ns is not None and not name_service_answers(ns, security=security):
         # Nothing answers at --ns/SCART_NS: embed the name service there, as `scart run` does.
         if args.listen and args.listen != ns:
             _err(f"scart deploy: no name service answers at {ns}; start one with "
@@ -142,7 +150,8 @@ def cmd_deploy(args: argparse.Namespace) -> int:
             deployer.configure_all()
             if not args.no_start:
                 deployer.start_all()
-            server = deployer.serve(listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms)
+            server = deployer.serve(listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms,
+                                    security=security)
         except (ImportError, ValueError, DataflowError) as exc:
             _err(f"scart deploy: {exc}")
             return 1
@@ -152,7 +161,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
             _err(f"scart deploy: --connect: {exc}")
             return 1
         where = "embedded" if ns is None else "joined"
-        _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.address} "
+        _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.listen_address} "
              f"(name service {server.ns_address}, {where})")
         serving = True
         while not stop.wait(1.0):
@@ -180,16 +189,16 @@ def _connect_at_start(server: Any, args: argparse.Namespace) -> None:
 
 def cmd_nameserver(args: argparse.Namespace) -> int:
     """Run ``scart nameserver``; returns the exit code."""
-    from dataflow.remote.errors import RemoteError
+    from dataflow import DataflowError
     from dataflow.remote.naming import serve_nameserver
 
     stop = _stop_event()
     try:
-        server = serve_nameserver(args.listen, default_lease=args.lease)
-    except RemoteError as exc:
+        server = serve_nameserver(args.listen, default_lease=args.lease, security=from_args(args))
+    except DataflowError as exc:
         _err(f"scart nameserver: {exc}")
         return 1
-    _err(f"scart nameserver: serving on {server.address}")
+    _err(f"scart nameserver: serving on {server.listen_address}")
     try:
         while not stop.wait(1.0):
             pass

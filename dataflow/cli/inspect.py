@@ -27,6 +27,7 @@ from typing import Any
 
 from dataflow.remote.api import TRANSITIONS
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from dataflow.remote.security import add_arguments, from_args
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -36,6 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
         p.add_argument("--ns", default=None, help=f"name service HOST:PORT (default ${NS_ENV} or {DEFAULT_NS_ADDRESS})")
         p.add_argument("--json", action="store_true", help="JSON on stdout")
         p.add_argument("--timeout", type=float, default=3.0, help="deadline of each remote call (s)")
+        add_arguments(p, server=False)
         p.set_defaults(func=lambda a: _guard(func, a))
         return p
 
@@ -118,7 +120,7 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
     address = ns_address(args)
     source = "--ns" if args.ns else (f"${NS_ENV}" if os.environ.get(NS_ENV) else "the default")
     try:
-        system = connect(address, timeout=args.timeout)
+        system = connect(address, timeout=args.timeout, security=from_args(args))
     except (UnavailableError, RemoteTimeoutError) as exc:
         _err(
             f"{args.command}: no name service answers at {address} (from {source}): {exc}\n"
@@ -126,6 +128,9 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
             f"`scart deploy pkg.mod:Class` (embeds one on {DEFAULT_NS_ADDRESS}),\n"
             f"  or point --ns / {NS_ENV} at a running name service or deployer."
         )
+        return 1
+    except DataflowError as exc:  # credentials refused, unusable security files
+        _err(f"{args.command}: {exc}")
         return 1
     try:
         args.system = system

@@ -18,10 +18,11 @@ from dataflow.remote.api import (
     ComponentInfo, ComponentProxy, GapEvent, PortWriter, SampleEvent, Subscription, System,
 )
 from dataflow.remote.errors import (
-    AlreadyRegisteredError, ClosedError, RemoteError, RemoteNotFoundError, RemoteTimeoutError,
-    RemoteTypeError, RemoteValueError, UnavailableError,
+    AlreadyRegisteredError, AuthenticationError, ClosedError, PermissionDeniedError, RemoteError,
+    RemoteNotFoundError, RemoteTimeoutError, RemoteTypeError, RemoteValueError, UnavailableError,
 )
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
+from dataflow.remote.security import Role, Security, SecurityError
 
 if TYPE_CHECKING:
     from dataflow.deployer import Deployer
@@ -33,14 +34,17 @@ __all__ = [
     "System", "ComponentProxy", "Subscription", "PortWriter", "SampleEvent", "GapEvent", "ComponentInfo",
     "RemoteError", "UnavailableError", "RemoteTimeoutError", "RemoteNotFoundError", "RemoteTypeError",
     "RemoteValueError", "AlreadyRegisteredError", "ClosedError", "DEFAULT_NS_PORT", "DEFAULT_NS_ADDRESS",
+    "AuthenticationError", "PermissionDeniedError", "Security", "SecurityError", "Role",
 ]
 
 
-def connect(address: str, timeout: float = 2.0, heartbeat_ms: int = 500) -> GrpcSystem:
-    """Connect to a name service (standalone or embedded in a deployer); see :func:`dataflow.remote.client.connect`."""
+def connect(address: str, timeout: float = 2.0, heartbeat_ms: int = 500,
+            security: Security | None = None) -> GrpcSystem:
+    """Connect to a name service (standalone or embedded in a deployer); see :func:`dataflow.remote.client.connect`
+    (``security`` defaults to ``Security.from_env()``)."""
     from dataflow.remote.client import connect as _connect
 
-    return _connect(address, timeout=timeout, heartbeat_ms=heartbeat_ms)
+    return _connect(address, timeout=timeout, heartbeat_ms=heartbeat_ms, security=security)
 
 
 def local_system(deployer: Deployer) -> System:

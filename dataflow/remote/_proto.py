@@ -9,19 +9,32 @@ descriptors :data:`DEPLOYER_SERVICE` and :data:`NAMING_SERVICE`, and their full 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
+
 from google.protobuf.descriptor import ServiceDescriptor
 
 from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as df
 from dataflow.proto.scart.dataflow.v1 import dataflow_pb2_grpc as df_grpc
 from dataflow.proto.scart.naming.v1 import naming_pb2 as ns
 from dataflow.proto.scart.naming.v1 import naming_pb2_grpc as ns_grpc
+from dataflow.remote.security import Role, roles_of_service
 
 DEPLOYER_SERVICE: ServiceDescriptor = df.DESCRIPTOR.services_by_name["DeployerService"]
 NAMING_SERVICE: ServiceDescriptor = ns.DESCRIPTOR.services_by_name["NamingService"]
 DEPLOYER_SERVICE_NAME = DEPLOYER_SERVICE.full_name
 NAMING_SERVICE_NAME = NAMING_SERVICE.full_name
 
-__all__ = ["DEPLOYER_SERVICE", "DEPLOYER_SERVICE_NAME", "NAMING_SERVICE", "NAMING_SERVICE_NAME", "df", "df_grpc",
+#: The role each method needs (see :mod:`dataflow.remote.security`): reading and
+#: subscribing need ``read``; the rest of the DeployerService ``operate``; registering
+#: names with a name service ``admin``.
+DEPLOYER_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(
+    DEPLOYER_SERVICE_NAME, reads={"ListTasks", "DescribeTask", "ReadPort", "Subscribe", "GetProperty"}))
+NAMING_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(
+    NAMING_SERVICE_NAME, reads={"Resolve", "ListEntries"}, default=Role.ADMIN))
+
+__all__ = ["DEPLOYER_ROLES", "DEPLOYER_SERVICE", "DEPLOYER_SERVICE_NAME", "NAMING_ROLES", "NAMING_SERVICE",
+           "NAMING_SERVICE_NAME", "df", "df_grpc",
            "method_kinds", "method_paths", "ns", "ns_grpc"]
 
 

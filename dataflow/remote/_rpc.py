@@ -5,13 +5,14 @@ gRPC statuses to scart errors). Servicers and stubs are the generated ones of
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any
 
 import grpc
 
 from dataflow.remote import errors
+from dataflow.remote.security import Role, Security, auth_interceptor
 
 #: Name prefix of the servers' worker threads (``scart-rpc_0``, ...).
 THREAD_PREFIX = "scart-rpc"
@@ -55,6 +56,8 @@ _MAP: MappingProxyType[grpc.StatusCode, type[errors.RemoteError]] = MappingProxy
     grpc.StatusCode.UNAVAILABLE: errors.UnavailableError,
     grpc.StatusCode.DEADLINE_EXCEEDED: errors.RemoteTimeoutError,
     grpc.StatusCode.ALREADY_EXISTS: errors.AlreadyRegisteredError,
+    grpc.StatusCode.UNAUTHENTICATED: errors.AuthenticationError,
+    grpc.StatusCode.PERMISSION_DENIED: errors.PermissionDeniedError,
 })
 
 
@@ -114,8 +117,15 @@ def make_server(
     servicers: list[Servicer],
     service_names: list[str],
     max_workers: int = 32,
+    security: Security | None = None,
+    roles: Mapping[str, Role] | None = None,
 ) -> tuple[grpc.Server, int, Any, Any]:
     """Create, bind and start a server with ``servicers``, health checking and reflection.
+
+    ``security`` gives TLS and the auth file (tokens checked against ``roles``, the role
+    each method needs); without it, plaintext and no tokens. A non-loopback ``address``
+    without TLS and tokens is refused unless ``security.insecure`` (see
+    :mod:`dataflow.remote.security`); :class:`SecurityError` then, or for unusable files.
 
     Returns ``(server, bound_port, health_servicer, executor)``; the caller owns the
     executor and ends it with :func:`stop_server` (grpc does not shut it down).
@@ -128,8 +138,14 @@ def make_server(
     from grpc_health.v1 import health, health_pb2, health_pb2_grpc
     from grpc_reflection.v1alpha import reflection
 
+    security = security or Security()
+    security.check_bind(address, "server")
+    credentials = security.server_credentials()
+    table = security.auth_table()
+    interceptors = [auth_interceptor(table, roles or {})] if table is not None else []
     executor = futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix=THREAD_PREFIX)
-    server = grpc.server(executor, options=server_options(), maximum_concurrent_rpcs=max_workers)
+    server = grpc.server(executor, options=server_options(), maximum_concurrent_rpcs=max_workers,
+                         interceptors=interceptors)
     for add, servicer in servicers:
         add(servicer, server)
     health_servicer = health.HealthServicer()
@@ -141,7 +157,7 @@ def make_server(
         [*service_names, health.SERVICE_NAME, reflection.SERVICE_NAME], server
     )
     try:
-        port = server.add_insecure_port(address)
+        port = server.add_secure_port(address, credentials) if credentials else server.add_insecure_port(address)
     except RuntimeError as exc:
         stop_server(server, executor, 0.0)
         raise errors.UnavailableError(f"cannot listen on {address}: {exc}", "UNAVAILABLE", address) from None
@@ -174,11 +190,11 @@ def bound_address(requested: str, port: int) -> str:
     return f"{host}:{port}"
 
 
-def health_ok(address: str, timeout: float = 0.5) -> bool:
+def health_ok(address: str, timeout: float = 0.5, security: Security | None = None) -> bool:
     """True if a gRPC health service answers SERVING at ``address`` within ``timeout``."""
     from grpc_health.v1 import health_pb2, health_pb2_grpc
 
-    with grpc.insecure_channel(address, options=channel_options()) as channel:
+    with (security or Security()).channel(address, channel_options()) as channel:
         try:
             reply = health_pb2_grpc.HealthStub(channel).Check(
                 health_pb2.HealthCheckRequest(service=""), timeout=timeout

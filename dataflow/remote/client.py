@@ -36,6 +36,7 @@ from dataflow.remote.api import (
     TRANSITIONS, ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, System, split_port,
 )
 from dataflow.remote.naming import NameClient
+from dataflow.remote.security import Security
 
 __all__ = ["GrpcSystem", "GrpcComponentProxy", "GrpcSubscription", "GrpcPortWriter", "connect"]
 
@@ -62,11 +63,13 @@ class GrpcSystem(System):
     Thread-safe; :meth:`close` is idempotent and closes every subscription and writer.
     """
 
-    def __init__(self, address: str, timeout: float = 2.0, heartbeat_ms: int = 500) -> None:
+    def __init__(self, address: str, timeout: float = 2.0, heartbeat_ms: int = 500,
+                 security: Security | None = None) -> None:
         self.address = address
         self.timeout = timeout
         self.heartbeat_ms = heartbeat_ms
-        self._ns = NameClient(address, timeout=timeout)
+        self.security = security or Security()
+        self._ns = NameClient(address, timeout=timeout, security=self.security)
         self._lock = threading.Lock()
         self._channels: dict[str, tuple[grpc.Channel, df_grpc.DeployerServiceStub]] = {}
         self._where: dict[str, str] = {}
@@ -81,7 +84,7 @@ class GrpcSystem(System):
                 raise errors.ClosedError("this system proxy is closed")
             entry = self._channels.get(address)
             if entry is None:
-                channel = grpc.insecure_channel(address, options=_rpc.channel_options())
+                channel = self.security.channel(address, _rpc.channel_options())
                 entry = self._channels[address] = (channel, df_grpc.DeployerServiceStub(channel))
             return entry[1]
 
@@ -347,13 +350,18 @@ class GrpcPortWriter(PortWriter):
             pass
 
 
-def connect(address: str, timeout: float = 2.0, heartbeat_ms: int = 500) -> GrpcSystem:
+def connect(address: str, timeout: float = 2.0, heartbeat_ms: int = 500,
+            security: Security | None = None) -> GrpcSystem:
     """Connect to the name service at ``address`` (standalone or embedded in a deployer).
 
-    Checks at once that it answers: raises :class:`errors.UnavailableError` naming the
-    address otherwise (or :class:`errors.RemoteTimeoutError`).
+    ``security``: TLS files and the token to send (default: ``Security.from_env()``, the
+    ``SCART_TLS_*`` and ``SCART_TOKEN`` variables). Checks at once that it answers:
+    raises :class:`errors.UnavailableError` naming the address otherwise (or
+    :class:`errors.RemoteTimeoutError`, :class:`errors.AuthenticationError`,
+    :class:`errors.PermissionDeniedError`).
     """
-    system = GrpcSystem(address, timeout=timeout, heartbeat_ms=heartbeat_ms)
+    system = GrpcSystem(address, timeout=timeout, heartbeat_ms=heartbeat_ms,
+                        security=security if security is not None else Security.from_env())
     try:
         system.component_names()
     except BaseException:

@@ -19,6 +19,8 @@ __all__ = [
     "RemoteTypeError",
     "RemoteValueError",
     "ClosedError",
+    "AuthenticationError",
+    "PermissionDeniedError",
 ]
 
 
@@ -56,6 +58,14 @@ class RemoteTypeError(RemoteError, PortTypeError):
 
 class RemoteValueError(RemoteError, PropertyValueError):
     """A value has the right type but the remote side refused it."""
+
+
+class AuthenticationError(RemoteError):
+    """The server wants a valid token (``--token`` / ``SCART_TOKEN``) or certificate."""
+
+
+class PermissionDeniedError(RemoteError):
+    """The token's role does not allow the call; the message names the role it needs."""
 
 
 class ClosedError(DataflowError):

@@ -27,8 +27,9 @@ import grpc
 from dataflow.errors import DataflowError, NotFoundError
 from dataflow.remote import _rpc, errors
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
-from dataflow.remote._proto import NAMING_SERVICE_NAME, ns_grpc
+from dataflow.remote._proto import NAMING_ROLES, NAMING_SERVICE_NAME, ns_grpc
 from dataflow.remote._proto import ns as pb
+from dataflow.remote.security import Security
 
 __all__ = [
     "DEFAULT_NS_PORT",
@@ -241,10 +242,13 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
 class NameServer:
     """A running standalone name service. ``address`` is where it listens."""
 
-    def __init__(self, server: grpc.Server, address: str, registry: NameRegistry, executor: Any = None) -> None:
+    def __init__(self, server: grpc.Server, address: str, registry: NameRegistry, executor: Any = None,
+                 listen_address: str | None = None) -> None:
         self._server = server
         self._executor = executor
         self.address = address
+        #: What the server listens on (``0.0.0.0:P`` when bound to every interface).
+        self.listen_address = listen_address or address
         self.registry = registry
 
     def stop(self, grace: float = 0.2) -> None:
@@ -266,16 +270,23 @@ class NameServer:
 
 
 def serve_nameserver(
-    address: str = "127.0.0.1:0", default_lease: float = DEFAULT_LEASE, max_workers: int = 16
+    address: str = "127.0.0.1:0", default_lease: float = DEFAULT_LEASE, max_workers: int = 16,
+    security: Security | None = None,
 ) -> NameServer:
     """Start a standalone name service (health + reflection included); returns at once.
 
-    Raises :class:`errors.UnavailableError` when ``address`` cannot be bound.
+    ``security``: TLS and the auth file (see :mod:`dataflow.remote.security`; lookups need
+    ``read``, registrations ``admin``). Raises :class:`errors.UnavailableError` when
+    ``address`` cannot be bound, :class:`~dataflow.remote.security.SecurityError` for an
+    unsafe bind or unusable security files.
     """
-    registry = NameRegistry(default_lease=default_lease)
+    security = security or Security()
+    registry = NameRegistry(default_lease=default_lease, probe=lambda a: _rpc.health_ok(a, security=security))
     servicer = (ns_grpc.add_NamingServiceServicer_to_server, NamingServicer(registry))
-    server, port, _health, executor = _rpc.make_server(address, [servicer], [NAMING_SERVICE_NAME], max_workers)
-    return NameServer(server, _rpc.bound_address(address, port), registry, executor)
+    server, port, _health, executor = _rpc.make_server(address, [servicer], [NAMING_SERVICE_NAME], max_workers,
+                                                       security=security, roles=NAMING_ROLES)
+    return NameServer(server, _rpc.bound_address(address, port), registry, executor,
+                      f"{address.rpartition(':')[0] or '127.0.0.1'}:{port}")
 
 
 class NameClient:
@@ -286,10 +297,10 @@ class NameClient:
     :class:`errors.AlreadyRegisteredError`. :meth:`close` is idempotent.
     """
 
-    def __init__(self, address: str, timeout: float = 2.0) -> None:
+    def __init__(self, address: str, timeout: float = 2.0, security: Security | None = None) -> None:
         self.address = address
         self.timeout = timeout
-        self._channel = grpc.insecure_channel(address, options=_rpc.channel_options())
+        self._channel = (security or Security()).channel(address, _rpc.channel_options())
         self._stub = ns_grpc.NamingServiceStub(self._channel)
 
     def _call(self, name: str, request: Any, timeout: float | None) -> Any:
@@ -329,17 +340,19 @@ class NameClient:
         self._channel.close()
 
 
-def name_service_answers(address: str, timeout: float = 0.5) -> bool:
+def name_service_answers(address: str, timeout: float = 0.5, security: Security | None = None) -> bool:
     """True when a name service answers at ``address`` within ``timeout`` s.
 
     Used by ``scart run``/``scart deploy`` to decide between joining a running name service
     and embedding one at that address. Blocks at most ``timeout``; never raises for an
     unreachable address.
     """
-    probe = NameClient(address, timeout=timeout)
+    probe = NameClient(address, timeout=timeout, security=security)
     try:
         probe.entries()
         return True
+    except (errors.AuthenticationError, errors.PermissionDeniedError):
+        return True  # one answers, and wants credentials
     except DataflowError:
         return False
     finally:
@@ -382,13 +395,14 @@ class Registration:
         lease_seconds: float = DEFAULT_LEASE,
         deployer_id: str | None = None,
         timeout: float = 2.0,
+        security: Security | None = None,
     ) -> None:
         self.ns_address = ns_address
         self.address = address
         self.deployer_id = deployer_id or uuid.uuid4().hex
         self._components = components
         self._lease_seconds = lease_seconds
-        self._client = NameClient(ns_address, timeout=timeout)
+        self._client = NameClient(ns_address, timeout=timeout, security=security)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.lease_id = ""

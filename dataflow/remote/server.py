@@ -31,9 +31,10 @@ from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
 from dataflow.remote import _convert as cv
 from dataflow.remote import _rpc, errors
-from dataflow.remote._proto import DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME, df_grpc, ns_grpc
+from dataflow.remote._proto import DEPLOYER_ROLES, DEPLOYER_SERVICE_NAME, NAMING_ROLES, NAMING_SERVICE_NAME, df_grpc, ns_grpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
+from dataflow.remote.security import Security
 from dataflow.remote.naming import (
     DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration, held_elsewhere,
 )
@@ -85,7 +86,7 @@ class _RemoteLink:
         while not self._closed.is_set():
             try:
                 address = self.server.resolve(self.sink_task)
-                with grpc.insecure_channel(address, options=_rpc.channel_options()) as channel:
+                with self.server.security.channel(address, _rpc.channel_options()) as channel:
                     stub = df_grpc.DeployerServiceStub(channel)
                     self._call = stub.WritePortStream.future(self._requests())
                     self._call.result()
@@ -140,18 +141,26 @@ class DeployerServer:
         heartbeat_ms: int = 500,
         max_workers: int = 64,
         ns_timeout: float = 2.0,
+        security: Security | None = None,
     ) -> None:
         self.deployer = deployer
         self.deployer_id = uuid.uuid4().hex
-        self.registry: NameRegistry | None = None if ns else NameRegistry(default_lease=lease_seconds)
+        self.security = security = security or Security()
+        self.registry: NameRegistry | None = None if ns else NameRegistry(
+            default_lease=lease_seconds, probe=lambda a: _rpc.health_ok(a, security=security))
         self._servicer = DeployerServicer(self, heartbeat_ms=heartbeat_ms, max_streams=max(1, max_workers - 8))
         servicers: list[_rpc.Servicer] = [(df_grpc.add_DeployerServiceServicer_to_server, self._servicer)]
         names = [DEPLOYER_SERVICE_NAME]
+        roles = dict(DEPLOYER_ROLES)
         if self.registry is not None:
             servicers.append((ns_grpc.add_NamingServiceServicer_to_server, _EmbeddedNaming(self)))
             names.append(NAMING_SERVICE_NAME)
-        self._server, port, _health, self._executor = _rpc.make_server(address, servicers, names, max_workers)
+            roles.update(NAMING_ROLES)
+        self._server, port, _health, self._executor = _rpc.make_server(
+            address, servicers, names, max_workers, security=security, roles=roles)
         self.address = _rpc.bound_address(address, port)
+        #: What the server listens on (``0.0.0.0:P`` when bound to every interface).
+        self.listen_address = f"{address.rpartition(':')[0] or '127.0.0.1'}:{port}"
         self.ns_address = ns or self.address
         self._links: dict[tuple[str, str, str, str], _RemoteLink] = {}
         self._lock = threading.Lock()
@@ -164,10 +173,10 @@ class DeployerServer:
             if self.registry is not None:
                 self.refresh_names()
             else:
-                self._ns_client = NameClient(self.ns_address, timeout=ns_timeout)
+                self._ns_client = NameClient(self.ns_address, timeout=ns_timeout, security=security)
                 self._registration = Registration(
                     self.ns_address, self.address, self.deployer.names, lease_seconds,
-                    deployer_id=self.deployer_id, timeout=ns_timeout,
+                    deployer_id=self.deployer_id, timeout=ns_timeout, security=security,
                 )
                 self._registration.start()
         except BaseException:

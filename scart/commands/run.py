@@ -31,7 +31,9 @@ import sys
 import threading
 from types import FrameType
 
+from dataflow import DataflowError
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from dataflow.remote.security import add_arguments, from_args
 from scart.assembly import assemble
 from scart.errors import ScartError, ScdlError
 from scart.graph import Assembly, Bound, Target
@@ -51,6 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.add_argument("--ns", default=None, metavar="HOST:PORT",
                      help="name service of data-flow tasks: where the embedded one listens, or the running one "
                           f"to join (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
+    add_arguments(run, server=True)
     run.set_defaults(func=cmd_run)
 
     validate = subparsers.add_parser("validate", help="check composites without running them (offline)")
@@ -60,6 +63,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
                           help="also check remote data-flow tasks against the running name service")
     validate.add_argument("--ns", default=None, metavar="HOST:PORT",
                           help=f"name service for --online (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
+    add_arguments(validate, server=False)
     validate.set_defaults(func=cmd_validate)
 
     graph = subparsers.add_parser("graph", help="print a composite as Graphviz DOT")
@@ -89,6 +93,10 @@ def settings_of(args: argparse.Namespace, **fields: object) -> Settings | None:
     printing why) when a value is invalid."""
     ns = getattr(args, "ns", None)
     try:
+        try:
+            fields["security"] = from_args(args)
+        except DataflowError as exc:
+            raise ScartError(str(exc)) from None
         if ns:
             try:
                 return Settings.from_env(ns=ns, **fields)

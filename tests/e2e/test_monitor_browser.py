@@ -172,6 +172,44 @@ def test_screenshot_every_tab(monitor: Monitor) -> None:
     assert monitor.errors == []
 
 
+def test_token_mode_page_sends_the_token_and_cannot_be_framed(monitor: Monitor) -> None:
+    """Token mode: the page opened from `page_url` commands, one opened without the token is
+    refused; and chromium refuses to show the monitor in a frame (X-Frame-Options, CSP).
+    A second context of the module's browser (one playwright per thread)."""
+    arm = SyntheticArm(period=0.02, seed=2)  # backend only: its feeder is not started
+    server = MonitorServer(arm, token="per-launch-token")
+    context = monitor.page.context.browser.new_context()
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
+    try:
+        server.start()
+        page.goto(server.page_url)
+        page.fill("#period-input", "40")
+        page.click("#period-apply")
+        expect(page.locator("#period-result")).to_have_text("driver period set to 40 ms")
+        expect(page).to_have_url(re.compile(r"\?token=per-launch-token#tab=global"))  # kept in the URL
+        assert errors == []  # the page runs under its Content-Security-Policy
+
+        page.goto(server.url)  # no token in the URL: the page works, its commands do not
+        page.fill("#period-input", "50")
+        page.click("#period-apply")
+        expect(page.locator("#period-result")).to_contain_text("missing or wrong control token")
+        expect(page.locator("#period-result")).to_have_attribute("data-ok", "false")
+
+        page.goto("about:blank")
+        page.set_content(f'<iframe id="f" src="{server.url}"></iframe>')
+        page.wait_for_function("() => window.frames.length === 1", timeout=TIMEOUT_MS)
+        child = page.frames[1]
+        child.wait_for_load_state(timeout=TIMEOUT_MS)
+        assert child.url.startswith("chrome-error://")  # blocked: not the monitor page
+        assert arm.sent == []
+    finally:
+        context.close()
+        server.stop()
+
+
 def test_connection_indicator_follows_data_driver_and_server(monitor: Monitor) -> None:
     """Runs last: it stops the feeder and the server."""
     page = monitor.page

@@ -1,12 +1,17 @@
-"""The monitor's HTTP side with plain urllib: pages, Plotly from the package, commands, SSE."""
+"""The monitor's HTTP side with plain urllib: pages, Plotly from the package, commands, SSE,
+and its defences (Host and Origin checks, framing headers, stream and connection caps, token)."""
 
 from __future__ import annotations
 
+import http.client
 import importlib.resources
 import json
+import logging
+import socket
 import threading
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from collections.abc import Iterator
 from typing import Any
@@ -65,8 +70,18 @@ def get(url: str) -> tuple[int, str, bytes]:
         return resp.status, resp.headers.get("Content-Type", ""), resp.read()
 
 
-def post(url: str, body: bytes, ctype: str = "application/json") -> tuple[int, dict[str, Any]]:
-    req = urllib.request.Request(url, data=body, method="POST", headers={"Content-Type": ctype})
+def origin_of(url: str) -> str:
+    """``scheme://host:port`` of ``url``: the ``Origin`` the monitor's own page sends."""
+    parts = urllib.parse.urlsplit(url)
+    return f"{parts.scheme}://{parts.netloc}"
+
+
+def post(
+    url: str, body: bytes, ctype: str = "application/json", headers: dict[str, str] | None = None
+) -> tuple[int, dict[str, Any]]:
+    """POST as the page does (same-origin ``Origin``) unless ``headers`` say otherwise."""
+    sent = {"Content-Type": ctype, "Origin": origin_of(url), **(headers or {})}
+    req = urllib.request.Request(url, data=body, method="POST", headers={k: v for k, v in sent.items() if v})
     try:
         with urllib.request.urlopen(req, timeout=10) as resp:
             return resp.status, json.loads(resp.read())
@@ -298,3 +313,163 @@ def test_a_reconnecting_stream_resumes_the_event_log_without_repeats(server: Mon
         fresh: list[str] = []
         read_update(stream, lambda m: "idle" in fresh, events=fresh)
     assert fresh == ["busy", "idle"]  # an id from another server instance: the whole log
+
+
+# -- defences (issue 11) -------------------------------------------------------------------
+
+
+def raw_request(
+    url: str, method: str, path: str, headers: dict[str, str], body: bytes | None = None
+) -> tuple[int, dict[str, str], bytes]:
+    """One request with exactly ``headers`` (``Host`` included: none is added if absent)."""
+    parts = urllib.parse.urlsplit(url)
+    conn = http.client.HTTPConnection(parts.hostname, parts.port, timeout=10)
+    try:
+        conn.putrequest(method, path, skip_host=True, skip_accept_encoding=True)
+        for name, value in headers.items():
+            conn.putheader(name, value)
+        if body is not None:
+            conn.putheader("Content-Length", str(len(body)))
+        conn.endheaders(body)
+        resp = conn.getresponse()
+        return resp.status, {k.lower(): v for k, v in resp.getheaders()}, resp.read()
+    finally:
+        conn.close()
+
+
+def test_a_foreign_or_missing_host_is_refused_and_changes_nothing(server: MonitorServer, backend: FakeBackend) -> None:
+    port = urllib.parse.urlsplit(server.url).port
+    evil = {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}",  # DNS rebinding
+            "Content-Type": "application/json"}
+    status, headers, body = raw_request(server.url, "POST", "/api/period", evil, b'{"seconds": 0.02}')
+    assert status == 421 and "misdirected" in json.loads(body)["message"]
+    assert headers["x-frame-options"] == "DENY"
+    assert raw_request(server.url, "GET", "/api/state", {"Host": f"evil.example:{port}"})[0] == 421
+    assert raw_request(server.url, "GET", "/", {"Host": "127.0.0.1:1"})[0] == 421  # another port
+    assert raw_request(server.url, "GET", "/api/state", {})[0] == 421  # no Host at all
+    assert backend.periods == []
+    for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"LOCALHOST:{port}"):  # our own names
+        assert raw_request(server.url, "GET", "/api/state", {"Host": host})[0] == 200
+    ours = {"Host": f"localhost:{port}", "Origin": f"http://localhost:{port}", "Content-Type": "application/json"}
+    assert raw_request(server.url, "POST", "/api/period", ours, b'{"seconds": 0.02}')[0] == 200
+    assert backend.periods == [0.02]
+
+
+@pytest.mark.parametrize("origin", ["http://evil.example", "null", "https://127.0.0.1:{port}", "http://127.0.0.1:1", ""])
+def test_a_command_without_a_same_origin_origin_is_refused(
+    server: MonitorServer, backend: FakeBackend, origin: str
+) -> None:
+    port = urllib.parse.urlsplit(server.url).port
+    code, answer = post(server.url + "api/pose", b'{"pose": "home"}', headers={"Origin": origin.format(port=port)})
+    assert code == 403 and answer["ok"] is False
+    assert ("Origin" in answer["message"]) and backend.poses_sent == []
+
+
+@pytest.mark.parametrize("path", ["", "api/state", "static/app.js", "nope"])
+def test_every_answer_forbids_framing_and_sniffing(server: MonitorServer, path: str) -> None:
+    try:
+        resp = urllib.request.urlopen(server.url + path, timeout=10)
+    except urllib.error.HTTPError as err:
+        resp = err
+    with resp:
+        headers = resp.headers
+        assert headers["X-Frame-Options"] == "DENY"
+        assert "frame-ancestors 'none'" in headers["Content-Security-Policy"]
+        assert "default-src 'self'" in headers["Content-Security-Policy"]
+        assert headers["X-Content-Type-Options"] == "nosniff"
+        assert headers["Referrer-Policy"] == "no-referrer"
+        assert headers["Cache-Control"] == "no-cache"
+
+
+def open_stream(url: str) -> Any:
+    """An open ``/events`` stream whose first bytes were read (the server is streaming)."""
+    stream = urllib.request.urlopen(url + "events", timeout=10)
+    assert stream.readline() == b"retry: 1000\n"
+    return stream
+
+
+def test_sse_clients_are_capped_and_a_freed_slot_is_reused(backend: FakeBackend) -> None:
+    server = MonitorServer(backend, max_sse_clients=3)
+    server.start()
+    streams = []
+    try:
+        streams = [open_stream(server.url) for _ in range(3)]
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(server.url + "events", timeout=10)
+        assert err.value.code == 503 and err.value.headers["Retry-After"] == "5"
+        assert "too many event streams" in json.loads(err.value.read())["message"]
+        err.value.close()
+        assert get(server.url + "api/state")[0] == 200  # the rest of the server still answers
+        streams.pop().close()
+
+        def reopened() -> Any:  # the server notices the closed stream at its next writes
+            try:
+                return open_stream(server.url)
+            except urllib.error.HTTPError as refused:
+                refused.close()
+                return None
+
+        streams.append(wait_until(reopened, timeout=10.0, interval=0.05, message="the freed slot was never reused"))
+    finally:
+        for stream in streams:
+            stream.close()
+        server.stop()
+
+
+def test_connections_beyond_the_cap_are_closed_at_once(backend: FakeBackend) -> None:
+    server = MonitorServer(backend, max_connections=2)
+    server.start()
+    address = ("127.0.0.1", urllib.parse.urlsplit(server.url).port)
+    idle = [socket.create_connection(address, timeout=10) for _ in range(2)]  # each pins a handler thread
+    try:
+        with socket.create_connection(address, timeout=5) as extra:
+            started = time.monotonic()
+            try:
+                assert extra.recv(1) == b""  # closed, unanswered
+            except ConnectionResetError:
+                pass
+            assert time.monotonic() - started < 3.0  # well before the handlers' 10 s read timeout
+        idle.pop().close()
+
+        def served() -> bool:
+            try:
+                return get(server.url + "api/state")[0] == 200
+            except (urllib.error.URLError, ConnectionError):
+                return False
+
+        wait_until(served, timeout=10.0, interval=0.05, message="no connection accepted after one closed")
+    finally:
+        for sock in idle:
+            sock.close()
+        server.stop()
+
+
+def test_token_mode_commands_need_the_token_and_it_is_never_logged(
+    backend: FakeBackend, caplog: pytest.LogCaptureFixture
+) -> None:
+    server = MonitorServer(backend, token="launch-Secret_1")
+    server.start()
+    try:
+        assert server.page_url == server.url + "?token=launch-Secret_1"
+        assert "launch-Secret_1" not in server.url and "launch-Secret_1" not in repr(server)
+        with caplog.at_level(logging.DEBUG, logger="composites.youbot.monitor"):
+            assert get(server.page_url)[0] == 200  # GETs stay open
+            assert get(server.url + "api/state")[0] == 200
+            body = b'{"seconds": 0.02}'
+            for headers in ({}, {"X-Monitor-Token": "launch-Secret_2"}, {"X-Monitor-Token": ""}):
+                code, answer = post(server.url + "api/period", body, headers=headers)
+                assert code == 403 and "token" in answer["message"]
+            assert backend.periods == []
+            code, answer = post(server.url + "api/period", body, headers={"X-Monitor-Token": "launch-Secret_1"})
+            assert (code, answer["ok"]) == (200, True) and backend.periods == [0.02]
+            code, _ = post(server.url + "api/period", body, headers={"X-Monitor-Token": "launch-Secret_1", "Origin": ""})
+            assert code == 403  # the token does not replace the Origin check
+        assert "token=***" in caplog.text and "launch-Secret_1" not in caplog.text
+    finally:
+        server.stop()
+
+
+def test_bad_settings_are_refused(backend: FakeBackend) -> None:
+    for kwargs in ({"token": ""}, {"max_sse_clients": 0}, {"max_connections": 0}):
+        with pytest.raises(ValueError):
+            MonitorServer(backend, **kwargs)

@@ -15,7 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
 from support import ROOT, free_port, wait_until
+from support.youbot import post_json
 
 import scart
 from dataflow import Deployer, PeriodicActivity
@@ -170,22 +172,13 @@ def test_workstation_monitor_receives_and_serves(robot: Robot) -> None:
         with urllib.request.urlopen(url + "api/state", timeout=5) as reply:
             state = json.load(reply)
         assert state["status"]["joints"] and "candle" in state["poses"]
-        body = json.dumps({"pose": "folded"}).encode()
-        request = urllib.request.Request(url + "api/pose", body, {"Content-Type": "application/json"})
-        with urllib.request.urlopen(request, timeout=5) as reply:
-            assert json.load(reply) == {"ok": True, "message": "moving to folded"}
+        assert post_json(url + "api/pose", {"pose": "folded"}) == {"ok": True, "message": "moving to folded"}
         wait_until(lambda: ["reached", "folded"] in stats.statistics()["events"], 10)
         for pose in ("candle", "reach"):  # the second supersedes the first: the page is told
-            request = urllib.request.Request(url + "api/pose", json.dumps({"pose": pose}).encode(),
-                                             {"Content-Type": "application/json"})
-            with urllib.request.urlopen(request, timeout=5) as reply:
-                assert json.load(reply)["ok"] is True
+            assert post_json(url + "api/pose", {"pose": pose})["ok"] is True
         wait_until(lambda: ["reached", "reach"] in stats.statistics()["events"], 10)
         assert ["idle", "candle superseded"] in stats.statistics()["events"]
-        request = urllib.request.Request(url + "api/period", json.dumps({"seconds": 2}).encode(),
-                                         {"Content-Type": "application/json"})
-        with urllib.request.urlopen(request, timeout=5) as reply:
-            answer = json.load(reply)
+        answer = post_json(url + "api/period", {"seconds": 2})
         assert answer["ok"] is False and "must be in [0.001, 1] s" in answer["message"]
         latencies = stats.statistics()["latencies"]
         assert latencies and sorted(latencies)[len(latencies) // 2] < 0.1

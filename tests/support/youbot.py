@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import threading
+import urllib.parse
 import urllib.request
 from typing import Any
 
@@ -117,8 +118,11 @@ def get_json(url: str) -> Any:
 
 
 def post_json(url: str, body: Any) -> Any:
-    """POST ``body`` as JSON to ``url`` and decode the JSON answer."""
-    request = urllib.request.Request(url, json.dumps(body).encode(), {"Content-Type": "application/json"})
+    """POST ``body`` as JSON to ``url`` as the monitor's page does (same-origin ``Origin``,
+    which the monitor requires on commands) and decode the JSON answer."""
+    parts = urllib.parse.urlsplit(url)
+    headers = {"Content-Type": "application/json", "Origin": f"{parts.scheme}://{parts.netloc}"}
+    request = urllib.request.Request(url, json.dumps(body).encode(), headers)
     with urllib.request.urlopen(request, timeout=10) as reply:
         return json.load(reply)
 

@@ -5,7 +5,7 @@ Use::
     from composites.youbot.monitor import MonitorServer, MonitorBackend
 
     server = MonitorServer(backend)          # backend: set_period / send_pose / poses
-    server.start(); print(server.url)        # http://127.0.0.1:PORT/
+    server.start(); print(server.page_url)   # http://127.0.0.1:PORT/ (?token=... in token mode)
     server.set_driver_info("RUNNING", 0.01, connected=True)
     server.publish_status(status_dict)       # from any thread, as often as samples come
     server.publish_event("busy")             # busy / idle / refresh / reached / ...
@@ -13,6 +13,11 @@ Use::
 
 The package knows nothing of the SCA runtime or of the remote layer: whoever hosts it
 (an SCA component, a test, a script) pushes data in and answers the two commands.
+
+The server answers only its own Host names (DNS rebinding), takes commands only with a
+same-origin ``Origin`` (and, with ``token=``, the per-launch token), forbids framing and
+caps streams and connections: see the Security section of :mod:`.server`. Non-browser
+clients posting commands send ``Origin: http://127.0.0.1:PORT`` themselves.
 
 Why this technology
 -------------------

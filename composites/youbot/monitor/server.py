@@ -4,35 +4,64 @@ Routes (all on the address given, 127.0.0.1 by default):
 
 | method | path | answer |
 |---|---|---|
-| GET | `/` | the page (`static/index.html`) |
+| GET | `/` | the page (`static/index.html`); ``/?token=...`` in token mode |
 | GET | `/static/app.js`, `/static/style.css` | our page code |
 | GET | `/static/plotly.min.js` | Plotly.js from the installed ``plotly`` package |
 | GET | `/api/state` | one JSON snapshot (same shape as an SSE message) plus ``poses`` |
 | GET | `/api/poses` | ``{"poses": [...]}`` from the backend |
-| GET | `/events` | Server-Sent Events: ``event: update`` messages, at most `MAX_RATE_HZ`/s |
+| GET | `/events` | Server-Sent Events: ``event: update`` messages, at most `MAX_RATE_HZ`/s; 503 + ``Retry-After`` beyond `MAX_SSE_CLIENTS` streams |
 | POST | `/api/period` | ``{"seconds": 0.02}`` → ``{"ok": bool, "message": str}`` from the backend |
 | POST | `/api/pose` | ``{"pose": "home"}`` or ``{"pose": [5 floats]}`` → same answer shape |
 
-POST bodies must be ``application/json`` (which a cross-site form cannot send without a
-CORS preflight this server never grants); a malformed body is a 400 whose JSON
+POST bodies must be ``application/json``; a malformed body is a 400 whose JSON
 ``message`` says what was expected.
 
+Security
+--------
+Trusted: whoever can open a TCP connection to the port *and* names it by one of its own
+names (the local user; anyone on the network when bound to a routable address). Not
+trusted: web pages from other origins running in that user's browser. The checks:
+
+- **Host** (every request): only ``127.0.0.1:PORT``, ``localhost:PORT``, ``[::1]:PORT``
+  (when bound to ``::1``/``::``) and the configured host (and the address it bound) with
+  the bound port; anything else, or no Host, is a 421 and nothing else happens. Stops
+  DNS rebinding: a page of ``evil.example`` whose name was re-pointed at 127.0.0.1 is
+  same-origin with itself, not with us, and its requests carry ``Host: evil.example``.
+- **Origin** (every POST): must be ``http://`` + an allowed Host, else 403. Stops
+  cross-site requests (forms, ``fetch`` with ``no-cors``) before the backend is called;
+  ``application/json`` additionally forces a CORS preflight this server never grants.
+- **Token** (optional, ``token=``): POSTs must also carry it in ``X-Monitor-Token`` (the
+  page reads it from its own ``?token=`` and sends it); compared in constant time, never
+  logged (request lines are logged with ``token=***``). Stops other local users and
+  programs that only know the port from moving the arm. GETs stay open: they only read.
+- **Headers** (every answer): ``X-Frame-Options: DENY`` and CSP ``frame-ancestors 'none'``
+  (no clickjacking through a frame), a ``default-src 'self'`` CSP for the page,
+  ``X-Content-Type-Options: nosniff``, ``Referrer-Policy: no-referrer`` (the token never
+  leaves in a Referer).
+- **Resources**: at most `MAX_SSE_CLIENTS` streams (more: 503 + ``Retry-After``), at most
+  `MAX_CONNECTIONS` open connections, i.e. handler threads (more: closed at once,
+  unanswered), a listen backlog of `LISTEN_BACKLOG`, `MAX_BODY` bytes per POST, and a
+  10 s read timeout per request.
+
 Threads: `start` creates one accept thread; each connection gets its own daemon handler
-thread. `stop` signals (closes the hub, which ends SSE loops), shuts the listener down,
-shuts every open connection's socket (unblocking reads), then joins them all with a
-timeout. Nothing is started in ``__init__``.
+thread (at most `MAX_CONNECTIONS`). `stop` signals (closes the hub, which ends SSE
+loops), shuts the listener down, shuts every open connection's socket (unblocking
+reads), then joins them all with a timeout. Nothing is started in ``__init__``.
 """
 
 from __future__ import annotations
 
+import hmac
 import importlib.resources
 import json
 import logging
 import math
+import re
 import secrets
 import socket
 import threading
 import time
+import urllib.parse
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any, Protocol, runtime_checkable
@@ -49,6 +78,41 @@ HEARTBEAT_S = 0.5
 
 MAX_BODY = 64 * 1024
 """Largest POST body accepted (bytes)."""
+
+MAX_SSE_CLIENTS = 256
+"""Default cap on concurrent ``/events`` streams; one more is answered 503 + ``Retry-After``."""
+
+MAX_CONNECTIONS = 512
+"""Default cap on concurrent connections (one handler thread each); one more is closed
+at once without an answer. Above `MAX_SSE_CLIENTS`, so a full set of streams still
+leaves room for the page's commands and snapshots."""
+
+LISTEN_BACKLOG = 128
+"""``listen()`` backlog: connections the kernel queues while the accept thread is busy."""
+
+RETRY_AFTER_S = 5
+"""``Retry-After`` (s) of the 503 sent to a stream beyond the cap."""
+
+TOKEN_HEADER = "X-Monitor-Token"
+"""The request header carrying the control token on POSTs (token mode)."""
+
+PAGE_CSP = (
+    "default-src 'self'; img-src 'self' data:; style-src 'self' 'unsafe-inline'; "
+    "object-src 'none'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
+)
+"""Content-Security-Policy of every answer: our own scripts only, no plugins, no framing.
+``data:`` images are the inline favicon; inline styles are Plotly's."""
+
+SECURITY_HEADERS: tuple[tuple[str, str], ...] = (
+    ("X-Frame-Options", "DENY"),
+    ("Content-Security-Policy", PAGE_CSP),
+    ("X-Content-Type-Options", "nosniff"),
+    ("Referrer-Policy", "no-referrer"),
+)
+"""Sent on every answer (pages, JSON, errors, refusals)."""
+
+_WILDCARDS = ("", "0.0.0.0", "::")
+_TOKEN_IN_TEXT = re.compile(r"(token=)[^&\s\"']*", re.IGNORECASE)
 
 _STATIC = {
     "/": ("index.html", "text/html; charset=utf-8"),
@@ -93,17 +157,46 @@ def _static_file(name: str) -> bytes:
     return (importlib.resources.files(__package__) / "static" / name).read_bytes()
 
 
+def _bracket(host: str) -> str:
+    """``host`` as it appears in a URL authority (IPv6 literals in brackets)."""
+    return f"[{host}]" if ":" in host else host
+
+
+def _allowed_hosts(configured: str, bound: str, port: int) -> frozenset[str]:
+    """The ``Host`` header values (lower case) a server configured for ``configured``,
+    bound to address ``bound`` and port ``port`` answers: ``127.0.0.1``, ``localhost``,
+    ``[::1]`` when bound to ``::1``/``::``, and the configured host and bound address
+    unless they are wildcards; each with ``:port`` (and bare as well on port 80)."""
+    names = {"127.0.0.1", "localhost"}
+    if bound in ("::1", "::") or configured in ("::1", "::"):
+        names.add("[::1]")
+    names.update(_bracket(h) for h in (configured, bound) if h not in _WILDCARDS)
+    hosts = {f"{n.lower()}:{port}" for n in names}
+    if port == 80:
+        hosts.update(n.lower() for n in names)
+    return frozenset(hosts)
+
+
 class _HTTPServer(ThreadingHTTPServer):
-    """ThreadingHTTPServer that remembers its connections so `close_connections` can end them."""
+    """ThreadingHTTPServer that remembers its connections so `close_connections` can end
+    them, caps them at ``max_connections`` and holds the ``/events`` slots."""
 
     daemon_threads = True
     block_on_close = False
+    request_queue_size = LISTEN_BACKLOG
 
-    def __init__(self, address: tuple[str, int], monitor: MonitorServer) -> None:
+    def __init__(self, address: tuple[str, int], monitor: MonitorServer, max_connections: int,
+                 max_sse_clients: int) -> None:
         self.monitor = monitor
+        self.address_family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+        self.max_connections = max_connections
+        self.sse_slots = threading.BoundedSemaphore(max_sse_clients)
         self._conn_lock = threading.Lock()
         self._conns: dict[threading.Thread, socket.socket] = {}
         super().__init__(address, _Handler)
+        self.port = int(self.server_address[1])
+        self.allowed_hosts = _allowed_hosts(address[0], str(self.server_address[0]), self.port)
+        self.allowed_origins = frozenset(f"http://{h}" for h in self.allowed_hosts)
 
     def process_request(self, request: Any, client_address: Any) -> None:
         # Registered here, in the accept thread, so that after shutdown() returns the
@@ -115,7 +208,14 @@ class _HTTPServer(ThreadingHTTPServer):
             daemon=True,
         )
         with self._conn_lock:
-            self._conns[thread] = request
+            full = len(self._conns) >= self.max_connections
+            if not full:
+                self._conns[thread] = request
+        if full:  # a flood must not grow threads without bound: refuse, unanswered
+            log.debug("monitor: %d connections open, closing one more from %s", self.max_connections,
+                      client_address[0])
+            self.shutdown_request(request)
+            return
         thread.start()
 
     def _serve_connection(self, request: Any, client_address: Any) -> None:
@@ -129,6 +229,11 @@ class _HTTPServer(ThreadingHTTPServer):
             self.shutdown_request(request)
             with self._conn_lock:
                 self._conns.pop(threading.current_thread(), None)
+
+    def open_connections(self) -> int:
+        """How many connections (handler threads) are open now. Thread-safe."""
+        with self._conn_lock:
+            return len(self._conns)
 
     def close_connections(self, timeout: float) -> list[str]:
         """Shut every open connection and join its thread; returns names still alive."""
@@ -154,7 +259,26 @@ class _Handler(BaseHTTPRequestHandler):
     timeout = 10.0  # a connection that never sends its request line does not pin a thread
 
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib name
-        log.debug("monitor: " + format, *args)
+        if log.isEnabledFor(logging.DEBUG):  # request lines may carry ?token=: never logged
+            log.debug("monitor: %s", _TOKEN_IN_TEXT.sub(r"\1***", format % args))
+
+    def end_headers(self) -> None:
+        """Every answer (errors and refusals included) carries `SECURITY_HEADERS`."""
+        for name, value in SECURITY_HEADERS:
+            self.send_header(name, value)
+        super().end_headers()
+
+    def parse_request(self) -> bool:
+        """The stdlib parse plus the Host check: a request for another host (DNS
+        rebinding) or without exactly one Host header is answered 421 and not served."""
+        if not super().parse_request():
+            return False
+        hosts = self.headers.get_all("Host") or []
+        if len(hosts) == 1 and hosts[0].strip().lower() in self.server.allowed_hosts:
+            return True
+        message = f"misdirected request: use http://127.0.0.1:{self.server.port}/"
+        self._send_json(HTTPStatus.MISDIRECTED_REQUEST, {"ok": False, "message": message})
+        return False
 
     # -- routing --------------------------------------------------------------------
 
@@ -180,7 +304,7 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/api/poses":
             self._send_json(HTTPStatus.OK, {"poses": monitor._safe_poses()})
         elif path == "/events":
-            self._stream_events()
+            self._events_if_room()
         else:
             self._send_json(HTTPStatus.NOT_FOUND, {"ok": False, "message": f"no such page: {path}"})
 
@@ -188,6 +312,8 @@ class _Handler(BaseHTTPRequestHandler):
         path = self.path.split("?", 1)[0]
         backend = self.server.monitor._backend
         try:
+            self._check_origin()
+            self._check_token()
             if path == "/api/period":
                 seconds = _number(self._json_body(), "seconds")
                 ok, message = self._call(backend.set_period, seconds)
@@ -199,6 +325,27 @@ class _Handler(BaseHTTPRequestHandler):
             self._send_json(exc.status, {"ok": False, "message": str(exc)})
             return
         self._send_json(HTTPStatus.OK, {"ok": bool(ok), "message": str(message)})
+
+    # -- checks -----------------------------------------------------------------------
+
+    def _check_origin(self) -> None:
+        """A command must come from our own page: ``Origin`` is ``http://`` + an allowed Host."""
+        origin = self.headers.get("Origin")
+        if origin is None:
+            raise _BadRequest("commands need an Origin header (send them from the monitor page)",
+                              HTTPStatus.FORBIDDEN)
+        if origin.strip().lower() not in self.server.allowed_origins:
+            raise _BadRequest(f"cross-origin command refused (Origin {origin[:100]!r})", HTTPStatus.FORBIDDEN)
+
+    def _check_token(self) -> None:
+        """In token mode, ``X-Monitor-Token`` must equal the token (constant-time compare)."""
+        expected = self.server.monitor._token
+        if expected is None:
+            return
+        given = self.headers.get(TOKEN_HEADER, "")
+        if not hmac.compare_digest(given.encode("utf-8", "replace"), expected.encode()):
+            raise _BadRequest("missing or wrong control token: open the URL the monitor printed",
+                              HTTPStatus.FORBIDDEN)
 
     # -- helpers ----------------------------------------------------------------------
 
@@ -235,16 +382,32 @@ class _Handler(BaseHTTPRequestHandler):
             return False, f"backend error: {type(exc).__name__}: {exc}"
         return bool(ok), str(message)
 
-    def _send(self, status: HTTPStatus, body: bytes, ctype: str, cache: bool = False) -> None:
+    def _send(self, status: HTTPStatus, body: bytes, ctype: str, cache: bool = False,
+              extra: tuple[tuple[str, str], ...] = ()) -> None:
         self.send_response(status)
         self.send_header("Content-Type", ctype)
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "max-age=3600" if cache else "no-cache")
+        for name, value in extra:
+            self.send_header(name, value)
         self.end_headers()
         self.wfile.write(body)
 
-    def _send_json(self, status: HTTPStatus, obj: Any) -> None:
-        self._send(status, json.dumps(obj, default=str).encode(), "application/json")
+    def _send_json(self, status: HTTPStatus, obj: Any, extra: tuple[tuple[str, str], ...] = ()) -> None:
+        self._send(status, json.dumps(obj, default=str).encode(), "application/json", extra=extra)
+
+    def _events_if_room(self) -> None:
+        """Stream events while holding one of the server's SSE slots; none free: 503."""
+        slots = self.server.sse_slots
+        if not slots.acquire(blocking=False):
+            message = f"too many event streams open; retry in {RETRY_AFTER_S} s"
+            self._send_json(HTTPStatus.SERVICE_UNAVAILABLE, {"ok": False, "message": message},
+                            extra=(("Retry-After", str(RETRY_AFTER_S)),))
+            return
+        try:
+            self._stream_events()
+        finally:
+            slots.release()
 
     def _stream_events(self) -> None:
         """Send `update` events until the client leaves or the server stops.
@@ -313,11 +476,24 @@ class MonitorServer:
     with a timeout). Publishing (`publish_status`, `publish_event`, `set_driver_info`)
     is thread-safe, never waits for a browser, and is allowed before `start` and after
     `stop` (it then only updates the state).
+
+    ``token``: when given (e.g. ``secrets.token_urlsafe(16)``, one per launch), POSTs must
+    carry it in ``X-Monitor-Token``; `page_url` hands it to the page. ``max_sse_clients``
+    and ``max_connections`` bound the streams and the handler threads (see the module's
+    Security section). Raises `ValueError` for an empty token or a cap below 1.
     """
 
-    def __init__(self, backend: MonitorBackend, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, backend: MonitorBackend, host: str = "127.0.0.1", port: int = 0, *,
+                 token: str | None = None, max_sse_clients: int = MAX_SSE_CLIENTS,
+                 max_connections: int = MAX_CONNECTIONS) -> None:
+        if token is not None and not token:
+            raise ValueError("MonitorServer: token must be a non-empty string or None")
+        if max_sse_clients < 1 or max_connections < 1:
+            raise ValueError("MonitorServer: max_sse_clients and max_connections must be at least 1")
         self._backend = backend
         self._address = (host, port)
+        self._token = token
+        self._limits = (max_connections, max_sse_clients)
         self._hub = StatusHub()
         self._stopping = threading.Event()
         self._instance = secrets.token_hex(4)  # SSE ids: a reconnect resumes only on this server
@@ -325,6 +501,9 @@ class MonitorServer:
         self._httpd: _HTTPServer | None = None
         self._thread: threading.Thread | None = None
         self._plotly_bytes: bytes | None = None
+
+    def __repr__(self) -> str:  # never shows the token
+        return f"MonitorServer({self._address[0]!r}, {self._address[1]!r}, token={'set' if self._token else None})"
 
     # -- lifecycle --------------------------------------------------------------------
 
@@ -334,7 +513,7 @@ class MonitorServer:
         with self._lock:
             if self._httpd is not None or self._stopping.is_set():
                 raise RuntimeError("MonitorServer.start: already started (or stopped)")
-            self._httpd = _HTTPServer(self._address, self)
+            self._httpd = _HTTPServer(self._address, self, *self._limits)
             self._thread = threading.Thread(
                 target=self._httpd.serve_forever,
                 kwargs={"poll_interval": 0.05},
@@ -370,11 +549,22 @@ class MonitorServer:
 
     @property
     def url(self) -> str:
-        """``http://HOST:PORT/`` with the port actually bound; raises if not started."""
+        """``http://HOST:PORT/`` with the port actually bound (a wildcard address is shown
+        as the loopback one, which the Host check accepts); raises if not started. Never
+        carries the token: the base to append API paths to."""
         if self._httpd is None:
             raise RuntimeError("MonitorServer.url: not started")
-        host, port = self._httpd.server_address[:2]
-        return f"http://{host}:{port}/"
+        host = str(self._httpd.server_address[0])
+        host = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(host, host)
+        return f"http://{_bracket(host)}:{self._httpd.port}/"
+
+    @property
+    def page_url(self) -> str:
+        """The URL to open the page at: `url`, plus ``?token=...`` in token mode (then a
+        secret: print it for the user, do not log it). Raises if not started."""
+        if self._token is None:
+            return self.url
+        return self.url + "?" + urllib.parse.urlencode({"token": self._token})
 
     # -- feeding ----------------------------------------------------------------------
 

@@ -28,6 +28,7 @@ from dataflow import DataflowError, Deployer, OutputPort, TaskContext, registry
 from scart.spi import Host, Participant
 
 if TYPE_CHECKING:
+    from dataflow.remote.security import Security
     from dataflow.remote.server import DeployerServer
 
 log = logging.getLogger("scart.dataflow")
@@ -53,14 +54,15 @@ def class_ports(cls: type[TaskContext]) -> dict[str, PortInfo]:
     return out
 
 
-def remote_ports(ns: str, component: str, timeout: float = 1.0) -> dict[str, PortInfo] | None:
+def remote_ports(ns: str, component: str, timeout: float = 1.0,
+                 security: Security | None = None) -> dict[str, PortInfo] | None:
     """The ports of ``component`` registered in the name service at ``ns``; None when the
     name service does not answer or does not know the component (never raises)."""
     from dataflow import DataflowError
-    from dataflow.remote import connect
+    from dataflow.remote import Security, connect
 
     try:
-        system = connect(ns, timeout=timeout)
+        system = connect(ns, timeout=timeout, security=security or Security())
     except DataflowError:
         return None
     try:
@@ -152,7 +154,7 @@ class DataflowHost(Participant):
         with self._lock:
             if self._closed or self.server is not None:
                 raise DataflowError(f"the runtime's tasks are {'closed' if self._closed else 'served already'}")
-            server = self.deployer.serve(address, ns=ns)
+            server = self.deployer.serve(address, ns=ns, security=self.host.settings.security)
             self.server = server
             self._ns = server.ns_address
         return server
@@ -171,7 +173,7 @@ class DataflowHost(Participant):
         from dataflow.remote.naming import name_service_answers
 
         ns = settings.ns_address
-        joined = name_service_answers(ns)
+        joined = name_service_answers(ns, security=settings.security)
         if joined:
             server = self.serve("127.0.0.1:0", ns=ns)
         else:
@@ -181,7 +183,7 @@ class DataflowHost(Participant):
                 if settings.ns is not None:  # given explicitly: no other address will do
                     raise
                 server = self.serve("127.0.0.1:0")
-        self._served = {"dataflow server": f"{server.address} ({len(self.deployer.names())} task(s))",
+        self._served = {"dataflow server": f"{server.listen_address} ({len(self.deployer.names())} task(s))",
                         "name service": f"{server.ns_address} ({'joined' if joined else 'embedded'})"}
 
     def stop(self) -> None:

@@ -196,5 +196,5 @@ def static_ports(s: Attributes, context: CheckContext) -> tuple[dict[str, PortIn
     if not context.settings.online:
         return None, ""
     ns = s.ns or context.settings.ns_address
-    ports = remote_ports(ns, s.component, timeout=0.5)
+    ports = remote_ports(ns, s.component, timeout=0.5, security=context.settings.security)
     return ports, (f"name service {ns}" if ports is not None else "")

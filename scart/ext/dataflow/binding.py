@@ -177,7 +177,8 @@ class _Link:
                     else:
                         from dataflow.remote.client import GrpcSystem
 
-                        self._system = GrpcSystem(self.ns, timeout=self.runtime.settings.timeout)
+                        self._system = GrpcSystem(self.ns, timeout=self.runtime.settings.timeout,
+                                                  security=self.runtime.settings.security)
                 self._proxy = self._system.component(self.s.component)
                 self._set_state("connected", "")
             return self._proxy
@@ -199,7 +200,8 @@ class _Link:
             return True  # connected: the proxies reconnect by themselves; look once a second
         self._looked = now
         if self._names is None:
-            self._names = NameClient(self.ns, timeout=self.runtime.settings.timeout)
+            self._names = NameClient(self.ns, timeout=self.runtime.settings.timeout,
+                                     security=self.runtime.settings.security)
         try:
             entry = self._names.resolve(self.s.component)
         except DataflowError as exc:

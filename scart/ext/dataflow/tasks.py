@@ -291,7 +291,7 @@ class ConnectElement(ElementProvider):
             node = assembly.nodes.get(comp)
             if node is None:
                 ns = link.ns or context.settings.ns_address
-                ports = remote_ports(ns, comp, timeout=0.5) if context.settings.online else None
+                ports = remote_ports(ns, comp, timeout=0.5, security=context.settings.security) if context.settings.online else None
                 if ports is None:
                     log.info("%s: %s is not in this composite: resolved through the name service at start", link.where, comp)
                 ends.append(_port_or_problem(ports, comp, port, want, role, add) if ports is not None else None)
@@ -376,7 +376,8 @@ class ConnectParticipant(Participant):
         from dataflow.remote.naming import NameClient
 
         if ns not in self._clients:
-            self._clients[ns] = NameClient(ns, timeout=self.runtime.settings.timeout)
+            self._clients[ns] = NameClient(ns, timeout=self.runtime.settings.timeout,
+                                            security=self.runtime.settings.security)
         return self._clients[ns]
 
     def _step(self) -> None:
@@ -415,7 +416,7 @@ class ConnectParticipant(Participant):
         from dataflow.remote.client import GrpcSystem
 
         try:
-            system = GrpcSystem(ns, timeout=self.runtime.settings.timeout)
+            system = GrpcSystem(ns, timeout=self.runtime.settings.timeout, security=self.runtime.settings.security)
         except Exception as exc:  # noqa: BLE001 - stopping: log and go on
             log.info("connect %s: not disconnected at stop: %s", link.text, exc)
             return
@@ -432,7 +433,7 @@ class ConnectParticipant(Participant):
 
         if host.server is None:
             raise DataflowError(f"connect {link.text}: this runtime's tasks are not served (use scart run)")
-        system = GrpcSystem(ns, timeout=self.runtime.settings.timeout)
+        system = GrpcSystem(ns, timeout=self.runtime.settings.timeout, security=self.runtime.settings.security)
         try:
             system.connect_ports(".".join(link.source), ".".join(link.sink), link.policy)
         finally:

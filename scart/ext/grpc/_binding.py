@@ -82,7 +82,8 @@ class GrpcServiceBinding(ServiceBinding):
     def start(self) -> None:
         """Listen (or join this runtime's server on the same address)."""
         drain = self.host.drain_timeout
-        self._table = self.host.shared("scart.ext.grpc.servers", lambda: ServerTable(drain))
+        security = self.host.settings.security
+        self._table = self.host.shared("scart.ext.grpc.servers", lambda: ServerTable(drain, security))
         self._server = self._table.acquire(self.configured_address, self._exported)
 
     def stop(self) -> None:
@@ -133,7 +134,7 @@ class GrpcReferenceBinding(ReferenceBinding):
 
     def start(self) -> None:
         """Create the channel (it connects lazily: an absent provider is not an error yet)."""
-        self._channel = grpc.insecure_channel(self.target_address, options=CHANNEL_OPTIONS)
+        self._channel = self.host.settings.security.channel(self.target_address, CHANNEL_OPTIONS)
         stub = pb_grpc.ScaServiceStub(self._channel)
         self._call, self._send, self._invoke = stub.Call, stub.Send, stub.Invoke
         self._reply, self._open = stub.ReplyCallback, stub.OpenCallbackSession

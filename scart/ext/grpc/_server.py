@@ -26,7 +26,9 @@ from typing import Any
 import grpc
 
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
+from dataflow.remote.security import Security, SecurityError, auth_interceptor
 from scart.ext.grpc._wire import (
+    SCA_ROLES,
     Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
 from scart.spi import CURRENT_CALLBACK, Host, InterfaceInfo, ServiceEndpoint
@@ -263,8 +265,9 @@ class _Session:
 class GrpcServer:
     """A gRPC server exporting component services (``Exported``) under their names."""
 
-    def __init__(self, address: str, drain_timeout: float = 10.0) -> None:
+    def __init__(self, address: str, drain_timeout: float = 10.0, security: Security | None = None) -> None:
         self.configured = address
+        self.security = security or Security()
         self.drain_timeout = drain_timeout  # the runtime's: bounds how long stop waits for running calls
         self._running: dict[int, str] = {}  # operations running now (for stop's report)
         self._idle = threading.Condition()
@@ -283,12 +286,23 @@ class GrpcServer:
     # --- lifecycle --------------------------------------------------------------------
 
     def start(self) -> None:
-        """Listen on the configured address; raises ``ScartError`` naming it if that fails."""
+        """Listen on the configured address (TLS and tokens as the runtime's settings say);
+        raises ``ScartError`` naming it if that fails or would be unsafe."""
+        try:
+            self.security.check_bind(self.configured, "binding.grpc")
+            credentials = self.security.server_credentials()
+            table = self.security.auth_table()
+        except SecurityError as exc:
+            raise ScartError(f"binding.grpc: {exc}") from None
+        interceptors = [auth_interceptor(table, SCA_ROLES)] if table is not None else []
         self._server_pool = ThreadPoolExecutor(MAX_WORKERS, thread_name_prefix="scart-grpc-server")
-        server = grpc.server(self._server_pool, options=SERVER_OPTIONS)
+        server = grpc.server(self._server_pool, options=SERVER_OPTIONS, interceptors=interceptors)
         pb_grpc.add_ScaServiceServicer_to_server(_Servicer(self), server)
         try:
-            port = server.add_insecure_port(self.configured)
+            if credentials is not None:
+                port = server.add_secure_port(self.configured, credentials)
+            else:
+                port = server.add_insecure_port(self.configured)
         except RuntimeError:
             port = 0
         if not port:
@@ -532,17 +546,18 @@ class _Servicer(pb_grpc.ScaServiceServicer):
 class ServerTable:
     """The servers of one runtime, by configured address; reference-counted. Thread-safe."""
 
-    def __init__(self, drain_timeout: float = 10.0) -> None:
+    def __init__(self, drain_timeout: float = 10.0, security: Security | None = None) -> None:
         self._lock = threading.Lock()
         self._servers: dict[str, GrpcServer] = {}
         self.drain_timeout = drain_timeout
+        self.security = security
 
     def acquire(self, address: str, exported: Exported) -> GrpcServer:
         """The (started) server for ``address`` with ``exported`` added; raises ``ScartError``."""
         with self._lock:
             server = self._servers.get(address)
             if server is None:
-                server = GrpcServer(address, self.drain_timeout)
+                server = GrpcServer(address, self.drain_timeout, self.security)
                 server.start()
                 self._servers[address] = server
             server.add(exported)

@@ -23,10 +23,13 @@ from dataflow import codec
 from dataflow.errors import PortTypeError
 from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
 from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
+from dataflow.remote.security import Role, roles_of_service
 from dataflow.types import registry
 from scart.errors import InvocationError, RemoteError
 
 SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
+#: The role each method needs on a server with an auth file: listing needs ``read``, calling ``operate``.
+SCA_ROLES: MappingProxyType[str, Role] = MappingProxyType(roles_of_service(SCA_SERVICE.full_name, reads={"ListServices"}))
 PATHS: MappingProxyType[str, str] = MappingProxyType(
     {m.name: f"/{SCA_SERVICE.full_name}/{m.name}" for m in SCA_SERVICE.methods})
 NONE_TYPE = codec.NONE_TYPE

@@ -15,6 +15,7 @@ EXPORTS = {
     "System", "ComponentProxy", "Subscription", "PortWriter", "SampleEvent", "GapEvent", "ComponentInfo",
     "RemoteError", "UnavailableError", "RemoteTimeoutError", "RemoteNotFoundError", "RemoteTypeError",
     "RemoteValueError", "AlreadyRegisteredError", "ClosedError", "DEFAULT_NS_PORT", "DEFAULT_NS_ADDRESS",
+    "AuthenticationError", "PermissionDeniedError", "Security", "SecurityError", "Role",
 }
 
 

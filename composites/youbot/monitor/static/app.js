@@ -19,6 +19,10 @@
   const JOINT_COLORS = ["#2f81f7", "#8250df", "#d4a017", "#1f9d55", "#d73a49"];
   const PLOT_CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
 
+  const RECONNECT_MS = 5000;          // after the server refused the stream (503: too many streams)
+  // Token mode: the monitor printed http://HOST:PORT/?token=...; commands carry it (GETs need none).
+  const TOKEN = new URLSearchParams(location.search).get("token");
+
   const $ = (id) => document.getElementById(id);
   const view = { tab: "global", window: 10, paused: false };
   const buffers = Array.from({ length: JOINTS }, () => ({ x: [], y: FIELDS.map(() => []) }));
@@ -378,7 +382,11 @@
   function connect() {
     const es = new EventSource("/events");
     es.onopen = () => { streamOpen = true; setConn(lastMsg); };
-    es.onerror = () => { streamOpen = false; setConn(lastMsg); };   // EventSource retries by itself
+    es.onerror = () => {   // EventSource retries by itself, except after an HTTP error (503): then we do
+      streamOpen = false;
+      setConn(lastMsg);
+      if (es.readyState === EventSource.CLOSED) setTimeout(connect, RECONNECT_MS);
+    };
     es.addEventListener("update", (e) => {
       streamOpen = true;
       try { onUpdate(JSON.parse(e.data)); } catch (err) { console.error("monitor update failed", err); }
@@ -392,9 +400,9 @@
     out.textContent = "sending…";
     button.disabled = true;
     try {
-      const res = await fetch(path, {
-        method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
-      });
+      const headers = { "Content-Type": "application/json" };
+      if (TOKEN) headers["X-Monitor-Token"] = TOKEN;
+      const res = await fetch(path, { method: "POST", headers, body: JSON.stringify(body) });
       const answer = await res.json().catch(() => ({ ok: false, message: "HTTP " + res.status }));
       out.dataset.ok = String(Boolean(answer.ok));
       out.textContent = answer.message || (answer.ok ? "accepted" : "refused");

@@ -1,0 +1,384 @@
+"""Who may talk to a scart gRPC server, and how: TLS / mTLS, and bearer tokens with roles.
+
+One frozen :class:`Security` value configures both ends of every gRPC surface (the
+deployer, the name service, binding.grpc):
+
+* **TLS** — ``cert`` + ``key`` (PEM files) make a server speak TLS; a client verifies the
+  server with ``ca``. **mTLS** — a server given ``ca`` as well requires client
+  certificates signed by it; a client presents ``cert`` + ``key``.
+* **Tokens with roles** — a server given ``auth_file`` (lines ``ROLE TOKEN``, ``#``
+  comments) checks the ``authorization: Bearer <token>`` metadata of every call; a client
+  sends ``token``. Roles nest: ``read`` (introspection, reads, subscriptions, lookups) <
+  ``operate`` (writes, calls, property sets, state changes, connections) < ``admin``
+  (name registration by other deployers). No valid token: ``UNAUTHENTICATED``; a call the
+  role does not allow: ``PERMISSION_DENIED`` naming the role it needs. gRPC health stays
+  open (it reveals nothing). Tokens are compared in constant time and never logged.
+* **Safe default** — with neither, a server listens on loopback only: binding another
+  address without TLS *and* tokens is refused unless ``insecure`` (then a loud warning).
+
+Environment (read by :meth:`Security.from_env`, used by the command line and by
+``connect()`` when no ``security`` is given): ``SCART_TLS_CERT``, ``SCART_TLS_KEY``,
+``SCART_TLS_CA``, ``SCART_TOKEN``, ``SCART_AUTH_FILE``. Importing this module imports no
+gRPC; making credentials does.
+"""
+
+from __future__ import annotations
+
+import enum
+import functools
+import hmac
+import ipaddress
+import logging
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+from dataflow.errors import DataflowError
+
+if TYPE_CHECKING:
+    import grpc
+
+__all__ = [
+    "AuthTable", "Role", "Security", "SecurityError", "add_arguments", "auth_interceptor", "from_args", "is_loopback",
+    "roles_of_service",
+]
+
+log = logging.getLogger(__name__)
+
+MAX_PEM_BYTES = 1 << 20  #: largest certificate / key file read
+MAX_AUTH_BYTES = 1 << 20  #: largest auth file read
+ENV = MappingProxyType({"cert": "SCART_TLS_CERT", "key": "SCART_TLS_KEY", "ca": "SCART_TLS_CA",
+                        "token": "SCART_TOKEN", "auth_file": "SCART_AUTH_FILE"})
+
+
+class SecurityError(DataflowError):
+    """Security settings that cannot be used (a missing file, a bad auth file, an unsafe bind)."""
+
+
+class Role(enum.IntEnum):
+    """What a token may do; each role includes the ones below it."""
+
+    READ = 1
+    OPERATE = 2
+    ADMIN = 3
+
+    @property
+    def label(self) -> str:
+        """The role's name in auth files and messages (``read``, ``operate``, ``admin``)."""
+        return self.name.lower()
+
+
+@dataclass(frozen=True)
+class AuthTable:
+    """Tokens and their roles (from an auth file). :meth:`role_of` compares in constant time."""
+
+    entries: tuple[tuple[bytes, Role], ...]
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> AuthTable:
+        """Parse ``path``: one ``ROLE TOKEN`` per line, ``#`` starts a comment. Raises
+        :class:`SecurityError` naming the file and line (never echoing a token)."""
+        text = _read_bounded(path, MAX_AUTH_BYTES, "auth file")
+        entries: list[tuple[bytes, Role]] = []
+        seen: dict[bytes, Role] = {}
+        for number, raw in enumerate(text.splitlines(), start=1):
+            line = raw.split("#", 1)[0].strip()
+            if not line:
+                continue
+            parts = line.split()
+            where = f"{path}:{number}"
+            if len(parts) != 2:
+                raise SecurityError(f"{where}: expected 'ROLE TOKEN' (roles: read, operate, admin)")
+            role_name, token = parts
+            try:
+                role = Role[role_name.upper()]
+            except KeyError:
+                raise SecurityError(f"{where}: unknown role {role_name!r} (roles: read, operate, admin)") from None
+            if len(token) < 8:
+                raise SecurityError(f"{where}: token too short (at least 8 characters; 32 random ones are better)")
+            key = token.encode()
+            if key in seen and seen[key] is not role:
+                raise SecurityError(f"{where}: this token is given two roles")
+            seen[key] = role
+            entries.append((key, role))
+        if not entries:
+            raise SecurityError(f"{path}: no token (lines 'ROLE TOKEN')")
+        return cls(tuple(entries))
+
+    def role_of(self, token: str | None) -> Role | None:
+        """The role of ``token``, or None; every entry is compared (no early exit)."""
+        if not token:
+            return None
+        given = token.encode()
+        found: Role | None = None
+        for key, role in self.entries:
+            if hmac.compare_digest(key, given):
+                found = role
+        return found
+
+
+@dataclass(frozen=True)
+class Security:
+    """TLS files, the token a client sends, the auth file a server checks, and whether a
+    non-loopback plaintext bind is allowed (see the module docstring). Frozen."""
+
+    cert: str | None = None
+    key: str | None = None
+    ca: str | None = None
+    token: str | None = field(default=None, repr=False)
+    auth_file: str | None = None
+    insecure: bool = False
+
+    @classmethod
+    def from_env(cls, environ: Mapping[str, str] | None = None, **given: Any) -> Security:
+        """Security from the ``SCART_TLS_*``, ``SCART_TOKEN`` and ``SCART_AUTH_FILE``
+        variables; values in ``given`` that are not None win."""
+        env = os.environ if environ is None else environ
+        fields = {name: (env.get(var) or None) for name, var in ENV.items()}
+        fields.update({k: v for k, v in given.items() if v is not None})
+        return cls(**fields)
+
+    @property
+    def tls(self) -> bool:
+        """True when a server speaks TLS (it has a certificate and key)."""
+        return bool(self.cert and self.key)
+
+    def check(self) -> None:
+        """Raise :class:`SecurityError` for settings that cannot work together."""
+        if bool(self.cert) != bool(self.key):
+            raise SecurityError("--tls-cert and --tls-key go together (a certificate and its private key)")
+
+    def auth_table(self) -> AuthTable | None:
+        """The auth file's tokens (read now), or None without one."""
+        return AuthTable.load(self.auth_file) if self.auth_file else None
+
+    # ---- servers -------------------------------------------------------------------
+    def server_credentials(self) -> grpc.ServerCredentials | None:
+        """TLS credentials for a server (mTLS when ``ca`` is set), or None for plaintext."""
+        import grpc
+
+        self.check()
+        if not self.tls:
+            return None
+        pair = (_read_bounded(self.key, MAX_PEM_BYTES, "TLS key").encode(),  # type: ignore[arg-type]
+                _read_bounded(self.cert, MAX_PEM_BYTES, "TLS certificate").encode())  # type: ignore[arg-type]
+        root = _read_bounded(self.ca, MAX_PEM_BYTES, "TLS CA").encode() if self.ca else None
+        return grpc.ssl_server_credentials([pair], root_certificates=root, require_client_auth=root is not None)
+
+    def check_bind(self, address: str, what: str) -> None:
+        """Refuse a plaintext or tokenless bind of a non-loopback ``address`` unless
+        ``insecure`` (then warn). Raises :class:`SecurityError` naming the flags to use."""
+        host = address.rpartition(":")[0].strip("[]")
+        if is_loopback(host):
+            return
+        if self.tls and self.auth_file:
+            return
+        missing = " and ".join(x for x, ok in (("TLS (--tls-cert/--tls-key)", self.tls),
+                                              ("tokens (--auth-file)", bool(self.auth_file))) if not ok)
+        if not self.insecure:
+            raise SecurityError(f"{what}: refusing to listen on {address} without {missing}: anyone on the "
+                                "network could drive the robot; give them, listen on 127.0.0.1, or pass --insecure")
+        log.warning("%s: listening on %s WITHOUT %s (--insecure): anyone who can reach this address can "
+                    "read and drive every component", what, address, missing)
+
+    # ---- clients -------------------------------------------------------------------
+    def channel(self, address: str, options: list[tuple[str, Any]] | tuple[tuple[str, Any], ...] = ()) -> grpc.Channel:
+        """A channel to ``address``: TLS when ``ca`` or ``cert`` is set (mTLS with both),
+        sending ``token`` with every call when there is one."""
+        import grpc
+
+        self.check()
+        if self.ca or self.cert:
+            root = _read_bounded(self.ca, MAX_PEM_BYTES, "TLS CA").encode() if self.ca else None
+            key = _read_bounded(self.key, MAX_PEM_BYTES, "TLS key").encode() if self.key else None
+            chain = _read_bounded(self.cert, MAX_PEM_BYTES, "TLS certificate").encode() if self.cert else None
+            creds = grpc.ssl_channel_credentials(root_certificates=root, private_key=key, certificate_chain=chain)
+            channel = grpc.secure_channel(address, creds, options=list(options))
+        else:
+            channel = grpc.insecure_channel(address, options=list(options))
+        if self.token:
+            return grpc.intercept_channel(channel, _token_interceptor_class()(self.token))
+        return channel
+
+
+def add_arguments(parser: Any, *, server: bool, client: bool = True) -> None:
+    """Add the security flags to an argparse ``parser``: ``--tls-cert``, ``--tls-key``,
+    ``--tls-ca`` always; ``--token`` for clients; ``--auth-file`` and ``--insecure`` for
+    servers. Each defaults to its environment variable (see :meth:`Security.from_args`)."""
+    group = parser.add_argument_group("security (see the README's security section)")
+    group.add_argument("--tls-cert", default=None, metavar="PEM",
+                       help="certificate: a server speaks TLS; a client presents it (mTLS) ($SCART_TLS_CERT)")
+    group.add_argument("--tls-key", default=None, metavar="PEM", help="private key of --tls-cert ($SCART_TLS_KEY)")
+    group.add_argument("--tls-ca", default=None, metavar="PEM",
+                       help="CA: a client verifies the server with it; a server requires client "
+                            "certificates signed by it (mTLS) ($SCART_TLS_CA)")
+    if client:
+        group.add_argument("--token", default=None, help="bearer token sent with every call ($SCART_TOKEN)")
+    if server:
+        group.add_argument("--auth-file", default=None, metavar="PATH",
+                           help="tokens and roles a server accepts, one 'ROLE TOKEN' per line ($SCART_AUTH_FILE)")
+        group.add_argument("--insecure", action="store_true",
+                           help="allow listening on a non-loopback address without TLS and tokens")
+
+
+def from_args(args: Any, environ: Mapping[str, str] | None = None) -> Security:
+    """The :class:`Security` of parsed flags (see :func:`add_arguments`), each falling back
+    to its environment variable. Raises :class:`SecurityError` for settings that cannot
+    work together."""
+    security = Security.from_env(
+        environ, cert=getattr(args, "tls_cert", None), key=getattr(args, "tls_key", None),
+        ca=getattr(args, "tls_ca", None), token=getattr(args, "token", None),
+        auth_file=getattr(args, "auth_file", None), insecure=getattr(args, "insecure", False) or None)
+    security.check()
+    return security
+
+
+def is_loopback(host: str) -> bool:
+    """True for ``localhost``, 127.0.0.0/8 and ::1 (what only this machine can reach)."""
+    if host in ("localhost", "localhost.localdomain"):
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _read_bounded(path: str | os.PathLike[str] | None, limit: int, what: str) -> str:
+    """Read a small regular text file; :class:`SecurityError` naming it when unusable."""
+    if path is None:
+        raise SecurityError(f"no {what} file given")
+    p = Path(path)
+    try:
+        if not p.is_file():
+            raise SecurityError(f"{what} {p}: not a regular file")
+        with p.open("rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise SecurityError(f"{what} {p}: cannot read: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise SecurityError(f"{what} {p}: larger than {limit} bytes")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise SecurityError(f"{what} {p}: not UTF-8 text") from None
+
+
+# ---- the interceptors (gRPC imported lazily, when one is made) -------------------------
+
+@functools.cache
+def _token_interceptor_class() -> type:
+    """The client interceptor adding ``authorization: Bearer <token>`` to every call (made
+    once, on first use, so that importing this module imports no gRPC)."""
+    import collections
+
+    import grpc
+
+    class Details(collections.namedtuple(
+            "Details", ("method", "timeout", "metadata", "credentials", "wait_for_ready", "compression")),
+            grpc.ClientCallDetails):
+        pass
+
+    class TokenInterceptor(grpc.UnaryUnaryClientInterceptor, grpc.UnaryStreamClientInterceptor,
+                           grpc.StreamUnaryClientInterceptor, grpc.StreamStreamClientInterceptor):
+        def __init__(self, token: str) -> None:
+            self._header = ("authorization", f"Bearer {token}")
+
+        def _add(self, d: Any) -> Any:
+            return Details(d.method, d.timeout, [*(d.metadata or ()), self._header], d.credentials,
+                           getattr(d, "wait_for_ready", None), getattr(d, "compression", None))
+
+        def intercept_unary_unary(self, continuation: Any, details: Any, request: Any) -> Any:
+            return continuation(self._add(details), request)
+
+        def intercept_unary_stream(self, continuation: Any, details: Any, request: Any) -> Any:
+            return continuation(self._add(details), request)
+
+        def intercept_stream_unary(self, continuation: Any, details: Any, requests: Any) -> Any:
+            return continuation(self._add(details), requests)
+
+        def intercept_stream_stream(self, continuation: Any, details: Any, requests: Any) -> Any:
+            return continuation(self._add(details), requests)
+
+        def __repr__(self) -> str:
+            return "<token interceptor>"  # never the token
+
+    return TokenInterceptor
+
+
+def roles_of_service(full_name: str, reads: set[str], default: Role = Role.OPERATE,
+                     overrides: Mapping[str, Role] | None = None) -> dict[str, Role]:
+    """``{"/pkg.Service/Method": role}`` for a service: ``reads`` need ``read``, methods in
+    ``overrides`` their role, the others ``default``. Methods come from the descriptor pool."""
+    from google.protobuf import descriptor_pool
+
+    service = descriptor_pool.Default().FindServiceByName(full_name)
+    table = {}
+    for method in service.methods:
+        role = (overrides or {}).get(method.name) or (Role.READ if method.name in reads else default)
+        table[f"/{full_name}/{method.name}"] = role
+    return table
+
+
+#: Services anyone may call (their answers reveal nothing).
+OPEN_SERVICES = ("/grpc.health.v1.Health/",)
+
+
+def auth_interceptor(table: AuthTable, roles: Mapping[str, Role],
+                     unknown: Role = Role.READ) -> grpc.ServerInterceptor:
+    """A server interceptor checking the bearer token of every call against ``table``:
+    ``roles`` maps a method path to the role it needs (health is open; any other method,
+    e.g. reflection, needs ``unknown``)."""
+    import grpc
+
+    def required(method: str) -> Role | None:
+        if method.startswith(OPEN_SERVICES):
+            return None
+        return roles.get(method, unknown)
+
+    class Interceptor(grpc.ServerInterceptor):
+        def intercept_service(self, continuation: Callable[[Any], Any], details: Any) -> Any:
+            need = required(details.method)
+            if need is None:
+                return continuation(details)
+            token = None
+            for key, value in details.invocation_metadata or ():
+                if key == "authorization" and isinstance(value, str) and value.startswith("Bearer "):
+                    token = value[len("Bearer "):].strip()
+            role = table.role_of(token)
+            name = details.method.rpartition("/")[2]
+            if role is None:
+                return _denied(continuation(details), grpc.StatusCode.UNAUTHENTICATED,
+                               f"{name}: no valid token (send 'authorization: Bearer <token>'; "
+                               "scart: --token or SCART_TOKEN)")
+            if role < need:
+                return _denied(continuation(details), grpc.StatusCode.PERMISSION_DENIED,
+                               f"{name} needs the '{need.label}' role; this token has '{role.label}'")
+            return continuation(details)
+
+    return Interceptor()
+
+
+def _denied(handler: Any, code: Any, message: str) -> Any:
+    """A handler of the same shape as ``handler`` that ends the call with ``code``."""
+    import grpc
+
+    if handler is None:
+        return None
+
+    def abort(request_or_iterator: Any, context: grpc.ServicerContext) -> Any:
+        context.abort(code, message)
+
+    kinds = (
+        (handler.unary_unary, grpc.unary_unary_rpc_method_handler),
+        (handler.unary_stream, grpc.unary_stream_rpc_method_handler),
+        (handler.stream_unary, grpc.stream_unary_rpc_method_handler),
+        (handler.stream_stream, grpc.stream_stream_rpc_method_handler),
+    )
+    for present, make in kinds:
+        if present is not None:
+            return make(abort, request_deserializer=handler.request_deserializer,
+                        response_serializer=handler.response_serializer)
+    return handler
