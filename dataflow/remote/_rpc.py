@@ -190,14 +190,15 @@ def bound_address(requested: str, port: int) -> str:
     return f"{host}:{port}"
 
 
-def health_ok(address: str, timeout: float = 0.5, security: Security | None = None) -> bool:
-    """True if a gRPC health service answers SERVING at ``address`` within ``timeout``."""
+def health_ok(address: str, timeout: float = 0.5, security: Security | None = None, service: str = "") -> bool:
+    """True if a gRPC health service answers SERVING for ``service`` ("": the server as a
+    whole) at ``address`` within ``timeout``."""
     from grpc_health.v1 import health_pb2, health_pb2_grpc
 
     with (security or Security()).channel(address, channel_options()) as channel:
         try:
             reply = health_pb2_grpc.HealthStub(channel).Check(
-                health_pb2.HealthCheckRequest(service=""), timeout=timeout
+                health_pb2.HealthCheckRequest(service=service), timeout=timeout
             )
         except grpc.RpcError:
             return False

@@ -2,25 +2,24 @@
 
 A deployer registers its components under a lease and renews it by heartbeats
 (:class:`Registration` does this on its own thread); a deployer that stops heartbeating
-loses its names when the lease runs out, so entries never go stale. A name already held
-by another *live* deployer is refused (``ALREADY_EXISTS``); a holder that is gone (same
-address now served by the newcomer, or its health service does not answer) is replaced,
-so a restarted deployer takes its names back at once.
+loses its names when the lease runs out, so entries never go stale. The lease id is a
+secret only its holder knows: nobody else can renew, change or drop its names. A name
+already held by another *live* deployer is refused (``ALREADY_EXISTS``); a holder that
+is gone (its process, known by its public boot id, no longer answers at its address) is
+replaced, so a restarted deployer takes its names back at once. The table and its
+bounds are :class:`~dataflow.remote._registry.NameRegistry` and ``Limits``.
 
 The service is either embedded in a deployer's gRPC server (the default: one deployer
 needs no extra process) or standalone (:func:`serve_nameserver`, ``scart nameserver``).
-Expiry is evaluated lazily on every access, so the registry owns no thread.
+Registering needs the ``admin`` role where tokens are checked; lookups ``read``.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-import time
-import uuid
 from typing import Any
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import grpc
 
@@ -28,6 +27,7 @@ from dataflow.errors import DataflowError, NotFoundError
 from dataflow.remote import _rpc, errors
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
 from dataflow.remote._proto import NAMING_ROLES, NAMING_SERVICE_NAME, ns_grpc
+from dataflow.remote._registry import Limits, NameEntry, NameRegistry, RegistryFullError, boot_service
 from dataflow.remote._proto import ns as pb
 from dataflow.remote.security import Security
 
@@ -35,6 +35,7 @@ __all__ = [
     "DEFAULT_NS_PORT",
     "DEFAULT_NS_ADDRESS",
     "DEFAULT_LEASE",
+    "Limits",
     "NameEntry",
     "NameRegistry",
     "NameServer",
@@ -47,159 +48,15 @@ log = logging.getLogger(__name__)
 
 
 
-@dataclass(frozen=True)
-class NameEntry:
-    """One registered component: where it is served, by which deployer, lease left (s)."""
-
-    component: str
-    address: str
-    deployer_id: str
-    expires_in: float
-
-
-@dataclass
-class _Lease:
-    deployer_id: str
-    address: str
-    components: set[str]
-    seconds: float
-    expires: float
-    permanent: bool = False
-    lease_id: str = field(default_factory=lambda: uuid.uuid4().hex)
-    refused: list[str] = field(default_factory=list)
-
-
-class NameRegistry:
-    """The name table (thread-safe; every method is short and non-blocking, except that
-    a conflicting :meth:`register` may probe the current holder with ``probe``).
-
-    ``clock`` is injectable for tests; ``probe(address) -> bool`` says whether a
-    deployer still answers (default: its gRPC health service, 0.5 s deadline).
-    """
-
-    def __init__(
-        self,
-        default_lease: float = DEFAULT_LEASE,
-        max_lease: float = 600.0,
-        clock: Callable[[], float] = time.monotonic,
-        probe: Callable[[str], bool] | None = None,
-    ) -> None:
-        self._default = default_lease
-        self._max = max_lease
-        self._clock = clock
-        self._probe = probe if probe is not None else _rpc.health_ok
-        self._leases: dict[str, _Lease] = {}
-        self._lock = threading.Lock()
-
-    def _purge(self) -> None:
-        now = self._clock()
-        for lease_id in [k for k, v in self._leases.items() if not v.permanent and v.expires <= now]:
-            lease = self._leases.pop(lease_id)
-            log.info("lease of %s (%s) expired", lease.address, sorted(lease.components))
-
-    def _holder(self, component: str) -> _Lease | None:
-        for lease in self._leases.values():
-            if component in lease.components:
-                return lease
-        return None
-
-    def register(
-        self,
-        deployer_id: str,
-        address: str,
-        components: list[str],
-        lease_seconds: float = 0.0,
-        permanent: bool = False,
-    ) -> tuple[str, float]:
-        """Register ``components`` served at ``address``; returns ``(lease_id, lease_seconds)``.
-
-        Idempotent per ``deployer_id`` (a re-registration replaces the previous lease).
-        Raises :class:`errors.AlreadyRegisteredError` naming the component and its live holder.
-        """
-        seconds = min(lease_seconds or self._default, self._max)
-        with self._lock:
-            self._purge()
-            conflicts = {
-                h.lease_id: h
-                for c in components
-                if (h := self._holder(c)) is not None and h.deployer_id != deployer_id
-            }
-        dead = {lid for lid, h in conflicts.items() if h.address == address or not self._probe(h.address)}
-        with self._lock:
-            for lid, holder in conflicts.items():
-                if lid not in dead and lid in self._leases:
-                    taken = sorted(holder.components & set(components))
-                    raise errors.AlreadyRegisteredError(
-                        f"component name(s) {', '.join(taken)} already registered by the deployer at "
-                        f"{holder.address}; choose another name or stop that deployer",
-                        "ALREADY_EXISTS",
-                        address,
-                    )
-            for lid in dead:
-                self._leases.pop(lid, None)
-            for lid in [k for k, v in self._leases.items() if v.deployer_id == deployer_id]:
-                del self._leases[lid]
-            lease = _Lease(deployer_id, address, set(components), seconds, self._clock() + seconds, permanent)
-            self._leases[lease.lease_id] = lease
-        log.info("registered %s at %s", sorted(components), address)
-        return lease.lease_id, seconds
-
-    def heartbeat(self, lease_id: str, components: list[str] | None = None) -> float:
-        """Renew a lease (and update its names); returns its length. Raises ``NotFoundError`` if expired."""
-        with self._lock:
-            self._purge()
-            lease = self._leases.get(lease_id)
-            if lease is None:
-                raise NotFoundError(f"lease {lease_id} is unknown or expired; register again")
-            if components is not None:
-                free = {c for c in components if (h := self._holder(c)) is None or h is lease}
-                refused = sorted(set(components) - free)
-                if refused and refused != lease.refused:
-                    holders = {c: h.address for c in refused if (h := self._holder(c)) is not None}
-                    log.warning(
-                        "deployer at %s: name(s) %s refused, held by %s",
-                        lease.address, ", ".join(refused),
-                        ", ".join(f"{c} @ {a}" for c, a in sorted(holders.items())),
-                    )
-                lease.refused = refused
-                lease.components = free
-            lease.expires = self._clock() + lease.seconds
-            return lease.seconds
-
-    def unregister(self, lease_id: str) -> None:
-        """Drop a lease and its names (idempotent)."""
-        with self._lock:
-            self._leases.pop(lease_id, None)
-
-    def resolve(self, component: str) -> NameEntry:
-        """Where ``component`` is served; raises ``NotFoundError`` listing the known names."""
-        with self._lock:
-            self._purge()
-            lease = self._holder(component)
-            if lease is None:
-                known = sorted(c for v in self._leases.values() for c in v.components)
-                raise NotFoundError(
-                    f"no component named {component!r} is registered; known: {', '.join(known) or '(none)'}"
-                )
-            return self._entry(component, lease)
-
-    def entries(self) -> list[NameEntry]:
-        """Every live registration, sorted by component name."""
-        with self._lock:
-            self._purge()
-            return sorted(
-                (self._entry(c, v) for v in self._leases.values() for c in v.components),
-                key=lambda e: e.component,
-            )
-
-    def _entry(self, component: str, lease: _Lease) -> NameEntry:
-        left = float("inf") if lease.permanent else max(0.0, lease.expires - self._clock())
-        return NameEntry(component, lease.address, lease.deployer_id, left)
-
-
 def _entry_msg(entry: NameEntry) -> Any:
     left = entry.expires_in if entry.expires_in != float("inf") else -1.0
-    return pb.Entry(component=entry.component, address=entry.address, deployer_id=entry.deployer_id, expires_in=left)
+    return pb.Entry(component=entry.component, address=entry.address, boot_id=entry.boot_id, expires_in=left)
+
+
+def _peer_host(context: grpc.ServicerContext) -> str:
+    """The caller's address without its port (``ipv4:127.0.0.1:5000`` → ``ipv4:127.0.0.1``)."""
+    peer = context.peer() or ""
+    return peer.rpartition(":")[0] if peer.count(":") >= 2 else peer
 
 
 class NamingServicer(ns_grpc.NamingServiceServicer):
@@ -211,10 +68,16 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
     def Register(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802 - gRPC method names
         try:
             lease_id, seconds = self.registry.register(
-                request.deployer_id, request.address, list(request.components), request.lease_seconds
-            )
+                request.address, list(request.components), request.lease_seconds, boot_id=request.boot_id,
+                lease_id=request.lease_id, peer=_peer_host(context))
         except errors.AlreadyRegisteredError as exc:
             context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
+        except RegistryFullError as exc:
+            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, str(exc))
+        except NotFoundError as exc:
+            context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+        except ValueError as exc:
+            context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
         return pb.RegisterResponse(lease_id=lease_id, lease_seconds=seconds)
 
     def Heartbeat(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
@@ -222,6 +85,10 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
             seconds = self.registry.heartbeat(request.lease_id, list(request.components) or None)
         except NotFoundError as exc:
             context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+        except RegistryFullError as exc:
+            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, str(exc))
+        except ValueError as exc:
+            context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
         return pb.HeartbeatResponse(lease_seconds=seconds)
 
     def Unregister(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
@@ -236,7 +103,11 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
         return pb.ResolveResponse(entry=_entry_msg(entry))
 
     def ListEntries(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        return pb.ListEntriesResponse(entries=[_entry_msg(e) for e in self.registry.entries()])
+        page = self.registry.entries(after=request.page_token, limit=request.page_size or None)
+        size = min(request.page_size or self.registry.limits.page, self.registry.limits.page)
+        more = len(page) == size and bool(self.registry.entries(after=page[-1].component, limit=1))
+        return pb.ListEntriesResponse(entries=[_entry_msg(e) for e in page],
+                                      next_page_token=page[-1].component if more else "")
 
 
 class NameServer:
@@ -281,7 +152,7 @@ def serve_nameserver(
     unsafe bind or unusable security files.
     """
     security = security or Security()
-    registry = NameRegistry(default_lease=default_lease, probe=lambda a: _rpc.health_ok(a, security=security))
+    registry = NameRegistry(default_lease=default_lease, probe=security_probe(security))
     servicer = (ns_grpc.add_NamingServiceServicer_to_server, NamingServicer(registry))
     server, port, _health, executor = _rpc.make_server(address, [servicer], [NAMING_SERVICE_NAME], max_workers,
                                                        security=security, roles=NAMING_ROLES)
@@ -311,18 +182,25 @@ class NameClient:
         reply = self._call("Resolve", pb.ResolveRequest(component=component), timeout)
         return _entry_from_msg(reply.entry)
 
-    def entries(self, timeout: float | None = None) -> list[NameEntry]:
-        """Every live registration."""
-        reply = self._call("ListEntries", pb.ListEntriesRequest(), timeout)
-        return [_entry_from_msg(e) for e in reply.entries]
+    def entries(self, timeout: float | None = None, max_pages: int = 1_000) -> list[NameEntry]:
+        """Every live registration, page after page (at most ``max_pages``, each with the
+        call's deadline)."""
+        out: list[NameEntry] = []
+        token = ""
+        for _ in range(max_pages):
+            reply = self._call("ListEntries", pb.ListEntriesRequest(page_token=token), timeout)
+            out.extend(_entry_from_msg(e) for e in reply.entries)
+            token = reply.next_page_token
+            if not token:
+                break
+        return out
 
-    def register(
-        self, deployer_id: str, address: str, components: list[str], lease_seconds: float = 0.0
-    ) -> tuple[str, float]:
-        """Register; returns ``(lease_id, lease_seconds)``."""
-        req = pb.RegisterRequest(
-            deployer_id=deployer_id, address=address, components=components, lease_seconds=lease_seconds
-        )
+    def register(self, address: str, components: list[str], lease_seconds: float = 0.0, *,
+                 boot_id: str = "", lease_id: str = "") -> tuple[str, float]:
+        """Register (a new lease, or change the one named by ``lease_id``); returns
+        ``(lease_id, lease_seconds)``."""
+        req = pb.RegisterRequest(address=address, components=components, lease_seconds=lease_seconds,
+                                 boot_id=boot_id, lease_id=lease_id)
         reply = self._call("Register", req, None)
         return reply.lease_id, reply.lease_seconds
 
@@ -361,19 +239,27 @@ def name_service_answers(address: str, timeout: float = 0.5, security: Security 
 
 def _entry_from_msg(msg: Any) -> NameEntry:
     left = float("inf") if msg.expires_in < 0 else msg.expires_in
-    return NameEntry(msg.component, msg.address, msg.deployer_id, left)
+    return NameEntry(msg.component, msg.address, msg.boot_id, left)
 
 
-def held_elsewhere(resolve: Callable[[str], NameEntry], names: list[str], deployer_id: str) -> dict[str, str]:
-    """``{name: address}`` of ``names`` registered by a deployer other than ``deployer_id``
-    (``resolve`` is a registry's or a name client's; unknown names are skipped)."""
+def security_probe(security: Security) -> Callable[[str, str], bool]:
+    """A registry probe: is the deployer process ``boot_id`` alive at ``address``? (Its gRPC
+    health answers SERVING for ``scart.boot.<boot_id>``; health needs no token.)"""
+    def probe(address: str, boot_id: str) -> bool:
+        return _rpc.health_ok(address, security=security, service=boot_service(boot_id) if boot_id else "")
+    return probe
+
+
+def held_elsewhere(resolve: Callable[[str], NameEntry], names: list[str], boot_id: str) -> dict[str, str]:
+    """``{name: address}`` of ``names`` registered by a deployer process other than
+    ``boot_id`` (``resolve`` is a registry's or a name client's; unknown names are skipped)."""
     held: dict[str, str] = {}
     for name in names:
         try:
             entry = resolve(name)
         except NotFoundError:  # errors.RemoteNotFoundError too
             continue
-        if entry.deployer_id != deployer_id:
+        if entry.boot_id != boot_id:
             held[name] = entry.address
     return held
 
@@ -393,13 +279,13 @@ class Registration:
         address: str,
         components: Callable[[], list[str]],
         lease_seconds: float = DEFAULT_LEASE,
-        deployer_id: str | None = None,
+        boot_id: str = "",
         timeout: float = 2.0,
         security: Security | None = None,
     ) -> None:
         self.ns_address = ns_address
         self.address = address
-        self.deployer_id = deployer_id or uuid.uuid4().hex
+        self.boot_id = boot_id
         self._components = components
         self._lease_seconds = lease_seconds
         self._client = NameClient(ns_address, timeout=timeout, security=security)
@@ -422,18 +308,16 @@ class Registration:
         refused: list[str] = []
         try:
             self.lease_id, self._lease_seconds = self._client.register(
-                self.deployer_id, self.address, names, self._lease_seconds
-            )
+                self.address, names, self._lease_seconds, boot_id=self.boot_id)
         except errors.AlreadyRegisteredError:
             if not self.registrations:
                 raise  # at start: a duplicate name fails the deployer loudly
             # registering again (lease lost): keep the free names, report the others
-            held = held_elsewhere(self._client.resolve, names, self.deployer_id)
+            held = held_elsewhere(self._client.resolve, names, self.boot_id)
             refused = sorted(held)
             self._warn_refused(held)
             self.lease_id, self._lease_seconds = self._client.register(
-                self.deployer_id, self.address, [n for n in names if n not in held], self._lease_seconds
-            )
+                self.address, [n for n in names if n not in held], self._lease_seconds, boot_id=self.boot_id)
         self.registrations += 1
         self.refused, self._checked = refused, names
 
@@ -452,7 +336,7 @@ class Registration:
         self._client.heartbeat(self.lease_id, names)
         if names == self._checked:
             return
-        held = held_elsewhere(self._client.resolve, names, self.deployer_id)
+        held = held_elsewhere(self._client.resolve, names, self.boot_id)
         self._warn_refused(held)
         self.refused, self._checked = sorted(held), names
 

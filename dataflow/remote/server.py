@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import logging
 import threading
-import uuid
+import secrets
 from typing import Any
 
 import grpc
+from grpc_health.v1 import health_pb2
 
 from dataflow import codec
 from dataflow.deployer import Deployer
@@ -36,7 +37,8 @@ from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
 from dataflow.remote.security import Security
 from dataflow.remote.naming import (
-    DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration, held_elsewhere,
+    DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration, boot_service, held_elsewhere,
+    security_probe,
 )
 
 __all__ = ["DeployerServer"]
@@ -144,10 +146,13 @@ class DeployerServer:
         security: Security | None = None,
     ) -> None:
         self.deployer = deployer
-        self.deployer_id = uuid.uuid4().hex
+        #: Public id of this server's process (random per start): its health service answers
+        #: SERVING for ``scart.boot.<boot_id>``, name services and clients tell restarts by it.
+        self.boot_id = secrets.token_hex(8)
         self.security = security = security or Security()
         self.registry: NameRegistry | None = None if ns else NameRegistry(
-            default_lease=lease_seconds, probe=lambda a: _rpc.health_ok(a, security=security))
+            default_lease=lease_seconds, probe=security_probe(security))
+        self._lease_id = ""  # of our own names in the embedded registry
         self._servicer = DeployerServicer(self, heartbeat_ms=heartbeat_ms, max_streams=max(1, max_workers - 8))
         servicers: list[_rpc.Servicer] = [(df_grpc.add_DeployerServiceServicer_to_server, self._servicer)]
         names = [DEPLOYER_SERVICE_NAME]
@@ -156,8 +161,9 @@ class DeployerServer:
             servicers.append((ns_grpc.add_NamingServiceServicer_to_server, _EmbeddedNaming(self)))
             names.append(NAMING_SERVICE_NAME)
             roles.update(NAMING_ROLES)
-        self._server, port, _health, self._executor = _rpc.make_server(
+        self._server, port, health, self._executor = _rpc.make_server(
             address, servicers, names, max_workers, security=security, roles=roles)
+        health.set(boot_service(self.boot_id), health_pb2.HealthCheckResponse.SERVING)
         self.address = _rpc.bound_address(address, port)
         #: What the server listens on (``0.0.0.0:P`` when bound to every interface).
         self.listen_address = f"{address.rpartition(':')[0] or '127.0.0.1'}:{port}"
@@ -176,7 +182,7 @@ class DeployerServer:
                 self._ns_client = NameClient(self.ns_address, timeout=ns_timeout, security=security)
                 self._registration = Registration(
                     self.ns_address, self.address, self.deployer.names, lease_seconds,
-                    deployer_id=self.deployer_id, timeout=ns_timeout, security=security,
+                    boot_id=self.boot_id, timeout=ns_timeout, security=security,
                 )
                 self._registration.start()
         except BaseException:
@@ -197,10 +203,11 @@ class DeployerServer:
         if self.registry is None or names == self._published:
             return self.refused_names
         try:
-            self.registry.register(self.deployer_id, self.address, names, permanent=True)
+            self._lease_id, _ = self.registry.register(self.address, names, permanent=True, boot_id=self.boot_id,
+                                                       lease_id=self._lease_id)
             self._refused = []
         except errors.AlreadyRegisteredError:
-            held = held_elsewhere(self.registry.resolve, names, self.deployer_id)
+            held = held_elsewhere(self.registry.resolve, names, self.boot_id)
             free = [n for n in names if n not in held]
             for name, where in sorted(held.items()):
                 log.warning(
@@ -209,7 +216,8 @@ class DeployerServer:
                 )
             self._refused = sorted(held)
             try:
-                self.registry.register(self.deployer_id, self.address, free, permanent=True)
+                self._lease_id, _ = self.registry.register(self.address, free, permanent=True, boot_id=self.boot_id,
+                                                           lease_id=self._lease_id)
             except errors.AlreadyRegisteredError as exc:  # raced with another registration
                 log.warning("deployer at %s: publishing %s failed: %s", self.address, free, exc)
                 return self.refused_names

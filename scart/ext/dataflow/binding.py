@@ -154,7 +154,7 @@ class _Link:
         self._system: Any = None
         self._proxy: Any = None
         self._lock = threading.Lock()
-        self._deployer_id: str | None = None
+        self._boot_id: str | None = None
         self._names: Any = None
         self._looked = 0.0
         self.state = "waiting"
@@ -196,7 +196,7 @@ class _Link:
         from dataflow.remote.naming import NameClient
 
         now = time.monotonic()
-        if self.state == "connected" and self._deployer_id is not None and now - self._looked < 1.0:
+        if self.state == "connected" and self._boot_id is not None and now - self._looked < 1.0:
             return True  # connected: the proxies reconnect by themselves; look once a second
         self._looked = now
         if self._names is None:
@@ -208,12 +208,12 @@ class _Link:
             if self.state != "waiting":
                 self._set_state("gone", f": {type(exc).__name__}")
             return False
-        if self._deployer_id is not None and entry.deployer_id != self._deployer_id:
+        if self._boot_id is not None and entry.boot_id != self._boot_id:
             self._set_state("restarted", f" at {entry.address}")
             self.state = "connected"
         elif self.state == "gone":
             self._set_state("connected", f" again at {entry.address}")
-        self._deployer_id = entry.deployer_id
+        self._boot_id = entry.boot_id
         return True
 
     def close(self) -> None:

@@ -352,7 +352,7 @@ class ConnectParticipant(Participant):
         self.runtime = runtime
         self.links = links
         self._remote = [lk for lk in links if not self._is_local(lk)]
-        self._made: dict[Link, str] = {}  # link -> deployer id of the remote end it was made with
+        self._made: dict[Link, str] = {}  # link -> boot id of the remote end it was made with
         self._watcher: Watcher | None = None
         self._clients: dict[str, Any] = {}
         self._waiting_logged: set[Link] = set()
@@ -400,7 +400,7 @@ class ConnectParticipant(Participant):
                                 remote, ns)
                 continue
             self._waiting_logged.discard(link)
-            if self._made.get(link) == entry.deployer_id:
+            if self._made.get(link) == entry.boot_id:
                 continue
             try:
                 self._connect(host, link, ns)
@@ -409,7 +409,7 @@ class ConnectParticipant(Participant):
             except DataflowError as exc:
                 log.info("connect %s: not yet: %s", link.text, exc)
                 continue
-            self._made[link] = entry.deployer_id
+            self._made[link] = entry.boot_id
             self._link_ns[link] = ns
 
     def _disconnect(self, link: Link, ns: str) -> None:

@@ -249,7 +249,7 @@ def flaky() -> Iterator[tuple[_Flaky, str]]:
     server, port, _health, executor = _rpc.make_server(
         "127.0.0.1:0", servicers, [DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME], 8)
     address = f"127.0.0.1:{port}"
-    registry.register("fake", address, ["x"], permanent=True)
+    registry.register(address, ["x"], permanent=True)
     try:
         yield fake, address
     finally:

@@ -21,8 +21,8 @@ class Clock:
 
 def test_registry_lease_expires_without_heartbeat() -> None:
     clock = Clock()
-    reg = NameRegistry(default_lease=2.0, clock=clock, probe=lambda a: True)
-    lease, seconds = reg.register("d1", "127.0.0.1:1", ["a", "b"])
+    reg = NameRegistry(default_lease=2.0, clock=clock, probe=lambda a, b: True)
+    lease, seconds = reg.register("127.0.0.1:1", ["a", "b"], boot_id="d1")
     assert seconds == 2.0
     assert reg.resolve("a").address == "127.0.0.1:1"
     clock.now += 1.5
@@ -38,24 +38,26 @@ def test_registry_lease_expires_without_heartbeat() -> None:
 
 
 def test_registry_refuses_duplicate_of_live_deployer_and_replaces_dead_one() -> None:
-    alive = {"127.0.0.1:1": True}
-    reg = NameRegistry(clock=Clock(), probe=lambda a: alive.get(a, False))
-    reg.register("d1", "127.0.0.1:1", ["a"])
+    alive = {("127.0.0.1:1", "d1"): True}
+    reg = NameRegistry(clock=Clock(), probe=lambda a, b: alive.get((a, b), False))
+    reg.register("127.0.0.1:1", ["a"], boot_id="d1")
     with pytest.raises(AlreadyRegisteredError, match="a already registered by the deployer at 127.0.0.1:1"):
-        reg.register("d2", "127.0.0.1:2", ["a"])
-    alive["127.0.0.1:1"] = False  # the holder died: a newcomer takes the name
-    reg.register("d2", "127.0.0.1:2", ["a"])
-    assert reg.resolve("a").deployer_id == "d2"
-    # a restarted deployer on the same address replaces its predecessor without a probe
-    reg.register("d3", "127.0.0.1:2", ["a"])
-    assert reg.resolve("a").deployer_id == "d3"
+        reg.register("127.0.0.1:2", ["a"], boot_id="d2")
+    alive[("127.0.0.1:1", "d1")] = False  # the holder died: a newcomer takes the name
+    reg.register("127.0.0.1:2", ["a"], boot_id="d2")
+    assert reg.resolve("a").boot_id == "d2"
+    # a restarted deployer on the same address (a new process: d2 no longer answers there)
+    reg.register("127.0.0.1:2", ["a"], boot_id="d3")
+    assert reg.resolve("a").boot_id == "d3"
 
 
-def test_registry_reregistration_same_deployer_is_idempotent() -> None:
-    reg = NameRegistry(clock=Clock(), probe=lambda a: True)
-    reg.register("d1", "127.0.0.1:1", ["a"])
-    reg.register("d1", "127.0.0.1:1", ["a", "b"])
+def test_registry_reregistration_by_the_lease_holder_changes_its_names() -> None:
+    reg = NameRegistry(clock=Clock(), probe=lambda a, b: True)
+    lease, _ = reg.register("127.0.0.1:1", ["a"], boot_id="d1")
+    assert reg.register("127.0.0.1:1", ["a", "b"], boot_id="d1", lease_id=lease)[0] == lease
     assert [e.component for e in reg.entries()] == ["a", "b"]
+    reg.register("127.0.0.1:1", ["b"], lease_id=lease)
+    assert [e.component for e in reg.entries()] == ["b"]
 
 
 def test_lease_expiry_over_grpc_and_heartbeats_keep_it() -> None:
@@ -64,7 +66,7 @@ def test_lease_expiry_over_grpc_and_heartbeats_keep_it() -> None:
     kept = Registration(server.address, "127.0.0.1:9", lambda: ["kept"], lease_seconds=0.3)
     try:
         kept.start()
-        client.register("gone", "127.0.0.1:8", ["gone"], lease_seconds=0.3)
+        client.register("127.0.0.1:8", ["gone"], lease_seconds=0.3)
         assert {e.component for e in client.entries()} == {"kept", "gone"}
         wait_until(lambda: {e.component for e in client.entries()} == {"kept"}, timeout=5,
                    message="the lease without heartbeats should expire, the other stay")

@@ -24,35 +24,35 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1cscart/naming/v1/naming.proto\x12\x0fscart.naming.v1\"b\n\x0fRegisterRequest\x12\x13\n\x0b\x64\x65ployer_id\x18\x01 \x01(\t\x12\x0f\n\x07\x61\x64\x64ress\x18\x02 \x01(\t\x12\x12\n\ncomponents\x18\x03 \x03(\t\x12\x15\n\rlease_seconds\x18\x04 \x01(\x01\";\n\x10RegisterResponse\x12\x10\n\x08lease_id\x18\x01 \x01(\t\x12\x15\n\rlease_seconds\x18\x02 \x01(\x01\"8\n\x10HeartbeatRequest\x12\x10\n\x08lease_id\x18\x01 \x01(\t\x12\x12\n\ncomponents\x18\x02 \x03(\t\"*\n\x11HeartbeatResponse\x12\x15\n\rlease_seconds\x18\x01 \x01(\x01\"%\n\x11UnregisterRequest\x12\x10\n\x08lease_id\x18\x01 \x01(\t\"\x14\n\x12UnregisterResponse\"#\n\x0eResolveRequest\x12\x11\n\tcomponent\x18\x01 \x01(\t\"8\n\x0fResolveResponse\x12%\n\x05\x65ntry\x18\x01 \x01(\x0b\x32\x16.scart.naming.v1.Entry\"\x14\n\x12ListEntriesRequest\">\n\x13ListEntriesResponse\x12\'\n\x07\x65ntries\x18\x01 \x03(\x0b\x32\x16.scart.naming.v1.Entry\"T\n\x05\x45ntry\x12\x11\n\tcomponent\x18\x01 \x01(\t\x12\x0f\n\x07\x61\x64\x64ress\x18\x02 \x01(\t\x12\x13\n\x0b\x64\x65ployer_id\x18\x03 \x01(\t\x12\x12\n\nexpires_in\x18\x04 \x01(\x01\x32\xb3\x03\n\rNamingService\x12O\n\x08Register\x12 .scart.naming.v1.RegisterRequest\x1a!.scart.naming.v1.RegisterResponse\x12R\n\tHeartbeat\x12!.scart.naming.v1.HeartbeatRequest\x1a\".scart.naming.v1.HeartbeatResponse\x12U\n\nUnregister\x12\".scart.naming.v1.UnregisterRequest\x1a#.scart.naming.v1.UnregisterResponse\x12L\n\x07Resolve\x12\x1f.scart.naming.v1.ResolveRequest\x1a .scart.naming.v1.ResolveResponse\x12X\n\x0bListEntries\x12#.scart.naming.v1.ListEntriesRequest\x1a$.scart.naming.v1.ListEntriesResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x1cscart/naming/v1/naming.proto\x12\x0fscart.naming.v1\"\x83\x01\n\x0fRegisterRequest\x12\x0f\n\x07\x61\x64\x64ress\x18\x02 \x01(\t\x12\x12\n\ncomponents\x18\x03 \x03(\t\x12\x15\n\rlease_seconds\x18\x04 \x01(\x01\x12\x0f\n\x07\x62oot_id\x18\x05 \x01(\t\x12\x10\n\x08lease_id\x18\x06 \x01(\tJ\x04\x08\x01\x10\x02R\x0b\x64\x65ployer_id\";\n\x10RegisterResponse\x12\x10\n\x08lease_id\x18\x01 \x01(\t\x12\x15\n\rlease_seconds\x18\x02 \x01(\x01\"8\n\x10HeartbeatRequest\x12\x10\n\x08lease_id\x18\x01 \x01(\t\x12\x12\n\ncomponents\x18\x02 \x03(\t\"*\n\x11HeartbeatResponse\x12\x15\n\rlease_seconds\x18\x01 \x01(\x01\"%\n\x11UnregisterRequest\x12\x10\n\x08lease_id\x18\x01 \x01(\t\"\x14\n\x12UnregisterResponse\"#\n\x0eResolveRequest\x12\x11\n\tcomponent\x18\x01 \x01(\t\"8\n\x0fResolveResponse\x12%\n\x05\x65ntry\x18\x01 \x01(\x0b\x32\x16.scart.naming.v1.Entry\";\n\x12ListEntriesRequest\x12\x11\n\tpage_size\x18\x01 \x01(\r\x12\x12\n\npage_token\x18\x02 \x01(\t\"W\n\x13ListEntriesResponse\x12\'\n\x07\x65ntries\x18\x01 \x03(\x0b\x32\x16.scart.naming.v1.Entry\x12\x17\n\x0fnext_page_token\x18\x02 \x01(\t\"c\n\x05\x45ntry\x12\x11\n\tcomponent\x18\x01 \x01(\t\x12\x0f\n\x07\x61\x64\x64ress\x18\x02 \x01(\t\x12\x12\n\nexpires_in\x18\x04 \x01(\x01\x12\x0f\n\x07\x62oot_id\x18\x05 \x01(\tJ\x04\x08\x03\x10\x04R\x0b\x64\x65ployer_id2\xb3\x03\n\rNamingService\x12O\n\x08Register\x12 .scart.naming.v1.RegisterRequest\x1a!.scart.naming.v1.RegisterResponse\x12R\n\tHeartbeat\x12!.scart.naming.v1.HeartbeatRequest\x1a\".scart.naming.v1.HeartbeatResponse\x12U\n\nUnregister\x12\".scart.naming.v1.UnregisterRequest\x1a#.scart.naming.v1.UnregisterResponse\x12L\n\x07Resolve\x12\x1f.scart.naming.v1.ResolveRequest\x1a .scart.naming.v1.ResolveResponse\x12X\n\x0bListEntries\x12#.scart.naming.v1.ListEntriesRequest\x1a$.scart.naming.v1.ListEntriesResponseb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'scart.naming.v1.naming_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_REGISTERREQUEST']._serialized_start=49
-  _globals['_REGISTERREQUEST']._serialized_end=147
-  _globals['_REGISTERRESPONSE']._serialized_start=149
-  _globals['_REGISTERRESPONSE']._serialized_end=208
-  _globals['_HEARTBEATREQUEST']._serialized_start=210
-  _globals['_HEARTBEATREQUEST']._serialized_end=266
-  _globals['_HEARTBEATRESPONSE']._serialized_start=268
-  _globals['_HEARTBEATRESPONSE']._serialized_end=310
-  _globals['_UNREGISTERREQUEST']._serialized_start=312
-  _globals['_UNREGISTERREQUEST']._serialized_end=349
-  _globals['_UNREGISTERRESPONSE']._serialized_start=351
-  _globals['_UNREGISTERRESPONSE']._serialized_end=371
-  _globals['_RESOLVEREQUEST']._serialized_start=373
-  _globals['_RESOLVEREQUEST']._serialized_end=408
-  _globals['_RESOLVERESPONSE']._serialized_start=410
-  _globals['_RESOLVERESPONSE']._serialized_end=466
-  _globals['_LISTENTRIESREQUEST']._serialized_start=468
-  _globals['_LISTENTRIESREQUEST']._serialized_end=488
-  _globals['_LISTENTRIESRESPONSE']._serialized_start=490
-  _globals['_LISTENTRIESRESPONSE']._serialized_end=552
-  _globals['_ENTRY']._serialized_start=554
-  _globals['_ENTRY']._serialized_end=638
-  _globals['_NAMINGSERVICE']._serialized_start=641
-  _globals['_NAMINGSERVICE']._serialized_end=1076
+  _globals['_REGISTERREQUEST']._serialized_start=50
+  _globals['_REGISTERREQUEST']._serialized_end=181
+  _globals['_REGISTERRESPONSE']._serialized_start=183
+  _globals['_REGISTERRESPONSE']._serialized_end=242
+  _globals['_HEARTBEATREQUEST']._serialized_start=244
+  _globals['_HEARTBEATREQUEST']._serialized_end=300
+  _globals['_HEARTBEATRESPONSE']._serialized_start=302
+  _globals['_HEARTBEATRESPONSE']._serialized_end=344
+  _globals['_UNREGISTERREQUEST']._serialized_start=346
+  _globals['_UNREGISTERREQUEST']._serialized_end=383
+  _globals['_UNREGISTERRESPONSE']._serialized_start=385
+  _globals['_UNREGISTERRESPONSE']._serialized_end=405
+  _globals['_RESOLVEREQUEST']._serialized_start=407
+  _globals['_RESOLVEREQUEST']._serialized_end=442
+  _globals['_RESOLVERESPONSE']._serialized_start=444
+  _globals['_RESOLVERESPONSE']._serialized_end=500
+  _globals['_LISTENTRIESREQUEST']._serialized_start=502
+  _globals['_LISTENTRIESREQUEST']._serialized_end=561
+  _globals['_LISTENTRIESRESPONSE']._serialized_start=563
+  _globals['_LISTENTRIESRESPONSE']._serialized_end=650
+  _globals['_ENTRY']._serialized_start=652
+  _globals['_ENTRY']._serialized_end=751
+  _globals['_NAMINGSERVICE']._serialized_start=754
+  _globals['_NAMINGSERVICE']._serialized_end=1189
 # @@protoc_insertion_point(module_scope)

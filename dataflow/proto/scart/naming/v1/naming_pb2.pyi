@@ -7,16 +7,18 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class RegisterRequest(_message.Message):
-    __slots__ = ("deployer_id", "address", "components", "lease_seconds")
-    DEPLOYER_ID_FIELD_NUMBER: _ClassVar[int]
+    __slots__ = ("address", "components", "lease_seconds", "boot_id", "lease_id")
     ADDRESS_FIELD_NUMBER: _ClassVar[int]
     COMPONENTS_FIELD_NUMBER: _ClassVar[int]
     LEASE_SECONDS_FIELD_NUMBER: _ClassVar[int]
-    deployer_id: str
+    BOOT_ID_FIELD_NUMBER: _ClassVar[int]
+    LEASE_ID_FIELD_NUMBER: _ClassVar[int]
     address: str
     components: _containers.RepeatedScalarFieldContainer[str]
     lease_seconds: float
-    def __init__(self, deployer_id: _Optional[str] = ..., address: _Optional[str] = ..., components: _Optional[_Iterable[str]] = ..., lease_seconds: _Optional[float] = ...) -> None: ...
+    boot_id: str
+    lease_id: str
+    def __init__(self, address: _Optional[str] = ..., components: _Optional[_Iterable[str]] = ..., lease_seconds: _Optional[float] = ..., boot_id: _Optional[str] = ..., lease_id: _Optional[str] = ...) -> None: ...
 
 class RegisterResponse(_message.Message):
     __slots__ = ("lease_id", "lease_seconds")
@@ -63,23 +65,29 @@ class ResolveResponse(_message.Message):
     def __init__(self, entry: _Optional[_Union[Entry, _Mapping]] = ...) -> None: ...
 
 class ListEntriesRequest(_message.Message):
-    __slots__ = ()
-    def __init__(self) -> None: ...
+    __slots__ = ("page_size", "page_token")
+    PAGE_SIZE_FIELD_NUMBER: _ClassVar[int]
+    PAGE_TOKEN_FIELD_NUMBER: _ClassVar[int]
+    page_size: int
+    page_token: str
+    def __init__(self, page_size: _Optional[int] = ..., page_token: _Optional[str] = ...) -> None: ...
 
 class ListEntriesResponse(_message.Message):
-    __slots__ = ("entries",)
+    __slots__ = ("entries", "next_page_token")
     ENTRIES_FIELD_NUMBER: _ClassVar[int]
+    NEXT_PAGE_TOKEN_FIELD_NUMBER: _ClassVar[int]
     entries: _containers.RepeatedCompositeFieldContainer[Entry]
-    def __init__(self, entries: _Optional[_Iterable[_Union[Entry, _Mapping]]] = ...) -> None: ...
+    next_page_token: str
+    def __init__(self, entries: _Optional[_Iterable[_Union[Entry, _Mapping]]] = ..., next_page_token: _Optional[str] = ...) -> None: ...
 
 class Entry(_message.Message):
-    __slots__ = ("component", "address", "deployer_id", "expires_in")
+    __slots__ = ("component", "address", "expires_in", "boot_id")
     COMPONENT_FIELD_NUMBER: _ClassVar[int]
     ADDRESS_FIELD_NUMBER: _ClassVar[int]
-    DEPLOYER_ID_FIELD_NUMBER: _ClassVar[int]
     EXPIRES_IN_FIELD_NUMBER: _ClassVar[int]
+    BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     component: str
     address: str
-    deployer_id: str
     expires_in: float
-    def __init__(self, component: _Optional[str] = ..., address: _Optional[str] = ..., deployer_id: _Optional[str] = ..., expires_in: _Optional[float] = ...) -> None: ...
+    boot_id: str
+    def __init__(self, component: _Optional[str] = ..., address: _Optional[str] = ..., expires_in: _Optional[float] = ..., boot_id: _Optional[str] = ...) -> None: ...

@@ -65,8 +65,10 @@ class NamingServiceServicer:
     """Missing associated documentation comment in .proto file."""
 
     def Register(self, request, context):
-        """Register (or re-register) a deployer and its components. ALREADY_EXISTS when a
-        component name is held by another deployer that is still alive.
+        """Register a deployer's components (a new lease), or change the names and address of
+        a lease its holder names. ALREADY_EXISTS when a name is held by another live
+        deployer; INVALID_ARGUMENT for a lease that is not finite and positive, or bad names;
+        RESOURCE_EXHAUSTED beyond the service's bounds (per peer and in total).
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
@@ -87,14 +89,14 @@ class NamingServiceServicer:
         raise NotImplementedError('Method not implemented!')
 
     def Resolve(self, request, context):
-        """Find the deployer serving a component. NOT_FOUND naming the known components.
+        """Find the deployer serving a component. NOT_FOUND naming some known components.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
     def ListEntries(self, request, context):
-        """Every live registration.
+        """Live registrations, by component name, a page at a time.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
