@@ -133,6 +133,7 @@ class Port(Generic[T]):
         self.attr: str | None = None
         self._check = registry.checker(type)
         self._conns: dict[Port[Any], Connection] = {}
+        self._refs: dict[int, int] = {}  # id(storage) -> connections of this port using it
 
     @property
     def type_name(self) -> str:
@@ -281,8 +282,10 @@ class OutputPort(Port[T]):
             conn = Connection(self, other, policy, storage)
             self._conns[other] = conn
             other._conns[self] = conn
-            self._rebuild()
-            other._rebuild()
+            if _counted(self._refs, storage, +1):
+                self._publish((*self._storages, storage))
+            if _counted(other._refs, storage, +1):
+                other._publish((*other._sources, storage))
             _rebuild_readers(storage, other)
             return conn
 
@@ -320,12 +323,15 @@ class OutputPort(Port[T]):
                 return
             del self._conns[conn.input]
             del conn.input._conns[self]
-            self._rebuild()
-            conn.input._rebuild()
+            inp = conn.input
+            if _counted(self._refs, conn.storage, -1):
+                self._publish(_without(self._storages, conn.storage))
+            if _counted(inp._refs, conn.storage, -1):
+                inp._publish(_without(inp._sources, conn.storage))
             _rebuild_readers(conn.storage)
 
-    def _rebuild(self) -> None:
-        storages = _unique(c.storage for c in self._conns.values())
+    def _publish(self, storages: tuple[Storage, ...]) -> None:
+        """Make ``storages`` the ones writes go to (setup path, under the setup lock)."""
         single = storages[0] if len(storages) == 1 else None
         # Publish in an order that is safe for a concurrent writer: the fast path is
         # cleared before the tuple changes, and set only after it.
@@ -430,12 +436,13 @@ class InputPort(Port[T]):
             except Exception:  # a reader's callback must never break its writer
                 log.exception("data callback %r of %s raised", cb, self.qualname)
 
-    def _rebuild(self) -> None:
-        # Keep reading from the current channel across connects/disconnects (as RTT does):
-        # a port that holds data must not answer NO_DATA because an unrelated peer came.
+    def _publish(self, sources: tuple[Storage, ...]) -> None:
+        """Make ``sources`` the ones reads come from (setup path, under the setup lock).
+        Keeps reading from the current channel across connects/disconnects (as RTT does):
+        a port that holds data must not answer NO_DATA because an unrelated peer came."""
         old = self._sources
         current = old[self._current] if self._current < len(old) else None
-        self._sources = _unique(c.storage for c in self._conns.values())
+        self._sources = sources
         if len(self._sources) == 1:  # hot path: read() is the storage's own read
             self.read = self._sources[0].read  # type: ignore[method-assign]
             self.read_newest = self._sources[0].read_newest  # type: ignore[method-assign]
@@ -446,15 +453,29 @@ class InputPort(Port[T]):
             self._port_storage = None
         if self._shared is not None and self._shared not in self._sources:
             self._shared = None
-        self._current = next((i for i, st in enumerate(self._sources) if st is current), 0)
+        try:
+            self._current = self._sources.index(current) if current is not None else 0
+        except ValueError:
+            self._current = 0
 
 
-def _unique(storages: Any) -> tuple[Storage, ...]:
-    seen: list[Storage] = []
-    for s in storages:
-        if not any(s is t for t in seen):
-            seen.append(s)
-    return tuple(seen)
+def _counted(refs: dict[int, int], storage: Storage, delta: int) -> bool:
+    """Count one more (``delta=+1``) or one less (-1) connection of a port using ``storage``;
+    True when the storage joins or leaves the port's set (several connections may share one
+    storage: PER_INPUT_PORT, PER_OUTPUT_PORT, SHARED). O(1)."""
+    key = id(storage)
+    n = refs.get(key, 0) + delta
+    if n > 0:
+        refs[key] = n
+    else:
+        refs.pop(key, None)
+    return (n == 1 and delta > 0) or (n <= 0 and delta < 0)
+
+
+def _without(storages: tuple[Storage, ...], storage: Storage) -> tuple[Storage, ...]:
+    """``storages`` without ``storage`` (found by identity, at C speed)."""
+    i = storages.index(storage)
+    return storages[:i] + storages[i + 1:]
 
 
 def _rebuild_readers(storage: Storage, extra: InputPort[Any] | None = None) -> None:

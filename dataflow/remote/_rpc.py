@@ -5,6 +5,7 @@ gRPC statuses to scart errors). Servicers and stubs are the generated ones of
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import Any
@@ -12,7 +13,7 @@ from typing import Any
 import grpc
 
 from dataflow.remote import errors
-from dataflow.remote.security import Role, Security, auth_interceptor
+from dataflow.remote.security import Role, Security, auth_interceptor, is_loopback
 
 #: Name prefix of the servers' worker threads (``scart-rpc_0``, ...).
 THREAD_PREFIX = "scart-rpc"
@@ -36,11 +37,25 @@ def channel_options(keepalive_ms: int = 2000) -> list[tuple[str, int]]:
     ]
 
 
+#: Calls beyond the stream budget are left this many workers (unary calls: health, lookups).
+RESERVED_WORKERS = 8
+#: A client stream whose first message does not come within this many seconds is cancelled.
+FIRST_MESSAGE_S = 10.0
+#: A connection without calls for this long is closed (clients reconnect on their next call).
+MAX_CONNECTION_IDLE_MS = 5 * 60 * 1000
+#: After this long a connection is asked to go (GOAWAY): new calls open a new one, calls in
+#: flight finish (no grace limit, so long subscriptions are never cut).
+MAX_CONNECTION_AGE_MS = 30 * 60 * 1000
+
+
 def server_options() -> list[tuple[str, int]]:
-    """Options for servers: message limits, and accept the clients' keepalive pings."""
+    """Options for servers: message limits, connection idle and age bounds, and accept the
+    clients' keepalive pings."""
     return [
         ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES),
         ("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
+        ("grpc.max_connection_idle_ms", MAX_CONNECTION_IDLE_MS),
+        ("grpc.max_connection_age_ms", MAX_CONNECTION_AGE_MS),
         ("grpc.keepalive_permit_without_calls", 1),
         ("grpc.http2.min_ping_interval_without_data_ms", 500),
         ("grpc.http2.min_recv_ping_interval_without_data_ms", 500),
@@ -129,8 +144,10 @@ def make_server(
 
     Returns ``(server, bound_port, health_servicer, executor)``; the caller owns the
     executor and ends it with :func:`stop_server` (grpc does not shut it down).
-    ``max_workers`` bounds concurrent
-    RPCs: beyond it a call fails fast with RESOURCE_EXHAUSTED instead of queueing.
+    ``max_workers`` bounds concurrent RPCs: beyond it a call fails fast with
+    RESOURCE_EXHAUSTED instead of queueing; long-lived (streaming) calls get at most
+    ``max_workers - RESERVED_WORKERS`` of them (see :class:`StreamBudget`), so health
+    checks and lookups always find a worker.
     Raises :class:`errors.UnavailableError` when the address cannot be bound.
     """
     from concurrent import futures
@@ -142,7 +159,10 @@ def make_server(
     security.check_bind(address, "server")
     credentials = security.server_credentials()
     table = security.auth_table()
-    interceptors = [auth_interceptor(table, roles or {})] if table is not None else []
+    streams = max(1, max_workers - RESERVED_WORKERS)
+    interceptors = [StreamBudget(streams, streams - streams // 4).interceptor()]  # no one peer takes all
+    if table is not None:
+        interceptors.insert(0, auth_interceptor(table, roles or {}))
     executor = futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix=THREAD_PREFIX)
     server = grpc.server(executor, options=server_options(), maximum_concurrent_rpcs=max_workers,
                          interceptors=interceptors)
@@ -203,3 +223,131 @@ def health_ok(address: str, timeout: float = 0.5, security: Security | None = No
         except grpc.RpcError:
             return False
     return reply.status == health_pb2.HealthCheckResponse.SERVING
+
+
+class StreamBudget:
+    """Bounds the long-lived (streaming) calls of one server: at most ``total`` at once,
+    at most ``per_peer`` from one peer (a remote host; on loopback, one connection), and a
+    client stream whose first message does not come within ``first_message_s`` is cancelled.
+    Beyond a bound the call ends at once with RESOURCE_EXHAUSTED. Thread-safe."""
+
+    def __init__(self, total: int, per_peer: int, first_message_s: float | None = None) -> None:
+        self.total = total
+        self.per_peer = per_peer
+        self.first_message_s = FIRST_MESSAGE_S if first_message_s is None else first_message_s
+        self._lock = threading.Lock()
+        self._open = 0
+        self._by_peer: dict[str, int] = {}
+
+    def _take(self, peer: str) -> str | None:
+        """Take a slot; None when taken, else why not."""
+        with self._lock:
+            if self._open >= self.total:
+                return f"this server carries at most {self.total} streams at once"
+            if self._by_peer.get(peer, 0) >= self.per_peer:
+                return f"at most {self.per_peer} streams from one peer"
+            self._open += 1
+            self._by_peer[peer] = self._by_peer.get(peer, 0) + 1
+            return None
+
+    def _give(self, peer: str) -> None:
+        with self._lock:
+            self._open -= 1
+            left = self._by_peer.get(peer, 1) - 1
+            if left > 0:
+                self._by_peer[peer] = left
+            else:
+                self._by_peer.pop(peer, None)
+
+    @property
+    def open(self) -> int:
+        """Streams open now."""
+        return self._open
+
+    def interceptor(self) -> grpc.ServerInterceptor:
+        """The server interceptor applying this budget to every streaming method."""
+        budget = self
+
+        class Interceptor(grpc.ServerInterceptor):
+            def intercept_service(self, continuation: Callable[[Any], Any], details: Any) -> Any:
+                handler = continuation(details)
+                if handler is None or not (handler.request_streaming or handler.response_streaming):
+                    return handler
+                return budget._wrap(handler)
+
+        return Interceptor()
+
+    def _wrap(self, handler: Any) -> Any:
+        if handler.unary_stream is not None:
+            behavior, make, client_stream = handler.unary_stream, grpc.unary_stream_rpc_method_handler, False
+        elif handler.stream_unary is not None:
+            behavior, make, client_stream = handler.stream_unary, grpc.stream_unary_rpc_method_handler, True
+        else:
+            behavior, make, client_stream = handler.stream_stream, grpc.stream_stream_rpc_method_handler, True
+        budget = self
+
+        def admitted(request: Any, context: grpc.ServicerContext) -> str:
+            peer = peer_key(context)
+            refused = budget._take(peer)
+            if refused is not None:
+                context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, refused)
+            return peer
+
+        if handler.response_streaming:
+            def streaming(request: Any, context: grpc.ServicerContext) -> Any:
+                peer = admitted(request, context)
+                try:
+                    if client_stream:
+                        request = _FirstMessageDeadline(request, context, budget.first_message_s)
+                    yield from behavior(request, context)
+                finally:
+                    budget._give(peer)
+            wrapped = streaming
+        else:
+            def unary_reply(requests: Any, context: grpc.ServicerContext) -> Any:
+                peer = admitted(requests, context)
+                try:
+                    return behavior(_FirstMessageDeadline(requests, context, budget.first_message_s), context)
+                finally:
+                    budget._give(peer)
+            wrapped = unary_reply
+        return make(wrapped, request_deserializer=handler.request_deserializer,
+                    response_serializer=handler.response_serializer)
+
+
+class _FirstMessageDeadline:
+    """A request iterator whose first message must come within ``seconds`` (else the call
+    is cancelled: a client holding a stream open without speaking does not pin a worker)."""
+
+    def __init__(self, requests: Any, context: grpc.ServicerContext, seconds: float) -> None:
+        self._requests = requests
+        self._context = context
+        self._seconds = seconds
+        self._first = True
+
+    def __iter__(self) -> _FirstMessageDeadline:
+        return self
+
+    def __next__(self) -> Any:
+        if not self._first:
+            return next(self._requests)
+        self._first = False
+        timer = threading.Timer(self._seconds, self._context.cancel)
+        timer.daemon = True
+        timer.start()
+        try:
+            return next(self._requests)
+        finally:
+            timer.cancel()
+
+
+def peer_key(context: grpc.ServicerContext) -> str:
+    """Who a call comes from, for per-peer bounds: the remote host, or on loopback (where
+    every local process shares one address) the connection (host and port)."""
+    peer = context.peer() or ""
+    kind, _, rest = peer.partition(":")
+    host, _, _port = rest.rpartition(":")
+    host = host.strip("[]")
+    if kind in ("ipv4", "ipv6") and host and not is_loopback(host):
+        return f"{kind}:{host}"
+    return peer

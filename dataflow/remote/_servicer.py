@@ -39,6 +39,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+MIN_HEARTBEAT_MS = 50  #: shortest idle heartbeat a subscriber may ask for
+MAX_HEARTBEAT_MS = 10_000  #: longest
+
 _TRANSITIONS = MappingProxyType({
     pb.Transition.Value("TRANSITION_CONFIGURE"): "configure",
     pb.Transition.Value("TRANSITION_START"): "start",
@@ -314,7 +317,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
         context.add_callback(stream.wake.set)  # a cancelled stream wakes at once
-        heartbeat = (request.heartbeat_ms or self.heartbeat_ms) / 1000.0
+        # a client's heartbeat request is clamped: too often is a busy loop, too rare hides a frozen peer
+        heartbeat = min(max(request.heartbeat_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
         try:
             yield pb.SubscribeResponse(heartbeat=True)  # tells the client it is connected
             while context.is_active() and not self._stopping.is_set():

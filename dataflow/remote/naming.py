@@ -53,12 +53,6 @@ def _entry_msg(entry: NameEntry) -> Any:
     return pb.Entry(component=entry.component, address=entry.address, boot_id=entry.boot_id, expires_in=left)
 
 
-def _peer_host(context: grpc.ServicerContext) -> str:
-    """The caller's address without its port (``ipv4:127.0.0.1:5000`` → ``ipv4:127.0.0.1``)."""
-    peer = context.peer() or ""
-    return peer.rpartition(":")[0] if peer.count(":") >= 2 else peer
-
-
 class NamingServicer(ns_grpc.NamingServiceServicer):
     """gRPC face of a :class:`NameRegistry` (methods named as in naming.proto)."""
 
@@ -69,7 +63,7 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
         try:
             lease_id, seconds = self.registry.register(
                 request.address, list(request.components), request.lease_seconds, boot_id=request.boot_id,
-                lease_id=request.lease_id, peer=_peer_host(context))
+                lease_id=request.lease_id, peer=_rpc.peer_key(context))
         except errors.AlreadyRegisteredError as exc:
             context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
         except RegistryFullError as exc:

@@ -345,7 +345,7 @@ def test_subscription_limit_is_a_precise_error() -> None:
     try:
         proxy = system.component("p")
         subs = [proxy.subscribe("ticks", lambda e: None) for _ in range(2)]
-        with pytest.raises(RemoteError, match="at most 2 subscriptions") as info:
+        with pytest.raises(RemoteError, match="at most 2 streams at once") as info:
             proxy.subscribe("ticks", lambda e: None)
         assert info.value.code == "RESOURCE_EXHAUSTED"
         subs[0].close()
