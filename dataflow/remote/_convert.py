@@ -55,8 +55,9 @@ def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
     )
 
 
-#: Largest buffer a remote peer may ask for (samples).
-MAX_BUFFER_SIZE = 1_000_000
+#: Largest buffer a remote peer may ask for (samples); a subscription is bounded in bytes
+#: too (see ``dataflow.remote._servicer.STREAM_BYTE_BUDGET``).
+MAX_BUFFER_SIZE = 10_000
 
 
 def _member(enum: Any, field: str, name: str, default: Any) -> Any:

@@ -5,7 +5,9 @@ A free-standing InputPort with the subscriber's policy is connected to the outpu
 Its data callback runs in the writer's thread right after a sample was stored: it takes
 the sample out at once and keeps it as ``(sequence, source_time_ns, value)`` in a
 policy-shaped :class:`~dataflow.remote.api.Mailbox`, so the sequence number and the
-timestamp always belong to the sample they travel with. The callback is cheap (a read, a
+timestamp always belong to the sample they travel with. The sequence number is the
+port's own write number (:meth:`OutputPort.last_sample`), the same for every subscriber:
+a jump tells a subscriber exactly how many writes it did not get. The callback is cheap (a read, a
 short lock, an ``Event.set``) and never blocks on the subscriber. Drops (full BUFFER,
 overwritten DATA/CIRCULAR sample) are counted by the mailbox; samples the consumer
 discards itself (e.g. too large to send) are added with :meth:`count_dropped`.
@@ -43,17 +45,31 @@ class Inbox:
         self._on_data(self.inp)  # an init=True policy may have handed a sample over already
 
     def _on_data(self, _inp: InputPort) -> None:  # writer's thread: cheap, never blocks for long
-        got = False
         with self._lock:  # one reader of self.inp at a time (several writers may call us)
+            values = []
             for _ in range(10_000):  # bounded: the connection holds at most its size
                 status, value = self.inp.read()
                 if status is not FlowStatus.NEW_DATA:
                     break
-                self._seq += 1
-                self._mailbox.put((self._seq, time.time_ns(), value))
-                got = True
-        if got:
-            self.wake.set()
+                values.append(value)
+            if not values:
+                return
+            # called right after each write: the newest value read is the port's latest write
+            newest = max(self.port.last_sample()[0], self._seq + len(values))
+            now = time.time_ns()
+            for k, value in enumerate(values):
+                self._admit(value)
+                self._mailbox.put((newest - len(values) + 1 + k, now, value))
+            self._seq = newest
+        self.wake.set()
+
+    def _admit(self, value: Any) -> None:
+        """Called with each sample before it is kept (under the inbox's lock); a subclass
+        may bound the inbox here (:meth:`limit`). Default: nothing."""
+
+    def limit(self, samples: int) -> None:
+        """Keep at most ``samples`` pending (within the policy's own size)."""
+        self._mailbox.limit(samples)
 
     @property
     def dropped(self) -> int:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import logging
+import secrets
 import threading
 import time
 from types import MappingProxyType
@@ -32,13 +33,18 @@ from dataflow.remote import _convert as cv
 from dataflow.remote._inbox import Inbox
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
-from dataflow.remote._rpc import MAX_MESSAGE_BYTES, Abort, abort
+from dataflow.remote._rpc import MAX_MESSAGE_BYTES, Abort, abort, peer_key
 
 if TYPE_CHECKING:
     from dataflow.remote.server import DeployerServer
 
 log = logging.getLogger(__name__)
 
+STREAM_BYTE_BUDGET = 4 * 1024 * 1024  #: encoded bytes a subscription may have pending, at most
+WRITER_IDLE_S = 60.0  #: a remote writer unused this long is reclaimed (its client may be gone)
+WRITERS_PER_PORT = 2_048  #: remote writers open on one input port, at most
+WRITERS_PER_PEER = 2_048  #: remote writers one peer may have open, at most
+MAX_WRITERS = 8_192  #: remote writers open on one deployer, at most
 MIN_HEARTBEAT_MS = 50  #: shortest idle heartbeat a subscriber may ask for
 MAX_HEARTBEAT_MS = 10_000  #: longest
 
@@ -53,36 +59,127 @@ _TRANSITIONS = MappingProxyType({
 
 class _Seen:
     """ReadPort bookkeeping of one output port without any connection: the port's write
-    number last seen, the sequence number given to it, and when it was first seen (any
-    write since — even of the same object — is a new sample)."""
+    number last seen and when it was first seen (any write since — even of the same
+    object — is a new sample)."""
 
-    __slots__ = ("written", "sequence", "stamp")
+    __slots__ = ("written", "stamp")
 
     def __init__(self) -> None:
         self.written = 0
-        self.sequence = 0
         self.stamp = 0
 
 
 class _Stream(Inbox):
-    """Server side of one subscription: an :class:`Inbox` with the subscriber's policy."""
+    """Server side of one subscription: an :class:`Inbox` with the subscriber's policy,
+    holding at most :data:`STREAM_BYTE_BUDGET` encoded bytes of pending samples (the
+    encoded size is measured on the first sample, then every 64th): a subscriber too slow
+    for that loses samples, counted, instead of growing the server."""
 
     def __init__(self, port: OutputPort, policy: ConnPolicy) -> None:
+        self._measured = 0
         super().__init__(port, policy, name=f"sub_{port.name}")
         self.wake.set()  # send the connected heartbeat and any init sample at once
+
+    def _admit(self, value: Any) -> None:
+        if self._measured % 64 == 0:
+            size = max(16, codec.encode(value, self.port.type).ByteSize())
+            self.limit(max(1, STREAM_BYTE_BUDGET // size))
+        self._measured += 1
 
 
 class _Writer:
     """A free OutputPort connected to a task's input port (a remote writer)."""
 
-    def __init__(self, task: str, port: InputPort, policy: ConnPolicy) -> None:
+    def __init__(self, task: str, port: InputPort, policy: ConnPolicy, owner: str = "") -> None:
         self.task = task
         self.target = port
+        self.owner = owner  # the peer that opened it (only it may use it)
+        self.used = time.monotonic()
         self.out: OutputPort = OutputPort(port.type, name=f"remote_{port.name}")
         self.out.connect_to(port, policy)
 
+    @property
+    def key(self) -> tuple[str, str]:
+        return self.task, self.target.name
+
     def close(self) -> None:
         self.out.disconnect(self.target)
+
+
+class _Writers:
+    """The open remote writers of one server, by secret id: bounded per port, per peer and
+    in total; each reclaimed when unused for ``idle`` s (:meth:`sweep`). O(1) open, use and
+    close. Thread-safe."""
+
+    def __init__(self, idle: float, per_port: int, per_peer: int, total: int) -> None:
+        self.idle = idle
+        self.per_port, self.per_peer, self.total = per_port, per_peer, total
+        self._lock = threading.Lock()
+        self._by_id: dict[str, _Writer] = {}
+        self._ports: dict[tuple[str, str], int] = {}
+        self._peers: dict[str, int] = {}
+
+    def __len__(self) -> int:
+        return len(self._by_id)
+
+    def add(self, writer: _Writer) -> str:
+        """Register ``writer``; returns its id. Raises ``Abort`` (RESOURCE_EXHAUSTED) past a bound."""
+        with self._lock:
+            if len(self._by_id) >= self.total:
+                raise Abort("RESOURCE_EXHAUSTED", f"this deployer has {self.total} remote writers open")
+            if self._ports.get(writer.key, 0) >= self.per_port:
+                raise Abort("RESOURCE_EXHAUSTED", f"{'.'.join(writer.key)} has {self.per_port} remote writers open")
+            if self._peers.get(writer.owner, 0) >= self.per_peer:
+                raise Abort("RESOURCE_EXHAUSTED", f"at most {self.per_peer} remote writers per peer")
+            wid = secrets.token_hex(16)
+            self._by_id[wid] = writer
+            self._ports[writer.key] = self._ports.get(writer.key, 0) + 1
+            self._peers[writer.owner] = self._peers.get(writer.owner, 0) + 1
+            return wid
+
+    def get(self, wid: str, peer: str) -> _Writer:
+        """The writer ``wid`` of ``peer`` (marked used); ``NotFoundError`` otherwise (never
+        saying whether it exists for another peer)."""
+        writer = self._by_id.get(wid)
+        if writer is None or writer.owner != peer:
+            raise NotFoundError("writer unknown or expired on this deployer; open a new one")
+        writer.used = time.monotonic()
+        return writer
+
+    def pop(self, wid: str, peer: str | None) -> _Writer | None:
+        """Remove and return ``wid`` (of ``peer``; None: any peer), or None."""
+        with self._lock:
+            writer = self._by_id.get(wid)
+            if writer is None or (peer is not None and writer.owner != peer):
+                return None
+            del self._by_id[wid]
+            for table, key in ((self._ports, writer.key), (self._peers, writer.owner)):
+                left = table.get(key, 1) - 1
+                if left > 0:
+                    table[key] = left
+                else:
+                    table.pop(key, None)
+            return writer
+
+    def sweep(self) -> int:
+        """Close the writers unused for ``idle`` s; returns how many."""
+        cutoff = time.monotonic() - self.idle
+        stale = [wid for wid, w in list(self._by_id.items()) if w.used < cutoff]
+        closed = 0
+        for wid in stale:
+            writer = self.pop(wid, None)
+            if writer is not None:
+                writer.close()
+                closed += 1
+        if closed:
+            log.info("closed %d remote writer(s) unused for %.0f s", closed, self.idle)
+        return closed
+
+    def close_all(self) -> None:
+        for wid in list(self._by_id):
+            writer = self.pop(wid, None)
+            if writer is not None:
+                writer.close()
 
 
 class DeployerServicer(df_grpc.DeployerServiceServicer):
@@ -98,10 +195,21 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         self._lock = threading.Lock()
         self._seen: dict[tuple[str, str], _Seen] = {}
         self._defaults: dict[tuple[str, str], _Writer] = {}
-        self._writers: dict[int, _Writer] = {}
-        self._next_writer = 1
+        self._writers = _Writers(WRITER_IDLE_S, WRITERS_PER_PORT, WRITERS_PER_PEER, MAX_WRITERS)
         self._streams: set[_Stream] = set()
         self._stopping = threading.Event()
+        self._sweeper: threading.Thread | None = None  # started with the first remote writer
+
+    def _start_sweeper(self) -> None:
+        with self._lock:
+            if self._sweeper is None and not self._stopping.is_set():
+                self._sweeper = threading.Thread(target=self._sweep, name="scart-writer-sweeper", daemon=True)
+                self._sweeper.start()
+
+    def _sweep(self) -> None:
+        """Reclaim the writers of clients that went away (bounded: idle + a quarter of it)."""
+        while not self._stopping.wait(self._writers.idle / 4):
+            self._writers.sweep()
 
     # ---- lookup helpers -------------------------------------------------------------
     def _task(self, name: str) -> Any:
@@ -135,16 +243,19 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, given {given}: {exc}") from None
 
     def stop(self) -> None:
-        """Wake every stream so it ends; close taps and writers (idempotent)."""
+        """Wake every stream so it ends; close taps and writers; end the sweeper (idempotent)."""
         self._stopping.set()
         with self._lock:
             for stream in list(self._streams):
                 stream.wake.set()
-            for item in [*self._defaults.values(), *self._writers.values()]:
+            for item in self._defaults.values():
                 item.close()
             self._seen.clear()
             self._defaults.clear()
-            self._writers.clear()
+        self._writers.close_all()
+        sweeper = self._sweeper
+        if sweeper is not None and sweeper.is_alive() and threading.current_thread() is not sweeper:
+            sweeper.join(timeout=5.0)
 
     # ---- introspection and lifecycle ---------------------------------------------------
     @staticmethod
@@ -220,11 +331,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
 
     def WritePort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
-            if request.writer_id:
-                with self._lock:
-                    writer = self._writers.get(request.writer_id)
-                if writer is None:
-                    raise NotFoundError(f"writer {request.writer_id} is not open on this deployer")
+            if request.writer:
+                writer = self._writers.get(request.writer, peer_key(context))
                 port = writer.target
                 task = writer.task
                 where = f"{task}.{port.name}"
@@ -244,18 +352,20 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
     def OpenWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
             port = self._port(request.task, request.port, want_input=True)
-            writer = _Writer(request.task, port, cv.policy_from_msg(request.policy))
-            with self._lock:
-                wid = self._next_writer
-                self._next_writer += 1
-                self._writers[wid] = writer
-            return pb.OpenWriterResponse(writer_id=wid)
+            policy = cv.policy_from_msg(request.policy)
+            writer = _Writer(request.task, port, policy, owner=peer_key(context))
+            try:
+                wid = self._writers.add(writer)
+            except Abort:
+                writer.close()
+                raise
+            self._start_sweeper()
+            return pb.OpenWriterResponse(writer=wid, idle_seconds=self._writers.idle)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
     def CloseWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        with self._lock:
-            writer = self._writers.pop(request.writer_id, None)
+        writer = self._writers.pop(request.writer, peer_key(context))
         if writer is not None:
             writer.close()
         return pb.CloseWriterResponse()
@@ -291,16 +401,17 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             with self._lock:  # value, sequence and stamp taken together
                 written, value = port.last_sample()
                 if written == 0:
-                    return pb.ReadPortResponse(flow_status=cv.flow_to_msg(FlowStatus.NO_DATA))
+                    return pb.ReadPortResponse(flow_status=cv.flow_to_msg(FlowStatus.NO_DATA),
+                                               boot_id=self.owner.boot_id)
                 seen = self._seen.get(key)
                 if seen is None:
                     seen = self._seen[key] = _Seen()
-                if seen.sequence == 0 or written != seen.written:  # a write since the last read
-                    seen.written, seen.sequence, seen.stamp = written, seen.sequence + 1, time.time_ns()
-                sequence, stamp = seen.sequence, seen.stamp
+                if seen.written != written:  # a write since the last read: stamp it now
+                    seen.written, seen.stamp = written, time.time_ns()
+                stamp = seen.stamp
             return pb.ReadPortResponse(
                 flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=codec.encode(value, port.type),
-                sequence=sequence, source_time_ns=stamp,
+                sequence=written, source_time_ns=stamp, boot_id=self.owner.boot_id,
             )
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
@@ -320,7 +431,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         # a client's heartbeat request is clamped: too often is a busy loop, too rare hides a frozen peer
         heartbeat = min(max(request.heartbeat_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
         try:
-            yield pb.SubscribeResponse(heartbeat=True)  # tells the client it is connected
+            yield pb.SubscribeResponse(heartbeat=True, boot_id=self.owner.boot_id)  # connected
             while context.is_active() and not self._stopping.is_set():
                 if not stream.wake.wait(heartbeat):
                     yield pb.SubscribeResponse(heartbeat=True, dropped=stream.dropped)

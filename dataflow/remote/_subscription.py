@@ -5,7 +5,10 @@ puts samples into a policy-shaped :class:`Mailbox` and reconnects after failures
 *dispatcher* calls the observer. With DATA the mailbox keeps only the newest sample, so
 a slow observer never sees a backlog; with BUFFER(n) it holds n and counts the rest as
 dropped; the server's own connection does the same on the task's side and reports its
-drops in every message. A peer silent for 3 heartbeats is treated as frozen: the stream
+drops in every message. Every sample also carries its port's write number and the
+stream its deployer's boot id, so what was written while the stream was cut (a frozen
+peer, a reconnection) shows as a jump between the last sample before and the first
+after, and is counted too: ``dropped`` is the writes not delivered. A peer silent for 3 heartbeats is treated as frozen: the stream
 is cancelled and re-established (through the name service), and the gap is reported.
 A sample that cannot be decoded is logged and counted as dropped; any other receiver
 failure is logged and the stream re-established — the receiver never dies silently.
@@ -72,8 +75,12 @@ class GrpcSubscription(Subscription):
         self._gap_start: float | None = None
         self._gap_reason = ""
         self._last_seen = time.monotonic()
-        self._server_dropped_done = 0
-        self._server_dropped_now = 0
+        self._boot = ""  # the deployer process the sequence numbers belong to
+        self._last_seq: int | None = None  # the write number of the last sample received
+        self._new_stream = True  # the next sample is the first of a (re)connected stream
+        self._skipped = 0  # writes lost between streams (jumps across a reconnection)
+        self._server_dropped_done = 0  # dropped on the task's side, by finished streams
+        self._server_dropped_now = 0  # ... by the current one
         self.polls = 0
         self.wasted_polls = 0
         self.reconnects = 0
@@ -100,7 +107,8 @@ class GrpcSubscription(Subscription):
     # ---- counters ----------------------------------------------------------------------
     @property
     def dropped(self) -> int:
-        return self._server_dropped_done + self._server_dropped_now + self._mailbox.dropped + self.decode_errors
+        return (self._skipped + self._server_dropped_done + self._server_dropped_now + self._mailbox.dropped
+                + self.decode_errors)
 
     @property
     def connected(self) -> bool:
@@ -121,14 +129,19 @@ class GrpcSubscription(Subscription):
                 call.cancel()
 
     # ---- connection state --------------------------------------------------------------
-    def _mark_up(self) -> None:
+    def _mark_up(self, boot_id: str = "") -> None:
         self._last_seen = time.monotonic()
+        restarted = bool(boot_id) and bool(self._boot) and boot_id != self._boot
+        if boot_id:
+            if restarted:
+                self._last_seq = None  # a new process: its write numbers start over
+            self._boot = boot_id
         if self._connected:
             return
         self._connected = True
         self._settled.set()
         if self._gap_start is not None:
-            gap = GapEvent(self.component, self.port, self._gap_start, time.time(), self._gap_reason)
+            gap = GapEvent(self.component, self.port, self._gap_start, time.time(), self._gap_reason, restarted)
             self._gap_start = None
             with self._lock:
                 self._gaps.append(gap)
@@ -187,11 +200,14 @@ class GrpcSubscription(Subscription):
         if self._closed.is_set():
             call.cancel()
             return
+        self._new_stream = True
         try:
             for msg in call:
-                self._mark_up()
+                self._mark_up(msg.boot_id)
                 self._server_dropped_now = msg.dropped
                 for sample in msg.samples:
+                    if not self._count(sample.sequence):
+                        continue  # already delivered (handed over again after a reconnection)
                     try:
                         value = codec.decode(sample.value)
                     except Exception:  # noqa: BLE001 - one bad sample must not end the stream
@@ -211,14 +227,28 @@ class GrpcSubscription(Subscription):
             self._server_dropped_done += self._server_dropped_now
             self._server_dropped_now = 0
 
+    def _count(self, sequence: int, jumps_are_mine: bool = False) -> bool:
+        """Note the write number of a received sample; False for one received already. The
+        writes skipped between the last stream's last sample and a new stream's first were
+        lost while cut off: counted here (within a stream, the server counts its drops;
+        polling, ``jumps_are_mine``, counts every jump here)."""
+        last = self._last_seq
+        if last is not None and sequence <= last:
+            return False
+        if last is not None and (self._new_stream or jumps_are_mine):
+            self._skipped += sequence - last - 1
+        self._new_stream = False
+        self._last_seq = sequence
+        return True
+
     def _poll(self) -> None:
         """JOrocos-style polling: ReadPort every ``period`` s, deliver what is new."""
         assert self.period is not None
         while not self._closed.is_set():
-            flow, value, seq, stamp = self._proxy.read_sample(self.port)
-            self._mark_up()
+            flow, value, seq, stamp, boot = self._proxy.read_sample_of(self.port)
+            self._mark_up(boot)
             self.polls += 1
-            if flow is FlowStatus.NEW_DATA:
+            if flow is FlowStatus.NEW_DATA and self._count(seq, jumps_are_mine=True):
                 self._mailbox.put(SampleEvent(self.component, self.port, value, flow, stamp / 1e9, seq))
             else:
                 self.wasted_polls += 1

@@ -61,13 +61,16 @@ class SampleEvent:
 
 @dataclass(frozen=True)
 class GapEvent:
-    """The subscription was cut from ``started`` to ``ended`` (wall-clock s) and resumed."""
+    """The subscription was cut from ``started`` to ``ended`` (wall-clock s) and resumed;
+    ``restarted`` when the deployer is a new process (its sequence numbers started over).
+    The samples a gap lost are counted in the subscription's ``dropped``."""
 
     component: str
     port: str
     started: float
     ended: float
     reason: str
+    restarted: bool = False
 
     @property
     def duration(self) -> float:
@@ -103,11 +106,17 @@ class Mailbox(Generic[T]):
 
     def __init__(self, policy: ConnPolicy) -> None:
         self._kind = policy.type
-        self._size = max(1, policy.size) if policy.type is not ConnType.DATA else 1
+        self._size = self._policy_size = max(1, policy.size) if policy.type is not ConnType.DATA else 1
         self._items: deque[T] = deque()
         self._cond = threading.Condition()
         self._closed = False
         self.dropped = 0
+
+    def limit(self, size: int) -> None:
+        """Hold at most ``size`` items from now on (never more than the policy says; items
+        already pending stay). Used to keep a subscription within a byte budget."""
+        with self._cond:
+            self._size = max(1, min(size, self._policy_size))
 
     def put(self, item: T) -> bool:
         """Store ``item``; False when it was refused (full BUFFER)."""

@@ -226,7 +226,7 @@ class GrpcComponentProxy(ComponentProxy):
     def __init__(self, system: GrpcSystem, name: str) -> None:
         self.system = system
         self.name = name
-        self._seen: dict[str, int] = {}
+        self._seen: dict[str, tuple[str, int]] = {}
         self._lock = threading.Lock()
 
     def _invoke(self, method: str, request: Any, timeout: float | None = None) -> Any:
@@ -267,16 +267,21 @@ class GrpcComponentProxy(ComponentProxy):
         return self.read_sample(port)[:2]
 
     def read_sample(self, port: str, timeout: float | None = None) -> tuple[FlowStatus, object | None, int, int]:
-        """``(flow, value, sequence, source_time_ns)``; NEW_DATA when written since this proxy's last read."""
+        """``(flow, value, sequence, source_time_ns)``; NEW_DATA when written since this
+        proxy's last read; ``sequence`` is the port's write number."""
+        return self.read_sample_of(port, timeout)[:4]  # type: ignore[return-value]
+
+    def read_sample_of(self, port: str, timeout: float | None = None) -> tuple[FlowStatus, object | None, int, int, str]:
+        """:meth:`read_sample` plus the deployer's boot id (write numbers restart with a new one)."""
         reply = self._invoke("ReadPort", pb.ReadPortRequest(task=self.name, port=port), timeout)
         flow = cv.flow_from_msg(reply.flow_status)
         if flow is FlowStatus.NO_DATA:
-            return FlowStatus.NO_DATA, None, 0, 0
+            return FlowStatus.NO_DATA, None, 0, 0, reply.boot_id
         with self._lock:
-            new = self._seen.get(port) != reply.sequence
-            self._seen[port] = reply.sequence
+            new = self._seen.get(port) != (reply.boot_id, reply.sequence)
+            self._seen[port] = (reply.boot_id, reply.sequence)
         flow = FlowStatus.NEW_DATA if new else FlowStatus.OLD_DATA
-        return flow, codec.decode(reply.value), reply.sequence, reply.source_time_ns
+        return flow, codec.decode(reply.value), reply.sequence, reply.source_time_ns, reply.boot_id
 
     def subscribe(
         self,
@@ -318,25 +323,26 @@ class GrpcPortWriter(PortWriter):
     def __init__(self, proxy: GrpcComponentProxy, port: str, policy: ConnPolicy) -> None:
         super().__init__(proxy.name, port, policy)
         self._proxy = proxy
-        self._id = 0
+        self._id = ""
         self._closed = False
         self._open()
         proxy.system.own(self)
 
     def _open(self) -> None:
         req = pb.OpenWriterRequest(task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy))
-        self._id = self._proxy._invoke("OpenWriter", req).writer_id
+        self._id = self._proxy._invoke("OpenWriter", req).writer
 
     def write(self, value: object) -> WriteStatus:
         if self._closed:
             raise errors.ClosedError(f"writer to {self.component}.{self.port} is closed")
-        req = pb.WritePortRequest(writer_id=self._id, value=codec.encode(value))
+        req = pb.WritePortRequest(writer=self._id, value=codec.encode(value))
         try:
             return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
         except errors.RemoteNotFoundError:
-            # the deployer restarted: our writer id is gone (the sample was not written)
+            # the deployer restarted, or reclaimed our writer after it sat unused: the
+            # sample was not written; a new writer takes it
             self._open()
-            req.writer_id = self._id
+            req.writer = self._id
             return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
 
     def close(self) -> None:
@@ -345,7 +351,7 @@ class GrpcPortWriter(PortWriter):
         self._closed = True
         self._proxy.system.disown(self)
         try:
-            self._proxy._invoke("CloseWriter", pb.CloseWriterRequest(writer_id=self._id), timeout=0.5)
+            self._proxy._invoke("CloseWriter", pb.CloseWriterRequest(writer=self._id), timeout=0.5)
         except DataflowError:
             pass
 

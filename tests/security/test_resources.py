@@ -11,7 +11,7 @@ from collections.abc import Iterator
 import grpc
 import pytest
 
-from dataflow import Deployer
+from dataflow import Deployer, OutputPort
 from dataflow.remote import _rpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
@@ -68,3 +68,119 @@ def test_one_peer_cannot_take_every_stream() -> None:
     assert budget._take("c") == "this server carries at most 8 streams at once"
     budget._give("a")
     assert budget._take("c") is None and budget.open == 8
+
+
+@pytest.fixture
+def served_pinger() -> Iterator[tuple[Pinger, object]]:
+    deployer = Deployer()
+    task = Pinger("p")
+    deployer.add(task)
+    server = deployer.serve("127.0.0.1:0")
+    try:
+        yield task, server
+    finally:
+        server.stop()  # type: ignore[attr-defined]
+
+
+def _open(stub: df_grpc.DeployerServiceStub) -> str:
+    return stub.OpenWriter(pb.OpenWriterRequest(task="p", port="input"), timeout=5).writer
+
+
+def test_a_writer_has_a_secret_id_only_its_peer_may_use(served_pinger: tuple[Pinger, object]) -> None:
+    task, server = served_pinger
+    address = server.address  # type: ignore[attr-defined]
+    separate = [("grpc.use_local_subchannel_pool", 1)]  # a connection of its own: another peer
+    with grpc.insecure_channel(address) as mine, grpc.insecure_channel(address, options=separate) as theirs:
+        wid = _open(df_grpc.DeployerServiceStub(mine))
+        assert len(wid) == 32 and wid != _open(df_grpc.DeployerServiceStub(mine))
+        value = pb.WritePortRequest(writer=wid, json="1.5")
+        with pytest.raises(grpc.RpcError) as info:  # another connection: another peer
+            df_grpc.DeployerServiceStub(theirs).WritePort(value, timeout=5)
+        assert info.value.code() == grpc.StatusCode.NOT_FOUND
+        df_grpc.DeployerServiceStub(theirs).CloseWriter(pb.CloseWriterRequest(writer=wid), timeout=5)  # ignored
+        assert df_grpc.DeployerServiceStub(mine).WritePort(value, timeout=5).status == pb.WRITE_STATUS_WRITE_SUCCESS
+        assert task.input.connection_count() == 2
+
+
+def test_the_writers_of_a_client_that_went_away_are_reclaimed(monkeypatch: pytest.MonkeyPatch) -> None:
+    from dataflow.remote import _servicer
+
+    monkeypatch.setattr(_servicer, "WRITER_IDLE_S", 0.4)
+    deployer = Deployer()
+    task = Pinger("p")
+    deployer.add(task)
+    server = deployer.serve("127.0.0.1:0")
+    try:
+        with grpc.insecure_channel(server.address) as channel:  # a client that opens and then vanishes
+            for _ in range(5):
+                _open(df_grpc.DeployerServiceStub(channel))
+        assert task.input.connection_count() == 5
+        wait_until(lambda: task.input.connection_count() == 0, timeout=5, message="dead client's writers kept")
+    finally:
+        server.stop()
+
+
+def test_writers_are_bounded_per_port(monkeypatch: pytest.MonkeyPatch) -> None:
+    from dataflow.remote import _servicer
+
+    monkeypatch.setattr(_servicer, "WRITERS_PER_PORT", 3)
+    deployer = Deployer()
+    deployer.add(Pinger("p"))
+    server = deployer.serve("127.0.0.1:0")
+    try:
+        with grpc.insecure_channel(server.address) as channel:
+            stub = df_grpc.DeployerServiceStub(channel)
+            ids = [_open(stub) for _ in range(3)]
+            with pytest.raises(grpc.RpcError) as info:
+                _open(stub)
+            assert info.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED and "p.input has 3" in info.value.details()
+            stub.CloseWriter(pb.CloseWriterRequest(writer=ids[0]), timeout=5)
+            _open(stub)  # a closed one frees its place
+    finally:
+        server.stop()
+
+
+def test_two_thousand_writers_come_and_go(served_pinger: tuple[Pinger, object]) -> None:
+    task, server = served_pinger
+    with grpc.insecure_channel(server.address) as channel:  # type: ignore[attr-defined]
+        stub = df_grpc.DeployerServiceStub(channel)
+        ids = [_open(stub) for _ in range(2000)]
+        assert task.input.connection_count() == 2000 and len(set(ids)) == 2000
+        for wid in ids:
+            stub.CloseWriter(pb.CloseWriterRequest(writer=wid), timeout=5)
+    assert task.input.connection_count() == 0
+
+
+class _Big(Pinger):
+    """Pinger plus a port of large samples (20 000 doubles, about 160 kB encoded)."""
+
+    big = OutputPort(list[float], doc="large samples")
+
+
+def test_a_remote_buffer_is_capped_and_a_stuck_subscriber_is_bounded_in_bytes() -> None:
+    from dataflow import ConnPolicy
+    from dataflow.remote import RemoteError, connect
+    from dataflow.remote._convert import MAX_BUFFER_SIZE, policy_to_msg
+    from dataflow.remote._servicer import STREAM_BYTE_BUDGET
+
+    deployer = Deployer()
+    task = _Big("p")
+    deployer.add(task)
+    server = deployer.serve("127.0.0.1:0")
+    try:
+        with connect(server.address) as system, pytest.raises(RemoteError, match="exceeds the limit of 10000 samples"):
+            system.component("p").subscribe("big", lambda e: None, policy=ConnPolicy.buffer(1_000_000))
+        assert MAX_BUFFER_SIZE == 10_000
+        with grpc.insecure_channel(server.address) as channel:  # a subscriber that stops reading
+            stream = df_grpc.DeployerServiceStub(channel).Subscribe(pb.SubscribeRequest(
+                task="p", port="big", policy=policy_to_msg(ConnPolicy.buffer(10_000))))
+            assert next(stream).heartbeat
+            (inbox,) = server._servicer._streams
+            for i in range(400):  # 64 MB written; the stream may hold 4 MB
+                task.big.write([float(i)] * 20_000)
+            wait_until(lambda: inbox.dropped > 0, timeout=10, message="nothing dropped: unbounded")
+            pending = len(inbox._mailbox._items)
+            assert 0 < pending * 160_000 <= STREAM_BYTE_BUDGET * 1.1, pending
+            stream.cancel()
+    finally:
+        server.stop()

@@ -8,6 +8,7 @@ import threading
 
 import pytest
 
+from dataflow import ConnPolicy
 from dataflow.remote import RemoteTimeoutError, connect, serve_nameserver
 from dataflow.remote.naming import NameClient
 from support import free_port, wait_until
@@ -75,7 +76,7 @@ def test_deployer_killed_and_restarted_subscription_resumes(ns, procs) -> None:
         mark = rec.count()
         wait_until(lambda: rec.count() >= mark + 5, timeout=10)
         gap = sub.gaps[0]
-        assert gap.duration > 0 and rec.gaps == [gap]
+        assert gap.duration > 0 and rec.gaps == [gap] and gap.restarted  # a new process: a new boot id
         assert rec.values[-1] < 1000  # counting again from the new process
         assert proxy.call("add", 1.0, 2.0) == 3.0  # unary calls re-resolve too
         assert system.components()[0].address == second
@@ -127,6 +128,29 @@ def test_frozen_deployer_detected_by_heartbeat_then_resumes(ns, procs) -> None:
         # the freeze was noticed by the missing heartbeats (not a TCP error), and the gap is real
         assert "no heartbeat" in gap.reason, gap.reason
         assert gap.duration > 0 and rec.gaps == [gap]
+
+
+def test_samples_lost_in_a_freeze_are_counted_exactly(ns, procs) -> None:
+    """Every sample carries its port's write number: what a gap lost is counted in
+    ``dropped``, exactly (the ticks are the write numbers, so the holes can be checked)."""
+    _deploy(procs, ns.address)
+    with connect(ns.address, timeout=1.0, heartbeat_ms=200) as system:
+        rec = Recorder()
+        sub = system.component("p").subscribe("ticks", rec, policy=ConnPolicy.buffer(10_000), on_gap=rec.on_gap)
+        wait_until(lambda: rec.count() >= 3, timeout=10)
+        procs[0].send_signal(signal.SIGSTOP)
+        try:
+            wait_until(lambda: not sub.connected, timeout=5, message="a frozen peer must be detected")
+        finally:
+            procs[0].send_signal(signal.SIGCONT)
+        wait_until(lambda: sub.gaps, timeout=15, message="the subscription should resume after SIGCONT")
+        mark = rec.count()
+        wait_until(lambda: rec.count() >= mark + 10, timeout=10)
+        sub.close()
+        values = list(rec.values)
+    missing = (values[-1] - values[0] + 1) - len(values)
+    assert values == sorted(set(values)) and missing > 0, values
+    assert sub.dropped == missing and not sub.gaps[0].restarted
 
 
 def test_writer_survives_restart(ns, procs) -> None:

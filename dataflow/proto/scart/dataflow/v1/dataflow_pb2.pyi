@@ -195,18 +195,18 @@ class ChangeStateResponse(_message.Message):
     def __init__(self, accepted: _Optional[bool] = ..., state: _Optional[str] = ...) -> None: ...
 
 class WritePortRequest(_message.Message):
-    __slots__ = ("task", "port", "value", "json", "writer_id")
+    __slots__ = ("task", "port", "value", "json", "writer")
     TASK_FIELD_NUMBER: _ClassVar[int]
     PORT_FIELD_NUMBER: _ClassVar[int]
     VALUE_FIELD_NUMBER: _ClassVar[int]
     JSON_FIELD_NUMBER: _ClassVar[int]
-    WRITER_ID_FIELD_NUMBER: _ClassVar[int]
+    WRITER_FIELD_NUMBER: _ClassVar[int]
     task: str
     port: str
     value: _value_pb2.Value
     json: str
-    writer_id: int
-    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., json: _Optional[str] = ..., writer_id: _Optional[int] = ...) -> None: ...
+    writer: str
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., json: _Optional[str] = ..., writer: _Optional[str] = ...) -> None: ...
 
 class WritePortResponse(_message.Message):
     __slots__ = ("status",)
@@ -245,16 +245,18 @@ class OpenWriterRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ...) -> None: ...
 
 class OpenWriterResponse(_message.Message):
-    __slots__ = ("writer_id",)
-    WRITER_ID_FIELD_NUMBER: _ClassVar[int]
-    writer_id: int
-    def __init__(self, writer_id: _Optional[int] = ...) -> None: ...
+    __slots__ = ("writer", "idle_seconds")
+    WRITER_FIELD_NUMBER: _ClassVar[int]
+    IDLE_SECONDS_FIELD_NUMBER: _ClassVar[int]
+    writer: str
+    idle_seconds: float
+    def __init__(self, writer: _Optional[str] = ..., idle_seconds: _Optional[float] = ...) -> None: ...
 
 class CloseWriterRequest(_message.Message):
-    __slots__ = ("writer_id",)
-    WRITER_ID_FIELD_NUMBER: _ClassVar[int]
-    writer_id: int
-    def __init__(self, writer_id: _Optional[int] = ...) -> None: ...
+    __slots__ = ("writer",)
+    WRITER_FIELD_NUMBER: _ClassVar[int]
+    writer: str
+    def __init__(self, writer: _Optional[str] = ...) -> None: ...
 
 class CloseWriterResponse(_message.Message):
     __slots__ = ()
@@ -269,16 +271,18 @@ class ReadPortRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ...) -> None: ...
 
 class ReadPortResponse(_message.Message):
-    __slots__ = ("flow_status", "value", "sequence", "source_time_ns")
+    __slots__ = ("flow_status", "value", "sequence", "source_time_ns", "boot_id")
     FLOW_STATUS_FIELD_NUMBER: _ClassVar[int]
     VALUE_FIELD_NUMBER: _ClassVar[int]
     SEQUENCE_FIELD_NUMBER: _ClassVar[int]
     SOURCE_TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     flow_status: FlowStatus
     value: _value_pb2.Value
     sequence: int
     source_time_ns: int
-    def __init__(self, flow_status: _Optional[_Union[FlowStatus, str]] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., sequence: _Optional[int] = ..., source_time_ns: _Optional[int] = ...) -> None: ...
+    boot_id: str
+    def __init__(self, flow_status: _Optional[_Union[FlowStatus, str]] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., sequence: _Optional[int] = ..., source_time_ns: _Optional[int] = ..., boot_id: _Optional[str] = ...) -> None: ...
 
 class SubscribeRequest(_message.Message):
     __slots__ = ("task", "port", "policy", "heartbeat_ms")
@@ -293,14 +297,16 @@ class SubscribeRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
 
 class SubscribeResponse(_message.Message):
-    __slots__ = ("heartbeat", "samples", "dropped")
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
+    BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     heartbeat: bool
     samples: _containers.RepeatedCompositeFieldContainer[Sample]
     dropped: int
-    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ...) -> None: ...
+    boot_id: str
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ...) -> None: ...
 
 class Sample(_message.Message):
     __slots__ = ("value", "sequence", "source_time_ns")

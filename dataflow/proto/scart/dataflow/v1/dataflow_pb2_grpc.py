@@ -146,7 +146,8 @@ class DeployerServiceServicer:
         raise NotImplementedError('Method not implemented!')
 
     def OpenWriter(self, request, context):
-        """Open / close a remote writer connected to an input port with a policy.
+        """Open / close a remote writer connected to an input port with a policy. Writers are
+        bounded per port, per peer and in total (RESOURCE_EXHAUSTED beyond).
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
