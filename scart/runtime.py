@@ -14,13 +14,15 @@ see :mod:`scart.spi`), then service bindings. A failing ``@init`` raises ``Scart
 (the cause chained) after stopping what started.
 
 ``stop()``: stops service bindings, then extension participants (reverse), closes the
-one-way pool and drains it with a deadline (``drain_timeout``, default 10 s): queued and
-in-flight one-way calls may finish until then; after it, queued calls are dropped (logged
-and counted) and calls still running are logged by operation and left behind on their
-daemon worker threads. Then ``@destroy`` runs in reverse init order (also when ``stop()``
-is called from a one-way worker: the *other* workers are drained first, the caller's own
-call is still running), reference bindings stop, and every proxy handed out (by
-``service()`` or injected as a reference) is switched to raising ``RuntimeStateError``.
+one-way pool and drains it with a deadline (``drain_timeout``, default 10 s, counted from
+the start of the stop): queued and in-flight one-way calls may finish until then; after
+it, queued calls are dropped (logged and counted) and calls still running are logged by
+operation and left behind on their daemon worker threads. Then ``@destroy`` runs in
+reverse init order, each under the same deadline (at least ``MIN_DESTROY_S``): one that
+hangs is logged and left behind (also when ``stop()`` is called from a one-way worker:
+the *other* workers are drained first, the caller's own call is still running),
+reference bindings stop, and every proxy handed out (by ``service()`` or injected as a
+reference) is switched to raising ``RuntimeStateError``.
 
 One-way calls queue on a bounded pool: at most ``max_pending`` (default 10 000) waiting
 calls; beyond that the caller gets a ``ScartError`` at once (backpressure), counted in
@@ -61,6 +63,7 @@ from scart.spi import (
 
 log = logging.getLogger("scart.runtime")
 T = TypeVar("T")
+MIN_DESTROY_S = 0.5  #: every @destroy gets at least this long, even past the stop deadline
 
 
 class RuntimeState(enum.Enum):
@@ -236,15 +239,16 @@ class Runtime:
                                 getattr(self._stopping_thread, "name", "?"), limit)
             return
         self._stopping_thread = threading.current_thread()
+        deadline = time.monotonic() + self.drain_timeout
         try:
             for binding in reversed(self._service_bindings):
                 _quietly(binding.stop, "stopping a service binding")
             for participant in reversed(self._participants):
                 _quietly(participant.stop, "stopping an extension participant")
             if self._pool is not None:
-                self._drain_pool(self._pool)
+                self._drain_pool(self._pool, deadline)
             for path in reversed(self._started):
-                _quietly(self._managers[path].stop, f"destroying {path}")
+                self._destroy(path, deadline)
             for bindings in self._ref_bindings.values():
                 for rb in bindings:
                     _quietly(rb.stop, "stopping a reference binding")
@@ -254,8 +258,26 @@ class Runtime:
             self._disable_proxies()
             self._stopped.set()
 
-    def _drain_pool(self, pool: OnewayPool) -> None:
-        dropped, stuck = pool.close(time.monotonic() + self.drain_timeout)
+    def _destroy(self, path: str, deadline: float) -> None:
+        """Stop one component (its ``@destroy``) on a thread of its own, waiting until
+        ``deadline`` (at least :data:`MIN_DESTROY_S`): one that hangs is logged and left
+        behind (a daemon thread), so a stop never outlasts its timeout by much."""
+        manager = self._managers[path]
+        done = threading.Event()
+
+        def run() -> None:
+            try:
+                _quietly(manager.stop, f"destroying {path}")
+            finally:
+                done.set()
+
+        threading.Thread(target=run, name=f"scart-destroy-{path}", daemon=True).start()
+        if not done.wait(max(MIN_DESTROY_S, deadline - time.monotonic())):
+            log.warning("stop: destroying %s did not finish within the stop timeout (%.1f s); left behind",
+                        path, self.drain_timeout)
+
+    def _drain_pool(self, pool: OnewayPool, deadline: float) -> None:
+        dropped, stuck = pool.close(deadline)
         if dropped:
             with self._failures_lock:
                 self.oneway_failures += dropped

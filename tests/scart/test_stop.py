@@ -199,3 +199,69 @@ def test_proxies_raise_after_stop(tmp_path: Path) -> None:
         inner.greet("x")  # a reference proxy held by the (destroyed) instance
     with pytest.raises(scart.RuntimeStateError):
         rt.service("C")
+
+
+# --- a @destroy that hangs ---------------------------------------------------------------
+
+HANGING = '''
+import threading
+
+import scart
+
+RELEASE = threading.Event()
+
+
+class Hangs:
+    @scart.destroy
+    def close(self) -> None:
+        RELEASE.wait(None)  # a driver that never lets go
+
+
+class Fine:
+    log_file: str = scart.prop(default="")
+
+    @scart.destroy
+    def close(self) -> None:
+        if self.log_file:
+            with open(self.log_file, "a", encoding="utf-8") as fh:
+                fh.write("destroy fine\\n")
+'''
+
+
+def hanging_composite(tmp_path: Path, log: Path | None = None) -> Path:
+    (tmp_path / "hanging.py").write_text(HANGING, encoding="utf-8")
+    prop = f'<property name="log_file">{log}</property>' if log else ""
+    return write(tmp_path, {"h.composite": composite(f"""
+        <component name="F"><scart:implementation.python class="hanging:Fine"/>{prop}</component>
+        <component name="H"><scart:implementation.python class="hanging:Hangs"/></component>
+    """)})
+
+
+def test_a_hanging_destroy_is_left_behind_at_the_stop_deadline(tmp_path: Path,
+                                                               caplog: pytest.LogCaptureFixture) -> None:
+    log = tmp_path / "events.log"
+    rt = scart.Runtime.from_file(str(hanging_composite(tmp_path, log)), drain_timeout=0.3)
+    rt.start()
+    start = time.monotonic()
+    with caplog.at_level(logging.WARNING, logger="scart.runtime"):
+        rt.stop()
+    try:
+        assert time.monotonic() - start < 5.0
+        assert "destroying H did not finish within the stop timeout" in caplog.text
+        assert log.read_text() == "destroy fine\n"  # the others are destroyed all the same
+    finally:
+        importlib.import_module("hanging").RELEASE.set()
+
+
+def test_run_exits_within_stop_timeout_when_a_destroy_hangs(tmp_path: Path) -> None:
+    proc = start("run", str(hanging_composite(tmp_path)), "--stop-timeout", "0.5")
+    try:
+        read_until(proc, "started")
+        began = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        out, err = finish(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0 and time.monotonic() - began < 10.0, err
+    assert "destroying H did not finish" in err and "scart: stopped" in out
