@@ -29,7 +29,7 @@ imports ``scart``.
 
 from .activities import Activity, EventActivity, PeriodicActivity, SlaveActivity
 from .deployer import Deployer
-from .errors import DataflowError, DeploymentError, NotFoundError, PortTypeError, PropertyValueError
+from .errors import DataflowError, DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 from .introspection import (
     OperationDescription,
     PortDescription,
@@ -72,6 +72,7 @@ __all__ = [
     "NotFoundError",
     "DeploymentError",
     "PropertyValueError",
+    "PortValueError",
     "TaskDescription",
     "PortDescription",
     "PropertyDescription",

@@ -13,6 +13,7 @@ __all__ = [
     "NotFoundError",
     "DeploymentError",
     "PropertyValueError",
+    "PortValueError",
 ]
 
 
@@ -37,3 +38,8 @@ class DeploymentError(DataflowError):
 
 class PropertyValueError(DataflowError, ValueError):
     """A property value has the right type but is outside what the property accepts."""
+
+
+class PortValueError(DataflowError, ValueError):
+    """A value written to an input port from outside has the right type but is outside the
+    port's bounds (not finite, below or above its range)."""

@@ -10,7 +10,8 @@ __all__ = ["TaskDescription", "PortDescription", "PropertyDescription", "Operati
 
 
 class PortDescription(BaseModel):
-    """A port: direction, registry type name, doc, number of connections, event port or not."""
+    """A port: direction, registry type name, doc, number of connections, event port or not,
+    and (input ports) the bounds of what may be written to it from outside."""
 
     model_config = ConfigDict(frozen=True)
     name: str
@@ -19,16 +20,18 @@ class PortDescription(BaseModel):
     doc: str = ""
     connections: int = 0
     event: bool = False
+    bounds: str = ""
 
 
 class PropertyDescription(BaseModel):
-    """A property: registry type name, current value (JSON-able) and doc."""
+    """A property: registry type name, current value (JSON-able), doc and bounds."""
 
     model_config = ConfigDict(frozen=True)
     name: str
     type_name: str
     value: Any = None
     doc: str = ""
+    bounds: str = ""
 
 
 class OperationDescription(BaseModel):

@@ -67,8 +67,11 @@ import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
+import pydantic
+
+from .bounds import Bounds, bounded_adapter
 from .buffers import _NONE, DataObject, Storage, make_storage
-from .errors import DataflowError, PortTypeError
+from .errors import DataflowError, PortTypeError, PortValueError
 from .policy import BufferPolicy, ConnPolicy, FlowStatus, WriteStatus
 from .types import registry
 
@@ -349,16 +352,22 @@ class InputPort(Port[T]):
     """Reads samples from its connections; never blocks (see module docstring).
 
     ``event=True`` makes the port an event port: new data triggers the owning task's
-    event-driven activity (via a data callback).
+    event-driven activity (via a data callback). ``ge``/``gt``/``le``/``lt``/``finite``
+    bound what may be written to it from outside (remote writes; see
+    :mod:`dataflow.bounds`: numbers must be finite unless ``finite=False``); a task's own
+    connections are not checked.
     """
 
     is_input = True
 
     def __init__(
-        self, type: Any, name: str | None = None, doc: str = "", event: bool = False
+        self, type: Any, name: str | None = None, doc: str = "", event: bool = False, *,
+        ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None,
+        finite: bool | None = None,
     ) -> None:
         super().__init__(type, name, doc)
         self.event = event
+        self.bounds: Bounds | None = Bounds.of(type, ge, gt, le, lt, finite)
         self._sources: tuple[Storage, ...] = ()
         self._current = 0
         self._callbacks: tuple[DataCallback, ...] = ()
@@ -367,8 +376,20 @@ class InputPort(Port[T]):
 
     def _clone(self) -> InputPort[T]:
         port: InputPort[T] = InputPort(self.type, self.name, self.doc, self.event)
+        port.bounds = self.bounds
         port.attr = self.attr
         return port
+
+    def admit(self, value: Any) -> Any:
+        """``value`` checked against the port's bounds (a value written from outside);
+        raises :class:`~dataflow.errors.PortValueError` naming the port, its bounds and the value."""
+        if self.bounds is None:
+            return value
+        try:
+            return bounded_adapter(self.type, self.bounds).validate_python(value)
+        except pydantic.ValidationError as exc:
+            raise PortValueError(f"{self.qualname}: {value!r:.80} refused: {exc.errors()[0]['msg']} "
+                                 f"(accepts {self.bounds.text})") from None
 
     def read(self) -> tuple[FlowStatus, T | None]:
         """The next sample and its :class:`FlowStatus` (see module docstring).

@@ -1,11 +1,13 @@
 """Typed, documented, validated task properties (RTT ``Property<T>``).
 
-Declared on a TaskContext class: ``gain = Property(float, 1.0, doc="...")``; then
-``task.gain`` reads the task's value and ``task.gain = x`` validates ``x`` with pydantic
-(lax mode: ``"2"`` → ``2.0`` for a float) and stores it, or raises
+Declared on a TaskContext class: ``gain = Property(float, 1.0, doc="...", ge=0.0, le=10.0)``;
+then ``task.gain`` reads the task's value and ``task.gain = x`` validates ``x`` with
+pydantic (lax mode: ``"2"`` → ``2.0`` for a float) and stores it, or raises
 :class:`~dataflow.errors.PortTypeError` (wrong type) /
-:class:`~dataflow.errors.PropertyValueError` (rejected by ``check``), naming
-``task.property``. Reads and writes are single reference operations: thread-safe.
+:class:`~dataflow.errors.PropertyValueError` (out of its bounds, or rejected by
+``check``), naming ``task.property``. A number (or a list of numbers) must be finite
+unless ``finite=False`` (see :mod:`dataflow.bounds`). Reads and writes are single
+reference operations: thread-safe.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any, Generic, TypeVar
 
 import pydantic
 
+from .bounds import Bounds, bounded_adapter
 from .errors import PortTypeError, PropertyValueError
 from .types import registry
 
@@ -25,7 +28,9 @@ _TYPE_ERRORS = ("_type", "_parsing", "model_attributes_type", "is_instance_of")
 
 
 class Property(Generic[T]):
-    """A task property: type, default value, doc, optional ``check(value)`` raising ValueError."""
+    """A task property: type, default value, doc, optional ``check(value)`` raising
+    ValueError, and bounds (``ge``/``gt``/``le``/``lt``, ``finite``; see :mod:`dataflow.bounds`).
+    Raises ``ValueError`` for bounds that cannot hold or a default outside them."""
 
     def __init__(
         self,
@@ -33,12 +38,21 @@ class Property(Generic[T]):
         default: T,
         doc: str = "",
         check: Callable[[T], None] | None = None,
+        *,
+        ge: float | None = None,
+        gt: float | None = None,
+        le: float | None = None,
+        lt: float | None = None,
+        finite: bool | None = None,
     ) -> None:
         self.type = type
         self.doc = doc
         self.check = check
         self.name = ""
-        self._adapter: pydantic.TypeAdapter[T] = registry._adapter(type)  # one per type, cached
+        self.bounds: Bounds | None = Bounds.of(type, ge, gt, le, lt, finite)
+        # one adapter per type (and bounds), cached
+        self._adapter: pydantic.TypeAdapter[T] = (
+            bounded_adapter(type, self.bounds) if self.bounds is not None else registry._adapter(type))
         self.default = self._adapter.validate_python(default)
 
     @property

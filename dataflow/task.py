@@ -45,6 +45,7 @@ from inside a hook (from ``update_hook`` it signals the activity and returns).
 from __future__ import annotations
 
 import enum
+import inspect
 import logging
 import threading
 from concurrent.futures import Future
@@ -52,7 +53,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .activities import Activity, EventActivity
-from .errors import NotFoundError
+from .errors import NotFoundError, PortValueError
 from .introspection import (
     OperationDescription,
     PortDescription,
@@ -416,6 +417,33 @@ class TaskContext:
             out[name] = describe_operation(name, fn, spec_of(fn))  # type: ignore[arg-type]
         return out
 
+    def check_arguments(self, name: str, args: list[Any]) -> list[Any]:
+        """``args`` of operation ``name`` checked as values from outside: each against its
+        parameter's declared bounds (``Annotated[float, Field(ge=...)]``), numbers finite
+        (see :mod:`dataflow.bounds`). Raises ``NotFoundError`` for an unknown operation,
+        :class:`~dataflow.errors.PortValueError` naming the parameter."""
+        import pydantic
+
+        from .bounds import argument_adapters
+
+        attr = self._operation_attrs.get(name)
+        if attr is None:
+            raise NotFoundError(f"task {self.name} has no operation {name!r}")
+        fn = getattr(type(self), attr)
+        adapters = argument_adapters(fn)
+        params = [p for p in inspect.signature(fn).parameters if p != "self"]
+        out = list(args)
+        for i, (param, value) in enumerate(zip(params, args, strict=False)):
+            adapter = adapters.get(param)
+            if adapter is None:
+                continue
+            try:
+                out[i] = adapter.validate_python(value)
+            except pydantic.ValidationError as exc:
+                raise PortValueError(f"{self.name}.{name}({param}): {value!r:.80} refused: "
+                                     f"{exc.errors()[0]['msg']}") from None
+        return out
+
     def call(self, name: str, *args: Any, **kwargs: Any) -> Any:
         """Call operation ``name``; blocks until it returned; re-raises what it raised.
 
@@ -466,12 +494,14 @@ class TaskContext:
                 doc=p.doc,
                 connections=p.connection_count(),
                 event=bool(getattr(p, "event", False)),
+                bounds=p.bounds.text if getattr(p, "bounds", None) is not None else "",
             )
             for n, p in self._tc_ports.items()
         ]
         props = [
             PropertyDescription(
-                name=n, type_name=p.type_name, value=registry.to_jsonable(p.value), doc=p.doc
+                name=n, type_name=p.type_name, value=registry.to_jsonable(p.value), doc=p.doc,
+                bounds=p.prop.bounds.text if p.prop.bounds is not None else "",
             )
             for n, p in self.properties().items()
         ]

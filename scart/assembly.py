@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -92,6 +93,17 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
 
 
 _REFUSED = re.compile(r"refused by its check: (.*?)(?: \[type=|$)", re.S)
+
+#: Largest file a property's ``@file`` may name (bytes).
+MAX_PROPERTY_FILE_BYTES = 1 << 20
+
+
+class _FileValues(list):  # type: ignore[type-arg]
+    """Raw values read from a property's ``@file`` (so that errors do not echo them)."""
+
+    def __init__(self, values: list[str], file: str) -> None:
+        super().__init__(values)
+        self.file = file
 
 
 def _is_element(registry: ExtensionRegistry, name: str) -> bool:
@@ -293,13 +305,7 @@ class _Assembler(Checks):
                 return None
             return ctx[name]
         if p.file is not None:
-            file = Path(p.loc.path).parent / p.file
-            try:
-                return [file.read_text(encoding="utf-8").strip()]
-            except OSError as exc:
-                self.problem(E.ASM_PROPERTY_FILE, f"property {p.name!r}: cannot read file {p.file!r}: "
-                             f"{exc.strerror or exc}", p.loc)
-                return None
+            return self.file_value(p)
         if p.values is not None and p.type:
             xsd = XSD_TYPES.get(p.type.rpartition(":")[2])
             if xsd is not None:
@@ -309,6 +315,33 @@ class _Assembler(Checks):
                     except ValueError as exc:
                         self.problem(E.ASM_PROPERTY_VALUE, f"property {p.name!r}: {exc}", p.loc)
         return p.values
+
+    def file_value(self, p: PropertyValue) -> list[str] | None:
+        """The value of ``@file``: a regular file inside the contribution folder, at most
+        :data:`MAX_PROPERTY_FILE_BYTES`, read as UTF-8 text. Problems never show its content."""
+        folder = self.contribution.folder
+        where = f"property {p.name!r}: file {p.file!r}"
+        try:
+            path = (Path(p.loc.path).parent / (p.file or "")).resolve()
+            if not path.is_relative_to(folder):
+                self.problem(E.ASM_PROPERTY_FILE, f"{where} is outside the contribution folder {folder}", p.loc)
+                return None
+            info = path.stat()
+            if not stat.S_ISREG(info.st_mode):
+                self.problem(E.ASM_PROPERTY_FILE, f"{where} is not a regular file", p.loc)
+                return None
+            if info.st_size > MAX_PROPERTY_FILE_BYTES:
+                self.problem(E.ASM_PROPERTY_FILE, f"{where} is {info.st_size} bytes, over the "
+                             f"{MAX_PROPERTY_FILE_BYTES} bytes bound", p.loc)
+                return None
+            with path.open("rb") as fh:
+                data = fh.read(MAX_PROPERTY_FILE_BYTES + 1)[:MAX_PROPERTY_FILE_BYTES]
+            return _FileValues([data.decode("utf-8").strip()], p.file or "")
+        except UnicodeDecodeError:
+            self.problem(E.ASM_PROPERTY_FILE, f"{where} is not UTF-8 text", p.loc)
+        except OSError as exc:
+            self.problem(E.ASM_PROPERTY_FILE, f"{where}: cannot read: {exc.strerror or exc}", p.loc)
+        return None
 
     def property_value(self, comp: Component, name: str, spec: PropSpec, py_type: Any, raw: list[str] | None,
                        override: str | None = None) -> Any:
@@ -327,6 +360,11 @@ class _Assembler(Checks):
         try:
             return parse_value(raw, py_type)
         except ValueError as exc:
+            if isinstance(raw, _FileValues):  # never echo a file's content (it may be anything)
+                type_name = getattr(py_type, "__name__", str(py_type))
+                self.problem(E.ASM_PROPERTY_VALUE, f"property {name!r}: the content of file {raw.file!r} is not a "
+                             f"valid {type_name} (content not shown)", where)
+                return DEFAULT
             msg = str(exc)
             refused = _REFUSED.search(msg)  # a task Property's own check: say so, without pydantic's noise
             if refused is not None:

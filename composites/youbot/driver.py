@@ -76,18 +76,19 @@ def _read_only(value: object) -> None:
 class YouBotDriver(TaskContext):
     """Dummy KUKA youBot arm driver (5 joints), periodic (default 10 ms)."""
 
-    commands = InputPort(list[float], doc="joint position set-points [rad], 5 values")
+    commands = InputPort(list[float], doc="joint position set-points [rad], 5 values", ge=-2 * math.pi, le=2 * math.pi)
     new_period = InputPort(float, name="period",
                            doc=f"new period of the driver [s], in [{MIN_PERIOD:g}, {MAX_PERIOD:g}]")
     status = OutputPort(YouBotStatus, name="jointStatus", doc="joint status, every period")
 
-    seed = Property(int, 0, doc="seed of the random source (applied on configure and reset)")
-    max_velocity = Property(float, 1.0, doc="joint velocity limit [rad/s]")
-    max_current = Property(float, 2.0, doc="OVER_CURRENT threshold [A]")
-    max_temperature = Property(float, 70.0, doc="OVER_TEMPERATURE threshold [°C]")
-    command_timeout = Property(float, 10.0, doc="TIMEOUT when a set-point is pending this long [s]")
-    noise = Property(float, 1.0, doc="noise scale (0 = noiseless)")
-    random_error_rate = Property(float, 1e-5, doc="probability of a random error bit per joint per cycle")
+    # safety limits: finite and within a plausible range (a NaN or -inf limit is refused)
+    seed = Property(int, 0, doc="seed of the random source (applied on configure and reset)", ge=0, le=2**32 - 1)
+    max_velocity = Property(float, 1.0, doc="joint velocity limit [rad/s]", ge=0.0, le=10.0)
+    max_current = Property(float, 2.0, doc="OVER_CURRENT threshold [A]", gt=0.0, le=50.0)
+    max_temperature = Property(float, 70.0, doc="OVER_TEMPERATURE threshold [°C]", gt=0.0, le=200.0)
+    command_timeout = Property(float, 10.0, doc="TIMEOUT when a set-point is pending this long [s]", gt=0.0, le=3600.0)
+    noise = Property(float, 1.0, doc="noise scale (0 = noiseless)", ge=0.0, le=100.0)
+    random_error_rate = Property(float, 1e-5, doc="probability of a random error bit per joint per cycle", ge=0.0, le=1.0)
     accepted_period = Property(float, 0.01, doc="the period currently in use [s] (read-only)", check=_read_only)
     period_status = Property(str, "", doc="outcome of the last period request (read-only)", check=_read_only)
     command_status = Property(str, "", doc="outcome of the last command (read-only)", check=_read_only)

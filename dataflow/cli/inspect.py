@@ -208,13 +208,15 @@ def cmd_describe(args: argparse.Namespace) -> int:
     _out(f"{desc.name}: {desc.state} ({desc.activity}{period}, {desc.cycles} cycles, {desc.overruns} overruns)")
     _out("properties:")
     for p in desc.properties:
-        _out(f"  {p.name}: {p.type_name} = {_dump(p.value)}" + (f"  # {p.doc}" if p.doc else ""))
+        bounds = f" [{p.bounds}]" if p.bounds else ""
+        _out(f"  {p.name}: {p.type_name}{bounds} = {_dump(p.value)}" + (f"  # {p.doc}" if p.doc else ""))
     _out("operations:")
     for o in desc.operations:
         _out(f"  {o.signature or o.name}" + (f"  # {o.doc}" if o.doc else ""))
     _out("ports:")
     for p in desc.ports:
-        line = f"  {p.direction:<3} {p.name}: {p.type_name}, {p.connections} connection(s)"
+        bounds = f" [{p.bounds}]" if p.bounds else ""
+        line = f"  {p.direction:<3} {p.name}: {p.type_name}{bounds}, {p.connections} connection(s)"
         if p.name in last:
             text = _dump(_jsonable(last[p.name]))
             line += f", last = {text if len(text) <= 120 else text[:117] + '...'}"

@@ -109,13 +109,13 @@ class Abort(Exception):
 
 def abort(context: grpc.ServicerContext, exc: BaseException) -> None:
     """Abort the RPC with the status matching ``exc`` (never returns)."""
-    from dataflow.errors import NotFoundError, PortTypeError, PropertyValueError
+    from dataflow.errors import NotFoundError, PortTypeError, PortValueError, PropertyValueError
 
     if isinstance(exc, Abort):
         context.abort(grpc.StatusCode[exc.code], str(exc))
     if isinstance(exc, NotFoundError):
         context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
-    if isinstance(exc, PropertyValueError):
+    if isinstance(exc, (PropertyValueError, PortValueError)):
         context.abort(grpc.StatusCode.OUT_OF_RANGE, str(exc))
     if isinstance(exc, (PortTypeError, TypeError, ValueError)):
         context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import grpc
 
 from dataflow import codec
-from dataflow.errors import NotFoundError, PortTypeError
+from dataflow.errors import NotFoundError, PortTypeError, PortValueError
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote import _convert as cv
@@ -284,7 +284,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 hidden = 1 if p.direction == "in" and p.name in internal else 0
                 info = pb.PortInfo(
                     name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
-                    connections=max(0, p.connections - hidden), event=p.event,
+                    connections=max(0, p.connections - hidden), event=p.event, bounds=p.bounds,
                 )
                 if p.direction == "out":
                     port = task.port(p.name)
@@ -294,7 +294,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                         info.has_last_value = True
                 ports.append(info)
             props = [
-                pb.PropertyInfo(name=p.name, type_name=p.type_name, json_value=json.dumps(p.value), doc=p.doc)
+                pb.PropertyInfo(name=p.name, type_name=p.type_name, json_value=json.dumps(p.value), doc=p.doc,
+                                bounds=p.bounds)
                 for p in d.properties
             ]
             ops = [
@@ -336,18 +337,30 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 port = writer.target
                 task = writer.task
                 where = f"{task}.{port.name}"
-                value = self._value_for(where, port.type, port.type_name, request.value, request.json)
+                value = self._admitted(port, self._value_for(where, port.type, port.type_name, request.value,
+                                                             request.json), context)
             else:
                 task = request.task
                 port = self._port(task, request.port, want_input=True)
                 where = f"{task}.{port.name}"
                 # validate first: a refused value must leave no connection behind
-                value = self._value_for(where, port.type, port.type_name, request.value, request.json)
+                value = self._admitted(port, self._value_for(where, port.type, port.type_name, request.value,
+                                                             request.json), context)
                 writer = self._default_writer(task, port)
             status = writer.out.write(value)
             return pb.WritePortResponse(status=cv.write_to_msg(status))
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
+
+    @staticmethod
+    def _admitted(port: InputPort, value: Any, context: grpc.ServicerContext) -> Any:
+        """``value`` within ``port``'s bounds; a refusal is logged (who, what) and raised
+        (OUT_OF_RANGE to the writer)."""
+        try:
+            return port.admit(value)
+        except PortValueError as exc:
+            log.warning("a write from %s refused: %s", context.peer(), exc)
+            raise
 
     def OpenWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
@@ -382,6 +395,13 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 if not msg.value.type_name:
                     continue
                 value = self._value_for(where, writer.target.type, writer.target.type_name, msg.value, "")
+                try:
+                    value = writer.target.admit(value)
+                except PortValueError as exc:
+                    failures += 1
+                    if failures == 1:  # once per stream: a flood of bad samples is no flood of logs
+                        log.warning("a sample from %s refused: %s", context.peer(), exc)
+                    continue
                 if writer.out.write(value) is WriteStatus.WRITE_SUCCESS:
                     written += 1
                 else:
@@ -496,6 +516,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                     args.append(self._value_for(where, py_type, tname, arg, ""))
                 else:
                     args.append(codec.decode(arg))
+            args = task.check_arguments(desc.name, args)
             try:
                 result = task.call(desc.name, *args)
             except (NotFoundError, PortTypeError, Abort):

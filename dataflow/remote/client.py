@@ -197,12 +197,13 @@ def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
     ports = [
         PortDescription(
             name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
-            connections=p.connections, event=p.event,
+            connections=p.connections, event=p.event, bounds=p.bounds,
         )
         for p in info.ports
     ]
     props = [
-        PropertyDescription(name=p.name, type_name=p.type_name, value=json.loads(p.json_value or "null"), doc=p.doc)
+        PropertyDescription(name=p.name, type_name=p.type_name, value=json.loads(p.json_value or "null"), doc=p.doc,
+                            bounds=p.bounds)
         for p in info.properties
     ]
     ops = [

@@ -67,7 +67,7 @@ def test_describe_text_and_json(system) -> None:
     text = scart(ns, "describe", "youBotDriver").stdout
     assert "set_period(seconds: float64) -> bool" in text
     assert "out jointStatus: YouBotStatus" in text and "last = " in text
-    assert "max_velocity: float64 = 1.0" in text
+    assert "max_velocity: float64 [0 <= x <= 10, finite] = 1.0" in text  # its bounds shown
     # reading and describing attach nothing to the task: untouched ports show no connection
     # (an ended echo's stream is closed by the server shortly after the client left)
     scart(ns, "echo", "pinger.ticks", "-n", "1")

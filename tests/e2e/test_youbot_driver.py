@@ -7,7 +7,9 @@ from support import wait_until
 
 from driver import ERROR_BITS, N_JOINTS, YouBotDriver, YouBotStatus, error_names
 from youbot_model import JOINT_LIMITS
-from dataflow import ConnPolicy, FlowStatus, InputPort, OutputPort, PeriodicActivity, SlaveActivity, registry
+from dataflow import (
+    ConnPolicy, FlowStatus, InputPort, OutputPort, PeriodicActivity, PropertyValueError, SlaveActivity, registry,
+)
 
 BIT = {name: 1 << bit for bit, name in ERROR_BITS.items()}
 
@@ -177,14 +179,23 @@ def test_malformed_command_reported(caplog):
     assert d.command_status.startswith("accepted")
 
 
-def test_negative_max_velocity_and_limits_hold():
-    d, cmd, _, status = rig(max_velocity=-5.0)
-    cmd.write([2.0] * N_JOINTS)
-    run(d, 20)
-    assert [j.position for j in last(status).joints] == [0.0] * N_JOINTS
-    d.max_velocity = 1000.0
-    cmd.write([100.0] * N_JOINTS)
-    run(d, 20)
+@pytest.mark.parametrize(("prop", "bad"), [
+    ("max_velocity", -5.0), ("max_velocity", 1000.0), ("max_velocity", float("nan")), ("max_current", float("-inf")),
+    ("max_temperature", 0.0), ("noise", -1.0), ("random_error_rate", 2.0), ("command_timeout", float("inf")),
+])
+def test_safety_limits_refuse_values_out_of_range(prop: str, bad: float):
+    d, _, _, _ = rig()
+    before = getattr(d, prop)
+    with pytest.raises(PropertyValueError, match=f"youBotDriver.{prop}"):
+        setattr(d, prop, bad)
+    assert getattr(d, prop) == before
+    assert d.describe().properties[[p.name for p in d.describe().properties].index(prop)].bounds
+
+
+def test_positions_hold_the_joint_limits_at_the_highest_velocity():
+    d, cmd, _, status = rig(max_velocity=10.0)
+    cmd.write([100.0] * N_JOINTS)  # a local connection: the driver clips, and says so
+    run(d, 50)
     for j, (lo, hi) in zip(last(status).joints, JOINT_LIMITS):
         assert lo <= j.position <= hi
 

@@ -89,7 +89,7 @@ class TaskSummary(_message.Message):
     def __init__(self, name: _Optional[str] = ..., state: _Optional[str] = ..., activity: _Optional[str] = ..., period: _Optional[float] = ..., cycles: _Optional[int] = ..., overruns: _Optional[int] = ...) -> None: ...
 
 class PortInfo(_message.Message):
-    __slots__ = ("name", "direction", "type_name", "doc", "connections", "event", "last_value", "has_last_value")
+    __slots__ = ("name", "direction", "type_name", "doc", "connections", "event", "last_value", "has_last_value", "bounds")
     NAME_FIELD_NUMBER: _ClassVar[int]
     DIRECTION_FIELD_NUMBER: _ClassVar[int]
     TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
@@ -98,6 +98,7 @@ class PortInfo(_message.Message):
     EVENT_FIELD_NUMBER: _ClassVar[int]
     LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
     HAS_LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
+    BOUNDS_FIELD_NUMBER: _ClassVar[int]
     name: str
     direction: str
     type_name: str
@@ -106,19 +107,22 @@ class PortInfo(_message.Message):
     event: bool
     last_value: _value_pb2.Value
     has_last_value: bool
-    def __init__(self, name: _Optional[str] = ..., direction: _Optional[str] = ..., type_name: _Optional[str] = ..., doc: _Optional[str] = ..., connections: _Optional[int] = ..., event: _Optional[bool] = ..., last_value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., has_last_value: _Optional[bool] = ...) -> None: ...
+    bounds: str
+    def __init__(self, name: _Optional[str] = ..., direction: _Optional[str] = ..., type_name: _Optional[str] = ..., doc: _Optional[str] = ..., connections: _Optional[int] = ..., event: _Optional[bool] = ..., last_value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., has_last_value: _Optional[bool] = ..., bounds: _Optional[str] = ...) -> None: ...
 
 class PropertyInfo(_message.Message):
-    __slots__ = ("name", "type_name", "json_value", "doc")
+    __slots__ = ("name", "type_name", "json_value", "doc", "bounds")
     NAME_FIELD_NUMBER: _ClassVar[int]
     TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
     JSON_VALUE_FIELD_NUMBER: _ClassVar[int]
     DOC_FIELD_NUMBER: _ClassVar[int]
+    BOUNDS_FIELD_NUMBER: _ClassVar[int]
     name: str
     type_name: str
     json_value: str
     doc: str
-    def __init__(self, name: _Optional[str] = ..., type_name: _Optional[str] = ..., json_value: _Optional[str] = ..., doc: _Optional[str] = ...) -> None: ...
+    bounds: str
+    def __init__(self, name: _Optional[str] = ..., type_name: _Optional[str] = ..., json_value: _Optional[str] = ..., doc: _Optional[str] = ..., bounds: _Optional[str] = ...) -> None: ...
 
 class Parameter(_message.Message):
     __slots__ = ("name", "type_name")
