@@ -229,11 +229,14 @@ class StreamBudget:
     """Bounds the long-lived (streaming) calls of one server: at most ``total`` at once,
     at most ``per_peer`` from one peer (a remote host; on loopback, one connection), and a
     client stream whose first message does not come within ``first_message_s`` is cancelled.
-    Beyond a bound the call ends at once with RESOURCE_EXHAUSTED. Thread-safe."""
+    Beyond a bound the call ends at once with RESOURCE_EXHAUSTED, its message starting
+    with ``label`` when one is given. Thread-safe."""
 
-    def __init__(self, total: int, per_peer: int, first_message_s: float | None = None) -> None:
+    def __init__(self, total: int, per_peer: int, first_message_s: float | None = None,
+                 label: str = "") -> None:
         self.total = total
         self.per_peer = per_peer
+        self.label = label
         self.first_message_s = FIRST_MESSAGE_S if first_message_s is None else first_message_s
         self._lock = threading.Lock()
         self._open = 0
@@ -290,7 +293,8 @@ class StreamBudget:
             peer = peer_key(context)
             refused = budget._take(peer)
             if refused is not None:
-                context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, refused)
+                context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED,
+                              f"{budget.label}: {refused}" if budget.label else refused)
             return peer
 
         if handler.response_streaming:

@@ -90,12 +90,12 @@ CASES = {
           <reference name="one" target="F"/><!--HERE-->
         </component>
     """, "ASM60043", "lacks operation(s) greet"),
-    "class cannot be imported": (f"""
+    "class cannot be imported": ("""
         <component name="X">
           <scart:implementation.python class="comps:NoSuchClass"/><!--HERE-->
         </component>
     """, "SCART-I001", "cannot import 'comps:NoSuchClass'"),
-    "module cannot be imported": (f"""
+    "module cannot be imported": ("""
         <component name="X">
           <scart:implementation.python class="no_such_module_xyz:C"/><!--HERE-->
         </component>

@@ -3,8 +3,9 @@ the service bindings of a runtime that name that address, and the callback proxi
 
 Threads: gRPC's server pool (``MAX_WORKERS``; each open ``Invoke`` call and callback
 session holds one of its threads for its life, so at most ``MAX_STREAMS`` of them are open
-at once, beyond that RESOURCE_EXHAUSTED, and the rest of the pool stays free for unary
-calls), a small pool running ``Invoke`` calls (the stream handler must stay free to send
+at once, ``MAX_STREAMS_PER_PEER`` from one peer, and a session must say its id within
+the first-message deadline of :class:`dataflow.remote._rpc.StreamBudget`; beyond that RESOURCE_EXHAUSTED, and the rest of the pool stays free
+for unary calls), a small pool running ``Invoke`` calls (the stream handler must stay free to send
 callback requests while the operation runs; a queued call whose RPC already ended is
 skipped, "cancelled before start"), and one reader thread per callback session (matches
 replies to waiting callers, so a callback's wait is bounded by ``timeout``). All of them
@@ -26,6 +27,7 @@ from typing import Any
 import grpc
 
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
+from dataflow.remote._rpc import StreamBudget, server_options
 from dataflow.remote.security import Security, SecurityError, auth_interceptor
 from scart.ext.grpc._wire import (
     SCA_ROLES,
@@ -37,15 +39,9 @@ log = logging.getLogger("scart.ext.grpc")
 
 MAX_WORKERS = 64
 MAX_STREAMS = 48  # Invoke calls + callback sessions open at once: the rest of the pool stays for unary calls
+MAX_STREAMS_PER_PEER = 36  # from one peer (on loopback, one connection): no one client takes them all
 INVOKE_WORKERS = 16
 _MAX_CALL_S = 3600.0  # bound of a handler's wait when the client set no deadline
-
-SERVER_OPTIONS: tuple[tuple[str, int], ...] = (
-    ("grpc.so_reuseport", 0),  # a port in use is an error, never silently shared
-    ("grpc.keepalive_permit_without_calls", 1),
-    ("grpc.http2.min_recv_ping_interval_without_data_ms", 1000),
-    ("grpc.http2.max_ping_strikes", 0),
-)
 
 
 class Exported:
@@ -281,7 +277,6 @@ class GrpcServer:
         self._server: grpc.Server | None = None
         self._invoke_pool: ThreadPoolExecutor | None = None
         self._server_pool: ThreadPoolExecutor | None = None
-        self._streams = threading.BoundedSemaphore(MAX_STREAMS)
 
     # --- lifecycle --------------------------------------------------------------------
 
@@ -294,9 +289,12 @@ class GrpcServer:
             table = self.security.auth_table()
         except SecurityError as exc:
             raise ScartError(f"binding.grpc: {exc}") from None
-        interceptors = [auth_interceptor(table, SCA_ROLES)] if table is not None else []
+        budget = StreamBudget(MAX_STREAMS, MAX_STREAMS_PER_PEER, label="too many callback streams")
+        interceptors = [budget.interceptor()]
+        if table is not None:
+            interceptors.insert(0, auth_interceptor(table, SCA_ROLES))
         self._server_pool = ThreadPoolExecutor(MAX_WORKERS, thread_name_prefix="scart-grpc-server")
-        server = grpc.server(self._server_pool, options=SERVER_OPTIONS, interceptors=interceptors)
+        server = grpc.server(self._server_pool, options=server_options(), interceptors=interceptors)
         pb_grpc.add_ScaServiceServicer_to_server(_Servicer(self), server)
         try:
             if credentials is not None:
@@ -419,20 +417,7 @@ class GrpcServer:
             return pb.SendResponse(fault=fault(exc))
         return pb.SendResponse()
 
-    def _take_stream(self, context: grpc.ServicerContext) -> None:
-        """Take one of the ``MAX_STREAMS`` stream slots, or refuse the RPC (RESOURCE_EXHAUSTED)."""
-        if not self._streams.acquire(blocking=False):
-            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED,
-                          f"too many callback streams at {self.address} (at most {MAX_STREAMS} open at once)")
-
     def _invoke(self, request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
-        self._take_stream(context)
-        try:
-            yield from self._invoke_stream(request, context)
-        finally:
-            self._streams.release()
-
-    def _invoke_stream(self, request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
         inv, call_id = request.invocation, request.call_id
         out: queue.SimpleQueue[Any] = queue.SimpleQueue()
         cb: _StreamCallback | None = None
@@ -491,13 +476,6 @@ class GrpcServer:
         return pb.ReplyCallbackResponse(delivered=cb is not None and cb.deliver(request.reply))
 
     def _open_session(self, requests: Iterator[Any], context: grpc.ServicerContext) -> Iterator[Any]:
-        self._take_stream(context)
-        try:
-            yield from self._session_stream(requests, context)
-        finally:
-            self._streams.release()
-
-    def _session_stream(self, requests: Iterator[Any], context: grpc.ServicerContext) -> Iterator[Any]:
         first = next(requests, None)
         if first is None or not first.session_id:
             return

@@ -316,7 +316,7 @@ def test_slow_subscriber_never_slows_the_task() -> None:
         deployer.start_all()
         slow = system.component("fast").subscribe("ticks", lambda e: stuck.wait(10), policy=ConnPolicy.buffer(2))
         seen: list[int] = []
-        other = system.component("fast").subscribe("ticks", lambda e: seen.append(e.value), policy=ConnPolicy.buffer(1000))
+        _other = system.component("fast").subscribe("ticks", lambda e: seen.append(e.value), policy=ConnPolicy.buffer(1000))
         wait_until(lambda: slow.dropped > 0, timeout=10)  # the stuck one is full and dropping
         cycles, overruns = task.activity.cycles, task.activity.overruns
         mark = len(seen)

@@ -1,4 +1,5 @@
-"""binding.grpc at its limits: a cap on open streams (unary calls still answer), calls that
+"""binding.grpc at its limits: caps on open streams in total and per peer (unary calls
+still answer), a deadline on a session's first message, calls that
 time out while queued never run, bindings on services promoted out of nested composites,
 a provider stop bounded by the drain deadline, results the client cannot convert."""
 
@@ -37,28 +38,37 @@ def _open_session(channel: grpc.Channel, sid: str) -> tuple[queue.SimpleQueue, o
     return outbox, stub(requests(), timeout=20)
 
 
-def test_open_streams_beyond_the_cap_are_refused_and_unary_calls_still_answer(tmp_path: Path) -> None:
-    cap = _grpc_server.MAX_STREAMS
-    assert cap < _grpc_server.MAX_WORKERS
+def test_open_streams_beyond_the_caps_are_refused_and_unary_calls_still_answer(tmp_path: Path) -> None:
+    cap, per_peer = _grpc_server.MAX_STREAMS, _grpc_server.MAX_STREAMS_PER_PEER
+    assert per_peer < cap < _grpc_server.MAX_WORKERS
     with provider_and_client(tmp_path, DESK + GEOMETRY, asker) as (provider, client):
         address = grpc_bindings(provider)[0].address
-        with grpc.insecure_channel(address) as channel:
+        # two connections: on loopback each is a peer of its own
+        with grpc.insecure_channel(address) as one, \
+                grpc.insecure_channel(address, options=[("grpc.use_local_subchannel_pool", 1)]) as two:
             calls = []
-            try:
-                for i in range(cap):  # each session holds a server thread for its life
-                    outbox, call = _open_session(channel, f"s{i}")
-                    calls.append((outbox, call))
-                    assert next(call).opened  # bounded by the call's deadline
-                outbox, extra = _open_session(channel, "extra")
+
+            def refused(channel: grpc.Channel, sid: str) -> str:
+                outbox, extra = _open_session(channel, sid)
                 calls.append((outbox, extra))
                 with pytest.raises(grpc.RpcError) as info:
                     next(extra)
                 assert info.value.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
-                assert f"too many callback streams at {address}" in info.value.details()
+                return info.value.details()
+            try:
+                for i in range(cap):  # each session holds a server thread for its life
+                    outbox, call = _open_session(one if i < per_peer else two, f"s{i}")
+                    calls.append((outbox, call))
+                    assert next(call).opened  # bounded by the call's deadline
+                    if i == per_peer - 1:  # one peer has its share: the next from it is refused
+                        assert refused(one, "greedy") == \
+                            f"too many callback streams: at most {per_peer} streams from one peer"
+                assert refused(two, "extra") == \
+                    f"too many callback streams: this server carries at most {cap} streams at once"
                 # a plain unary call still answers
-                stub = channel.unary_unary(PATHS["ListServices"],
-                                           request_serializer=pb.ListServicesRequest.SerializeToString,
-                                           response_deserializer=pb.ListServicesResponse.FromString)
+                stub = one.unary_unary(PATHS["ListServices"],
+                                       request_serializer=pb.ListServicesRequest.SerializeToString,
+                                       response_deserializer=pb.ListServicesResponse.FromString)
                 assert len(stub(pb.ListServicesRequest(), timeout=5).services) == 2
                 # a client's callback call is refused with a clear error
                 with pytest.raises(InvocationError, match="too many callback streams"):
@@ -76,6 +86,27 @@ def test_open_streams_beyond_the_cap_are_refused_and_unary_calls_still_answer(tm
             except InvocationError:
                 return False
         wait_until(works, timeout=10, interval=0.05)
+
+
+def test_a_session_that_never_says_its_id_is_cancelled(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from dataflow.remote import _rpc
+    monkeypatch.setattr(_rpc, "FIRST_MESSAGE_S", 0.5)
+    with provider_and_client(tmp_path, DESK + GEOMETRY, asker) as (provider, client):
+        address = grpc_bindings(provider)[0].address
+        with grpc.insecure_channel(address) as channel:
+            stub = channel.stream_stream(PATHS["OpenCallbackSession"],
+                                         request_serializer=pb.OpenCallbackSessionRequest.SerializeToString,
+                                         response_deserializer=pb.OpenCallbackSessionResponse.FromString)
+            silent: queue.SimpleQueue = queue.SimpleQueue()
+            call = stub(iter(silent.get, None), timeout=20)  # opens the stream, never sends
+            try:
+                with pytest.raises(grpc.RpcError) as info:
+                    next(call)
+                assert info.value.code() == grpc.StatusCode.CANCELLED
+            finally:
+                silent.put(None)
+                call.cancel()
+        assert client.service("K").ask("q") == "q: True False"  # the server still serves
 
 
 def test_a_call_that_timed_out_while_queued_never_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
