@@ -2,16 +2,20 @@
 remotely, and operation arguments called remotely.
 
 ``Property(float, 0.01, ge=0.001, le=1.0)`` and ``InputPort(float, ge=0.0, le=1.0)``
-declare a :class:`Bounds`; numbers (``float``, ``int``, and the items of ``list[float]`` /
-``list[int]``) are also required to be finite unless ``finite=False``: a NaN or an
-infinite set-point is refused before it reaches the task. Operation parameters declare
-theirs with ``typing.Annotated[float, pydantic.Field(ge=0.0)]``, and float parameters
-are required to be finite too. What a task writes to its own output ports is not
-checked here (the hot path stays free of it): bounds are for what crosses in.
+declare a :class:`Bounds` (limits apply to numbers and lists of numbers). Every number in
+a value from outside must also be finite unless ``finite=False`` — a float, the items of
+a list or tuple, an ``Optional[float]``, the fields of a pydantic model, the values of a
+dict — so a NaN or an infinite set-point is refused before it reaches the task. Operation
+parameters declare limits with ``typing.Annotated[float, pydantic.Field(ge=0.0)]`` and
+are held finite the same way (``Field(allow_inf_nan=True)`` lets NaN and inf through).
+The check walks the value once (linear in its size, which the transport bounds). What a
+task writes to its own output ports is not checked here (the hot path stays free of
+it): bounds are for what crosses in.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import typing
@@ -20,9 +24,100 @@ from typing import Annotated, Any
 
 import pydantic
 
-__all__ = ["Bounds", "bounded_adapter"]
+__all__ = ["Bounds", "bounded_adapter", "from_outside", "non_finite"]
 
 _NUMBERS = (float, int)
+_ATOMS = (int, bool, str, bytes, type(None))
+
+
+def non_finite(value: Any) -> float | None:
+    """The first NaN or infinite number found anywhere in ``value`` (floats, complex
+    numbers, lists, tuples, sets, dict values, pydantic models, dataclasses), else None."""
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        kind = type(v)
+        if kind is float:
+            if v - v != 0.0:  # NaN and +-inf (cheaper than math.isfinite in this loop)
+                return v
+        elif kind in _ATOMS:
+            continue
+        elif kind is list or kind is tuple or isinstance(v, (list, tuple, set, frozenset)):
+            stack.extend(v)
+        elif isinstance(v, dict):
+            stack.extend(v.values())
+        elif isinstance(v, float):
+            if not math.isfinite(v):
+                return float(v)
+        elif isinstance(v, complex):
+            if not (math.isfinite(v.real) and math.isfinite(v.imag)):
+                return v.real if not math.isfinite(v.real) else v.imag
+        elif isinstance(v, pydantic.BaseModel):
+            stack.extend(v.__dict__.values())
+        elif dataclasses.is_dataclass(v) and not isinstance(v, type):
+            stack.extend(getattr(v, f.name) for f in dataclasses.fields(v))
+    return None
+
+
+def _all_finite(value: Any) -> Any:
+    bad = non_finite(value)
+    if bad is not None:
+        raise ValueError(f"{bad} is not a finite number")
+    return value
+
+
+#: A pydantic validator refusing a value that holds a NaN or an infinite number.
+FINITE = pydantic.AfterValidator(_all_finite)
+
+
+@functools.lru_cache(maxsize=1024)
+def _may_hold_floats(hint: Any, depth: int = 0) -> bool:
+    """Can a value of ``hint`` hold a float (so that finiteness applies)?"""
+    if depth > 8:
+        return True
+    if hint in (float, complex, Any, object) or isinstance(hint, typing.TypeVar):
+        return True
+    if hint in _ATOMS or hint is type(None):
+        return False
+    origin = typing.get_origin(hint)
+    if origin is Annotated:
+        return _may_hold_floats(typing.get_args(hint)[0], depth + 1)
+    if origin is not None:
+        return any(_may_hold_floats(a, depth + 1) for a in typing.get_args(hint) if a is not Ellipsis) \
+            or not typing.get_args(hint)
+    if isinstance(hint, type):
+        if issubclass(hint, pydantic.BaseModel):
+            return any(_may_hold_floats(f.annotation, depth + 1) for f in hint.model_fields.values())
+        if dataclasses.is_dataclass(hint):
+            try:
+                hints = typing.get_type_hints(hint)
+            except Exception:
+                return True
+            return any(_may_hold_floats(h, depth + 1) for h in hints.values())
+        return issubclass(hint, (float, complex, list, tuple, set, frozenset, dict))
+    return False
+
+
+def _allows_inf_nan(hint: Any) -> bool:
+    """Does an ``Annotated`` hint say ``allow_inf_nan=True`` (pydantic ``Field``)?"""
+    if typing.get_origin(hint) is not Annotated:
+        return False
+    for meta in typing.get_args(hint)[1:]:
+        for item in (meta, *getattr(meta, "metadata", ())):
+            if getattr(item, "allow_inf_nan", None) is True:
+                return True
+    return False
+
+
+def from_outside(hint: Any) -> Any:
+    """The annotation to check a value of ``hint`` from outside with: ``hint`` itself, held
+    finite when it can hold floats (unless its ``Field`` allows inf and NaN)."""
+    try:
+        if not _may_hold_floats(hint) or _allows_inf_nan(hint):
+            return hint
+    except TypeError:  # unhashable annotation: not cached, checked as is
+        return hint
+    return Annotated[hint, FINITE]
 
 
 @dataclass(frozen=True)
@@ -51,9 +146,12 @@ class Bounds:
         if low > high:
             raise ValueError(f"no value can satisfy {limits}")
         if _item(py_type) is None:
-            if limits or finite:
-                raise ValueError(f"ge/gt/le/lt/finite apply to numbers and lists of numbers, not {py_type!r}")
-            return None
+            if limits:
+                raise ValueError(f"ge/gt/le/lt apply to numbers and lists of numbers, not {py_type!r}")
+            holds = _may_hold_floats(py_type)
+            if finite and not holds:
+                raise ValueError(f"finite applies to values that can hold numbers, not {py_type!r}")
+            return cls(finite=True) if holds and finite is not False else None
         return cls(ge, gt, le, lt, True if finite is None else finite)
 
     @property
@@ -82,6 +180,8 @@ def _item(py_type: Any) -> Any:
 def bounded_adapter(py_type: Any, bounds: Bounds) -> pydantic.TypeAdapter[Any]:
     """A pydantic adapter validating a value of ``py_type`` within ``bounds`` (cached)."""
     item = _item(py_type)
+    if item is None:  # no limits: only finiteness, anywhere in the value
+        return pydantic.TypeAdapter(Annotated[py_type, FINITE] if bounds.finite else py_type)
     field = pydantic.Field(ge=bounds.ge, gt=bounds.gt, le=bounds.le, lt=bounds.lt,
                            allow_inf_nan=not bounds.finite if item is float else None)
     checked: Any = Annotated[item, field]  # type: ignore[valid-type]
@@ -90,7 +190,7 @@ def bounded_adapter(py_type: Any, bounds: Bounds) -> pydantic.TypeAdapter[Any]:
 
 def argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
     """For each parameter of ``fn`` that declares bounds (``Annotated[..., Field(...)]``)
-    or is a number (then: finite), the adapter that checks a value from outside."""
+    or can hold numbers (then: finite), the adapter that checks a value from outside."""
     return _argument_adapters(getattr(fn, "__func__", fn))
 
 
@@ -104,8 +204,10 @@ def _argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
     for name, hint in hints.items():
         if name == "return":
             continue
-        if typing.get_origin(hint) is Annotated:
-            out[name] = pydantic.TypeAdapter(hint)
-        elif _item(hint) is not None:
-            out[name] = bounded_adapter(hint, Bounds())
+        checked = from_outside(hint)
+        if typing.get_origin(checked) is Annotated:
+            try:
+                out[name] = pydantic.TypeAdapter(checked)
+            except Exception:  # a type pydantic cannot check: finiteness alone
+                out[name] = pydantic.TypeAdapter(Annotated[Any, FINITE])
     return out

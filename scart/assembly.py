@@ -17,6 +17,7 @@ compatibility. Leaf components are named by their path ("Outer/Inner").
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
 import stat
 from dataclasses import dataclass, field
@@ -326,15 +327,18 @@ class _Assembler(Checks):
             if not path.is_relative_to(folder):
                 self.problem(E.ASM_PROPERTY_FILE, f"{where} is outside the contribution folder {folder}", p.loc)
                 return None
-            info = path.stat()
-            if not stat.S_ISREG(info.st_mode):
-                self.problem(E.ASM_PROPERTY_FILE, f"{where} is not a regular file", p.loc)
-                return None
-            if info.st_size > MAX_PROPERTY_FILE_BYTES:
-                self.problem(E.ASM_PROPERTY_FILE, f"{where} is {info.st_size} bytes, over the "
-                             f"{MAX_PROPERTY_FILE_BYTES} bytes bound", p.loc)
-                return None
-            with path.open("rb") as fh:
+            # opened without following a link and without blocking (a FIFO swapped in after the
+            # check above must not hang), then checked on the open file itself
+            fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+            with os.fdopen(fd, "rb") as fh:
+                info = os.fstat(fd)
+                if not stat.S_ISREG(info.st_mode):
+                    self.problem(E.ASM_PROPERTY_FILE, f"{where} is not a regular file", p.loc)
+                    return None
+                if info.st_size > MAX_PROPERTY_FILE_BYTES:
+                    self.problem(E.ASM_PROPERTY_FILE, f"{where} is {info.st_size} bytes, over the "
+                                 f"{MAX_PROPERTY_FILE_BYTES} bytes bound", p.loc)
+                    return None
                 data = fh.read(MAX_PROPERTY_FILE_BYTES + 1)[:MAX_PROPERTY_FILE_BYTES]
             return _FileValues([data.decode("utf-8").strip()], p.file or "")
         except UnicodeDecodeError:

@@ -18,8 +18,9 @@ one-way pool and drains it with a deadline (``drain_timeout``, default 10 s, cou
 the start of the stop): queued and in-flight one-way calls may finish until then; after
 it, queued calls are dropped (logged and counted) and calls still running are logged by
 operation and left behind on their daemon worker threads. Then ``@destroy`` runs in
-reverse init order, each under the same deadline (at least ``MIN_DESTROY_S``): one that
-hangs is logged and left behind (also when ``stop()`` is called from a one-way worker:
+reverse init order under the same deadline (at least ``MIN_DESTROY_S``; those left
+when it is up start together and share one more ``MIN_DESTROY_S``): one that hangs is
+logged and left behind (also when ``stop()`` is called from a one-way worker:
 the *other* workers are drained first, the caller's own call is still running),
 reference bindings stop, and every proxy handed out (by ``service()`` or injected as a
 reference) is switched to raising ``RuntimeStateError``.
@@ -247,8 +248,7 @@ class Runtime:
                 _quietly(participant.stop, "stopping an extension participant")
             if self._pool is not None:
                 self._drain_pool(self._pool, deadline)
-            for path in reversed(self._started):
-                self._destroy(path, deadline)
+            self._destroy_all(list(reversed(self._started)), deadline)
             for bindings in self._ref_bindings.values():
                 for rb in bindings:
                     _quietly(rb.stop, "stopping a reference binding")
@@ -258,10 +258,28 @@ class Runtime:
             self._disable_proxies()
             self._stopped.set()
 
-    def _destroy(self, path: str, deadline: float) -> None:
-        """Stop one component (its ``@destroy``) on a thread of its own, waiting until
-        ``deadline`` (at least :data:`MIN_DESTROY_S`): one that hangs is logged and left
-        behind (a daemon thread), so a stop never outlasts its timeout by much."""
+    def _destroy_all(self, paths: list[str], deadline: float) -> None:
+        """Stop components (their ``@destroy``) in the order given, each on a thread of its
+        own, one after the other until ``deadline`` (or :data:`MIN_DESTROY_S` from now if
+        that is later). Once that time is up, the rest start together and get one more
+        :data:`MIN_DESTROY_S` between them: one that hangs is logged and left behind (a
+        daemon thread), so a stop never outlasts its timeout by more than twice that."""
+        until = max(deadline, time.monotonic() + MIN_DESTROY_S)
+        late: list[tuple[str, threading.Event]] = []
+        for path in paths:
+            if late or time.monotonic() >= until:
+                late.append((path, self._start_destroy(path)))
+            elif not self._start_destroy(path).wait(until - time.monotonic()):
+                log.warning("stop: destroying %s did not finish within the stop timeout (%.1f s); left behind",
+                            path, self.drain_timeout)
+        end = time.monotonic() + MIN_DESTROY_S
+        for path, done in late:
+            if not done.wait(max(0.0, end - time.monotonic())):
+                log.warning("stop: destroying %s did not finish within the stop timeout (%.1f s); left behind",
+                            path, self.drain_timeout)
+
+    def _start_destroy(self, path: str) -> threading.Event:
+        """Run one component's stop (its ``@destroy``) on a daemon thread; the event is set when it is done."""
         manager = self._managers[path]
         done = threading.Event()
 
@@ -272,9 +290,7 @@ class Runtime:
                 done.set()
 
         threading.Thread(target=run, name=f"scart-destroy-{path}", daemon=True).start()
-        if not done.wait(max(MIN_DESTROY_S, deadline - time.monotonic())):
-            log.warning("stop: destroying %s did not finish within the stop timeout (%.1f s); left behind",
-                        path, self.drain_timeout)
+        return done
 
     def _drain_pool(self, pool: OnewayPool, deadline: float) -> None:
         dropped, stuck = pool.close(deadline)

@@ -51,6 +51,7 @@ class YouBotMonitor:
     port: int = scart.prop(default=0)
     info_interval: float = scart.prop(default=0.5)
     control_token: bool = scart.prop(default=False)
+    insecure: bool = scart.prop(default=False)  # serve a routable host without a control token
     status: RetrievingStatus = scart.reference()
     period: SettingPeriod = scart.reference()
     locomotor: Moving = scart.reference()
@@ -69,7 +70,7 @@ class YouBotMonitor:
         self._latencies: deque[float] = deque(maxlen=20_000)
         self._events: deque[tuple[str, str]] = deque(maxlen=200)
         token = secrets.token_urlsafe(16) if self.control_token else None
-        self.server = MonitorServer(self, host=self.host, port=int(self.port), token=token)
+        self.server = MonitorServer(self, host=self.host, port=int(self.port), token=token, insecure=self.insecure)
         self.server.error_flag_names = dict(ERROR_BITS)
         self.server.start()
         self.url = self.server.url  # the base (statistics); never the token

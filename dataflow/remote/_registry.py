@@ -2,10 +2,14 @@
 
 Leases, not addresses, own names: :meth:`NameRegistry.register` returns a secret lease id
 (128 random bits) and only its holder can renew, change or drop the lease. A name held by
-another lease is refused unless that holder is gone — its process no longer answers at
-its address, which the ``probe`` checks by the holder's public boot id — so a deployer
-that restarted takes its names back at once, and nobody can take a live deployer's names
-by claiming its address.
+another lease is refused unless that holder is surely gone — nothing listens at its
+address any more, or another process does (the ``probe`` checks the holder's public boot
+id) — so a deployer that restarted takes its names back at once, and nobody can take a
+live deployer's names by claiming its address or by keeping it busy: a probe that times
+out or finds the holder overloaded counts as alive. The registry's own names (its boot
+id, permanent leases) are never probed; a call probes at most ``Limits.probed`` holders,
+and at most ``Limits.probing`` calls probe at once (the others are refused at once), so
+claims cannot tie up the server's workers.
 
 Everything is bounded (:class:`Limits`): lease lengths (finite, positive, at most
 ``max_lease``), names per lease, leases per peer and in total, names in total, a page of
@@ -43,6 +47,8 @@ class Limits:
     name_length: int = 256
     page: int = 500  #: entries per ListEntries page, at most
     listed: int = 20  #: names an error message lists, at most
+    probed: int = 2  #: holders one register call may probe (beyond: refused as held)
+    probing: int = 4  #: register calls probing at once (beyond: RESOURCE_EXHAUSTED, retry)
 
 
 class RegistryFullError(errors.RemoteError):
@@ -77,18 +83,21 @@ class NameRegistry:
     """The name table (see the module docstring). Every method is short and non-blocking,
     except that a conflicting :meth:`register` may probe the current holder.
 
-    ``clock`` is injectable for tests; ``probe(address, boot_id) -> bool`` says whether the
-    deployer process ``boot_id`` still answers at ``address`` (default: its gRPC health
-    service, 0.5 s deadline).
+    ``clock`` is injectable for tests; ``probe(address, boot_id)`` says whether the
+    deployer process ``boot_id`` still answers at ``address``: True (alive), False (surely
+    gone) or None (cannot tell: counted as alive); default: its gRPC health service, 0.5 s
+    deadline. ``own_boot_id`` is the boot id of the process serving this registry.
     """
 
     def __init__(self, default_lease: float = 10.0, limits: Limits | None = None,
                  clock: Callable[[], float] = time.monotonic,
-                 probe: Callable[[str, str], bool] | None = None) -> None:
+                 probe: Callable[[str, str], bool | None] | None = None, own_boot_id: str = "") -> None:
         self.limits = limits or Limits()
         self._default = min(default_lease, self.limits.max_lease)
         self._clock = clock
         self._probe = probe if probe is not None else _health_probe
+        self._own = own_boot_id
+        self._probing = threading.BoundedSemaphore(self.limits.probing)
         self._leases: dict[str, _Lease] = {}
         self._owner: dict[str, str] = {}  # component -> lease id
         self._per_peer: dict[str, int] = {}
@@ -163,9 +172,9 @@ class NameRegistry:
             raise RegistryFullError(f"the name service holds {lim.names} names already", "RESOURCE_EXHAUSTED")
 
     def _known(self) -> str:
-        names = sorted(self._owner)
-        shown = ", ".join(names[: self.limits.listed]) or "(none)"
-        more = len(names) - self.limits.listed
+        names = heapq.nsmallest(self.limits.listed, self._owner)  # O(n), not a sort of every name
+        shown = ", ".join(names) or "(none)"
+        more = len(self._owner) - len(names)
         return shown + (f" and {more} more" if more > 0 else "")
 
     # ---- the table -------------------------------------------------------------------
@@ -186,7 +195,7 @@ class NameRegistry:
                 raise NotFoundError("lease unknown or expired; register again without it")
             self._room(names, peer, mine)
             holders = {h.lease_id: h for n in names if (h := self._holder(n)) is not None and h is not mine}
-        gone = {lid for lid, h in holders.items() if not self._probe(h.address, h.boot_id)}
+        gone = self._gone(holders)
         with self._lock:
             for lid, holder in holders.items():
                 if lid not in gone and lid in self._leases:
@@ -209,6 +218,19 @@ class NameRegistry:
             self._renew(mine)
         log.info("registered %d name(s) at %s", len(names), address)
         return mine.lease_id, seconds
+
+    def _gone(self, holders: dict[str, _Lease]) -> set[str]:
+        """The lease ids of ``holders`` whose process is surely gone (see the class docstring)."""
+        probed = {lid: h for lid, h in holders.items() if not h.permanent and not (self._own and h.boot_id == self._own)}
+        if not probed or len(probed) > self.limits.probed:
+            return set()  # nothing to probe, or too many holders to probe in one call: all held
+        if not self._probing.acquire(blocking=False):
+            raise RegistryFullError("the name service is busy checking other claims; retry in a moment",
+                                    "RESOURCE_EXHAUSTED")
+        try:
+            return {lid for lid, h in probed.items() if self._probe(h.address, h.boot_id) is False}
+        finally:
+            self._probing.release()
 
     def heartbeat(self, lease_id: str, components: list[str] | None = None) -> float:
         """Renew a lease (and update its names: those held by another lease are refused,
@@ -253,7 +275,7 @@ class NameRegistry:
         size = min(limit or self.limits.page, self.limits.page)
         with self._lock:
             self._purge()
-            names = sorted(n for n in self._owner if n > after)[:size]
+            names = heapq.nsmallest(size, (n for n in self._owner if n > after))
             return [self._entry(n, self._leases[self._owner[n]]) for n in names]
 
     def _entry(self, component: str, lease: _Lease) -> NameEntry:
@@ -261,10 +283,10 @@ class NameRegistry:
         return NameEntry(component, lease.address, lease.boot_id, left)
 
 
-def _health_probe(address: str, boot_id: str) -> bool:
-    from dataflow.remote._rpc import health_ok
+def _health_probe(address: str, boot_id: str) -> bool | None:
+    from dataflow.remote._rpc import health_state
 
-    return health_ok(address, service=boot_service(boot_id) if boot_id else "")
+    return health_state(address, service=boot_service(boot_id) if boot_id else "")
 
 
 def boot_service(boot_id: str) -> str:

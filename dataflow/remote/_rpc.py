@@ -13,7 +13,7 @@ from typing import Any
 import grpc
 
 from dataflow.remote import errors
-from dataflow.remote.security import Role, Security, auth_interceptor, is_loopback
+from dataflow.remote.security import CALLER, Role, Security, auth_interceptor, is_loopback
 
 #: Name prefix of the servers' worker threads (``scart-rpc_0``, ...).
 THREAD_PREFIX = "scart-rpc"
@@ -213,6 +213,14 @@ def bound_address(requested: str, port: int) -> str:
 def health_ok(address: str, timeout: float = 0.5, security: Security | None = None, service: str = "") -> bool:
     """True if a gRPC health service answers SERVING for ``service`` ("": the server as a
     whole) at ``address`` within ``timeout``."""
+    return health_state(address, timeout, security, service) is True
+
+
+def health_state(address: str, timeout: float = 0.5, security: Security | None = None,
+                 service: str = "") -> bool | None:
+    """Is ``service`` served at ``address``? True (SERVING), False (surely not: nothing
+    listens there, or a server that does not know it or says NOT_SERVING), None (cannot
+    tell: no answer within ``timeout``, overloaded, or any other failure)."""
     from grpc_health.v1 import health_pb2, health_pb2_grpc
 
     with (security or Security()).channel(address, channel_options()) as channel:
@@ -220,8 +228,9 @@ def health_ok(address: str, timeout: float = 0.5, security: Security | None = No
             reply = health_pb2_grpc.HealthStub(channel).Check(
                 health_pb2.HealthCheckRequest(service=service), timeout=timeout
             )
-        except grpc.RpcError:
-            return False
+        except grpc.RpcError as exc:
+            code = exc.code() if callable(getattr(exc, "code", None)) else None
+            return False if code in (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.NOT_FOUND) else None
     return reply.status == health_pb2.HealthCheckResponse.SERVING
 
 
@@ -346,8 +355,12 @@ class _FirstMessageDeadline:
 
 
 def peer_key(context: grpc.ServicerContext) -> str:
-    """Who a call comes from, for per-peer bounds: the remote host, or on loopback (where
-    every local process shares one address) the connection (host and port)."""
+    """Who a call comes from, for per-peer bounds: its token (when the server checks
+    tokens: see :data:`security.CALLER`), else the remote host, or on loopback (where every
+    local process shares one address) the connection (host and port)."""
+    caller = CALLER.get()
+    if caller:
+        return caller
     peer = context.peer() or ""
     kind, _, rest = peer.partition(":")
     host, _, _port = rest.rpartition(":")

@@ -6,10 +6,13 @@ puts samples into a policy-shaped :class:`Mailbox` and reconnects after failures
 a slow observer never sees a backlog; with BUFFER(n) it holds n and counts the rest as
 dropped; the server's own connection does the same on the task's side and reports its
 drops in every message. Every sample also carries its port's write number and the
-stream its deployer's boot id, so what was written while the stream was cut (a frozen
-peer, a reconnection) shows as a jump between the last sample before and the first
-after, and is counted too: ``dropped`` is the writes not delivered. A peer silent for 3 heartbeats is treated as frozen: the stream
-is cancelled and re-established (through the name service), and the gap is reported.
+stream its deployer's boot id, so every write not received shows as a jump in the write
+numbers — whether the server dropped it or it was written while the stream was cut (a
+frozen peer, a reconnection) — and the jumps are the count, each write once. The
+server's report only adds the drops no later sample has revealed yet (its last ones).
+``dropped`` is thus the writes not delivered. A peer silent for 3 heartbeats is treated
+as frozen: the stream is cancelled and re-established (through the name service), and
+the gap is reported.
 A sample that cannot be decoded is logged and counted as dropped; any other receiver
 failure is logged and the stream re-established — the receiver never dies silently.
 ``subscribe`` returns only once the server has connected the port (or raises).
@@ -37,6 +40,62 @@ if TYPE_CHECKING:
     from dataflow.remote.client import GrpcComponentProxy
 
 log = logging.getLogger(__name__)
+
+
+class LossCount:
+    """The writes a subscriber did not receive, each counted once (see the module
+    docstring): the jumps in the write numbers, plus the drops the server reported that no
+    jump has revealed yet. Feed it, in order, :meth:`new_stream`, each message's
+    :meth:`sample` s then :meth:`report`, and :meth:`restarted` when the boot id changes.
+    Not thread-safe (the receiver thread owns it); :attr:`lost` may be read from anywhere."""
+
+    def __init__(self) -> None:
+        self.last: int | None = None  # the write number of the last sample received
+        self._jumps = 0  # writes not received, seen as jumps (all streams)
+        self._stream_jumps = 0  # ... of those, within the current (or last) stream
+        self._reported = 0  # the server's drop count for the current (or last) stream
+        self._before_restarts = 0  # unrevealed drops of a process that then restarted
+        self._awaiting = True  # no sample of the current stream yet: the last one's tail stands
+
+    @property
+    def lost(self) -> int:
+        """Writes not received so far."""
+        return self._jumps + self._tail + self._before_restarts
+
+    @property
+    def _tail(self) -> int:
+        return max(0, self._reported - self._stream_jumps)
+
+    def new_stream(self) -> None:
+        """A (re)connected stream begins."""
+        self._awaiting = True
+
+    def restarted(self) -> None:
+        """The deployer process changed: its write numbers start over, and no jump will
+        reveal what the old one dropped last."""
+        self._before_restarts += self._tail
+        self.last = None
+        self._reported = self._stream_jumps = 0
+
+    def sample(self, sequence: int, reported: int = 0) -> bool:
+        """Note a received sample (``reported``: its message's drop count); False for one
+        received already (handed over again after a reconnection)."""
+        last = self.last
+        if last is not None and sequence <= last:
+            return False
+        jump = sequence - last - 1 if last is not None else 0
+        self._jumps += jump
+        self._stream_jumps += jump
+        self.last = sequence
+        if self._awaiting:  # the jump revealed the last stream's tail, and this stream's
+            self._awaiting = False  # drops so far (as many as it reported)
+            self._stream_jumps = min(jump, reported)
+        return True
+
+    def report(self, dropped: int) -> None:
+        """A message's drop count (the server's, for the current stream)."""
+        if not self._awaiting:
+            self._reported = dropped
 
 
 class GrpcSubscription(Subscription):
@@ -76,11 +135,7 @@ class GrpcSubscription(Subscription):
         self._gap_reason = ""
         self._last_seen = time.monotonic()
         self._boot = ""  # the deployer process the sequence numbers belong to
-        self._last_seq: int | None = None  # the write number of the last sample received
-        self._new_stream = True  # the next sample is the first of a (re)connected stream
-        self._skipped = 0  # writes lost between streams (jumps across a reconnection)
-        self._server_dropped_done = 0  # dropped on the task's side, by finished streams
-        self._server_dropped_now = 0  # ... by the current one
+        self._loss = LossCount()
         self.polls = 0
         self.wasted_polls = 0
         self.reconnects = 0
@@ -107,8 +162,7 @@ class GrpcSubscription(Subscription):
     # ---- counters ----------------------------------------------------------------------
     @property
     def dropped(self) -> int:
-        return (self._skipped + self._server_dropped_done + self._server_dropped_now + self._mailbox.dropped
-                + self.decode_errors)
+        return self._loss.lost + self._mailbox.dropped + self.decode_errors
 
     @property
     def connected(self) -> bool:
@@ -134,7 +188,7 @@ class GrpcSubscription(Subscription):
         restarted = bool(boot_id) and bool(self._boot) and boot_id != self._boot
         if boot_id:
             if restarted:
-                self._last_seq = None  # a new process: its write numbers start over
+                self._loss.restarted()
             self._boot = boot_id
         if self._connected:
             return
@@ -200,13 +254,12 @@ class GrpcSubscription(Subscription):
         if self._closed.is_set():
             call.cancel()
             return
-        self._new_stream = True
+        self._loss.new_stream()
         try:
             for msg in call:
                 self._mark_up(msg.boot_id)
-                self._server_dropped_now = msg.dropped
                 for sample in msg.samples:
-                    if not self._count(sample.sequence):
+                    if not self._loss.sample(sample.sequence, msg.dropped):
                         continue  # already delivered (handed over again after a reconnection)
                     try:
                         value = codec.decode(sample.value)
@@ -222,24 +275,9 @@ class GrpcSubscription(Subscription):
                         sample.source_time_ns / 1e9, sample.sequence,
                     )
                     self._mailbox.put(event)
+                self._loss.report(msg.dropped)
         finally:
             self._call = None
-            self._server_dropped_done += self._server_dropped_now
-            self._server_dropped_now = 0
-
-    def _count(self, sequence: int, jumps_are_mine: bool = False) -> bool:
-        """Note the write number of a received sample; False for one received already. The
-        writes skipped between the last stream's last sample and a new stream's first were
-        lost while cut off: counted here (within a stream, the server counts its drops;
-        polling, ``jumps_are_mine``, counts every jump here)."""
-        last = self._last_seq
-        if last is not None and sequence <= last:
-            return False
-        if last is not None and (self._new_stream or jumps_are_mine):
-            self._skipped += sequence - last - 1
-        self._new_stream = False
-        self._last_seq = sequence
-        return True
 
     def _poll(self) -> None:
         """JOrocos-style polling: ReadPort every ``period`` s, deliver what is new."""
@@ -248,7 +286,7 @@ class GrpcSubscription(Subscription):
             flow, value, seq, stamp, boot = self._proxy.read_sample_of(self.port)
             self._mark_up(boot)
             self.polls += 1
-            if flow is FlowStatus.NEW_DATA and self._count(seq, jumps_are_mine=True):
+            if flow is FlowStatus.NEW_DATA and self._loss.sample(seq):
                 self._mailbox.put(SampleEvent(self.component, self.port, value, flow, stamp / 1e9, seq))
             else:
                 self.wasted_polls += 1

@@ -16,6 +16,8 @@ Registering needs the ``admin`` role where tokens are checked; lookups ``read``.
 
 from __future__ import annotations
 
+import dataclasses
+
 import logging
 import threading
 from typing import Any
@@ -236,11 +238,14 @@ def _entry_from_msg(msg: Any) -> NameEntry:
     return NameEntry(msg.component, msg.address, msg.boot_id, left)
 
 
-def security_probe(security: Security) -> Callable[[str, str], bool]:
+def security_probe(security: Security) -> Callable[[str, str], bool | None]:
     """A registry probe: is the deployer process ``boot_id`` alive at ``address``? (Its gRPC
-    health answers SERVING for ``scart.boot.<boot_id>``; health needs no token.)"""
-    def probe(address: str, boot_id: str) -> bool:
-        return _rpc.health_ok(address, security=security, service=boot_service(boot_id) if boot_id else "")
+    health answers SERVING for ``scart.boot.<boot_id>``.) Health needs no token, and the
+    address is the registrant's choice: the probe never sends one (TLS settings only)."""
+    tokenless = dataclasses.replace(security, token=None)
+
+    def probe(address: str, boot_id: str) -> bool | None:
+        return _rpc.health_state(address, security=tokenless, service=boot_service(boot_id) if boot_id else "")
     return probe
 
 

@@ -11,21 +11,26 @@ deployer, the name service, binding.grpc):
   sends ``token``. Roles nest: ``read`` (introspection, reads, subscriptions, lookups) <
   ``operate`` (writes, calls, property sets, state changes, connections) < ``admin``
   (name registration by other deployers). No valid token: ``UNAUTHENTICATED``; a call the
-  role does not allow: ``PERMISSION_DENIED`` naming the role it needs. gRPC health stays
-  open (it reveals nothing). Tokens are compared in constant time and never logged.
+  role does not allow: ``PERMISSION_DENIED`` naming the role it needs. A health check
+  (``Health/Check``) stays open (it reveals nothing); ``Health/Watch``, a stream, needs
+  ``read``. Tokens are compared in constant time and never logged. While a call runs,
+  :data:`CALLER` holds a digest of its token, so per-peer bounds count a token as one
+  peer (on loopback a connection is no identity: every local process shares the address).
 * **Safe default** — with neither, a server listens on loopback only: binding another
   address without TLS *and* tokens is refused unless ``insecure`` (then a loud warning).
 
 Environment (read by :meth:`Security.from_env`, used by the command line and by
 ``connect()`` when no ``security`` is given): ``SCART_TLS_CERT``, ``SCART_TLS_KEY``,
-``SCART_TLS_CA``, ``SCART_TOKEN``, ``SCART_AUTH_FILE``. Importing this module imports no
-gRPC; making credentials does.
+``SCART_TLS_CA``, ``SCART_TOKEN`` (or ``SCART_TOKEN_FILE``, read by the command line),
+``SCART_AUTH_FILE``. Importing this module imports no gRPC; making credentials does.
 """
 
 from __future__ import annotations
 
+import contextvars
 import enum
 import functools
+import hashlib
 import hmac
 import ipaddress
 import logging
@@ -81,7 +86,7 @@ class AuthTable:
     def load(cls, path: str | os.PathLike[str]) -> AuthTable:
         """Parse ``path``: one ``ROLE TOKEN`` per line, ``#`` starts a comment. Raises
         :class:`SecurityError` naming the file and line (never echoing a token)."""
-        text = _read_bounded(path, MAX_AUTH_BYTES, "auth file")
+        text = _read_bounded(path, MAX_AUTH_BYTES, "auth file", private=True)
         entries: list[tuple[bytes, Role]] = []
         seen: dict[bytes, Role] = {}
         for number, raw in enumerate(text.splitlines(), start=1):
@@ -216,7 +221,11 @@ def add_arguments(parser: Any, *, server: bool, client: bool = True) -> None:
                        help="CA: a client verifies the server with it; a server requires client "
                             "certificates signed by it (mTLS) ($SCART_TLS_CA)")
     if client:
-        group.add_argument("--token", default=None, help="bearer token sent with every call ($SCART_TOKEN)")
+        group.add_argument("--token", default=None,
+                           help="bearer token sent with every call ($SCART_TOKEN); other local users can see "
+                                "a command line: prefer $SCART_TOKEN or --token-file")
+        group.add_argument("--token-file", default=None, metavar="PATH",
+                           help="read the bearer token from this file, first line ($SCART_TOKEN_FILE)")
     if server:
         group.add_argument("--auth-file", default=None, metavar="PATH",
                            help="tokens and roles a server accepts, one 'ROLE TOKEN' per line ($SCART_AUTH_FILE)")
@@ -228,12 +237,32 @@ def from_args(args: Any, environ: Mapping[str, str] | None = None) -> Security:
     """The :class:`Security` of parsed flags (see :func:`add_arguments`), each falling back
     to its environment variable. Raises :class:`SecurityError` for settings that cannot
     work together."""
+    env = os.environ if environ is None else environ
+    token = getattr(args, "token", None)
+    token_file = getattr(args, "token_file", None) or (env.get("SCART_TOKEN_FILE") or None if token is None else None)
+    if token is not None and getattr(args, "token_file", None):
+        raise SecurityError("give --token or --token-file, not both")
+    if token is not None:
+        log.warning("--token on the command line is visible to other local users (ps, /proc): "
+                    "prefer SCART_TOKEN or --token-file")
+    elif token_file:
+        token = read_token_file(token_file)
     security = Security.from_env(
         environ, cert=getattr(args, "tls_cert", None), key=getattr(args, "tls_key", None),
-        ca=getattr(args, "tls_ca", None), token=getattr(args, "token", None),
+        ca=getattr(args, "tls_ca", None), token=token,
         auth_file=getattr(args, "auth_file", None), insecure=getattr(args, "insecure", False) or None)
     security.check()
     return security
+
+
+def read_token_file(path: str | os.PathLike[str]) -> str:
+    """The token in ``path``: its first line that is not blank nor a ``#`` comment.
+    Raises :class:`SecurityError` naming the file (never echoing its content)."""
+    for raw in _read_bounded(path, MAX_AUTH_BYTES, "token file", private=True).splitlines():
+        line = raw.split("#", 1)[0].strip()
+        if line:
+            return line
+    raise SecurityError(f"token file {path}: no token in it")
 
 
 def is_loopback(host: str) -> bool:
@@ -246,8 +275,9 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-def _read_bounded(path: str | os.PathLike[str] | None, limit: int, what: str) -> str:
-    """Read a small regular text file; :class:`SecurityError` naming it when unusable."""
+def _read_bounded(path: str | os.PathLike[str] | None, limit: int, what: str, private: bool = False) -> str:
+    """Read a small regular text file; :class:`SecurityError` naming it when unusable.
+    ``private``: it holds secrets, so warn when other users may read it."""
     if path is None:
         raise SecurityError(f"no {what} file given")
     p = Path(path)
@@ -255,6 +285,8 @@ def _read_bounded(path: str | os.PathLike[str] | None, limit: int, what: str) ->
         if not p.is_file():
             raise SecurityError(f"{what} {p}: not a regular file")
         with p.open("rb") as fh:
+            if private and os.fstat(fh.fileno()).st_mode & 0o077:
+                log.warning("%s %s can be read by other users: chmod 600 it", what, p)
             data = fh.read(limit + 1)
     except OSError as exc:
         raise SecurityError(f"{what} {p}: cannot read: {exc.strerror or exc}") from None
@@ -322,8 +354,12 @@ def roles_of_service(full_name: str, reads: set[str], default: Role = Role.OPERA
     return table
 
 
-#: Services anyone may call (their answers reveal nothing).
-OPEN_SERVICES = ("/grpc.health.v1.Health/",)
+#: Methods anyone may call (their answers reveal nothing, and they end at once).
+OPEN_SERVICES = ("/grpc.health.v1.Health/Check",)
+
+#: Who the running call is, when the server checks tokens: ``token:<digest>`` (set by
+#: :func:`auth_interceptor` around each call it lets through; "" otherwise).
+CALLER: contextvars.ContextVar[str] = contextvars.ContextVar("scart_caller", default="")
 
 
 def auth_interceptor(table: AuthTable, roles: Mapping[str, Role],
@@ -356,9 +392,51 @@ def auth_interceptor(table: AuthTable, roles: Mapping[str, Role],
             if role < need:
                 return _denied(continuation(details), grpc.StatusCode.PERMISSION_DENIED,
                                f"{name} needs the '{need.label}' role; this token has '{role.label}'")
-            return continuation(details)
+            assert token is not None
+            return _as_caller(continuation(details), "token:" + hashlib.sha256(token.encode()).hexdigest()[:16])
 
     return Interceptor()
+
+
+def _as_caller(handler: Any, caller: str) -> Any:
+    """``handler`` with :data:`CALLER` set to ``caller`` while its behaviour runs."""
+    import grpc
+
+    if handler is None:
+        return None
+
+    def unary(behavior: Callable[..., Any]) -> Callable[..., Any]:
+        def run(request: Any, context: grpc.ServicerContext) -> Any:
+            token = CALLER.set(caller)
+            try:
+                return behavior(request, context)
+            finally:
+                CALLER.reset(token)
+        return run
+
+    def streaming(behavior: Callable[..., Any]) -> Callable[..., Any]:
+        def run(request: Any, context: grpc.ServicerContext) -> Any:
+            token = CALLER.set(caller)
+            try:
+                yield from behavior(request, context)
+            finally:
+                try:
+                    CALLER.reset(token)
+                except ValueError:  # closed from another thread's context: nothing to restore there
+                    pass
+        return run
+
+    kinds = (
+        (handler.unary_unary, grpc.unary_unary_rpc_method_handler, unary),
+        (handler.unary_stream, grpc.unary_stream_rpc_method_handler, streaming),
+        (handler.stream_unary, grpc.stream_unary_rpc_method_handler, unary),
+        (handler.stream_stream, grpc.stream_stream_rpc_method_handler, streaming),
+    )
+    for behavior, make, wrap in kinds:
+        if behavior is not None:
+            return make(wrap(behavior), request_deserializer=handler.request_deserializer,
+                        response_serializer=handler.response_serializer)
+    return handler
 
 
 def _denied(handler: Any, code: Any, message: str) -> Any:

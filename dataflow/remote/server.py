@@ -18,8 +18,9 @@ except an RPC handler of this server).
 from __future__ import annotations
 
 import logging
-import threading
 import secrets
+import threading
+import time
 from typing import Any
 
 import grpc
@@ -37,13 +38,15 @@ from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
 from dataflow.remote.security import Security
 from dataflow.remote.naming import (
-    DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, Registration, boot_service, held_elsewhere,
-    security_probe,
+    DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, RegistryFullError, Registration, boot_service,
+    held_elsewhere, security_probe,
 )
 
 __all__ = ["DeployerServer"]
 
 log = logging.getLogger(__name__)
+
+REASSERT_S = 1.0  #: how often an embedded deployer claims again the names another deployer held
 
 
 class _RemoteLink:
@@ -151,7 +154,7 @@ class DeployerServer:
         self.boot_id = secrets.token_hex(8)
         self.security = security = security or Security()
         self.registry: NameRegistry | None = None if ns else NameRegistry(
-            default_lease=lease_seconds, probe=security_probe(security))
+            default_lease=lease_seconds, probe=security_probe(security), own_boot_id=self.boot_id)
         self._lease_id = ""  # of our own names in the embedded registry
         self._servicer = DeployerServicer(self, heartbeat_ms=heartbeat_ms, max_streams=max(1, max_workers - 8))
         servicers: list[_rpc.Servicer] = [(df_grpc.add_DeployerServiceServicer_to_server, self._servicer)]
@@ -175,6 +178,7 @@ class DeployerServer:
         self._registration: Registration | None = None
         self._published: list[str] = []
         self._refused: list[str] = []
+        self._retry_at = 0.0
         try:
             if self.registry is not None:
                 self.refresh_names()
@@ -200,8 +204,10 @@ class DeployerServer:
         returns the refused names (empty when all are published).
         """
         names = sorted(self.deployer.names())
-        if self.registry is None or names == self._published:
+        if self.registry is None or (names == self._published and
+                                      (not self._refused or time.monotonic() < self._retry_at)):
             return self.refused_names
+        self._retry_at = time.monotonic() + REASSERT_S  # refused names: claimed again after a while
         try:
             self._lease_id, _ = self.registry.register(self.address, names, permanent=True, boot_id=self.boot_id,
                                                        lease_id=self._lease_id)
@@ -218,9 +224,12 @@ class DeployerServer:
             try:
                 self._lease_id, _ = self.registry.register(self.address, free, permanent=True, boot_id=self.boot_id,
                                                            lease_id=self._lease_id)
-            except errors.AlreadyRegisteredError as exc:  # raced with another registration
+            except (errors.AlreadyRegisteredError, RegistryFullError) as exc:  # raced, or busy
                 log.warning("deployer at %s: publishing %s failed: %s", self.address, free, exc)
                 return self.refused_names
+        except RegistryFullError as exc:  # busy probing other claims: the next lookup tries again
+            log.warning("deployer at %s: publishing its names is delayed: %s", self.address, exc)
+            return self.refused_names
         self._published = names
         return self.refused_names
 

@@ -473,3 +473,12 @@ def test_bad_settings_are_refused(backend: FakeBackend) -> None:
     for kwargs in ({"token": ""}, {"max_sse_clients": 0}, {"max_connections": 0}):
         with pytest.raises(ValueError):
             MonitorServer(backend, **kwargs)
+
+
+def test_a_routable_host_needs_a_control_token(backend: FakeBackend, caplog: pytest.LogCaptureFixture) -> None:
+    with pytest.raises(ValueError, match="refusing to serve on 0.0.0.0 without a control token"):
+        MonitorServer(backend, host="0.0.0.0")
+    MonitorServer(backend, host="0.0.0.0", token="per-launch-secret")  # with one: fine (not started)
+    with caplog.at_level(logging.WARNING):
+        MonitorServer(backend, host="0.0.0.0", insecure=True)
+    assert "anyone who reaches it can move the arm" in caplog.text

@@ -71,7 +71,7 @@ def venv(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Venv]:
     subprocess.run([sys.executable, "-m", "venv", str(base / "venv")], check=True, timeout=120)
     pip = str(base / "venv" / "bin" / "pip")
     _pip(pip, "install", str(wheel))
-    _pip(pip, "install", "--no-deps", str(DATA / "foo_binding"))
+    _pip(pip, "install", "--no-deps", str(source / DATA.relative_to(ROOT) / "foo_binding"))  # from the copy too
     work = base / "work"  # outside the checkout, as a user's project folder
     work.mkdir()
     yield Venv(base / "venv", work)

@@ -253,6 +253,23 @@ def test_a_hanging_destroy_is_left_behind_at_the_stop_deadline(tmp_path: Path,
         importlib.import_module("hanging").RELEASE.set()
 
 
+def test_many_hanging_destroys_share_one_grace_period(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    (tmp_path / "hanging.py").write_text(HANGING, encoding="utf-8")
+    hangs = "".join(f'<component name="H{i}"><scart:implementation.python class="hanging:Hangs"/></component>'
+                    for i in range(12))
+    rt = scart.Runtime.from_file(str(write(tmp_path, {"many.composite": composite(hangs)})), drain_timeout=0.3)
+    rt.start()
+    start = time.monotonic()
+    with caplog.at_level(logging.WARNING, logger="scart.runtime"):
+        rt.stop()
+    try:
+        # 12 x MIN_DESTROY_S would be 6 s: the deadline and one shared grace bound it (about 1 s)
+        assert time.monotonic() - start < 4.0
+        assert caplog.text.count("did not finish within the stop timeout") == 12
+    finally:
+        importlib.import_module("hanging").RELEASE.set()
+
+
 def test_run_exits_within_stop_timeout_when_a_destroy_hangs(tmp_path: Path) -> None:
     proc = start("run", str(hanging_composite(tmp_path)), "--stop-timeout", "0.5")
     try:

@@ -32,6 +32,14 @@ TOKENS = {role: f"{role}-{secrets.token_hex(16)}" for role in ("read", "operate"
 def auth_file(tmp_path: Path) -> str:
     path = tmp_path / "tokens.auth"
     path.write_text("# roles of the robot's users\n" + "".join(f"{r} {t}\n" for r, t in TOKENS.items()))
+    path.chmod(0o600)
+    return str(path)
+
+
+def token_file(folder: Path, role: str) -> str:
+    path = folder / f"{role}.token"
+    path.write_text(f"# the {role} token\n{TOKENS[role]}\n")
+    path.chmod(0o600)
     return str(path)
 
 
@@ -190,14 +198,28 @@ def scart_cli(*args: str, env_token: str | None = None) -> subprocess.CompletedP
 
 
 @pytest.mark.subprocess
-def test_the_cli_says_what_is_refused_in_one_line(guarded: str) -> None:
+def test_the_cli_says_what_is_refused_in_one_line(guarded: str, tmp_path: Path) -> None:
     out = scart_cli("ls", "--ns", guarded, "--sample", "0")
     assert out.returncode == 1 and out.stderr.count("\n") == 1 and "no valid token" in out.stderr
-    out = scart_cli("write", "p.input", "1.0", "--ns", guarded, "--token", TOKENS["read"])
+    out = scart_cli("write", "p.input", "1.0", "--ns", guarded, "--token-file", token_file(tmp_path, "read"))
     assert out.returncode == 1 and out.stderr.count("\n") == 1
     assert "WritePort needs the 'operate' role" in out.stderr and TOKENS["read"] not in out.stderr
     out = scart_cli("write", "p.input", "1.0", "--ns", guarded, env_token=TOKENS["operate"])
     assert out.returncode == 0 and out.stdout.strip() == "WRITE_SUCCESS"
+
+
+@pytest.mark.subprocess
+def test_secrets_exposed_to_other_local_users_are_warned_about(guarded: str, tmp_path: Path) -> None:
+    out = scart_cli("ls", "--ns", guarded, "--sample", "0", "--token", TOKENS["read"])
+    assert out.returncode == 0 and "--token on the command line is visible to other local users" in out.stderr
+    assert TOKENS["read"] not in out.stderr
+    loose = tmp_path / "loose.token"
+    loose.write_text(TOKENS["read"])
+    loose.chmod(0o644)
+    out = scart_cli("ls", "--ns", guarded, "--sample", "0", "--token-file", str(loose))
+    assert out.returncode == 0 and "can be read by other users: chmod 600 it" in out.stderr
+    both = scart_cli("ls", "--ns", guarded, "--token", "x" * 8, "--token-file", str(loose))
+    assert both.returncode == 1 and "not both" in both.stderr
 
 
 @pytest.mark.subprocess
@@ -241,8 +263,9 @@ def test_scart_run_serves_its_tasks_with_tokens(auth_file: str) -> None:
 
     ns = f"127.0.0.1:{free_port()}"
     env = {k: v for k, v in os.environ.items() if not k.startswith("SCART_")}
+    env["SCART_TOKEN_FILE"] = token_file(Path(auth_file).parent, "admin")
     proc = subprocess.Popen([sys.executable, "-m", "scart", "run", str(ROOT / "composites/bridge/thermostat.composite"),
-                             "--ns", ns, "--auth-file", auth_file, "--token", TOKENS["admin"]],
+                             "--ns", ns, "--auth-file", auth_file],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0, env=env, cwd=ROOT)
     try:
         read_until(proc, "started")

@@ -101,6 +101,66 @@ def test_bounds_are_declared_and_checked() -> None:
         Property(str, "x", ge=0.0)
 
 
+class Pose(pydantic.BaseModel):
+    x: float
+    y: float
+
+
+class Nested(TaskContext):
+    maybe = Property(float | None, None)
+    pair = Property(tuple[float, float], (0.0, 0.0))
+    pose = Property(Pose, Pose(x=0, y=0))
+    config = Property(dict, {})
+    label = Property(str, "n")
+    goal = InputPort(Pose)
+
+    @operation
+    def speed(self, v: Annotated[float, pydantic.Field(ge=0.0)]) -> float:
+        return v
+
+    @operation
+    def raw(self, v: Annotated[float, pydantic.Field(allow_inf_nan=True)]) -> float:
+        return v
+
+    @operation
+    def go(self, pose: Pose, via: list[tuple[float, float]]) -> None: ...
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_numbers_are_finite_wherever_they_sit_in_a_value(bad: float) -> None:
+    task = Nested("n")
+    for name, value in (("maybe", bad), ("pair", (1.0, bad)), ("pose", {"x": 1.0, "y": bad}),
+                        ("config", {"gain": [1.0, bad]})):
+        with pytest.raises(ValueError, match="not a finite number"):
+            task.set_property(name, value)
+    with pytest.raises(PortValueError, match="not a finite number"):
+        task.port("goal").admit(Pose(x=bad, y=0.0))
+    with pytest.raises(PortValueError, match=r"n\.speed\(v\)"):
+        task.check_arguments("speed", [bad])  # a lower bound alone does not let inf through
+    with pytest.raises(PortValueError, match=r"n\.go\(via\)"):
+        task.check_arguments("go", [Pose(x=0, y=0), [(0.0, 1.0), (bad, 2.0)]])
+    assert math.isnan(task.check_arguments("raw", [math.nan])[0])  # allow_inf_nan=True: its own choice
+    task.set_property("label", "still fine")
+
+
+def test_binding_grpc_arguments_are_checked_as_values_from_outside() -> None:
+    from dataflow import codec
+    from scart.errors import InvocationError
+    from scart.ext.grpc._wire import Signature
+
+    class Arm:
+        def move(self, v: Annotated[float, pydantic.Field(ge=0.0, le=1.0)], w: float) -> None: ...
+
+    read = Signature(Arm.move)
+    assert read.args([codec.encode(0.5), codec.encode(2.0)]) == (0.5, 2.0)
+    with pytest.raises(InvocationError, match="less than or equal to 1"):
+        read.args([codec.encode(5.0), codec.encode(0.1)])
+    with pytest.raises(InvocationError, match="not a finite number"):
+        read.args([codec.encode(0.5), codec.encode(math.nan)])
+    with pytest.raises(InvocationError, match="not a finite number"):
+        read.kwargs({"w": codec.encode(math.inf)})
+
+
 # ---- property @file ---------------------------------------------------------------------
 
 def _composite_with_file(tmp_path, file: str, prop: str = "number"):

@@ -4,6 +4,8 @@ finite leases, bounded tables, pages. Each test is a probe that worked before.""
 from __future__ import annotations
 
 import math
+import socket
+import threading
 
 import grpc
 import pytest
@@ -12,7 +14,9 @@ from dataflow import Deployer, NotFoundError
 from dataflow.remote import AlreadyRegisteredError, RemoteError, connect, serve_nameserver
 from dataflow.remote._proto import ns as pb
 from dataflow.remote._proto import ns_grpc
+from dataflow.remote import _rpc
 from dataflow.remote.naming import Limits, NameClient, NameRegistry
+from dataflow.remote.security import Security
 from support.remote import Pinger
 
 
@@ -125,3 +129,89 @@ def test_entries_come_in_pages_and_errors_list_a_bounded_few() -> None:
     finally:
         client.close()
         ns.stop()
+
+
+def _tarpit() -> socket.socket:
+    """A listening socket that never answers: a holder that looks busy, forever."""
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen(512)
+    return sock
+
+
+def test_a_silent_holder_keeps_its_names_and_claims_cannot_starve_the_server() -> None:
+    """A probe that times out is no proof the holder is gone; and a flood of claims that
+    make the registry probe cannot take the server's workers (health, lookups) nor, by
+    making the deployer's own health look down, its names."""
+    deployer = Deployer()
+    deployer.add(Pinger("p"))
+    server = deployer.serve("127.0.0.1:0")
+    tarpit = _tarpit()
+    silent = f"127.0.0.1:{tarpit.getsockname()[1]}"
+    names = NameClient(server.address, timeout=5)
+    outcomes: list[str] = []
+    try:
+        names.register(silent, ["t"], 60.0, boot_id="b" * 16)
+
+        def claim(name: str) -> None:
+            client = NameClient(server.address, timeout=10)
+            try:
+                client.register("127.0.0.1:1", [name], 60.0, boot_id="c" * 16)
+                outcomes.append("taken")
+            except RemoteError as exc:
+                outcomes.append(exc.code)
+            finally:
+                client.close()
+
+        threads = [threading.Thread(target=claim, args=("t" if i % 2 else "p",)) for i in range(60)]
+        for thread in threads:
+            thread.start()
+        for _ in range(10):  # while they run: health and lookups answer
+            assert _rpc.health_ok(server.address, timeout=2.0)
+            assert names.resolve("p").address == server.address
+        for thread in threads:
+            thread.join(timeout=30)
+        assert not any(t.is_alive() for t in threads)
+        assert len(outcomes) == 60 and "taken" not in outcomes
+        assert set(outcomes) <= {"ALREADY_EXISTS", "RESOURCE_EXHAUSTED"}
+        assert names.resolve("t").address == silent and names.resolve("p").address == server.address
+    finally:
+        names.close()
+        tarpit.close()
+        server.stop()
+
+
+def test_the_liveness_probe_never_carries_the_server_s_token() -> None:
+    """The registry checks a holder at the address the registrant chose: it must not hand
+    that address the token this runtime uses for its own calls."""
+    from concurrent import futures
+
+    from grpc_health.v1 import health, health_pb2_grpc
+
+    seen: list[tuple[tuple[str, str], ...]] = []
+
+    class Recorder(grpc.ServerInterceptor):
+        def intercept_service(self, continuation, details):  # type: ignore[no-untyped-def]
+            seen.append(tuple(details.invocation_metadata or ()))
+            return continuation(details)
+
+    pool = futures.ThreadPoolExecutor(2)
+    decoy = grpc.server(pool, interceptors=[Recorder()])
+    health_pb2_grpc.add_HealthServicer_to_server(health.HealthServicer(), decoy)
+    decoy_address = f"127.0.0.1:{decoy.add_insecure_port('127.0.0.1:0')}"
+    decoy.start()
+    deployer = Deployer()
+    deployer.add(Pinger("p"))
+    server = deployer.serve("127.0.0.1:0", security=Security(token="the-robot-s-own-secret-token"))
+    names = NameClient(server.address, timeout=5)
+    try:
+        names.register(decoy_address, ["x"], 60.0, boot_id="d" * 16)
+        # the registry probes the holder; the decoy does not serve that boot id: gone
+        names.register("127.0.0.1:1", ["x"], 60.0, boot_id="e" * 16)
+    finally:
+        names.close()
+        server.stop()
+        decoy.stop(None)
+        pool.shutdown()
+    assert seen, "the registry never probed the holder"
+    assert all(key != "authorization" for metadata in seen for key, _ in metadata)

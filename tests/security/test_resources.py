@@ -190,3 +190,52 @@ def test_a_remote_buffer_is_capped_and_a_stuck_subscriber_is_bounded_in_bytes() 
             stream.cancel()
     finally:
         server.stop()
+
+
+def test_with_tokens_a_caller_is_its_token_not_its_connections(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Health Watch (a stream) needs a token, and the per-peer stream quota counts a token
+    as one peer however many connections it opens (on loopback, connections are free)."""
+    from grpc_health.v1 import health_pb2, health_pb2_grpc
+
+    from dataflow.remote.security import Security
+
+    tokens = {"read": "read-" + "a" * 24, "other": "read-" + "b" * 24}
+    auth = tmp_path / "tokens.auth"
+    auth.write_text("".join(f"read {t}\n" for t in tokens.values()))
+    auth.chmod(0o600)
+    deployer = Deployer()
+    deployer.add(Pinger("p"))
+    server = deployer.serve("127.0.0.1:0", max_workers=16, security=Security(auth_file=str(auth)))  # 8 streams
+    channels = [grpc.insecure_channel(server.address, options=[("grpc.use_local_subchannel_pool", 1)])
+                for _ in range(4)]
+    calls = []
+    try:
+        anonymous = health_pb2_grpc.HealthStub(channels[0])
+        assert anonymous.Check(health_pb2.HealthCheckRequest(), timeout=2).status == health_pb2.HealthCheckResponse.SERVING
+        with pytest.raises(grpc.RpcError) as info:
+            next(iter(anonymous.Watch(health_pb2.HealthCheckRequest(), timeout=2)))
+        assert info.value.code() == grpc.StatusCode.UNAUTHENTICATED
+
+        def watch(channel: grpc.Channel, token: str) -> object:
+            call = health_pb2_grpc.HealthStub(channel).Watch(
+                health_pb2.HealthCheckRequest(), metadata=[("authorization", f"Bearer {token}")], timeout=20)
+            calls.append(call)
+            return call
+
+        opened = []
+        for i in range(12):  # one token, spread over four connections
+            call = watch(channels[i % 4], tokens["read"])
+            try:
+                next(call)  # type: ignore[call-overload]
+                opened.append(call)
+            except grpc.RpcError as exc:
+                assert exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED and "from one peer" in exc.details()
+                break
+        assert len(opened) == 6  # three quarters of the 8 streams, not all of them
+        assert next(watch(channels[0], tokens["other"])).status  # type: ignore[call-overload]  # another token: room
+    finally:
+        for call in calls:
+            call.cancel()  # type: ignore[attr-defined]
+        for channel in channels:
+            channel.close()
+        server.stop()

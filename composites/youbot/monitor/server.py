@@ -66,6 +66,8 @@ from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any, Protocol, runtime_checkable
 
+from dataflow.remote.security import is_loopback
+
 from .hub import StatusHub
 
 log = logging.getLogger(__name__)
@@ -480,14 +482,21 @@ class MonitorServer:
     ``token``: when given (e.g. ``secrets.token_urlsafe(16)``, one per launch), POSTs must
     carry it in ``X-Monitor-Token``; `page_url` hands it to the page. ``max_sse_clients``
     and ``max_connections`` bound the streams and the handler threads (see the module's
-    Security section). Raises `ValueError` for an empty token or a cap below 1.
+    Security section). A host other than loopback needs a token (anyone on the network
+    could move the arm) unless ``insecure``. Raises `ValueError` for an empty token, a cap
+    below 1, or a routable host without a token.
     """
 
     def __init__(self, backend: MonitorBackend, host: str = "127.0.0.1", port: int = 0, *,
                  token: str | None = None, max_sse_clients: int = MAX_SSE_CLIENTS,
-                 max_connections: int = MAX_CONNECTIONS) -> None:
+                 max_connections: int = MAX_CONNECTIONS, insecure: bool = False) -> None:
         if token is not None and not token:
             raise ValueError("MonitorServer: token must be a non-empty string or None")
+        if token is None and not is_loopback(host):
+            if not insecure:
+                raise ValueError(f"MonitorServer: refusing to serve on {host} without a control token "
+                                 "(anyone who reaches it could move the arm): set control_token, or insecure")
+            log.warning("MonitorServer on %s without a control token: anyone who reaches it can move the arm", host)
         if max_sse_clients < 1 or max_connections < 1:
             raise ValueError("MonitorServer: max_sse_clients and max_connections must be at least 1")
         self._backend = backend

@@ -294,7 +294,8 @@ class GrpcServer:
         if table is not None:
             interceptors.insert(0, auth_interceptor(table, SCA_ROLES))
         self._server_pool = ThreadPoolExecutor(MAX_WORKERS, thread_name_prefix="scart-grpc-server")
-        server = grpc.server(self._server_pool, options=server_options(), interceptors=interceptors)
+        server = grpc.server(self._server_pool, options=server_options(), interceptors=interceptors,
+                             maximum_concurrent_rpcs=MAX_WORKERS)  # beyond: RESOURCE_EXHAUSTED, never a queue
         pb_grpc.add_ScaServiceServicer_to_server(_Servicer(self), server)
         try:
             if credentials is not None:

@@ -20,6 +20,7 @@ from typing import Any
 import pydantic
 
 from dataflow import codec
+from dataflow.bounds import from_outside
 from dataflow.errors import PortTypeError
 from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
 from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
@@ -77,6 +78,8 @@ def converter(annotation: Any) -> Converter:
     except Exception:  # an annotation pydantic cannot handle (or unhashable): pass values through
         return _identity
     exact = annotation if isinstance(annotation, type) else None
+    base = typing.get_args(annotation)[0] if typing.get_origin(annotation) is typing.Annotated else annotation
+    shown = getattr(base, "__name__", None) or repr(base)
 
     def convert(value: Any) -> Any:
         if exact is not None and type(value) is exact:
@@ -84,7 +87,7 @@ def converter(annotation: Any) -> Converter:
         try:
             return adapter.validate_python(value)
         except pydantic.ValidationError as exc:
-            raise InvocationError(f"expected {annotation!r}, got {type(value).__name__} {value!r:.80}: "
+            raise InvocationError(f"expected {shown}, got {type(value).__name__} {value!r:.80}: "
                                   f"{exc.errors()[0]['msg']}") from None
 
     return convert
@@ -110,7 +113,9 @@ def reader(annotation: Any) -> Converter:
 
 
 class Signature:
-    """Per-operation readers (see :func:`reader`): parameters by position and by name, the result."""
+    """Per-operation readers (see :func:`reader`): parameters by position and by name
+    (checked as values from outside: declared bounds, numbers finite; see
+    :func:`dataflow.bounds.from_outside`), the result."""
 
     __slots__ = ("positional", "named", "result")
 
@@ -121,12 +126,13 @@ class Signature:
         if func is None:
             return
         try:
-            hints = typing.get_type_hints(func)
+            hints = typing.get_type_hints(func, include_extras=True)  # keep Annotated bounds
             params = [p for p in inspect.signature(func).parameters.values() if p.name != "self"]
         except Exception:  # unresolvable annotations: values pass as decoded
             return
-        for p in params:
-            read = reader(hints.get(p.name))
+        for p in params:  # arguments come from outside: bounds, and numbers finite
+            hint = hints.get(p.name)
+            read = reader(from_outside(hint) if hint is not None else None)
             if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
                 self.positional.append(read)
             self.named[p.name] = read
