@@ -32,7 +32,12 @@ from scart.contribution import Contribution, import_object
 from scart.errors import Problem, ScdlError
 from scart.extensions import ExtensionError, ExtensionRegistry
 from scart.graph import DEFAULT, Assembly, Bound, Endpoint, Node, Target
-from scart.model import Binding, Component, Composite, Element, Interface, Location, PropertyValue
+from scart.model import (
+    Binding, Component, ComponentReference, Composite, CompositeReference, CompositeService, Element, Interface,
+    Location, PropertyValue,
+)
+from scart.scdl import SCA_NAMESPACES as _SCA_NAMESPACES
+from scart.scdl import did_you_mean
 from scart.settings import Settings
 from scart.spi import CheckContext, ImplementationProblem, ImplementationProvider
 from scart.values import XSD_TYPES, is_many, parse_value
@@ -126,6 +131,7 @@ class _Assembler(Checks):
         self.problems: list[Problem] = []
         self.nodes: dict[str, Node] = {}
         self.extensions: list[tuple[str, Element]] = []
+        self._promoted_interfaces: dict[int, tuple[str, InterfaceInfo]] = {}  # composite reference -> first promoted
 
     def problem(self, code: str, message: str, loc: Location) -> None:
         self.problems.append(Problem(code, message, loc.path, loc.line))
@@ -139,8 +145,10 @@ class _Assembler(Checks):
         services: dict[str, Target] = {}
         bindings: dict[str, list[Binding]] = {}
         for cs in root.services:
-            target = self.resolve_service(scope, cs.promote, cs.loc, E.ASM_PROMOTED_SERVICE)
+            target = self.resolve_service(scope, cs.promote, cs.loc, E.ASM_PROMOTED_SERVICE,
+                                          what=f"composite service {cs.name!r}: @promote ")
             if target is not None:
+                self.promoted_service(cs, target)
                 services[cs.name] = target
                 bindings[cs.name] = cs.bindings
         aliases: dict[str, Target] = {}
@@ -224,9 +232,10 @@ class _Assembler(Checks):
         services: dict[str, InterfaceInfo] = {}
         targets: dict[str, Target] = {}
         for cs in inner.services:
-            target = self.resolve_service(child, cs.promote, cs.loc, E.ASM_PROMOTED_SERVICE)
+            target = self.resolve_service(child, cs.promote, cs.loc, E.ASM_PROMOTED_SERVICE,
+                                          what=f"composite service {cs.name!r}: @promote ")
             if target is not None:
-                services[cs.name] = self.nodes[target.node].ctype.services[target.service]
+                services[cs.name] = self.promoted_service(cs, target)
                 targets[cs.name] = target
                 self.bind_promoted(target, f"{path}/{cs.name}", cs.bindings)
         for s in comp.services:  # the outer component's bindings on a promoted service
@@ -237,6 +246,18 @@ class _Assembler(Checks):
         child.ctype = ComponentType(object, services, refs, fake.properties, (), (), (), (), "composite", True)
         self.check_component_names(comp, child.ctype, check_properties=False)
         return child
+
+    def promoted_service(self, cs: CompositeService, target: Target) -> InterfaceInfo:
+        """The interface of the service ``cs`` promotes; a declared one must be a compatible
+        subset of it, callbacks included (ASM60005)."""
+        offered = self.nodes[target.node].ctype.services[target.service]
+        if cs.interface is not None:
+            declared = self.declared_interface(cs.interface)
+            if declared is not None:
+                self.check_subset(declared, offered, E.ASM_COMPOSITE_SERVICE_INTERFACE,
+                                  f"composite service {cs.name!r}: its declared interface {declared.name} and the "
+                                  f"promoted {target.node}/{target.service} ({offered.name})", cs.interface.loc)
+        return offered
 
     def bind_promoted(self, target: Target, alias: str, bindings: list[Binding]) -> None:
         """Record ``bindings`` of a service promoted out of a nested composite on its leaf
@@ -261,12 +282,19 @@ class _Assembler(Checks):
                                  f"it offers: {', '.join(ctype.services) or 'none'}", s.loc)
                 elif s.interface is not None:
                     declared = self.reference_interface(s.interface, None, s.loc)
-                    extra = [op for op in (declared.operations if declared else ()) if op not in ctype.services[s.name].operations]
+                    if declared is None:
+                        continue
+                    offered = ctype.services[s.name]
+                    extra = [op for op in declared.operations if op not in offered.operations]
                     if extra:
                         self.problem(E.ASM_SERVICE_INTERFACE, f"service {s.name!r} of {comp.name!r}: declared interface "
                                      f"{declared.name} has operation(s) {', '.join(extra)} the implementation "
                                      "does not offer", s.interface.loc)
-                    if declared is not None and declared.remotable and not services[s.name].remotable:
+                    else:  # the operations are there: one-way flags and callbacks must agree too
+                        self.check_subset(declared, offered, E.ASM_SERVICE_INTERFACE,
+                                          f"service {s.name!r} of {comp.name!r}: declared interface {declared.name} "
+                                          f"and the implementation's {offered.name}", s.interface.loc)
+                    if declared.remotable and not services[s.name].remotable:
                         services[s.name] = dataclasses.replace(services[s.name], remotable=True)
             for r in comp.references:
                 if r.name not in ctype.references:
@@ -378,25 +406,30 @@ class _Assembler(Checks):
 
     # --- phase 2: wire ------------------------------------------------------------------
 
-    def resolve_service(self, scope: Scope, uri: str, loc: Location, code: str = E.ASM_NO_SUCH_TARGET) -> Target | None:
+    def resolve_service(self, scope: Scope, uri: str, loc: Location, code: str = E.ASM_NO_SUCH_TARGET,
+                        what: str = "") -> Target | None:
+        """The leaf service ``uri`` ("Component[/Service]") names in ``scope`` (through
+        promotions), or None after reporting why (``what`` says whose URI it is)."""
         comp_name, _, service = uri.partition("/")
         service = service.split("/")[0]
         child = scope.children.get(comp_name)
         if child is None:
-            self.problem(code, f"{uri!r}: no component {comp_name!r}; known: {', '.join(scope.children) or 'none'}", loc)
+            known = ", ".join(list(scope.children)[:20]) or "none"
+            self.problem(code, f"{what}{uri!r}: no component {comp_name!r}{did_you_mean(comp_name, scope.children)}; "
+                         f"known: {known}", loc)
             return None
         if isinstance(child, Failed):
             return None  # its own problem is reported already
         offered = child.ctype.services if child.ctype is not None else {}
         if not service:
             if len(offered) != 1:
-                self.problem(E.ASM_AMBIGUOUS_TARGET, f"{uri!r}: component {comp_name!r} offers "
+                self.problem(E.ASM_AMBIGUOUS_TARGET, f"{what}{uri!r}: component {comp_name!r} offers "
                              f"{len(offered)} services ({', '.join(offered)}); name one as 'Component/Service'", loc)
                 return None
             service = next(iter(offered))
         if service not in offered:
-            self.problem(code, f"{uri!r}: component {comp_name!r} has no service {service!r}; "
-                         f"it offers: {', '.join(offered) or 'none'}", loc)
+            self.problem(code, f"{what}{uri!r}: component {comp_name!r} has no service {service!r}"
+                         f"{did_you_mean(service, offered)}; it offers: {', '.join(offered) or 'none'}", loc)
             return None
         if isinstance(child, Node):
             return Target(child.path, service)
@@ -412,12 +445,15 @@ class _Assembler(Checks):
                 if isinstance(child, Failed):
                     continue
                 if child is None or child.ctype is None or ref not in child.ctype.references:
-                    self.problem(E.ASM_PROMOTED_REFERENCE, f"composite reference {cr.name!r} promotes {uri!r}, "
-                                 "which is no component reference", cr.loc)
+                    known = [f"{n}/{r}" for n, c in scope.children.items() if c.ctype is not None for r in c.ctype.references]
+                    self.problem(E.ASM_PROMOTED_REFERENCE, f"composite reference {cr.name!r}: @promote {uri!r} names "
+                                 f"no component reference; known: {', '.join(known[:20]) or 'none'}", cr.loc)
                     continue
+                self.check_promoted_reference(scope, cr, comp_name, child, ref)
                 outer = inherited.get(cr.name) or [Bound(b) for b in cr.bindings]
                 if not outer and cr.targets and scope.component is None:
-                    outer = [t for t in (self.resolve_service(scope, u, cr.loc) for u in cr.targets) if t]
+                    outer = [t for t in (self.resolve_service(scope, u, cr.loc, what=f"composite reference {cr.name!r}: "
+                                                              "target ") for u in cr.targets) if t]
                 promoted[uri] = outer
         for name, child in scope.children.items():
             if child.ctype is None:
@@ -429,6 +465,47 @@ class _Assembler(Checks):
             else:
                 self.wire(child, endpoints)
 
+    def check_promoted_reference(self, scope: Scope, cr: CompositeReference, comp_name: str, child: Node | Scope,
+                                 ref: str) -> None:
+        """A composite reference promoting ``comp_name/ref``: a 0..1/1..1 ``nonOverridable``
+        reference wired inside is not promoted (ASM50042); the composite reference's
+        multiplicity narrows, never widens, the promoted one's — or relaxes "at least one"
+        when the component reference has its own targets (ASM60011); its interface is a
+        compatible superset of the promoted one's (ASM60012), and references promoted
+        together have one interface (ASM60008)."""
+        comp = child.model if isinstance(child, Node) else child.component
+        assert comp is not None and child.ctype is not None
+        spec, ref_type = child.ctype.references[ref]
+        xml = next((r for r in comp.references if r.name == ref), None)
+        mult = (xml.multiplicity if xml is not None and xml.multiplicity else None) or spec.multiplicity
+        wired = bool(xml is not None and (xml.targets or xml.bindings)) or any(
+            w.source.partition("/")[0] == comp_name and w.source.partition("/")[2] in (ref, "")
+            for w in scope.composite.wires)
+        where = f"composite reference {cr.name!r} promotes {comp_name}/{ref}"
+        if xml is not None and xml.non_overridable and not mult.endswith("n") and wired:
+            self.problem(E.ASM_NON_OVERRIDABLE, f"{where}, which is nonOverridable, {mult} and wired inside the "
+                         "composite: it cannot be promoted (its target cannot be replaced)", cr.loc)
+        if cr.multiplicity:
+            allowed = list(_NARROWINGS.get(mult, ()))
+            if wired and mult.startswith("1"):  # it has targets already: "at least one" may be relaxed
+                allowed += [m for m in _NARROWINGS.get("0" + mult[1:], ()) if m not in allowed]
+            if cr.multiplicity not in allowed:
+                self.problem(E.ASM_COMPOSITE_MULTIPLICITY, f"{where} ({mult}): multiplicity {cr.multiplicity!r} "
+                             f"would widen it (allowed: {', '.join(allowed)})", cr.loc)
+        promoted = self.reference_interface(xml.interface if xml else None, ref_type, cr.loc)
+        if promoted is None:
+            return
+        if cr.interface is not None:
+            declared = self.declared_interface(cr.interface)
+            if declared is not None:
+                self.check_subset(promoted, declared, E.ASM_COMPOSITE_REFERENCE_INTERFACE,
+                                  f"{where} ({promoted.name}): its declared interface {declared.name}", cr.interface.loc)
+        first = self._promoted_interfaces.setdefault(id(cr), (f"{comp_name}/{ref}", promoted))
+        if first[1] is not promoted and cr.interface is None:
+            self.check_subset(first[1], promoted, E.ASM_PROMOTED_INTERFACES,
+                              f"composite reference {cr.name!r} promotes {first[0]} ({first[1].name}) and "
+                              f"{comp_name}/{ref} ({promoted.name}) together", cr.loc)
+
     def reference_endpoints(self, scope: Scope, comp_name: str, child: Node | Scope, ref: str,
                             from_outside: list[Endpoint]) -> list[Endpoint]:
         comp = child.model if isinstance(child, Node) else child.component
@@ -437,6 +514,7 @@ class _Assembler(Checks):
         xml = next((r for r in comp.references if r.name == ref), None)
         loc = xml.loc if xml is not None else comp.loc
         uris = [(u, loc) for u in (xml.targets if xml else [])]
+        bindings = self.reference_bindings(comp, ref, xml, uris)
         replaced = False
         for w in scope.composite.wires:
             src_comp, _, src_ref = w.source.partition("/")
@@ -445,11 +523,20 @@ class _Assembler(Checks):
                     uris = [(u, l) for u, l in uris if l is not loc]
                     replaced = True
                 uris.append((w.target, w.loc))
-        targets: list[Endpoint] = [t for t in (self.resolve_service(scope, u, l) for u, l in uris) if t]
+        what = f"component {comp.name!r} reference {ref!r}: target "
+        targets: list[Endpoint] = [t for t in (self.resolve_service(scope, u, l, what=what) for u, l in uris) if t]
         unresolved = len(targets) < len(uris)
         iface = self.reference_interface(xml.interface if xml else None, ref_type, loc)
-        if iface is not None and isinstance(child, Node) and xml is not None and xml.interface is not None:
-            child.ref_interfaces[ref] = iface
+        if iface is not None and xml is not None and xml.interface is not None:
+            # the declared interface may add to the implementation's, never take (when it does,
+            # checking it against the targets would only repeat the problem)
+            if ref_type is not None and not self.check_subset(
+                    interface_info(ref_type), iface, E.ASM_REFERENCE_INTERFACE,
+                    f"reference {ref!r} of {comp.name!r}: the implementation's {ref_type.__name__} "
+                    f"and the declared interface {iface.name}", xml.interface.loc):
+                iface = None
+            if iface is not None and isinstance(child, Node):
+                child.ref_interfaces[ref] = iface
         mult = spec.multiplicity
         if xml is not None and xml.multiplicity:
             if xml.multiplicity not in _NARROWINGS.get(spec.multiplicity, ()):
@@ -458,10 +545,13 @@ class _Assembler(Checks):
                              f"narrow it (allowed: {', '.join(_NARROWINGS.get(spec.multiplicity, ()))})", loc)
             else:
                 mult = xml.multiplicity
-        if not targets and xml is not None and xml.bindings:
-            targets = [Bound(b) for b in xml.bindings]
-        if not targets and from_outside:
-            targets = list(from_outside)
+        if not targets and bindings:
+            targets = [Bound(b) for b in bindings]
+        if from_outside:  # promoted, and the outside gives targets: they replace the component's own
+            if xml is not None and xml.non_overridable:  # ... unless it is nonOverridable: then they add
+                targets = targets + list(from_outside) if mult.endswith("n") else targets
+            else:
+                targets = list(from_outside)
         autowire = next((a for a in ((xml.autowire if xml else None), comp.autowire) if a is not None),
                         scope.composite.autowire)
         if not targets and not uris and autowire and iface is not None:
@@ -475,8 +565,8 @@ class _Assembler(Checks):
             if not isinstance(t, Target):
                 continue
             offered = self.nodes[t.node].ctype.services[t.service]
-            if iface is not None:
-                self.check_compatible(iface, offered, ref, t, loc)
+            if iface is not None and not self.check_compatible(iface, offered, ref, t, loc):
+                continue  # the caller's callback methods are not checked against a mismatched interface
             if offered.callback is not None and isinstance(child, Node):
                 lacking = [op for op in offered.callback.operations if not callable(getattr(child.ctype.cls, op, None))]
                 if lacking:
@@ -485,30 +575,74 @@ class _Assembler(Checks):
                                  "on the caller", loc)
         return targets
 
+    def reference_bindings(self, comp: Component, ref: str, xml: ComponentReference | None,
+                           uris: list[tuple[str, Location]]) -> list[Binding]:
+        """The bindings of a component reference that reach an endpoint of their own. A
+        ``binding.sca`` with ``@uri`` is a target like ``@target`` (added to ``uris``); one
+        without is the default binding (nothing to add). Beside a ``@target``, a binding
+        that names its own endpoint is a conflict (ASM50026)."""
+        if xml is None:
+            return []
+        out = []
+        for b in xml.bindings:
+            if b.kind == "binding.sca" and b.namespace in _SCA_NAMESPACES:
+                if "uri" in b.attributes:
+                    uris.append((b.attributes["uri"], b.loc))
+                continue
+            out.append(b)
+            names = True
+            try:
+                provider = self.registry.binding(b.kind)
+                names = provider.names_endpoint(b) if provider is not None else True
+            except ExtensionError:
+                pass  # reported by the binding check
+            if xml.targets and names:
+                self.problem(E.ASM_TARGET_AND_BINDING, f"component {comp.name!r} reference {ref!r} has @target "
+                             f"{' '.join(xml.targets)!r} and a <{b.kind}> that names its own endpoint: "
+                             "give one or the other", b.loc)
+        return out
+
     def _is_promoted(self, scope: Scope, comp_name: str, ref: str) -> bool:
         return scope.component is not None and any(f"{comp_name}/{ref}" in cr.promote for cr in scope.composite.references)
 
     def reference_interface(self, declared: Interface | None, ref_type: type | None, loc: Location) -> InterfaceInfo | None:
+        """The interface a reference uses: the declared one (``<interface.*>``), else its
+        annotation's; None when neither (or the declared one is broken: reported)."""
         if declared is not None:
-            if declared.kind == "interface.wsdl":
-                found = self.contribution.wsdl_interface(declared.target, declared.loc)
-                if found is not None and declared.callback:
-                    cb = self.contribution.wsdl_interface(declared.callback, declared.loc)
-                    found = dataclasses.replace(found, callback=cb)
-                return found
-            if declared.invalid:
-                return None  # reported by the schema check
-            info = self.python_interface(declared.target, declared.loc)
-            if info is None:
-                return None
-            if declared.callback:
-                cb = self.python_interface(declared.callback, declared.loc)
-                if cb is not None:
-                    info = dataclasses.replace(info, callback=cb)
-            if declared.remotable is not None:
-                info = dataclasses.replace(info, remotable=declared.remotable)
-            return info
+            return self.declared_interface(declared)
         return interface_info(ref_type) if ref_type is not None else None
+
+    def declared_interface(self, declared: Interface) -> InterfaceInfo | None:
+        """An ``<interface.wsdl>``, ``<interface.java>`` or ``<scart:interface.python>``
+        with its callback interface: the one ``@callbackInterface`` names must agree with
+        the one the interface itself declares (ASM80011); a WSDL interface is remotable
+        (ASM80017). None (reported) when it cannot be resolved."""
+        if declared.invalid:
+            return None  # reported by the schema check
+        if declared.kind == "interface.wsdl":
+            if declared.remotable is False:
+                self.problem(E.ASM_WSDL_REMOTABLE, f"interface.wsdl {declared.target!r}: remotable=\"false\" is not "
+                             "allowed (a WSDL interface is always remotable)", declared.loc)
+            info = self.contribution.wsdl_interface(declared.target, declared.loc)
+            cb = (self.contribution.wsdl_interface(declared.callback, declared.loc, "callbackInterface")
+                  if declared.callback else None)
+        else:
+            target = declared.target
+            if declared.kind == "interface.java" and ":" not in target:  # a.b.C: the class C of module a.b
+                target = ":".join(target.rsplit(".", 1))
+            info = self.python_interface(target, declared.loc)
+            cb = self.python_interface(declared.callback, declared.loc) if declared.callback else None
+            if info is not None and declared.remotable is not None:
+                info = dataclasses.replace(info, remotable=declared.remotable)
+        if info is None or (declared.callback and cb is None):
+            return None  # reported; an interface missing its callback would only cause knock-on problems
+        if cb is not None:
+            own = info.callback
+            if own is not None and set(own.operations) != set(cb.operations):
+                self.problem(E.ASM_CALLBACK_AGREES, f"interface {info.name}: callbackInterface {cb.name} disagrees "
+                             f"with the callback interface {own.name} that {info.name} itself declares", declared.loc)
+            info = dataclasses.replace(info, callback=cb)
+        return info
 
     def python_interface(self, target: str, loc: Location) -> InterfaceInfo | None:
         try:

@@ -117,23 +117,43 @@ class Checks:
         elif mult == "1..n" and n == 0:
             self.problem(E.ASM_MULTIPLICITY_1_N, f"component {comp.name!r}: reference {ref!r} (1..n) has no target", where)
 
-    def check_compatible(self, source: InterfaceInfo, target: InterfaceInfo, ref: str, t: Target, loc: Location) -> None:
-        where = f"reference {ref!r} ({source.name}) is wired to {t.node}/{t.service} ({target.name})"
-        missing = [op for op in source.operations if op not in target.operations]
-        if missing:
-            self.problem(E.ASM_INTERFACE_MISMATCH, f"{where}, which lacks operation(s) {', '.join(missing)}", loc)
-        flipped = [f"{n} ({'one-way' if op.oneway else 'request-response'} here, "
-                   f"{'one-way' if target.operations[n].oneway else 'request-response'} there)"
-                   for n, op in source.operations.items() if n in target.operations and op.oneway != target.operations[n].oneway]
-        if flipped:
-            self.problem(E.ASM_INTERFACE_MISMATCH, f"{where}: one-way differs for {', '.join(flipped)}", loc)
-        if source.callback is not None:
-            if target.callback is None:
-                self.problem(E.ASM_INTERFACE_MISMATCH, f"{where}: the reference expects callbacks "
-                             f"({source.callback.name}) but the service has no callback interface", loc)
-            else:
-                extra = [n for n in target.callback.operations if n not in source.callback.operations]
-                if extra:
-                    self.problem(E.ASM_INTERFACE_MISMATCH, f"{where}: the service's callback interface "
-                                 f"{target.callback.name} has operation(s) {', '.join(extra)} that the reference's "
-                                 f"callback interface {source.callback.name} lacks", loc)
+    def check_compatible(self, source: InterfaceInfo, target: InterfaceInfo, ref: str, t: Target, loc: Location) -> bool:
+        """A wire (or @target) from reference ``ref`` to service ``t``: the target's interface
+        is a compatible superset of the reference's (ASM60043); True when it is."""
+        return self.check_subset(source, target, E.ASM_INTERFACE_MISMATCH,
+                          f"reference {ref!r} ({source.name}) is wired to {t.node}/{t.service} ({target.name})", loc)
+
+    def check_subset(self, sub: InterfaceInfo, sup: InterfaceInfo, code: str, where: str, loc: Location) -> bool:
+        """Report (``code``, at ``loc``) each way ``sup`` is not a compatible superset of
+        ``sub``; True when it is. See :func:`mismatches`."""
+        reasons = mismatches(sub, sup)
+        for reason in reasons:
+            self.problem(code, f"{where}: {reason}", loc)
+        return not reasons
+
+
+def mismatches(sub: InterfaceInfo, sup: InterfaceInfo) -> list[str]:
+    """How ``sup`` fails to be a compatible superset of ``sub`` (SCA compatibility by
+    operations): an operation of ``sub`` it lacks, an operation one-way on one side only,
+    or callbacks that do not match — both or neither declare one, and ``sub``'s callback
+    interface offers every operation ``sup``'s may call back (the callback direction is
+    reversed). Empty when compatible."""
+    reasons = []
+    missing = [op for op in sub.operations if op not in sup.operations]
+    if missing:
+        reasons.append(f"{sup.name} lacks operation(s) {', '.join(missing)}")
+    flipped = [f"{n} ({'one-way' if op.oneway else 'request-response'} in {sub.name}, "
+               f"{'one-way' if sup.operations[n].oneway else 'request-response'} in {sup.name})"
+               for n, op in sub.operations.items() if n in sup.operations and op.oneway != sup.operations[n].oneway]
+    if flipped:
+        reasons.append(f"one-way differs for {', '.join(flipped)}")
+    if sub.callback is not None and sup.callback is None:
+        reasons.append(f"{sub.name} declares callback interface {sub.callback.name}, and {sup.name} has no callback interface")
+    elif sup.callback is not None and sub.callback is None:
+        reasons.append(f"{sup.name} declares callback interface {sup.callback.name}, and {sub.name} has no callback interface")
+    elif sub.callback is not None and sup.callback is not None:
+        extra = [n for n in sup.callback.operations if n not in sub.callback.operations]
+        if extra:
+            reasons.append(f"callback interface {sup.callback.name} has operation(s) {', '.join(extra)} that "
+                           f"{sub.callback.name} lacks")
+    return reasons

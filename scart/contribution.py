@@ -11,7 +11,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import re
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -21,7 +23,7 @@ from lxml import etree
 from scart import errors as E
 from scart.api import InterfaceInfo, Operation
 from scart.errors import Problem
-from scart.model import Composite, Location
+from scart.model import SCA10_NS, SCA11_NS, Composite, Location
 from scart.scdl import Loader, parse_xml
 
 WSDL_NS = "http://schemas.xmlsoap.org/wsdl/"
@@ -106,41 +108,87 @@ class Contribution:
 
     # --- WSDL ---------------------------------------------------------------------------
 
-    def wsdl_interface(self, target: str, where: Location) -> InterfaceInfo | None:
-        """The portType named by ``ns#wsdl.interface(Name)``; None (problem recorded) if absent."""
-        ns, _, rest = target.partition("#")
-        name = rest[len("wsdl.interface("):-1] if rest.startswith("wsdl.interface(") and rest.endswith(")") else rest
-        found = self._wsdl_index().get(f"{{{ns}}}{name}")
+    def wsdl_interface(self, target: str, where: Location, attribute: str = "interface") -> InterfaceInfo | None:
+        """The portType named by ``ns#wsdl.porttype(Name)`` (SCA 1.1, WSDL 1.1) or
+        ``ns#wsdl.interface(Name)`` (SCA 1.0, WSDL 2.0); None (problem recorded) if the form
+        is wrong or no ``.wsdl`` file of the contribution declares it."""
+        code = E.ASM_WSDL_INTERFACE if attribute == "interface" else E.ASM_WSDL_CALLBACK
+        parsed = parse_wsdl_target(target)
+        if parsed is None:
+            self.problems.append(Problem(code, f"interface.wsdl @{attribute} {target!r} is not of the form "
+                                         "'namespace#wsdl.porttype(Name)' (or 'namespace#wsdl.interface(Name)')",
+                                         where.path, where.line))
+            return None
+        ns, name = parsed
+        index = self._wsdl_index()
+        found = index.get(f"{{{ns}}}{name}")
         if found is None:
-            self.problems.append(Problem(E.SCART_WSDL, f"no WSDL portType {name!r} in namespace {ns!r} "
-                                         "in the contribution", where.path, where.line))
+            near = [k.partition("}")[2] for k in index if k.startswith(f"{{{ns}}}")]
+            hint = f"; that namespace has: {', '.join(sorted(near)[:LISTED])}" if near else ""
+            self.problems.append(Problem(code, f"interface.wsdl @{attribute}: no WSDL portType {name!r} in "
+                                         f"namespace {ns!r} in the contribution{hint}", where.path, where.line))
         return found
 
     def _wsdl_index(self) -> dict[str, InterfaceInfo]:
         if self._wsdl is None:
             self._wsdl = {}
-            for _, root, problems in self._parse_all("*.wsdl"):
+            callbacks: dict[str, tuple[str, Problem]] = {}
+            for file, root, problems in self._parse_all("*.wsdl"):
                 self.problems.extend(problems)
                 if root is not None:
-                    self._wsdl.update(read_port_types(root))
+                    shown = str(Path(self.root_file).parent / file.name)
+                    types, declared = read_port_types(root, shown)
+                    self._wsdl.update(types)
+                    callbacks.update(declared)
+            for qname, (cb, missing) in callbacks.items():  # sca:callback="QName" on a portType
+                if cb in self._wsdl:
+                    self._wsdl[qname] = dataclasses.replace(self._wsdl[qname], callback=self._wsdl[cb])
+                else:
+                    self.problems.append(missing)
         return self._wsdl
 
 
-def read_port_types(root: etree._Element) -> dict[str, InterfaceInfo]:
-    """WSDL 1.1 ``portType`` s of a parsed ``definitions`` element, by Clark QName.
+#: What an ``interface.wsdl`` @interface (or @callbackInterface) may say.
+_WSDL_TARGET = re.compile(r"(?P<ns>[^#\s]*)#wsdl\.(?:porttype|interface)\((?P<name>[^()\s]+)\)")
+
+#: Names an error message lists, at most.
+LISTED = 20
+
+
+def parse_wsdl_target(target: str) -> tuple[str, str] | None:
+    """``(namespace, name)`` of ``ns#wsdl.porttype(Name)`` or ``ns#wsdl.interface(Name)``; None otherwise."""
+    m = _WSDL_TARGET.fullmatch(target.strip())
+    return (m["ns"], m["name"]) if m else None
+
+
+def read_port_types(root: etree._Element, path: str = "<memory>"
+                    ) -> tuple[dict[str, InterfaceInfo], dict[str, tuple[str, Problem]]]:
+    """WSDL 1.1 ``portType`` s of a parsed ``definitions`` element, by Clark QName, and the
+    callback portType each names with an ``sca:callback`` attribute (Clark QName, and the
+    problem to report if it names nothing).
 
     An operation with an ``input`` and no ``output`` is one-way.
     """
     tns = root.get("targetNamespace", "")
     out: dict[str, InterfaceInfo] = {}
+    callbacks: dict[str, tuple[str, Problem]] = {}
     for pt in root.iterchildren(f"{{{WSDL_NS}}}portType"):
         ops: dict[str, Operation] = {}
         for op in pt.iterchildren(f"{{{WSDL_NS}}}operation"):
             has_out = op.find(f"{{{WSDL_NS}}}output") is not None
             ops[op.get("name", "")] = Operation(op.get("name", ""), oneway=not has_out, returns_value=has_out)
-        out[f"{{{tns}}}{pt.get('name', '')}"] = InterfaceInfo(pt.get("name", ""), ops, remotable=True)
-    return out
-
+        qname = f"{{{tns}}}{pt.get('name', '')}"
+        out[qname] = InterfaceInfo(pt.get("name", ""), ops, remotable=True)
+        for sca in (SCA11_NS, SCA10_NS):
+            raw = pt.get(f"{{{sca}}}callback")
+            if raw is None:
+                continue
+            prefix, _, local = raw.strip().rpartition(":")
+            ns = pt.nsmap.get(prefix) if prefix else tns
+            callbacks[qname] = (f"{{{ns}}}{local}", Problem(
+                E.SCART_WSDL, f"portType {pt.get('name', '')!r}: sca:callback {raw!r} names no portType in the "
+                "contribution", path, pt.sourceline or 0))
+    return out, callbacks
 
 def import_object(ref: str, folder: Path) -> object:
     """Import ``"pkg.mod:Attr"`` with ``folder`` first on ``sys.path``.

@@ -38,7 +38,36 @@ ASM_INCLUDE_UNKNOWN = "ASM60042"  # include names a known composite
 ASM_INTERFACE_MISMATCH = "ASM60043"  # wire target interface is a superset of the source's
 ASM_NO_SUCH_TARGET = "ASM60047"  # target/wire names no component or no such service
 ASM_AMBIGUOUS_TARGET = "ASM60048"  # "Component" target with several services
-ASM_SCHEMA = "ASM13001"  # the composite does not conform to the schema
+ASM_SCHEMA = "ASM13001"  # the composite does not conform to the schema (SCA 1.0 <operation>, unknown attributes...)
+ASM_CT_DUPLICATE_SERVICE = "ASM40003"  # service names unique in a componentType
+ASM_CT_DUPLICATE_REFERENCE = "ASM40004"  # reference names unique in a componentType
+ASM_CT_DUPLICATE_PROPERTY = "ASM40005"  # property names unique in a componentType
+ASM_PROPERTY_TYPE = "ASM40007"  # a property @type names an XML Schema type
+ASM_PROPERTY_ELEMENT = "ASM40008"  # a property @element names a global element declaration
+ASM_CT_TYPE_AND_ELEMENT = "ASM40010"  # a componentType property has @type or @element, not both
+ASM_REFERENCE_INTERFACE = "ASM50011"  # a component reference's interface is a compatible superset of the componentType's
+ASM_TARGET_AND_BINDING = "ASM50026"  # a reference with @target has no <binding> naming its own endpoint
+ASM_ELEMENT_VALUE = "ASM50029"  # a property value given as an element is an instance of its @element
+ASM_VALUE_AND_CHILD = "ASM50033"  # a property has @value or <value> children, not both
+ASM_COMPONENT_TYPE_AND_ELEMENT = "ASM50035"  # a component property has @type or @element, not both
+ASM_PROPERTY_TYPE_MISMATCH = "ASM50036"  # a component property's type matches its componentType's
+ASM_SOURCE_TYPE = "ASM50038"  # @source names a composite property of a compatible type
+ASM_NON_OVERRIDABLE = "ASM50042"  # a 0..1/1..1 nonOverridable reference is not promoted
+ASM_PROPERTY_FILE_FORMAT = "ASM50046"  # a @file document is <sca:values> of <value>s or global elements
+ASM_COMPOSITE_SERVICE_INTERFACE = "ASM60005"  # a composite service's interface is a compatible subset of the promoted one's
+ASM_PROMOTED_INTERFACES = "ASM60008"  # references promoted together have compatible interfaces
+ASM_COMPOSITE_MULTIPLICITY = "ASM60011"  # a composite reference narrows, never widens, what it promotes
+ASM_COMPOSITE_REFERENCE_INTERFACE = "ASM60012"  # a composite reference's interface is a compatible superset
+ASM_COMPOSITE_TYPE_AND_ELEMENT = "ASM60040"  # a composite property has @type or @element, not both
+ASM_INCLUDE_LOCAL = "ASM60041"  # a local="true" composite is included only into a local one
+ASM_WSDL_INTERFACE = "ASM80001"  # interface.wsdl @interface names a WSDL 1.1 portType (ns#wsdl.porttype(Name))
+ASM_CALLBACK_AGREES = "ASM80011"  # @callbackInterface agrees with the callback the interface itself declares
+ASM_WSDL_CALLBACK = "ASM80016"  # interface.wsdl @callbackInterface names a WSDL 1.1 portType
+ASM_WSDL_REMOTABLE = "ASM80017"  # interface.wsdl is remotable: remotable="false" is an error
+ASM_DUPLICATE_BINDING = "ASM90002"  # binding names unique on a service or reference
+ASM_SCA_BINDING_SERVICE_URI = "ASM90005"  # binding.sca on a service has no @uri
+ASM_CONTRIBUTION_SCHEMA = "ASM12027"  # sca-contribution.xml conforms to its schema
+ASM_UNRESOLVED = "ASM12021"  # an artifact a contribution needs cannot be resolved (imports included)
 
 # --- codes: scart's own rules -------------------------------------------------------
 SCART_XML = "SCART-X001"  # malformed XML
@@ -49,12 +78,12 @@ SCART_IMPORT = "SCART-I001"  # implementation/interface class cannot be imported
 SCART_MISSING_OPERATION = "SCART-I002"  # class lacks an operation of a declared service
 SCART_ONEWAY_RETURNS = "SCART-I003"  # a one-way operation declares a return value
 SCART_NOT_A_COMPONENT = "SCART-I004"  # implementation class is not usable
-SCART_WSDL = "SCART-I005"  # interface.wsdl portType not found / WSDL unreadable
+SCART_WSDL = "SCART-I005"  # a WSDL's sca:callback names no portType
 SCART_CALLBACK_MISSING = "SCART-I006"  # caller lacks a method of the target's callback interface
 SCART_COMPOSITE_CYCLE = "SCART-C001"  # implementation.composite / include cycle
 SCART_UNKNOWN_KIND = "SCART-C002"  # implementation or binding kind not registered
 SCART_BAD_SOURCE = "SCART-C003"  # property @source names no composite property
-SCART_DUPLICATE_COMPOSITE = "SCART-C006"  # two composites of the contribution share a QName
+SCART_DUPLICATE_COMPOSITE = "ASM60001"  # a composite name is unique in its namespace (two files declare one QName)
 SCART_OVERRIDE = "SCART-C005"  # --set names no component/property
 
 

@@ -72,18 +72,23 @@ class Implementation(Element):
 
 
 class PropertyValue(_Node):
-    """A property as written on a component or a composite.
+    """A property as written on a component, a composite or a componentType.
 
     ``values`` holds raw text values (``@value``, each ``<value>``, or the text content);
-    ``file`` a path relative to the composite; ``source`` "$name" of a composite property.
-    ``type``/``many``/``must_supply`` are only meaningful on composite properties.
+    ``xml`` the same values as XML (each ``<value>`` or global element, serialized) when
+    any is complex, else None; ``file`` a path relative to the composite; ``source`` an
+    XPath over the composite's properties (``$name``, ``$name/ns:child``...), evaluated
+    with ``namespaces``. ``type``/``element`` are Clark QNames ("{ns}local").
     """
 
     name: str
     values: list[str] | None = None
+    xml: list[str] | None = None
     file: str | None = None
     source: str | None = None
+    namespaces: dict[str, str] = Field(default_factory=dict)
     type: str | None = None
+    element: str | None = None
     many: bool = False
     must_supply: bool = False
 
@@ -104,9 +109,19 @@ class ComponentReference(_Node):
     targets: list[str] = Field(default_factory=list)
     multiplicity: str | None = None
     autowire: bool | None = None
+    non_overridable: bool = False
     interface: Interface | None = None
     bindings: list[Binding] = Field(default_factory=list)
     callback_bindings: list[Binding] = Field(default_factory=list)
+
+
+class ComponentTypeFile(_Node):
+    """A componentType side file (``Class.componentType`` next to an implementation's
+    module): what it declares of the implementation's services, references and properties."""
+
+    services: list[ComponentService] = Field(default_factory=list)
+    references: list[ComponentReference] = Field(default_factory=list)
+    properties: list[PropertyValue] = Field(default_factory=list)
 
 
 class Component(_Node):
@@ -160,6 +175,7 @@ class Composite(_Node):
     name: str
     target_namespace: str = ""
     autowire: bool = False
+    local: bool = False
     components: list[Component] = Field(default_factory=list)
     services: list[CompositeService] = Field(default_factory=list)
     references: list[CompositeReference] = Field(default_factory=list)

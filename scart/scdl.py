@@ -18,10 +18,11 @@ against the shipped XSD; an extension checks its own elements.
 
 from __future__ import annotations
 
+import difflib
 import functools
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -38,6 +39,7 @@ from scart.model import (
     Component,
     ComponentReference,
     ComponentService,
+    ComponentTypeFile,
     Composite,
     CompositeReference,
     CompositeService,
@@ -55,6 +57,50 @@ SCA_NAMESPACES = (SCA11_NS, SCA10_NS)
 _IGNORED = frozenset({"documentation", "requires", "policySetAttachment", "extensions", "description"})
 _SCHEMA_PATH = Path(__file__).with_name("schema") / "scart-1.0.xsd"
 _PROLOG_LIMIT = 64 * 1024  #: how much of a file's head is scanned for a DOCTYPE before its root element
+XSD_NS = "http://www.w3.org/2001/XMLSchema"
+
+_POLICY = ("requires", "policySets")
+_PROPERTY = ("name", "type", "element", "many", "mustSupply", "value", "file", "source", *_POLICY)
+#: The attributes (without namespace) each SCA element may carry, by where it stands
+#: (SCA Assembly 1.1 schema, sca-core; 1.0's ``constrainingType`` is tolerated). An
+#: attribute in another namespace is always allowed (extensions).
+ATTRIBUTES: MappingProxyType[str, frozenset[str]] = MappingProxyType({k: frozenset(v) for k, v in {
+    "composite": ("name", "targetNamespace", "local", "autowire", "constrainingType", *_POLICY),
+    "component": ("name", "autowire", "constrainingType", *_POLICY),
+    "component service": ("name", *_POLICY),
+    "component reference": ("name", "autowire", "target", "wiredByImpl", "multiplicity", "nonOverridable", *_POLICY),
+    "property": _PROPERTY,
+    "composite service": ("name", "promote", *_POLICY),
+    "composite reference": ("name", "autowire", "promote", "target", "wiredByImpl", "multiplicity", *_POLICY),
+    "wire": ("source", "target", "replace", *_POLICY),
+    "include": ("name",),
+    "implementation.composite": ("name", *_POLICY),
+    "interface.java": ("interface", "callbackInterface", "remotable", *_POLICY),
+    "interface.wsdl": ("interface", "callbackInterface", "remotable", *_POLICY),
+    "binding.sca": ("name", "uri", *_POLICY),
+    "callback": _POLICY,
+    "componentType": ("constrainingType", *_POLICY),
+    "componentType service": ("name", *_POLICY),
+    "componentType reference": ("name", "autowire", "wiredByImpl", "multiplicity", *_POLICY),
+}.items()})
+
+MULTIPLICITIES = ("0..1", "1..1", "0..n", "1..n")
+
+#: The code of "a property with both @type and @element", by where the property stands.
+TYPE_AND_ELEMENT: MappingProxyType[str, str] = MappingProxyType({
+    "componentType": E.ASM_CT_TYPE_AND_ELEMENT, "component": E.ASM_COMPONENT_TYPE_AND_ELEMENT,
+    "composite": E.ASM_COMPOSITE_TYPE_AND_ELEMENT,
+})
+
+#: What a URI in ``@promote`` (or ``@target``) may not contain (RFC 3986: no spaces,
+#: controls, or the characters URIs exclude).
+_NOT_IN_URI = re.compile(r'[\s<>"{}|\\^`]|[\x00-\x1f\x7f]')
+
+
+def did_you_mean(word: str, known: Iterable[str]) -> str:
+    """" (did you mean 'x'?)" when ``word`` looks like a misspelling of one of ``known``, else ""."""
+    close = difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def _prolog_doctype_line(data: bytes) -> int | None:
@@ -149,6 +195,11 @@ def _local(el: etree._Element) -> tuple[str, str]:
     return q.namespace or "", q.localname
 
 
+def _text(el: etree._Element) -> str:
+    """The text of a simple ``<value>`` (stripped); "" for one with child elements."""
+    return "" if len(el) else (el.text or "").strip()
+
+
 class Loader:
     """Reads one composite file into a :class:`~scart.model.Composite`; collects problems.
 
@@ -193,14 +244,51 @@ class Loader:
             return None
         return self.read_composite(root)
 
+    def load_component_type(self) -> ComponentTypeFile | None:
+        """Parse the file as a componentType side file; None if it cannot be read at all."""
+        root = parse_xml(self.path, self.problems)
+        if root is None:
+            return None
+        ns, name = _local(root)
+        if ns not in SCA_NAMESPACES or name != "componentType":
+            self.problem(E.SCART_UNKNOWN_ELEMENT, f"root element must be an SCA <componentType>, not <{name}>", root)
+            return None
+        self.check_attributes(root, "componentType")
+        ct = ComponentTypeFile(loc=self.loc(root))
+        for child in root.iterchildren(tag=etree.Element):
+            ns, local = _local(child)
+            if ns in SCA_NAMESPACES and local == "service":
+                self.check_attributes(child, "componentType service")
+                iface, b, cb = self._port_children(child, "service")
+                self.no_service_uri(b, f"service {child.get('name', '')!r}")
+                self.append_unique(ct.services, ComponentService(
+                    name=self.required(child, "name") or "", interface=iface, bindings=b, callback_bindings=cb,
+                    loc=self.loc(child)), E.ASM_CT_DUPLICATE_SERVICE, "componentType: duplicate service", child)
+            elif ns in SCA_NAMESPACES and local == "reference":
+                self.check_attributes(child, "componentType reference")
+                iface, b, cb = self._port_children(child, "reference")
+                ref = ComponentReference(name=self.required(child, "name") or "", multiplicity=self.multiplicity(child),
+                                         interface=iface, bindings=b, callback_bindings=cb, loc=self.loc(child))
+                if child.get("autowire") is not None:
+                    ref.autowire = self.boolean(child, "autowire")
+                self.append_unique(ct.references, ref, E.ASM_CT_DUPLICATE_REFERENCE,
+                                   "componentType: duplicate reference", child)
+            elif ns in SCA_NAMESPACES and local == "property":
+                self.append_unique(ct.properties, self.read_property(child, "componentType"),
+                                   E.ASM_CT_DUPLICATE_PROPERTY, "componentType: duplicate property", child)
+            elif local not in _IGNORED and not local.startswith("implementation."):
+                self.unknown(child, "componentType", ("service", "reference", "property"))
+        return ct
+
     # --- composite and its children ----------------------------------------------------
 
     def read_composite(self, el: etree._Element) -> Composite:
         """``<composite name targetNamespace autowire>`` and its children, via the dispatch table."""
         self._tns = el.get("targetNamespace", "")
+        self.check_attributes(el, "composite")
         comp = Composite(
             name=self.required(el, "name") or "", target_namespace=self._tns,
-            autowire=_bool(el.get("autowire")), loc=self.loc(el),
+            autowire=self.boolean(el, "autowire"), local=self.boolean(el, "local"), loc=self.loc(el),
         )
         for child in el.iterchildren(tag=etree.Element):
             ns, local = _local(child)
@@ -210,8 +298,65 @@ class Loader:
                 if ns != SCART_NS or self.validate_scart(child):  # scart's own: the shipped XSD too
                     comp.extensions.append(self.read_element(child))
             elif local not in _IGNORED:
-                self.problem(E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> in {ns!r} inside <composite>", child)
+                self.unknown(child, "composite", COMPOSITE_CHILDREN)
         return comp
+
+    def unknown(self, el: etree._Element, parent: str, known: Iterable[str]) -> None:
+        """Report an element that may not stand inside ``parent`` (a near miss of ``known`` named)."""
+        ns, local = _local(el)
+        if local == "operation" and ns in SCA_NAMESPACES:
+            self.problem(E.ASM_SCHEMA, f"<operation> inside <{parent}> is SCA 1.0; SCA 1.1 has no such element "
+                         "(declare operations in the interface)", el)
+            return
+        where = f"in {ns!r} " if ns not in SCA_NAMESPACES else ""
+        self.problem(E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> {where}inside <{parent}>"
+                     f"{did_you_mean(local, known)}", el)
+
+    def check_attributes(self, el: etree._Element, what: str) -> None:
+        """Report each attribute without a namespace that ``ATTRIBUTES[what]`` does not allow."""
+        allowed = ATTRIBUTES[what]
+        for attr in el.attrib:
+            if not attr.startswith("{") and attr not in allowed:
+                self.problem(E.ASM_SCHEMA, f"<{_local(el)[1]}> has no attribute {attr!r}"
+                             f"{did_you_mean(attr, allowed)}", el)
+
+    def boolean(self, el: etree._Element, attr: str, default: bool = False) -> bool:
+        """An xs:boolean attribute (true/false/1/0); anything else is reported and read as ``default``."""
+        value = el.get(attr)
+        if value is None:
+            return default
+        if value.strip() not in ("true", "false", "1", "0"):
+            self.problem(E.ASM_SCHEMA, f"<{_local(el)[1]}> @{attr} must be true or false, not {value!r}", el)
+            return default
+        return value.strip() in ("true", "1")
+
+    def promote(self, el: etree._Element, many: bool) -> list[str]:
+        """``@promote``: one anyURI (a composite service) or a space-separated list of them
+        (a composite reference), each "Component[/name]"; problems say ``promote``."""
+        raw = self.required(el, "promote")
+        if raw is None:
+            return [""]
+        uris = raw.split()
+        what = f"<{_local(el)[1]} name={el.get('name', '')!r}>"
+        if not many and len(uris) > 1:
+            self.problem(E.ASM_PROMOTED_SERVICE, f"{what}: @promote {raw!r} must be one URI "
+                         "'Component/Service', not a list", el)
+        for uri in uris:
+            bad = _NOT_IN_URI.search(uri)
+            if bad or uri.startswith("/") or uri.count("/") > 2:
+                code = E.ASM_PROMOTED_REFERENCE if many else E.ASM_PROMOTED_SERVICE
+                self.problem(code, f"{what}: @promote {uri!r} is not a valid URI 'Component/"
+                             f"{'reference' if many else 'Service'}'", el)
+        return uris if many else uris[:1]
+
+    def multiplicity(self, el: etree._Element) -> str | None:
+        """@multiplicity, one of 0..1, 1..1, 0..n, 1..n (anything else reported, read as absent)."""
+        value = el.get("multiplicity")
+        if value is not None and value not in MULTIPLICITIES:
+            self.problem(E.ASM_SCHEMA, f"<{_local(el)[1]}> @multiplicity {value!r} is not one of "
+                         f"{', '.join(MULTIPLICITIES)}", el)
+            return None
+        return value
 
     def required(self, el: etree._Element, attr: str) -> str | None:
         """The attribute's value, or None after recording a schema problem."""
@@ -223,9 +368,10 @@ class Loader:
 
     def read_component(self, el: etree._Element, parent: Composite) -> None:
         """``<component>``: implementation, services, references, properties."""
+        self.check_attributes(el, "component")
         comp = Component(name=self.required(el, "name") or "", loc=self.loc(el))
         if el.get("autowire") is not None:
-            comp.autowire = _bool(el.get("autowire"))
+            comp.autowire = self.boolean(el, "autowire")
         for child in el.iterchildren(tag=etree.Element):
             ns, local = _local(child)
             if local.startswith("implementation."):
@@ -239,9 +385,9 @@ class Loader:
                 self.append_unique(comp.references, self.read_component_reference(child), E.ASM_DUPLICATE_REFERENCE,
                                    f"component {comp.name!r}: duplicate reference", child)
             elif ns in SCA_NAMESPACES and local == "property":
-                comp.properties.append(self.read_property(child))
+                comp.properties.append(self.read_property(child, "component"))
             elif local not in _IGNORED:
-                self.problem(E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> in {ns!r} inside <component>", child)
+                self.unknown(child, "component", ("service", "reference", "property", "implementation.composite"))
         if comp.implementation is None:
             self.problem(E.ASM_SCHEMA, f"component {comp.name!r} has no implementation", el)
         parent.components.append(comp)
@@ -253,6 +399,7 @@ class Loader:
         if ns == SCART_NS and not self.validate_scart(el):
             impl.invalid = True  # reported; nothing is imported for it
         if local == "implementation.composite":
+            self.check_attributes(el, "implementation.composite")
             qname = self.qname(el, "name")
             if qname is not None:
                 impl.attributes["name"] = qname
@@ -279,12 +426,14 @@ class Loader:
         """``interface.python``/``interface.wsdl``/``interface.java``: target and callback."""
         ns, local = _local(el)
         invalid = ns == SCART_NS and not self.validate_scart(el)
+        if ns in SCA_NAMESPACES and local in ATTRIBUTES:
+            self.check_attributes(el, local)
         target = el.get("interface") or el.get("class") or ""
         if not target and not invalid:
             self.problem(E.ASM_SCHEMA, f"<{local}> needs an 'interface' attribute", el)
         remotable = el.get("remotable")
         return Interface(kind=local, target=target, callback=el.get("callbackInterface"),
-                         remotable=_bool(remotable) if remotable is not None else None,
+                         remotable=self.boolean(el, "remotable") if remotable is not None else None,
                          invalid=invalid or not target, loc=self.loc(el))
 
     def read_binding(self, el: etree._Element) -> Binding:
@@ -292,6 +441,11 @@ class Loader:
         ns, local = _local(el)
         if ns == SCART_NS:
             self.validate_scart(el)
+        elif ns in SCA_NAMESPACES and local in ATTRIBUTES:
+            self.check_attributes(el, local)
+            for child in el.iterchildren(tag=etree.Element):
+                if _local(child)[1] not in _IGNORED:
+                    self.unknown(child, local, ())
         generic = self.read_element(el)
         return Binding(kind=local, namespace=ns, attributes=generic.attributes, text=generic.text,
                        children=generic.children, name=el.get("name"), loc=self.loc(el))
@@ -313,81 +467,146 @@ class Loader:
             elif local.startswith("binding."):
                 bindings.append(self.read_binding(child))
             elif ns in SCA_NAMESPACES and local == "callback":
+                self.check_attributes(child, "callback")
                 cb_bindings.extend(self.read_binding(c) for c in child.iterchildren(tag=etree.Element)
                                    if _local(c)[1].startswith("binding."))
             elif local not in _IGNORED:
-                self.problem(E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> in {ns!r} inside <{what}>", child)
+                self.unknown(child, what, ("interface.wsdl", "interface.java", "binding.sca", "callback"))
+        for group in (bindings, cb_bindings):
+            seen: set[str] = set()
+            for b in group:
+                name = b.name or b.kind  # a binding without @name is named after its kind
+                if name in seen:
+                    self.problems.append(Problem(E.ASM_DUPLICATE_BINDING, f"<{what} name={el.get('name', '')!r}>: two "
+                                                 f"bindings named {name!r} (give each a distinct @name)",
+                                                 b.loc.path, b.loc.line))
+                seen.add(name)
         return iface, bindings, cb_bindings
+
+    def no_service_uri(self, bindings: list[Binding], what: str) -> None:
+        """A ``binding.sca`` of a service names no @uri (a service's URI is its component's)."""
+        for b in bindings:
+            if b.kind == "binding.sca" and b.namespace in SCA_NAMESPACES and "uri" in b.attributes:
+                self.problems.append(Problem(E.ASM_SCA_BINDING_SERVICE_URI, f"{what}: <binding.sca> on a service "
+                                             f"must not have @uri ({b.attributes['uri']!r}); a service's URI is "
+                                             "given by its component", b.loc.path, b.loc.line))
 
     def read_component_service(self, el: etree._Element) -> ComponentService:
         """A component's ``<service name>``."""
+        self.check_attributes(el, "component service")
         iface, b, cb = self._port_children(el, "service")
-        return ComponentService(name=self.required(el, "name") or "", interface=iface, bindings=b,
-                                callback_bindings=cb, loc=self.loc(el))
+        service = ComponentService(name=self.required(el, "name") or "", interface=iface, bindings=b,
+                                   callback_bindings=cb, loc=self.loc(el))
+        self.no_service_uri(b, f"service {service.name!r}")
+        return service
 
     def read_component_reference(self, el: etree._Element) -> ComponentReference:
         """A component's ``<reference name target multiplicity autowire>``."""
+        self.check_attributes(el, "component reference")
         iface, b, cb = self._port_children(el, "reference")
         ref = ComponentReference(
             name=self.required(el, "name") or "", targets=(el.get("target") or "").split(),
-            multiplicity=el.get("multiplicity"), interface=iface, bindings=b, callback_bindings=cb,
-            loc=self.loc(el),
+            multiplicity=self.multiplicity(el), non_overridable=self.boolean(el, "nonOverridable"),
+            interface=iface, bindings=b, callback_bindings=cb, loc=self.loc(el),
         )
         if el.get("autowire") is not None:
-            ref.autowire = _bool(el.get("autowire"))
+            ref.autowire = self.boolean(el, "autowire")
         return ref
 
-    def read_property(self, el: etree._Element) -> PropertyValue:
-        """``<property>`` with ``@value``, ``<value>`` children, text, ``@file`` or ``@source``."""
+    def read_property(self, el: etree._Element, where: str) -> PropertyValue:
+        """``<property>`` (of a ``where``: "component", "composite" or "componentType") with
+        ``@value``, ``<value>`` children (simple text or complex content), global elements
+        (``@element``), text, ``@file`` or ``@source``."""
+        self.check_attributes(el, "property")
+        name = self.required(el, "name") or ""
+        declared_type, element = self.type_qname(el, "type"), self.type_qname(el, "element")
+        if declared_type is not None and element is not None:
+            self.problem(TYPE_AND_ELEMENT[where], f"property {name!r} has both @type and @element: declare one", el)
+        shown = f"property {name!r} ({el.get('type') or el.get('element') or 'untyped'})"
         values: list[str] | None = None
+        xml: list[str] | None = None
         if el.get("value") is not None:
             values = [el.get("value") or ""]
-        value_children = [c for c in el.iterchildren(tag=etree.Element) if _local(c)[1] == "value"]
-        if value_children:
+        children = [c for c in el.iterchildren(tag=etree.Element) if _local(c)[1] not in _IGNORED]
+        if element is not None:  # the values are instances of the global element
+            given = [c for c in children if etree.QName(c).text == element]
+            for c in children:
+                if c not in given:
+                    self.problem(E.ASM_PROPERTY_VALUE, f"{shown}: <{_local(c)[1]}> is not its element "
+                                 f"<{etree.QName(element).localname}>", c)
+        else:
+            given = [c for c in children if _local(c) in ((SCA11_NS, "value"), (SCA10_NS, "value"))]
+            for c in children:
+                if c not in given:
+                    self.unknown(c, "property", ("value",))
+        if given:
             if values is not None:
-                self.problem(E.ASM_SCHEMA, "property has both @value and <value> (ASM50033)", el)
-            values = [(c.text or "").strip() for c in value_children]
+                self.problem(E.ASM_VALUE_AND_CHILD, f"{shown} has both @value and a <value> child: give one", el)
+            values = [_text(c) for c in given]
+            if element is not None or any(len(c) for c in given):
+                xml = [etree.tostring(c, encoding="unicode", with_tail=False) for c in given]
         elif values is None and el.text and el.text.strip():
             values = [el.text.strip()]
         return PropertyValue(
-            name=self.required(el, "name") or "", values=values, file=el.get("file"),
-            source=el.get("source"), type=el.get("type"), many=_bool(el.get("many")),
-            must_supply=_bool(el.get("mustSupply")), loc=self.loc(el),
+            name=name, values=values, xml=xml, file=el.get("file"), source=el.get("source"),
+            namespaces={k: v for k, v in el.nsmap.items() if k}, type=declared_type, element=element,
+            many=self.boolean(el, "many"), must_supply=self.boolean(el, "mustSupply"), loc=self.loc(el),
         )
+
+    def type_qname(self, el: etree._Element, attr: str) -> str | None:
+        """An optional QName attribute (``@type``, ``@element``) as a Clark QName; a prefix
+        not in scope is reported (None then)."""
+        raw = el.get(attr)
+        if raw is None:
+            return None
+        prefix, _, local = raw.strip().rpartition(":")
+        ns = el.nsmap.get(prefix or None)
+        if prefix and ns is None:
+            if prefix not in ("xs", "xsd"):  # the customary XML Schema prefixes are understood undeclared
+                self.problem(E.ASM_SCHEMA, f"@{attr} {raw!r}: unknown namespace prefix {prefix!r}", el)
+                return None
+            ns = XSD_NS
+        return f"{{{ns or ''}}}{local}"
 
     def read_composite_property(self, el: etree._Element, parent: Composite) -> None:
         """A composite-level ``<property>`` (flows to components through ``source="$name"``)."""
-        prop = self.read_property(el)
+        prop = self.read_property(el, "composite")
         if any(p.name == prop.name for p in parent.properties):
             self.problem(E.ASM_DUPLICATE_COMPOSITE_PROPERTY, f"duplicate composite property {prop.name!r}", el)
         parent.properties.append(prop)
 
     def read_composite_service(self, el: etree._Element, parent: Composite) -> None:
         """A composite ``<service name promote>``."""
+        self.check_attributes(el, "composite service")
         iface, b, _ = self._port_children(el, "service")
         service = CompositeService(
-            name=self.required(el, "name") or "", promote=self.required(el, "promote") or "",
+            name=self.required(el, "name") or "", promote=self.promote(el, many=False)[0],
             interface=iface, bindings=b, loc=self.loc(el))
+        self.no_service_uri(b, f"composite service {service.name!r}")
         self.append_unique(parent.services, service, E.ASM_DUPLICATE_COMPOSITE_SERVICE,
                            "duplicate composite service", el)
 
     def read_composite_reference(self, el: etree._Element, parent: Composite) -> None:
         """A composite ``<reference name promote target multiplicity>``."""
+        self.check_attributes(el, "composite reference")
         iface, b, _ = self._port_children(el, "reference")
         reference = CompositeReference(
-            name=self.required(el, "name") or "", promote=(self.required(el, "promote") or "").split(),
-            targets=(el.get("target") or "").split(), multiplicity=el.get("multiplicity"),
+            name=self.required(el, "name") or "", promote=self.promote(el, many=True),
+            targets=(el.get("target") or "").split(), multiplicity=self.multiplicity(el),
             interface=iface, bindings=b, loc=self.loc(el))
         self.append_unique(parent.references, reference, E.ASM_DUPLICATE_COMPOSITE_REFERENCE,
                            "duplicate composite reference", el)
 
     def read_wire(self, el: etree._Element, parent: Composite) -> None:
         """``<wire source target replace>``."""
+        self.check_attributes(el, "wire")
         parent.wires.append(Wire(source=self.required(el, "source") or "", target=self.required(el, "target") or "",
-                                 replace=_bool(el.get("replace")), loc=self.loc(el)))
+                                 replace=self.boolean(el, "replace"), loc=self.loc(el)))
 
     def read_include(self, el: etree._Element, parent: Composite) -> None:
-        """``<include name="QName">``: the included composite's content is merged in place."""
+        """``<include name="QName">``: the included composite's content is merged in place
+        (a ``local="true"`` composite only into another local one)."""
+        self.check_attributes(el, "include")
         qname = self.qname(el, "name")
         if qname is None:
             return
@@ -397,6 +616,9 @@ class Loader:
         if included is None:
             self.problem(E.ASM_INCLUDE_UNKNOWN, f"include names no composite {qname} in the contribution", el)
             return
+        if included.local and not parent.local:
+            self.problem(E.ASM_INCLUDE_LOCAL, f"include of {qname}: it is local=\"true\", so it can only be "
+                         f"included into a local composite; {parent.name!r} is not", el)
         parent.components.extend(included.components)
         parent.services.extend(included.services)
         parent.references.extend(included.references)

@@ -289,6 +289,11 @@ class BindingProvider(Extension):
         """Static problems of this binding element (default none)."""
         return []
 
+    def names_endpoint(self, model: Binding) -> bool:
+        """Does this binding, on a reference, name the endpoint it reaches (so a ``@target``
+        beside it would be a second, conflicting one: ASM50026)? Default: it has a ``@uri``."""
+        return "uri" in model.attributes
+
     def service(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> ServiceBinding:
         """The service side for ``endpoint`` (called only when ``"service" in sides``)."""
         raise NotImplementedError(f"{self.name} has no service side")

@@ -83,7 +83,7 @@ CASES = {
     "promoted reference does not exist": (f"""
         <reference name="R" promote="G/nope"/><!--HERE-->
         <component name="G">{py("GreeterImpl")}</component>
-    """, "ASM60007", "promotes 'G/nope'"),
+    """, "ASM60007", "@promote 'G/nope' names no component reference"),
     "interface mismatch": (f"""
         <component name="F">{py("FarewellImpl")}</component>
         <component name="S">{py("Single")}
@@ -123,8 +123,8 @@ CASES = {
     """, "ASM60048", "offers 2 services"),
     "caller lacks the callback method": (f"""
         <component name="W">{py("WorkerImpl")}</component>
-        <component name="S">{py("Single")}
-          <reference name="one" target="W"/><!--HERE-->
+        <component name="S">{py("Deaf")}
+          <reference name="worker" target="W"/><!--HERE-->
         </component>
     """, "SCART-I006", "needs method(s) notify on the caller"),
     "service interface not offered": (f"""

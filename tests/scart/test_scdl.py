@@ -134,14 +134,14 @@ def test_interface_wsdl_port_types(tmp_path: Path) -> None:
     err = refused(write(tmp_path, {"bad.composite": bad}))
     assert err.codes == ["ASM60043"] and "wave" in str(err)
     missing = ok.replace("GreeterPortType", "Nope")
-    assert refused(write(tmp_path, {"missing.composite": missing})).codes == ["SCART-I005"]
+    assert refused(write(tmp_path, {"missing.composite": missing})).codes == ["ASM80001"]
     with_callback = ok.replace('GreeterPortType)"', 'GreeterPortType)" callbackInterface="urn:greet#wsdl.interface(Nope)"')
-    assert refused(write(tmp_path, {"cb.composite": with_callback})).codes == ["SCART-I005"]
+    assert refused(write(tmp_path, {"cb.composite": with_callback})).codes == ["ASM80016"]
 
 
 def test_wsdl_one_way_operations() -> None:
     from scart.contribution import read_port_types
 
-    types = read_port_types(etree.fromstring(WSDL.encode(), scdl._parser()))
+    types, _ = read_port_types(etree.fromstring(WSDL.encode(), scdl._parser()))
     hello = types["{urn:greet}HelloPortType"]
     assert hello.operations["wave"].oneway and not hello.operations["greet"].oneway

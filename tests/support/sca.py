@@ -184,6 +184,11 @@ class WorkerImpl:
         self.caller.notify(f"async {n} on {threading.current_thread().name}")
 
 
+class Deaf:
+    """Calls a Worker, which calls back, but implements no callback method."""
+    worker: Worker = scart.reference()
+
+
 class Boss:
     worker: Worker = scart.reference()
 

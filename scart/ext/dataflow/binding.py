@@ -85,6 +85,10 @@ class DataflowBinding(BindingProvider):
         """Static problems (see the module docstring)."""
         return _check(model, interface, context, side)
 
+    def names_endpoint(self, model: Binding) -> bool:
+        """The task it names is its endpoint."""
+        return bool(attributes(model).component)
+
     def service(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> ServiceBinding:
         """A :class:`DataflowServiceBinding`: samples drive the service's operations."""
         return DataflowServiceBinding(model, endpoint, host)

@@ -76,6 +76,10 @@ class GrpcBinding(BindingProvider):
         """See :func:`check_attributes`."""
         return check_attributes(model, side)
 
+    def names_endpoint(self, model: Binding) -> bool:
+        """A reference's ``address`` (and ``service``) name its endpoint."""
+        return "address" in model.attributes or "service" in model.attributes
+
     def service(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> ServiceBinding:
         """A :class:`~scart.ext.grpc._binding.GrpcServiceBinding` (listens at start)."""
         from scart.ext.grpc._binding import GrpcServiceBinding
