@@ -19,7 +19,8 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
-import stat
+import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,19 +29,20 @@ from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, PropSpec, RefSpec, interface_info
 from scart.checks import NARROWINGS as _NARROWINGS
 from scart.checks import Checks
-from scart.contribution import Contribution, import_object
+from scart.contribution import METADATA, Contribution, deployable_of, import_object
 from scart.errors import Problem, ScdlError
 from scart.extensions import ExtensionError, ExtensionRegistry
 from scart.graph import DEFAULT, Assembly, Bound, Endpoint, Node, Target
 from scart.model import (
-    Binding, Component, ComponentReference, Composite, CompositeReference, CompositeService, Element, Interface,
-    Location, PropertyValue,
+    Binding, Component, ComponentReference, ComponentTypeFile, Composite, CompositeReference, CompositeService, Element,
+    Interface, Location, PropertyValue,
 )
 from scart.scdl import SCA_NAMESPACES as _SCA_NAMESPACES
 from scart.scdl import did_you_mean
 from scart.settings import Settings
 from scart.spi import CheckContext, ImplementationProblem, ImplementationProvider
-from scart.values import XSD_TYPES, is_many, parse_value
+from scart.properties import FileValues, PropertyReader, Refused, TypeRef, compatible, python_family
+from scart.values import is_many, parse_value
 
 
 
@@ -60,15 +62,21 @@ class Scope:
     composite: Composite
     prefix: str
     props: dict[str, list[str] | None]
+    types: dict[str, TypeRef | None] = field(default_factory=dict)  # of the composite's own properties
     children: dict[str, Node | Scope | Failed] = field(default_factory=dict)
     component: Component | None = None  # the component this composite implements
     ctype: ComponentType | None = None
 
 
 def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overrides: bool = True,
-             extensions: ExtensionRegistry | None = None, settings: Settings | None = None) -> Assembly:
-    """Load, check and resolve the composite at ``path``; ``overrides`` maps
+             extensions: ExtensionRegistry | None = None, settings: Settings | None = None,
+             contributions: Sequence[str | os.PathLike[str]] = ()) -> Assembly:
+    """Load, check and resolve the composite at ``path`` (a ``.composite`` file, or a
+    contribution folder with one deployable composite); ``overrides`` maps
     "Component.prop" (or "Outer/Inner.prop") to a raw value. Raises ``ScdlError``.
+
+    ``contributions`` are more contribution folders the composite is resolved in (see
+    :mod:`scart.contribution`).
 
     ``extensions`` is the registry of kinds to check against (default: the entry points);
     ``settings`` are given to the extensions' checks (offline unless ``settings.online``).
@@ -76,7 +84,15 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
     problem; the keys not used are then in ``unused_overrides`` of the result (or of the
     ``ScdlError``), for callers checking several files (``scart validate --set``)."""
     registry = extensions if extensions is not None else ExtensionRegistry()
-    contribution = Contribution(path, is_element=lambda name: _is_element(registry, name))
+    if Path(path).is_dir():
+        found, why = deployable_of(Path(path))
+        if found is None:
+            err = ScdlError(why)
+            err.unused_overrides = set(overrides or {})  # type: ignore[attr-defined]
+            raise err
+        path = found
+    contribution = Contribution(path, is_element=lambda name: _is_element(registry, name),
+                                contributions=[str(c) for c in contributions])
     root = contribution.load_root()
     context = CheckContext(contribution.folder, contribution.root_file, settings or Settings(), contribution.import_object)
     assembler = _Assembler(contribution, registry, context, dict(overrides or {}), strict_overrides)
@@ -86,9 +102,13 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
         raise err
     result = assembler.run(root)
     # a composite used by several components is checked once per use: report each problem once
+    # causes first, their knock-ons after: the contributions' metadata, then what was read
+    # wrong, then the rest; within each, the root file first, by line
+    reading = set(contribution.problems)
     problems = list(dict.fromkeys(contribution.problems + assembler.problems))
     root_path = str(path)
-    problems.sort(key=lambda p: (p.path != root_path, p.path, p.line))  # stable: root file first, by line
+    problems.sort(key=lambda p: (not p.path.endswith(METADATA.name), p not in reading, p.path != root_path,
+                                 p.path, p.line))
     unused = set(assembler.overrides) - assembler.used_overrides
     if problems:
         err = ScdlError(problems)
@@ -100,16 +120,77 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
 
 _REFUSED = re.compile(r"refused by its check: (.*?)(?: \[type=|$)", re.S)
 
-#: Largest file a property's ``@file`` may name (bytes).
-MAX_PROPERTY_FILE_BYTES = 1 << 20
+class SideFile:
+    """A componentType side file checked against its implementation class: it may type
+    properties, give them defaults or make them mustSupply, narrow reference
+    multiplicities and give references default targets (``binding.sca`` ``@uri``) or
+    bindings. Names the class does not declare are problems (SCART-C007)."""
 
+    def __init__(self, model: ComponentTypeFile, ctype: ComponentType, assembler: _Assembler) -> None:
+        self.types: dict[str, TypeRef] = {}
+        self.defaults: dict[str, list[str] | None] = {}
+        self.required: set[str] = set()
+        self.multiplicity: dict[str, str] = {}
+        self.targets: dict[str, list[tuple[str, Location]]] = {}
+        self.bindings: dict[str, list[Binding]] = {}
+        what = f"componentType of {ctype.cls.__name__}"
+        for s in model.services:
+            if s.name not in ctype.services:
+                assembler.problem(E.SCART_SIDE_FILE, f"{what}: service {s.name!r} is not one the class offers "
+                                  f"({', '.join(ctype.services) or 'none'})", s.loc)
+            elif s.interface is not None:
+                declared = assembler.declared_interface(s.interface)
+                if declared is not None:
+                    assembler.check_subset(declared, ctype.services[s.name], E.SCART_SIDE_FILE,
+                                           f"{what}: service {s.name!r} declared as {declared.name}", s.interface.loc)
+        for r in model.references:
+            if r.name not in ctype.references:
+                assembler.problem(E.SCART_SIDE_FILE, f"{what}: reference {r.name!r} is not one the class declares "
+                                  f"({', '.join(ctype.references) or 'none'})", r.loc)
+                continue
+            declared_mult = ctype.references[r.name][0].multiplicity
+            if r.multiplicity and r.multiplicity not in _NARROWINGS.get(declared_mult, ()):
+                assembler.problem(E.SCART_SIDE_FILE, f"{what}: reference {r.name!r} is {declared_mult} in the class; "
+                                  f"{r.multiplicity} does not narrow it", r.loc)
+            elif r.multiplicity:
+                self.multiplicity[r.name] = r.multiplicity
+            uris: list[tuple[str, Location]] = []
+            self.bindings[r.name] = assembler.reference_bindings(Component(name=what, loc=r.loc), r.name, r, uris)
+            self.targets[r.name] = uris
+        for p in model.properties:
+            if p.name not in ctype.properties:
+                assembler.problem(E.SCART_SIDE_FILE, f"{what}: property {p.name!r} is not one the class declares "
+                                  f"({', '.join(ctype.properties) or 'none'})", p.loc)
+                continue
+            ref = assembler.reader.declared(p)
+            if ref is not None:
+                family, own = python_family(ctype.properties[p.name][1]), assembler.reader.family(ref)
+                if not compatible(own, family):
+                    assembler.problem(E.SCART_SIDE_FILE, f"{what}: property {p.name!r} is {family} in the class, "
+                                      f"{assembler.reader.shown(ref)} here", p.loc)
+                self.types[p.name] = ref
+            if p.values is not None or p.xml is not None or p.file is not None:
+                self.defaults[p.name] = assembler.reader.raw(p, {})
+            if p.must_supply:
+                self.required.add(p.name)
 
-class _FileValues(list):  # type: ignore[type-arg]
-    """Raw values read from a property's ``@file`` (so that errors do not echo them)."""
-
-    def __init__(self, values: list[str], file: str) -> None:
-        super().__init__(values)
-        self.file = file
+    def merge(self, ctype: ComponentType) -> ComponentType:
+        """``ctype`` with this file's mustSupply properties and narrowed multiplicities."""
+        if not self.required and not self.multiplicity:
+            return ctype
+        props = dict(ctype.properties)
+        for name in self.required:
+            spec, py_type = props[name]
+            required = PropSpec(spec.default, True)
+            required.name = name
+            props[name] = (required, py_type)
+        refs = dict(ctype.references)
+        for name, mult in self.multiplicity.items():
+            spec, ref_type = refs[name]
+            narrowed = RefSpec(mult.startswith("1"), mult.endswith("n"))
+            narrowed.name = name
+            refs[name] = (narrowed, ref_type)
+        return dataclasses.replace(ctype, properties=props, references=refs)
 
 
 def _is_element(registry: ExtensionRegistry, name: str) -> bool:
@@ -131,6 +212,8 @@ class _Assembler(Checks):
         self.problems: list[Problem] = []
         self.nodes: dict[str, Node] = {}
         self.extensions: list[tuple[str, Element]] = []
+        self.reader = PropertyReader(contribution, self.problem)
+        self.side_files: dict[str, SideFile] = {}  # by component path
         self._promoted_interfaces: dict[int, tuple[str, InterfaceInfo]] = {}  # composite reference -> first promoted
 
     def problem(self, code: str, message: str, loc: Location) -> None:
@@ -138,10 +221,11 @@ class _Assembler(Checks):
 
     def run(self, root: Composite) -> Assembly:
         props = {p.name: self.raw_value(p, {}) for p in root.properties}
-        scope = self.build(root, "", props)
+        scope = self.build(root, "", props, {p.name: self.reader.declared(p) for p in root.properties})
         self.wire(scope, {})
         for key in sorted(set(self.overrides) - self.used_overrides) if self.strict_overrides else ():
-            self.problems.append(Problem(E.SCART_OVERRIDE, f"--set {key}: no such component property", "<command line>", 0))
+            self.problems.append(Problem(E.SCART_OVERRIDE, f"--set {key}: {self.no_such_property(key)}",
+                                         "<command line>", 0))
         services: dict[str, Target] = {}
         bindings: dict[str, list[Binding]] = {}
         for cs in root.services:
@@ -166,10 +250,23 @@ class _Assembler(Checks):
         self.check_extensions(result)
         return result
 
+    def no_such_property(self, key: str) -> str:
+        """Why an override ``Component.prop`` names nothing, with what it could name."""
+        path, _, name = key.rpartition(".")
+        node = self.nodes.get(path)
+        if node is None:
+            known = list(self.nodes)
+            return (f"no component {path!r}{did_you_mean(path, known)}; components: "
+                    f"{', '.join(known[:20]) or 'none'}")
+        props = list(node.ctype.properties)
+        return (f"component {path!r} has no property {name!r}{did_you_mean(name, props)}; its properties: "
+                f"{', '.join(props) or 'none'}")
+
     # --- phase 1: build ---------------------------------------------------------------
 
-    def build(self, composite: Composite, prefix: str, props: dict[str, list[str] | None]) -> Scope:
-        scope = Scope(composite, prefix, props)
+    def build(self, composite: Composite, prefix: str, props: dict[str, list[str] | None],
+              types: dict[str, TypeRef | None]) -> Scope:
+        scope = Scope(composite, prefix, props, types)
         self.extensions.extend((prefix, el) for el in composite.extensions)
         for comp in composite.components:
             if comp.name in scope.children:
@@ -194,8 +291,8 @@ class _Assembler(Checks):
             return Failed(comp)
         if kind is None:
             known = [*self.registry.known(ImplementationProvider), "implementation.composite"]
-            self.problem(E.SCART_UNKNOWN_KIND, f"unknown implementation kind <{impl.kind}>; known: "
-                         f"{', '.join(sorted(known))}", impl.loc)
+            self.problem(E.SCART_UNKNOWN_KIND, f"unknown implementation kind <{impl.kind}>"
+                         f"{did_you_mean(impl.kind, known)}; known: {', '.join(sorted(known))}", impl.loc)
             return Failed(comp)
         try:
             ctype = kind.component_type(impl, self.context)
@@ -205,29 +302,51 @@ class _Assembler(Checks):
                 return Failed(comp)
             ctype = exc.partial
         self.check_type(ctype, impl.loc)
+        side = self.side_file(ctype)
+        if side is not None:
+            ctype = side.merge(ctype)
+            self.side_files[path] = side
         ctype = self.check_component_names(comp, ctype)
         node = Node(path, comp, impl.kind, ctype)
-        raw = self.component_raw_props(comp, ctype, scope, path)
+        families = {n: python_family(t) for n, (_, t) in ctype.properties.items()}
+        if side is not None:
+            families.update({n: self.reader.family(t) for n, t in side.types.items()})
+        raw = self.component_raw_props(comp, ctype, scope, path, families)
         for name, (spec, py_type) in ctype.properties.items():
-            node.properties[name] = self.property_value(comp, name, spec, py_type, raw.get(name),
+            given = raw.get(name)
+            if given is None and side is not None:
+                given = side.defaults.get(name)
+            node.properties[name] = self.property_value(comp, name, spec, py_type, given,
                                                         override=f"{path}.{name}" if f"{path}.{name}" in self.overrides else None)
         node.service_bindings = {s.name: s.bindings for s in comp.services if s.bindings}
         self.nodes[path] = node
         return node
+
+    def side_file(self, ctype: ComponentType) -> SideFile | None:
+        """The componentType side file of an implementation class — ``Class.componentType``
+        next to its module — read and checked against the class; None without one."""
+        module = sys.modules.get(getattr(ctype.cls, "__module__", ""), None)
+        origin = getattr(module, "__file__", None)
+        if not origin or ctype.cls is object:
+            return None
+        path = Path(origin).with_name(f"{ctype.cls.__name__}.componentType")
+        model = self.contribution.component_type(path)
+        return SideFile(model, ctype, self) if model is not None else None
 
     def build_nested(self, comp: Component, inner: Composite, scope: Scope, path: str) -> Scope:
         declared = {p.name: p for p in inner.properties}
         fake = ComponentType(object, {}, {}, {n: (PropSpec(None, p.must_supply), str) for n, p in declared.items()},
                              (), (), (), (), "composite", True)
         self.check_component_names(comp, fake, check_services=False)
-        raw = self.component_raw_props(comp, fake, scope, path)
+        families = {n: self.reader.family(self.reader.declared(p)) for n, p in declared.items()}
+        raw = self.component_raw_props(comp, fake, scope, path, families)
         props: dict[str, list[str] | None] = {}
         for name, decl in declared.items():
             value = raw.get(name) if raw.get(name) is not None else self.raw_value(decl, {})
             if value is None and decl.must_supply:
                 self.problem(E.ASM_MUST_SUPPLY, f"component {comp.name!r}: required property {name!r} not supplied", comp.loc)
             props[name] = value
-        child = self.build(inner, path + "/", props)
+        child = self.build(inner, path + "/", props, {n: self.reader.declared(p) for n, p in declared.items()})
         child.component = comp
         services: dict[str, InterfaceInfo] = {}
         targets: dict[str, Target] = {}
@@ -313,11 +432,17 @@ class _Assembler(Checks):
 
     # --- properties ---------------------------------------------------------------------
 
-    def component_raw_props(self, comp: Component, ctype: ComponentType, scope: Scope, path: str) -> dict[str, list[str] | None]:
+    def component_raw_props(self, comp: Component, ctype: ComponentType, scope: Scope, path: str,
+                            families: dict[str, str | None]) -> dict[str, list[str] | None]:
+        """The raw values a component gives its properties (``@source`` from ``scope``,
+        then ``--set``), their types checked against the componentType's ``families``."""
         raw: dict[str, list[str] | None] = {}
         for p in comp.properties:
             if p.name in ctype.properties:
-                raw[p.name] = self.raw_value(p, scope.props)
+                if self.check_property_types(comp, p, scope, families.get(p.name)):
+                    raw[p.name] = self.raw_value(p, scope.props)
+                else:
+                    raw[p.name] = Refused()
         for name in ctype.properties:
             key = f"{path}.{name}"
             if key in self.overrides:
@@ -325,55 +450,30 @@ class _Assembler(Checks):
                 self.used_overrides.add(key)
         return raw
 
-    def raw_value(self, p: PropertyValue, ctx: dict[str, list[str] | None]) -> list[str] | None:
-        if p.source is not None:
-            name = p.source.lstrip("$").split("/")[0]
-            if name not in ctx:
-                self.problem(E.SCART_BAD_SOURCE, f"property {p.name!r}: source {p.source!r} names no "
-                             f"composite property; known: {', '.join(ctx) or 'none'}", p.loc)
-                return None
-            return ctx[name]
-        if p.file is not None:
-            return self.file_value(p)
-        if p.values is not None and p.type:
-            xsd = XSD_TYPES.get(p.type.rpartition(":")[2])
-            if xsd is not None:
-                for v in p.values:
-                    try:
-                        parse_value([v], xsd)
-                    except ValueError as exc:
-                        self.problem(E.ASM_PROPERTY_VALUE, f"property {p.name!r}: {exc}", p.loc)
-        return p.values
+    def check_property_types(self, comp: Component, p: PropertyValue, scope: Scope, family: str | None) -> bool:
+        """A component property's declared type matches its componentType's (ASM50036); a
+        composite property it takes whole through ``@source`` matches too (ASM50038).
+        False when one does not (reported)."""
+        reader = self.reader
+        own = reader.declared(p)
+        if own is not None and not compatible(reader.family(own), family):
+            self.problem(E.ASM_PROPERTY_TYPE_MISMATCH, f"component {comp.name!r} property {p.name!r}: declared "
+                         f"{reader.shown(own)}, but its componentType's is {family}", p.loc)
+            return False
+        m = re.fullmatch(r"\s*\$([A-Za-z_][\w.-]*)\s*", p.source or "")
+        if m is None or m[1] not in scope.types:
+            return True
+        source = scope.types[m[1]]
+        wanted = reader.family(own) if own is not None else family
+        if source is not None and not compatible(reader.family(source), wanted):
+            self.problem(E.ASM_SOURCE_TYPE, f"component {comp.name!r} property {p.name!r} ({wanted}): @source "
+                         f"${m[1]} is {reader.shown(source)}", p.loc)
+            return False
+        return True
 
-    def file_value(self, p: PropertyValue) -> list[str] | None:
-        """The value of ``@file``: a regular file inside the contribution folder, at most
-        :data:`MAX_PROPERTY_FILE_BYTES`, read as UTF-8 text. Problems never show its content."""
-        folder = self.contribution.folder
-        where = f"property {p.name!r}: file {p.file!r}"
-        try:
-            path = (Path(p.loc.path).parent / (p.file or "")).resolve()
-            if not path.is_relative_to(folder):
-                self.problem(E.ASM_PROPERTY_FILE, f"{where} is outside the contribution folder {folder}", p.loc)
-                return None
-            # opened without following a link and without blocking (a FIFO swapped in after the
-            # check above must not hang), then checked on the open file itself
-            fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
-            with os.fdopen(fd, "rb") as fh:
-                info = os.fstat(fd)
-                if not stat.S_ISREG(info.st_mode):
-                    self.problem(E.ASM_PROPERTY_FILE, f"{where} is not a regular file", p.loc)
-                    return None
-                if info.st_size > MAX_PROPERTY_FILE_BYTES:
-                    self.problem(E.ASM_PROPERTY_FILE, f"{where} is {info.st_size} bytes, over the "
-                                 f"{MAX_PROPERTY_FILE_BYTES} bytes bound", p.loc)
-                    return None
-                data = fh.read(MAX_PROPERTY_FILE_BYTES + 1)[:MAX_PROPERTY_FILE_BYTES]
-            return _FileValues([data.decode("utf-8").strip()], p.file or "")
-        except UnicodeDecodeError:
-            self.problem(E.ASM_PROPERTY_FILE, f"{where} is not UTF-8 text", p.loc)
-        except OSError as exc:
-            self.problem(E.ASM_PROPERTY_FILE, f"{where}: cannot read: {exc.strerror or exc}", p.loc)
-        return None
+    def raw_value(self, p: PropertyValue, ctx: dict[str, list[str] | None]) -> list[str] | None:
+        """The raw values of ``p`` (see :class:`scart.properties.PropertyReader`)."""
+        return self.reader.raw(p, ctx)
 
     def property_value(self, comp: Component, name: str, spec: PropSpec, py_type: Any, raw: list[str] | None,
                        override: str | None = None) -> Any:
@@ -381,18 +481,22 @@ class _Assembler(Checks):
         if override is not None:  # the value came from --set: that is where the problem is
             where = Location(path="<command line>", line=0)
             name = f"{name} (--set {override})"
+        if isinstance(raw, Refused):
+            return DEFAULT  # its problem is reported
         if raw is None:
             if spec.required:
                 self.problem(E.ASM_MUST_SUPPLY, f"component {comp.name!r}: required property {name!r} "
                              "not supplied", comp.loc)
             return DEFAULT
         if len(raw) > 1 and not is_many(py_type):
-            self.problem(E.ASM_SINGLE_VALUED, f"property {name!r} is single-valued but has {len(raw)} values", where)
+            type_name = getattr(py_type, "__name__", None) or str(py_type)
+            self.problem(E.ASM_SINGLE_VALUED, f"property {name!r} ({type_name}) is single-valued but has "
+                         f"{len(raw)} values", where)
             return DEFAULT
         try:
             return parse_value(raw, py_type)
         except ValueError as exc:
-            if isinstance(raw, _FileValues):  # never echo a file's content (it may be anything)
+            if isinstance(raw, FileValues):  # never echo a file's content (it may be anything)
                 type_name = getattr(py_type, "__name__", str(py_type))
                 self.problem(E.ASM_PROPERTY_VALUE, f"property {name!r}: the content of file {raw.file!r} is not a "
                              f"valid {type_name} (content not shown)", where)
@@ -515,6 +619,9 @@ class _Assembler(Checks):
         loc = xml.loc if xml is not None else comp.loc
         uris = [(u, loc) for u in (xml.targets if xml else [])]
         bindings = self.reference_bindings(comp, ref, xml, uris)
+        side = self.side_files.get(child.path) if isinstance(child, Node) else None
+        if side is not None and not uris and not bindings and ref in side.targets:  # the componentType's default
+            uris, bindings = list(side.targets[ref]), list(side.bindings.get(ref, []))
         replaced = False
         for w in scope.composite.wires:
             src_comp, _, src_ref = w.source.partition("/")

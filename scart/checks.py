@@ -107,7 +107,7 @@ class Checks:
     def check_multiplicity(self, comp: Component, ref: str, mult: str, targets: list[Endpoint],
                            loc: Location, promoted: bool) -> None:
         n = len(targets)
-        if n == 0 and promoted:
+        if n == 0 and (promoted or comp.misread):  # misread: the missing target is likely what was misread
             return
         where = comp.loc if n == 0 else loc
         if mult == "1..1" and n != 1:

@@ -85,6 +85,7 @@ SCART_UNKNOWN_KIND = "SCART-C002"  # implementation or binding kind not register
 SCART_BAD_SOURCE = "SCART-C003"  # property @source names no composite property
 SCART_DUPLICATE_COMPOSITE = "ASM60001"  # a composite name is unique in its namespace (two files declare one QName)
 SCART_OVERRIDE = "SCART-C005"  # --set names no component/property
+SCART_SIDE_FILE = "SCART-C007"  # a componentType side file and its implementation disagree
 
 
 @dataclass(frozen=True)
@@ -97,6 +98,9 @@ class Problem:
     line: int
 
     def __str__(self) -> str:
+        if self.line <= 0:  # no line to point at (a file that cannot be read, the command line)
+            where = "" if self.path in self.message else f"{self.path}: "
+            return f"{where}{self.message} [{self.code}]"
         return f"{self.path}:{self.line}: {self.message} [{self.code}]"
 
 

@@ -133,6 +133,7 @@ class Component(_Node):
     references: list[ComponentReference] = Field(default_factory=list)
     properties: list[PropertyValue] = Field(default_factory=list)
     autowire: bool | None = None
+    misread: bool = False  # an element or attribute inside it was not understood (reported)
 
 
 class CompositeService(_Node):

@@ -44,7 +44,7 @@ import queue
 import threading
 import time
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 from pydantic import BaseModel
@@ -173,15 +173,20 @@ class Runtime:
     @classmethod
     def from_file(cls, path: str | os.PathLike[str], *, overrides: dict[str, str] | None = None,
                   settings: Settings | None = None, extensions: ExtensionRegistry | None = None,
+                  contributions: Sequence[str | os.PathLike[str]] = (),
                   max_workers: int = 8, max_pending: int = 10_000, drain_timeout: float = 10.0) -> Runtime:
         """Load and check the composite at ``path`` (raises ``ScdlError``); nothing starts yet.
 
+        ``path`` is a ``.composite`` file, or a contribution folder whose
+        ``META-INF/sca-contribution.xml`` lists one deployable composite; ``contributions``
+        are more contribution folders it is resolved in (see :mod:`scart.contribution`).
         ``overrides`` maps "Component.property" to a raw value (like ``--set``);
         ``settings`` configure the runtime and its extensions (default:
         ``Settings.from_env()``); ``extensions`` is the registry of kinds (default: the
         installed entry points)."""
         settings = settings if settings is not None else Settings.from_env()
-        assembly = assemble(str(path), overrides, extensions=extensions, settings=settings)
+        assembly = assemble(str(path), overrides, extensions=extensions, settings=settings,
+                            contributions=contributions)
         return cls(assembly, settings=settings, max_workers=max_workers, max_pending=max_pending,
                    drain_timeout=drain_timeout)
 

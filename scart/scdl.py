@@ -161,7 +161,7 @@ def parse_xml(path: str, problems: list[Problem], max_bytes: int = MAX_BYTES) ->
         with open(path, "rb") as fh:
             data = fh.read(max_bytes + 1)
     except OSError as exc:
-        problems.append(Problem(E.SCART_XML, f"cannot read: {exc.strerror or exc}", path, 0))
+        problems.append(Problem(E.SCART_XML, f"cannot read {path}: {exc.strerror or exc}", path, 0))
         return None
     line = _prolog_doctype_line(data)
     if line is not None:
@@ -368,6 +368,7 @@ class Loader:
 
     def read_component(self, el: etree._Element, parent: Composite) -> None:
         """``<component>``: implementation, services, references, properties."""
+        before = len(self.problems)
         self.check_attributes(el, "component")
         comp = Component(name=self.required(el, "name") or "", loc=self.loc(el))
         if el.get("autowire") is not None:
@@ -390,6 +391,7 @@ class Loader:
                 self.unknown(child, "component", ("service", "reference", "property", "implementation.composite"))
         if comp.implementation is None:
             self.problem(E.ASM_SCHEMA, f"component {comp.name!r} has no implementation", el)
+        comp.misread = any(p.code in (E.SCART_UNKNOWN_ELEMENT, E.ASM_SCHEMA) for p in self.problems[before:])
         parent.components.append(comp)
 
     def read_implementation(self, el: etree._Element) -> Implementation:
@@ -631,10 +633,52 @@ class Loader:
         schema = _xsd()
         if schema.validate(etree.ElementTree(_detached(el))):
             return True
+        local = _local(el)[1]
         for entry in schema.error_log:
-            msg = re.sub(r"\{urn:scart:1\.0\}", "scart:", entry.message)
-            self.problem(E.SCART_SCHEMA, f"<{_local(el)[1]}>: {msg}", el)
+            self.problem(E.SCART_SCHEMA, f"<scart:{local}>: {_schema_message(entry.message, local)}", el)
         return False
+
+
+@functools.cache
+def _scart_elements() -> tuple[str, ...]:
+    """The global elements the shipped XSD declares."""
+    root = etree.parse(str(_SCHEMA_PATH), _parser()).getroot()
+    return tuple(e.get("name", "") for e in root.iterchildren(f"{{{XSD_NS}}}element"))
+
+
+@functools.cache
+def _scart_attributes(local: str) -> tuple[str, ...]:
+    """The attributes the shipped XSD declares for its element ``local``."""
+    root = etree.parse(str(_SCHEMA_PATH), _parser()).getroot()
+    for e in root.iterchildren(f"{{{XSD_NS}}}element"):
+        if e.get("name") == local:
+            return tuple(a.get("name", "") for a in e.iter(f"{{{XSD_NS}}}attribute"))
+    return ()
+
+
+_SCHEMA_MESSAGES: tuple[tuple[re.Pattern[str], Callable[[re.Match[str], str], str]], ...] = (
+    (re.compile(r"No matching global declaration available for the validation root"),
+     lambda m, local: f"scart has no element <scart:{local}>{did_you_mean(local, _scart_elements())}"),
+    (re.compile(r"The attribute '([^']*)' is not allowed"),
+     lambda m, local: f"no attribute {m[1]!r}{did_you_mean(m[1], _scart_attributes(local))}"),
+    (re.compile(r"Element '[^']*': The attribute '([^']*)' is required but missing"),
+     lambda m, local: f"needs the attribute {m[1]!r}"),
+    (re.compile(r"Element '[^']*', attribute '([^']*)': \[facet 'pattern'\] The value '([^']*)' is not accepted"),
+     lambda m, local: f"@{m[1]} {m[2]!r} is not of the expected form"
+                      + (" 'package.module:Class'" if m[1] in ("class", "interface", "callbackInterface") else "")),
+    (re.compile(r"Element '[^']*', attribute '([^']*)': '([^']*)' is not a valid value of the atomic type '([^']*)'"),
+     lambda m, local: f"@{m[1]} {m[2]!r} is not a valid {m[3].replace('xs:', '')}"),
+)
+
+
+def _schema_message(message: str, local: str) -> str:
+    """A schema validator's message in the user's terms (what they wrote, what is expected)."""
+    message = re.sub(r"\{urn:scart:1\.0\}", "scart:", message)
+    for pattern, say in _SCHEMA_MESSAGES:
+        m = pattern.search(message)
+        if m is not None:
+            return say(m, local)
+    return message.rstrip(".")
 
 
 def _detached(el: etree._Element) -> etree._Element:

@@ -2,7 +2,10 @@
 
 ``parse_value(["3"], int) == 3``; ``bool`` takes true/false/1/0; ``list[T]`` parses each
 value as ``T`` (one value starting with "[" is read as a JSON array); any other type
-(dicts, pydantic models...) is read as JSON and validated by pydantic.
+(dicts, pydantic models...) is read as JSON and validated by pydantic. A complex XML value
+(an :class:`XmlValue`: a ``<value>`` with child elements, or a global element) becomes
+data first — each child element a key, repeated ones a list, attributes keys too, a leaf
+its text — and is then validated the same way (a ``str`` property gets the XML itself).
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import typing
 from types import MappingProxyType
 from typing import Any
 
+from lxml import etree
 from pydantic import TypeAdapter
 
 #: XSD simple types of composite-level ``<property type="xsd:...">`` and their Python types.
@@ -20,6 +24,33 @@ XSD_TYPES: MappingProxyType[str, type] = MappingProxyType({
     "string": str, "anyURI": str, "QName": str, "int": int, "integer": int, "long": int, "short": int,
     "double": float, "float": float, "decimal": float, "boolean": bool,
 })
+
+
+class XmlValue(str):
+    """A complex property value: the XML of its ``<value>`` (or global element) element."""
+
+    def element(self) -> etree._Element:
+        """The value parsed (it was serialized from an already-parsed, safe document)."""
+        parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
+        return etree.fromstring(self.encode(), parser)
+
+    def data(self) -> Any:
+        """The value as plain data (see the module docstring); for a ``<value>`` wrapper,
+        its content."""
+        return xml_data(self.element())
+
+
+def xml_data(el: etree._Element) -> Any:
+    """Plain data of an element: a dict of its attributes and child elements (by local name;
+    repeated children: a list), or its stripped text when it has neither."""
+    children = [c for c in el if isinstance(c.tag, str)]
+    attrs = {etree.QName(k).localname: v for k, v in el.attrib.items() if not k.startswith("{")}
+    if not children and not attrs:
+        return (el.text or "").strip()
+    grouped: dict[str, list[Any]] = {}
+    for child in children:
+        grouped.setdefault(etree.QName(child).localname, []).append(xml_data(child))
+    return {**attrs, **{k: v[0] if len(v) == 1 else v for k, v in grouped.items()}}
 
 
 def is_many(py_type: Any) -> bool:
@@ -39,10 +70,12 @@ def parse_value(raw: list[str], py_type: Any) -> Any:
     if is_many(py_type):
         args = typing.get_args(py_type)
         item = args[0] if args else str
-        if len(raw) == 1 and raw[0].lstrip().startswith("["):
+        if len(raw) == 1 and not isinstance(raw[0], XmlValue) and raw[0].lstrip().startswith("["):
             return _adapt(py_type, json.loads(raw[0]))
         return typing.get_origin(py_type)(parse_value([v], item) for v in raw)
     text = raw[0] if raw else ""
+    if isinstance(text, XmlValue):
+        return str(text) if py_type is str or py_type is Any else _adapt(py_type, text.data())
     if py_type is bool:
         low = text.strip().lower()
         if low in ("true", "1"):

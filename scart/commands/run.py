@@ -44,7 +44,7 @@ from scart.settings import Settings
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     """Add ``run``, ``validate`` and ``graph``."""
     run = subparsers.add_parser("run", help="run a composite until Ctrl-C or SIGTERM")
-    run.add_argument("file", help="the .composite file")
+    run.add_argument("file", help="the .composite file (or a contribution folder with one deployable)")
     _add_set(run)
     run.add_argument("--workers", type=int, default=8, help="size of the one-way worker pool (default 8)")
     run.add_argument("--stop-timeout", type=float, default=10.0, metavar="SECONDS",
@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.set_defaults(func=cmd_run)
 
     validate = subparsers.add_parser("validate", help="check composites without running them (offline)")
-    validate.add_argument("files", nargs="+", help=".composite files")
+    validate.add_argument("files", nargs="+", help=".composite files (or contribution folders)")
     _add_set(validate)
     validate.add_argument("--online", action="store_true",
                           help="also check remote data-flow tasks against the running name service")
@@ -75,6 +75,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
 def _add_set(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="COMPONENT.PROP=VALUE",
                         help="override a component property (repeatable)")
+    parser.add_argument("--contribution", dest="contributions", action="append", default=[], metavar="DIR",
+                        help="another contribution folder the composite is resolved in: its exported "
+                             "namespaces and its Python modules (repeatable)")
 
 
 def parse_overrides(items: list[str]) -> dict[str, str]:
@@ -108,11 +111,13 @@ def settings_of(args: argparse.Namespace, **fields: object) -> Settings | None:
         return None
 
 
-def _assemble(file: str, raw_overrides: list[str], settings: Settings, unused: set[str] | None = None) -> Assembly | None:
+def _assemble(file: str, raw_overrides: list[str], settings: Settings, unused: set[str] | None = None,
+              contributions: list[str] | None = None) -> Assembly | None:
     """Assemble ``file`` or print its problems. With ``unused`` (a set), overrides naming no
     property of this file are no problem: their keys are added to ``unused`` instead."""
     try:
-        result = assemble(file, parse_overrides(raw_overrides), strict_overrides=unused is None, settings=settings)
+        result = assemble(file, parse_overrides(raw_overrides), strict_overrides=unused is None, settings=settings,
+                          contributions=contributions or [])
         if unused is not None:
             unused |= result.unused_overrides
         return result
@@ -146,7 +151,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         settings = settings_of(args, serve=True)
         if settings is None:
             return 2
-        assembly = _assemble(args.file, args.overrides, settings)
+        assembly = _assemble(args.file, args.overrides, settings, contributions=args.contributions)
         if assembly is None:
             return 2
         runtime = Runtime(assembly, settings=settings, max_workers=args.workers, drain_timeout=args.stop_timeout)
@@ -215,7 +220,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     unused_in: list[set[str]] = []
     for file in args.files:
         unused: set[str] | None = set() if several else None
-        assembly = _assemble(file, args.overrides, settings, unused)
+        assembly = _assemble(file, args.overrides, settings, unused, args.contributions)
         if unused is not None:
             unused_in.append(unused)
         if assembly is None:
@@ -239,7 +244,7 @@ def cmd_graph(args: argparse.Namespace) -> int:
     settings = settings_of(args)
     if settings is None:
         return 2
-    assembly = _assemble(args.file, args.overrides, settings)
+    assembly = _assemble(args.file, args.overrides, settings, contributions=args.contributions)
     if assembly is None:
         return 2
     print(to_dot(assembly))
