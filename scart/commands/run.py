@@ -30,6 +30,7 @@ import signal
 import sys
 import threading
 from types import FrameType
+from typing import TYPE_CHECKING
 
 from dataflow import DataflowError
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
@@ -39,6 +40,9 @@ from scart.errors import ScartError, ScdlError
 from scart.graph import Assembly, Bound, Target
 from scart.model import Composite
 from scart.settings import Settings
+
+if TYPE_CHECKING:
+    from scart.runtime import Runtime
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -162,7 +166,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             with contextlib.redirect_stdout(announced):
                 runtime.start()
         except ScartError as exc:
-            runtime.stop()
+            _stop_listening(runtime)
             print(f"scart: start failed: {exc}", file=sys.stderr)
             return 1
         try:
@@ -178,12 +182,23 @@ def cmd_run(args: argparse.Namespace) -> int:
             # SCA components first (their one-way calls drain while the tasks they use
             # still run; then the components, task components included, are destroyed in
             # reverse start order), the data-flow server last (a stop hook).
-            runtime.stop()
+            _stop_listening(runtime)
         print("scart: stopped", flush=True)
         return 0
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def _stop_listening(runtime: Runtime) -> None:
+    """``runtime.stop()`` on a thread of its own while this (main) thread waits in short
+    slices. Python runs signal handlers only on the main thread, and the kernel may deliver
+    a signal to any thread: a main thread blocked in one long wait (a drain deadline of
+    minutes) would not run the second Ctrl-C's handler until that wait ended."""
+    stopper = threading.Thread(target=runtime.stop, name="scart-stop", daemon=True)
+    stopper.start()
+    while stopper.is_alive():
+        stopper.join(0.2)
 
 
 def summary(assembly: Assembly, addresses: dict[str, str | None]) -> str:
