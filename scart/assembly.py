@@ -28,7 +28,7 @@ from typing import Any
 from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, PropSpec, RefSpec, interface_info
 from scart.checks import NARROWINGS as _NARROWINGS
-from scart.checks import Checks
+from scart.checks import Checks, mismatches
 from scart.contribution import METADATA, Contribution, deployable_of, import_object
 from scart.errors import Problem, ScdlError
 from scart.extensions import ExtensionError, ExtensionRegistry
@@ -167,10 +167,10 @@ class SideFile:
                 family, own = python_family(ctype.properties[p.name][1]), assembler.reader.family(ref)
                 if not compatible(own, family):
                     assembler.problem(E.SCART_SIDE_FILE, f"{what}: property {p.name!r} is {family} in the class, "
-                                      f"{assembler.reader.shown(ref)} here", p.loc)
+                                      f"{assembler.reader.shown(ref, p.namespaces)} here", p.loc)
                 self.types[p.name] = ref
             if p.values is not None or p.xml is not None or p.file is not None:
-                self.defaults[p.name] = assembler.reader.raw(p, {})
+                self.defaults[p.name] = assembler.declaration_values(p)
             if p.must_supply:
                 self.required.add(p.name)
 
@@ -215,12 +215,14 @@ class _Assembler(Checks):
         self.reader = PropertyReader(contribution, self.problem)
         self.side_files: dict[str, SideFile] = {}  # by component path
         self._promoted_interfaces: dict[int, tuple[str, InterfaceInfo]] = {}  # composite reference -> first promoted
+        #: (component path, service) -> the interface its <service> declares: what wires see of it
+        self.declared_services: dict[tuple[str, str], InterfaceInfo] = {}
 
     def problem(self, code: str, message: str, loc: Location) -> None:
         self.problems.append(Problem(code, message, loc.path, loc.line))
 
     def run(self, root: Composite) -> Assembly:
-        props = {p.name: self.raw_value(p, {}) for p in root.properties}
+        props = {p.name: self.declaration_values(p) for p in root.properties}
         scope = self.build(root, "", props, {p.name: self.reader.declared(p) for p in root.properties})
         self.wire(scope, {})
         for key in sorted(set(self.overrides) - self.used_overrides) if self.strict_overrides else ():
@@ -306,7 +308,7 @@ class _Assembler(Checks):
         if side is not None:
             ctype = side.merge(ctype)
             self.side_files[path] = side
-        ctype = self.check_component_names(comp, ctype)
+        ctype = self.check_component_names(comp, ctype, path=path)
         node = Node(path, comp, impl.kind, ctype)
         families = {n: python_family(t) for n, (_, t) in ctype.properties.items()}
         if side is not None:
@@ -318,7 +320,7 @@ class _Assembler(Checks):
                 given = side.defaults.get(name)
             node.properties[name] = self.property_value(comp, name, spec, py_type, given,
                                                         override=f"{path}.{name}" if f"{path}.{name}" in self.overrides else None)
-        node.service_bindings = {s.name: s.bindings for s in comp.services if s.bindings}
+        node.service_bindings = {s.name: s.bindings for s in comp.services if s.bindings and s.name in ctype.services}
         self.nodes[path] = node
         return node
 
@@ -342,7 +344,10 @@ class _Assembler(Checks):
         raw = self.component_raw_props(comp, fake, scope, path, families)
         props: dict[str, list[str] | None] = {}
         for name, decl in declared.items():
-            value = raw.get(name) if raw.get(name) is not None else self.raw_value(decl, {})
+            given = raw.get(name)
+            if given is not None and not isinstance(given, Refused):
+                given = self.check_against(comp, decl, given, from_cli=f"{path}.{name}" in self.overrides)
+            value = given if given is not None else self.declaration_values(decl)
             if value is None and decl.must_supply:
                 self.problem(E.ASM_MUST_SUPPLY, f"component {comp.name!r}: required property {name!r} not supplied", comp.loc)
             props[name] = value
@@ -369,7 +374,7 @@ class _Assembler(Checks):
     def promoted_service(self, cs: CompositeService, target: Target) -> InterfaceInfo:
         """The interface of the service ``cs`` promotes; a declared one must be a compatible
         subset of it, callbacks included (ASM60005)."""
-        offered = self.nodes[target.node].ctype.services[target.service]
+        offered = self.offered(target)
         if cs.interface is not None:
             declared = self.declared_interface(cs.interface)
             if declared is not None:
@@ -377,6 +382,11 @@ class _Assembler(Checks):
                                   f"composite service {cs.name!r}: its declared interface {declared.name} and the "
                                   f"promoted {target.node}/{target.service} ({offered.name})", cs.interface.loc)
         return offered
+
+    def offered(self, target: Target) -> InterfaceInfo:
+        """The interface a service offers to wires: the one its ``<service>`` declares, else its implementation's."""
+        declared = self.declared_services.get((target.node, target.service))
+        return declared if declared is not None else self.nodes[target.node].ctype.services[target.service]
 
     def bind_promoted(self, target: Target, alias: str, bindings: list[Binding]) -> None:
         """Record ``bindings`` of a service promoted out of a nested composite on its leaf
@@ -390,9 +400,11 @@ class _Assembler(Checks):
             aliases.append(alias)
 
     def check_component_names(self, comp: Component, ctype: ComponentType, *, check_services: bool = True,
-                              check_properties: bool = True) -> ComponentType:
+                              check_properties: bool = True, path: str | None = None) -> ComponentType:
         """Check the component's services, references and properties against ``ctype``; returns
-        ``ctype`` with services made remotable where the composite's interface says so."""
+        ``ctype`` with services made remotable where the composite's interface says so. A
+        service's declared interface is, for the wires to it, the service's interface
+        (recorded for the leaf component at ``path``)."""
         services = dict(ctype.services)
         if check_services:
             for s in comp.services:
@@ -409,10 +421,10 @@ class _Assembler(Checks):
                         self.problem(E.ASM_SERVICE_INTERFACE, f"service {s.name!r} of {comp.name!r}: declared interface "
                                      f"{declared.name} has operation(s) {', '.join(extra)} the implementation "
                                      "does not offer", s.interface.loc)
-                    else:  # the operations are there: one-way flags and callbacks must agree too
-                        self.check_subset(declared, offered, E.ASM_SERVICE_INTERFACE,
-                                          f"service {s.name!r} of {comp.name!r}: declared interface {declared.name} "
-                                          f"and the implementation's {offered.name}", s.interface.loc)
+                    elif self.check_subset(declared, offered, E.ASM_SERVICE_INTERFACE,  # one-way flags, callbacks
+                                           f"service {s.name!r} of {comp.name!r}: declared interface {declared.name} "
+                                           f"and the implementation's {offered.name}", s.interface.loc) and path:
+                        self.declared_services[(path, s.name)] = declared
                     if declared.remotable and not services[s.name].remotable:
                         services[s.name] = dataclasses.replace(services[s.name], remotable=True)
             for r in comp.references:
@@ -458,7 +470,7 @@ class _Assembler(Checks):
         own = reader.declared(p)
         if own is not None and not compatible(reader.family(own), family):
             self.problem(E.ASM_PROPERTY_TYPE_MISMATCH, f"component {comp.name!r} property {p.name!r}: declared "
-                         f"{reader.shown(own)}, but its componentType's is {family}", p.loc)
+                         f"{reader.shown(own, p.namespaces)}, but its componentType's is {family}", p.loc)
             return False
         m = re.fullmatch(r"\s*\$([A-Za-z_][\w.-]*)\s*", p.source or "")
         if m is None or m[1] not in scope.types:
@@ -467,9 +479,38 @@ class _Assembler(Checks):
         wanted = reader.family(own) if own is not None else family
         if source is not None and not compatible(reader.family(source), wanted):
             self.problem(E.ASM_SOURCE_TYPE, f"component {comp.name!r} property {p.name!r} ({wanted}): @source "
-                         f"${m[1]} is {reader.shown(source)}", p.loc)
+                         f"${m[1]} is {reader.shown(source, p.namespaces)}", p.loc)
             return False
         return True
+
+    def check_against(self, comp: Component, decl: PropertyValue, values: list[str], from_cli: bool) -> list[str] | None:
+        """The values a component gives a property of the composite it implements, checked
+        at the component (its line) against what the composite declares: its type or
+        element, and one value unless ``many`` (ASM50032). Refused when wrong (reported)."""
+        own = None if from_cli else next((p for p in comp.properties if p.name == decl.name), None)
+        typed = own is not None and self.reader.declared(own) is not None  # checked already, against its own type
+        if own is None:  # from --set
+            own = decl.model_copy(update={"loc": Location(path="<command line>", line=0), "values": list(values),
+                                          "xml": None, "file": None, "source": None})
+        if len(values) > 1 and not decl.many:
+            self.problem(E.ASM_SINGLE_VALUED, f"component {comp.name!r} property {decl.name!r} "
+                         f"({self.reader.shown(self.reader.declared(decl), decl.namespaces)}) is single-valued but has {len(values)} "
+                         "values", own.loc)
+            return Refused()
+        if not typed and not self.reader.check(
+                own.model_copy(update={"type": decl.type, "element": decl.element}), values):
+            return Refused()
+        return values
+
+    def declaration_values(self, decl: PropertyValue) -> list[str] | None:
+        """The values a composite or componentType property declaration gives itself: one
+        unless it is ``many`` (ASM50032)."""
+        values = self.raw_value(decl, {})
+        if values is not None and len(values) > 1 and not decl.many and not isinstance(values, Refused):
+            self.problem(E.ASM_SINGLE_VALUED, f"property {decl.name!r} ({self.reader.shown(self.reader.declared(decl), decl.namespaces)})"
+                         f" is single-valued but has {len(values)} values", decl.loc)
+            return Refused()
+        return values
 
     def raw_value(self, p: PropertyValue, ctx: dict[str, list[str] | None]) -> list[str] | None:
         """The raw values of ``p`` (see :class:`scart.properties.PropertyReader`)."""
@@ -515,7 +556,7 @@ class _Assembler(Checks):
         """The leaf service ``uri`` ("Component[/Service]") names in ``scope`` (through
         promotions), or None after reporting why (``what`` says whose URI it is)."""
         comp_name, _, service = uri.partition("/")
-        service = service.split("/")[0]
+        service, _, binding = service.partition("/")
         child = scope.children.get(comp_name)
         if child is None:
             known = ", ".join(list(scope.children)[:20]) or "none"
@@ -536,11 +577,47 @@ class _Assembler(Checks):
                          f"{did_you_mean(service, offered)}; it offers: {', '.join(offered) or 'none'}", loc)
             return None
         if isinstance(child, Node):
+            if binding and not self.has_binding(child, service, binding):
+                xml = next((s for s in child.model.services if s.name == service), None)
+                names = sorted({b.name or service for b in xml.bindings} if xml and xml.bindings else {service})
+                self.problem(E.ASM_NO_SUCH_BINDING, f"{what}{uri!r}: service {comp_name}/{service} has no binding "
+                             f"named {binding!r}{did_you_mean(binding, names)}; its bindings: {', '.join(names)}", loc)
+                return None
             return Target(child.path, service)
         promoted = next(cs for cs in child.composite.services if cs.name == service)
         return self.resolve_service(child, promoted.promote, promoted.loc, E.ASM_PROMOTED_SERVICE)
 
+    @staticmethod
+    def has_binding(node: Node, service: str, name: str) -> bool:
+        """Does the component's service have a binding named ``name``? An unnamed binding
+        is named after its service, and a service without bindings has its binding.sca."""
+        xml = next((s for s in node.model.services if s.name == service), None)
+        if xml is None or not xml.bindings:
+            return name == service
+        return any((b.name or service) == name for b in xml.bindings)
+
+    def check_wire_sources(self, scope: Scope) -> None:
+        """Each ``<wire>``'s @source names a reference of a component of this composite
+        (``Component/reference``, or ``Component`` when it has one reference)."""
+        for w in scope.composite.wires:
+            comp_name, _, ref = w.source.partition("/")
+            ref = ref.partition("/")[0]
+            child = scope.children.get(comp_name)
+            if isinstance(child, Failed):
+                continue
+            if child is None:
+                self.problem(E.SCART_WIRE_SOURCE, f"wire @source {w.source!r}: no component {comp_name!r}"
+                             f"{did_you_mean(comp_name, scope.children)}; known: "
+                             f"{', '.join(list(scope.children)[:20]) or 'none'}", w.loc)
+                continue
+            refs = list(child.ctype.references) if child.ctype is not None else []
+            if (ref and ref not in refs) or (not ref and len(refs) != 1):
+                said = f"has no reference {ref!r}{did_you_mean(ref, refs)}" if ref else f"has {len(refs)} references"
+                self.problem(E.SCART_WIRE_SOURCE, f"wire @source {w.source!r}: component {comp_name!r} {said}; "
+                             f"its references: {', '.join(refs) or 'none'}", w.loc)
+
     def wire(self, scope: Scope, inherited: dict[str, list[Endpoint]]) -> None:
+        self.check_wire_sources(scope)
         promoted: dict[str, list[Endpoint]] = {}
         for cr in scope.composite.references:
             for uri in cr.promote:
@@ -572,7 +649,7 @@ class _Assembler(Checks):
     def check_promoted_reference(self, scope: Scope, cr: CompositeReference, comp_name: str, child: Node | Scope,
                                  ref: str) -> None:
         """A composite reference promoting ``comp_name/ref``: a 0..1/1..1 ``nonOverridable``
-        reference wired inside is not promoted (ASM50042); the composite reference's
+        reference is not promoted (ASM50042); the composite reference's
         multiplicity narrows, never widens, the promoted one's — or relaxes "at least one"
         when the component reference has its own targets (ASM60011); its interface is a
         compatible superset of the promoted one's (ASM60012), and references promoted
@@ -586,9 +663,9 @@ class _Assembler(Checks):
             w.source.partition("/")[0] == comp_name and w.source.partition("/")[2] in (ref, "")
             for w in scope.composite.wires)
         where = f"composite reference {cr.name!r} promotes {comp_name}/{ref}"
-        if xml is not None and xml.non_overridable and not mult.endswith("n") and wired:
-            self.problem(E.ASM_NON_OVERRIDABLE, f"{where}, which is nonOverridable, {mult} and wired inside the "
-                         "composite: it cannot be promoted (its target cannot be replaced)", cr.loc)
+        if xml is not None and xml.non_overridable and not mult.endswith("n"):
+            self.problem(E.ASM_NON_OVERRIDABLE, f"{where}, which is nonOverridable and {mult}: it cannot be "
+                         "promoted (its target cannot be replaced)", cr.loc)
         if cr.multiplicity:
             allowed = list(_NARROWINGS.get(mult, ()))
             if wired and mult.startswith("1"):  # it has targets already: "at least one" may be relaxed
@@ -671,7 +748,7 @@ class _Assembler(Checks):
         for t in targets:
             if not isinstance(t, Target):
                 continue
-            offered = self.nodes[t.node].ctype.services[t.service]
+            offered = self.offered(t)
             if iface is not None and not self.check_compatible(iface, offered, ref, t, loc):
                 continue  # the caller's callback methods are not checked against a mismatched interface
             if offered.callback is not None and isinstance(child, Node):
@@ -694,6 +771,10 @@ class _Assembler(Checks):
         for b in xml.bindings:
             if b.kind == "binding.sca" and b.namespace in _SCA_NAMESPACES:
                 if "uri" in b.attributes:
+                    if xml.targets:
+                        self.problem(E.ASM_TARGET_AND_BINDING, f"component {comp.name!r} reference {ref!r} has "
+                                     f"@target {' '.join(xml.targets)!r} and a <binding.sca> with @uri "
+                                     f"{b.attributes['uri']!r}: give one or the other", b.loc)
                     uris.append((b.attributes["uri"], b.loc))
                 continue
             out.append(b)
@@ -734,11 +815,9 @@ class _Assembler(Checks):
             cb = (self.contribution.wsdl_interface(declared.callback, declared.loc, "callbackInterface")
                   if declared.callback else None)
         else:
-            target = declared.target
-            if declared.kind == "interface.java" and ":" not in target:  # a.b.C: the class C of module a.b
-                target = ":".join(target.rsplit(".", 1))
-            info = self.python_interface(target, declared.loc)
-            cb = self.python_interface(declared.callback, declared.loc) if declared.callback else None
+            java = declared.kind == "interface.java"
+            info = self.python_interface(_class_name(declared.target, java), declared.loc)
+            cb = self.python_interface(_class_name(declared.callback, java), declared.loc) if declared.callback else None
             if info is not None and declared.remotable is not None:
                 info = dataclasses.replace(info, remotable=declared.remotable)
         if info is None or (declared.callback and cb is None):
@@ -748,6 +827,7 @@ class _Assembler(Checks):
             if own is not None and set(own.operations) != set(cb.operations):
                 self.problem(E.ASM_CALLBACK_AGREES, f"interface {info.name}: callbackInterface {cb.name} disagrees "
                              f"with the callback interface {own.name} that {info.name} itself declares", declared.loc)
+                return None  # what else is said of it would be a knock-on
             info = dataclasses.replace(info, callback=cb)
         return info
 
@@ -767,11 +847,10 @@ class _Assembler(Checks):
         for name, child in scope.children.items():
             if name == comp_name or child.ctype is None:
                 continue
-            for sname, offered in child.ctype.services.items():
-                if set(iface.operations) <= set(offered.operations):
-                    target = self.resolve_service(scope, f"{name}/{sname}", scope.composite.loc)
-                    if target is not None:
-                        found.append(target)
+            for sname in child.ctype.services:
+                target = self.resolve_service(scope, f"{name}/{sname}", scope.composite.loc)
+                if target is not None and not mismatches(iface, self.offered(target)):  # compatible (ASM60022)
+                    found.append(target)
         return found
 
     def init_order(self) -> list[str]:
@@ -795,6 +874,11 @@ class _Assembler(Checks):
                     state[path] = 2
                     order.append(path)
         return order
+
+
+def _class_name(target: str, java: bool) -> str:
+    """``module:Class``; an ``interface.java`` may name it ``a.b.C`` (the class C of module a.b)."""
+    return ":".join(target.rsplit(".", 1)) if java and ":" not in target else target
 
 
 def _required(mult: str | None) -> bool:

@@ -1,7 +1,10 @@
 """Contributions: where a composite's artifacts come from (SCA Assembly 1.1, §11).
 
 A contribution is a folder: the ``.composite``, ``.wsdl``, ``.xsd`` and ``.componentType``
-files in it (not in subfolders) and its Python modules. Its optional
+files in it and its subfolders (hidden ones, ``__pycache__``, virtual environments, build
+output and nested contributions — a subfolder with its own ``META-INF`` metadata — left
+out; at most :data:`MAX_WALK_DEPTH` deep and :data:`MAX_WALK_FILES` files) and its Python
+modules. Its optional
 ``META-INF/sca-contribution.xml`` lists the deployable composites and the XML namespaces
 it imports from and exports to other contributions::
 
@@ -30,7 +33,10 @@ hold (its problems are then reported).
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 import importlib
+import logging
+import os
 import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -49,6 +55,7 @@ from scart.scdl import Loader, did_you_mean, parse_xml
 
 WSDL_NS = "http://schemas.xmlsoap.org/wsdl/"
 METADATA = Path("META-INF") / "sca-contribution.xml"
+log = logging.getLogger(__name__)
 MAX_CONTRIBUTIONS = 64  #: contributions one composite may be resolved in (given and located)
 
 
@@ -135,6 +142,12 @@ def read_metadata(folder: Path, problems: list[Problem], shown: Path | None = No
     return meta
 
 
+#: How deep, and over how many files, a contribution folder is searched for artifacts.
+MAX_WALK_DEPTH = 8
+MAX_WALK_FILES = 20_000
+_NOT_ARTIFACTS = frozenset({"__pycache__", "node_modules", "build", "dist", "site-packages"})
+
+
 class _Folder:
     """One contribution: its folder, how it is shown, its metadata and lazy indices."""
 
@@ -147,9 +160,30 @@ class _Folder:
         self.unparsed: list[Problem] = []  # problems of composites that could not be parsed
         self.wsdl: dict[str, InterfaceInfo] | None = None
         self.wsdl_callbacks: dict[str, tuple[str, Problem]] = {}
+        self._files: list[Path] | None = None
+        self.given = True  # given by the user (else found through an import's @location)
 
     def files(self, pattern: str) -> list[Path]:
-        return sorted(f for f in self.path.glob(pattern) if f.is_file())
+        """The contribution's files matching ``pattern`` (a name glob), sorted; see the module docstring."""
+        if self._files is None:
+            self._files = []
+            for where, folders, names in os.walk(self.path):  # links to folders are not followed
+                here = Path(where)
+                deep = len(here.relative_to(self.path).parts) >= MAX_WALK_DEPTH
+                folders[:] = [] if deep else sorted(
+                    d for d in folders if not d.startswith(".") and d not in _NOT_ARTIFACTS
+                    and not (here / d / "pyvenv.cfg").exists() and not (here / d / METADATA).exists())
+                self._files += [here / n for n in names if (here / n).is_file()]
+                if len(self._files) >= MAX_WALK_FILES:
+                    log.warning("contribution %s: more than %d files; the rest are not searched", self.shown,
+                                MAX_WALK_FILES)
+                    break
+            self._files.sort()
+        return [f for f in self._files if fnmatch.fnmatchcase(f.name, pattern)]
+
+    def shown_file(self, file: Path) -> str:
+        """A file of this contribution as the user sees it (relative to how the folder is shown)."""
+        return str(self.shown / file.relative_to(self.path))
 
     def exports(self, ns: str) -> bool:
         return ns in self.metadata.exports
@@ -199,6 +233,7 @@ class Contribution:
                                          "contributions", where.path if where else str(shown), where.line if where else 0))
             return None
         folder = _Folder(path, shown, read_metadata(path, self.problems, shown))
+        folder.given = where is None
         self.folders.append(folder)
         return folder
 
@@ -217,9 +252,11 @@ class Contribution:
         return [f for f in self.folders if f is not folder and f.exports(ns)]
 
     def folder_of(self, path: str) -> _Folder:
-        """The contribution a file (as shown in a location) belongs to; the root's by default."""
-        parent = Path(path).resolve().parent
-        return next((f for f in self.folders if f.path == parent), self.folders[0])
+        """The contribution a file (as shown in a location) belongs to — the innermost folder
+        holding it; the root's by default."""
+        file = Path(path).resolve()
+        holding = [f for f in self.folders if file.is_relative_to(f.path)]
+        return max(holding, key=lambda f: len(f.path.parts)) if holding else self.folders[0]
 
     def search(self, ns: str, where: Location) -> list[_Folder]:
         """Where a QName of namespace ``ns``, used in the file of ``where``, is looked up, in order."""
@@ -290,7 +327,7 @@ class Contribution:
                     folder.unparsed.extend(problems)
                     continue
                 qname = f"{{{root.get('targetNamespace', '')}}}{root.get('name', '')}"
-                shown = str(folder.shown / file.name)  # as the root's path is shown
+                shown = folder.shown_file(file)  # as the root's path is shown
                 if qname in folder.composites:
                     folder.same_qname.setdefault(qname, [folder.composites[qname]]).append(shown)
                     continue
@@ -303,7 +340,7 @@ class Contribution:
         None, its parse problems)``; the caller decides where the problems go."""
         for file in folder.files(pattern):
             problems: list[Problem] = []
-            root = parse_xml(str(folder.shown / file.name), problems)
+            root = parse_xml(folder.shown_file(file), problems)
             yield file, root, problems
 
     def find_deployable(self, qname: str, where: Location) -> str | None:
@@ -333,7 +370,9 @@ class Contribution:
     def import_object(self, ref: str) -> object:
         """Import ``"pkg.mod:Attr"`` with every contribution folder on ``sys.path`` (the
         root's first; see :func:`import_object`)."""
-        return import_object(ref, self.folder, [f.path for f in self.folders[1:]])
+        imported = {ns for f in self.folders for ns, _, _ in f.metadata.imports}
+        others = [f.path for f in self.folders[1:] if f.given or any(f.exports(ns) for ns in imported)]
+        return import_object(ref, self.folder, others)  # a located folder exporting nothing wanted: not a class path
 
     # --- XML Schema ---------------------------------------------------------------------
 
@@ -378,7 +417,7 @@ class Contribution:
             for file, root, problems in self._parse_all(folder, "*.wsdl"):
                 self.problems.extend(problems)
                 if root is not None:
-                    types, declared = read_port_types(root, str(folder.shown / file.name))
+                    types, declared = read_port_types(root, folder.shown_file(file))
                     folder.wsdl.update(types)
                     callbacks.update(declared)
             for qname, (cb, missing) in callbacks.items():  # sca:callback="QName" on a portType

@@ -38,6 +38,7 @@ ASM_INCLUDE_UNKNOWN = "ASM60042"  # include names a known composite
 ASM_INTERFACE_MISMATCH = "ASM60043"  # wire target interface is a superset of the source's
 ASM_NO_SUCH_TARGET = "ASM60047"  # target/wire names no component or no such service
 ASM_AMBIGUOUS_TARGET = "ASM60048"  # "Component" target with several services
+ASM_NO_SUCH_BINDING = "ASM60050"  # a target "Component/Service/binding" names a binding the service has
 ASM_SCHEMA = "ASM13001"  # the composite does not conform to the schema (SCA 1.0 <operation>, unknown attributes...)
 ASM_CT_DUPLICATE_SERVICE = "ASM40003"  # service names unique in a componentType
 ASM_CT_DUPLICATE_REFERENCE = "ASM40004"  # reference names unique in a componentType
@@ -86,6 +87,7 @@ SCART_BAD_SOURCE = "SCART-C003"  # property @source names no composite property
 SCART_DUPLICATE_COMPOSITE = "ASM60001"  # a composite name is unique in its namespace (two files declare one QName)
 SCART_OVERRIDE = "SCART-C005"  # --set names no component/property
 SCART_SIDE_FILE = "SCART-C007"  # a componentType side file and its implementation disagree
+SCART_WIRE_SOURCE = "SCART-C008"  # a <wire>'s @source names no component reference
 
 
 @dataclass(frozen=True)

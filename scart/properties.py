@@ -75,8 +75,8 @@ class FileValues(list):  # type: ignore[type-arg]
 
 def xml_family(ref: TypeRef | None, kinds: Callable[[str], str | None]) -> str | None:
     """The family of a declared XML type, for compatibility: "string", "integer",
-    "number", "boolean", "complex", the QName itself (another simple type), or None
-    (unknown: compatible with anything)."""
+    "number", "boolean", "complex", or None (another simple type, or unknown: compatible
+    with anything)."""
     if ref is None:
         return None
     what, qname = ref
@@ -90,7 +90,7 @@ def xml_family(ref: TypeRef | None, kinds: Callable[[str], str | None]) -> str |
             return "integer"
         if local in _NUMBERS:
             return "number"
-        return "boolean" if local == "boolean" else qname
+        return "boolean" if local == "boolean" else None  # dates, binary...: whatever a string may hold
     return "complex" if kinds(qname) == "complex" else None  # a simple type of its own: its base is not known
 
 
@@ -152,12 +152,15 @@ class PropertyReader:
         return xml_family(ref, self.contribution.schemas.kind)
 
     @staticmethod
-    def shown(ref: TypeRef | None) -> str:
-        """``xs:int``, ``{urn:x}Point``... for messages."""
+    def shown(ref: TypeRef | None, namespaces: dict[str, str] | None = None) -> str:
+        """``xs:int``, ``geo:Point`` (a prefix of ``namespaces``, as the user wrote it),
+        ``{urn:x}Point`` when no prefix is known... for messages."""
         if ref is None:
             return "untyped"
         ns, _, local = ref[1][1:].partition("}")
-        text = f"xs:{local}" if ns == XSD_NS else (f"sca:{local}" if ns == SCA11_NS else ref[1])
+        prefix = next((k for k, v in (namespaces or {}).items() if v == ns and k), None)
+        text = (f"xs:{local}" if ns == XSD_NS else f"sca:{local}" if ns == SCA11_NS
+                else f"{prefix}:{local}" if prefix else ref[1])
         return text if ref[0] == "type" else f"element {text}"
 
     # --- raw values -------------------------------------------------------------------
@@ -190,7 +193,7 @@ class PropertyReader:
         if ref is None:
             return
         schemas = self.contribution.schemas
-        where = f"property {p.name!r} ({self.shown(ref)})"
+        where = f"property {p.name!r} ({self.shown(ref, p.namespaces)})"
         if ref[0] == "type":
             kind = schemas.kind(ref[1])
             if kind is None:
@@ -202,7 +205,7 @@ class PropertyReader:
                              "or @value", p.loc)
                 return
             for value in values:
-                element = value.element() if isinstance(value, XmlValue) else _text_value(value)
+                element = value.element() if isinstance(value, XmlValue) else _text_value(value, p.namespaces)
                 why = schemas.check_type(element, ref[1])
                 if why is not None:
                     self.problem(E.ASM_PROPERTY_VALUE, f"{where}: {_shown_value(value, values, why)}", p.loc)
@@ -236,6 +239,7 @@ class PropertyReader:
             return None
         if m is not None and not m["path"].strip():
             return ctx[m["name"]]
+        files = [vs.file for k in sorted(names) if isinstance(vs := ctx[k], FileValues)]
         try:
             xpath = etree.XPath(p.source or "", namespaces=p.namespaces)
             variables = {k: [_node(v) for v in (vs or [])] for k, vs in ctx.items() if _SOURCE.fullmatch(f"${k}")}
@@ -244,19 +248,21 @@ class PropertyReader:
             self.problem(E.SCART_BAD_SOURCE, f"property {p.name!r}: @source {p.source!r} is not a valid XPath "
                          f"over the composite's properties: {exc}", p.loc)
             return None
-        if isinstance(result, bool):
-            return ["true" if result else "false"]
-        if isinstance(result, float):
-            return [str(int(result)) if result.is_integer() else repr(result)]
-        if isinstance(result, str):
-            return [str(result)]
         values: list[str] = []
+        if isinstance(result, bool):
+            result = ["true" if result else "false"]
+        elif isinstance(result, float):
+            result = [str(int(result)) if result.is_integer() else repr(result)]
+        elif isinstance(result, str):
+            result = [str(result)]
         for item in result:
             if isinstance(item, etree._Element):
                 values.append(XmlValue(etree.tostring(item, encoding="unicode", with_tail=False)) if len(item)
                               else (item.text or "").strip())
             else:
                 values.append(str(item).strip())
+        if files and values:  # taken from a file: its content is never shown either
+            return FileValues(values, files[0])
         return values or None
 
     # --- @file --------------------------------------------------------------------------
@@ -322,8 +328,10 @@ class PropertyReader:
         return FileValues(values, p.file or "")
 
 
-def _text_value(text: str) -> etree._Element:
-    value = etree.Element(f"{{{SCA11_NS}}}value")
+def _text_value(text: str, nsmap: dict[str, str] | None = None) -> etree._Element:
+    """A ``<value>`` holding ``text``, in scope of the namespace declarations ``nsmap``
+    (an ``xs:QName`` value's prefix resolves as in the composite)."""
+    value = etree.Element(f"{{{SCA11_NS}}}value", nsmap={k: v for k, v in (nsmap or {}).items() if k})
     value.text = text
     return value
 

@@ -18,6 +18,7 @@ against the shipped XSD; an extension checks its own elements.
 
 from __future__ import annotations
 
+import copy
 import difflib
 import functools
 import os
@@ -308,9 +309,9 @@ class Loader:
             self.problem(E.ASM_SCHEMA, f"<operation> inside <{parent}> is SCA 1.0; SCA 1.1 has no such element "
                          "(declare operations in the interface)", el)
             return
-        where = f"in {ns!r} " if ns not in SCA_NAMESPACES else ""
-        self.problem(E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> {where}inside <{parent}>"
-                     f"{did_you_mean(local, known)}", el)
+        sca = ns in SCA_NAMESPACES  # then the SCA schema forbids it; elsewhere, no extension reads it
+        self.problem(E.ASM_SCHEMA if sca else E.SCART_UNKNOWN_ELEMENT, f"unknown element <{local}> "
+                     f"{'' if sca else f'in {ns!r} '}inside <{parent}>{did_you_mean(local, known)}", el)
 
     def check_attributes(self, el: etree._Element, what: str) -> None:
         """Report each attribute without a namespace that ``ATTRIBUTES[what]`` does not allow."""
@@ -445,8 +446,10 @@ class Loader:
             self.validate_scart(el)
         elif ns in SCA_NAMESPACES and local in ATTRIBUTES:
             self.check_attributes(el, local)
-            for child in el.iterchildren(tag=etree.Element):
-                if _local(child)[1] not in _IGNORED:
+            for child in el.iterchildren(tag=etree.Element):  # other namespaces: open content (1.1 Binding)
+                child_ns, child_local = _local(child)
+                if (child_ns in SCA_NAMESPACES and child_local not in _IGNORED
+                        and not child_local.startswith(("wireFormat", "operationSelector"))):
                     self.unknown(child, local, ())
         generic = self.read_element(el)
         return Binding(kind=local, namespace=ns, attributes=generic.attributes, text=generic.text,
@@ -536,6 +539,12 @@ class Loader:
                 if c not in given:
                     self.problem(E.ASM_PROPERTY_VALUE, f"{shown}: <{_local(c)[1]}> is not its element "
                                  f"<{etree.QName(element).localname}>", c)
+        elif _local(el)[0] == SCA10_NS and children and all(_local(c)[0] not in SCA_NAMESPACES for c in children):
+            # SCA 1.0: a complex value is the property's own content, without a <value> wrapper
+            wrapper = etree.Element(f"{{{SCA10_NS}}}value", nsmap={k: v for k, v in el.nsmap.items() if k})
+            for c in children:
+                wrapper.append(copy.deepcopy(c))
+            given = [wrapper]
         else:
             given = [c for c in children if _local(c) in ((SCA11_NS, "value"), (SCA10_NS, "value"))]
             for c in children:
@@ -634,8 +643,13 @@ class Loader:
         if schema.validate(etree.ElementTree(_detached(el))):
             return True
         local = _local(el)[1]
-        for entry in schema.error_log:
-            self.problem(E.SCART_SCHEMA, f"<scart:{local}>: {_schema_message(entry.message, local)}", el)
+        said: set[str] = set()
+        for entry in schema.error_log:  # the first word on each attribute (a list type says it twice)
+            attribute = re.search(r"attribute '([^']+)'", entry.message)
+            key = attribute[1] if attribute else entry.message
+            if key not in said:
+                said.add(key)
+                self.problem(E.SCART_SCHEMA, f"<scart:{local}>: {_schema_message(entry.message, local)}", el)
         return False
 
 
@@ -682,7 +696,9 @@ def _schema_message(message: str, local: str) -> str:
 
 
 def _detached(el: etree._Element) -> etree._Element:
-    copy = etree.Element(el.tag, dict(el.attrib), nsmap={None: SCART_NS})
+    """A copy of ``el`` to validate alone, its prefixes still in scope (QName attributes such
+    as ``@requires`` resolve)."""
+    copy = etree.Element(el.tag, dict(el.attrib), nsmap={**{k: v for k, v in el.nsmap.items() if k}, None: SCART_NS})
     for child in el.iterchildren(tag=etree.Element):
         copy.append(_detached(child))
     copy.text = el.text

@@ -54,7 +54,7 @@ class _Resolver(etree.Resolver):
         data = self.files.get(url.rpartition("/")[2].rpartition(":")[2])
         if data is None:
             raise OSError(f"schema {url!r} is not in the contribution (nothing is fetched from elsewhere)")
-        return self.resolve_string(data, context)
+        return self.resolve_string(data, context, base_url=url)
 
 
 class SchemaSet:
@@ -69,6 +69,8 @@ class SchemaSet:
         self.types: dict[str, str] = {}  # Clark QName -> "simple" | "complex"
         self.elements: set[str] = set()
         roots = [("sca-types.xsd", etree.fromstring(self._data["sca-types.xsd"]))]
+        pending: list[tuple[str, str, str]] = []  # (namespace, stored name, file name)
+        included: set[str] = set()  # file names another schema includes: loaded through it, not again
         for file in files:
             root = parse_xml(str(file), problems)
             if root is None:
@@ -78,8 +80,13 @@ class SchemaSet:
             name = f"f{len(self._data)}-{file.name}"
             self._data[name] = file.read_bytes() if file.stat().st_size <= (8 << 20) else b""
             self._data.setdefault(file.name, self._data[name])  # what another schema's schemaLocation names
-            self._by_ns.setdefault(root.get("targetNamespace", ""), []).append(name)
+            pending.append((root.get("targetNamespace", ""), name, file.name))
+            included |= {str(el.get("schemaLocation", "")).rpartition("/")[2]
+                         for el in root.iterchildren(f"{{{XSD_NS}}}include", f"{{{XSD_NS}}}redefine")}
             roots.append((name, root))
+        for ns, name, file_name in pending:
+            if file_name not in included:
+                self._by_ns.setdefault(ns, []).append(name)
         for _, root in roots:
             tns = root.get("targetNamespace", "")
             for child in root.iterchildren(tag=etree.Element):
@@ -104,7 +111,9 @@ class SchemaSet:
     def check_type(self, value: etree._Element, qname: str) -> str | None:
         """Why ``value`` (a ``<value>`` element: its text and children) is not a valid
         ``qname``, or None when it is."""
-        wrapper = etree.Element(f"{{{_CHECK_NS}}}value", nsmap={None: _CHECK_NS})
+        # the value's namespace declarations stay in scope: an xs:QName's prefix resolves
+        wrapper = etree.Element(f"{{{_CHECK_NS}}}value",
+                                nsmap={**{k: v for k, v in value.nsmap.items() if k}, None: _CHECK_NS})
         wrapper.text = value.text
         for child in value:
             wrapper.append(_copy(child))
@@ -139,7 +148,10 @@ class SchemaSet:
         try:
             return etree.XMLSchema(etree.fromstring(text.encode(), parser))
         except (etree.XMLSchemaParseError, etree.XMLSyntaxError) as exc:
-            return f"the contribution's XML Schemas cannot be used: {_tidy(str(exc))}"
+            error = exc.error_log.last_error if exc.error_log else None
+            file = re.sub(r"^scart-(?:file|ns):(?:f\d+-)?", "", error.filename or "") if error is not None else ""
+            where = f"{file}:{error.line}: " if file and not file.startswith("n") and error is not None else ""
+            return f"the contribution's XML Schemas cannot be used: {where}{_tidy(str(exc))}"
 
     @staticmethod
     def _validate(schema: etree.XMLSchema | str, doc: etree._Element) -> str | None:
@@ -157,4 +169,4 @@ def _copy(el: etree._Element) -> etree._Element:
 
 def _tidy(message: str) -> str:
     """A validator message without namespace noise: ``{urn:x}name`` becomes ``name``."""
-    return re.sub(r"\{[^}'\"\s,]*\}", "", message).strip()  # a namespace, not a set of '...' values
+    return re.sub(r"\{[^}'\"\s,]*[:/][^}'\"\s,]*\}", "", message).strip()  # a namespace URI, not '{...}' text

@@ -17,7 +17,7 @@ from types import MappingProxyType
 from typing import Any
 
 from lxml import etree
-from pydantic import TypeAdapter
+from pydantic import TypeAdapter, ValidationError
 
 #: XSD simple types of composite-level ``<property type="xsd:...">`` and their Python types.
 XSD_TYPES: MappingProxyType[str, type] = MappingProxyType({
@@ -101,5 +101,14 @@ def _adapt(py_type: Any, data: Any) -> Any:
     adapter = _adapter(py_type)
     try:
         return adapter.validate_python(data)
-    except Exception as exc:
-        raise ValueError(f"{data!r} is not a valid {getattr(py_type, '__name__', py_type)}: {exc}") from None
+    except ValidationError as exc:  # one line: the first problem, where it is, and how many more
+        errors = exc.errors()
+        first = errors[0] if errors else {"loc": (), "msg": str(exc)}
+        where = ".".join(str(part) for part in first["loc"])
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        why = f"{where + ': ' if where else ''}{first['msg']}{more}"
+    except Exception as exc:  # noqa: BLE001 - a validator of the user's model may raise anything
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    shown = repr(data)
+    shown = shown if len(shown) <= 80 else shown[:77] + "..."
+    raise ValueError(f"{shown} is not a valid {getattr(py_type, '__name__', py_type)}: {why}")

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import scart
-from support.sca import SCA, composite, line_of, write
+from support.sca import OSOA, SCA, composite, line_of, write
 
 XSD = """<?xml version="1.0"?>
 <xs:schema xmlns:xs="http://www.w3.org/2001/XMLSchema" xmlns:geo="urn:geo" targetNamespace="urn:geo"
@@ -301,3 +301,95 @@ def test_binding_sca_uri_on_a_component_type_reference_is_its_default_target(tmp
     path = write(tmp_path, {"main.composite": text})
     with scart.Runtime.from_file(str(path)) as rt:
         assert rt.service("C").call() == "Hi, side"
+
+
+# ---- review: values in scope, families, files through XPath, nested composites ----------------
+
+def test_a_qname_value_resolves_its_prefix_in_the_composite(tmp_path: Path) -> None:
+    text = robot('<property name="raw" type="xs:QName" xmlns:foo="urn:foo">foo:bar</property>')
+    assert load(tmp_path, text)["raw"] == "foo:bar"
+    err = refused(tmp_path, robot('<property name="raw" type="xs:QName">nope:bar</property>'))
+    assert err.codes == ["ASM50027"] and "property 'raw' (xs:QName)" in str(err)
+
+
+def test_a_string_property_may_declare_another_simple_type(tmp_path: Path) -> None:
+    text = robot('<property name="raw" type="xs:dateTime">2026-11-25T10:00:00Z</property>')
+    assert load(tmp_path, text)["raw"] == "2026-11-25T10:00:00Z"
+    assert refused(tmp_path, robot('<property name="raw" type="xs:dateTime">tomorrow</property>')).codes == ["ASM50027"]
+
+
+def test_a_file_value_taken_through_an_xpath_is_not_shown_either(tmp_path: Path) -> None:
+    composite_props = '<property name="secret" file="v.xml" many="true"/>'
+    err = refused(tmp_path, robot('<property name="count" source="$secret[1]/text()"/>', composite_props),
+                  **{"v.xml": VALUES.format("<value>hunter2</value><value>x</value>")})
+    assert err.codes == ["ASM50027"] and "hunter2" not in str(err) and "v.xml" in str(err), str(err)
+
+
+def test_asm50032_a_single_valued_composite_property_has_one_value(tmp_path: Path) -> None:
+    text = robot('<property name="count" source="$n"/>',
+                 '<property name="n" type="xs:int"><value>1</value><value>2</value></property>')
+    err = refused(tmp_path, text)
+    assert err.codes == ["ASM50032"] and err.errors[0].line == line_of(text, 'name="n"'), str(err)
+    many = text.replace('name="n" type="xs:int"', 'name="n" type="xs:int" many="true"').replace(
+        'name="count" source="$n"', 'name="count" source="$n[2]"')
+    assert load(tmp_path, many)["count"] == 2
+
+
+INNER = f"""<?xml version="1.0"?>
+<composite xmlns="{SCA}" xmlns:scart="urn:scart:1.0" xmlns:xs="http://www.w3.org/2001/XMLSchema"
+           targetNamespace="urn:test" name="Inner">
+  <property name="n" type="xs:int"/>
+  <component name="R"><scart:implementation.python class="props:Robot"/><property name="count" source="$n"/></component>
+  <service name="R" promote="R"/>
+</composite>
+"""
+
+
+@pytest.mark.parametrize("given, code", [("<value>seven</value>", "ASM50027"),
+                                         ("<value>1</value><value>2</value>", "ASM50032")])
+def test_a_nested_composite_property_is_checked_where_it_is_given(tmp_path: Path, given: str, code: str) -> None:
+    text = composite(f"""
+        <component name="O"><implementation.composite name="t:Inner"/>
+          <property name="n">{given}</property><!--HERE-->
+        </component>""")
+    err = refused(tmp_path, text, **{"inner.composite": INNER})
+    assert err.codes == [code] and err.errors[0].line == line_of(text, "<!--HERE-->"), str(err)
+    path = write(tmp_path, {"main.composite": text.replace(given, "<value>3</value>"), "props.py": PROPS,
+                            "inner.composite": INNER})
+    with scart.Runtime.from_file(str(path)) as rt:
+        assert rt.service("O/R").values()["count"] == 3
+
+
+BASE = """<?xml version="1.0"?>
+<xs:schema xmlns:xs="http://www.w3.org/2001/XMLSchema" targetNamespace="urn:parts" elementFormDefault="qualified">
+  <xs:simpleType name="Ratio"><xs:restriction base="xs:double"><xs:maxInclusive value="1"/></xs:restriction></xs:simpleType>
+</xs:schema>
+"""
+PARTS = """<?xml version="1.0"?>
+<xs:schema xmlns:xs="http://www.w3.org/2001/XMLSchema" xmlns:p="urn:parts" targetNamespace="urn:parts"
+           elementFormDefault="qualified">
+  <xs:include schemaLocation="base.xsd"/>
+  <xs:simpleType name="Speed"><xs:restriction base="p:Ratio"><xs:minInclusive value="0"/></xs:restriction></xs:simpleType>
+</xs:schema>
+"""
+
+
+def test_a_schema_included_by_another_is_loaded_once(tmp_path: Path) -> None:
+    text = robot('<property name="speed" type="p:Speed" xmlns:p="urn:parts">0.5</property>')
+    assert load(tmp_path, text, **{"base.xsd": BASE, "parts.xsd": PARTS})["speed"] == 0.5
+    err = refused(tmp_path, text.replace(">0.5<", ">1.5<"), **{"base.xsd": BASE, "parts.xsd": PARTS})
+    assert err.codes == ["ASM50027"] and "1.5" in str(err)
+    broken = PARTS.replace('base="p:Ratio"', 'base="p:Nothing"')
+    err = refused(tmp_path, text, **{"base.xsd": BASE, "parts.xsd": broken})
+    assert "parts.xsd" in str(err) and "scart-" not in str(err), str(err)
+
+
+def test_an_sca_1_0_complex_value_is_the_property_s_own_content(tmp_path: Path) -> None:
+    text = composite("""
+        <component name="R"><scart:implementation.python class="props:Robot"/>
+          <property name="home"><geo:x>4</geo:x><geo:y>5</geo:y></property>
+        </component>""", ns=OSOA, extra=f" {HEAD}")
+    values = load(tmp_path, text)
+    assert (values["home"].x, values["home"].y) == (4.0, 5.0)
+    err = refused(tmp_path, text.replace(OSOA, SCA))  # 1.1 wants a <value>
+    assert "unknown element <x> in 'urn:geo' inside <property>" in str(err)

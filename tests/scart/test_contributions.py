@@ -165,6 +165,25 @@ def test_the_command_line_takes_contribution_folders(tmp_path: Path) -> None:
     assert missing.returncode == 2 and "ASM12021" in missing.stderr
 
 
+def test_artifacts_in_subfolders_are_found_and_nested_contributions_left_out(tmp_path: Path) -> None:
+    lib = shared(tmp_path / "shared")
+    (lib / "parts.composite").unlink()
+    (lib / "composites" / "arm").mkdir(parents=True)
+    (lib / "composites" / "arm" / "parts.composite").write_text(SHARED_PARTS)
+    (lib / "interfaces").mkdir()
+    (lib / "arm.wsdl").rename(lib / "interfaces" / "arm.wsdl")
+    for skipped in (".hidden", "__pycache__", "nested"):  # none of these is searched: no duplicate Parts
+        (lib / skipped / "META-INF").mkdir(parents=True)
+        (lib / skipped / "parts.composite").write_text(SHARED_PARTS.replace("shared_parts:Arm", "nowhere:Nothing"))
+    (lib / "nested" / "META-INF" / "sca-contribution.xml").write_text(metadata())
+    path = app(tmp_path / "app", f'<import namespace="{SHARED_NS}"/>')
+    with scart.Runtime.from_file(str(path), contributions=[lib]) as rt:
+        assert rt.service("User").go() == "arm moved to home"
+    (lib / "composites" / "arm" / "parts.composite").write_text(SHARED_PARTS.replace("<service", "<servise"))
+    err = refused(path, contributions=[lib])
+    assert err.errors[0].path.endswith(str(Path("composites") / "arm" / "parts.composite")), str(err)
+
+
 REPOSITORY_COMPOSITES = sorted(p for top in ("composites", "tests/data") for p in (ROOT / top).rglob("*.composite")
                                if "build" not in p.parts)
 

@@ -29,7 +29,7 @@ def test_a_misspelled_element_gets_did_you_mean_and_no_knock_on(tmp_path: Path) 
           <referense name="one" target="A"/>
         </component>""")
     # the reference it meant is unwired: that is the misspelling's doing, not a second problem
-    assert err.codes == ["SCART-X004"], str(err)
+    assert err.codes == ["ASM13001"], str(err)
     assert "unknown element <referense> inside <component> (did you mean 'reference'?)" in str(err)
     assert err.errors[0].line == line_of(text, "referense")
 

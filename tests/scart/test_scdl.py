@@ -81,7 +81,7 @@ def test_wrong_root_element(tmp_path: Path) -> None:
 def test_unknown_element_is_reported(tmp_path: Path) -> None:
     text = composite(f"<component name='A'>{py('GreeterImpl')}</component>\n<frobnicate/>")
     err = refused(write(tmp_path, {"u.composite": text}))
-    assert err.codes == ["SCART-X004"] and err.line == line_of(text, "frobnicate")
+    assert err.codes == ["ASM13001"] and err.line == line_of(text, "frobnicate")
 
 
 def test_xsd_ships_in_the_package() -> None:
