@@ -76,6 +76,10 @@ class Assembly:
         """The ``(prefix, element)`` pairs of extension elements whose local name is ``kind``."""
         return [(prefix, el) for prefix, el in self.elements if el.kind == kind]
 
+    def import_object(self, ref: str) -> object:
+        """Import ``"pkg.mod:Attr"`` from the contributions, as the checks did."""
+        return self.contribution.import_object(ref)
+
 
 class _DefaultType:
     def __repr__(self) -> str:

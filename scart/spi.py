@@ -114,6 +114,9 @@ class AssemblyView(Protocol):
 
     def elements_of(self, kind: str) -> list[tuple[str, Element]]: ...
 
+    def import_object(self, ref: str) -> object:
+        """Import ``"pkg.mod:Attr"`` from the contributions, as the checks did (raises what importing raises)."""
+
 
 class Host(Protocol):
     """What the runtime offers extensions. Every method is thread-safe."""

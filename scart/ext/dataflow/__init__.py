@@ -7,7 +7,9 @@ runtime's :class:`dataflow.Deployer`, its gRPC server and name service):
   :class:`TaskImplementation` (:mod:`scart.ext.dataflow.tasks`);
 * ``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` — :class:`ConnectElement`;
 * ``<scart:binding.dataflow component="task"/>`` on a reference or a service —
-  :class:`DataflowBinding` (:mod:`scart.ext.dataflow.binding`).
+  :class:`DataflowBinding` (:mod:`scart.ext.dataflow.binding`);
+* ``<scart:bridge name="b">`` with ``<scart:input>`` s and one ``<scart:output>`` — many
+  ports, converted, built into one typed output (:mod:`scart.ext.dataflow.bridge`).
 
 With ``Settings(serve=True)`` (``scart run`` sets it) the runtime serves its tasks over
 gRPC after every component started, with a name service embedded at the settings'
@@ -20,12 +22,13 @@ from __future__ import annotations
 
 from dataflow import Deployer
 from scart.ext.dataflow._host import DataflowHost, host_of
+from scart.ext.dataflow.bridge import BridgeElement, BridgeTask
 from scart.ext.dataflow.binding import DataflowBinding, DataflowReferenceBinding, DataflowServiceBinding, bindings_of
 from scart.ext.dataflow.tasks import ConnectElement, ConnectParticipant, Link, TaskImplementation, TaskManager, task_interface
 from scart.spi import Host
 
 __all__ = [
-    "ConnectElement", "ConnectParticipant", "DataflowBinding", "DataflowHost", "DataflowReferenceBinding",
+    "BridgeElement", "BridgeTask", "ConnectElement", "ConnectParticipant", "DataflowBinding", "DataflowHost", "DataflowReferenceBinding",
     "DataflowServiceBinding", "Link", "TaskImplementation", "TaskManager", "bindings_of", "deployer_of", "host_of",
     "task_interface",
 ]

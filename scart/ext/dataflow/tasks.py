@@ -348,9 +348,10 @@ class ConnectParticipant(Participant):
     """Runs the links of one runtime: in-process ones at start, remote ones by a connector
     thread that (re)connects whenever the remote end (re)appears in the name service."""
 
-    def __init__(self, links: list[Link], runtime: Host) -> None:
+    def __init__(self, links: list[Link], runtime: Host, local: Callable[[str], bool] | None = None) -> None:
         self.runtime = runtime
         self.links = links
+        self._local = local or (lambda name: name in runtime.assembly.nodes)  # is this task in this runtime?
         self._remote = [lk for lk in links if not self._is_local(lk)]
         self._made: dict[Link, str] = {}  # link -> boot id of the remote end it was made with
         self._watcher: Watcher | None = None
@@ -359,8 +360,7 @@ class ConnectParticipant(Participant):
         self._link_ns: dict[Link, str] = {}  # the name service each made link was made through
 
     def _is_local(self, link: Link) -> bool:
-        nodes = self.runtime.assembly.nodes
-        return link.source[0] in nodes and link.sink[0] in nodes
+        return self._local(link.source[0]) and self._local(link.sink[0])
 
     def start(self) -> None:
         """Connect local links (idempotent); start the connector for remote ones."""
@@ -385,8 +385,7 @@ class ConnectParticipant(Participant):
         if host.server is None:
             return  # not served (yet): scart run serves right after start
         for link in self._remote:
-            nodes = self.runtime.assembly.nodes
-            remote = link.sink[0] if link.source[0] in nodes else link.source[0]
+            remote = link.sink[0] if self._local(link.source[0]) else link.source[0]
             ns = link.ns or host.ns_address
             try:
                 entry = self._client(ns).resolve(remote)
