@@ -377,6 +377,21 @@ class TaskContext:
             port.add_data_callback(self._event_port_data)
         return port
 
+    def rename_port(self, old: str, new: str) -> Port[Any]:
+        """Give port ``old`` the name ``new`` (remapping at launch: before it is connected or
+        served; the task's own code keeps using its attribute). Returns the port; raises
+        ``NotFoundError``, or ``ValueError`` when ``new`` is empty or taken."""
+        port = self.port(old)
+        if new == old:
+            return port
+        if not new or new in self._tc_ports:
+            raise ValueError(f"task {self.name}: cannot rename port {old!r} to {new!r}: "
+                             f"{'a port of that name exists' if new else 'empty name'}")
+        del self._tc_ports[old]
+        port.name = new
+        self._tc_ports[new] = port
+        return port
+
     def _event_port_data(self, port: InputPort[Any]) -> None:
         if self._tc_state >= S.RUNNING:
             self._tc_activity._on_event()

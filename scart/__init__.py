@@ -45,7 +45,7 @@ from scart.errors import (
 )
 from scart.extensions import ExtensionError, ExtensionRegistry
 from scart.runtime import Runtime, RuntimeState, ServiceProxy
-from scart.settings import Settings
+from scart.settings import Remap, Settings
 
 __all__ = [
     "ComponentContext",
@@ -63,6 +63,7 @@ __all__ = [
     "ServiceNotFoundError",
     "ServiceProxy",
     "ServiceUnavailableError",
+    "Remap",
     "Settings",
     "callback",
     "component",

@@ -19,6 +19,8 @@ field           meaning
 ``security``    TLS files, the token to send, the auth file to check
                 (:class:`dataflow.remote.Security`): every gRPC server and client the
                 runtime's extensions make uses it
+``remap``       names of data-flow tasks and ports changed at launch (:class:`Remap`,
+                ``scart run --remap FROM=TO``)
 ==============  ===========================================================================
 """
 
@@ -26,7 +28,8 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+import re
+from collections.abc import Mapping, Sequence
 
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
@@ -34,7 +37,70 @@ from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 from dataflow.remote.security import Security
 from scart.errors import ScartError
 
-__all__ = ["Settings"]
+__all__ = ["Remap", "Settings"]
+
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./-]{0,255}")
+MAX_REMAP_RULES = 256
+
+
+class Remap(BaseModel):
+    """Names changed at launch, as ROS 2 remapping does: ``FROM=TO`` (or ``FROM:=TO``) rules.
+
+    * ``youBotDriver=left/youBotDriver`` renames the task (or bridge) ``youBotDriver``;
+    * ``jointStatus=joint_states`` renames every port called ``jointStatus``;
+      ``youBotDriver.jointStatus=joint_states`` only that task's;
+    * ``__ns=left`` puts every task name not renamed otherwise under ``left/``.
+
+    They apply wherever the composite names a task or a port: the task's own name (so its
+    name-service registration), its ports, ``scart:connect`` ends, bridge inputs and
+    ``binding.dataflow`` targets, and what ``scart graph`` and ``scart run`` print. The
+    composite itself is not edited: its checks see the names as written.
+    """
+
+    model_config = ConfigDict(frozen=True)
+
+    rules: tuple[tuple[str, str], ...] = ()
+
+    @classmethod
+    def parse(cls, items: Sequence[str]) -> Remap:
+        """Rules from ``FROM=TO`` / ``FROM:=TO`` texts; raises ``ValueError`` naming the bad one."""
+        if len(items) > MAX_REMAP_RULES:
+            raise ValueError(f"{len(items)} remap rules: at most {MAX_REMAP_RULES}")
+        rules: list[tuple[str, str]] = []
+        for item in items:
+            old, sep, new = item.partition(":=") if ":=" in item else item.partition("=")
+            old, new = old.strip(), new.strip()
+            if not sep or not _NAME.fullmatch(old) or not _NAME.fullmatch(new) or new.endswith("/"):
+                raise ValueError(f"--remap {item!r}: expected FROM=TO (names of letters, digits, _ . / -)")
+            if old == "__ns" and "." in new:
+                raise ValueError(f"--remap {item!r}: a namespace has no '.'")
+            rules.append((old, new))
+        return cls(rules=tuple(rules))
+
+    def __bool__(self) -> bool:
+        return bool(self.rules)
+
+    def _rule(self, name: str) -> str | None:
+        return next((new for old, new in reversed(self.rules) if old == name), None)
+
+    def component(self, name: str) -> str:
+        """The name a task (or bridge) written ``name`` in the composite runs under."""
+        new = self._rule(name)
+        if new is not None:
+            return new
+        ns = self._rule("__ns")
+        return f"{ns.strip('/')}/{name}" if ns else name
+
+    def port(self, component: str, port: str) -> str:
+        """The name port ``port`` of the task written ``component`` runs under."""
+        new = self._rule(f"{component}.{port}")
+        if new is None:
+            new = self._rule(port)
+        return new.rpartition(".")[2] if new is not None else port
+
+    def endpoint(self, component: str, port: str) -> tuple[str, str]:
+        """``(task, port)`` as they run (both remapped)."""
+        return self.component(component), self.port(component, port)
 
 
 class Settings(BaseModel):
@@ -47,6 +113,7 @@ class Settings(BaseModel):
     online: bool = False
     timeout: float = 2.0
     security: Security = Security()
+    remap: Remap = Remap()
 
     @field_validator("ns")
     @classmethod

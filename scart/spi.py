@@ -51,13 +51,13 @@ from scart.errors import Problem
 from scart.graph import DEFAULT, Node, Target
 from scart.model import SCART_NS, Binding, Element, Implementation
 from scart.scdl import parse_xml
-from scart.settings import Settings
+from scart.settings import Remap, Settings
 
 __all__ = [
     "CURRENT_CALLBACK", "DEFAULT", "SCART_NS", "AssemblyView", "Binding", "BindingProvider", "CheckContext", "ComponentManager", "ComponentType", "Element",
     "ElementProvider", "Extension", "Host", "Implementation", "ImplementationProblem", "ImplementationProvider",
     "InterfaceInfo", "Invocation", "Node", "Operation", "Participant", "Problem", "PropSpec", "ReferenceBinding",
-    "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target", "parse_host_port", "parse_xml", "port_in_range",
+    "Remap", "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target", "parse_host_port", "parse_xml", "port_in_range",
 ]
 
 T = TypeVar("T")

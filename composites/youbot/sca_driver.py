@@ -68,6 +68,10 @@ class SCAYouBotDriver(DriverProxyCore):
         self._info: dict[str, Any] = {"state": None, "period": None, "period_status": "", "connected": False}
         # the property, else the runtime's name service (scart run --ns, SCART_NS, the default)
         self._address = self.name_service.strip() or self.ctx.settings.ns_address
+        # the names the driver runs under (scart run --remap renames tasks and ports at launch)
+        remap = self.ctx.settings.remap
+        self._task = remap.component(self.component)
+        self._ports = {p: remap.port(self.component, p) for p in ("commands", "period", "jointStatus")}
         self._supervisor = threading.Thread(target=self._supervise, name="scart-youbot-proxy", daemon=True)
         self._supervisor.start()
 
@@ -92,10 +96,10 @@ class SCAYouBotDriver(DriverProxyCore):
     def _write_commands(self, values: list[float]) -> None:
         proxy = self._proxy
         if proxy is None:
-            raise ConnectionError(f"not connected to {self.component} at {self._address}")
-        status = proxy.write("commands", values)
+            raise ConnectionError(f"not connected to {self._task} at {self._address}")
+        status = proxy.write(self._ports["commands"], values)
         if status is not WriteStatus.WRITE_SUCCESS:
-            raise ConnectionError(f"writing {self.component}.commands: {status.name}")
+            raise ConnectionError(f"writing {self._task}.commands: {status.name}")
 
     def _driver_info(self) -> dict[str, Any]:
         with self._lock:
@@ -111,7 +115,7 @@ class SCAYouBotDriver(DriverProxyCore):
         with self._lock:
             connected = bool(self._info.get("connected"))
         if proxy is None or not connected:
-            return self._refused(f"driver offline: not connected to {self.component} at {self._address}")
+            return self._refused(f"driver offline: not connected to {self._task} at {self._address}")
         try:
             value = float(seconds)
         except (TypeError, ValueError):
@@ -119,9 +123,9 @@ class SCAYouBotDriver(DriverProxyCore):
         accepted_text = f"accepted {value:g} s"
         refused_prefix = f"rejected {value!r}"
         try:
-            written = proxy.write("period", value)
+            written = proxy.write(self._ports["period"], value)
             if written is not WriteStatus.WRITE_SUCCESS:
-                return self._refused(f"driver offline? writing {self.component}.period: {written.name}")
+                return self._refused(f"driver offline? writing {self._task}.period: {written.name}")
             deadline = time.monotonic() + PERIOD_ANSWER_TIMEOUT
             status = ""
             for _ in range(10_000):  # bounded by the deadline too
@@ -129,13 +133,13 @@ class SCAYouBotDriver(DriverProxyCore):
                 if status == accepted_text or status.startswith(refused_prefix):
                     break
                 if time.monotonic() >= deadline or self._stop.wait(0.01):  # polls a remote property
-                    return self._refused(f"no answer from {self.component} within {PERIOD_ANSWER_TIMEOUT:g} s "
+                    return self._refused(f"no answer from {self._task} within {PERIOD_ANSWER_TIMEOUT:g} s "
                                          f"(state {proxy.state}); last status: {status}")
             period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
         except Exception as exc:  # noqa: BLE001 - reported, not raised
             log.debug("set_period(%r): %s", seconds, exc)
             if isinstance(exc, _OFFLINE_ERRORS):
-                return self._refused(f"driver offline: {self.component} at {self._address} does not answer")
+                return self._refused(f"driver offline: {self._task} at {self._address} does not answer")
             return self._refused(f"{type(exc).__name__}: {exc}")
         with self._lock:
             self._info.update(period=period, period_status=status)
@@ -160,10 +164,10 @@ class SCAYouBotDriver(DriverProxyCore):
             ok = self._proxy is not None and self._poll_info()
             if ok != connected:
                 connected = ok
-                log.log(logging.INFO if ok else logging.WARNING, "%s at %s: %s", self.component, self._address,
+                log.log(logging.INFO if ok else logging.WARNING, "%s at %s: %s", self._task, self._address,
                         "connected" if ok else "disconnected")
                 self._core_link(ok)
-                self._broadcast("connected" if ok else "disconnected", f"{self.component} at {self._address}")
+                self._broadcast("connected" if ok else "disconnected", f"{self._task} at {self._address}")
             if self._stop.wait(self.info_interval if ok else self.retry_interval):
                 return
 
@@ -171,12 +175,12 @@ class SCAYouBotDriver(DriverProxyCore):
         system = None
         try:
             system = connect(self._address, timeout=2.0, security=self.ctx.settings.security)
-            proxy = system.component(self.component)
+            proxy = system.component(self._task)
             period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
-            sub = proxy.subscribe("jointStatus", self._on_sample, policy=ConnPolicy.data(),
+            sub = proxy.subscribe(self._ports["jointStatus"], self._on_sample, policy=ConnPolicy.data(),
                                   period=self._poll_for(period))
         except Exception as exc:  # noqa: BLE001 - not up yet: retry later
-            log.debug("connecting to %s at %s failed: %s", self.component, self._address, exc)
+            log.debug("connecting to %s at %s failed: %s", self._task, self._address, exc)
             if system is not None:
                 system.close()
             return
@@ -214,7 +218,7 @@ class SCAYouBotDriver(DriverProxyCore):
             return
         log.info("driver period %g s: polling every %g s now", period, wanted)
         try:
-            fresh = proxy.subscribe("jointStatus", self._on_sample, policy=ConnPolicy.data(), period=wanted)
+            fresh = proxy.subscribe(self._ports["jointStatus"], self._on_sample, policy=ConnPolicy.data(), period=wanted)
         except Exception as exc:  # noqa: BLE001 - keep the current subscription; retried on the next change
             log.warning("re-subscribing at %g s failed: %s", wanted, exc)
             return

@@ -39,10 +39,12 @@ from scart.assembly import assemble
 from scart.errors import ScartError, ScdlError
 from scart.graph import Assembly, Bound, Target
 from scart.model import Composite
-from scart.settings import Settings
+from scart.settings import Remap, Settings
 
 if TYPE_CHECKING:
     from scart.runtime import Runtime
+
+TASK_KIND = "implementation.task"  # the data-flow extension's kind (the core does not import it)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -79,6 +81,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
 def _add_set(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="COMPONENT.PROP=VALUE",
                         help="override a component property (repeatable)")
+    parser.add_argument("--remap", action="append", default=[], metavar="FROM=TO",
+                        help="rename a data-flow task or port at launch (FROM:=TO too; TASK.PORT=NAME for one "
+                             "task's port; __ns=NAMESPACE puts every task under NAMESPACE/); repeatable")
     parser.add_argument("--contribution", dest="contributions", action="append", default=[], metavar="DIR",
                         help="another contribution folder the composite is resolved in: its exported "
                              "namespaces and its Python modules (repeatable)")
@@ -102,7 +107,8 @@ def settings_of(args: argparse.Namespace, **fields: object) -> Settings | None:
     try:
         try:
             fields["security"] = from_args(args)
-        except DataflowError as exc:
+            fields["remap"] = Remap.parse(getattr(args, "remap", None) or [])
+        except (DataflowError, ValueError) as exc:
             raise ScartError(str(exc)) from None
         if ns:
             try:
@@ -171,7 +177,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             return 1
         try:
             sys.stdout.write(announced.getvalue())
-            print(summary(assembly, runtime.addresses()), flush=True)
+            print(summary(assembly, runtime.addresses(), settings.remap), flush=True)
             for what, where in runtime.served().items():
                 print(f"scart: {what} at {where}", flush=True)
             print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
@@ -201,14 +207,16 @@ def _stop_listening(runtime: Runtime) -> None:
         stopper.join(0.2)
 
 
-def summary(assembly: Assembly, addresses: dict[str, str | None]) -> str:
+def summary(assembly: Assembly, addresses: dict[str, str | None], remap: Remap | None = None) -> str:
     """A short text of what runs: components, their wires, promoted services, bound addresses."""
     c = assembly.composite
     lines = [f"scart: composite {c.name} ({c.loc.path})"]
     for path, node in assembly.nodes.items():
         impl = node.model.implementation
         what = (impl.attributes.get("class") or "") if impl else ""
-        lines.append(f"  component {path} [{node.kind} {what}] services: {', '.join(node.ctype.services) or '-'}")
+        runs_as = remap.component(path) if remap and node.kind == TASK_KIND else path
+        renamed = f" (runs as {runs_as})" if runs_as != path else ""
+        lines.append(f"  component {path}{renamed} [{node.kind} {what}] services: {', '.join(node.ctype.services) or '-'}")
         for ref, eps in node.references.items():
             targets = ", ".join(_endpoint_text(e) for e in eps) or "(unwired)"
             lines.append(f"    {ref} -> {targets}")
@@ -262,11 +270,11 @@ def cmd_graph(args: argparse.Namespace) -> int:
     assembly = _assemble(args.file, args.overrides, settings, contributions=args.contributions)
     if assembly is None:
         return 2
-    print(to_dot(assembly))
+    print(to_dot(assembly, settings.remap))
     return 0
 
 
-def _clusters(assembly: Assembly, prefix: str, depth: int) -> list[str]:
+def _clusters(assembly: Assembly, prefix: str, depth: int, remap: Remap) -> list[str]:
     """Component boxes of one composite level; nested composites as nested clusters."""
     pad = "  " * depth
     lines: list[str] = []
@@ -280,12 +288,13 @@ def _clusters(assembly: Assembly, prefix: str, depth: int) -> list[str]:
             if sub not in subs:
                 subs.append(sub)
             continue
-        label = f"{rest}\\n[{', '.join(node.ctype.services)}]"
+        shown = remap.component(path) if node.kind == TASK_KIND else rest  # a task: the name it runs under
+        label = f"{shown}\\n[{', '.join(node.ctype.services)}]"
         lines.append(f'{pad}{_q(path)} [label="{label}"];')
     for sub in subs:
         lines.append(f"{pad}subgraph {_q('cluster_' + sub.rstrip('/'))} {{")
         lines.append(f"{pad}  label={_q(sub.rstrip('/') + ' (implementation.composite)')};")
-        lines += _clusters(assembly, sub, depth + 1)
+        lines += _clusters(assembly, sub, depth + 1, remap)
         lines.append(f"{pad}}}")
     return lines
 
@@ -294,13 +303,15 @@ def _q(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def to_dot(assembly: Assembly) -> str:
+def to_dot(assembly: Assembly, remap: Remap | None = None) -> str:
     """The assembly as DOT: a box per component (label lists its services), an edge per
     wire labelled with the reference, dashed edges for promoted services and references,
-    a note-shaped node per binding endpoint."""
+    a note-shaped node per binding endpoint, bold edges for data-flow links (``scart:connect``,
+    bridge inputs); task and port names as ``remap`` makes them run."""
+    remap = remap or Remap()
     c = assembly.composite
     out = [f"digraph {_q(c.name)} {{", "  rankdir=LR;", "  node [shape=box, fontname=Helvetica];"]
-    out += _clusters(assembly, "", 1)
+    out += _clusters(assembly, "", 1, remap)
     for path, node in assembly.nodes.items():
         for ref, eps in node.references.items():
             for ep in eps:
@@ -314,8 +325,53 @@ def to_dot(assembly: Assembly) -> str:
         out.append(f"  {_q('service:' + name)} [shape=cds, label={_q(name)}];")
         out.append(f"  {_q('service:' + name)} -> {_q(t.node)} [style=dashed, label={_q('promotes ' + t.service)}];")
     out += _promotions(c, "")
+    out += _dataflow_edges(assembly, remap)
     out.append("}")
     return "\n".join(out)
+
+
+def _dataflow_edges(assembly: Assembly, remap: Remap) -> list[str]:
+    """``scart:connect`` links and ``scart:bridge`` inputs as bold edges between tasks (a
+    task of another deployer as an ellipse), labelled with the ports; names as they run."""
+    out: list[str] = []
+    remote: set[str] = set()
+    bridges = {prefix + el.attributes.get("name", "") for prefix, el in assembly.elements_of("bridge")}
+
+    def end(prefix: str, ref: str) -> tuple[str, str] | None:
+        comp, dot, port = ref.strip().rpartition(".")
+        if not dot or not comp or not port:
+            return None
+        path = prefix + comp
+        task, shown_port = remap.endpoint(path, port)
+        if path in assembly.nodes:
+            return path, shown_port
+        if path in bridges:
+            return "bridge:" + path, shown_port
+        node_id = "task:" + task
+        if node_id not in remote:
+            remote.add(node_id)
+            out.append(f"  {_q(node_id)} [shape=ellipse, label={_q(task)}];")
+        return node_id, shown_port
+
+    for prefix, el in assembly.elements_of("bridge"):
+        name = prefix + el.attributes.get("name", "")
+        bid = "bridge:" + name
+        outputs = [c.attributes.get("name", "") for c in el.children if c.kind == "output"]
+        out.append(f"  {_q(bid)} [shape=hexagon, label={_q(remap.component(name) + ' (bridge)')}];")
+        for child in el.children:
+            source = end(prefix, child.attributes.get("from", "")) if child.kind == "input" else None
+            if source is not None:
+                label = f"{source[1]} -> {remap.port(name, child.attributes.get('name', ''))}"
+                out.append(f"  {_q(source[0])} -> {_q(bid)} [style=bold, color=blue, label={_q(label)}];")
+        for output in outputs:
+            out.append(f"  {_q(bid)} [xlabel={_q(remap.port(name, output))}];")
+    for prefix, el in assembly.elements_of("connect"):
+        source, sink = end(prefix, el.attributes.get("from", "")), end(prefix, el.attributes.get("to", ""))
+        if source is not None and sink is not None:
+            policy = el.attributes.get("policy", "data")
+            out.append(f"  {_q(source[0])} -> {_q(sink[0])} [style=bold, color=blue, "
+                       f"label={_q(f'{source[1]} -> {sink[1]} [{policy}]')}];")
+    return out
 
 
 def _promotions(composite: Composite, prefix: str) -> list[str]:

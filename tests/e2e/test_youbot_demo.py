@@ -142,3 +142,29 @@ def test_second_demo_on_the_same_name_service_prints_no_url() -> None:
         assert "youBot Monitor:" not in out, out
     finally:
         assert first.stop() == 0
+
+
+def test_two_demos_remapped_side_by_side_on_one_name_service() -> None:
+    """``--remap`` renames the driver (and its status port) at launch: two demos share one
+    name service, each monitor sees its own driver, the CLI sees both by their new names."""
+    left = start_serving("youbot.composite", "--remap", "youBotDriver=left/youBotDriver",
+                         "--remap", "jointStatus:=joint_states")
+    try:
+        assert "component youBotDriver (runs as left/youBotDriver)" in left.output()
+        right = Demo("youbot.composite", left.ns, "--remap", "__ns=right")
+        try:
+            urls = [demo.monitor_url() for demo in (left, right)]
+            for url in urls:
+                wait_until(lambda u=url: _running(u), 20, 0.05, "a monitor never showed a running driver")
+            listed = _scart(left.ns, "ls")
+            assert re.search(r"left/youBotDriver\s+RUNNING", listed) and re.search(r"right/youBotDriver\s+RUNNING",
+                                                                                    listed), listed
+            assert "joint_states" in _scart(left.ns, "describe", "left/youBotDriver")
+            assert "jointStatus" in _scart(left.ns, "describe", "right/youBotDriver")
+            _scart(left.ns, "write", "right/youBotDriver.period", "0.05")  # one driver only
+            wait_until(lambda: monitor_state(urls[1])["driver"]["period"] == 0.05, 5, 0.05, "right missed its period")
+            assert monitor_state(urls[0])["driver"]["period"] == 0.01
+        finally:
+            assert right.stop() == 0, right.output()
+    finally:
+        assert left.stop() == 0, left.output()

@@ -13,7 +13,8 @@ from scart.api import component_type, interface_info
 from scart.values import parse_value
 
 EXPECTED = {
-    "ComponentContext", "ExtensionError", "ExtensionRegistry", "InvocationError", "NoCallbackError", "Problem", "RemoteError", "Runtime",
+    "ComponentContext", "ExtensionError", "ExtensionRegistry", "InvocationError", "NoCallbackError", "Problem", "Remap",
+    "RemoteError", "Runtime",
     "RuntimeState", "RuntimeStateError", "ScartError", "ScdlError", "ServiceNotFoundError", "ServiceProxy",
     "ServiceUnavailableError", "Settings",
     "callback", "component", "context", "destroy", "init", "interface", "oneway", "prop", "reference",

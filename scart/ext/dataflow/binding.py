@@ -141,6 +141,12 @@ def resolve_component(runtime: Host, model: Binding, s: Attributes) -> Attribute
     return s
 
 
+def remapped(steps: list[Step], runtime: Host, s: Attributes) -> list[Step]:
+    """``steps`` with their ports named as they run (the settings' remap)."""
+    remap = runtime.settings.remap
+    return [dataclasses.replace(st, port=remap.port(s.component, st.port)) for st in steps] if remap else steps
+
+
 class _Link:
     """The connection of one binding to its task: which system, the proxy, state logging.
 
@@ -155,6 +161,7 @@ class _Link:
         self.host = host_of(runtime)
         node = runtime.assembly.nodes.get(s.component)
         self.local = s.ns is None and node is not None and node.kind == TASK_KIND
+        self.task = runtime.settings.remap.component(s.component)  # the name it runs under
         self._system: Any = None
         self._proxy: Any = None
         self._lock = threading.Lock()
@@ -183,20 +190,20 @@ class _Link:
 
                         self._system = GrpcSystem(self.ns, timeout=self.runtime.settings.timeout,
                                                   security=self.runtime.settings.security)
-                self._proxy = self._system.component(self.s.component)
+                self._proxy = self._system.component(self.task)
                 self._set_state("connected", "")
             return self._proxy
 
     def _set_state(self, state: str, detail: str) -> None:
         if state != self.state:
             where = "in this process" if self.local else f"through {self.ns}"
-            log.info("binding.dataflow %s: task %s %s (%s)%s", self.what, self.s.component, state, where, detail)
+            log.info("binding.dataflow %s: task %s %s (%s)%s", self.what, self.task, state, where, detail)
             self.state = state
 
     def watch(self) -> bool:
         """One look at the name service: logs transitions; True while the task is registered."""
         if self.local:
-            return self.s.component in self.host.deployer.names()
+            return self.task in self.host.deployer.names()
         from dataflow.remote.naming import NameClient
 
         now = time.monotonic()
@@ -207,7 +214,7 @@ class _Link:
             self._names = NameClient(self.ns, timeout=self.runtime.settings.timeout,
                                      security=self.runtime.settings.security)
         try:
-            entry = self._names.resolve(self.s.component)
+            entry = self._names.resolve(self.task)
         except DataflowError as exc:
             if self.state != "waiting":
                 self._set_state("gone", f": {type(exc).__name__}")
@@ -236,9 +243,10 @@ class DataflowReferenceBinding(ReferenceBinding):
     def __init__(self, model: Binding | None, interface: InterfaceInfo, host: Host) -> None:
         super().__init__(model, interface, host)
         assert model is not None
-        self.attrs = resolve_component(host, model, attributes(model))
-        self.steps = {st.operation: st for st in plan(interface, "reference", self.attrs)[0]}
-        self._link = _Link(host, self.attrs, f"reference {interface.name}")
+        attrs = resolve_component(host, model, attributes(model))
+        self._link = _Link(host, attrs, f"reference {interface.name}")
+        self.steps = {st.operation: st for st in remapped(plan(interface, "reference", attrs)[0], host, attrs)}
+        self.attrs = dataclasses.replace(attrs, component=self._link.task)
         self._writers: dict[str, Any] = {}
         self._lock = threading.Lock()
         self._watcher: Watcher | None = None
@@ -369,9 +377,10 @@ class DataflowServiceBinding(ServiceBinding):
 
     def __init__(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> None:
         super().__init__(model, endpoint, host)
-        self.attrs = resolve_component(host, model, attributes(model))
-        self.steps: list[Step] = plan(endpoint.interface, "service", self.attrs)[0]
-        self._link = _Link(host, self.attrs, f"service {endpoint.component}/{endpoint.service}")
+        attrs = resolve_component(host, model, attributes(model))
+        self._link = _Link(host, attrs, f"service {endpoint.component}/{endpoint.service}")
+        self.steps: list[Step] = remapped(plan(endpoint.interface, "service", attrs)[0], host, attrs)
+        self.attrs = dataclasses.replace(attrs, component=self._link.task)
         self._subs: list[Any] = []
         self._watcher: Watcher | None = None
         self.delivered = 0

@@ -66,7 +66,9 @@ from scart.errors import ScartError
 from scart.ext.dataflow._host import TASK_KIND, host_of, remote_ports
 from scart.ext.dataflow._plan import MIN_PERIOD_S
 from scart.ext.dataflow.tasks import ConnectParticipant, Link, connect_present
-from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem, Settings
+from scart.spi import (
+    AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem, Remap, Settings,
+)
 
 log = logging.getLogger("scart.dataflow")
 
@@ -400,10 +402,10 @@ class Resolver:
         if not online:
             return _UNKNOWN, False
         ns = inp.ns or self.settings.ns_address
-        remote = remote_ports(ns, comp, timeout=0.5, security=self.settings.security)
+        remote = remote_ports(ns, self.settings.remap.component(comp), timeout=0.5, security=self.settings.security)
         if remote is None:
             return _UNKNOWN, False
-        info = remote.get(port)
+        info = remote.get(self.settings.remap.port(comp, port))
         if info is None or info.direction != "out":
             self.problem(BRIDGE, f"{where}: task {comp!r} (name service {ns}) has no output port {port!r}; "
                          f"outputs: {', '.join(p.name for p in remote.values() if p.direction == 'out') or 'none'}")
@@ -545,19 +547,20 @@ class _Input:
 class BridgeTask(TaskContext):
     """The data-flow task a bridge runs as (see the module docstring)."""
 
-    def __init__(self, resolved: Resolved) -> None:
-        super().__init__(resolved.spec.name)
-        self.resolved = resolved
+    def __init__(self, resolved: Resolved, remap: Remap | None = None) -> None:
         spec = resolved.spec
+        remap = remap or Remap()
+        super().__init__(remap.component(spec.name))
+        self.resolved = resolved
         event = spec.trigger in ("any", "all")
         self._inputs: dict[str, _Input] = {}
         for inp in spec.inputs:
             tp = resolved.sources[inp.name]
-            port = self.add_port(InputPort(tp if tp is not None else object, inp.name,
-                                           f"from {'.'.join(inp.source)}", event=event))
+            port = self.add_port(InputPort(tp if tp is not None else object, remap.port(spec.name, inp.name),
+                                           f"from {'.'.join(remap.endpoint(*inp.source))}", event=event))
             self._inputs[inp.name] = _Input(port)  # type: ignore[arg-type]
         self.output: OutputPort[Any] = self.add_port(  # type: ignore[assignment]
-            OutputPort(resolved.output_type, spec.output, f"built by bridge {spec.name}"))
+            OutputPort(resolved.output_type, remap.port(spec.name, spec.output), f"built by bridge {self.name}"))
         self.outputs = 0
         self.errors = 0  # samples a converter or the builder refused (logged, then skipped)
         self._lock = threading.Lock()
@@ -713,18 +716,20 @@ class BridgeParticipant(Participant):
             if unknown:
                 raise ScartError(f"bridge {spec.name} ({spec.where}): the type of input(s) {', '.join(unknown)} is not "
                                  "known: their source is neither in this composite nor found in the name service")
-            task = BridgeTask(resolved)
+            remap = self.host.settings.remap
+            task = BridgeTask(resolved, remap)
             dataflow_host.deployer.add(task)
             self.tasks.append(task)
             if not task.configure():
                 raise ScartError(f"bridge {spec.name}: configure refused (state {task.state.name})")
             names = set(dataflow_host.deployer.names())
             for inp in spec.inputs:
-                link = Link(inp.source, (spec.name, inp.name), inp.policy, inp.ns, inp.where)
-                if inp.source[0] in names:
-                    dataflow_host.deployer.connect(".".join(inp.source), f"{spec.name}.{inp.name}", inp.policy)
+                source = remap.endpoint(*inp.source)
+                sink = (task.name, task._inputs[inp.name].port.name)
+                if source[0] in names:
+                    dataflow_host.deployer.connect(".".join(source), ".".join(sink), inp.policy)
                 else:
-                    remote.append(link)
+                    remote.append(Link(source, sink, inp.policy, inp.ns, inp.where))
             connect_present(self.host, task.name)
             if not task.start():
                 raise ScartError(f"bridge {spec.name}: start refused (state {task.state.name})")

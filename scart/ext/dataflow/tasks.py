@@ -35,6 +35,7 @@ when connecting and logged), neither end in this composite.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 import typing
@@ -52,6 +53,7 @@ from scart.ext.dataflow._plan import MIN_PERIOD_S
 from scart.spi import (
     DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Element, ElementProvider, Host, Implementation,
     ImplementationProblem, ImplementationProvider, InterfaceInfo, Node, Operation, Participant, Problem, PropSpec,
+    Remap,
 )
 
 log = logging.getLogger("scart.dataflow")
@@ -180,7 +182,10 @@ class TaskManager(ComponentManager):
         impl = self.node.model.implementation
         assert impl is not None
         dataflow_host = host_of(self.host)
-        task = self.node.ctype.cls(self.node.path)
+        remap = self.host.settings.remap
+        task = self.node.ctype.cls(remap.component(self.node.path))
+        for name in list(task.ports()):
+            task.rename_port(name, remap.port(self.node.path, name))
         period = _period(impl)
         if period is not None:
             task.set_activity(PeriodicActivity(period))
@@ -258,9 +263,12 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
     return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc)), []
 
 
-def links_of(elements: list[tuple[str, Element]]) -> list[Link]:
-    """The well-formed links among ``elements``."""
-    return [link for prefix, el in elements if (link := _parse_link(prefix, el)[0]) is not None]
+def links_of(elements: list[tuple[str, Element]], remap: Remap | None = None) -> list[Link]:
+    """The well-formed links among ``elements``, their ends renamed by ``remap``."""
+    links = [link for prefix, el in elements if (link := _parse_link(prefix, el)[0]) is not None]
+    if not remap:
+        return links
+    return [dataclasses.replace(lk, source=remap.endpoint(*lk.source), sink=remap.endpoint(*lk.sink)) for lk in links]
 
 
 class ConnectElement(ElementProvider):
@@ -312,7 +320,7 @@ class ConnectElement(ElementProvider):
 
     def activate(self, host: Host) -> ConnectParticipant:
         """Makes the links at start (cross-deployer ones in the background)."""
-        return ConnectParticipant(links_of(host.assembly.elements_of(self.name)), host)
+        return ConnectParticipant(links_of(host.assembly.elements_of(self.name), host.settings.remap), host)
 
 
 def _port_or_problem(
@@ -341,7 +349,7 @@ def connect_present(runtime: Host, task_name: str) -> None:
 
 def runtime_links(runtime: Host) -> list[Link]:
     """Every link declared in ``runtime``'s assembly."""
-    return links_of(runtime.assembly.elements_of(ConnectElement.name))
+    return links_of(runtime.assembly.elements_of(ConnectElement.name), runtime.settings.remap)
 
 
 class ConnectParticipant(Participant):
@@ -351,7 +359,8 @@ class ConnectParticipant(Participant):
     def __init__(self, links: list[Link], runtime: Host, local: Callable[[str], bool] | None = None) -> None:
         self.runtime = runtime
         self.links = links
-        self._local = local or (lambda name: name in runtime.assembly.nodes)  # is this task in this runtime?
+        tasks = {runtime.settings.remap.component(n) for n in runtime.assembly.nodes}
+        self._local = local or (lambda name: name in tasks)  # is this task (as it runs) in this runtime?
         self._remote = [lk for lk in links if not self._is_local(lk)]
         self._made: dict[Link, str] = {}  # link -> boot id of the remote end it was made with
         self._watcher: Watcher | None = None
