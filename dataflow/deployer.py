@@ -1,5 +1,11 @@
 """Deployer: the tasks of one process, their connections, and their collective lifecycle.
 
+Connections between its tasks' ports are *links* (:meth:`Deployer.links`): each has a name
+— given to :meth:`Deployer.connect` (``name=``), else ``"a.out->b.in"`` — so that it can
+be listed, re-routed to another input (:meth:`Deployer.reroute`: the new connection is
+made before the old one goes, so no sample of the source is missed by the new sink after
+the call returns, and the source's other links never notice) and removed by name.
+
 Tasks are kept in the order they were added: ``configure_all``/``start_all`` walk that
 order, ``stop_all``/``cleanup_all`` the reverse. Used as a context manager it stops and
 cleans up everything on exit. ``serve()`` exposes the tasks over gRPC (implemented in
@@ -9,10 +15,13 @@ cleans up everything on exit. ``serve()`` exposes the tasks over gRPC (implement
 from __future__ import annotations
 
 import logging
+import re
 import threading
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from .errors import DeploymentError, NotFoundError
+from .introspection import LinkDescription
 from .policy import ConnPolicy
 from .ports import Connection, InputPort, OutputPort
 from .task import TaskContext, TaskState
@@ -21,7 +30,11 @@ if TYPE_CHECKING:  # the remote layer is imported only when serving
     from .remote.security import Security
     from .remote.server import DeployerServer
 
-__all__ = ["Deployer"]
+__all__ = ["Deployer", "LINK_NAME"]
+
+#: What a link name may be: letters, digits, ``_ . / - > :``, at most 128 characters.
+LINK_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./:>-]{0,127}")
+MAX_NAMED_LINKS = 4096
 
 log = logging.getLogger(__name__)
 
@@ -32,6 +45,7 @@ class Deployer:
     def __init__(self) -> None:
         self._tasks: dict[str, TaskContext] = {}
         self._lock = threading.Lock()
+        self._link_names: dict[tuple[str, str], str] = {}  # ("a.out", "b.in") -> name given
 
     def add(self, task: TaskContext) -> TaskContext:
         """Add ``task``; returns it. Raises ``DeploymentError`` if its name is taken."""
@@ -62,14 +76,104 @@ class Deployer:
             raise DeploymentError(f"expected 'task.port', got {ref!r}")
         return self.task(task_name).port(port_name)
 
-    def connect(self, source: str, target: str, policy: ConnPolicy | None = None) -> Connection:
-        """Connect output ``"a.out"`` to input ``"b.in"``; raises NotFound/PortType/DeploymentError."""
+    def connect(self, source: str, target: str, policy: ConnPolicy | None = None, name: str | None = None) -> Connection:
+        """Connect output ``"a.out"`` to input ``"b.in"``, as the link ``name`` (default
+        ``"a.out->b.in"``); raises NotFound/PortType/DeploymentError (also for a name
+        another link has)."""
         out, inp = self._port(source), self._port(target)
         if not isinstance(out, OutputPort):
             raise DeploymentError(f"{source} is not an output port")
         if not isinstance(inp, InputPort):
             raise DeploymentError(f"{target} is not an input port")
-        return out.connect_to(inp, policy if policy is not None else ConnPolicy())
+        if name is not None:
+            self._check_name(source, target, name)
+        conn = out.connect_to(inp, policy if policy is not None else ConnPolicy())
+        if name is not None:  # named once connected: a refused connection keeps no name
+            self.name_link(source, target, name)
+        return conn
+
+    def name_link(self, source: str, sink: str, name: str) -> None:
+        """Call the link ``source`` → ``sink`` (made, or about to be) ``name``. Raises
+        ``DeploymentError`` for a malformed name or one another link has."""
+        with self._lock:
+            self._check_name(source, sink, name, locked=True)
+            self._link_names[(source, sink)] = name
+
+    def _check_name(self, source: str, sink: str, name: str, locked: bool = False) -> None:
+        if not LINK_NAME.fullmatch(name):
+            raise DeploymentError(f"link name {name!r}: letters, digits and _ . / - > : only, at most 128")
+        if not locked:
+            with self._lock:
+                return self._check_name(source, sink, name, locked=True)
+        holder = next((k for k, v in self._link_names.items() if v == name), None)
+        if holder is not None and holder != (source, sink):
+            raise DeploymentError(f"a link named {name!r} exists already: {holder[0]} -> {holder[1]}")
+        if len(self._link_names) >= MAX_NAMED_LINKS and (source, sink) not in self._link_names:
+            raise DeploymentError(f"more than {MAX_NAMED_LINKS} named links")
+        return None
+
+    def link_name(self, source: str, sink: str) -> str:
+        """The name of the link ``source`` → ``sink``: the one given, else ``"source->sink"``."""
+        return self._link_names.get((source, sink)) or f"{source}->{sink}"
+
+    def forget_link(self, source: str, sink: str) -> None:
+        """Drop the name of a link that is gone."""
+        with self._lock:
+            self._link_names.pop((source, sink), None)
+
+    def links(self, remote: Iterable[LinkDescription] = ()) -> list[LinkDescription]:
+        """Every connection from an output port of these tasks to an input port of these
+        tasks, as a link (name, ends, policy, samples the source wrote, samples dropped),
+        then ``remote`` (links to other deployers, described by their server)."""
+        out: list[LinkDescription] = []
+        for task in self.tasks():
+            for port in task.ports().values():
+                if not isinstance(port, OutputPort):
+                    continue
+                written = port.last_sample()[0]
+                for conn in port.connections():
+                    sink_task = getattr(conn.input, "task", None)
+                    if sink_task is None or self._tasks.get(sink_task.name) is not sink_task:
+                        continue  # an observer's port (subscription, remote link), not a link
+                    source, sink = f"{task.name}.{port.name}", f"{sink_task.name}.{conn.input.name}"
+                    out.append(LinkDescription(name=self.link_name(source, sink), source=source, sink=sink,
+                                               policy=str(conn.policy), transport="local", samples=written,
+                                               dropped=conn.dropped))
+        return out + list(remote)
+
+    def find_link(self, name: str) -> LinkDescription:
+        """The local link called ``name``; raises ``NotFoundError`` listing the names."""
+        links = self.links()
+        for link in links:
+            if link.name == name:
+                return link
+        raise NotFoundError(f"no link {name!r}; links: {', '.join(lk.name for lk in links[:20]) or 'none'}")
+
+    def reroute(self, name: str, sink: str) -> LinkDescription:
+        """Point the local link ``name`` at input ``sink`` instead (same source, policy and
+        name): connected first, then the old input disconnected. Raises ``NotFoundError``,
+        ``PortTypeError``, ``DeploymentError``."""
+        link = self.find_link(name)
+        if sink == link.sink:
+            return link
+        conn = next(c for c in self._port(link.source).connections()
+                    if f"{c.input.task.name}.{c.input.name}" == link.sink)
+        self.connect(link.source, sink, conn.policy)
+        with self._lock:
+            self._link_names.pop((link.source, link.sink), None)
+            if name != f"{link.source}->{link.sink}":
+                self._link_names[(link.source, sink)] = name
+        conn.close()
+        return self.find_link(name if name != f"{link.source}->{link.sink}" else f"{link.source}->{sink}")
+
+    def disconnect(self, source: str, sink: str) -> bool:
+        """Disconnect output ``source`` from input ``sink`` (and forget the link's name);
+        False when they were not connected."""
+        out, inp = self._port(source), self._port(sink)
+        was = any(c.input is inp for c in out.connections())
+        out.disconnect(inp)
+        self.forget_link(source, sink)
+        return was
 
     def configure_all(self) -> None:
         """Configure every task that is not running (PRE_OPERATIONAL or STOPPED), in order.

@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict
 
-__all__ = ["TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription"]
+__all__ = ["LinkDescription", "TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription"]
 
 
 class PortDescription(BaseModel):
@@ -59,3 +59,18 @@ class TaskDescription(BaseModel):
     ports: list[PortDescription] = []
     properties: list[PropertyDescription] = []
     operations: list[OperationDescription] = []
+
+
+class LinkDescription(BaseModel):
+    """A connection between ports, as ``scart links`` shows it: its name, ``task.port`` ends,
+    policy, transport (``local``: in one process; ``grpc``: to another deployer), samples
+    the source port wrote so far and samples lost on the link."""
+
+    model_config = ConfigDict(frozen=True)
+    name: str
+    source: str
+    sink: str
+    policy: str
+    transport: str = "local"
+    samples: int = 0
+    dropped: int = 0

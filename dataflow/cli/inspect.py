@@ -1,5 +1,5 @@
 """Introspection of a running data-flow system: ``scart ls | describe | echo | hz | write |
-call | prop | state | connect | disconnect``.
+call | prop | state | connect | links | reroute | disconnect``.
 
 Every verb finds the system through a name service: ``--ns HOST:PORT``, else the
 ``SCART_NS`` environment variable, else ``127.0.0.1:7850``. Data goes to stdout (with
@@ -74,9 +74,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("source", metavar="A.out")
     p.add_argument("sink", metavar="B.in")
     p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
-    p = verb("disconnect", "disconnect two ports", cmd_disconnect)
-    p.add_argument("source", metavar="A.out")
-    p.add_argument("sink", metavar="B.in")
+    p.add_argument("--name", default=None, help="the link's name (default A.out->B.in)")
+    p = verb("links", "list links: name, ends, policy, transport, measured rate, drops", cmd_links)
+    p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
+    p = verb("reroute", "point a link at another input port (made before the old one goes)", cmd_reroute)
+    p.add_argument("name", metavar="LINK")
+    p.add_argument("sink", metavar="C.in")
+    p = verb("disconnect", "disconnect a link (by its name, or by its two ports)", cmd_disconnect)
+    p.add_argument("source", metavar="LINK|A.out")
+    p.add_argument("sink", metavar="B.in", nargs="?")
 
 
 # ---- shared plumbing -------------------------------------------------------------------
@@ -370,15 +376,48 @@ def cmd_state(args: argparse.Namespace) -> int:
 def cmd_connect(args: argparse.Namespace) -> int:
     """``scart connect A.out B.in [--policy P]``."""
     policy = _policy(args.policy)
-    args.system.connect_ports(args.source, args.sink, policy)
-    doc = {"source": args.source, "sink": args.sink, "policy": str(policy), "connected": True}
-    _out(_dump(doc) if args.json else f"connected {args.source} -> {args.sink} ({policy})")
+    args.system.connect_ports(args.source, args.sink, policy, name=args.name)
+    name = args.name or f"{args.source}->{args.sink}"
+    doc = {"name": name, "source": args.source, "sink": args.sink, "policy": str(policy), "connected": True}
+    _out(_dump(doc) if args.json else f"connected {args.source} -> {args.sink} ({policy}) as {name}")
+    return 0
+
+
+def cmd_links(args: argparse.Namespace) -> int:
+    """``scart links``: one line per link; rate measured over ``--sample`` s."""
+    first = {lk.name: (lk.samples, time.monotonic()) for lk in args.system.links()}
+    if args.sample > 0:
+        threading.Event().wait(args.sample)
+    rows = []
+    for lk in args.system.links():
+        samples0, t0 = first.get(lk.name, (lk.samples, time.monotonic()))
+        dt = time.monotonic() - t0
+        rate = (lk.samples - samples0) / dt if dt > 0 else 0.0
+        rows.append({**lk.model_dump(), "rate": round(rate, 2)})
+    if args.json:
+        _out(_dump(rows))
+        return 0
+    _out(f"{'NAME':<28} {'SOURCE':<28} {'SINK':<28} {'POLICY':<12} {'TRANSPORT':<9} {'RATE(Hz)':>9} {'DROPPED':>8}")
+    for r in rows:
+        _out(f"{r['name']:<28} {r['source']:<28} {r['sink']:<28} {r['policy']:<12} {r['transport']:<9} "
+             f"{r['rate']:>9.1f} {r['dropped']:>8}")
+    return 0
+
+
+def cmd_reroute(args: argparse.Namespace) -> int:
+    """``scart reroute LINK C.in``."""
+    link = args.system.reroute(args.name, args.sink)
+    _out(_dump(link.model_dump()) if args.json else f"{link.name}: {link.source} -> {link.sink} ({link.policy})")
     return 0
 
 
 def cmd_disconnect(args: argparse.Namespace) -> int:
-    """``scart disconnect A.out B.in``."""
-    done = args.system.disconnect_ports(args.source, args.sink)
-    doc = {"source": args.source, "sink": args.sink, "disconnected": done}
+    """``scart disconnect A.out B.in`` or ``scart disconnect LINK``."""
+    if args.sink is None:
+        done = args.system.disconnect_link(args.source)
+        doc = {"name": args.source, "disconnected": done}
+    else:
+        done = args.system.disconnect_ports(args.source, args.sink)
+        doc = {"source": args.source, "sink": args.sink, "disconnected": done}
     _out(_dump(doc) if args.json else ("disconnected" if done else "were not connected"))
     return 0 if done else 1

@@ -29,7 +29,7 @@ NAMING_SERVICE_NAME = NAMING_SERVICE.full_name
 #: subscribing need ``read``; the rest of the DeployerService ``operate``; registering
 #: names with a name service ``admin``.
 DEPLOYER_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(
-    DEPLOYER_SERVICE_NAME, reads={"ListTasks", "DescribeTask", "ReadPort", "Subscribe", "GetProperty"}))
+    DEPLOYER_SERVICE_NAME, reads={"ListTasks", "DescribeTask", "ReadPort", "Subscribe", "GetProperty", "ListLinks"}))
 NAMING_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(
     NAMING_SERVICE_NAME, reads={"Resolve", "ListEntries"}, default=Role.ADMIN))
 

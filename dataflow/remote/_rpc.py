@@ -109,7 +109,7 @@ class Abort(Exception):
 
 def abort(context: grpc.ServicerContext, exc: BaseException) -> None:
     """Abort the RPC with the status matching ``exc`` (never returns)."""
-    from dataflow.errors import NotFoundError, PortTypeError, PortValueError, PropertyValueError
+    from dataflow.errors import DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 
     if isinstance(exc, Abort):
         context.abort(grpc.StatusCode[exc.code], str(exc))
@@ -119,6 +119,8 @@ def abort(context: grpc.ServicerContext, exc: BaseException) -> None:
         context.abort(grpc.StatusCode.OUT_OF_RANGE, str(exc))
     if isinstance(exc, (PortTypeError, TypeError, ValueError)):
         context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+    if isinstance(exc, DeploymentError):  # a refused deployment step (a link name taken, an input as source...)
+        context.abort(grpc.StatusCode.FAILED_PRECONDITION, str(exc))
     context.abort(grpc.StatusCode.INTERNAL, f"{type(exc).__name__}: {exc}")
 
 

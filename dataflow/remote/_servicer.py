@@ -558,7 +558,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         try:
             local, address = self.owner.connect_ports(
                 request.source_task, request.source_port, request.sink_task, request.sink_port,
-                cv.policy_from_msg(request.policy),
+                cv.policy_from_msg(request.policy), name=request.name or None,
             )
             return pb.ConnectPortsResponse(local=local, sink_address=address)
         except Exception as exc:  # noqa: BLE001
@@ -566,9 +566,35 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
 
     def DisconnectPorts(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
-            done = self.owner.disconnect_ports(
-                request.source_task, request.source_port, request.sink_task, request.sink_port
-            )
+            if request.name:
+                link = self.owner.find_link(request.name)
+                (st, sp), (kt, kp) = link.source.rsplit(".", 1), link.sink.rsplit(".", 1)
+                done = self.owner.disconnect_ports(st, sp, kt, kp)
+            else:
+                done = self.owner.disconnect_ports(
+                    request.source_task, request.source_port, request.sink_task, request.sink_port
+                )
             return pb.DisconnectPortsResponse(disconnected=done)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
+
+    def ListLinks(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            return pb.ListLinksResponse(links=[_link_info(lk) for lk in self.owner.links()[:MAX_LINKS_LISTED]])
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def RerouteLink(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            link = self.owner.reroute(request.name, request.sink_task, request.sink_port)
+            return pb.RerouteLinkResponse(link=_link_info(link))
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+
+MAX_LINKS_LISTED = 10_000
+
+
+def _link_info(link: Any) -> Any:
+    return pb.LinkInfo(name=link.name, source=link.source, sink=link.sink, policy=link.policy,
+                       transport=link.transport, samples=link.samples, dropped=link.dropped)

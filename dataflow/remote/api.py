@@ -23,6 +23,7 @@ from dataflow.policy import ConnPolicy, ConnType, FlowStatus, WriteStatus
 
 if TYPE_CHECKING:  # the core's description models
     from dataflow import OperationDescription, PortDescription, PropertyDescription, TaskDescription
+    from dataflow.introspection import LinkDescription
 
 __all__ = [
     "TRANSITIONS",
@@ -388,12 +389,26 @@ class System(ABC):
         """A summary line per component."""
 
     @abstractmethod
-    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data()) -> None:
-        """Connect ``"task.out"`` to ``"task.in"`` (possibly in another deployer)."""
+    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),
+                      name: str | None = None) -> None:
+        """Connect ``"task.out"`` to ``"task.in"`` (possibly in another deployer), as the link
+        ``name`` (default ``"task.out->task.in"``)."""
 
     @abstractmethod
     def disconnect_ports(self, source: str, sink: str) -> bool:
         """Undo :meth:`connect_ports`; False if they were not connected."""
+
+    @abstractmethod
+    def links(self) -> list[LinkDescription]:
+        """Every link between ports (name, ends, policy, transport, samples, drops), by name."""
+
+    @abstractmethod
+    def reroute(self, name: str, sink: str) -> LinkDescription:
+        """Point the link ``name`` at input ``"task.in"`` (made before the old one is undone)."""
+
+    @abstractmethod
+    def disconnect_link(self, name: str) -> bool:
+        """Undo the link called ``name``; False if it was gone already."""
 
     @abstractmethod
     def close(self) -> None:

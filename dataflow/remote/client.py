@@ -24,8 +24,10 @@ from typing import Any
 import grpc
 
 from dataflow import codec
-from dataflow.errors import DataflowError
-from dataflow.introspection import OperationDescription, PortDescription, PropertyDescription, TaskDescription
+from dataflow.errors import DataflowError, NotFoundError
+from dataflow.introspection import (
+    LinkDescription, OperationDescription, PortDescription, PropertyDescription, TaskDescription,
+)
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.remote import _convert as cv
 from dataflow.remote import _rpc, errors
@@ -160,13 +162,54 @@ class GrpcSystem(System):
                     out.append(ComponentInfo(t.name, t.state, t.activity, t.period, t.cycles, t.overruns, address))
         return sorted(out, key=lambda c: c.name)
 
-    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data()) -> None:
-        """Connect ``"a.out"`` to ``"b.in"``; the source's deployer makes the link."""
+    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),
+                      name: str | None = None) -> None:
+        """Connect ``"a.out"`` to ``"b.in"`` as the link ``name`` (default ``"a.out->b.in"``);
+        the source's deployer makes the link."""
         (st, sp), (kt, kp) = split_port(source), split_port(sink)
         req = pb.ConnectPortsRequest(
-            source_task=st, source_port=sp, sink_task=kt, sink_port=kp, policy=cv.policy_to_msg(policy)
+            source_task=st, source_port=sp, sink_task=kt, sink_port=kp, policy=cv.policy_to_msg(policy),
+            name=name or "",
         )
         self._invoke(st, "ConnectPorts", req)
+
+    def links(self) -> list[LinkDescription]:
+        """Every link of every deployer the name service knows (one ListLinks each), by name."""
+        out: list[LinkDescription] = []
+        for address in sorted({e.address for e in self._ns.entries()}):
+            try:
+                reply = _rpc.call(self._stub(address).ListLinks, pb.ListLinksRequest(), self.timeout, address)
+            except errors.RemoteError as exc:
+                log.warning("deployer %s: %s", address, exc)
+                continue
+            out += [LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy,
+                                    transport=lk.transport, samples=lk.samples, dropped=lk.dropped)
+                    for lk in reply.links]
+        return sorted(out, key=lambda lk: lk.name)
+
+    def _link(self, name: str) -> LinkDescription:
+        links = self.links()
+        found = next((lk for lk in links if lk.name == name), None)
+        if found is None:
+            raise NotFoundError(f"no link {name!r}; links: {', '.join(lk.name for lk in links[:20]) or 'none'}")
+        return found
+
+    def reroute(self, name: str, sink: str) -> LinkDescription:
+        """Point the link ``name`` at input ``"c.in"`` (its source's deployer does it: the new
+        connection first, then the old one undone)."""
+        link = self._link(name)
+        kt, kp = split_port(sink)
+        reply = self._invoke(split_port(link.source)[0], "RerouteLink",
+                             pb.RerouteLinkRequest(name=name, sink_task=kt, sink_port=kp))
+        lk = reply.link
+        return LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy,
+                               transport=lk.transport, samples=lk.samples, dropped=lk.dropped)
+
+    def disconnect_link(self, name: str) -> bool:
+        """Undo the link called ``name``; False if it was gone already."""
+        link = self._link(name)
+        reply = self._invoke(split_port(link.source)[0], "DisconnectPorts", pb.DisconnectPortsRequest(name=name))
+        return bool(reply.disconnected)
 
     def disconnect_ports(self, source: str, sink: str) -> bool:
         """Undo :meth:`connect_ports`; False if they were not connected."""

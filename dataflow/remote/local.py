@@ -15,7 +15,7 @@ from typing import Any
 
 from dataflow.deployer import Deployer
 from dataflow.errors import DataflowError, NotFoundError, PortTypeError
-from dataflow.introspection import TaskDescription
+from dataflow.introspection import LinkDescription, TaskDescription
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote.api import (
@@ -252,15 +252,24 @@ class LocalSystem(System):
             out.append(ComponentInfo(t.name, t.state.name, a.kind, a.period, a.cycles, a.overruns, "in-process"))
         return sorted(out, key=lambda c: c.name)
 
-    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data()) -> None:
-        self.deployer.connect(source, sink, policy)
+    def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),
+                      name: str | None = None) -> None:
+        self.deployer.connect(source, sink, policy, name=name)
 
     def disconnect_ports(self, source: str, sink: str) -> bool:
-        (st, sp), (kt, kp) = split_port(source), split_port(sink)
-        out, inp = self.deployer.task(st).port(sp), self.deployer.task(kt).port(kp)
-        was = any(c.input is inp for c in out.connections())
-        out.disconnect(inp)
-        return was
+        split_port(source), split_port(sink)  # the same errors as the remote system
+        return self.deployer.disconnect(source, sink)
+
+    def links(self) -> list[LinkDescription]:
+        return sorted(self.deployer.links(), key=lambda lk: lk.name)
+
+    def reroute(self, name: str, sink: str) -> LinkDescription:
+        split_port(sink)
+        return self.deployer.reroute(name, sink)
+
+    def disconnect_link(self, name: str) -> bool:
+        link = self.deployer.find_link(name)
+        return self.deployer.disconnect(link.source, link.sink)
 
     def close(self) -> None:
         with self._lock:

@@ -29,6 +29,7 @@ from grpc_health.v1 import health_pb2
 from dataflow import codec
 from dataflow.deployer import Deployer
 from dataflow.errors import NotFoundError
+from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
 from dataflow.remote import _convert as cv
@@ -259,8 +260,10 @@ class DeployerServer:
         sink_port: str,
         policy: ConnPolicy,
         defer: bool = False,
+        name: str | None = None,
     ) -> tuple[bool, str]:
-        """Connect a local output port to a local or remote input port; returns ``(local, sink address)``.
+        """Connect a local output port to a local or remote input port, as the link ``name``
+        (default ``"a.out->b.in"``); returns ``(local, sink address)``.
 
         Idempotent for the same pair. Raises ``NotFoundError`` (source not here, sink
         unknown — unless ``defer``: then the link waits for the sink to be registered, as
@@ -275,10 +278,12 @@ class DeployerServer:
         out = self.deployer.task(source_task).port(source_port)
         if out.is_input:
             raise _rpc.Abort("INVALID_ARGUMENT", f"{source_task}.{source_port} is an input port; the source must be an output")
+        source, sink = f"{source_task}.{source_port}", f"{sink_task}.{sink_port}"
         if sink_task in self.deployer.names():
-            inp = self.deployer.task(sink_task).port(sink_port)
-            out.connect_to(inp, policy)
+            self.deployer.connect(source, sink, policy, name=name)
             return True, self.address
+        if name is not None:
+            self.deployer.name_link(source, sink, name)
         try:
             address = self.resolve(sink_task)
         except NotFoundError:
@@ -298,14 +303,54 @@ class DeployerServer:
             link = self._links.pop(key, None)
         if link is not None:
             link.close()
+            self.deployer.forget_link(f"{source_task}.{source_port}", f"{sink_task}.{sink_port}")
             return True
         if source_task in self.deployer.names() and sink_task in self.deployer.names():
-            out = self.deployer.task(source_task).port(source_port)
-            inp = self.deployer.task(sink_task).port(sink_port)
-            was = any(c.input is inp for c in out.connections())
-            out.disconnect(inp)
-            return was
+            return self.deployer.disconnect(f"{source_task}.{source_port}", f"{sink_task}.{sink_port}")
         return False
+
+    def links(self) -> list[LinkDescription]:
+        """The links whose source is one of these tasks: in-process ones, then those to
+        other deployers (transport ``grpc``)."""
+        with self._lock:
+            remote = list(self._links.items())
+        described = []
+        for (st, sp, kt, kp), link in remote:
+            source, sink = f"{st}.{sp}", f"{kt}.{kp}"
+            conn = next((c for c in link.out.connections() if c.input is link.inp), None)
+            described.append(LinkDescription(
+                name=self.deployer.link_name(source, sink), source=source, sink=sink, policy=str(link.policy),
+                transport="grpc", samples=link.out.last_sample()[0], dropped=conn.dropped if conn else 0))
+        return self.deployer.links(described)
+
+    def find_link(self, name: str) -> LinkDescription:
+        """The link called ``name``; raises ``NotFoundError`` listing some names."""
+        links = self.links()
+        found = next((lk for lk in links if lk.name == name), None)
+        if found is None:
+            raise NotFoundError(f"no link {name!r} in the deployer at {self.address}; links: "
+                                f"{', '.join(lk.name for lk in links[:20]) or 'none'}")
+        return found
+
+    def reroute(self, name: str, sink_task: str, sink_port: str) -> LinkDescription:
+        """Point the link ``name`` at ``sink_task.sink_port`` (same source, policy and name):
+        connected first, then the old sink disconnected. Raises ``NotFoundError``,
+        ``PortTypeError``, ``DeploymentError``."""
+        link = self.find_link(name)
+        new_sink = f"{sink_task}.{sink_port}"
+        if new_sink == link.sink:
+            return link
+        (st, sp), (ot, op) = (link.source.rsplit(".", 1), link.sink.rsplit(".", 1))
+        given = name if name != f"{link.source}->{link.sink}" else None
+        self.deployer.forget_link(link.source, link.sink)
+        try:
+            self.connect_ports(st, sp, sink_task, sink_port, ConnPolicy.parse(link.policy), name=given)
+        except BaseException:
+            if given is not None:
+                self.deployer.name_link(link.source, link.sink, given)
+            raise
+        self.disconnect_ports(st, sp, ot, op)
+        return self.find_link(given or f"{link.source}->{new_sink}")
 
     # ---- lifecycle ---------------------------------------------------------------------
     def stop(self, grace: float = 0.2) -> None:

@@ -161,13 +161,32 @@ def test_state(system) -> None:
 def test_connect_and_disconnect_across_deployers(system) -> None:
     ns, _ = system
     out = json.loads(scart(ns, "connect", "pinger.output", "far.input", "--policy", "buffer:8", "--json").stdout)
-    assert out == {"source": "pinger.output", "sink": "far.input", "policy": "buffer:8", "connected": True}
+    assert out == {"name": "pinger.output->far.input", "source": "pinger.output", "sink": "far.input", "policy": "buffer:8",
+                   "connected": True}
     scart(ns, "write", "pinger.input", "7.0")
     # far echoes what arrived from the other deployer (DATA subscription: last written value first)
     assert json.loads(scart(ns, "echo", "far.output", "-n", "1", "--json").stdout) == 7.0
     assert json.loads(scart(ns, "disconnect", "pinger.output", "far.input", "--json").stdout)["disconnected"] is True
     again = scart(ns, "disconnect", "pinger.output", "far.input", check=False)
     assert again.returncode == 1 and "were not connected" in again.stdout
+
+
+def test_named_links_listed_rerouted_and_disconnected(system) -> None:
+    ns, _ = system
+    scart(ns, "connect", "echo.floats_out", "far.samples", "--name", "floats", "--policy", "buffer:4")
+    rows = {r["name"]: r for r in json.loads(scart(ns, "links", "--json", "--sample", "0").stdout)}
+    assert rows["floats"]["sink"] == "far.samples" and rows["floats"]["transport"] == "grpc"
+    assert rows["floats"]["policy"] == "buffer:4" and {"rate", "dropped", "samples"} <= set(rows["floats"])
+    table = scart(ns, "links", "--sample", "0").stdout
+    assert table.splitlines()[0].split()[:4] == ["NAME", "SOURCE", "SINK", "POLICY"] and "floats" in table
+    assert "floats: echo.floats_out -> pinger.samples (buffer:4)" in scart(ns, "reroute", "floats", "pinger.samples").stdout
+    rows = {r["name"]: r for r in json.loads(scart(ns, "links", "--json", "--sample", "0").stdout)}
+    assert (rows["floats"]["sink"], rows["floats"]["transport"]) == ("pinger.samples", "local")
+    wrong = scart(ns, "reroute", "floats", "pinger.input", check=False)  # float, not list[float]
+    assert wrong.returncode == 1 and "types differ" in wrong.stderr
+    assert json.loads(scart(ns, "disconnect", "floats", "--json").stdout) == {"name": "floats", "disconnected": True}
+    gone = scart(ns, "disconnect", "floats", check=False)
+    assert gone.returncode == 1 and "no link 'floats'" in gone.stderr
 
 
 def test_unknown_component_names_the_known_ones(system) -> None:

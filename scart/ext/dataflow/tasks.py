@@ -20,7 +20,8 @@ runtime, :func:`~scart.ext.dataflow.deployer_of`):
 
 ``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` (a child of
 ``<composite>``; ``policy`` in ``ConnPolicy.parse`` short form, default ``data``;
-optional ``ns`` = name service) connects an output port to an input port. Both ends in
+optional ``ns`` = name service; optional ``name``: the link's name for ``scart links``,
+``reroute`` and ``disconnect``, default ``a.out->b.in``) connects an output port to an input port. Both ends in
 this composite: connected in-process when the second task is added. One end not in this
 composite: it is a task of another deployer, resolved through the name service (``ns``,
 else the runtime's, see :class:`~scart.ext.dataflow._host.DataflowHost`) at start or
@@ -230,6 +231,7 @@ class Link:
     policy: ConnPolicy
     ns: str | None
     where: str
+    name: str | None = None  # the link's name (``scart links``); default "a.out->b.in"
 
     @property
     def text(self) -> str:
@@ -260,7 +262,7 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
         policy = ConnPolicy.data()
     if problems:
         return None, problems
-    return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc)), []
+    return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc), el.attributes.get("name") or None), []
 
 
 def links_of(elements: list[tuple[str, Element]], remap: Remap | None = None) -> list[Link]:
@@ -344,7 +346,7 @@ def connect_present(runtime: Host, task_name: str) -> None:
     names = set(deployer.names())
     for link in runtime_links(runtime):
         if task_name in (link.source[0], link.sink[0]) and link.source[0] in names and link.sink[0] in names:
-            deployer.connect(".".join(link.source), ".".join(link.sink), link.policy)
+            deployer.connect(".".join(link.source), ".".join(link.sink), link.policy, name=link.name)
 
 
 def runtime_links(runtime: Host) -> list[Link]:
@@ -376,7 +378,7 @@ class ConnectParticipant(Participant):
         deployer = host_of(self.runtime).deployer
         for link in self.links:
             if self._is_local(link):
-                deployer.connect(".".join(link.source), ".".join(link.sink), link.policy)
+                deployer.connect(".".join(link.source), ".".join(link.sink), link.policy, name=link.name)
         if self._remote:
             self._watcher = Watcher("scart-connect", self._step, interval=0.25)
             self._watcher.start()
@@ -443,7 +445,7 @@ class ConnectParticipant(Participant):
             raise DataflowError(f"connect {link.text}: this runtime's tasks are not served (use scart run)")
         system = GrpcSystem(ns, timeout=self.runtime.settings.timeout, security=self.runtime.settings.security)
         try:
-            system.connect_ports(".".join(link.source), ".".join(link.sink), link.policy)
+            system.connect_ports(".".join(link.source), ".".join(link.sink), link.policy, name=link.name)
         finally:
             system.close()
         log.info("connect %s: connected across deployers", link.text)

@@ -63,7 +63,7 @@ BODY = """
     <component name="src"><scart:implementation.task class="tasks:Source"/></component>
     <component name="sink"><scart:implementation.task class="tasks:Sink"/></component>
     <component name="sink2"><scart:implementation.task class="tasks:Sink"/></component>
-    <scart:connect from="src.out" to="sink.inp"/>
+    <scart:connect from="src.out" to="sink.inp" name="feed"/>
     <scart:bridge name="doubler">
       <scart:input name="value" from="src.out" convert="tasks:twice"/>
       <scart:output name="out" type="float64" build="tasks:twice"/>
@@ -99,6 +99,9 @@ def test_tasks_ports_links_bridges_and_bindings_follow_the_remap(tmp_path: Path)
         src.port("value_out").write(1.5)
         wait_until(lambda: sink.got == [1.5] and sink2.got == [6.0], timeout=10,
                    message=f"links not made under the new names: {sink.got} {sink2.got}")
+        links = {lk.name: (lk.source, lk.sink) for lk in deployer.links()}  # what `scart links` lists
+        assert links["feed"] == ("left/src.value_out", "left/sink.value_in")
+        assert links["left/src.value_out->left/doubler.value"] == ("left/src.value_out", "left/doubler.value")
         rt.service("feeder").feed(4.0)  # binding.dataflow writes the renamed port of the renamed task
         wait_until(lambda: sink.got == [1.5, 4.0], timeout=10, message=f"binding missed the remap: {sink.got}")
 

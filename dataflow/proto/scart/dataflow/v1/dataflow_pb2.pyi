@@ -377,18 +377,20 @@ class SetPropertyResponse(_message.Message):
     def __init__(self, json_value: _Optional[str] = ...) -> None: ...
 
 class ConnectPortsRequest(_message.Message):
-    __slots__ = ("source_task", "source_port", "sink_task", "sink_port", "policy")
+    __slots__ = ("source_task", "source_port", "sink_task", "sink_port", "policy", "name")
     SOURCE_TASK_FIELD_NUMBER: _ClassVar[int]
     SOURCE_PORT_FIELD_NUMBER: _ClassVar[int]
     SINK_TASK_FIELD_NUMBER: _ClassVar[int]
     SINK_PORT_FIELD_NUMBER: _ClassVar[int]
     POLICY_FIELD_NUMBER: _ClassVar[int]
+    NAME_FIELD_NUMBER: _ClassVar[int]
     source_task: str
     source_port: str
     sink_task: str
     sink_port: str
     policy: ConnPolicy
-    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ...) -> None: ...
+    name: str
+    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., name: _Optional[str] = ...) -> None: ...
 
 class ConnectPortsResponse(_message.Message):
     __slots__ = ("local", "sink_address")
@@ -399,16 +401,62 @@ class ConnectPortsResponse(_message.Message):
     def __init__(self, local: _Optional[bool] = ..., sink_address: _Optional[str] = ...) -> None: ...
 
 class DisconnectPortsRequest(_message.Message):
-    __slots__ = ("source_task", "source_port", "sink_task", "sink_port")
+    __slots__ = ("source_task", "source_port", "sink_task", "sink_port", "name")
     SOURCE_TASK_FIELD_NUMBER: _ClassVar[int]
     SOURCE_PORT_FIELD_NUMBER: _ClassVar[int]
     SINK_TASK_FIELD_NUMBER: _ClassVar[int]
     SINK_PORT_FIELD_NUMBER: _ClassVar[int]
+    NAME_FIELD_NUMBER: _ClassVar[int]
     source_task: str
     source_port: str
     sink_task: str
     sink_port: str
-    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ...) -> None: ...
+    name: str
+    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ..., name: _Optional[str] = ...) -> None: ...
+
+class LinkInfo(_message.Message):
+    __slots__ = ("name", "source", "sink", "policy", "transport", "samples", "dropped")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_FIELD_NUMBER: _ClassVar[int]
+    SINK_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    TRANSPORT_FIELD_NUMBER: _ClassVar[int]
+    SAMPLES_FIELD_NUMBER: _ClassVar[int]
+    DROPPED_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    source: str
+    sink: str
+    policy: str
+    transport: str
+    samples: int
+    dropped: int
+    def __init__(self, name: _Optional[str] = ..., source: _Optional[str] = ..., sink: _Optional[str] = ..., policy: _Optional[str] = ..., transport: _Optional[str] = ..., samples: _Optional[int] = ..., dropped: _Optional[int] = ...) -> None: ...
+
+class ListLinksRequest(_message.Message):
+    __slots__ = ()
+    def __init__(self) -> None: ...
+
+class ListLinksResponse(_message.Message):
+    __slots__ = ("links",)
+    LINKS_FIELD_NUMBER: _ClassVar[int]
+    links: _containers.RepeatedCompositeFieldContainer[LinkInfo]
+    def __init__(self, links: _Optional[_Iterable[_Union[LinkInfo, _Mapping]]] = ...) -> None: ...
+
+class RerouteLinkRequest(_message.Message):
+    __slots__ = ("name", "sink_task", "sink_port")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    SINK_TASK_FIELD_NUMBER: _ClassVar[int]
+    SINK_PORT_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    sink_task: str
+    sink_port: str
+    def __init__(self, name: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ...) -> None: ...
+
+class RerouteLinkResponse(_message.Message):
+    __slots__ = ("link",)
+    LINK_FIELD_NUMBER: _ClassVar[int]
+    link: LinkInfo
+    def __init__(self, link: _Optional[_Union[LinkInfo, _Mapping]] = ...) -> None: ...
 
 class DisconnectPortsResponse(_message.Message):
     __slots__ = ("disconnected",)

@@ -104,6 +104,16 @@ class DeployerServiceStub:
                 request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.DisconnectPortsRequest.SerializeToString,
                 response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.DisconnectPortsResponse.FromString,
                 _registered_method=True)
+        self.ListLinks = channel.unary_unary(
+                '/scart.dataflow.v1.DeployerService/ListLinks',
+                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.ListLinksRequest.SerializeToString,
+                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.ListLinksResponse.FromString,
+                _registered_method=True)
+        self.RerouteLink = channel.unary_unary(
+                '/scart.dataflow.v1.DeployerService/RerouteLink',
+                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.SerializeToString,
+                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.FromString,
+                _registered_method=True)
 
 
 class DeployerServiceServicer:
@@ -205,6 +215,22 @@ class DeployerServiceServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def ListLinks(self, request, context):
+        """The links whose source is a task of this deployer: name, ends, policy, transport,
+        samples the source wrote, samples dropped (at most 10 000).
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
+    def RerouteLink(self, request, context):
+        """Point a link of this deployer at another input port (same source, policy and name):
+        the new connection is made before the old one is undone.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
 
 def add_DeployerServiceServicer_to_server(servicer, server):
     rpc_method_handlers = {
@@ -277,6 +303,16 @@ def add_DeployerServiceServicer_to_server(servicer, server):
                     servicer.DisconnectPorts,
                     request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.DisconnectPortsRequest.FromString,
                     response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.DisconnectPortsResponse.SerializeToString,
+            ),
+            'ListLinks': grpc.unary_unary_rpc_method_handler(
+                    servicer.ListLinks,
+                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.ListLinksRequest.FromString,
+                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.ListLinksResponse.SerializeToString,
+            ),
+            'RerouteLink': grpc.unary_unary_rpc_method_handler(
+                    servicer.RerouteLink,
+                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.FromString,
+                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.SerializeToString,
             ),
     }
     generic_handler = grpc.method_handlers_generic_handler(
@@ -657,6 +693,60 @@ class DeployerService:
             '/scart.dataflow.v1.DeployerService/DisconnectPorts',
             scart_dot_dataflow_dot_v1_dot_dataflow__pb2.DisconnectPortsRequest.SerializeToString,
             scart_dot_dataflow_dot_v1_dot_dataflow__pb2.DisconnectPortsResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def ListLinks(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/scart.dataflow.v1.DeployerService/ListLinks',
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.ListLinksRequest.SerializeToString,
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.ListLinksResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def RerouteLink(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/scart.dataflow.v1.DeployerService/RerouteLink',
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.SerializeToString,
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.FromString,
             options,
             channel_credentials,
             insecure,

@@ -1,0 +1,141 @@
+"""Named links: ``connect(..., name=)``, ``links()``, ``reroute()`` and ``disconnect_link()``,
+in one deployer and across deployers; a reroute while samples flow loses none on the link
+that stays, and the new input gets every sample written once it returns."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from dataflow import ConnPolicy, Deployer, DeploymentError, FlowStatus, InputPort, NotFoundError, OutputPort, TaskContext
+from dataflow.remote import connect, serve_nameserver
+from support import wait_until
+
+
+class Counter(TaskContext):
+    out = OutputPort(int)
+
+
+class Collector(TaskContext):
+    inp = InputPort(int, event=True)
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.got: list[int] = []
+        self._lock = threading.Lock()
+
+    def update_hook(self) -> None:
+        for _ in range(100_000):
+            flow, v = self.inp.read()
+            if flow is not FlowStatus.NEW_DATA:
+                return
+            with self._lock:
+                self.got.append(v)
+
+    def seen(self) -> list[int]:
+        with self._lock:
+            return list(self.got)
+
+
+@pytest.fixture
+def deployer():
+    d = Deployer()
+    d.add(Counter("src"))
+    for name in ("a", "b", "c"):
+        d.add(Collector(name))
+    d.configure_all()
+    d.start_all()
+    try:
+        yield d
+    finally:
+        d.stop_all()
+        d.cleanup_all()
+
+
+def test_links_are_named_listed_and_removed_by_name(deployer: Deployer) -> None:
+    deployer.connect("src.out", "a.inp", ConnPolicy.buffer(16), name="l1")
+    deployer.connect("src.out", "b.inp")
+    links = {lk.name: lk for lk in deployer.links()}
+    assert set(links) == {"l1", "src.out->b.inp"}
+    assert (links["l1"].sink, links["l1"].policy, links["l1"].transport) == ("a.inp", "buffer:16", "local")
+    deployer.task("src").port("out").write(1)
+    assert {lk.name: lk.samples for lk in deployer.links()}["l1"] == 1
+    with pytest.raises(DeploymentError, match="a link named 'l1' exists already"):
+        deployer.connect("src.out", "c.inp", name="l1")
+    with pytest.raises(DeploymentError, match="link name"):
+        deployer.connect("src.out", "c.inp", name="no spaces")
+    with pytest.raises(NotFoundError, match="no link 'l9'; links: l1, src.out->b.inp"):
+        deployer.reroute("l9", "c.inp")
+    link = deployer.find_link("l1")
+    assert deployer.disconnect(link.source, link.sink)
+    assert [lk.name for lk in deployer.links()] == ["src.out->b.inp"]
+
+
+def test_reroute_while_running_loses_no_sample(deployer: Deployer) -> None:
+    deployer.connect("src.out", "a.inp", ConnPolicy.buffer(100_000), name="moving")
+    deployer.connect("src.out", "b.inp", ConnPolicy.buffer(100_000), name="staying")
+    out = deployer.task("src").port("out")
+    a, b, c = (deployer.task(n) for n in "abc")
+    n = 20_000
+    rerouted = threading.Event()
+
+    def write() -> None:
+        for i in range(n):
+            out.write(i)
+            if i == n // 2:
+                rerouted.wait(10)  # the reroute happens while the writer is mid-stream
+
+    writer = threading.Thread(target=write, name="test-writer")
+    writer.start()
+    try:
+        wait_until(lambda: len(a.seen()) > 100, timeout=10, message="nothing flows")
+        moved = deployer.reroute("moving", "c.inp")
+        at = out.last_sample()[0]  # samples written before the reroute returned
+        rerouted.set()
+        assert (moved.name, moved.sink, moved.policy) == ("moving", "c.inp", "buffer:100000")
+    finally:
+        rerouted.set()
+        writer.join(30)
+    wait_until(lambda: b.seen()[-1:] == [n - 1] and c.seen()[-1:] == [n - 1], timeout=20,
+               message="the samples did not all arrive")
+    assert b.seen() == list(range(n))  # the link that stays: every sample, in order
+    # the moved one: the new input has every sample written once the reroute returned (what the
+    # old input had buffered but not read when it was disconnected is its own, as in RTT)
+    assert set(range(at, n)) <= set(c.seen()) and c.seen() == sorted(c.seen()) and at < n
+    assert {lk.name: lk.sink for lk in deployer.links()} == {"moving": "c.inp", "staying": "b.inp"}
+
+
+def test_links_across_deployers_through_the_name_service() -> None:
+    ns = serve_nameserver("127.0.0.1:0")
+    d1, d2 = Deployer(), Deployer()
+    d1.add(Counter("src"))
+    d1.add(Collector("local"))
+    d2.add(Collector("far"))
+    servers = []
+    try:
+        for d in (d1, d2):
+            d.configure_all()
+            d.start_all()
+            servers.append(d.serve("127.0.0.1:0", ns=ns.address))
+        with connect(ns.address) as system:
+            system.connect_ports("src.out", "far.inp", ConnPolicy.buffer(64), name="toFar")
+            system.connect_ports("src.out", "local.inp")
+            links = {lk.name: lk for lk in system.links()}
+            assert links["toFar"].transport == "grpc" and links["src.out->local.inp"].transport == "local"
+            d1.task("src").port("out").write(5)
+            wait_until(lambda: d2.task("far").seen() == [5], timeout=10, message="nothing crossed")
+            moved = system.reroute("toFar", "local.inp")  # already linked to local: the same pair
+            assert moved.sink == "local.inp" and moved.transport == "local"
+            assert {lk.name for lk in system.links()} == {"toFar"}
+            assert system.disconnect_link("toFar")
+            assert system.links() == []
+            with pytest.raises(NotFoundError, match="no link 'toFar'"):
+                system.reroute("toFar", "far.inp")
+    finally:
+        for s in servers:
+            s.stop()
+        for d in (d1, d2):
+            d.stop_all()
+            d.cleanup_all()
+        ns.stop()
