@@ -2,7 +2,9 @@
 
 It commands the driver proxy through ``SendingCommands`` (one-way) and hears back through
 the ``Notifying`` callback: its :meth:`Locomotor.notify` receives ``busy`` / ``idle`` /
-``refresh``. It reports (log and :attr:`Locomotor.reports`) when the target is reached —
+``refresh``. When ``busy_out`` is wired (``youbot.composite``: a ``binding.dataflow`` to the
+``locomotorState`` task), every change of its busy flag is written there too, for the
+``armSummary`` bridge. It reports (log and :attr:`Locomotor.reports`) when the target is reached —
 the newest positions within ``tolerance`` of the target.
 """
 
@@ -14,6 +16,7 @@ import threading
 from collections import deque
 
 import scart
+from arm_summary import BusyFeed
 from interfaces import Moving, RetrievingStatus, SendingCommands
 from youbot_model import JOINT_LIMITS, N_JOINTS
 
@@ -39,6 +42,7 @@ class Locomotor:
     poses_table: dict = scart.prop(default=POSES)
     driver: SendingCommands = scart.reference()
     status: RetrievingStatus = scart.reference()
+    busy_out: BusyFeed | None = scart.reference(required=False)
 
     @scart.init
     def open(self) -> None:
@@ -92,6 +96,7 @@ class Locomotor:
     def _move(self, target: list[float], name: str) -> str:
         with self._lock:
             self._target, self._target_name, self._busy = list(target), name, True
+        self._publish_busy(True)
         self.driver.set_joints_positions(list(target))  # one-way: returns at once
         log.info("moving to %s", name)
         return f"moving to {name}"
@@ -106,10 +111,12 @@ class Locomotor:
         if event == "busy":
             with self._lock:
                 self._busy = True
+            self._publish_busy(True)
         elif event == "idle" and detail != "superseded":
             with self._lock:
                 self._busy = False
                 name = self._target_name
+            self._publish_busy(False)
             if detail == "":
                 report = f"target {name} reached"
                 log.info(report)
@@ -117,6 +124,15 @@ class Locomotor:
                 report = f"target {name} not reached: {detail}"
                 log.warning(report)
             self.reports.append(report)
+
+    def _publish_busy(self, busy: bool) -> None:
+        """The flag to ``busy_out`` when wired (a task that is not there yet: logged, not raised)."""
+        if self.busy_out is None:
+            return
+        try:
+            self.busy_out.set_busy(busy)
+        except Exception as exc:  # noqa: BLE001 - the flag is informative: never fail a move for it
+            log.debug("busy flag not written: %s", exc)
 
     def outcome(self) -> str:
         """The newest report (``Moving.outcome``)."""

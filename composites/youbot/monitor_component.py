@@ -6,7 +6,9 @@ and is its backend: period requests go to ``period: SettingPeriod``, poses to
 calling ``status.get_joints_status()`` at init; on each ``notify("refresh")`` it fetches
 the newest sample and publishes it; ``busy``/``idle`` and connection events are shown
 in the page's event log. A small owned thread (~2 Hz) keeps the driver info (state,
-period, connection) up to date.
+period, connection) up to date. Where its ``bridge`` reference is wired (``youbot.composite``:
+a ``binding.dataflow`` to the ``armSummary`` bridge), each refresh also reads the newest
+``ArmSummary`` and shows it.
 
 At start it prints ``youBot Monitor: http://HOST:PORT/`` on stdout (flushed). With
 ``control_token`` true, a fresh random token is made at each start and the printed URL
@@ -24,6 +26,7 @@ from collections import deque
 from typing import Any, Protocol
 
 import scart
+from arm_summary import ArmSummaryReader
 from interfaces import Moving, RetrievingStatus, SettingPeriod
 from monitor import MonitorServer
 from youbot_model import ERROR_BITS
@@ -55,6 +58,7 @@ class YouBotMonitor:
     status: RetrievingStatus = scart.reference()
     period: SettingPeriod = scart.reference()
     locomotor: Moving = scart.reference()
+    bridge: ArmSummaryReader | None = scart.reference(required=False)
 
     @scart.init
     def open(self) -> None:
@@ -132,6 +136,7 @@ class YouBotMonitor:
         """``refresh``: fetch and publish the newest sample; other events are shown."""
         if event == "refresh":
             self.refreshes += 1
+            self._read_summary()
             self._publish_newest(self.status.get_joints_status())
             self.server.publish_event("refresh")
             if self._moving:
@@ -205,6 +210,18 @@ class YouBotMonitor:
             if isinstance(stamp, (int, float)):
                 self._latencies.append(received - float(stamp))
         self.server.publish_status(sample)
+
+    def _read_summary(self) -> None:
+        """The bridge's newest ArmSummary to the page (carried with the next status)."""
+        if self.bridge is None:
+            return
+        try:
+            value = self.bridge.summary()
+        except Exception as exc:  # noqa: BLE001 - the bridge not there (yet): nothing to show
+            log.debug("arm summary: %s", exc)
+            return
+        if value is not None:
+            self.server.set_summary(value.model_dump())
 
     def _refresh_info(self) -> None:
         try:

@@ -168,3 +168,24 @@ def test_two_demos_remapped_side_by_side_on_one_name_service() -> None:
             assert right.stop() == 0, right.output()
     finally:
         assert left.stop() == 0, left.output()
+
+
+def test_the_arm_summary_bridge_merges_status_and_busy_flag() -> None:
+    """youbot.composite's armSummary bridge: the driver's status and the Locomotor's busy
+    flag, merged into one ArmSummary that the monitor shows and the CLI describes."""
+    demo = start_serving("youbot.composite")
+    try:
+        url = demo.monitor_url()
+        first = wait_until(lambda: (monitor_state(url).get("summary") or {}), 20, 0.05, "no summary shown")
+        assert len(first["positions"]) == 5 and first["busy"] is False
+        described = _scart(demo.ns, "describe", "armSummary")
+        assert "status.age" in described and "busy.samples" in described
+        links = {lk["name"]: lk for lk in json.loads(_scart(demo.ns, "links", "--json"))}
+        assert links["youBotDriver.jointStatus->armSummary.status"]["rate"] > 0
+        assert post_json(url + "api/pose", {"pose": "candle"})["ok"]
+        wait_until(lambda: monitor_state(url)["summary"]["busy"] is True, 10, 0.02, "the busy flag never crossed")
+        done = wait_until(lambda: (s := monitor_state(url)["summary"])["busy"] is False and s, 30, 0.05,
+                          "the move never ended")
+        assert abs(done["positions"][1] - 1.1) < 0.05  # candle's second joint
+    finally:
+        assert demo.stop() == 0, demo.output()

@@ -59,6 +59,7 @@ class StatusHub:
         self._version = 0
         self._closed = False
         self._status: dict[str, object] | None = None
+        self._summary: dict[str, Any] | None = None  # the demo bridge's newest ArmSummary
         self._status_json = "null"
         self._status_json_of = 0  # the sample count that _status_json encodes
         self._received_at: float | None = None
@@ -104,6 +105,12 @@ class StatusHub:
             if was != bool(connected):
                 self._add_event("connected" if connected else "disconnected", str(state))
             self._bump()
+
+    def set_summary(self, summary: dict[str, Any]) -> None:
+        """Keep the newest bridge summary; it goes out with the next status (no wake-up of
+        its own: it changes at the status's rate)."""
+        with self._cond:
+            self._summary = dict(summary)
 
     @property
     def error_flag_names(self) -> dict[int, str]:
@@ -158,6 +165,7 @@ class StatusHub:
                 "rate": self._rate(age),
                 "samples": self._samples,
                 "driver": dict(self._driver),
+                "summary": None if self._summary is None else dict(self._summary),
                 "flags": self._decoded_flags(status),
                 "events": events,
                 "coalesced": {k: dict(v, age=time.time() - v["last"]) for k, v in self._coalesced.items()},

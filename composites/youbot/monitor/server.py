@@ -588,6 +588,10 @@ class MonitorServer:
         logged one by one. Thread-safe, never blocks on browsers."""
         self._hub.publish_event(name, detail)
 
+    def set_summary(self, summary: dict[str, object]) -> None:
+        """The newest ``ArmSummary`` of the demo's bridge (as a dict): in the next snapshot."""
+        self._hub.set_summary(summary)
+
     def set_driver_info(self, state: str, period: float, connected: bool) -> None:
         """Driver state (e.g. ``RUNNING``), its accepted period in seconds, and whether
         it is reachable; a change of ``connected`` is logged. Thread-safe."""

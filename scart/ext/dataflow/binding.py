@@ -160,7 +160,8 @@ class _Link:
         self.what = what
         self.host = host_of(runtime)
         node = runtime.assembly.nodes.get(s.component)
-        self.local = s.ns is None and node is not None and node.kind == TASK_KIND
+        bridges = {prefix + el.attributes.get("name", "") for prefix, el in runtime.assembly.elements_of("bridge")}
+        self.local = s.ns is None and ((node is not None and node.kind == TASK_KIND) or s.component in bridges)
         self.task = runtime.settings.remap.component(s.component)  # the name it runs under
         self._system: Any = None
         self._proxy: Any = None

@@ -26,7 +26,7 @@ generated code and with the types checked at load time::
   message_filters' ApproximateTime; an older sample is dropped for a newer one).
 * **Missing inputs** (``missing``) — ``hold`` (default: the last value; no output until
   the first one), ``skip`` (no output unless this input has a new sample) or ``default``
-  (the ``default`` value, JSON, when it has no new one).
+  (the last value, and the ``default`` value, JSON, until the first sample).
 
 **Type-checked at load time** (``file:line``, naming the input, the converter and both
 types): a converter's parameter against its source port's type, a field path through the
@@ -609,7 +609,7 @@ class BridgeTask(TaskContext):
         values: dict[str, Any] = {}
         for inp in self.resolved.spec.inputs:
             state = self._inputs[inp.name]
-            if inp.missing == "default" and not state.fresh:
+            if inp.missing == "default" and not state.has_value:
                 values[inp.name] = self.resolved.defaults.get(inp.name)
             elif (inp.missing == "skip" and not state.fresh) or not state.has_value:
                 return None

@@ -306,6 +306,10 @@
       age.dataset.value = String(msg.age);
     }
     $("age-pill").classList.toggle("warn", !(typeof msg.age === "number" && msg.age < STALE_S));
+    const sm = msg.summary;
+    if (sm && Array.isArray(sm.positions)) {
+      $("arm-summary").textContent = (sm.busy ? "busy" : "idle") + " · " + sm.positions.map((p) => p.toFixed(2)).join(" ");
+    }
     setConn(msg);
     if (!periodTouched && document.activeElement !== $("period-input") && typeof d.period === "number") {
       $("period-input").value = String(+(d.period * 1000).toFixed(3));
