@@ -176,19 +176,26 @@ def _wait_until_stopped(done: threading.Event, duration: float | None, tick: flo
         signal.signal(signal.SIGTERM, old[1])
 
 
+def _with_rates(listing: Callable[[], list[Any]], count: Callable[[Any], int], sample: float) -> list[tuple[Any, float]]:
+    """Each item of ``listing()`` with its rate (count per second) measured over ``sample`` s:
+    listed twice, ``sample`` s apart; an item that appeared in between has rate 0."""
+    first = {item.name: (count(item), time.monotonic()) for item in listing()}
+    if sample > 0:
+        threading.Event().wait(sample)
+    out = []
+    for item in listing():
+        count0, t0 = first.get(item.name, (count(item), time.monotonic()))
+        dt = time.monotonic() - t0
+        out.append((item, round((count(item) - count0) / dt, 2) if dt > 0 else 0.0))
+    return out
+
+
 # ---- verbs -----------------------------------------------------------------------------
 def cmd_ls(args: argparse.Namespace) -> int:
     """``scart ls``: one line per component; rate measured over ``--sample`` s."""
-    first = {c.name: (c.cycles, time.monotonic()) for c in args.system.components()}
-    if args.sample > 0:
-        threading.Event().wait(args.sample)
-    rows = []
-    for c in args.system.components():
-        cycles0, t0 = first.get(c.name, (c.cycles, time.monotonic()))
-        dt = time.monotonic() - t0
-        rate = (c.cycles - cycles0) / dt if dt > 0 else 0.0
-        rows.append({"name": c.name, "state": c.state, "activity": c.activity, "period": c.period,
-                     "rate": round(rate, 2), "cycles": c.cycles, "overruns": c.overruns, "deployer": c.address})
+    rows = [{"name": c.name, "state": c.state, "activity": c.activity, "period": c.period, "rate": rate,
+             "cycles": c.cycles, "overruns": c.overruns, "deployer": c.address}
+            for c, rate in _with_rates(args.system.components, lambda c: c.cycles, args.sample)]
     if args.json:
         _out(_dump(rows))
         return 0
@@ -385,15 +392,8 @@ def cmd_connect(args: argparse.Namespace) -> int:
 
 def cmd_links(args: argparse.Namespace) -> int:
     """``scart links``: one line per link; rate measured over ``--sample`` s."""
-    first = {lk.name: (lk.samples, time.monotonic()) for lk in args.system.links()}
-    if args.sample > 0:
-        threading.Event().wait(args.sample)
-    rows = []
-    for lk in args.system.links():
-        samples0, t0 = first.get(lk.name, (lk.samples, time.monotonic()))
-        dt = time.monotonic() - t0
-        rate = (lk.samples - samples0) / dt if dt > 0 else 0.0
-        rows.append({**lk.model_dump(), "rate": round(rate, 2)})
+    rows = [{**lk.model_dump(), "rate": rate}
+            for lk, rate in _with_rates(args.system.links, lambda lk: lk.samples, args.sample)]
     if args.json:
         _out(_dump(rows))
         return 0

@@ -65,7 +65,7 @@ from dataflow.introspection import PropertyDescription, TaskDescription
 from scart.errors import ScartError
 from scart.ext.dataflow._host import TASK_KIND, host_of, remote_ports
 from scart.ext.dataflow._plan import MIN_PERIOD_S
-from scart.ext.dataflow.tasks import ConnectParticipant, Link, connect_present
+from scart.ext.dataflow.tasks import ConnectParticipant, Link, connect_present, retire
 from scart.spi import (
     AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem, Remap, Settings,
 )
@@ -745,12 +745,7 @@ class BridgeParticipant(Participant):
             self._connector.stop()
         for task in reversed(self.tasks):
             try:
-                if task.is_running():
-                    task.stop()
-                if task.is_configured():
-                    task.cleanup()
-                for port in task.ports().values():
-                    port.disconnect()
+                retire(task)
             except DataflowError as exc:
                 log.warning("bridge %s: stopping: %s", task.name, exc)
 

@@ -204,19 +204,22 @@ class TaskManager(ComponentManager):
 
     def stop(self) -> None:
         """Stop, clean up and disconnect the task (idempotent; refusals are logged)."""
-        task = self.task
-        if task is None:
-            return
-        if task.is_running():
-            task.stop()
-        if task.is_configured():
-            task.cleanup()
-        for port in task.ports().values():
-            port.disconnect()
+        if self.task is not None:
+            retire(self.task)
 
     def instance(self) -> object | None:
         """The task once started."""
         return self.task
+
+
+def retire(task: TaskContext) -> None:
+    """Stop, clean up and disconnect ``task`` (each step only where it applies: idempotent)."""
+    if task.is_running():
+        task.stop()
+    if task.is_configured():
+        task.cleanup()
+    for port in task.ports().values():
+        port.disconnect()
 
 
 # --- scart:connect ----------------------------------------------------------------------
