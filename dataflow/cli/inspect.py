@@ -51,10 +51,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
     p.add_argument("--period", type=float, default=None, help="poll at this period instead of push")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--field", default=None, metavar="PATH",
+                   help="print only this part of each sample: joints[2].position, joints[*].position")
     p = verb("hz", "measure the rate of an output port", cmd_hz)
     p.add_argument("port", metavar="COMP.PORT")
     p.add_argument("-n", type=int, default=None, help="stop after N samples (prints one report)")
-    p.add_argument("--window", type=int, default=10000, help="samples kept for the statistics")
+    p.add_argument("--window", type=int, default=10000, help="periods kept for the statistics")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     p = verb("write", "write one value (JSON) to an input port", cmd_write)
     p.add_argument("port", metavar="COMP.PORT")
@@ -244,8 +246,15 @@ def _policy(text: str) -> Any:
 
 
 def cmd_echo(args: argparse.Namespace) -> int:
-    """``scart echo COMP.PORT [-n N]``: one line per sample."""
+    """``scart echo COMP.PORT [-n N] [--field PATH]``: each sample (or the part ``--field``
+    names): readable, over several lines for a structure (``--- [sequence]`` first), or one
+    JSON line with ``--json``."""
+    from dataflow.fields import apply_path, parse_path
+
     component, port = _split(args.port)
+    path = parse_path(args.field) if args.field is not None else None
+    if args.field is not None and path is None:
+        raise ValueError(f"--field {args.field!r}: expected a path such as joints[2].position or joints[*].position")
     proxy = args.system.component(component)
     done = threading.Event()
     count = [0]
@@ -255,8 +264,19 @@ def cmd_echo(args: argparse.Namespace) -> int:
         with lock:
             if done.is_set():
                 return
-            value = _dump(_jsonable(event.value))
-            _out(value if args.json else f"[{event.sequence}] {value}")
+            data = _jsonable(event.value)
+            if path is not None:
+                try:
+                    data = apply_path(data, path)
+                except (KeyError, IndexError, TypeError, AttributeError):
+                    _err(f"echo: sample {event.sequence} has no {args.field}")
+                    data = None
+            if args.json:
+                _out(_dump(data))
+            elif isinstance(data, (dict, list)) and data:
+                _out(f"--- [{event.sequence}]\n{json.dumps(data, ensure_ascii=False, indent=2)}")
+            else:
+                _out(f"[{event.sequence}] {_dump(data)}")
             count[0] += 1
             if args.n is not None and count[0] >= args.n:
                 done.set()
@@ -272,17 +292,18 @@ def cmd_echo(args: argparse.Namespace) -> int:
 
 
 def hz_stats(stamps: list[float]) -> dict[str, float]:
-    """``ros2 topic hz`` statistics from sample times (s): rate, min, max, std_dev, window."""
+    """``ros2 topic hz`` statistics from sample times (s): rate, min, max, std_dev, and window
+    (the number of periods measured)."""
     periods = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
     if not periods:
-        return {"rate": 0.0, "min": 0.0, "max": 0.0, "std_dev": 0.0, "window": len(stamps)}
+        return {"rate": 0.0, "min": 0.0, "max": 0.0, "std_dev": 0.0, "window": 0}
     mean = statistics.fmean(periods)
     return {
         "rate": 1.0 / mean if mean > 0 else math.inf,
         "min": min(periods),
         "max": max(periods),
         "std_dev": statistics.pstdev(periods),
-        "window": len(stamps),
+        "window": len(periods),  # intervals measured: `hz -n 100` reports 100
     }
 
 
@@ -300,7 +321,7 @@ def cmd_hz(args: argparse.Namespace) -> int:
     def observer(event: Any) -> None:
         with lock:
             stamps.append(event.source_time)
-            del stamps[: max(0, len(stamps) - args.window)]
+            del stamps[: max(0, len(stamps) - args.window - 1)]  # window periods need window + 1 samples
             if target is not None and len(stamps) >= target:
                 done.set()
 

@@ -202,7 +202,9 @@ class NameRegistry:
                     taken = sorted(holder.components & names)[: self.limits.listed]
                     raise errors.AlreadyRegisteredError(
                         f"component name(s) {', '.join(taken)} already registered by the deployer at "
-                        f"{holder.address}; choose another name or stop that deployer", "ALREADY_EXISTS", address)
+                        f"{holder.address}; choose another name (scart run --remap __ns=NAME puts a whole system "
+                        "under NAME/), run a second system with its own name service (--ns HOST:PORT), or stop "
+                        "that deployer", "ALREADY_EXISTS", address)
             for lid in gone:
                 held = self._leases.get(lid)
                 if held is not None:

@@ -118,7 +118,7 @@ def test_hz(system) -> None:
     ns, _ = system
     stats = json.loads(scart(ns, "hz", "youBotDriver.jointStatus", "-n", "30", "--json").stdout.splitlines()[-1])
     assert set(stats) == {"rate", "min", "max", "std_dev", "window"}
-    assert 50 < stats["rate"] < 200 and stats["window"] >= 31
+    assert 50 < stats["rate"] < 200 and stats["window"] == 30  # -n 30: thirty periods measured
     assert 0 < stats["min"] <= stats["max"]
     assert "average rate:" in scart(ns, "hz", "pinger.ticks", "-n", "5").stdout
 
@@ -187,6 +187,20 @@ def test_named_links_listed_rerouted_and_disconnected(system) -> None:
     assert json.loads(scart(ns, "disconnect", "floats", "--json").stdout) == {"name": "floats", "disconnected": True}
     gone = scart(ns, "disconnect", "floats", check=False)
     assert gone.returncode == 1 and "no link 'floats'" in gone.stderr
+
+
+def test_echo_picks_a_field_and_reads_well(system) -> None:
+    ns, _ = system
+    one = json.loads(scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--json", "--field",
+                           "joints[2].position").stdout)
+    assert isinstance(one, float)
+    every = json.loads(scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--json", "--field",
+                             "joints[*].temperature").stdout)
+    assert len(every) == 5 and all(isinstance(t, float) for t in every)
+    text = scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1").stdout
+    assert text.startswith("--- [") and '\n  "joints": [' in text  # a structure over several lines
+    bad = scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--field", "joints[", check=False)
+    assert bad.returncode == 1 and "--field 'joints['" in bad.stderr
 
 
 def test_unknown_component_names_the_known_ones(system) -> None:

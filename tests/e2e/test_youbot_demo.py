@@ -140,6 +140,7 @@ def test_second_demo_on_the_same_name_service_prints_no_url() -> None:
         out = second.output()
         assert code == 1 and "start failed" in out, out
         assert "youBot Monitor:" not in out, out
+        assert "--ns HOST:PORT" in out and "--remap __ns=NAME" in out, out  # the error says how to fix it
     finally:
         assert first.stop() == 0
 

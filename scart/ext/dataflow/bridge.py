@@ -48,7 +48,6 @@ import inspect
 import json
 import logging
 import math
-import re
 import threading
 import time
 import typing
@@ -61,6 +60,7 @@ import pydantic
 from dataflow import (
     ConnPolicy, DataflowError, FlowStatus, InputPort, OutputPort, PeriodicActivity, TaskContext, registry,
 )
+from dataflow.fields import apply_path, parse_path
 from dataflow.introspection import PropertyDescription, TaskDescription
 from scart.errors import ScartError
 from scart.ext.dataflow._host import TASK_KIND, host_of, remote_ports
@@ -79,7 +79,6 @@ BRIDGE_TYPE = "SCART-B002"  # types that do not agree: source, converter, builde
 TRIGGERS = ("periodic", "any", "all")
 MISSING = ("hold", "skip", "default")
 MAX_INPUTS = 64
-_PATH = re.compile(r"\.?([A-Za-z_]\w*)|\[(\*|\d{1,6})\]")
 _UNKNOWN: Any = None  # a type not known at load time (checked at start)
 
 
@@ -113,23 +112,6 @@ class BridgeSpec:
     output_type: str
     build: str | None
     where: str
-
-
-def parse_path(text: str, input_name: str) -> tuple[str | int, ...] | None:
-    """``joints[*].position`` → ``("joints", -1, "position")``; None when malformed. A
-    leading ``INPUT.`` (the input's own name) is dropped."""
-    steps: list[str | int] = []
-    pos = 0
-    text = text.strip()
-    while pos < len(text):
-        m = _PATH.match(text, pos)
-        if m is None or (pos == 0 and text.startswith(".")):
-            return None
-        steps.append(m[1] if m[1] is not None else (-1 if m[2] == "*" else int(m[2])))
-        pos = m.end()
-    if len(steps) > 1 and steps[0] == input_name:
-        steps = steps[1:]
-    return tuple(steps) if steps else None
 
 
 def _split(ref: str) -> tuple[str, str] | None:
@@ -302,20 +284,6 @@ def path_type(tp: Any, path: tuple[str | int, ...]) -> tuple[Any, str | None]:
     for _ in range(mapped):
         tp = list[tp] if tp is not _UNKNOWN else _UNKNOWN  # type: ignore[valid-type]
     return tp, None
-
-
-def apply_path(value: Any, path: tuple[str | int, ...]) -> Any:
-    """A field path applied to a value (see the module docstring)."""
-    for i, step in enumerate(path):
-        if isinstance(step, int) and step < 0:
-            return [apply_path(item, path[i + 1:]) for item in value]
-        if isinstance(step, int):
-            value = value[step]
-        elif isinstance(value, dict):
-            value = value[step]
-        else:
-            value = getattr(value, step)
-    return value
 
 
 def _hints(fn: Callable[..., Any]) -> tuple[list[inspect.Parameter], dict[str, Any]]:
@@ -751,4 +719,4 @@ class BridgeParticipant(Participant):
 
 
 __all__ = ["BRIDGE", "BRIDGE_TYPE", "BridgeElement", "BridgeParticipant", "BridgeSpec", "BridgeTask", "InputSpec",
-           "Resolved", "apply_path", "bridges_of", "parse_bridge", "parse_path", "path_type", "same_type"]
+           "Resolved", "bridges_of", "parse_bridge", "path_type", "same_type"]

@@ -14,7 +14,8 @@ import scart
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort
 from dataflow.remote import connect
 from scart.ext.dataflow import deployer_of
-from scart.ext.dataflow.bridge import apply_path, parse_path, path_type, same_type
+from dataflow.fields import apply_path, parse_path
+from scart.ext.dataflow.bridge import path_type, same_type
 from support import wait_until
 from support.sca import composite, line_of, write
 
