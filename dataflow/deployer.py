@@ -32,8 +32,8 @@ if TYPE_CHECKING:  # the remote layer is imported only when serving
 
 __all__ = ["Deployer", "LINK_NAME"]
 
-#: What a link name may be: letters, digits, ``_ . / - > :``, at most 128 characters.
-LINK_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./:>-]{0,127}")
+#: What a given link name may be: letters, digits, ``_ . / : -``, at most 128 characters.
+LINK_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./:-]{0,127}")  # no '>': default names ("a.out->b.in") are apart
 MAX_NAMED_LINKS = 4096
 
 log = logging.getLogger(__name__)
@@ -46,6 +46,7 @@ class Deployer:
         self._tasks: dict[str, TaskContext] = {}
         self._lock = threading.Lock()
         self._link_names: dict[tuple[str, str], str] = {}  # ("a.out", "b.in") -> name given
+        self._link_lock = threading.RLock()  # links are checked, made and named as one step
 
     def add(self, task: TaskContext) -> TaskContext:
         """Add ``task``; returns it. Raises ``DeploymentError`` if its name is taken."""
@@ -79,38 +80,40 @@ class Deployer:
     def connect(self, source: str, target: str, policy: ConnPolicy | None = None, name: str | None = None) -> Connection:
         """Connect output ``"a.out"`` to input ``"b.in"``, as the link ``name`` (default
         ``"a.out->b.in"``); raises NotFound/PortType/DeploymentError (also for a name
-        another link has)."""
+        another link has). A refused connection keeps no name."""
         out, inp = self._port(source), self._port(target)
         if not isinstance(out, OutputPort):
             raise DeploymentError(f"{source} is not an output port")
         if not isinstance(inp, InputPort):
             raise DeploymentError(f"{target} is not an input port")
-        if name is not None:
-            self._check_name(source, target, name)
-        conn = out.connect_to(inp, policy if policy is not None else ConnPolicy())
-        if name is not None:  # named once connected: a refused connection keeps no name
-            self.name_link(source, target, name)
-        return conn
+        with self._link_lock:
+            if name is not None:
+                self._check_name(source, target, name)
+            conn = out.connect_to(inp, policy if policy is not None else ConnPolicy())
+            if name is not None:
+                self._link_names[(source, target)] = name
+            return conn
 
     def name_link(self, source: str, sink: str, name: str) -> None:
-        """Call the link ``source`` → ``sink`` (made, or about to be) ``name``. Raises
+        """Call the link ``source`` → ``sink`` ``name`` (once it is made). Raises
         ``DeploymentError`` for a malformed name or one another link has."""
-        with self._lock:
-            self._check_name(source, sink, name, locked=True)
+        with self._link_lock:
+            self._check_name(source, sink, name)
             self._link_names[(source, sink)] = name
 
-    def _check_name(self, source: str, sink: str, name: str, locked: bool = False) -> None:
+    def check_link_name(self, source: str, sink: str, name: str) -> None:
+        """Raise ``DeploymentError`` unless ``name`` may be given to the link ``source`` → ``sink``."""
+        with self._link_lock:
+            self._check_name(source, sink, name)
+
+    def _check_name(self, source: str, sink: str, name: str) -> None:
         if not LINK_NAME.fullmatch(name):
-            raise DeploymentError(f"link name {name!r}: letters, digits and _ . / - > : only, at most 128")
-        if not locked:
-            with self._lock:
-                return self._check_name(source, sink, name, locked=True)
+            raise DeploymentError(f"link name {name!r}: letters, digits and _ . / : - only, at most 128")
         holder = next((k for k, v in self._link_names.items() if v == name), None)
         if holder is not None and holder != (source, sink):
             raise DeploymentError(f"a link named {name!r} exists already: {holder[0]} -> {holder[1]}")
         if len(self._link_names) >= MAX_NAMED_LINKS and (source, sink) not in self._link_names:
             raise DeploymentError(f"more than {MAX_NAMED_LINKS} named links")
-        return None
 
     def link_name(self, source: str, sink: str) -> str:
         """The name of the link ``source`` → ``sink``: the one given, else ``"source->sink"``."""
@@ -118,13 +121,14 @@ class Deployer:
 
     def forget_link(self, source: str, sink: str) -> None:
         """Drop the name of a link that is gone."""
-        with self._lock:
+        with self._link_lock:
             self._link_names.pop((source, sink), None)
 
     def links(self, remote: Iterable[LinkDescription] = ()) -> list[LinkDescription]:
         """Every connection from an output port of these tasks to an input port of these
         tasks, as a link (name, ends, policy, samples the source wrote, samples dropped),
-        then ``remote`` (links to other deployers, described by their server)."""
+        then ``remote`` (links to other deployers, described by their server). Names of
+        links that are gone (a task's ports disconnected) are forgotten here."""
         out: list[LinkDescription] = []
         for task in self.tasks():
             for port in task.ports().values():
@@ -139,7 +143,12 @@ class Deployer:
                     out.append(LinkDescription(name=self.link_name(source, sink), source=source, sink=sink,
                                                policy=str(conn.policy), transport="local", samples=written,
                                                dropped=conn.dropped))
-        return out + list(remote)
+        out += list(remote)
+        live = {(lk.source, lk.sink) for lk in out}
+        with self._link_lock:
+            for key in [k for k in self._link_names if k not in live]:
+                del self._link_names[key]
+        return out
 
     def find_link(self, name: str) -> LinkDescription:
         """The local link called ``name``; raises ``NotFoundError`` listing the names."""
@@ -149,31 +158,45 @@ class Deployer:
                 return link
         raise NotFoundError(f"no link {name!r}; links: {', '.join(lk.name for lk in links[:20]) or 'none'}")
 
+    def connection(self, source: str, sink: str) -> Connection | None:
+        """The connection from output ``source`` to input ``sink``, if they are connected."""
+        inp = self._port(sink)
+        return next((c for c in self._port(source).connections() if c.input is inp), None)
+
     def reroute(self, name: str, sink: str) -> LinkDescription:
         """Point the local link ``name`` at input ``sink`` instead (same source, policy and
         name): connected first, then the old input disconnected. Raises ``NotFoundError``,
-        ``PortTypeError``, ``DeploymentError``."""
-        link = self.find_link(name)
-        if sink == link.sink:
-            return link
-        conn = next(c for c in self._port(link.source).connections()
-                    if f"{c.input.task.name}.{c.input.name}" == link.sink)
-        self.connect(link.source, sink, conn.policy)
-        with self._lock:
-            self._link_names.pop((link.source, link.sink), None)
-            if name != f"{link.source}->{link.sink}":
-                self._link_names[(link.source, sink)] = name
-        conn.close()
-        return self.find_link(name if name != f"{link.source}->{link.sink}" else f"{link.source}->{sink}")
+        ``PortTypeError``, or ``DeploymentError`` when the source feeds ``sink`` already."""
+        with self._link_lock:
+            link = self.find_link(name)
+            if sink == link.sink:
+                return link
+            if self.connection(link.source, sink) is not None:
+                raise DeploymentError(f"{link.source} feeds {sink} already (link "
+                                      f"{self.link_name(link.source, sink)!r}): disconnect that link first")
+            old = self.connection(link.source, link.sink)
+            assert old is not None  # listed a moment ago, under the lock
+            given = self._link_names.pop((link.source, link.sink), None)
+            try:
+                self._port(link.source).connect_to(self._port(sink), old.policy)
+            except BaseException:
+                if given is not None:
+                    self._link_names[(link.source, link.sink)] = given
+                raise
+            if given is not None:
+                self._link_names[(link.source, sink)] = given
+            old.close()
+            return self.find_link(given or f"{link.source}->{sink}")
 
     def disconnect(self, source: str, sink: str) -> bool:
         """Disconnect output ``source`` from input ``sink`` (and forget the link's name);
         False when they were not connected."""
-        out, inp = self._port(source), self._port(sink)
-        was = any(c.input is inp for c in out.connections())
-        out.disconnect(inp)
-        self.forget_link(source, sink)
-        return was
+        with self._link_lock:
+            conn = self.connection(source, sink)
+            if conn is not None:
+                conn.close()
+            self._link_names.pop((source, sink), None)
+            return conn is not None
 
     def configure_all(self) -> None:
         """Configure every task that is not running (PRE_OPERATIONAL or STOPPED), in order.

@@ -48,6 +48,7 @@ class Locomotor:
     def open(self) -> None:
         """Prepare the state (nothing is commanded at start)."""
         self._lock = threading.Lock()
+        self._publish_lock = threading.Lock()
         self._busy = False
         self._target: list[float] | None = None
         self._target_name = ""
@@ -96,7 +97,7 @@ class Locomotor:
     def _move(self, target: list[float], name: str) -> str:
         with self._lock:
             self._target, self._target_name, self._busy = list(target), name, True
-        self._publish_busy(True)
+        self._publish_busy()
         self.driver.set_joints_positions(list(target))  # one-way: returns at once
         log.info("moving to %s", name)
         return f"moving to {name}"
@@ -111,12 +112,12 @@ class Locomotor:
         if event == "busy":
             with self._lock:
                 self._busy = True
-            self._publish_busy(True)
+            self._publish_busy()
         elif event == "idle" and detail != "superseded":
             with self._lock:
                 self._busy = False
                 name = self._target_name
-            self._publish_busy(False)
+            self._publish_busy()
             if detail == "":
                 report = f"target {name} reached"
                 log.info(report)
@@ -125,14 +126,18 @@ class Locomotor:
                 log.warning(report)
             self.reports.append(report)
 
-    def _publish_busy(self, busy: bool) -> None:
-        """The flag to ``busy_out`` when wired (a task that is not there yet: logged, not raised)."""
+    def _publish_busy(self) -> None:
+        """The flag as it is now to ``busy_out`` when wired, one writer at a time (so the last
+        value written is the current one); a task not there yet: logged, not raised."""
         if self.busy_out is None:
             return
-        try:
-            self.busy_out.set_busy(busy)
-        except Exception as exc:  # noqa: BLE001 - the flag is informative: never fail a move for it
-            log.debug("busy flag not written: %s", exc)
+        with self._publish_lock:
+            with self._lock:
+                busy = self._busy
+            try:
+                self.busy_out.set_busy(busy)
+            except Exception as exc:  # noqa: BLE001 - the flag is informative: never fail a move for it
+                log.debug("busy flag not written: %s", exc)
 
     def outcome(self) -> str:
         """The newest report (``Moving.outcome``)."""

@@ -189,10 +189,13 @@ class GrpcSystem(System):
 
     def _link(self, name: str) -> LinkDescription:
         links = self.links()
-        found = next((lk for lk in links if lk.name == name), None)
-        if found is None:
+        found = [lk for lk in links if lk.name == name]
+        if not found:
             raise NotFoundError(f"no link {name!r}; links: {', '.join(lk.name for lk in links[:20]) or 'none'}")
-        return found
+        if len(found) > 1:
+            raise DataflowError(f"link name {name!r} is used in {len(found)} deployers (sources "
+                                f"{', '.join(lk.source for lk in found[:5])}): use the ports instead")
+        return found[0]
 
     def reroute(self, name: str, sink: str) -> LinkDescription:
         """Point the link ``name`` at input ``"c.in"`` (its source's deployer does it: the new

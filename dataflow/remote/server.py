@@ -28,7 +28,7 @@ from grpc_health.v1 import health_pb2
 
 from dataflow import codec
 from dataflow.deployer import Deployer
-from dataflow.errors import NotFoundError
+from dataflow.errors import DeploymentError, NotFoundError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
@@ -174,6 +174,7 @@ class DeployerServer:
         self.ns_address = ns or self.address
         self._links: dict[tuple[str, str, str, str], _RemoteLink] = {}
         self._lock = threading.Lock()
+        self._reroute_lock = threading.Lock()  # one reroute at a time (check, connect, disconnect)
         self._stopped = False
         self._ns_client: NameClient | None = None
         self._registration: Registration | None = None
@@ -283,7 +284,7 @@ class DeployerServer:
             self.deployer.connect(source, sink, policy, name=name)
             return True, self.address
         if name is not None:
-            self.deployer.name_link(source, sink, name)
+            self.deployer.check_link_name(source, sink, name)
         try:
             address = self.resolve(sink_task)
         except NotFoundError:
@@ -294,6 +295,8 @@ class DeployerServer:
         with self._lock:
             if key not in self._links:
                 self._links[key] = _RemoteLink(self, out, sink_task, sink_port, policy)
+        if name is not None:  # named once made
+            self.deployer.name_link(source, sink, name)
         return False, address
 
     def disconnect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str) -> bool:
@@ -325,6 +328,8 @@ class DeployerServer:
 
     def find_link(self, name: str) -> LinkDescription:
         """The link called ``name``; raises ``NotFoundError`` listing some names."""
+        if len(name) > 300:
+            raise NotFoundError(f"no link of a {len(name)}-character name (names have at most 128)")
         links = self.links()
         found = next((lk for lk in links if lk.name == name), None)
         if found is None:
@@ -335,22 +340,36 @@ class DeployerServer:
     def reroute(self, name: str, sink_task: str, sink_port: str) -> LinkDescription:
         """Point the link ``name`` at ``sink_task.sink_port`` (same source, policy and name):
         connected first, then the old sink disconnected. Raises ``NotFoundError``,
-        ``PortTypeError``, ``DeploymentError``."""
-        link = self.find_link(name)
-        new_sink = f"{sink_task}.{sink_port}"
-        if new_sink == link.sink:
-            return link
-        (st, sp), (ot, op) = (link.source.rsplit(".", 1), link.sink.rsplit(".", 1))
-        given = name if name != f"{link.source}->{link.sink}" else None
-        self.deployer.forget_link(link.source, link.sink)
-        try:
-            self.connect_ports(st, sp, sink_task, sink_port, ConnPolicy.parse(link.policy), name=given)
-        except BaseException:
-            if given is not None:
-                self.deployer.name_link(link.source, link.sink, given)
-            raise
-        self.disconnect_ports(st, sp, ot, op)
-        return self.find_link(given or f"{link.source}->{new_sink}")
+        ``PortTypeError``, ``DeploymentError`` (the source feeds that sink already)."""
+        with self._reroute_lock:
+            link = self.find_link(name)
+            new_sink = f"{sink_task}.{sink_port}"
+            if new_sink == link.sink:
+                return link
+            if any(lk.source == link.source and lk.sink == new_sink for lk in self.links()):
+                raise DeploymentError(f"{link.source} feeds {new_sink} already: disconnect that link first")
+            (st, sp), (ot, op) = link.source.rsplit(".", 1), link.sink.rsplit(".", 1)
+            policy = self._policy_of(link)
+            given = name if name != f"{link.source}->{link.sink}" else None
+            self.deployer.forget_link(link.source, link.sink)
+            try:
+                self.connect_ports(st, sp, sink_task, sink_port, policy, name=given)
+            except BaseException:
+                if given is not None:
+                    self.deployer.name_link(link.source, link.sink, given)
+                raise
+            self.disconnect_ports(st, sp, ot, op)
+            return self.find_link(given or f"{link.source}->{new_sink}")
+
+    def _policy_of(self, link: LinkDescription) -> ConnPolicy:
+        """The policy object a link was made with (every field, not only its short form)."""
+        (st, sp), (kt, kp) = link.source.rsplit(".", 1), link.sink.rsplit(".", 1)
+        with self._lock:
+            remote = self._links.get((st, sp, kt, kp))
+        if remote is not None:
+            return remote.policy
+        conn = self.deployer.connection(link.source, link.sink)
+        return conn.policy if conn is not None else ConnPolicy.parse(link.policy)
 
     # ---- lifecycle ---------------------------------------------------------------------
     def stop(self, grace: float = 0.2) -> None:

@@ -167,7 +167,8 @@ class DataflowHost(Participant):
         settings = self.host.settings
         if self.server is not None or not settings.serve:
             return  # served already (by a program calling serve()), or not asked to
-        if not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()):
+        if not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()) and not \
+                self.host.assembly.elements_of("bridge"):
             return
         from dataflow.remote.errors import UnavailableError
         from dataflow.remote.naming import name_service_answers

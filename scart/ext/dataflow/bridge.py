@@ -44,6 +44,7 @@ and how many it got (``INPUT.samples``), and ``outputs``: how many were written.
 
 from __future__ import annotations
 
+import collections.abc
 import inspect
 import json
 import logging
@@ -172,6 +173,8 @@ def parse_bridge(prefix: str, el: Element) -> tuple[BridgeSpec | None, list[tupl
     output, output_type = (out.get("name") or "").strip(), (out.get("type") or "").strip()
     if not output or not output_type:
         bad("<scart:output> needs a name and a type", outputs[0])
+    elif not output.isidentifier():
+        bad(f"<scart:output name={output!r}>: the name must be an identifier", outputs[0])
     if output in {i.name for i in inputs}:
         bad(f"the output and an input are both named {output!r}", outputs[0])
     if problems:
@@ -184,6 +187,10 @@ def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None]) 
     a = el.attributes
     name = (a.get("name") or "").strip()
     source = _split(a.get("from", ""))
+    if name and not name.isidentifier():
+        bad(f"<scart:input name={name!r}>: the name must be an identifier (it is a keyword argument, a field, "
+            "a port)", el)
+        return None
     if not name or source is None:
         bad(f"<scart:input name={name!r}> from={a.get('from', '')!r}: expected TASK.PORT", el)
         return None
@@ -194,7 +201,7 @@ def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None]) 
         return None
     path = None
     if a.get("field") is not None:
-        path = parse_path(a["field"], name)
+        path = parse_path(a["field"])
         if path is None:
             bad(f"input {name!r}: field {a['field']!r} is not a path such as joints[*].position", el)
             return None
@@ -235,25 +242,34 @@ def shown(tp: Any) -> str:
 
 def same_type(given: Any, wanted: Any) -> bool:
     """Can values of ``given`` stand where ``wanted`` is declared? Unknown is compatible; an
-    int may stand for a float; otherwise the same type (or registry name, for types that
-    came over the wire by name)."""
+    int may stand for a float, a subclass for its base; a bare ``list``/``dict`` (or an
+    abstract collection) accepts any items; containers compare their item types pairwise.
+    Types that came over the wire by name are the registry's classes, so identity holds."""
     given, wanted = _plain(given), _plain(wanted)
     if given is _UNKNOWN or wanted is _UNKNOWN or given == wanted:
         return True
     if given is int and wanted is float:
         return True
-    g_origin, w_origin = typing.get_origin(given), typing.get_origin(wanted)
-    if g_origin is not None or w_origin is not None:
-        if g_origin is not w_origin and {g_origin, w_origin} - {list, tuple}:
-            return False
-        g_args, w_args = typing.get_args(given), typing.get_args(wanted)
-        if not g_args or not w_args:
-            return True
-        return same_type(g_args[0], w_args[0]) and len(set(g_args) - {Ellipsis}) <= 1 >= len(set(w_args) - {Ellipsis})
-    try:
-        return bool(registry.type_name(given) == registry.type_name(wanted))
-    except Exception:  # noqa: BLE001 - an unregistered type: only the same type is the same
+    g_origin, w_origin = typing.get_origin(given) or given, typing.get_origin(wanted) or wanted
+    g_args, w_args = typing.get_args(given), typing.get_args(wanted)
+    if not g_args and not w_args:  # two plain classes (bool is not a number here, as on the wire)
+        return isinstance(given, type) and isinstance(wanted, type) and issubclass(given, wanted) and given is not bool
+    sequences = (list, tuple, collections.abc.Sequence)
+    if g_origin in sequences and w_origin in sequences:
+        same_shape = True
+    else:
+        try:
+            same_shape = isinstance(g_origin, type) and isinstance(w_origin, type) and issubclass(g_origin, w_origin)
+        except TypeError:
+            same_shape = False
+    if not same_shape:
         return False
+    if not g_args or not w_args:
+        return True  # an unparameterised side: any items
+    g_items, w_items = [a for a in g_args if a is not Ellipsis], [a for a in w_args if a is not Ellipsis]
+    if Ellipsis in g_args or Ellipsis in w_args or g_origin is list or w_origin is list:
+        return all(same_type(g, w) for g in g_items for w in w_items)  # homogeneous items
+    return len(g_items) == len(w_items) and all(same_type(g, w) for g, w in zip(g_items, w_items))
 
 
 def path_type(tp: Any, path: tuple[str | int, ...]) -> tuple[Any, str | None]:
@@ -365,7 +381,7 @@ class Resolver:
             if port != other.output:
                 self.problem(BRIDGE, f"{where}: bridge {comp!r} has one output, {other.output!r}")
                 return _UNKNOWN, True
-            resolved = self.resolve(other) if comp != spec.name else None
+            resolved = self.resolve(other, online) if comp != spec.name else None
             return (resolved.output_type if resolved is not None else _UNKNOWN), True
         if not online:
             return _UNKNOWN, False
@@ -378,7 +394,12 @@ class Resolver:
             self.problem(BRIDGE, f"{where}: task {comp!r} (name service {ns}) has no output port {port!r}; "
                          f"outputs: {', '.join(p.name for p in remote.values() if p.direction == 'out') or 'none'}")
             return _UNKNOWN, False
-        return registry.python_type(info.type_name) or _UNKNOWN, False
+        tp = registry.python_type(info.type_name)
+        if tp is None:
+            self.problem(BRIDGE, f"{where}: its type {info.type_name!r} is not registered in this process "
+                         "(import the module defining it, e.g. in a converter's module)")
+            return _UNKNOWN, False
+        return tp, False
 
     def resolve(self, spec: BridgeSpec, online: bool | None = None) -> Resolved | None:
         """The bridge resolved (types checked); None when it cannot run (reported)."""
@@ -409,10 +430,12 @@ class Resolver:
     def converter(self, spec: BridgeSpec, inp: InputSpec, src: Any) -> tuple[Callable[[Any], Any] | None, Any]:
         where = f"bridge {spec.name!r} input {inp.name!r}"
         if inp.path is not None:
-            tp, why = path_type(src, inp.path)
+            path = inp.path
+            if len(path) > 1 and path[0] == inp.name and path_type(src, path[:1])[1] is not None:
+                path = path[1:]  # "arm.joints[*].position" on input arm: the input's own name leads
+            tp, why = path_type(src, path)
             if why is not None:
                 self.problem(BRIDGE_TYPE, f"{where}: field path on {'.'.join(inp.source)} ({shown(src)}): {why}")
-            path = inp.path
             return (lambda value: apply_path(value, path)), tp
         if inp.convert is None:
             return None, src
@@ -445,9 +468,12 @@ class Resolver:
         try:
             return pydantic.TypeAdapter(tp).validate_python(data)
         except pydantic.ValidationError as exc:
-            self.problem(BRIDGE_TYPE, f"bridge {spec.name!r} input {inp.name!r}: default {raw!r:.60} is not a "
-                         f"{shown(tp)}: {exc.errors()[0]['msg']}")
-            return None
+            why = exc.errors()[0]["msg"]
+        except Exception as exc:  # noqa: BLE001 - a type pydantic cannot validate (a plain class)
+            why = f"{shown(tp)} values cannot be read from text ({type(exc).__name__})"
+        self.problem(BRIDGE_TYPE, f"bridge {spec.name!r} input {inp.name!r}: default {raw!r:.60} is not a "
+                     f"{shown(tp)}: {why}")
+        return None
 
     def builder(self, spec: BridgeSpec, converted: dict[str, Any], out_type: Any) -> Callable[..., Any] | None:
         where = f"bridge {spec.name!r} output {spec.output!r}"
@@ -505,7 +531,7 @@ def bridges_of(elements: list[tuple[str, Element]]) -> dict[str, BridgeSpec]:
 @dataclass
 class _Input:
     port: InputPort[Any]
-    value: Any = None
+    value: Any = None  # the last sample accepted, converted
     has_value: bool = False
     fresh: bool = False  # a sample not yet used by an output
     arrived: float | None = None  # monotonic time of the last sample
@@ -538,37 +564,36 @@ class BridgeTask(TaskContext):
     def update_hook(self) -> None:
         now = time.monotonic()
         with self._lock:
-            for state in self._inputs.values():
+            for name, state in self._inputs.items():
                 status, value = state.port.read_newest()
-                if status is FlowStatus.NEW_DATA:
-                    state.value, state.has_value, state.fresh, state.arrived = value, True, True, now
-                    state.samples += 1
-            try:
-                values = self._sync(now) if self.resolved.spec.trigger == "all" else self._gather()
-            except Exception as exc:  # noqa: BLE001 - a converter refusing a sample: counted, logged
-                values = None
-                self.errors += 1
-                if self.errors == 1 or self.errors % 1000 == 0:
-                    log.warning("bridge %s: converting an input failed (%d so far): %s: %s", self.name, self.errors,
-                                type(exc).__name__, exc)
+                if status is not FlowStatus.NEW_DATA:
+                    continue
+                state.samples += 1
+                convert = self.resolved.converters[name]
+                try:  # converted once, on arrival: a refused sample is counted once and not held
+                    value = convert(value) if convert is not None else value
+                except Exception as exc:  # noqa: BLE001 - a converter refusing a sample
+                    self._refused(f"converting input {name}", exc)
+                    continue
+                state.value, state.has_value, state.fresh, state.arrived = value, True, True, now
+            values = self._sync() if self.resolved.spec.trigger == "all" else self._gather()
             if values is None:
                 return
             for state in self._inputs.values():
                 state.fresh = False
             try:
-                result = self.resolved.build(**values)
-            except Exception as exc:  # noqa: BLE001 - one bad sample must not stop the bridge
-                self.errors += 1
-                if self.errors == 1 or self.errors % 1000 == 0:
-                    log.warning("bridge %s: building %s failed (%d so far): %s: %s", self.name,
-                                self.resolved.spec.output, self.errors, type(exc).__name__, exc)
+                self.output.write(self.resolved.build(**values))
+            except Exception as exc:  # noqa: BLE001 - a builder refusing (or building the wrong type)
+                self._refused(f"building {self.resolved.spec.output}", exc)
                 return
-        self.output.write(result)
-        self.outputs += 1
+            self.outputs += 1
 
-    def _converted(self, name: str, state: _Input) -> Any:
-        convert = self.resolved.converters[name]
-        return convert(state.value) if convert is not None else state.value
+    def _refused(self, what: str, exc: Exception) -> None:
+        """Count a refused sample; log the first and every 1000th (one bad input must not flood)."""
+        self.errors += 1
+        if self.errors == 1 or self.errors % 1000 == 0:
+            log.warning("bridge %s: %s failed (%d so far): %s: %s", self.name, what, self.errors,
+                        type(exc).__name__, exc)
 
     def _gather(self) -> dict[str, Any] | None:
         """Periodic and any-input triggers: each input's value by its missing-input rule."""
@@ -582,10 +607,10 @@ class BridgeTask(TaskContext):
             elif (inp.missing == "skip" and not state.fresh) or not state.has_value:
                 return None
             else:
-                values[inp.name] = self._converted(inp.name, state)
+                values[inp.name] = state.value
         return values
 
-    def _sync(self, now: float) -> dict[str, Any] | None:
+    def _sync(self) -> dict[str, Any] | None:
         """All inputs fresh within the window (an older sample waits for a newer one)."""
         states = self._inputs.values()
         if not all(s.fresh for s in states):
@@ -597,7 +622,7 @@ class BridgeTask(TaskContext):
                 if newest - (s.arrived or 0.0) > self.resolved.spec.window:
                     s.fresh = False
             return None
-        return {name: self._converted(name, s) for name, s in self._inputs.items()}
+        return {name: s.value for name, s in self._inputs.items()}
 
     def ages(self) -> dict[str, float | None]:
         """Seconds since each input's last sample (None before the first)."""
@@ -701,11 +726,16 @@ class BridgeParticipant(Participant):
             connect_present(self.host, task.name)
             if not task.start():
                 raise ScartError(f"bridge {spec.name}: start refused (state {task.state.name})")
+        dataflow_host.start()  # served (settings.serve) even when the bridges are the only data-flow parts
         dataflow_host.refresh()
         if remote:
             local = {t.name for t in self.tasks}
             self._connector = ConnectParticipant(remote, self.host, local=lambda name: name in local)
             self._connector.start()
+
+    def addresses(self) -> dict[str, str]:
+        """What the runtime's data-flow host serves (the same as its tasks' participant says)."""
+        return host_of(self.host).addresses()
 
     def stop(self) -> None:
         """Stop the connector and every bridge task (idempotent)."""

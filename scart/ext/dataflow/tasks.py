@@ -185,8 +185,11 @@ class TaskManager(ComponentManager):
         dataflow_host = host_of(self.host)
         remap = self.host.settings.remap
         task = self.node.ctype.cls(remap.component(self.node.path))
-        for name in list(task.ports()):
-            task.rename_port(name, remap.port(self.node.path, name))
+        try:
+            for name in list(task.ports()):
+                task.rename_port(name, remap.port(self.node.path, name))
+        except ValueError as exc:  # two ports remapped onto one name
+            raise ScartError(f"task {task.name}: --remap: {exc}") from None
         period = _period(impl)
         if period is not None:
             task.set_activity(PeriodicActivity(period))
@@ -300,8 +303,18 @@ class ConnectElement(ElementProvider):
                     add: Callable[[str, str], None]) -> None:
         ends: list[PortInfo | None] = []
         local = 0
+        bridges = bridge_ends(assembly)
         for (comp, port), want, role in ((link.source, "out", "from"), (link.sink, "in", "to")):
             node = assembly.nodes.get(comp)
+            if node is None and comp in bridges:  # a bridge of this composite: its ports are its inputs and output
+                local += 1
+                inputs, output = bridges[comp]
+                ok = port == output if want == "out" else port in inputs
+                if not ok:
+                    add(TASK_CONNECT, f"<scart:connect> {role}: bridge {comp!r} has no {'output' if want == 'out' else 'input'}"
+                        f" port {port!r}; its output: {output}, inputs: {', '.join(inputs) or 'none'}")
+                ends.append(None)
+                continue
             if node is None:
                 ns = link.ns or context.settings.ns_address
                 ports = remote_ports(ns, comp, timeout=0.5, security=context.settings.security) if context.settings.online else None
@@ -343,6 +356,16 @@ def _port_or_problem(
     return info
 
 
+def bridge_ends(assembly: AssemblyView) -> dict[str, tuple[list[str], str]]:
+    """The bridges of the composite (their written names): input names and output name."""
+    out: dict[str, tuple[list[str], str]] = {}
+    for prefix, el in assembly.elements_of("bridge"):
+        inputs = [c.attributes.get("name", "") for c in el.children if c.kind == "input"]
+        output = next((c.attributes.get("name", "") for c in el.children if c.kind == "output"), "")
+        out[prefix + el.attributes.get("name", "")] = (inputs, output)
+    return out
+
+
 def connect_present(runtime: Host, task_name: str) -> None:
     """Make the in-process links of ``task_name`` whose other end is already deployed."""
     deployer = host_of(runtime).deployer
@@ -364,7 +387,8 @@ class ConnectParticipant(Participant):
     def __init__(self, links: list[Link], runtime: Host, local: Callable[[str], bool] | None = None) -> None:
         self.runtime = runtime
         self.links = links
-        tasks = {runtime.settings.remap.component(n) for n in runtime.assembly.nodes}
+        remap = runtime.settings.remap
+        tasks = {remap.component(n) for n in runtime.assembly.nodes} | {remap.component(b) for b in bridge_ends(runtime.assembly)}
         self._local = local or (lambda name: name in tasks)  # is this task (as it runs) in this runtime?
         self._remote = [lk for lk in links if not self._is_local(lk)]
         self._made: dict[Link, str] = {}  # link -> boot id of the remote end it was made with
@@ -379,8 +403,9 @@ class ConnectParticipant(Participant):
     def start(self) -> None:
         """Connect local links (idempotent); start the connector for remote ones."""
         deployer = host_of(self.runtime).deployer
-        for link in self.links:
-            if self._is_local(link):
+        names = set(deployer.names())
+        for link in self.links:  # an end not deployed yet (a bridge) connects when it is added
+            if self._is_local(link) and link.source[0] in names and link.sink[0] in names:
                 deployer.connect(".".join(link.source), ".".join(link.sink), link.policy, name=link.name)
         if self._remote:
             self._watcher = Watcher("scart-connect", self._step, interval=0.25)

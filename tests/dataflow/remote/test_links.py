@@ -8,7 +8,9 @@ import threading
 
 import pytest
 
-from dataflow import ConnPolicy, Deployer, DeploymentError, FlowStatus, InputPort, NotFoundError, OutputPort, TaskContext
+from dataflow import (
+    ConnPolicy, DataflowError, Deployer, DeploymentError, FlowStatus, InputPort, NotFoundError, OutputPort, TaskContext,
+)
 from dataflow.remote import connect, serve_nameserver
 from support import wait_until
 
@@ -72,6 +74,32 @@ def test_links_are_named_listed_and_removed_by_name(deployer: Deployer) -> None:
     assert [lk.name for lk in deployer.links()] == ["src.out->b.inp"]
 
 
+def test_names_stay_with_made_links_only(deployer: Deployer) -> None:
+    """A refused connection or reroute keeps no name, a link gone loses its name, and an
+    observer's connection on the source does not get in the way."""
+    from dataflow import PortTypeError
+
+    class Text(TaskContext):
+        inp = InputPort(str)
+
+    deployer.add(Text("t"))
+    probe: InputPort[int] = InputPort(int, "probe")
+    deployer.task("src").port("out").connect_to(probe)  # a subscription-like observer
+    with pytest.raises(PortTypeError):
+        deployer.connect("src.out", "t.inp", name="N")
+    deployer.connect("src.out", "a.inp", name="N")  # the name was not kept by the refused one
+    with pytest.raises(PortTypeError):
+        deployer.reroute("N", "t.inp")
+    assert deployer.find_link("N").sink == "a.inp"
+    assert deployer.reroute("N", "b.inp").sink == "b.inp"
+    deployer.task("b").port("inp").disconnect()  # gone without the deployer
+    assert deployer.links() == []
+    deployer.connect("src.out", "b.inp")
+    assert [lk.name for lk in deployer.links()] == ["src.out->b.inp"]  # not the old name back
+    with pytest.raises(DeploymentError, match="link name"):
+        deployer.connect("src.out", "c.inp", name="src.out->b.inp")  # default names are apart
+
+
 def test_reroute_while_running_loses_no_sample(deployer: Deployer) -> None:
     deployer.connect("src.out", "a.inp", ConnPolicy.buffer(100_000), name="moving")
     deployer.connect("src.out", "b.inp", ConnPolicy.buffer(100_000), name="staying")
@@ -111,6 +139,7 @@ def test_links_across_deployers_through_the_name_service() -> None:
     d1, d2 = Deployer(), Deployer()
     d1.add(Counter("src"))
     d1.add(Collector("local"))
+    d1.add(Collector("local2"))
     d2.add(Collector("far"))
     servers = []
     try:
@@ -125,11 +154,13 @@ def test_links_across_deployers_through_the_name_service() -> None:
             assert links["toFar"].transport == "grpc" and links["src.out->local.inp"].transport == "local"
             d1.task("src").port("out").write(5)
             wait_until(lambda: d2.task("far").seen() == [5], timeout=10, message="nothing crossed")
-            moved = system.reroute("toFar", "local.inp")  # already linked to local: the same pair
-            assert moved.sink == "local.inp" and moved.transport == "local"
-            assert {lk.name for lk in system.links()} == {"toFar"}
+            with pytest.raises(DataflowError, match="src.out feeds local.inp already"):
+                system.reroute("toFar", "local.inp")  # never take over another link
+            moved = system.reroute("toFar", "local2.inp")
+            assert (moved.sink, moved.transport, moved.policy) == ("local2.inp", "local", "buffer:64")
+            assert {lk.name for lk in system.links()} == {"toFar", "src.out->local.inp"}
             assert system.disconnect_link("toFar")
-            assert system.links() == []
+            assert [lk.name for lk in system.links()] == ["src.out->local.inp"]
             with pytest.raises(NotFoundError, match="no link 'toFar'"):
                 system.reroute("toFar", "far.inp")
     finally:

@@ -395,3 +395,161 @@ def test_a_malformed_bridge_is_refused(tmp_path: Path, bridge: str, words: list[
     err, _ = refused(tmp_path, SOURCES + bridge)
     for word in words:
         assert word in str(err), str(err)
+
+
+# ---- review: what a bridge must survive ---------------------------------------------------------
+
+EXTRA = '''
+
+class Flag(BaseModel):
+    on: bool
+
+
+class Plain:
+    pass
+
+
+def wrong_type(n: int):  # no annotation: returns a str where the output is a float
+    return "not a float"
+
+
+def flag_of(busy: bool) -> Flag:
+    return Flag(on=busy)
+
+
+def plain(n: int) -> Plain:
+    return Plain()
+'''
+
+
+def test_a_bridge_output_feeds_a_connect_and_bad_samples_are_counted_once(tmp_path: Path) -> None:
+    path, _ = make(tmp_path, SOURCES + """
+        <component name="c"><scart:implementation.task class="bridgemods:CountSource"/></component>
+        <scart:bridge name="b">
+          <scart:input name="n" from="c.count" convert="bridgemods:half"/>
+          <scart:input name="busy" from="flagSrc.busy" missing="default" default="false"/>
+          <scart:output name="out" type="bridgemods:Pair2" build="bridgemods:pair2"/>
+        </scart:bridge>
+        <component name="sink"><scart:implementation.task class="bridgemods:PairSink"/></component>
+        <scart:connect from="b.out" to="sink.inp" policy="buffer:100"/>
+    """)
+    (tmp_path / "bridgemods.py").write_text(MODS + EXTRA + '''
+
+from dataflow import InputPort
+
+
+class Pair2(BaseModel):
+    n: float
+    busy: bool
+
+
+def pair2(n: float, busy: bool) -> Pair2:
+    return Pair2(n=n, busy=busy)
+
+
+class PairSink(TaskContext):
+    inp = InputPort(Pair2)
+''')
+    with scart.Runtime.from_file(str(path)) as rt:
+        bridge = deployer_of(rt).task("b")
+        sink_port = deployer_of(rt).task("sink").port("inp")
+        assert sink_port.connection_count() == 1  # the connect to a bridge is made in-process
+        write_to(rt, "c.count", -1)  # refused by the converter: counted once, never held
+        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["errors"] == 1, timeout=10,
+                   message="the refusal is not counted")
+        for i in range(3):
+            write_to(rt, "flagSrc.busy", bool(i % 2))
+        write_to(rt, "c.count", 4)
+        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["outputs"] >= 1, timeout=10,
+                   message="no output after a refused sample")
+        assert {p.name: p.value for p in bridge.describe().properties}["errors"] == 1
+        got = wait_until(lambda: sink_port.read()[1], timeout=10, message="the connect from the bridge carries nothing")
+        assert got.n == 2.0
+
+
+def test_a_builder_of_the_wrong_type_is_counted_not_fatal(tmp_path: Path) -> None:
+    path, _ = make(tmp_path, """
+        <component name="c"><scart:implementation.task class="bridgemods:CountSource"/></component>
+        <scart:bridge name="b">
+          <scart:input name="n" from="c.count"/>
+          <scart:output name="out" type="float64" build="bridgemods:wrong_type"/>
+        </scart:bridge>
+    """)
+    (tmp_path / "bridgemods.py").write_text(MODS + EXTRA)
+    with scart.Runtime.from_file(str(path)) as rt:
+        bridge = deployer_of(rt).task("b")
+        write_to(rt, "c.count", 1)
+        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["errors"] == 1, timeout=10,
+                   message="the wrong type is not counted")
+        assert bridge.state.name == "RUNNING"
+
+
+@pytest.mark.parametrize("bridge, words", [
+    ('<scart:bridge name="b"><scart:input name="n" from="c.count" missing="default" default="1"/>'
+     '<scart:output name="o" type="bridgemods:Plain" build="bridgemods:plain"/></scart:bridge>', None),
+    ('<scart:bridge name="b"><scart:input name="n" from="c.count" convert="bridgemods:plain" missing="default" '
+     'default="1"/><scart:output name="o" type="bridgemods:Plain"/></scart:bridge>', "default '1' is not a Plain"),
+    ('<scart:bridge name="b"><scart:input name="a.b" from="c.count"/><scart:output name="o" type="int64"/>'
+     '</scart:bridge>', "must be an identifier"),
+])
+def test_names_and_defaults_are_refused_in_words(tmp_path: Path, bridge: str, words: str | None) -> None:
+    body = '<component name="c"><scart:implementation.task class="bridgemods:CountSource"/></component>' + bridge
+    path, _ = make(tmp_path, body)
+    (tmp_path / "bridgemods.py").write_text(MODS + EXTRA)
+    if words is None:  # a plain class output built by a builder: fine
+        scart.Runtime.from_file(str(path))
+        return
+    with pytest.raises(scart.ScdlError) as info:
+        scart.Runtime.from_file(str(path))
+    assert words in str(info.value)
+
+
+def test_an_input_named_like_the_first_field_keeps_its_path(tmp_path: Path) -> None:
+    path, _ = make(tmp_path, SOURCES + """
+        <scart:bridge name="b">
+          <scart:input name="joints" from="armSrc.status" field="joints[*].position"/>
+          <scart:output name="o" type="bridgemods:Only" build="bridgemods:only"/>
+        </scart:bridge>
+    """)
+    (tmp_path / "bridgemods.py").write_text(MODS + '''
+
+class Only(BaseModel):
+    joints: list[float]
+
+
+def only(joints: list[float]) -> Only:
+    return Only(joints=joints)
+''')
+    with scart.Runtime.from_file(str(path)) as rt:
+        probe = Probe(rt, "b", "o")
+        write_to(rt, "armSrc.status", arm(1.0, 2.0))
+        assert probe.wait(1)[0].joints == [1.0, 2.0]  # type: ignore[attr-defined]
+
+
+def test_a_composite_with_only_a_bridge_is_served(tmp_path: Path) -> None:
+    other = Deployer()
+    import sys
+
+    path, _ = make(tmp_path, """
+        <scart:bridge name="lonely">
+          <scart:input name="n" from="remoteCount.count"/>
+          <scart:output name="o" type="int64" build="bridgemods:same"/>
+        </scart:bridge>
+    """)
+    (tmp_path / "bridgemods.py").write_text(MODS + "\n\ndef same(n: int) -> int:\n    return n\n")
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import bridgemods
+
+        other.add(bridgemods.CountSource("remoteCount"))
+        server = other.serve("127.0.0.1:0")
+        try:
+            with scart.Runtime.from_file(str(path), settings=scart.Settings(ns=server.address, serve=True)) as rt:
+                assert rt.served(), "the bridge's runtime serves nothing"
+                bridge = deployer_of(rt).task("lonely")
+                wait_until(lambda: bridge.port("n").connection_count() == 1, timeout=15,
+                           message="the remote input of a bridge-only composite never connects")
+        finally:
+            server.stop()
+    finally:
+        sys.path.remove(str(tmp_path))
