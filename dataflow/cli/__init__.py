@@ -1,8 +1,9 @@
 """The data-flow verbs of the ``scart`` command line.
 
 ``ls``, ``describe``, ``echo``, ``hz``, ``write``, ``call``, ``prop``, ``state``,
-``connect``, ``disconnect`` (:mod:`dataflow.cli.inspect`: introspection of a running
-system, through its name service) and ``deploy``, ``nameserver``
+``connect``, ``links``, ``reroute``, ``disconnect`` (:mod:`dataflow.cli.inspect`:
+introspection of a running system, through its name service), ``record``, ``play``,
+``info`` (:mod:`dataflow.cli.record`: MCAP files) and ``deploy``, ``nameserver``
 (:mod:`dataflow.cli.deploy`: host tasks, serve names). They belong to the data-flow
 side and never import ``scart``: the ``scart`` command finds them through the
 ``scart.commands`` entry point naming :func:`register`, as ros2cli finds its verbs.

@@ -85,6 +85,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p = verb("disconnect", "disconnect a link (by its name, or by its two ports)", cmd_disconnect)
     p.add_argument("source", metavar="LINK|A.out")
     p.add_argument("sink", metavar="B.in", nargs="?")
+    from dataflow.cli import record
+
+    record.register(verb, subparsers)
 
 
 # ---- shared plumbing -------------------------------------------------------------------
