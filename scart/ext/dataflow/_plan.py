@@ -196,5 +196,9 @@ def static_ports(s: Attributes, context: CheckContext) -> tuple[dict[str, PortIn
     if not context.settings.online:
         return None, ""
     ns = s.ns or context.settings.ns_address
-    ports = remote_ports(ns, s.component, timeout=0.5, security=context.settings.security)
+    remap = context.settings.remap  # the task runs under its remapped name, its ports too
+    ports = remote_ports(ns, remap.component(s.component), timeout=0.5, security=context.settings.security)
+    if ports is not None and remap:
+        back = {remap.port(s.component, name): name for name in ports}  # ports by the names the composite uses
+        ports = {back.get(name, name): info for name, info in ports.items()}
     return ports, (f"name service {ns}" if ports is not None else "")

@@ -24,7 +24,7 @@ generated code and with the types checked at load time::
   ``any`` (on any new input, the default otherwise) or ``all`` (when every input has a new
   sample and their arrival times lie within ``window`` s of each other, as
   message_filters' ApproximateTime; an older sample is dropped for a newer one).
-* **Missing inputs** (``missing``) — ``hold`` (default: the last value; no output until
+* **Missing inputs** (``missing``, periodic and any-input triggers) — ``hold`` (default: the last value; no output until
   the first one), ``skip`` (no output unless this input has a new sample) or ``default``
   (the last value, and the ``default`` value, JSON, until the first sample).
 
@@ -156,7 +156,7 @@ def parse_bridge(prefix: str, el: Element) -> tuple[BridgeSpec | None, list[tupl
     for child in el.children:
         if child.kind != "input":
             continue
-        spec = _parse_input(prefix, child, bad)
+        spec = _parse_input(prefix, child, bad, trigger)
         if spec is not None:
             if any(i.name == spec.name for i in inputs):
                 bad(f"two inputs named {spec.name!r}", child)
@@ -183,7 +183,7 @@ def parse_bridge(prefix: str, el: Element) -> tuple[BridgeSpec | None, list[tupl
                       str(el.loc)), problems
 
 
-def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None]) -> InputSpec | None:
+def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None], trigger: str) -> InputSpec | None:
     a = el.attributes
     name = (a.get("name") or "").strip()
     source = _split(a.get("from", ""))
@@ -209,6 +209,10 @@ def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None]) 
         bad(f"input {name!r}: give convert or field, not both", el)
         return None
     missing = a.get("missing") or ("default" if a.get("default") is not None else "hold")
+    if a.get("missing") is not None and trigger == "all":
+        bad(f"input {name!r}: missing={a['missing']!r} does not apply to trigger \"all\" (it waits for every "
+            "input)", el)
+        return None
     if missing not in MISSING:
         bad(f"input {name!r}: missing={missing!r}: expected one of {', '.join(MISSING)}", el)
         return None

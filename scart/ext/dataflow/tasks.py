@@ -317,10 +317,13 @@ class ConnectElement(ElementProvider):
                 continue
             if node is None:
                 ns = link.ns or context.settings.ns_address
-                ports = remote_ports(ns, comp, timeout=0.5, security=context.settings.security) if context.settings.online else None
+                remap = context.settings.remap  # a task of another deployer runs under its remapped name
+                ports = remote_ports(ns, remap.component(comp), timeout=0.5,
+                                     security=context.settings.security) if context.settings.online else None
                 if ports is None:
                     log.info("%s: %s is not in this composite: resolved through the name service at start", link.where, comp)
-                ends.append(_port_or_problem(ports, comp, port, want, role, add) if ports is not None else None)
+                ends.append(_port_or_problem(ports, comp, remap.port(comp, port), want, role, add)
+                            if ports is not None else None)
                 continue
             local += 1
             if node.kind != TASK_KIND:

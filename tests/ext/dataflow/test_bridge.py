@@ -390,6 +390,8 @@ def test_a_type_mismatch_is_refused_at_load_naming_both_types(tmp_path: Path, in
      '</scart:bridge>', ["expected TASK.PORT"]),
     ('<scart:bridge name="armSrc"><scart:input name="a" from="flagSrc.busy"/><scart:output name="o" type="bool" '
      'build="bridgemods:first"/></scart:bridge>', ["a component or bridge of that name exists"]),
+    ('<scart:bridge name="b" trigger="all"><scart:input name="a" from="flagSrc.busy" missing="hold"/>'
+     '<scart:output name="o" type="bool"/></scart:bridge>', ['does not apply to trigger "all"']),
 ])
 def test_a_malformed_bridge_is_refused(tmp_path: Path, bridge: str, words: list[str]) -> None:
     err, _ = refused(tmp_path, SOURCES + bridge)

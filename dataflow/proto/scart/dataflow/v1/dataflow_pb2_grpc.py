@@ -217,7 +217,7 @@ class DeployerServiceServicer:
 
     def ListLinks(self, request, context):
         """The links whose source is a task of this deployer: name, ends, policy, transport,
-        samples the source wrote, samples dropped (at most 10 000).
+        samples the source wrote, samples dropped (at most 2000).
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
