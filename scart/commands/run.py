@@ -38,7 +38,7 @@ from dataflow.remote.security import add_arguments, from_args
 from scart.assembly import assemble
 from scart.errors import ScartError, ScdlError
 from scart.graph import Assembly, Bound, Target
-from scart.model import Composite
+from scart.model import Binding, Composite
 from scart.settings import Remap, Settings
 
 if TYPE_CHECKING:
@@ -321,6 +321,14 @@ def to_dot(assembly: Assembly, remap: Remap | None = None) -> str:
                     bid = f"{path}.{ref}:{ep.binding.kind}"
                     out.append(f"  {_q(bid)} [shape=note, label={_q(_endpoint_text(ep))}];")
                     out.append(f"  {_q(path)} -> {_q(bid)} [label={_q(ref)}];")
+                    task = _dataflow_task(assembly, path, ep.binding)
+                    if task is not None:  # binding.dataflow: calls become port writes / reads of that task
+                        out.append(f"  {_q(bid)} -> {_q(task)} [style=dotted, label={_q('ports')}];")
+        for service, models in node.service_bindings.items():
+            for model in models:
+                task = _dataflow_task(assembly, path, model)
+                if task is not None:  # binding.dataflow on a service: the task's samples drive its operations
+                    out.append(f"  {_q(task)} -> {_q(path)} [style=dotted, label={_q('samples -> ' + service)}];")
     for name, t in assembly.services.items():
         out.append(f"  {_q('service:' + name)} [shape=cds, label={_q(name)}];")
         out.append(f"  {_q('service:' + name)} -> {_q(t.node)} [style=dashed, label={_q('promotes ' + t.service)}];")
@@ -328,6 +336,20 @@ def to_dot(assembly: Assembly, remap: Remap | None = None) -> str:
     out += _dataflow_edges(assembly, remap)
     out.append("}")
     return "\n".join(out)
+
+
+def _dataflow_task(assembly: Assembly, path: str, binding: Binding) -> str | None:
+    """The task component a ``binding.dataflow`` of component ``path`` names, when it is in
+    this composite (a sibling in the same nested composite first, then a top-level one)."""
+    if binding.kind != "binding.dataflow" or binding.attributes.get("ns"):
+        return None
+    name = binding.attributes.get("component", "")
+    prefix = path.rpartition("/")[0]
+    for candidate in (f"{prefix}/{name}" if prefix else name, name):
+        node = assembly.nodes.get(candidate)
+        if node is not None and node.kind == TASK_KIND:
+            return candidate
+    return None
 
 
 def _dataflow_edges(assembly: Assembly, remap: Remap) -> list[str]:

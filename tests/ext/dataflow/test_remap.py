@@ -114,5 +114,6 @@ def test_the_command_line_takes_remaps_and_graph_shows_them(tmp_path: Path) -> N
     assert 'label="left/src\\n[Source]"' in done.stdout
     assert '"src" -> "sink" [style=bold, color=blue, label="value_out -> inp [data]"]' in done.stdout
     assert '"src" -> "bridge:doubler"' in done.stdout and '"bridge:doubler" -> "sink2"' in done.stdout
+    assert '"feeder.sink:binding.dataflow" -> "sink" [style=dotted, label="ports"]' in done.stdout  # binding.dataflow
     bad = subprocess.run([*cmd[:5], "--remap", "no rule"], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "--remap 'no rule': expected FROM=TO" in bad.stderr
