@@ -61,9 +61,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p = verb("write", "write one value (JSON) to an input port", cmd_write)
     p.add_argument("port", metavar="COMP.PORT")
     p.add_argument("value", help="JSON value (a bare word is taken as a string)")
-    p = verb("call", "call an operation with JSON arguments", cmd_call)
-    p.add_argument("operation", metavar="COMP.OP")
+    p = verb("call", "call a task's operation, or with --at an SCA service's, with JSON arguments", cmd_call)
+    p.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op")
     p.add_argument("args", nargs="*", help="JSON arguments")
+    p.add_argument("--at", default=None, metavar="HOST:PORT",
+                   help="call an SCA service served there (scart run prints it: 'SCA services at ...'; "
+                        "or $SCART_SERVICES)")
+    from dataflow.cli.services import cmd_services
+
+    p = verb("services", "list the SCA services a scart run serves (--at HOST:PORT)", cmd_services)
+    p.add_argument("--at", default=None, metavar="HOST:PORT", help="where (scart run prints it), or $SCART_SERVICES")
     p = verb("prop", "list, get or set properties", cmd_prop)
     p.add_argument("action", choices=["list", "get", "set"])
     p.add_argument("component")
@@ -128,6 +135,14 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
     from dataflow.remote import connect
     from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
 
+    from dataflow.cli.services import at
+
+    if at(args) is not None:  # SCA services: no name service involved
+        try:
+            return func(args)
+        except (DataflowError, ValueError) as exc:
+            _err(f"{args.command}: {exc}")
+            return 1
     address = ns_address(args)
     source = "--ns" if args.ns else (f"${NS_ENV}" if os.environ.get(NS_ENV) else "the default")
     try:
@@ -355,7 +370,14 @@ def cmd_write(args: argparse.Namespace) -> int:
 
 
 def cmd_call(args: argparse.Namespace) -> int:
-    """``scart call COMP.OP ARGS...``: prints the result."""
+    """``scart call COMP.OP ARGS...`` (a task's operation), or with ``--at`` an SCA
+    service's: prints the result."""
+    from dataflow.cli.services import at, call, parse_json_arg
+
+    address = at(args)
+    if address is not None:
+        _out(_dump(call(address, args.operation, [parse_json_arg(a) for a in args.args], args)))
+        return 0
     component, op = _split(args.operation, "OPERATION")
     result = args.system.component(component).call_json(op, [_parse_json(a) for a in args.args], timeout=args.timeout)
     _out(_dump(_jsonable(result)))

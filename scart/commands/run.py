@@ -30,7 +30,7 @@ import signal
 import sys
 import threading
 from types import FrameType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from dataflow import DataflowError
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
@@ -38,13 +38,14 @@ from dataflow.remote.security import add_arguments, from_args
 from scart.assembly import assemble
 from scart.errors import ScartError, ScdlError
 from scart.graph import Assembly, Bound, Target
-from scart.model import Binding, Composite
+from scart.model import SCART_NS, Binding, Composite, Location
 from scart.settings import Remap, Settings
 
 if TYPE_CHECKING:
     from scart.runtime import Runtime
 
 TASK_KIND = "implementation.task"  # the data-flow extension's kind (the core does not import it)
+SERVICES_DEFAULT = "localhost:0"  # apart from any binding.grpc server of the composite (they share by address)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -59,6 +60,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.add_argument("--ns", default=None, metavar="HOST:PORT",
                      help="name service of data-flow tasks: where the embedded one listens, or the running one "
                           f"to join (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
+    run.add_argument("--services", default=SERVICES_DEFAULT, metavar="HOST:PORT",
+                     help="serve every component service here (binding.grpc, the server's TLS and tokens) for "
+                          f"`scart services --at` and `scart call --at`; default {SERVICES_DEFAULT} (loopback, a free "
+                          "port); 'off' to serve none")
     add_arguments(run, server=True)
     run.set_defaults(func=cmd_run)
 
@@ -175,9 +180,17 @@ def cmd_run(args: argparse.Namespace) -> int:
             _stop_listening(runtime)
             print(f"scart: start failed: {exc}", file=sys.stderr)
             return 1
+        services: list[Any] = []
         try:
+            try:
+                services = _serve_services(runtime, args.services)
+            except ScartError as exc:
+                print(f"scart: start failed: --services {args.services}: {exc}", file=sys.stderr)
+                return 1
             sys.stdout.write(announced.getvalue())
             print(summary(assembly, runtime.addresses(), settings.remap), flush=True)
+            if services:
+                print(_services_line(services), flush=True)
             for what, where in runtime.served().items():
                 print(f"scart: {what} at {where}", flush=True)
             print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
@@ -185,15 +198,52 @@ def cmd_run(args: argparse.Namespace) -> int:
                 pass
             print("scart: stopping", flush=True)
         finally:
-            # SCA components first (their one-way calls drain while the tasks they use
-            # still run; then the components, task components included, are destroyed in
-            # reverse start order), the data-flow server last (a stop hook).
+            # the services endpoint first, then SCA components (their one-way calls drain while
+            # the tasks they use still run; then the components, task components included,
+            # are destroyed in reverse start order), the data-flow server last (a stop hook).
+            for binding in reversed(services):
+                binding.stop()
             _stop_listening(runtime)
         print("scart: stopped", flush=True)
         return 0
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def _services_line(services: list[Any]) -> str:
+    """Where the services are, and a call to paste (a promoted service's first operation if any)."""
+    where = services[0].address
+    first = max(services, key=lambda b: len(b.names) > 2)  # one the composite promotes, when there is one
+    name = first.names[-1] if len(first.names) > 2 else first.names[0]
+    ops = list(first.endpoint.interface.operations)
+    example = f"scart call --at {where} {name}.{ops[0]} ARGS..." if ops else f"scart call --at {where} NAME.op ARGS..."
+    return f"scart: SCA services at {where} (list them: scart services --at {where}; call one: {example})"
+
+
+def _serve_services(runtime: Runtime, address: str) -> list[Any]:
+    """Every component service of ``runtime`` on one ``binding.grpc`` server at ``address``
+    (through the extension registry, as a composite's binding would be): started service
+    bindings, [] with ``off``. Raises ``ScartError`` when it cannot listen."""
+    if address == "off":
+        return []
+    provider = runtime.assembly.registry.binding("binding.grpc")
+    if provider is None:
+        return []
+    started: list[Any] = []
+    try:
+        for path, node in runtime.assembly.nodes.items():
+            for service in node.ctype.services:
+                model = Binding(kind="binding.grpc", namespace=SCART_NS, attributes={"address": address},
+                                name="services", loc=Location(path="<scart run --services>", line=0))
+                binding = provider.service(model, runtime.endpoint(f"{path}/{service}"), runtime)
+                binding.start()
+                started.append(binding)
+    except BaseException:
+        for binding in reversed(started):
+            binding.stop()
+        raise
+    return started
 
 
 def _stop_listening(runtime: Runtime) -> None:

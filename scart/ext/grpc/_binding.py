@@ -77,6 +77,9 @@ class GrpcServiceBinding(ServiceBinding):
         for name, models in assembly.service_bindings.items():
             if any(m is self.model for m in models):
                 names.append(name)
+        for name, target in assembly.services.items():  # the names the composite promotes it as
+            if (target.node, target.service) == (ep.component, ep.service) and name not in names:
+                names.append(name)
         return names
 
     def start(self) -> None:
