@@ -95,6 +95,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     from dataflow.cli import record
 
     record.register(verb, subparsers)
+    from dataflow.cli.foxglove import cmd_foxglove
+
+    p = verb("foxglove", "serve every output port live to the Foxglove app (WebSocket protocol)", cmd_foxglove)
+    p.add_argument("--host", default="127.0.0.1", help="where to listen (default 127.0.0.1)")
+    p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0: a free one)")
+    p.add_argument("--refresh", type=float, default=2.0, help="look for new tasks every this many seconds")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--insecure-host", action="store_true", help="allow a routable --host (no authentication!)")
 
 
 # ---- shared plumbing -------------------------------------------------------------------
