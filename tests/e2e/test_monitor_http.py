@@ -186,7 +186,8 @@ def test_sse_stream_delivers_published_status_events_and_driver_info(server: Mon
     assert msg["samples"] == 10 and msg["age"] < 5.0
     assert msg["rate"] == pytest.approx(100.0, rel=0.01)  # from the sample timestamps, 10 ms apart
     assert msg["coalesced"]["refresh"]["count"] == 10
-    assert names == ["connected", "busy"]  # refresh is counted, never listed
+    assert [n for n in names if n != "error"] == ["connected", "busy"]  # refresh is counted, never listed
+    assert names.count("error") == 5  # OVER_TEMPERATURE raised on each of the 5 joints at sequence 10
 
 
 def test_stop_closes_sse_streams_and_leaves_no_threads(backend: FakeBackend) -> None:
@@ -482,3 +483,25 @@ def test_a_routable_host_needs_a_control_token(backend: FakeBackend, caplog: pyt
     with caplog.at_level(logging.WARNING):
         MonitorServer(backend, host="0.0.0.0", insecure=True)
     assert "anyone who reaches it can move the arm" in caplog.text
+
+
+def test_the_event_log_tells_period_state_error_flag_and_connection_changes() -> None:
+    hub = StatusHub()
+    hub.error_flag_names = {0: "OVER_CURRENT", 3: "TIMEOUT"}
+    hub.set_driver_info("RUNNING", 0.01, True)   # connected
+    hub.set_driver_info("RUNNING", 0.02, True)   # a period change
+    hub.set_driver_info("STOPPED", 0.02, True)   # a state change
+    hub.set_driver_info("OFFLINE", 0.0, False)   # lost
+    hub.set_driver_info("RUNNING", 0.02, True)   # restored
+    joints = [{"position": 0.0, "error_flags": 0} for _ in range(5)]
+    hub.publish_status({"joints": joints, "sequence": 1})
+    raised = [dict(j) for j in joints]
+    raised[1]["error_flags"] = 0b1001
+    hub.publish_status({"joints": raised, "sequence": 2})
+    hub.publish_status({"joints": joints, "sequence": 3})
+    events = [(e["name"], e["detail"]) for e in hub.snapshot()[0]["events"]]
+    assert events == [
+        ("connected", "RUNNING"), ("period", "10 ms → 20 ms"), ("state", "RUNNING → STOPPED"),
+        ("disconnected", "OFFLINE"), ("connected", "RUNNING"),
+        ("error", "joint 2: OVER_CURRENT, TIMEOUT set"), ("error", "joint 2: OVER_CURRENT, TIMEOUT cleared"),
+    ]

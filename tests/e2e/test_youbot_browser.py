@@ -15,7 +15,7 @@ from collections.abc import Iterator
 
 import pytest
 from support.browser import BrowserPage, expect, needs_chromium, open_page
-from support.youbot import Demo, start_serving
+from support.youbot import Demo, post_json, start_serving
 
 from locomotor import POSES
 
@@ -121,6 +121,10 @@ def test_pose_sent_and_positions_converge(session: Session) -> None:
     expect(page.locator("#pose-result")).to_have_text("at candle")  # how the move ended
     expect(page.locator("#pose-result")).to_have_attribute("data-ok", "true")
     session.shot("pose-candle")
+    # a move started elsewhere (another page, a script): the old outcome does not stay
+    post_json(session.demo.monitor_url() + "api/pose", {"pose": "home"})
+    expect(page.locator("#pose-result")).to_have_text("moving to home")
+    expect(page.locator("#pose-result")).to_have_text("at home", timeout=30_000)
 
 
 def test_bad_url_hash_rewritten_to_the_view_shown(session: Session) -> None:

@@ -70,6 +70,7 @@ class StatusHub:
         self._coalesced: dict[str, dict[str, Any]] = {}
         self._driver: dict[str, Any] = {"state": "unknown", "period": None, "connected": False}
         self._flag_names: dict[int, str] = {}
+        self._flag_words: list[int] | None = None  # each joint's error word in the last sample
 
     # -- publishing side (host threads) -------------------------------------------------
 
@@ -89,6 +90,7 @@ class StatusHub:
             self._stamps.append(stamp)
             while self._stamps and self._stamps[0] <= stamp - RATE_WINDOW_S:
                 self._stamps.popleft()
+            self._flag_events(sample)
             self._bump()
 
     def publish_event(self, name: str, detail: str = "") -> None:
@@ -100,10 +102,15 @@ class StatusHub:
     def set_driver_info(self, state: str, period: float | None, connected: bool) -> None:
         """Record the driver's state, accepted period and reachability; logs connection changes."""
         with self._cond:
-            was = self._driver["connected"]
+            before = self._driver
             self._driver = {"state": str(state), "period": period, "connected": bool(connected)}
-            if was != bool(connected):
+            if before["connected"] != bool(connected):
                 self._add_event("connected" if connected else "disconnected", str(state))
+            elif connected and before["state"] != str(state) and before["state"] != "unknown":
+                self._add_event("state", f"{before['state']} → {state}")
+            if connected and before["connected"] and period is not None and before["period"] is not None \
+                    and period != before["period"]:
+                self._add_event("period", f"{before['period'] * 1000:g} ms → {period * 1000:g} ms")
             self._bump()
 
     def set_summary(self, summary: dict[str, Any]) -> None:
@@ -180,6 +187,22 @@ class StatusHub:
         return message, last_event
 
     # -- internals (call with the lock held) ------------------------------------------
+
+    def _flag_events(self, sample: dict[str, object]) -> None:
+        """An ``error`` event for each error flag that a joint raised or cleared since the last sample."""
+        joints = sample.get("joints") if isinstance(sample, dict) else None
+        words = [int(j.get("error_flags", 0)) if isinstance(j, dict) else 0 for j in joints] \
+            if isinstance(joints, list) else []
+        previous, self._flag_words = self._flag_words, words
+        if previous is None or len(previous) != len(words):
+            return
+        for j, (old, new) in enumerate(zip(previous, words), start=1):
+            if old == new:
+                continue
+            raised = flag_names(new & ~old, self._flag_names)
+            cleared = flag_names(old & ~new, self._flag_names)
+            parts = ([f"{', '.join(raised)} set"] if raised else []) + ([f"{', '.join(cleared)} cleared"] if cleared else [])
+            self._add_event("error", f"joint {j}: {'; '.join(parts)}")
 
     def _bump(self) -> None:
         self._version += 1

@@ -351,6 +351,11 @@
         $("arm-state").textContent = ev.name;
         $("arm-pill").dataset.state = ev.name;
       }
+      if (ev.name === "busy") {   // a new move: the last outcome ("at candle") no longer holds
+        const out = $("pose-result");
+        delete out.dataset.ok;
+        out.textContent = ev.detail || "moving";
+      }
       if (ev.name === "idle" && ev.detail && ev.detail !== "arm ready") {   // why the move ended
         const out = $("pose-result");
         out.dataset.ok = String(!/not reached|superseded/.test(ev.detail));
