@@ -4,20 +4,23 @@ checked at load with file:line; what the bridge saw, through introspection."""
 
 from __future__ import annotations
 
+import contextlib
+import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from pydantic import BaseModel
+from support import wait_until
+from support.sca import composite, line_of, write
 
 import scart
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort
+from dataflow.fields import apply_path, parse_path
 from dataflow.remote import connect
 from scart.ext.dataflow import deployer_of
-from dataflow.fields import apply_path, parse_path
 from scart.ext.dataflow.bridge import path_type, same_type
-from support import wait_until
-from support.sca import composite, line_of, write
 
 MODS = '''
 from __future__ import annotations
@@ -155,6 +158,30 @@ def test_field_paths_read_and_type() -> None:
     assert not same_type(list[float], list[str]) and not same_type(str, float)
 
 
+@contextlib.contextmanager
+def remote_count(folder: Path, start: bool = True) -> Iterator[tuple[Deployer, str]]:
+    """Another deployer (embedding the name service) serving ``remoteCount`` — a task of the
+    contribution's ``bridgemods`` module, imported from ``folder`` — and its address."""
+    sys.path.insert(0, str(folder))
+    try:
+        import bridgemods
+
+        other = Deployer()
+        other.add(bridgemods.CountSource("remoteCount"))
+        if start:
+            other.configure_all()
+            other.start_all()
+        server = other.serve("127.0.0.1:0")
+        try:
+            yield other, server.address
+        finally:
+            server.stop()
+            other.stop_all()
+            other.cleanup_all()
+    finally:
+        sys.path.remove(str(folder))
+
+
 # ---- running -------------------------------------------------------------------------------------
 
 def test_three_inputs_local_and_of_another_deployer(tmp_path: Path) -> None:
@@ -166,48 +193,31 @@ def test_three_inputs_local_and_of_another_deployer(tmp_path: Path) -> None:
           <scart:output name="summary" type="bridgemods:Triple" build="bridgemods:make"/>
         </scart:bridge>
     """)
-    import sys
-
-    sys.path.insert(0, str(tmp_path))
-    try:
-        import bridgemods
-
-        other = Deployer()
-        other.add(bridgemods.CountSource("remoteCount"))
-        other.configure_all()
-        other.start_all()
-        server = other.serve("127.0.0.1:0")
-        try:
-            settings = scart.Settings(ns=server.address, serve=True)
-            with scart.Runtime.from_file(str(path), settings=settings) as rt:
-                probe = Probe(rt, "statusBridge", "summary")
-                bridge = deployer_of(rt).task("statusBridge")
-                # the remote input connects in the background: wait until a count goes through
-                wait_until(lambda: bridge.port("count").connection_count() == 1, timeout=15,
-                           message="remote input not connected")
-                write_to(rt, "armSrc.status", arm(0.5, 1.5))
-                other.task("remoteCount").port("count").write(7)
-                seen = probe.wait(1)
-                last = seen[-1]
-                assert (last.arm, last.busy, last.count) == ([0.5, 1.5], False, 7)  # type: ignore[attr-defined]
-                write_to(rt, "flagSrc.busy", True)
-                seen = probe.wait(len(seen) + 1)
-                assert seen[-1].busy is True  # type: ignore[attr-defined]
-                props = {p.name: p.value for p in bridge.describe().properties}
-                assert props["arm.samples"] == 1 and props["count.samples"] == 1 and props["outputs"] >= 2
-                assert props["arm.age"] is not None and props["arm.age"] >= 0
-                system = connect(server.address)  # what `scart describe statusBridge` shows
-                try:
-                    remote = {p.name: p.value for p in system.component("statusBridge").describe().properties}
-                finally:
-                    system.close()
-                assert remote["arm.age"] >= 0 and remote["count.samples"] == 1
-        finally:
-            server.stop()
-            other.stop_all()
-            other.cleanup_all()
-    finally:
-        sys.path.remove(str(tmp_path))
+    with remote_count(tmp_path) as (other, address):
+        settings = scart.Settings(ns=address, serve=True)
+        with scart.Runtime.from_file(str(path), settings=settings) as rt:
+            probe = Probe(rt, "statusBridge", "summary")
+            bridge = deployer_of(rt).task("statusBridge")
+            # the remote input connects in the background: wait until a count goes through
+            wait_until(lambda: bridge.port("count").connection_count() == 1, timeout=15,
+                       message="remote input not connected")
+            write_to(rt, "armSrc.status", arm(0.5, 1.5))
+            other.task("remoteCount").port("count").write(7)
+            seen = probe.wait(1)
+            last = seen[-1]
+            assert (last.arm, last.busy, last.count) == ([0.5, 1.5], False, 7)  # type: ignore[attr-defined]
+            write_to(rt, "flagSrc.busy", True)
+            seen = probe.wait(len(seen) + 1)
+            assert seen[-1].busy is True  # type: ignore[attr-defined]
+            props = {p.name: p.value for p in bridge.describe().properties}
+            assert props["arm.samples"] == 1 and props["count.samples"] == 1 and props["outputs"] >= 2
+            assert props["arm.age"] is not None and props["arm.age"] >= 0
+            system = connect(address)  # what `scart describe statusBridge` shows
+            try:
+                remote = {p.name: p.value for p in system.component("statusBridge").describe().properties}
+            finally:
+                system.close()
+            assert remote["arm.age"] >= 0 and remote["count.samples"] == 1
 
 
 def test_a_remote_source_of_the_wrong_type_fails_the_start_or_the_online_load(tmp_path: Path) -> None:
@@ -217,27 +227,14 @@ def test_a_remote_source_of_the_wrong_type_fails_the_start_or_the_online_load(tm
           <scart:output name="o" type="string" build="bridgemods:ident"/>
         </scart:bridge>
     """)
-    import sys
-
-    sys.path.insert(0, str(tmp_path))
-    try:
-        import bridgemods
-
-        other = Deployer()
-        other.add(bridgemods.CountSource("remoteCount"))
-        server = other.serve("127.0.0.1:0")
-        try:
-            rt = scart.Runtime.from_file(str(path), settings=scart.Settings(ns=server.address))  # offline: loads
-            with pytest.raises(scart.ScartError) as info:
-                rt.start()
-            assert "converter bridgemods:wrong takes str, but remoteCount.count is int" in str(info.value)
-            with pytest.raises(scart.ScdlError) as load:
-                scart.Runtime.from_file(str(path), settings=scart.Settings(ns=server.address, online=True))
-            assert load.value.codes == ["SCART-B002"] and load.value.errors[0].line == line_of(text, "<!--HERE-->")
-        finally:
-            server.stop()
-    finally:
-        sys.path.remove(str(tmp_path))
+    with remote_count(tmp_path, start=False) as (_other, address):
+        rt = scart.Runtime.from_file(str(path), settings=scart.Settings(ns=address))  # offline: loads
+        with pytest.raises(scart.ScartError) as info:
+            rt.start()
+        assert "converter bridgemods:wrong takes str, but remoteCount.count is int" in str(info.value)
+        with pytest.raises(scart.ScdlError) as load:
+            scart.Runtime.from_file(str(path), settings=scart.Settings(ns=address, online=True))
+        assert load.value.codes == ["SCART-B002"] and load.value.errors[0].line == line_of(text, "<!--HERE-->")
 
 
 @pytest.mark.parametrize("missing, expect", [("hold", [(1.0, True), (2.0, True)]),
@@ -529,9 +526,6 @@ def only(joints: list[float]) -> Only:
 
 
 def test_a_composite_with_only_a_bridge_is_served(tmp_path: Path) -> None:
-    other = Deployer()
-    import sys
-
     path, _ = make(tmp_path, """
         <scart:bridge name="lonely">
           <scart:input name="n" from="remoteCount.count"/>
@@ -539,19 +533,9 @@ def test_a_composite_with_only_a_bridge_is_served(tmp_path: Path) -> None:
         </scart:bridge>
     """)
     (tmp_path / "bridgemods.py").write_text(MODS + "\n\ndef same(n: int) -> int:\n    return n\n")
-    sys.path.insert(0, str(tmp_path))
-    try:
-        import bridgemods
-
-        other.add(bridgemods.CountSource("remoteCount"))
-        server = other.serve("127.0.0.1:0")
-        try:
-            with scart.Runtime.from_file(str(path), settings=scart.Settings(ns=server.address, serve=True)) as rt:
-                assert rt.served(), "the bridge's runtime serves nothing"
-                bridge = deployer_of(rt).task("lonely")
-                wait_until(lambda: bridge.port("n").connection_count() == 1, timeout=15,
-                           message="the remote input of a bridge-only composite never connects")
-        finally:
-            server.stop()
-    finally:
-        sys.path.remove(str(tmp_path))
+    with remote_count(tmp_path, start=False) as (_other, address):
+        with scart.Runtime.from_file(str(path), settings=scart.Settings(ns=address, serve=True)) as rt:
+            assert rt.served(), "the bridge's runtime serves nothing"
+            bridge = deployer_of(rt).task("lonely")
+            wait_until(lambda: bridge.port("n").connection_count() == 1, timeout=15,
+                       message="the remote input of a bridge-only composite never connects")
