@@ -40,8 +40,6 @@ class _Bridge:
 
     def refresh(self) -> None:
         """A channel and a subscription for every output port not bridged yet."""
-        import foxglove
-
         from dataflow import ConnPolicy, registry
 
         for task in self.system.component_names():

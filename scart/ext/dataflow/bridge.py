@@ -51,6 +51,7 @@ import logging
 import math
 import threading
 import time
+import types
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -229,7 +230,7 @@ def _plain(tp: Any) -> Any:
     """``T | None`` → ``T``; ``Any``/missing → unknown."""
     if tp in (None, inspect.Parameter.empty, Any, object):
         return _UNKNOWN
-    if typing.get_origin(tp) in (typing.Union, getattr(__import__("types"), "UnionType")):
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
         args = [t for t in typing.get_args(tp) if t is not type(None)]
         return _plain(args[0]) if len(args) == 1 else _UNKNOWN
     return tp
