@@ -151,6 +151,31 @@ def test_error_flags_shown_by_name(session: Session) -> None:
         expect(page.locator("#flags-0")).to_have_text("ok")
 
 
+def test_overlapping_joints_stay_apart_and_stale_values_are_greyed(session: Session) -> None:
+    """Each joint's overview line has a dash of its own (and a legend entry to toggle it);
+    while the driver is stopped, the table's values are greyed with their age."""
+    from dataflow.remote import connect
+
+    page = session.page
+    page.click("#tab-global")
+    session.wait("() => { const d = document.getElementById('chart-overview').data; return d && d.length === 5; }")
+    dashes = page.evaluate("document.getElementById('chart-overview').data.map(t => t.line.dash)")
+    assert len(set(dashes)) == 5, dashes
+    assert page.evaluate("document.getElementById('chart-overview').layout.showlegend") is True
+    table = page.locator("#joint-table")
+    expect(table).not_to_have_class(re.compile(r"\bstale\b"))
+    with connect(session.demo.ns) as system:  # as `scart state youBotDriver stop` would
+        driver = system.component("youBotDriver")
+        assert driver.stop()
+        try:
+            expect(table).to_have_class(re.compile(r"\bstale\b"))
+            expect(table).to_have_attribute("title", re.compile(r"^last values, \d+\.\d s old$"))
+            session.shot("stale")
+        finally:
+            assert driver.start()
+    expect(table).not_to_have_class(re.compile(r"\bstale\b"))
+
+
 def test_screenshot_every_tab(session: Session) -> None:
     page = session.page
     saved = []

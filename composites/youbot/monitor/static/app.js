@@ -17,6 +17,7 @@
   ];
   const CELL = { position: "pos", velocity: "vel", current: "cur", temperature: "temp" };
   const JOINT_COLORS = ["#2f81f7", "#8250df", "#d4a017", "#1f9d55", "#d73a49"];
+  const JOINT_DASHES = ["solid", "dash", "dot", "dashdot", "longdash"];   // joints that overlap stay apart
   const PLOT_CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
 
   const RECONNECT_MS = 5000;          // after the server refused the stream (503: too many streams)
@@ -215,7 +216,8 @@
     layout.yaxis = { title: { text: "position (rad)", font: { size: 10 } }, gridcolor: "#eceff2", zeroline: false };
     const traces = buffers.map((buf, i) => ({
       type: "scatter", mode: "lines", name: "J" + (i + 1), x: buf.x.slice(), y: buf.y[0].slice(),
-      line: { color: JOINT_COLORS[i], width: 1.5 }, hovertemplate: "J" + (i + 1) + " %{y:.3f} rad<extra></extra>",
+      line: { color: JOINT_COLORS[i], width: 1.5, dash: JOINT_DASHES[i] },
+      hovertemplate: "J" + (i + 1) + " %{y:.3f} rad<extra></extra>",
     }));
     Plotly.react($("chart-overview"), traces, layout, PLOT_CONFIG);
     plotted.add(0);
@@ -325,6 +327,12 @@
     else { state = "live"; text = "live"; }
     el.dataset.state = state;
     $("conn-text").textContent = text;
+    // values no longer live (driver offline or stopped, or no new sample): greyed, with their age
+    const d = (msg && msg.driver) || {};
+    const stale = state !== "live" || (d.state && d.state !== "RUNNING");
+    const table = $("joint-table");
+    table.classList.toggle("stale", Boolean(stale));
+    table.title = stale && msg && typeof msg.age === "number" ? "last values, " + msg.age.toFixed(1) + " s old" : "";
   }
 
   function addEvents(events) {
