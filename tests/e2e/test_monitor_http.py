@@ -505,3 +505,25 @@ def test_the_event_log_tells_period_state_error_flag_and_connection_changes() ->
         ("disconnected", "OFFLINE"), ("connected", "RUNNING"),
         ("error", "joint 2: OVER_CURRENT, TIMEOUT set"), ("error", "joint 2: OVER_CURRENT, TIMEOUT cleared"),
     ]
+
+
+def test_the_last_minute_is_kept_for_a_page_opened_now(server: MonitorServer,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    from composites.youbot.monitor import hub as hub_module
+
+    clock = [1000.0]
+    monkeypatch.setattr(hub_module.time, "monotonic", lambda: clock[0])
+    for seq in range(1, 3001):  # 30 s at 100 Hz
+        clock[0] += 0.01
+        server.publish_status(sample(seq, clock[0]))
+    status, _, body = get(server.url + "api/history")
+    statuses = json.loads(body)["statuses"]
+    assert status == 200
+    sequences = [s["sequence"] for s in statuses]
+    assert sequences == sorted(sequences) and sequences[-1] >= 2996  # oldest first, up to now
+    assert 700 <= len(statuses) <= 760  # one per 40 ms, not every sample
+    for seq in range(3001, 9001):  # 60 s more: only the last minute stays
+        clock[0] += 0.01
+        server.publish_status(sample(seq, clock[0]))
+    kept = json.loads(get(server.url + "api/history")[2])["statuses"]
+    assert kept[0]["sequence"] > 3000 and len(kept) <= 1510

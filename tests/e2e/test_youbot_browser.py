@@ -176,6 +176,19 @@ def test_overlapping_joints_stay_apart_and_stale_values_are_greyed(session: Sess
     expect(table).not_to_have_class(re.compile(r"\bstale\b"))
 
 
+def test_a_page_opened_later_starts_with_the_recent_history(session: Session) -> None:
+    """The server keeps the last minute: a second page's chart is full at once, not empty
+    (live updates alone would bring at most ~25 points a second)."""
+    page = session.page.context.browser.new_context().new_page()  # a second page of the same browser
+    try:
+        page.goto(session.demo.monitor_url())
+        page.wait_for_function(
+            "() => { const d = document.getElementById('chart-overview').data; return d && d[0].x.length > 100; }",
+            timeout=3000)
+    finally:
+        page.context.close()
+
+
 def test_screenshot_every_tab(session: Session) -> None:
     page = session.page
     saved = []

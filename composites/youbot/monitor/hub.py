@@ -26,6 +26,8 @@ STALE_AFTER_S = 1.0
 """No sample for this long: the measured rate reads 0 (the stream stopped)."""
 
 MAX_EVENTS = 200
+HISTORY_S = 60.0  #: how much recent history a page opened now gets at once
+HISTORY_EVERY_S = 0.04  #: at most one kept status per 40 ms (the page's own update rate)
 """Event log length kept by the server (older entries are dropped)."""
 
 COALESCED_EVENTS = frozenset({"refresh"})
@@ -71,6 +73,7 @@ class StatusHub:
         self._driver: dict[str, Any] = {"state": "unknown", "period": None, "connected": False}
         self._flag_names: dict[int, str] = {}
         self._flag_words: list[int] | None = None  # each joint's error word in the last sample
+        self._history: deque[tuple[float, dict[str, object]]] = deque()  # (arrival, status), last HISTORY_S
 
     # -- publishing side (host threads) -------------------------------------------------
 
@@ -91,7 +94,17 @@ class StatusHub:
             while self._stamps and self._stamps[0] <= stamp - RATE_WINDOW_S:
                 self._stamps.popleft()
             self._flag_events(sample)
+            if not self._history or now - self._history[-1][0] >= HISTORY_EVERY_S * 0.999:  # clock rounding
+                self._history.append((now, sample))
+            while self._history and self._history[0][0] < now - HISTORY_S:
+                self._history.popleft()
             self._bump()
+
+    def history(self) -> list[dict[str, object]]:
+        """The statuses of the last :data:`HISTORY_S` s, oldest first, one per
+        :data:`HISTORY_EVERY_S` at most (what a page opened now draws before going live)."""
+        with self._cond:
+            return [sample for _, sample in self._history]
 
     def publish_event(self, name: str, detail: str = "") -> None:
         """Log an event (``refresh`` is only counted). Thread-safe, never waits for readers."""

@@ -9,6 +9,7 @@ Routes (all on the address given, 127.0.0.1 by default):
 | GET | `/static/plotly.min.js` | Plotly.js from the installed ``plotly`` package |
 | GET | `/api/state` | one JSON snapshot (same shape as an SSE message) plus ``poses`` |
 | GET | `/api/poses` | ``{"poses": [...]}`` from the backend |
+| GET | `/api/history` | ``{"statuses": [...]}``: the last minute, at most 25 a second (a page draws it at once) |
 | GET | `/events` | Server-Sent Events: ``event: update`` messages, at most `MAX_RATE_HZ`/s; 503 + ``Retry-After`` beyond `MAX_SSE_CLIENTS` streams |
 | POST | `/api/period` | ``{"seconds": 0.02}`` → ``{"ok": bool, "message": str}`` from the backend |
 | POST | `/api/pose` | ``{"pose": "home"}`` or ``{"pose": [5 floats]}`` → same answer shape |
@@ -305,6 +306,8 @@ class _Handler(BaseHTTPRequestHandler):
             self._send_json(HTTPStatus.OK, state)
         elif path == "/api/poses":
             self._send_json(HTTPStatus.OK, {"poses": monitor._safe_poses()})
+        elif path == "/api/history":
+            self._send_json(HTTPStatus.OK, {"statuses": monitor._hub.history()})
         elif path == "/events":
             self._events_if_room()
         else:

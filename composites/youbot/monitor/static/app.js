@@ -396,6 +396,17 @@
     record(status);
   }
 
+  // The last minute the server kept, drawn before going live (charts open with history).
+  async function loadHistory() {
+    try {
+      const r = await fetch("/api/history", { cache: "no-store" });
+      const body = await r.json();
+      for (const status of body.statuses || []) record(status);
+    } catch (err) {
+      console.warn("no history", err);
+    }
+  }
+
   function connect() {
     const es = new EventSource("/events");
     es.onopen = () => { streamOpen = true; setConn(lastMsg); };
@@ -503,7 +514,7 @@
     wire();
     showTab(view.tab);
     loadPoses();
-    connect();
+    loadHistory().finally(connect);
     setInterval(flushCharts, CHART_MS);
   });
 })();
