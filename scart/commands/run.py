@@ -201,9 +201,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             # the services endpoint first, then SCA components (their one-way calls drain while
             # the tasks they use still run; then the components, task components included,
             # are destroyed in reverse start order), the data-flow server last (a stop hook).
-            for binding in reversed(services):
-                binding.stop()
-            _stop_listening(runtime)
+            _stop_listening(runtime, services)
         print("scart: stopped", flush=True)
         return 0
     finally:
@@ -246,12 +244,20 @@ def _serve_services(runtime: Runtime, address: str) -> list[Any]:
     return started
 
 
-def _stop_listening(runtime: Runtime) -> None:
-    """``runtime.stop()`` on a thread of its own while this (main) thread waits in short
-    slices. Python runs signal handlers only on the main thread, and the kernel may deliver
-    a signal to any thread: a main thread blocked in one long wait (a drain deadline of
-    minutes) would not run the second Ctrl-C's handler until that wait ended."""
-    stopper = threading.Thread(target=runtime.stop, name="scart-stop", daemon=True)
+def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None:
+    """Stop the ``services`` endpoint, then ``runtime``, on a thread of their own while this
+    (main) thread waits in short slices. Python runs signal handlers only on the main
+    thread, and the kernel may deliver a signal to any thread: a main thread blocked in one
+    long wait (a drain deadline of minutes) would not run the second Ctrl-C's handler until
+    that wait ended."""
+    def stop() -> None:
+        try:
+            for binding in reversed(services or []):
+                binding.stop()
+        finally:
+            runtime.stop()
+
+    stopper = threading.Thread(target=stop, name="scart-stop", daemon=True)
     stopper.start()
     while stopper.is_alive():
         stopper.join(0.2)
