@@ -164,18 +164,20 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
                          "address needs --insecure-host")
     context = foxglove.Context()
     bridge = _Bridge(args.system, context)
-    bridge.refresh()
-    deadline = time.monotonic() + 5.0  # channels of types unknown here appear with their first sample
-    while None in bridge.channels.values() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    server = foxglove.start_server(name="scart", host=args.host, port=args.port, context=context,
-                                   capabilities=[foxglove.Capability.Parameters], server_listener=bridge)
     try:
-        print(f"scart: Foxglove at ws://{args.host}:{server.port} ({len(bridge.channels)} channel(s))", flush=True)
-        _err(f"foxglove: open ws://{args.host}:{server.port} in the Foxglove app; Ctrl-C to stop")
-        stop = threading.Event()
-        _wait_until_stopped(stop, args.duration, tick=args.refresh, on_tick=bridge.refresh)
+        bridge.refresh()
+        deadline = time.monotonic() + 5.0  # channels of types unknown here appear with their first sample
+        while None in bridge.channels.values() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        server = foxglove.start_server(name="scart", host=args.host, port=args.port, context=context,
+                                       capabilities=[foxglove.Capability.Parameters], server_listener=bridge)
+        try:
+            print(f"scart: Foxglove at ws://{args.host}:{server.port} ({len(bridge.channels)} channel(s))", flush=True)
+            _err(f"foxglove: open ws://{args.host}:{server.port} in the Foxglove app; Ctrl-C to stop")
+            stop = threading.Event()
+            _wait_until_stopped(stop, args.duration, tick=args.refresh, on_tick=bridge.refresh)
+        finally:
+            server.stop()
     finally:
-        server.stop()
-        bridge.close()
+        bridge.close()  # subscriptions end even when the server could not start
     return 0

@@ -125,12 +125,12 @@ def cmd_record(args: argparse.Namespace) -> int:
             samples.put((f"{event.component}.{event.port}", time.time_ns(), event.source_time, event.value))
 
         subs = []
+        drain = threading.Thread(target=_write_samples, name="scart-record-writer",
+                                 args=(writer, channels, samples, counts, args.n, done, registry), daemon=True)
+        drain.start()
         try:
             for task, port, _ in ports:
                 subs.append(args.system.component(task).subscribe(port, observer, policy=ConnPolicy.buffer(10_000)))
-            drain = threading.Thread(target=_write_samples, name="scart-record-writer",
-                                     args=(writer, channels, samples, counts, args.n, done, registry), daemon=True)
-            drain.start()
             _err(f"record: {len(ports)} port(s) to {args.output}; Ctrl-C to stop")
             _wait_until_stopped(done, args.duration)
         finally:
