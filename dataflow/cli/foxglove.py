@@ -17,7 +17,6 @@ import argparse
 import json
 import logging
 import threading
-import time
 from typing import Any
 
 from dataflow.cli.record import _schema_of
@@ -36,7 +35,7 @@ class _Bridge:
         self.context = context
         self.channels: dict[str, Any] = {}
         self.subs: list[Any] = []
-        self._lock = threading.Lock()
+        self._lock = threading.Condition()  # notified when a channel is made from its first sample
 
     def refresh(self) -> None:
         """A channel and a subscription for every output port not bridged yet."""
@@ -68,9 +67,15 @@ class _Bridge:
                             if channel is None:
                                 channel = self.channels[topic] = self._channel(
                                     topic, type_name, {"title": type_name, **schema_of_sample(data)})
+                                self._lock.notify_all()
                     channel.log(json.dumps(data).encode(), log_time=int(event.source_time * 1e9))
 
                 self.subs.append(proxy.subscribe(port.name, observer, policy=ConnPolicy.data()))
+
+    def wait_for_channels(self, timeout: float) -> None:
+        """Until every port has its channel (types unknown here get theirs with their first sample)."""
+        with self._lock:
+            self._lock.wait_for(lambda: None not in self.channels.values(), timeout)
 
     def _channel(self, topic: str, type_name: str, schema: dict[str, Any]) -> Any:
         import foxglove
@@ -166,9 +171,7 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
     bridge = _Bridge(args.system, context)
     try:
         bridge.refresh()
-        deadline = time.monotonic() + 5.0  # channels of types unknown here appear with their first sample
-        while None in bridge.channels.values() and time.monotonic() < deadline:
-            time.sleep(0.05)
+        bridge.wait_for_channels(5.0)
         server = foxglove.start_server(name="scart", host=args.host, port=args.port, context=context,
                                        capabilities=[foxglove.Capability.Parameters], server_listener=bridge)
         try:

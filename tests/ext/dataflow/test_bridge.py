@@ -129,6 +129,11 @@ class Probe:
         return self.seen
 
 
+def stats(task: object) -> dict[str, object]:
+    """What ``scart describe`` shows of a task's properties (a bridge's ages and counts)."""
+    return {p.name: p.value for p in task.describe().properties}  # type: ignore[attr-defined]
+
+
 def write_to(rt: scart.Runtime, ref: str, value: object) -> None:
     task, _, port = ref.partition(".")
     deployer_of(rt).task(task).port(port).write(value)
@@ -208,7 +213,7 @@ def test_three_inputs_local_and_of_another_deployer(tmp_path: Path) -> None:
             write_to(rt, "flagSrc.busy", True)
             seen = probe.wait(len(seen) + 1)
             assert seen[-1].busy is True  # type: ignore[attr-defined]
-            props = {p.name: p.value for p in bridge.describe().properties}
+            props = stats(bridge)
             assert props["arm.samples"] == 1 and props["count.samples"] == 1 and props["outputs"] >= 2
             assert props["arm.age"] is not None and props["arm.age"] >= 0
             system = connect(address)  # what `scart describe statusBridge` shows
@@ -263,7 +268,7 @@ def pair(arm: float, busy: bool) -> Pair:
         bridge = deployer_of(rt).task("b")
 
         def samples(name: str) -> int:
-            return {p.name: p.value for p in bridge.describe().properties}[f"{name}.samples"]
+            return stats(bridge)[f"{name}.samples"]
 
         write_to(rt, "armSrc.status", arm(1.0))  # no flag yet
         wait_until(lambda: samples("arm") == 1, timeout=10, message="arm not read")
@@ -271,7 +276,7 @@ def pair(arm: float, busy: bool) -> Pair:
         wait_until(lambda: samples("busy") == 1, timeout=10, message="flag not read")
         write_to(rt, "armSrc.status", arm(2.0))  # the flag has no new sample now
         wait_until(lambda: samples("arm") == 2, timeout=10, message="second arm sample not read")
-        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["outputs"] == len(expect),
+        wait_until(lambda: stats(bridge)["outputs"] == len(expect),
                    timeout=10, message="outputs not written")
         assert [(s.arm, s.busy) for s in probe.wait(len(expect))] == expect  # type: ignore[attr-defined]
 
@@ -305,14 +310,14 @@ def test_all_trigger_waits_for_every_input_within_the_window(tmp_path: Path) -> 
         probe = Probe(rt, "b", "out")
         bridge = deployer_of(rt).task("b")
         write_to(rt, "armSrc.status", arm(1.0))
-        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["arm.samples"] == 1,
+        wait_until(lambda: stats(bridge)["arm.samples"] == 1,
                    timeout=10, message="arm not read")
         assert probe.drain() == []  # one input alone: nothing
         write_to(rt, "flagSrc.busy", True)
         seen = probe.wait(1)
         assert (seen[0].arm, seen[0].busy) == ([1.0], True)  # type: ignore[attr-defined]
         write_to(rt, "flagSrc.busy", False)  # the arm's sample was used: wait for a new one
-        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["busy.samples"] == 2,
+        wait_until(lambda: stats(bridge)["busy.samples"] == 2,
                    timeout=10, message="flag not read")
         assert len(probe.drain()) == 1
         write_to(rt, "armSrc.status", arm(2.0))
@@ -336,7 +341,7 @@ def half_of(n: float) -> float:
         probe = Probe(rt, "b", "out")
         write_to(rt, "c.count", -1)
         bridge = deployer_of(rt).task("b")
-        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["errors"] == 1,
+        wait_until(lambda: stats(bridge)["errors"] == 1,
                    timeout=10, message="the refused sample is not counted")
         write_to(rt, "c.count", 4)
         assert probe.wait(1) == [2.0]
@@ -453,14 +458,14 @@ class PairSink(TaskContext):
         sink_port = deployer_of(rt).task("sink").port("inp")
         assert sink_port.connection_count() == 1  # the connect to a bridge is made in-process
         write_to(rt, "c.count", -1)  # refused by the converter: counted once, never held
-        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["errors"] == 1, timeout=10,
+        wait_until(lambda: stats(bridge)["errors"] == 1, timeout=10,
                    message="the refusal is not counted")
         for i in range(3):
             write_to(rt, "flagSrc.busy", bool(i % 2))
         write_to(rt, "c.count", 4)
-        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["outputs"] >= 1, timeout=10,
+        wait_until(lambda: stats(bridge)["outputs"] >= 1, timeout=10,
                    message="no output after a refused sample")
-        assert {p.name: p.value for p in bridge.describe().properties}["errors"] == 1
+        assert stats(bridge)["errors"] == 1
         got = wait_until(lambda: sink_port.read()[1], timeout=10, message="the connect from the bridge carries nothing")
         assert got.n == 2.0
 
@@ -477,7 +482,7 @@ def test_a_builder_of_the_wrong_type_is_counted_not_fatal(tmp_path: Path) -> Non
     with scart.Runtime.from_file(str(path)) as rt:
         bridge = deployer_of(rt).task("b")
         write_to(rt, "c.count", 1)
-        wait_until(lambda: {p.name: p.value for p in bridge.describe().properties}["errors"] == 1, timeout=10,
+        wait_until(lambda: stats(bridge)["errors"] == 1, timeout=10,
                    message="the wrong type is not counted")
         assert bridge.state.name == "RUNNING"
 
