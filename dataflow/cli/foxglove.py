@@ -6,9 +6,14 @@ task the name service lists becomes a channel ``task.port`` (JSON messages, a JS
 generated from the port's type: pydantic models describe themselves), fed by a ``data``
 subscription (a type this process does not know gets the schema of its first sample's
 shape); tasks that appear later are added every ``--refresh`` s. Task properties
-are Foxglove *parameters* named ``task.property``: read, and set — the set goes through
-this command's token, so it needs the ``operate`` role where the deployer checks tokens.
-The address to open in the app (``ws://HOST:PORT``) is printed on stdout.
+are Foxglove *parameters* named ``task.property``: read, and set. Task operations are
+Foxglove *services* named ``task.operation`` (JSON: the request is an object of the
+arguments by name, or a list of them in order; the response is ``{"result": ...}``; a
+refusal comes back as the protocol's call failure, with the reason). Sets and calls go
+through this command's token, so they need the ``operate`` role where the deployer checks
+tokens. The address to open in the app (``ws://HOST:PORT``) is printed on stdout.
+
+:class:`FoxgloveLive` is the same server for other hosts of it: ``scart run --foxglove``.
 """
 
 from __future__ import annotations
@@ -19,12 +24,16 @@ import logging
 import threading
 from typing import Any
 
-from dataflow.cli.record import _schema_of
+from dataflow.cli.record import _schema_of, type_schema
 
-__all__ = ["cmd_foxglove"]
+__all__ = ["FoxgloveLive", "cmd_foxglove"]
 
 log = logging.getLogger("scart.foxglove")
 MAX_CHANNELS = 512
+MAX_SERVICES = 1024
+MAX_REQUEST_BYTES = 64 * 1024  # a service call's JSON payload
+CALL_TIMEOUT = 10.0  # s, a service call's operation
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 class _Bridge:
@@ -34,21 +43,29 @@ class _Bridge:
         self.system = system
         self.context = context
         self.channels: dict[str, Any] = {}
+        self.services: dict[str, Any] = {}  # name → foxglove.Service, once made
         self.subs: list[Any] = []
         self._lock = threading.Condition()  # notified when a channel is made from its first sample
 
-    def refresh(self) -> None:
-        """A channel and a subscription for every output port not bridged yet."""
+    def refresh(self) -> list[Any]:
+        """A channel and a subscription for every output port not bridged yet; the services
+        of operations not seen before (returned, for a running server to add)."""
         from dataflow import ConnPolicy, registry
 
+        new_services: list[Any] = []
         for task in self.system.component_names():
             try:
                 proxy = self.system.component(task)
-                ports = [p for p in proxy.describe().ports if p.direction == "out"]
+                description = proxy.describe()
             except Exception as exc:  # noqa: BLE001 - a task gone meanwhile: the next refresh
                 log.info("task %s: %s", task, exc)
                 continue
-            for port in ports:
+            for op in description.operations:
+                name = f"{task}.{op.name}"
+                if name not in self.services and len(self.services) < MAX_SERVICES:
+                    self.services[name] = self._service(name, task, op)
+                    new_services.append(self.services[name])
+            for port in (p for p in description.ports if p.direction == "out"):
                 topic = f"{task}.{port.name}"
                 with self._lock:
                     if topic in self.channels or len(self.channels) >= MAX_CHANNELS:
@@ -71,6 +88,7 @@ class _Bridge:
                     channel.log(json.dumps(data).encode(), log_time=int(event.source_time * 1e9))
 
                 self.subs.append(proxy.subscribe(port.name, observer, policy=ConnPolicy.data()))
+        return new_services
 
     def wait_for_channels(self, timeout: float) -> None:
         """Until every port has its channel (types unknown here get theirs with their first sample)."""
@@ -83,6 +101,30 @@ class _Bridge:
         return foxglove.Channel(topic, schema=foxglove.Schema(name=type_name, encoding="jsonschema",
                                                               data=json.dumps(schema).encode()),
                                 message_encoding="json", context=self.context)
+
+    def _service(self, name: str, task: str, op: Any) -> Any:
+        """The Foxglove service calling operation ``op`` of ``task``."""
+        import foxglove
+        from foxglove.websocket import MessageSchema, Service, ServiceSchema
+
+        from dataflow import registry
+
+        params = [p for p, _ in op.params]
+        request = {"title": f"{name} request", "type": "object", "required": params,
+                   "properties": {p: type_schema(t) for p, t in op.params}}
+        response = {"title": f"{name} response", "type": "object", "properties": {"result": type_schema(op.returns)}}
+
+        def schema(title: str, body: dict[str, Any]) -> Any:
+            return MessageSchema(encoding="json", schema=foxglove.Schema(
+                name=title, encoding="jsonschema", data=json.dumps(body).encode()))
+
+        def handler(call: Any) -> bytes:
+            args = _call_arguments(name, params, call.payload)
+            result = self.system.component(task).call_json(op.name, args, timeout=CALL_TIMEOUT)
+            return json.dumps({"result": registry.to_jsonable(result)}).encode()
+
+        return Service(name, schema=ServiceSchema(name, request=schema(f"{name} request", request),
+                                                  response=schema(f"{name} response", response)), handler=handler)
 
     # --- foxglove.ServerListener ------------------------------------------------------------
 
@@ -125,6 +167,27 @@ class _Bridge:
                 channel.close()
 
 
+def _call_arguments(name: str, params: list[str], payload: bytes) -> list[Any]:
+    """A service request's arguments in order: a JSON object by parameter name, or a list
+    (an empty payload: no arguments). Bounded in bytes; refusals name the service."""
+    if len(payload) > MAX_REQUEST_BYTES:
+        raise ValueError(f"{name}: request of {len(payload)} bytes; at most {MAX_REQUEST_BYTES}")
+    try:
+        body = json.loads(payload) if payload.strip() else {}
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{name}: the request is not JSON: {exc}") from None
+    if isinstance(body, list):
+        return body
+    if not isinstance(body, dict):
+        raise ValueError(f"{name}: the request must be a JSON object of the arguments {params} (or a list)")
+    unknown = sorted(set(body) - set(params))
+    missing = [p for p in params if p not in body]
+    if unknown or missing:
+        raise ValueError(f"{name} takes {params}" + (f"; unknown {unknown}" if unknown else "")
+                         + (f"; missing {missing}" if missing else ""))
+    return [body[p] for p in params]
+
+
 def schema_of_sample(data: Any, depth: int = 0) -> dict[str, Any]:
     """A JSON Schema describing a JSON value (for a type this process does not know: the
     first sample shows its shape), bounded in depth."""
@@ -158,29 +221,89 @@ def _parameter_value(value: Any) -> Any:
     return str(value)
 
 
+class FoxgloveLive:
+    """A Foxglove WebSocket server showing the data-flow ``system`` (a name-service client):
+    channels, parameters and services as the module says, looked for again every
+    ``refresh`` s on a thread of its own. ``start()`` then ``stop()``; ``url`` once started.
+    A routable ``host`` needs ``insecure_host``: the protocol has no authentication. With
+    ``owns_system``, ``stop()`` closes ``system`` too."""
+
+    def __init__(self, system: Any, host: str = "127.0.0.1", port: int = 8765, refresh: float = 2.0,
+                 insecure_host: bool = False, owns_system: bool = False) -> None:
+        if host not in LOOPBACK and not insecure_host:
+            raise ValueError(f"host {host} is routable and the Foxglove protocol has no authentication "
+                             "(allow it with --insecure-host; on scart run, --insecure)")
+        self.host, self.port, self.refresh_period = host, port, refresh
+        self._system, self._owns_system = system, owns_system
+        self._bridge: _Bridge | None = None
+        self._server: Any = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        return f"ws://{self.host}:{self._server.port}" if self._server is not None else ""
+
+    @property
+    def channels(self) -> int:
+        return len(self._bridge.channels) if self._bridge is not None else 0
+
+    def start(self) -> None:
+        """Bridge what runs now (types unknown here wait up to 5 s for a first sample), listen,
+        and keep looking for new tasks. Nothing is left running when it raises."""
+        import foxglove
+
+        self._bridge = bridge = _Bridge(self._system, foxglove.Context())
+        try:
+            services = bridge.refresh()
+            bridge.wait_for_channels(5.0)
+            self._server = foxglove.start_server(
+                name="scart", host=self.host, port=self.port, context=bridge.context, server_listener=bridge,
+                capabilities=[foxglove.Capability.Parameters, foxglove.Capability.Services],
+                supported_encodings=["json"], services=services)
+            self._thread = threading.Thread(target=self._refreshing, name="scart-foxglove-refresh", daemon=True)
+            self._thread.start()
+        except BaseException:
+            self.stop()
+            raise
+
+    def _refreshing(self) -> None:
+        while not self._stop.wait(self.refresh_period):
+            try:
+                assert self._bridge is not None
+                services = self._bridge.refresh()
+                if services:
+                    self._server.add_services(services)
+            except Exception as exc:  # noqa: BLE001 - the name service away for a while: the next round
+                log.warning("foxglove: looking for new tasks failed: %s", exc)
+
+    def stop(self) -> None:
+        """Stop looking, stop the server, end the subscriptions (idempotent)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=30)
+            self._thread = None
+        if self._server is not None:
+            self._server.stop()
+            self._server = None
+        if self._bridge is not None:
+            self._bridge.close()  # subscriptions end even when the server could not start
+            self._bridge = None
+        if self._owns_system:
+            self._owns_system = False
+            self._system.close()
+
+
 def cmd_foxglove(args: argparse.Namespace) -> int:
     """``scart foxglove [--host H] [--port P]``: see the module docstring."""
-    import foxglove
-
     from dataflow.cli.inspect import _err, _wait_until_stopped
 
-    if args.host not in ("127.0.0.1", "localhost", "::1") and not args.insecure_host:
-        raise ValueError(f"--host {args.host}: the Foxglove protocol has no authentication; serving a routable "
-                         "address needs --insecure-host")
-    context = foxglove.Context()
-    bridge = _Bridge(args.system, context)
+    live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host)
+    live.start()
     try:
-        bridge.refresh()
-        bridge.wait_for_channels(5.0)
-        server = foxglove.start_server(name="scart", host=args.host, port=args.port, context=context,
-                                       capabilities=[foxglove.Capability.Parameters], server_listener=bridge)
-        try:
-            print(f"scart: Foxglove at ws://{args.host}:{server.port} ({len(bridge.channels)} channel(s))", flush=True)
-            _err(f"foxglove: open ws://{args.host}:{server.port} in the Foxglove app; Ctrl-C to stop")
-            stop = threading.Event()
-            _wait_until_stopped(stop, args.duration, tick=args.refresh, on_tick=bridge.refresh)
-        finally:
-            server.stop()
+        print(f"scart: Foxglove at {live.url} ({live.channels} channel(s))", flush=True)
+        _err(f"foxglove: open {live.url} in the Foxglove app; Ctrl-C to stop")
+        _wait_until_stopped(threading.Event(), args.duration)
     finally:
-        bridge.close()  # subscriptions end even when the server could not start
+        live.stop()
     return 0

@@ -58,8 +58,9 @@ def register(verb: Callable[[str, str, Callable[[argparse.Namespace], int]], arg
 
 # ---- record ------------------------------------------------------------------------------
 
-def _schema_of(type_name: str) -> dict[str, Any]:
-    """A JSON Schema for a registry type (pydantic's for models; ``{}`` when unknown here)."""
+def type_schema(type_name: str) -> dict[str, Any]:
+    """The JSON Schema of a registry type (pydantic's; ``{"title": name}``, any JSON, when
+    this process does not know the type or pydantic cannot describe it)."""
     import pydantic
 
     from dataflow import registry
@@ -68,10 +69,18 @@ def _schema_of(type_name: str) -> dict[str, Any]:
     if py_type is None:
         return {"title": type_name}
     try:
-        schema = pydantic.TypeAdapter(py_type).json_schema()
+        return pydantic.TypeAdapter(py_type).json_schema()
     except Exception:  # noqa: BLE001 - a type pydantic cannot describe: any JSON
         return {"title": type_name}
-    if schema.get("type") != "object":  # Foxglove wants objects: a scalar goes as {"value": ...}
+
+
+def _schema_of(type_name: str) -> dict[str, Any]:
+    """A message's JSON Schema: the type's, a non-object wrapped as ``{"value": ...}``
+    (Foxglove wants objects); ``{"title": name}`` for a type unknown here."""
+    from dataflow import registry
+
+    schema = type_schema(type_name)
+    if registry.python_type(type_name) is not None and schema.get("type") != "object":
         schema = {"title": type_name, "type": "object", "properties": {"value": schema}}
     return schema
 

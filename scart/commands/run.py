@@ -64,6 +64,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
                      help="serve every component service here (binding.grpc, the server's TLS and tokens) for "
                           f"`scart services --at` and `scart call --at`; default {SERVICES_DEFAULT} (loopback, a free "
                           "port); 'off' to serve none")
+    run.add_argument("--foxglove", default=None, metavar="[HOST:]PORT",
+                     help="also serve the data-flow tasks live to the Foxglove app here (as `scart foxglove`: "
+                          "ports, properties, operations; 0: a free port; a routable HOST needs --insecure)")
     add_arguments(run, server=True)
     run.set_defaults(func=cmd_run)
 
@@ -181,16 +184,25 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"scart: start failed: {exc}", file=sys.stderr)
             return 1
         services: list[Any] = []
+        foxglove: Any = None
         try:
             try:
                 services = _serve_services(runtime, args.services)
             except ScartError as exc:
                 print(f"scart: start failed: --services {args.services}: {exc}", file=sys.stderr)
                 return 1
+            if args.foxglove is not None:
+                try:
+                    foxglove = _serve_foxglove(runtime, args.foxglove, settings)
+                except Exception as exc:  # noqa: BLE001 - bad address, port taken, no tasks: said, all stopped
+                    print(f"scart: start failed: --foxglove {args.foxglove}: {exc}", file=sys.stderr)
+                    return 1
             sys.stdout.write(announced.getvalue())
             print(summary(assembly, runtime.addresses(), settings.remap), flush=True)
             if services:
                 print(_services_line(services), flush=True)
+            if foxglove is not None:
+                print(f"scart: Foxglove at {foxglove.url} ({foxglove.channels} channel(s))", flush=True)
             for what, where in runtime.served().items():
                 print(f"scart: {what} at {where}", flush=True)
             print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
@@ -198,6 +210,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                 pass
             print("scart: stopping", flush=True)
         finally:
+            if foxglove is not None:
+                foxglove.stop()
             # the services endpoint first, then SCA components (their one-way calls drain while
             # the tasks they use still run; then the components, task components included,
             # are destroyed in reverse start order), the data-flow server last (a stop hook).
@@ -242,6 +256,30 @@ def _serve_services(runtime: Runtime, address: str) -> list[Any]:
             binding.stop()
         raise
     return started
+
+
+def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings) -> Any:
+    """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service
+    ``runtime`` serves or joined (``scart foxglove``'s, on this process's credentials).
+    Raises when the composite serves no tasks or the server cannot start."""
+    host, _, port = spec.rpartition(":")
+    host = host.strip("[]") or "127.0.0.1"
+    if not port.isdigit() or int(port) > 65535:
+        raise ValueError("expected [HOST:]PORT with PORT in 0..65535")
+    where = runtime.served().get("name service")
+    if where is None:
+        raise ScartError("this composite serves no data-flow tasks to show")
+    from dataflow.cli.foxglove import FoxgloveLive
+    from dataflow.remote import connect
+
+    system = connect(where.split()[0], security=settings.security)
+    try:
+        live = FoxgloveLive(system, host, int(port), insecure_host=settings.security.insecure, owns_system=True)
+    except BaseException:
+        system.close()
+        raise
+    live.start()  # its stop (also when start raises) closes the client
+    return live
 
 
 def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None:
