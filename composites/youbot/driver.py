@@ -229,6 +229,7 @@ class YouBotDriver(TaskContext):
                 current=self._cur[j],
                 temperature=self._temp[j],
                 error_flags=self._flags[j],
+                setpoint=self._target[j],
             )
             for j in range(N_JOINTS)
         ]

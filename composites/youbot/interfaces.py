@@ -41,7 +41,7 @@ class RetrievingStatus(Protocol):
 
     def get_joints_status(self) -> dict | None:
         """The newest full sample as a JSON-able dict (``sequence``, ``timestamp``,
-        ``joints``: list of {position, velocity, current, temperature, error_flags}), or
+        ``joints``: list of {position, velocity, current, temperature, error_flags, setpoint}), or
         None before any. Never blocks."""
         ...
 

@@ -29,7 +29,7 @@ import scart
 from arm_summary import ArmSummaryReader
 from interfaces import Moving, RetrievingStatus, SettingPeriod
 from monitor import MonitorServer
-from youbot_model import ERROR_BITS
+from youbot_model import ERROR_BITS, JOINT_LIMITS
 
 __all__ = ["YouBotMonitor", "MonitorStatistics"]
 
@@ -76,6 +76,7 @@ class YouBotMonitor:
         token = secrets.token_urlsafe(16) if self.control_token else None
         self.server = MonitorServer(self, host=self.host, port=int(self.port), token=token, insecure=self.insecure)
         self.server.error_flag_names = dict(ERROR_BITS)
+        self.server.joint_limits = list(JOINT_LIMITS)
         self.server.start()
         self.url = self.server.url  # the base (statistics); never the token
         self._thread = threading.Thread(target=self._info_loop, name="scart-youbot-monitor-info", daemon=True)

@@ -52,13 +52,15 @@ def error_names(flags: int) -> list[str]:
 
 @register_type("YouBotJointStatus")
 class JointStatus(BaseModel):
-    """One joint: position [rad], velocity [rad/s], current [A], temperature [°C], error word."""
+    """One joint: position [rad], velocity [rad/s], current [A], temperature [°C], error word,
+    and the position set-point [rad] it moves toward."""
 
     position: float = 0.0
     velocity: float = 0.0
     current: float = 0.0
     temperature: float = 25.0
     error_flags: int = Field(default=0, ge=0, le=ERROR_MASK)
+    setpoint: float = 0.0
 
 
 @register_type("YouBotStatus")

@@ -18,6 +18,7 @@ from support.browser import BrowserPage, expect, needs_chromium, open_page
 from support.youbot import Demo, post_json, start_serving
 
 from locomotor import POSES
+from youbot_model import JOINT_LIMITS
 
 pytestmark = needs_chromium
 TIMEOUT_MS = 20_000
@@ -125,6 +126,39 @@ def test_pose_sent_and_positions_converge(session: Session) -> None:
     post_json(session.demo.monitor_url() + "api/pose", {"pose": "home"})
     expect(page.locator("#pose-result")).to_have_text("moving to home")
     expect(page.locator("#pose-result")).to_have_text("at home", timeout=30_000)
+
+
+# Every tick label of joint 3's time axis is a local wall-clock time of the last minute.
+WALL_CLOCK_TICKS = """() => {
+  const ticks = [...document.querySelectorAll('#chart-j3 .xtick text')].map((t) => t.textContent);
+  if (!ticks.length || !ticks.every((t) => /^\\d\\d:\\d\\d:\\d\\d$/.test(t))) return false;
+  const n = new Date();
+  const now = n.getHours() * 3600 + n.getMinutes() * 60 + n.getSeconds();
+  return ticks.every((t) => {
+    const [h, m, s] = t.split(':').map(Number);
+    const behind = (now - (h * 3600 + m * 60 + s) + 86400) % 86400;
+    return behind <= 65 || behind >= 86400 - 3;
+  });
+}"""
+
+
+def test_position_chart_shows_wall_clock_set_point_and_limits(session: Session) -> None:
+    """The time axis reads the local time of day; the joint's set-point (a dashed step line)
+    follows a pose sent, and its position limits are drawn on the position chart."""
+    page = session.page
+    page.click("#tab-joint-3")
+    session.wait("() => { const d = document.getElementById('chart-j3').data; return d && d[0].x.length > 5; }")
+    assert page.evaluate("document.getElementById('chart-j3').layout.xaxis.type") == "date"
+    session.wait(WALL_CLOCK_TICKS)
+    limits = page.evaluate("document.getElementById('chart-j3').layout.shapes.map((s) => s.y0)")
+    assert sorted(limits) == sorted(JOINT_LIMITS[2])
+    assert page.locator("#chart-j3 .shapelayer path").count() >= 2  # drawn, not only declared
+
+    post_json(session.demo.monitor_url() + "api/pose", {"pose": "folded"})
+    setpoint = "() => { const d = document.getElementById('chart-j3').data[4]; return d.y[d.y.length - 1]; }"
+    assert page.evaluate("document.getElementById('chart-j3').data[4].name") == "set-point"
+    session.wait(f"t => Math.abs(({setpoint})() - t) < 1e-6", POSES["folded"][2])
+    session.shot("joint-3-setpoint")
 
 
 def test_bad_url_hash_rewritten_to_the_view_shown(session: Session) -> None:

@@ -115,6 +115,7 @@ class SyntheticArm:
         """Feed ``server``: sets its flag names and driver info, starts the feeder thread."""
         self.server = server
         server.error_flag_names = DEMO_FLAG_NAMES
+        server.joint_limits = [(-LIMIT, LIMIT)] * JOINTS
         server.set_driver_info("RUNNING", self._period, True)
         self._thread = threading.Thread(target=self._run, name="scart-monitor-demo-feeder", daemon=True)
         self._thread.start()
@@ -178,6 +179,7 @@ class SyntheticArm:
                     "current": current,
                     "temperature": self._temp[i],
                     "error_flags": flags,
+                    "setpoint": self._target[i],
                 }
             )
         self._seq += 1

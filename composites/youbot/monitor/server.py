@@ -9,7 +9,7 @@ Routes (all on the address given, 127.0.0.1 by default):
 | GET | `/static/plotly.min.js` | Plotly.js from the installed ``plotly`` package |
 | GET | `/api/state` | one JSON snapshot (same shape as an SSE message) plus ``poses`` |
 | GET | `/api/poses` | ``{"poses": [...]}`` from the backend |
-| GET | `/api/history` | ``{"statuses": [...]}``: the last minute, at most 25 a second (a page draws it at once) |
+| GET | `/api/history` | ``{"statuses": [...], "joint_limits": [[lo, hi], ...]}``: the last minute, at most 25 a second, and the joint position limits (a page draws both at once) |
 | GET | `/events` | Server-Sent Events: ``event: update`` messages, at most `MAX_RATE_HZ`/s; 503 + ``Retry-After`` beyond `MAX_SSE_CLIENTS` streams |
 | POST | `/api/period` | ``{"seconds": 0.02}`` → ``{"ok": bool, "message": str}`` from the backend |
 | POST | `/api/pose` | ``{"pose": "home"}`` or ``{"pose": [5 floats]}`` → same answer shape |
@@ -307,7 +307,8 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/api/poses":
             self._send_json(HTTPStatus.OK, {"poses": monitor._safe_poses()})
         elif path == "/api/history":
-            self._send_json(HTTPStatus.OK, {"statuses": monitor._hub.history()})
+            self._send_json(HTTPStatus.OK, {"statuses": monitor._hub.history(),
+                                            "joint_limits": [list(lim) for lim in monitor.joint_limits]})
         elif path == "/events":
             self._events_if_room()
         else:
@@ -513,6 +514,8 @@ class MonitorServer:
         self._httpd: _HTTPServer | None = None
         self._thread: threading.Thread | None = None
         self._plotly_bytes: bytes | None = None
+        #: each joint's position limits ``(lo, hi)`` in rad, drawn on its position chart (set before start)
+        self.joint_limits: list[tuple[float, float]] = []
 
     def __repr__(self) -> str:  # never shows the token
         return f"MonitorServer({self._address[0]!r}, {self._address[1]!r}, token={'set' if self._token else None})"

@@ -18,6 +18,12 @@
   const CELL = { position: "pos", velocity: "vel", current: "cur", temperature: "temp" };
   const JOINT_COLORS = ["#2f81f7", "#8250df", "#d4a017", "#1f9d55", "#d73a49"];
   const JOINT_DASHES = ["solid", "dash", "dot", "dashdot", "longdash"];   // joints that overlap stay apart
+  const SETPOINT = FIELDS.length;    // buffers' series after the fields: the position set-point
+  const SETPOINT_COLOR = "#57606a";
+  const LIMIT_COLOR = "#d73a49";
+  // The time axis is wall-clock, in the browser's time zone: Plotly draws epoch numbers as UTC.
+  const TZ_MS = new Date().getTimezoneOffset() * 60000;
+  const toX = (stamp) => stamp * 1000 - TZ_MS;
   const PLOT_CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
 
   const RECONNECT_MS = 5000;          // after the server refused the stream (503: too many streams)
@@ -26,10 +32,10 @@
 
   const $ = (id) => document.getElementById(id);
   const view = { tab: "global", window: 10, paused: false };
-  const buffers = Array.from({ length: JOINTS }, () => ({ x: [], y: FIELDS.map(() => []) }));
+  const buffers = Array.from({ length: JOINTS }, () => ({ x: [], y: [...FIELDS, "setpoint"].map(() => []) }));
+  let jointLimits = [];               // [lo, hi] per joint (rad), from /api/history
   const plotted = new Set();          // charts drawn (0: overview, 1-5: joints)
   const drawnUpTo = {};               // chart → x of the last point it shows
-  let t0 = null;
   let lastSeq = null;
   let lastStamp = null;
   let streamOpen = false;
@@ -161,14 +167,24 @@
       plot_bgcolor: "#fff",
       font: { family: "system-ui, sans-serif", size: 11, color: "#444c56" },
       xaxis: {
-        range: [xEnd - view.window, xEnd], title: { text: "t (s)", standoff: 4 },
-        gridcolor: "#eceff2", zeroline: false,
+        type: "date", range: [xEnd - view.window * 1000, xEnd], title: { text: "time", standoff: 4 },
+        tickformat: "%H:%M:%S", hoverformat: "%H:%M:%S.%L", gridcolor: "#eceff2", zeroline: false,
       },
       datarevision: Date.now(),
     };
   }
 
-  function layoutFor(xEnd) {
+  // Dotted lines at joint j's position limits, on its position chart.
+  function limitShapes(j) {
+    const lim = jointLimits[j - 1];
+    if (!Array.isArray(lim)) return [];
+    return lim.map((y) => ({
+      type: "line", xref: "paper", x0: 0, x1: 1, yref: "y", y0: y, y1: y, name: "limit",
+      line: { color: LIMIT_COLOR, width: 1, dash: "dot" },
+    }));
+  }
+
+  function layoutFor(j, xEnd) {
     const n = FIELDS.length;
     const gap = 0.04;
     const h = (1 - gap * (n - 1)) / n;
@@ -181,27 +197,34 @@
         gridcolor: "#eceff2", zeroline: false, automargin: true,
       };
     });
+    layout.shapes = limitShapes(j);
     return layout;
   }
 
   function tracesFor(j) {
     const buf = buffers[j - 1];
-    return FIELDS.map((f, k) => ({
+    const traces = FIELDS.map((f, k) => ({
       type: "scatter", mode: "lines", name: f.label,
       x: buf.x.slice(), y: buf.y[k].slice(), xaxis: "x", yaxis: "y" + (k ? k + 1 : ""),
       line: { color: f.color, width: 1.5 }, hovertemplate: "%{y:." + f.digits + "f} " + f.unit + "<extra></extra>",
     }));
+    traces.push({   // where the joint is told to go, under its position
+      type: "scatter", mode: "lines", name: "set-point", x: buf.x.slice(), y: buf.y[SETPOINT].slice(),
+      xaxis: "x", yaxis: "y", line: { color: SETPOINT_COLOR, width: 1, dash: "dash", shape: "hv" },
+      hovertemplate: "set-point %{y:.3f} rad<extra></extra>",
+    });
+    return traces;
   }
 
-  // x of the newest sample (charts scroll together, even right after a clear)
+  // x of the newest sample (charts scroll together, even right after a clear); now before any
   function xEndOf() {
-    return lastStamp !== null && t0 !== null ? Math.max(lastStamp - t0, view.window) : view.window;
+    return toX(lastStamp !== null ? lastStamp : Date.now() / 1000);
   }
 
   function redraw(j) {
     if (!window.Plotly || !j) return;
     const div = $("chart-j" + j);
-    Plotly.react(div, tracesFor(j), layoutFor(xEndOf()), PLOT_CONFIG);
+    Plotly.react(div, tracesFor(j), layoutFor(j, xEndOf()), PLOT_CONFIG);
     plotted.add(j);
     drawnUpTo[j] = lastX(buffers[j - 1]);
     $("point-count").textContent = String(buffers[j - 1].x.length);
@@ -236,8 +259,8 @@
 
   // Append per-trace points; the range is set first so extendTraces' one redraw scrolls too.
   function extendChart(div, xs, ys) {
-    const end = Math.max(xEndOf(), view.window);
-    div.layout.xaxis.range = [end - view.window, end];
+    const end = xEndOf();
+    div.layout.xaxis.range = [end - view.window * 1000, end];
     Plotly.extendTraces(div, { x: xs, y: ys }, ys.map((_, k) => k), MAX_POINTS);
   }
 
@@ -247,7 +270,7 @@
     const j = activeJoint();
     if (j && !view.paused) {
       if (!plotted.has(j)) { redraw(j); return; }
-      const pts = newer(buffers[j - 1], drawnUpTo[j], FIELDS.map((_, k) => k));
+      const pts = newer(buffers[j - 1], drawnUpTo[j], buffers[j - 1].y.map((_, k) => k));
       if (!pts.x.length) return;
       const div = $("chart-j" + j);
       extendChart(div, pts.ys.map(() => pts.x), pts.ys);
@@ -265,18 +288,16 @@
   function record(status) {
     const stamp = typeof status.timestamp === "number" ? status.timestamp : null;
     if (stamp === null) return;
-    if (lastStamp !== null && stamp < lastStamp) {        // source restarted: start over
-      t0 = null;
+    if (lastStamp !== null && stamp < lastStamp) {        // the source's clock went back: start over
       buffers.forEach((b) => { b.x.length = 0; b.y.forEach((y) => (y.length = 0)); });
       plotted.clear();                                    // the next flush redraws from scratch
     }
     lastStamp = stamp;
-    if (t0 === null) t0 = stamp;
-    const x = stamp - t0;
+    const x = toX(stamp);
     const joints = Array.isArray(status.joints) ? status.joints : [];
     joints.slice(0, JOINTS).forEach((joint, i) => {
       const buf = buffers[i];
-      const values = FIELDS.map((f) => (typeof joint[f.key] === "number" ? joint[f.key] : null));
+      const values = [...FIELDS.map((f) => f.key), "setpoint"].map((key) => (typeof joint[key] === "number" ? joint[key] : null));
       buf.x.push(x);
       values.forEach((v, k) => buf.y[k].push(v));
       if (buf.x.length > MAX_POINTS) {
@@ -401,7 +422,9 @@
     try {
       const r = await fetch("/api/history", { cache: "no-store" });
       const body = await r.json();
+      if (Array.isArray(body.joint_limits)) jointLimits = body.joint_limits;
       for (const status of body.statuses || []) record(status);
+      plotted.clear();   // a chart drawn meanwhile is drawn again, with the history and the limits
     } catch (err) {
       console.warn("no history", err);
     }
@@ -461,7 +484,7 @@
       view.window = Number(e.target.value);
       writeHash();
       const j = activeJoint();
-      if (j && plotted.has(j)) Plotly.relayout($("chart-j" + j), { "xaxis.range": [xEndOf() - view.window, xEndOf()] });
+      if (j && plotted.has(j)) Plotly.relayout($("chart-j" + j), { "xaxis.range": [xEndOf() - view.window * 1000, xEndOf()] });
     });
     $("pause").addEventListener("click", () => {
       view.paused = !view.paused;
