@@ -13,6 +13,10 @@ constructor                     type             size    init   lock_policy   bu
 ==============================  ===============  ======  =====  ============  ==============
 
 ``init=True`` hands the output's last written value to a connection made later.
+``transport`` (RTT's ``ConnPolicy.transport``) says how samples cross processes:
+``"auto"`` (default: the fastest that works — ``ipc`` when both deployers are on one host,
+else ``grpc``), ``"ipc"`` (the same-host fast path; ``"shm"`` is accepted for it), or
+``"grpc"``. A connection inside one process ignores it.
 ``mandatory`` (default True, as RTT 2.9: "by default, all connections are mandatory"):
 a sample rejected by a mandatory connection makes ``write`` return ``WRITE_FAILURE``;
 a non-mandatory connection's rejection is only counted in its ``dropped``.
@@ -32,8 +36,13 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
-__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus"]
+__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus", "TRANSPORTS"]
+
+#: Transport names a policy may carry (``shm`` is taken as ``ipc``: see the module docstring).
+TRANSPORTS = ("auto", "ipc", "grpc")
+_TRANSPORT_ALIASES = MappingProxyType({"shm": "ipc", "": "auto"})
 
 
 class ConnType(enum.Enum):
@@ -90,8 +99,14 @@ class ConnPolicy:
     init: bool = False
     buffer_policy: BufferPolicy = field(default=BufferPolicy.PER_CONNECTION)
     mandatory: bool = True
+    transport: str = "auto"
 
     def __post_init__(self) -> None:
+        transport = _TRANSPORT_ALIASES.get(self.transport, self.transport)
+        if transport not in TRANSPORTS:
+            raise ValueError(f"ConnPolicy.transport must be one of {', '.join(TRANSPORTS)} (or shm), "
+                             f"got {self.transport!r}")
+        object.__setattr__(self, "transport", transport)
         if not isinstance(self.type, ConnType):
             raise ValueError(f"ConnPolicy.type must be a ConnType, got {self.type!r}")
         if self.size < 0:

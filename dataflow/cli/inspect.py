@@ -84,6 +84,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("sink", metavar="B.in")
     p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
     p.add_argument("--name", default=None, help="the link's name (default A.out->B.in)")
+    p.add_argument("--transport", default="auto", choices=("auto", "ipc", "shm", "grpc"),
+                   help="across processes: auto (default: ipc on one host, else grpc), ipc (same-host fast path; "
+                        "shm is the same), grpc")
     p = verb("links", "list links: name, ends, policy, transport, measured rate, drops", cmd_links)
     p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
     p = verb("reroute", "point a link at another input port (made before the old one goes)", cmd_reroute)
@@ -436,7 +439,7 @@ def cmd_state(args: argparse.Namespace) -> int:
 
 def cmd_connect(args: argparse.Namespace) -> int:
     """``scart connect A.out B.in [--policy P]``."""
-    policy = _policy(args.policy)
+    policy = _policy(args.policy).with_(transport=args.transport)
     args.system.connect_ports(args.source, args.sink, policy, name=args.name)
     name = args.name or f"{args.source}->{args.sink}"
     doc = {"name": name, "source": args.source, "sink": args.sink, "policy": str(policy), "connected": True}

@@ -29,6 +29,7 @@ def policy_to_msg(policy: ConnPolicy) -> Any:
         lock_policy=policy.lock_policy.name,
         buffer_policy=policy.buffer_policy.name,
         mandatory=policy.mandatory,
+        transport=policy.transport,
     )
 
 
@@ -52,6 +53,7 @@ def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
         lock_policy=_member(LockPolicy, "lock_policy", msg.lock_policy, LockPolicy.LOCK_FREE),
         buffer_policy=_member(BufferPolicy, "buffer_policy", msg.buffer_policy, BufferPolicy.PER_CONNECTION),
         mandatory=msg.mandatory if msg.HasField("mandatory") else True,
+        transport=msg.transport[:16],  # an unknown name: ValueError naming the known ones
     )
 
 

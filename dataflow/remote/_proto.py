@@ -29,7 +29,8 @@ NAMING_SERVICE_NAME = NAMING_SERVICE.full_name
 #: subscribing need ``read``; the rest of the DeployerService ``operate``; registering
 #: names with a name service ``admin``.
 DEPLOYER_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(
-    DEPLOYER_SERVICE_NAME, reads={"ListTasks", "DescribeTask", "ReadPort", "Subscribe", "GetProperty", "ListLinks"}))
+    DEPLOYER_SERVICE_NAME, reads={"ListTasks", "DescribeTask", "ReadPort", "Subscribe", "GetProperty", "ListLinks",
+                                     "OpenIpcReader"}))
 NAMING_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(
     NAMING_SERVICE_NAME, reads={"Resolve", "ListEntries"}, default=Role.ADMIN))
 

@@ -30,6 +30,7 @@ from dataflow.errors import NotFoundError, PortTypeError, PortValueError
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote import _convert as cv
+from dataflow.remote import _ipc
 from dataflow.remote._inbox import Inbox
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
@@ -199,6 +200,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         self._streams: set[_Stream] = set()
         self._stopping = threading.Event()
         self._sweeper: threading.Thread | None = None  # started with the first remote writer
+        self._ipc: _ipc.IpcServer | None = None  # started with the first ipc ticket
+        self._host_id = _ipc.host_id()  # ipc serves callers of this host only
 
     def _start_sweeper(self) -> None:
         with self._lock:
@@ -253,6 +256,10 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             self._seen.clear()
             self._defaults.clear()
         self._writers.close_all()
+        with self._lock:
+            ipc, self._ipc = self._ipc, None
+        if ipc is not None:
+            ipc.stop()
         sweeper = self._sweeper
         if sweeper is not None and sweeper.is_alive() and threading.current_thread() is not sweeper:
             sweeper.join(timeout=5.0)
@@ -487,6 +494,59 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             size += n
         if batch:
             yield batch
+
+    # ---- the same-host fast path (see dataflow.remote._ipc) ------------------------------
+    def OpenIpcWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        return self._open_ipc("in", request, context)
+
+    def OpenIpcReader(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        return self._open_ipc("out", request, context)
+
+    def _open_ipc(self, kind: str, request: Any, context: grpc.ServicerContext) -> Any:
+        try:
+            if not _ipc.available():
+                raise Abort("FAILED_PRECONDITION", "this deployer's platform has no ipc transport")
+            if not request.host_id or request.host_id != self._host_id:
+                raise Abort("FAILED_PRECONDITION", "the caller is on another host: ipc works on one host only")
+            port = self._port(request.task, request.port, want_input=kind == "in")
+            policy = cv.policy_from_msg(request.policy)
+            try:
+                ticket = self._ipc_server().ticket(kind, request.task, port.name, policy)
+            except OverflowError as exc:
+                raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
+            found = pb.IpcTicket(socket=self._ipc_server().name, secret=ticket, boot_id=self.owner.boot_id)
+            return (pb.OpenIpcWriterResponse if kind == "in" else pb.OpenIpcReaderResponse)(ticket=found)
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def _ipc_server(self) -> _ipc.IpcServer:
+        with self._lock:
+            if self._stopping.is_set():
+                raise Abort("UNAVAILABLE", "this deployer is stopping")
+            if self._ipc is None:
+                self._ipc = _ipc.IpcServer(self.owner.boot_id, self.heartbeat_ms / 1000.0, self._ipc_write_in,
+                                           lambda task, port: self._port(task, port, want_input=False))
+            return self._ipc
+
+    def _ipc_write_in(self, task: str, port_name: str, policy: ConnPolicy) -> tuple[Any, Any]:
+        """The sink of an ipc connection into ``task.port_name``: a writer connected with
+        ``policy``; each frame's value is checked as ``WritePortStream`` checks it."""
+        writer = _Writer(task, self._port(task, port_name, want_input=True), policy)
+        where = f"{task}.{writer.target.name}"
+        refused = [0]
+
+        def write(value_msg: Any) -> None:
+            value = self._value_for(where, writer.target.type, writer.target.type_name, value_msg, "")
+            try:
+                value = writer.target.admit(value)
+            except PortValueError as exc:
+                refused[0] += 1
+                if refused[0] == 1:  # once per connection: a flood of bad samples is no flood of logs
+                    log.warning("a sample for %s over ipc refused: %s", where, exc)
+                return
+            writer.out.write(value)
+
+        return write, writer.close
 
     # ---- operations and properties -----------------------------------------------------
     def CallOperation(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802

@@ -21,6 +21,7 @@ failure is logged and the stream re-established — the receiver never dies sile
 from __future__ import annotations
 
 import logging
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -32,7 +33,7 @@ from dataflow import codec
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.remote import _convert as cv
-from dataflow.remote import _rpc, errors
+from dataflow.remote import _ipc, _rpc, errors
 from dataflow.remote._proto import df as pb
 from dataflow.remote.api import Dispatcher, GapEvent, Mailbox, Observer, SampleEvent, Subscription
 
@@ -128,6 +129,9 @@ class GrpcSubscription(Subscription):
         self._mailbox: Mailbox[SampleEvent] = Mailbox(policy)
         self._closed = threading.Event()
         self._call: Any = None
+        self._sock: socket.socket | None = None
+        #: How samples come now: ``ipc`` (same host, see :mod:`dataflow.remote._ipc`) or ``grpc``.
+        self.transport = ""
         self._connected = False
         self._settled = threading.Event()  # connected, or failed for good (first attempt)
         self._first_error: BaseException | None = None
@@ -244,6 +248,12 @@ class GrpcSubscription(Subscription):
             backoff = min(1.0, backoff * 2)
 
     def _stream(self, address: str) -> None:
+        if self.policy.transport != "grpc" and self.period is None:
+            sock = self._open_ipc(address)
+            if sock is not None:
+                self._ipc_stream(sock)
+                return
+        self.transport = "grpc"
         req = pb.SubscribeRequest(
             task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy),
             heartbeat_ms=self._system.heartbeat_ms,
@@ -257,27 +267,71 @@ class GrpcSubscription(Subscription):
         self._loss.new_stream()
         try:
             for msg in call:
-                self._mark_up(msg.boot_id)
-                for sample in msg.samples:
-                    if not self._loss.sample(sample.sequence, msg.dropped):
-                        continue  # already delivered (handed over again after a reconnection)
-                    try:
-                        value = codec.decode(sample.value)
-                    except Exception:  # noqa: BLE001 - one bad sample must not end the stream
-                        self.decode_errors += 1
-                        log.exception(
-                            "subscription %s.%s: sample %d (%s) cannot be decoded; dropped",
-                            self.component, self.port, sample.sequence, sample.value.type_name,
-                        )
-                        continue
-                    event = SampleEvent(
-                        self.component, self.port, value, FlowStatus.NEW_DATA,
-                        sample.source_time_ns / 1e9, sample.sequence,
-                    )
-                    self._mailbox.put(event)
-                self._loss.report(msg.dropped)
+                self._take(msg)
         finally:
             self._call = None
+
+    def _take(self, msg: Any) -> None:
+        """One ``SubscribeResponse`` (from either transport): its samples into the mailbox."""
+        self._mark_up(msg.boot_id)
+        for sample in msg.samples:
+            if not self._loss.sample(sample.sequence, msg.dropped):
+                continue  # already delivered (handed over again after a reconnection)
+            try:
+                value = codec.decode(sample.value)
+            except Exception:  # noqa: BLE001 - one bad sample must not end the stream
+                self.decode_errors += 1
+                log.exception(
+                    "subscription %s.%s: sample %d (%s) cannot be decoded; dropped",
+                    self.component, self.port, sample.sequence, sample.value.type_name,
+                )
+                continue
+            event = SampleEvent(
+                self.component, self.port, value, FlowStatus.NEW_DATA,
+                sample.source_time_ns / 1e9, sample.sequence,
+            )
+            self._mailbox.put(event)
+        self._loss.report(msg.dropped)
+
+    def _open_ipc(self, address: str) -> socket.socket | None:
+        """A socket carrying this port's samples on the same-host fast path, or None when
+        ipc does not work between these two processes and the policy lets gRPC do."""
+        request = pb.OpenIpcReaderRequest(task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy),
+                                          host_id=_ipc.host_id())
+        try:
+            if not _ipc.available():
+                raise _ipc.IpcUnavailable("no ipc on this platform")
+            try:
+                reply = self._system._stub(address).OpenIpcReader(request, timeout=self._system.timeout)  # noqa: SLF001
+            except grpc.RpcError as exc:
+                if exc.code() not in (grpc.StatusCode.UNIMPLEMENTED, grpc.StatusCode.FAILED_PRECONDITION):
+                    raise
+                raise _ipc.IpcUnavailable(exc.details() or exc.code().name) from None
+            return _ipc.connect(reply.ticket.socket, reply.ticket.secret)
+        except _ipc.IpcUnavailable as exc:
+            if self.policy.transport == "ipc":
+                raise errors.UnavailableError(f"transport ipc to {self.component}.{self.port}: {exc}",
+                                              "FAILED_PRECONDITION", address) from None
+            return None
+
+    def _ipc_stream(self, sock: socket.socket) -> None:
+        """Frames from the deployer's socket until it closes; silence for 3 heartbeats is a
+        frozen peer (raised: the receiver reconnects)."""
+        self._sock = sock
+        self.transport = "ipc"
+        try:
+            if self._closed.is_set():
+                return
+            self._loss.new_stream()
+            try:
+                for frame in _ipc.frames_in(sock, 3 * self._heartbeat):
+                    self._take(pb.SubscribeResponse.FromString(frame))
+            except TimeoutError:
+                raise errors.RemoteTimeoutError(f"no heartbeat for {3 * self._heartbeat:.1f} s (peer frozen?)",
+                                                "DEADLINE_EXCEEDED", "ipc") from None
+        finally:
+            self._sock = None
+            sock.close()
 
     def _poll(self) -> None:
         """JOrocos-style polling: ReadPort every ``period`` s, deliver what is new."""
@@ -302,6 +356,12 @@ class GrpcSubscription(Subscription):
         call = self._call
         if call is not None:
             call.cancel()
+        sock = self._sock
+        if sock is not None:
+            try:
+                sock.shutdown(socket.SHUT_RDWR)  # wakes the receiver; it closes the socket
+            except OSError:
+                pass
         if threading.current_thread() is not self._receiver:
             self._receiver.join(timeout=5.0)
         self._dispatcher.stop()

@@ -18,7 +18,10 @@ except an RPC handler of this server).
 from __future__ import annotations
 
 import logging
+import os
 import secrets
+import select
+import socket
 import threading
 import time
 from typing import Any
@@ -33,7 +36,7 @@ from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
 from dataflow.remote import _convert as cv
-from dataflow.remote import _rpc, errors
+from dataflow.remote import _ipc, _rpc, errors
 from dataflow.remote._proto import DEPLOYER_ROLES, DEPLOYER_SERVICE_NAME, NAMING_ROLES, NAMING_SERVICE_NAME, df_grpc, ns_grpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
@@ -48,15 +51,19 @@ __all__ = ["DeployerServer"]
 log = logging.getLogger(__name__)
 
 REASSERT_S = 1.0  #: how often an embedded deployer claims again the names another deployer held
+SETTLE_S = 2.0  #: how long connecting a remote link waits for its first connection
 
 
 class _RemoteLink:
     """An output port of this deployer feeding an input port in another deployer.
 
-    A free InputPort with the connection's policy is connected to the output port; its
-    data callback wakes this link's thread, which streams the samples to the sink
-    deployer (client streaming ``WritePortStream``), re-resolving the sink through the
-    name service and reconnecting after failures until :meth:`close`.
+    A free InputPort with the connection's policy is connected to the output port. On the
+    same host (transport ``auto`` or ``ipc``) the samples go over the sink deployer's ipc
+    socket, sent from the writer's thread as they are written (see
+    :mod:`dataflow.remote._ipc`); otherwise the port's data callback wakes this link's
+    thread, which streams them to the sink deployer (client streaming
+    ``WritePortStream``). Either way the thread re-resolves the sink through the name
+    service and reconnects after failures until :meth:`close`.
     """
 
     def __init__(self, server: DeployerServer, out: Any, sink_task: str, sink_port: str, policy: ConnPolicy) -> None:
@@ -69,11 +76,34 @@ class _RemoteLink:
         self._wake = threading.Event()
         self._closed = threading.Event()
         self._call: Any = None
-        self.inp.add_data_callback(lambda _i: self._wake.set())
+        self._outbox: _ipc.Outbox | None = None  # set while the link runs over ipc
+        self._ipc_dropped = 0  # by outboxes of earlier ipc connections
+        #: How samples go now: ``ipc``, ``grpc``, or ``""`` while not connected.
+        self.transport = ""
+        self.settled = threading.Event()  # the first connection was made (or failed)
+        self.inp.add_data_callback(self._on_data)
         out.connect_to(self.inp, policy)
         self._wake.set()
         self._thread = threading.Thread(target=self._run, name=f"scart-link-{out.name}->{sink_task}", daemon=True)
         self._thread.start()
+
+    @property
+    def dropped(self) -> int:
+        """Samples lost: by the connection's policy, or by a full or broken ipc socket."""
+        conn = next((c for c in self.out.connections() if c.input is self.inp), None)
+        outbox = self._outbox
+        return (conn.dropped if conn else 0) + self._ipc_dropped + (outbox.dropped if outbox else 0)
+
+    def _on_data(self, _inp: InputPort) -> None:  # the writer's thread
+        outbox = self._outbox
+        if outbox is None:
+            self._wake.set()  # gRPC (or connecting): the link's thread sends
+        else:
+            outbox.pump()
+
+    def _frames(self, values: list[Any]) -> list[bytes]:
+        return [pb.WritePortStreamRequest(value=codec.encode(value, self.out.type)).SerializeToString()
+                for value in values]
 
     def _requests(self) -> Any:
         yield pb.WritePortStreamRequest(task=self.sink_task, port=self.sink_port, policy=cv.policy_to_msg(self.policy))
@@ -94,16 +124,85 @@ class _RemoteLink:
                 address = self.server.resolve(self.sink_task)
                 with self.server.security.channel(address, _rpc.channel_options()) as channel:
                     stub = df_grpc.DeployerServiceStub(channel)
-                    self._call = stub.WritePortStream.future(self._requests())
-                    self._call.result()
+                    sock = self._open_ipc(stub) if self.policy.transport != "grpc" else None
+                    if sock is not None:
+                        self._run_ipc(sock)
+                    else:
+                        self.transport = "grpc"
+                        self._call = stub.WritePortStream.future(self._requests())
+                        self.settled.set()
+                        self._call.result()
                 backoff = 0.05
             except (grpc.RpcError, grpc.FutureCancelledError, errors.RemoteError, NotFoundError) as exc:
                 if self._closed.is_set():
                     return
                 log.info("link to %s.%s interrupted: %s", self.sink_task, self.sink_port, exc)
+            self.settled.set()
+            self.transport = ""
             if self._closed.wait(backoff):
                 return
             backoff = min(1.0, backoff * 2)
+
+    def _open_ipc(self, stub: Any) -> socket.socket | None:
+        """The sink's ipc socket for this link, or None when gRPC must do (and may)."""
+        request = pb.OpenIpcWriterRequest(task=self.sink_task, port=self.sink_port,
+                                          policy=cv.policy_to_msg(self.policy), host_id=_ipc.host_id())
+        try:
+            if not _ipc.available():
+                raise _ipc.IpcUnavailable("no ipc on this platform")
+            try:
+                reply = stub.OpenIpcWriter(request, timeout=self.server.ns_timeout)
+            except grpc.RpcError as exc:
+                if exc.code() not in (grpc.StatusCode.UNIMPLEMENTED, grpc.StatusCode.FAILED_PRECONDITION):
+                    raise
+                raise _ipc.IpcUnavailable(exc.details() or exc.code().name) from None
+            return _ipc.connect(reply.ticket.socket, reply.ticket.secret)
+        except _ipc.IpcUnavailable as exc:
+            if self.policy.transport == "ipc":
+                raise errors.UnavailableError(f"transport ipc to {self.sink_task}.{self.sink_port}: {exc}",
+                                              "FAILED_PRECONDITION") from None
+            return None
+
+    def _run_ipc(self, sock: socket.socket) -> None:
+        """Samples go from the writer's thread; this thread waits for the sink to go away
+        (its socket's end), for room when the socket was full, or for the link to close."""
+        wake_r, wake_w = os.pipe()
+        os.set_blocking(wake_w, False)
+
+        def wake() -> None:
+            try:
+                os.write(wake_w, b"x")
+            except OSError:  # full: a wake-up is pending anyway
+                pass
+
+        outbox = _ipc.Outbox(self.inp, sock, self._frames, wake, wake)
+        self.transport = "ipc"
+        self._outbox = outbox
+        self.settled.set()
+        try:
+            poller = select.poll()
+            poller.register(wake_r, select.POLLIN)
+            outbox.pump()  # what came while connecting
+            while not self._closed.is_set() and not outbox.broken:
+                events = select.POLLIN | (select.POLLOUT if outbox.blocked else 0)
+                poller.register(sock, events)
+                ready = dict(poller.poll(500))
+                if ready.get(wake_r):
+                    os.read(wake_r, 4096)
+                if ready.get(sock.fileno(), 0) & (select.POLLIN | select.POLLHUP | select.POLLERR):
+                    break  # the sink sends nothing: any such event is its end
+                if ready.get(sock.fileno(), 0) & select.POLLOUT:
+                    outbox.pump()
+        finally:
+            self._outbox = None
+            with outbox.lock:  # no writer's thread is sending any more; what it held is lost
+                self._ipc_dropped += outbox.dropped + outbox.pending
+            self._wake.set()  # what the port's storage holds goes by the next connection
+            _ipc.close_quietly(sock)
+            os.close(wake_r)
+            os.close(wake_w)
+        if not self._closed.is_set():
+            log.info("link to %s.%s: the sink's ipc socket closed; reconnecting", self.sink_task, self.sink_port)
 
     def close(self) -> None:
         """Disconnect and end the link's thread (idempotent; joins ≤ 5 s)."""
@@ -154,6 +253,7 @@ class DeployerServer:
         #: SERVING for ``scart.boot.<boot_id>``, name services and clients tell restarts by it.
         self.boot_id = secrets.token_hex(8)
         self.security = security = security or Security()
+        self.ns_timeout = ns_timeout
         self.registry: NameRegistry | None = None if ns else NameRegistry(
             default_lease=lease_seconds, probe=security_probe(security), own_boot_id=self.boot_id)
         self._lease_id = ""  # of our own names in the embedded registry
@@ -293,10 +393,13 @@ class DeployerServer:
             address = ""
         key = (source_task, source_port, sink_task, sink_port)
         with self._lock:
-            if key not in self._links:
-                self._links[key] = _RemoteLink(self, out, sink_task, sink_port, policy)
+            link = self._links.get(key)
+            if link is None:
+                link = self._links[key] = _RemoteLink(self, out, sink_task, sink_port, policy)
         if name is not None:  # named once made
             self.deployer.name_link(source, sink, name)
+        if address:  # the sink is known: return once its transport is chosen (``links`` then tells it)
+            link.settled.wait(SETTLE_S)
         return False, address
 
     def disconnect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str) -> bool:
@@ -314,16 +417,16 @@ class DeployerServer:
 
     def links(self) -> list[LinkDescription]:
         """The links whose source is one of these tasks: in-process ones, then those to
-        other deployers (transport ``grpc``)."""
+        other deployers (transport ``ipc`` or ``grpc``; ``auto?`` while not connected)."""
         with self._lock:
             remote = list(self._links.items())
         described = []
         for (st, sp, kt, kp), link in remote:
             source, sink = f"{st}.{sp}", f"{kt}.{kp}"
-            conn = next((c for c in link.out.connections() if c.input is link.inp), None)
             described.append(LinkDescription(
                 name=self.deployer.link_name(source, sink), source=source, sink=sink, policy=str(link.policy),
-                transport="grpc", samples=link.out.last_sample()[0], dropped=conn.dropped if conn else 0))
+                transport=link.transport or f"{link.policy.transport}?", samples=link.out.last_sample()[0],
+                dropped=link.dropped))
         return self.deployer.links(described)
 
     def find_link(self, name: str) -> LinkDescription:

@@ -174,8 +174,11 @@ def test_connect_and_disconnect_across_deployers(system) -> None:
 def test_named_links_listed_rerouted_and_disconnected(system) -> None:
     ns, _ = system
     scart(ns, "connect", "echo.floats_out", "far.samples", "--name", "floats", "--policy", "buffer:4")
+    scart(ns, "connect", "far.output", "pinger.input", "--name", "byGrpc", "--transport", "grpc")
     rows = {r["name"]: r for r in json.loads(scart(ns, "links", "--json", "--sample", "0").stdout)}
-    assert rows["floats"]["sink"] == "far.samples" and rows["floats"]["transport"] == "grpc"
+    assert rows["floats"]["sink"] == "far.samples" and rows["floats"]["transport"] == "ipc"  # one host: the fast path
+    assert rows["byGrpc"]["transport"] == "grpc"  # as asked
+    scart(ns, "disconnect", "byGrpc")
     assert rows["floats"]["policy"] == "buffer:4" and {"rate", "dropped", "samples"} <= set(rows["floats"])
     table = scart(ns, "links", "--sample", "0").stdout
     assert table.splitlines()[0].split()[:4] == ["NAME", "SOURCE", "SINK", "POLICY"] and "floats" in table

@@ -50,6 +50,23 @@ class Attributes:
 MIN_PERIOD_S = 0.001  # smallest polling period of a service binding
 
 
+def parse_policy(attributes: dict[str, str], problems: list[str], what: str = "") -> ConnPolicy:
+    """The ``policy`` (``ConnPolicy.parse`` short form, default ``data``) and ``transport``
+    (auto | ipc | shm | grpc, default auto) attributes of an element as one policy; a bad
+    value is added to ``problems`` (prefixed with ``what``) and the default used."""
+    try:
+        policy = ConnPolicy.parse(attributes.get("policy", "data"))
+    except ValueError as exc:
+        problems.append(f"{what}{exc}")
+        policy = ConnPolicy.data()
+    try:
+        return policy.with_(transport=attributes.get("transport", "auto"))
+    except ValueError as exc:
+        del exc  # its wording is the Python API's
+        problems.append(f"{what}transport={attributes.get('transport')!r}: expected auto, ipc, shm or grpc")
+        return policy
+
+
 def attributes(model: Binding) -> Attributes:
     """Parse attributes and ``<scart:map>`` children (problems as messages, never raises)."""
     a = model.attributes
@@ -57,11 +74,7 @@ def attributes(model: Binding) -> Attributes:
     component = (a.get("component") or "").strip()
     if not component:
         problems.append("binding.dataflow needs a 'component' attribute (the task name)")
-    try:
-        policy = ConnPolicy.parse(a.get("policy", "data"))
-    except ValueError as exc:
-        problems.append(str(exc))
-        policy = ConnPolicy.data()
+    policy = parse_policy(a, problems)
     period = None
     if a.get("period") is not None:
         try:

@@ -17,7 +17,8 @@ Attributes: ``component`` (required: the task's name), ``ns`` (name service
 name service: the settings' ``ns``, that is ``scart run --ns`` / ``SCART_NS`` / the
 default), ``policy`` (``data``
 default, ``buffer:N``, ``circular:N``: the connection policy of writes and of
-subscriptions), ``period`` (service only: poll every ``period`` s, JOrocos-style, instead
+subscriptions), ``transport`` (auto | ipc | shm | grpc: how subscriptions cross
+processes, default auto), ``period`` (service only: poll every ``period`` s, JOrocos-style, instead
 of the push subscription), ``ports="op=port,..."`` and/or ``<scart:map operation port/>``
 children (explicit mapping; otherwise an operation maps to the port of its own name).
 

@@ -20,6 +20,7 @@ runtime, :func:`~scart.ext.dataflow.deployer_of`):
 
 ``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` (a child of
 ``<composite>``; ``policy`` in ``ConnPolicy.parse`` short form, default ``data``;
+``transport`` auto | ipc | shm | grpc for ends in two processes, default auto;
 optional ``ns`` = name service; optional ``name``: the link's name for ``scart links``,
 ``reroute`` and ``disconnect``, default ``a.out->b.in``) connects an output port to an input port. Both ends in
 this composite: connected in-process when the second task is added. One end not in this
@@ -50,7 +51,7 @@ from pydantic_core import core_schema
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
 from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError
 from scart.ext.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of, remote_ports
-from scart.ext.dataflow._plan import MIN_PERIOD_S
+from scart.ext.dataflow._plan import MIN_PERIOD_S, parse_policy
 from scart.spi import (
     DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Element, ElementProvider, Host, Implementation,
     ImplementationProblem, ImplementationProvider, InterfaceInfo, Node, Operation, Participant, Problem, PropSpec,
@@ -261,11 +262,7 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
             problems.append(f"<scart:connect> {attr}={raw!r}: expected COMPONENT.PORT")
         else:
             ends.append((prefix + parsed[0], parsed[1]))
-    try:
-        policy = ConnPolicy.parse(el.attributes.get("policy", "data"))
-    except ValueError as exc:
-        problems.append(f"<scart:connect>: {exc}")
-        policy = ConnPolicy.data()
+    policy = parse_policy(el.attributes, problems, "<scart:connect>: ")
     if problems:
         return None, problems
     return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc), el.attributes.get("name") or None), []

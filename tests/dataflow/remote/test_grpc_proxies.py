@@ -344,15 +344,16 @@ def test_subscription_limit_is_a_precise_error() -> None:
     system = connect(server.address, heartbeat_ms=200)
     try:
         proxy = system.component("p")
-        subs = [proxy.subscribe("ticks", lambda e: None) for _ in range(2)]
+        grpc = ConnPolicy.data().with_(transport="grpc")  # gRPC streams are what the pool bounds
+        subs = [proxy.subscribe("ticks", lambda e: None, policy=grpc) for _ in range(2)]
         with pytest.raises(RemoteError, match="at most 2 streams at once") as info:
-            proxy.subscribe("ticks", lambda e: None)
+            proxy.subscribe("ticks", lambda e: None, policy=grpc)
         assert info.value.code == "RESOURCE_EXHAUSTED"
         subs[0].close()
 
         def try_subscribe():
             try:
-                return proxy.subscribe("ticks", lambda e: None)
+                return proxy.subscribe("ticks", lambda e: None, policy=grpc)
             except RemoteError:
                 return None  # the server has not seen the cancellation yet
 

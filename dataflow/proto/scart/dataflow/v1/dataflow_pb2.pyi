@@ -56,21 +56,69 @@ TRANSITION_STOP: Transition
 TRANSITION_CLEANUP: Transition
 TRANSITION_RECOVER: Transition
 
+class OpenIpcWriterRequest(_message.Message):
+    __slots__ = ("task", "port", "policy", "host_id")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    HOST_ID_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    policy: ConnPolicy
+    host_id: str
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ...) -> None: ...
+
+class OpenIpcWriterResponse(_message.Message):
+    __slots__ = ("ticket",)
+    TICKET_FIELD_NUMBER: _ClassVar[int]
+    ticket: IpcTicket
+    def __init__(self, ticket: _Optional[_Union[IpcTicket, _Mapping]] = ...) -> None: ...
+
+class OpenIpcReaderRequest(_message.Message):
+    __slots__ = ("task", "port", "policy", "host_id")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    HOST_ID_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    policy: ConnPolicy
+    host_id: str
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ...) -> None: ...
+
+class OpenIpcReaderResponse(_message.Message):
+    __slots__ = ("ticket",)
+    TICKET_FIELD_NUMBER: _ClassVar[int]
+    ticket: IpcTicket
+    def __init__(self, ticket: _Optional[_Union[IpcTicket, _Mapping]] = ...) -> None: ...
+
+class IpcTicket(_message.Message):
+    __slots__ = ("socket", "secret", "boot_id")
+    SOCKET_FIELD_NUMBER: _ClassVar[int]
+    SECRET_FIELD_NUMBER: _ClassVar[int]
+    BOOT_ID_FIELD_NUMBER: _ClassVar[int]
+    socket: str
+    secret: bytes
+    boot_id: str
+    def __init__(self, socket: _Optional[str] = ..., secret: _Optional[bytes] = ..., boot_id: _Optional[str] = ...) -> None: ...
+
 class ConnPolicy(_message.Message):
-    __slots__ = ("type", "size", "init", "lock_policy", "buffer_policy", "mandatory")
+    __slots__ = ("type", "size", "init", "lock_policy", "buffer_policy", "mandatory", "transport")
     TYPE_FIELD_NUMBER: _ClassVar[int]
     SIZE_FIELD_NUMBER: _ClassVar[int]
     INIT_FIELD_NUMBER: _ClassVar[int]
     LOCK_POLICY_FIELD_NUMBER: _ClassVar[int]
     BUFFER_POLICY_FIELD_NUMBER: _ClassVar[int]
     MANDATORY_FIELD_NUMBER: _ClassVar[int]
+    TRANSPORT_FIELD_NUMBER: _ClassVar[int]
     type: ConnType
     size: int
     init: bool
     lock_policy: str
     buffer_policy: str
     mandatory: bool
-    def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ...) -> None: ...
+    transport: str
+    def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ..., transport: _Optional[str] = ...) -> None: ...
 
 class TaskSummary(_message.Message):
     __slots__ = ("name", "state", "activity", "period", "cycles", "overruns")

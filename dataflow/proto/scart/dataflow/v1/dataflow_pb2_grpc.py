@@ -114,6 +114,16 @@ class DeployerServiceStub:
                 request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.SerializeToString,
                 response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.FromString,
                 _registered_method=True)
+        self.OpenIpcWriter = channel.unary_unary(
+                '/scart.dataflow.v1.DeployerService/OpenIpcWriter',
+                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcWriterRequest.SerializeToString,
+                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcWriterResponse.FromString,
+                _registered_method=True)
+        self.OpenIpcReader = channel.unary_unary(
+                '/scart.dataflow.v1.DeployerService/OpenIpcReader',
+                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcReaderRequest.SerializeToString,
+                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcReaderResponse.FromString,
+                _registered_method=True)
 
 
 class DeployerServiceServicer:
@@ -231,6 +241,22 @@ class DeployerServiceServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def OpenIpcWriter(self, request, context):
+        """The same-host fast path (transport "ipc"): a one-time ticket for this deployer's
+        Unix socket. OpenIpcWriter: the socket then carries WritePortStreamRequest frames
+        (value only) into an input port; OpenIpcReader: SubscribeResponse frames out of an
+        output port. FAILED_PRECONDITION when the caller is on another host.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
+    def OpenIpcReader(self, request, context):
+        """Missing associated documentation comment in .proto file."""
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
 
 def add_DeployerServiceServicer_to_server(servicer, server):
     rpc_method_handlers = {
@@ -313,6 +339,16 @@ def add_DeployerServiceServicer_to_server(servicer, server):
                     servicer.RerouteLink,
                     request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.FromString,
                     response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.SerializeToString,
+            ),
+            'OpenIpcWriter': grpc.unary_unary_rpc_method_handler(
+                    servicer.OpenIpcWriter,
+                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcWriterRequest.FromString,
+                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcWriterResponse.SerializeToString,
+            ),
+            'OpenIpcReader': grpc.unary_unary_rpc_method_handler(
+                    servicer.OpenIpcReader,
+                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcReaderRequest.FromString,
+                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcReaderResponse.SerializeToString,
             ),
     }
     generic_handler = grpc.method_handlers_generic_handler(
@@ -747,6 +783,60 @@ class DeployerService:
             '/scart.dataflow.v1.DeployerService/RerouteLink',
             scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.SerializeToString,
             scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def OpenIpcWriter(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/scart.dataflow.v1.DeployerService/OpenIpcWriter',
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcWriterRequest.SerializeToString,
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcWriterResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def OpenIpcReader(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/scart.dataflow.v1.DeployerService/OpenIpcReader',
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcReaderRequest.SerializeToString,
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcReaderResponse.FromString,
             options,
             channel_credentials,
             insecure,

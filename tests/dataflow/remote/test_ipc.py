@@ -1,0 +1,227 @@
+"""The same-host fast path (transport ``ipc``): chosen by default on one host, gRPC when
+asked or when ipc cannot work, tickets that cannot be forged, a reader that stops never
+blocks the writer, and a peer killed leaves nothing behind and the other side working."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import time
+
+import pytest
+
+from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
+from dataflow.remote import _ipc, connect, errors
+from dataflow.remote._proto import df as pb
+from support import wait_until
+from support.remote import start_scart, stop_process
+
+DEPLOY_FAR = ["deploy", "support.remote:Pinger", "--name", "far", "--period", "0.01", "--heartbeat-ms", "200"]
+
+pytestmark = pytest.mark.skipif(not _ipc.available(), reason="ipc needs Linux abstract sockets")
+
+
+class Counter(TaskContext):
+    out = OutputPort(int)
+
+
+class Collector(TaskContext):
+    inp = InputPort(int)
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.got: list[int] = []
+        self.inp.add_data_callback(self._take)
+
+    def _take(self, port: InputPort) -> None:
+        for _ in range(10_000):
+            status, value = port.read()
+            if status.name != "NEW_DATA":
+                return
+            self.got.append(value)
+
+
+@pytest.fixture
+def two():
+    """Two deployers serving on one host (the second joins the first's name service)."""
+    d1, d2 = Deployer(), Deployer()
+    src = d1.add(Counter("src"))
+    sink = d2.add(Collector("sink"))
+    s1 = d1.serve("127.0.0.1:0")
+    s2 = d2.serve("127.0.0.1:0", ns=s1.address)
+    try:
+        with connect(s1.address, timeout=5.0) as system:
+            yield system, src, sink
+    finally:
+        s2.stop()
+        s1.stop()
+
+
+def _transport(system, name: str) -> str:
+    return wait_until(lambda: next((lk.transport for lk in system.links() if lk.name == name
+                                    and lk.transport != "auto?"), None), timeout=10)
+
+
+def test_one_host_takes_ipc_and_grpc_when_asked(two) -> None:
+    system, src, sink = two
+    system.connect_ports("src.out", "sink.inp", ConnPolicy.buffer(100), name="fast")
+    assert _transport(system, "fast") == "ipc"
+    for k in range(50):
+        src.out.write(k)
+    wait_until(lambda: len(sink.got) == 50, timeout=10, message=f"got {sink.got}")
+    assert sink.got == list(range(50))  # in order, none lost
+    system.disconnect_link("fast")
+
+    system.connect_ports("src.out", "sink.inp", ConnPolicy.buffer(100).with_(transport="grpc"), name="slow")
+    assert _transport(system, "slow") == "grpc"
+    src.out.write(99)
+    wait_until(lambda: sink.got[-1:] == [99], timeout=10)
+
+    seen: list[int] = []
+    fast = system.component("src").subscribe("out", lambda e: seen.append(e.value), ConnPolicy.buffer(10))
+    slow = system.component("src").subscribe("out", lambda e: None, ConnPolicy.data().with_(transport="shm"))
+    both = system.component("src").subscribe("out", lambda e: None, ConnPolicy.data().with_(transport="grpc"))
+    try:
+        assert (fast.transport, slow.transport, both.transport) == ("ipc", "ipc", "grpc")  # shm: the same path
+        src.out.write(7)
+        wait_until(lambda: seen == [7], timeout=10)
+        assert fast.dropped == 0
+    finally:
+        for sub in (fast, slow, both):
+            sub.close()
+
+
+def test_another_host_falls_back_to_grpc_and_ipc_alone_says_why(two, monkeypatch) -> None:
+    system, src, _ = two
+    monkeypatch.setattr(_ipc, "host_id", lambda: "another-host")  # what the deployer hears from us
+    seen: list[int] = []
+    sub = system.component("src").subscribe("out", lambda e: seen.append(e.value), ConnPolicy.buffer(10))
+    try:
+        assert sub.transport == "grpc"
+        src.out.write(3)
+        wait_until(lambda: seen == [3], timeout=10)
+    finally:
+        sub.close()
+    with pytest.raises(errors.RemoteError, match="transport ipc to src.out: the caller is on another host"):
+        system.component("src").subscribe("out", lambda e: None, ConnPolicy.data().with_(transport="ipc"))
+
+
+def test_a_ticket_cannot_be_guessed_and_the_socket_goes_with_its_server() -> None:
+    deployer = Deployer()
+    deployer.add(Counter("src"))
+    server = deployer.serve("127.0.0.1:0")
+    try:
+        stub = connect(server.address)
+        try:
+            reply = stub._stub(server.address).OpenIpcReader(  # noqa: SLF001 - the wire, as a stranger sees it
+                pb.OpenIpcReaderRequest(task="src", port="out", host_id=_ipc.host_id()), timeout=5)
+        finally:
+            stub.close()
+        name = reply.ticket.socket
+        assert f"@{name}" in open("/proc/net/unix").read()  # abstract: no file anywhere
+        forged = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        forged.settimeout(10)
+        forged.connect("\0" + name)
+        forged.send(os.urandom(16))
+        assert forged.recv(100) == b""  # closed at once: no samples for a guessed ticket
+        forged.close()
+        good = _ipc.connect(name, reply.ticket.secret)
+        first = pb.SubscribeResponse.FromString(good.recv(1000))
+        assert first.heartbeat and first.boot_id == server.boot_id
+        again = _ipc.connect(name, reply.ticket.secret)  # a ticket is good once
+        again.settimeout(10)
+        assert again.recv(100) == b""
+        again.close()
+        good.close()
+    finally:
+        server.stop()
+    assert f"@{name}" not in open("/proc/net/unix").read()
+
+
+def _shm() -> set[str]:
+    return set(os.listdir("/dev/shm")) if os.path.isdir("/dev/shm") else set()
+
+
+def test_a_stopped_reader_never_blocks_the_writer_and_a_killed_one_leaves_nothing() -> None:
+    """A reader process frozen (SIGSTOP) fills its socket: the writer keeps writing at its
+    own pace (the samples beyond the policy's storage are dropped, counted); killed, its
+    socket goes with it and the writer is unaffected."""
+    before = _shm()
+    deployer = Deployer()
+    src = deployer.add(Counter("src"))
+    server = deployer.serve("127.0.0.1:0")
+    proc = _start_echo(server.address)
+    try:
+        src.out.write(0)
+        wait_until(lambda: _readers(server) == 1, timeout=15, message="the echo never subscribed over ipc")
+        os.kill(proc.pid, signal.SIGSTOP)
+        start = time.monotonic()
+        for k in range(20_000):  # far more than the socket holds
+            src.out.write(k)
+        took = time.monotonic() - start
+        assert took < 20, f"20000 writes took {took:.1f} s: the writer was held up by a frozen reader"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+        wait_until(lambda: _readers(server) == 0, timeout=10, message="the dead reader's socket stayed")
+        for k in range(100):
+            src.out.write(k)  # the writer goes on
+    finally:
+        stop_process(proc, signal.SIGKILL)
+        server.stop()
+    assert _shm() == before  # nothing was ever put in /dev/shm
+
+
+def _start_echo(ns: str):
+    import subprocess
+    import sys
+
+    from support.remote import subprocess_env
+
+    return subprocess.Popen([sys.executable, "-m", "scart", "echo", "src.out", "--ns", ns, "--json"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=subprocess_env())
+
+
+def _readers(server) -> int:
+    ipc = server._servicer._ipc  # noqa: SLF001 - how many readers the deployer serves over ipc
+    return 0 if ipc is None else len(ipc._readers)  # noqa: SLF001
+
+
+class FloatSource(TaskContext):
+    out = OutputPort(float)
+
+
+def test_a_killed_sink_process_leaves_the_source_working() -> None:
+    before = _shm()
+    deployer = Deployer()
+    src = deployer.add(FloatSource("src"))
+    server = deployer.serve("127.0.0.1:0")
+    procs = []
+    try:
+        sink, _ = start_scart([*DEPLOY_FAR, "--ns", server.address])
+        procs.append(sink)
+        with connect(server.address, timeout=5.0) as system:
+            system.connect_ports("src.out", "far.input", ConnPolicy.data(), name="toFar")
+            assert _transport(system, "toFar") == "ipc"
+            src.out.write(1.0)
+            sink.kill()
+            sink.wait(timeout=10)
+            for k in range(1000):
+                src.out.write(float(k))  # never raises, never waits for the dead sink
+            wait_until(lambda: next(lk for lk in system.links() if lk.name == "toFar").transport == "auto?",
+                       timeout=10, message="the link never noticed its sink died")
+            again, _ = start_scart([*DEPLOY_FAR, "--ns", server.address])
+            procs.append(again)
+            assert _transport(system, "toFar") == "ipc"  # back on the fast path by itself
+            far = system.component("far")
+
+            def crossed() -> bool:
+                src.out.write(5.0)  # DATA: the newest is what counts; written until it shows
+                return far.read("output")[1] == 5.0
+
+            wait_until(crossed, timeout=15, message="nothing crossed again")
+    finally:
+        for proc in procs:
+            stop_process(proc, signal.SIGKILL)
+        server.stop()
+    assert _shm() == before
