@@ -4,10 +4,13 @@ cross-deployer links and gRPC subscriptions).
 gRPC stays the control plane: a peer asks for a one-time ticket with ``OpenIpcWriter``
 (samples *into* an input port; role ``operate``) or ``OpenIpcReader`` (samples *out of*
 an output port; role ``read``), connects to the deployer's abstract Unix socket
-(``SOCK_SEQPACKET``: one frame per datagram, Linux only) and sends the ticket as its first
-frame. Frames are the gRPC path's own messages: ``WritePortStreamRequest`` (a value) into
-a port, ``SubscribeResponse`` (samples with their write numbers, heartbeats, the drop
-count) out of one.
+(``SOCK_SEQPACKET``, Linux only), sends the ticket as its first frame and waits for the
+deployer's first frame (an acknowledgement, or for a reader the "connected" heartbeat).
+Messages are the gRPC path's own: ``WritePortStreamRequest`` (a value) into a port,
+``SubscribeResponse`` (a sample with its write number, heartbeats, the drop count) out of
+one. Each frame starts with one byte: 0 a whole message, 1 a part with more to come, 2
+the last part; parts are at most :data:`CHUNK` bytes, a message at most
+:data:`MAX_MESSAGE` (gRPC's limit; a larger one is dropped and counted).
 
 Why a socket and not a shared-memory ring: a ring still needs a kernel wake-up per
 sample in Python (no spinning under the GIL), and a datagram socket is a bounded kernel
@@ -16,52 +19,63 @@ no file (nothing in ``/dev/shm`` or on disk) and the kernel closes it with its p
 even a killed one; the other side then sees the end of its stream (or, for a frozen
 peer, no heartbeat) and reconnects, over gRPC if ipc no longer works.
 
-The writer never blocks: a sample is sent from the writing thread with ``MSG_DONTWAIT``.
-When the socket is full (a slow or frozen reader), the samples stay in the connection's
-policy storage, which keeps, overwrites or drops them as the policy says and counts the
-drops (one place, as for a local connection), and go once the socket has room again.
-Frames larger than :data:`MAX_FRAME` are dropped and counted (say ``transport="grpc"``
-for such ports).
+The writer never blocks: a sample is sent from the writing thread with ``MSG_DONTWAIT``,
+and the writer never waits for a lock another thread holds (that thread sends for it).
+When the socket is full (a slow or frozen reader), the samples wait in the connection's
+policy storage — the link's input port, or a subscription's policy-shaped inbox, the same
+as on the gRPC path — which keeps, overwrites or drops them as the policy says and counts
+the drops, and go once the socket has room again.
 
-Bounds: at most :data:`MAX_CONNECTIONS` connections per deployer, :data:`MAX_TICKETS`
-tickets pending, each valid :data:`TICKET_S` s, used once; a connection that sends no
-valid ticket within :data:`HELLO_S` s is closed.
+Bounds: only processes of this deployer's user may connect (``SO_PEERCRED``); at most
+:data:`MAX_PENDING` connections without a ticket yet (the oldest is closed for a new one),
+each closed after :data:`HELLO_S` s; at most :data:`MAX_CONNECTIONS` connections;
+:data:`MAX_TICKETS` tickets pending (:data:`TICKETS_PER_PEER` per peer), each valid
+:data:`TICKET_S` s, used once.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import secrets
 import selectors
 import socket
+import struct
 import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from dataflow import codec
-from dataflow.policy import ConnPolicy, FlowStatus
-from dataflow.ports import InputPort, OutputPort
+from dataflow.policy import ConnPolicy
+from dataflow.ports import OutputPort
 from dataflow.remote._proto import df as pb
+from dataflow.remote._rpc import MAX_MESSAGE_BYTES
 
-__all__ = ["IpcServer", "IpcUnavailable", "Outbox", "available", "close_quietly", "connect", "frames_in", "host_id"]
+__all__ = ["REFUSED", "IpcServer", "IpcUnavailable", "Outbox", "available", "close_quietly", "connect", "host_id", "messages_in"]
 
 log = logging.getLogger(__name__)
 
-MAX_FRAME = 200 * 1024  #: bytes of one frame (below the default socket buffer, so a frame always fits)
+CHUNK = 64 * 1024  #: bytes of a message in one frame, at most (well inside a socket's buffer)
+MAX_MESSAGE = MAX_MESSAGE_BYTES  #: bytes of one message, as on gRPC
 MAX_CONNECTIONS = 256
+MAX_PENDING = 32
 MAX_TICKETS = 1024
+TICKETS_PER_PEER = 64
 TICKET_S = 10.0
 HELLO_S = 2.0
 TICKET_BYTES = 16
-_NEW = FlowStatus.NEW_DATA
+WHOLE, PART, LAST = b"\x00", b"\x01", b"\x02"
+#: What ``OpenIpc*`` may answer that means "use gRPC" under transport ``auto``: an old
+#: deployer, another host or platform, a deployer out of ipc room.
+REFUSED = frozenset({"UNIMPLEMENTED", "FAILED_PRECONDITION", "RESOURCE_EXHAUSTED"})
 
 
 class IpcUnavailable(Exception):
     """The fast path cannot be used between these two ends (another host or network
-    namespace, another platform, a peer without it): use gRPC."""
+    namespace, another platform, a peer without it, a deployer out of room): use gRPC."""
 
 
 def available() -> bool:
@@ -78,9 +92,73 @@ def host_id() -> str:
         return ""
 
 
-def connect(name: str, ticket: bytes, timeout: float = 2.0) -> socket.socket:
-    """Connect to a deployer's socket ``name`` and present ``ticket``; the connected socket
-    (blocking). Raises :class:`IpcUnavailable` when it cannot be reached from here."""
+def frames_of(message: bytes) -> list[bytes]:
+    """The frames carrying ``message`` (see the module docstring)."""
+    if len(message) <= CHUNK:
+        return [WHOLE + message]
+    parts = [message[i:i + CHUNK] for i in range(0, len(message), CHUNK)]
+    return [PART + p for p in parts[:-1]] + [LAST + parts[-1]]
+
+
+class Reassembler:
+    """Messages out of frames, in order; a message too large, or a frame cut short
+    (``MSG_TRUNC``) or out of place, is dropped and counted in :attr:`dropped`."""
+
+    def __init__(self) -> None:
+        self.dropped = 0
+        self._parts: list[bytes] = []
+        self._size = 0
+        self._skipping = False  # the rest of a message already dropped
+
+    def feed(self, frame: bytes, truncated: bool = False) -> bytes | None:
+        kind, body = frame[:1], frame[1:]
+        if truncated or kind not in (WHOLE, PART, LAST):
+            self._drop(kind)
+            return None
+        if kind == WHOLE:
+            if self._parts or self._skipping:  # the last message's end never came
+                self.dropped += 1 if self._parts else 0
+                self._parts, self._size, self._skipping = [], 0, False
+            return body
+        if self._skipping:
+            if kind == LAST:
+                self._skipping = False
+            return None
+        self._parts.append(body)
+        self._size += len(body)
+        if self._size > MAX_MESSAGE:
+            self._drop(kind)
+            return None
+        if kind == PART:
+            return None
+        message = b"".join(self._parts)
+        self._parts, self._size = [], 0
+        return message
+
+    def _drop(self, kind: bytes) -> None:
+        self.dropped += 1
+        self._parts, self._size = [], 0
+        self._skipping = kind == PART
+
+
+def messages_in(sock: socket.socket, timeout: float | None, assembler: Reassembler | None = None) -> Iterator[bytes]:
+    """The messages a socket receives, until the peer closes (``TimeoutError`` after
+    ``timeout`` s of silence: a frozen peer)."""
+    assembler = assembler or Reassembler()
+    sock.settimeout(timeout)
+    while True:
+        frame, _, flags, _ = sock.recvmsg(CHUNK + 1)
+        if not frame:
+            return
+        message = assembler.feed(frame, bool(flags & socket.MSG_TRUNC))
+        if message is not None:
+            yield message
+
+
+def connect(name: str, ticket: bytes, timeout: float = 2.0) -> tuple[socket.socket, bytes]:
+    """Connect to a deployer's socket ``name``, present ``ticket`` and wait for its first
+    message; the connected socket (blocking) and that message. Raises
+    :class:`IpcUnavailable` when it cannot be reached from here or the deployer refuses."""
     if not available() or not name:
         raise IpcUnavailable("no ipc on this platform")
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
@@ -88,10 +166,15 @@ def connect(name: str, ticket: bytes, timeout: float = 2.0) -> socket.socket:
         sock.settimeout(timeout)
         sock.connect("\0" + name)
         sock.send(ticket)
+        first = next(messages_in(sock, timeout), None)
+        if first is None:
+            raise IpcUnavailable("the deployer closed the connection (out of room, or the ticket expired)")
         sock.settimeout(None)
-        return sock
-    except OSError as exc:
+        return sock, first
+    except (OSError, IpcUnavailable) as exc:
         sock.close()
+        if isinstance(exc, IpcUnavailable):
+            raise
         raise IpcUnavailable(f"cannot reach the deployer's socket: {exc}") from None
 
 
@@ -105,202 +188,234 @@ def close_quietly(sock: socket.socket) -> None:
 
 
 class Outbox:
-    """The samples of ``inp`` (a free InputPort whose connection has the link's policy:
-    the one place where DATA / BUFFER / CIRCULAR_BUFFER keep, overwrite and count) sent
-    as frames over ``sock`` without ever blocking the writer. :meth:`pump` runs in the
-    writer's thread; when the socket is full it keeps the frames made so far, leaves the
-    rest to the policy's storage and calls ``want_write`` (the owner calls :meth:`pump`
-    again once the socket is writable). ``encode(values)`` makes the frames; a frame
-    larger than :data:`MAX_FRAME`, or one for a broken socket, is dropped and counted in
-    :attr:`dropped`; a broken socket calls ``on_broken`` once."""
+    """Messages sent over ``sock`` without ever blocking the writer.
 
-    def __init__(self, inp: InputPort, sock: socket.socket, encode: Callable[[list[Any]], list[bytes]],
+    ``take()`` returns the next samples waiting in the connection's policy storage (at
+    most 64; empty when none), ``encode(samples)`` their messages. :meth:`pump` — called
+    in the writer's thread after each write, and by the owner when the socket has room
+    again — sends until the storage is empty or the socket full. Whoever finds another
+    thread pumping leaves the work to it and returns at once. When the socket is full,
+    the frames made so far are held (at most one batch) and ``want_write`` is called once;
+    the rest waits in the storage. A message larger than :data:`MAX_MESSAGE`, and the
+    messages held when the socket breaks, are dropped and counted in :attr:`dropped`; a
+    broken socket calls ``on_broken`` once and leaves the storage alone."""
+
+    def __init__(self, sock: socket.socket, take: Callable[[], list[Any]], encode: Callable[[list[Any]], list[bytes]],
                  want_write: Callable[[], None], on_broken: Callable[[], None]) -> None:
-        self.inp = inp
         self.sock = sock
         self.dropped = 0
         self.broken = False
         self.blocked = False
+        self.closed = False
+        self._take = take
         self._encode = encode
         self._want_write = want_write
         self._on_broken = on_broken
         self._held: deque[bytes] = deque()
+        self._more = False
+        self._warned = False
         self.lock = threading.Lock()
-
-    def pump(self) -> None:
-        """Send what is held, then what the port's storage holds, until empty or full."""
-        read = self.inp.read
-        held = self._held
-        with self.lock:
-            for _ in range(10_000):
-                while held:
-                    if not self._send(held[0]):
-                        self._want_write()
-                        return
-                    held.popleft()
-                status, value = read()
-                if status is not _NEW:
-                    return
-                values = [value]
-                for _ in range(63):
-                    status, value = read()
-                    if status is not _NEW:
-                        break
-                    values.append(value)
-                frames = self._encode(values)
-                if len(frames) == 1 and self._send(frames[0]):  # the usual case: one sample, room
-                    continue
-                held.extend(frames)
 
     @property
     def pending(self) -> int:
-        """Frames made and not sent yet (waiting for room)."""
-        return len(self._held)
+        """Messages made and not sent yet (waiting for room)."""
+        return sum(1 for frame in self._held if frame[:1] != PART)
 
-    def send_now(self, frame: bytes) -> None:
-        """Send one control frame (a heartbeat) unless samples are waiting for room."""
-        with self.lock:
-            if not self._held:
-                self._send(frame)
+    def pump(self) -> None:
+        """Send what is held, then what the storage holds, until empty or full (see the class)."""
+        self._more = True  # before trying the lock: a holder re-checks it after releasing
+        for _ in range(1000):  # bounded: each round is another thread's write meanwhile
+            if not self.lock.acquire(blocking=False):
+                return  # the holder sends it
+            try:
+                self._more = False
+                self._pump_locked()
+            finally:
+                self.lock.release()
+            if not self._more:
+                return
+
+    def _pump_locked(self) -> None:
+        held = self._held
+        for _ in range(10_000):
+            if self.closed or self.broken:
+                return
+            while held:
+                if not self._send(held[0]):
+                    return
+                held.popleft()
+            items = self._take()
+            if not items:
+                return
+            for message in self._encode(items):
+                if len(message) > MAX_MESSAGE:
+                    self.dropped += 1
+                    if not self._warned:
+                        self._warned = True
+                        log.warning("a sample of %d bytes encoded is larger than a message may be (%d); dropped",
+                                    len(message), MAX_MESSAGE)
+                    continue
+                held.extend(frames_of(message))
+
+    def send_now(self, message: bytes) -> None:
+        """Send one control message (a heartbeat) unless samples are waiting for room or
+        another thread is sending (then it is not needed)."""
+        if self.lock.acquire(blocking=False):
+            try:
+                if not self._held and not self.closed and not self.broken:
+                    self._send(WHOLE + message)
+            finally:
+                self.lock.release()
 
     def _send(self, frame: bytes) -> bool:
-        """True when ``frame`` is done with (sent, or dropped and counted); False when the
-        socket is full (:attr:`blocked`)."""
-        if self.broken:
-            self.dropped += 1
-            return True
-        if len(frame) > MAX_FRAME:
-            self.dropped += 1
-            log.warning("a sample of %d bytes encoded is larger than an ipc frame (%d); dropped "
-                        "(use transport 'grpc' for such ports)", len(frame), MAX_FRAME)
-            return True
+        """True when ``frame`` went; False when the socket is full (:attr:`blocked`) or broke."""
         try:
             self.sock.send(frame, socket.MSG_DONTWAIT)
             self.blocked = False
             return True
-        except BlockingIOError:  # the reader is behind: its socket is full
-            self.blocked = True
+        except (BlockingIOError, InterruptedError):  # the reader is behind: its socket is full
+            if not self.blocked:
+                self.blocked = True
+                self._want_write()
             return False
-        except OSError:  # the peer is gone
-            self.dropped += 1
-            self.broken = True
+        except OSError as exc:
+            if exc.errno == getattr(os, "ENOBUFS", -1):  # the kernel is short of memory: as if full
+                if not self.blocked:
+                    self.blocked = True
+                    self._want_write()
+                return False
+            self.broken = True  # the peer is gone: what is held is lost, the storage is kept
+            self.dropped += self.pending
+            self._held.clear()
             self._on_broken()
-            return True
+            return False
+
+    def close(self) -> None:
+        """No more sending (waits for a pump in progress); the held messages count as dropped."""
+        with self.lock:
+            self.closed = True
+            self.dropped += self.pending
+            self._held.clear()
 
 
 class _ReaderEnd:
-    """An output port's samples going to one reader over a socket: a free InputPort with
-    the reader's policy, connected to the port; its data callback (the writer's thread)
-    sends what it reads at once, through an :class:`Outbox`."""
+    """An output port's samples going to one reader over a socket: the subscription's
+    policy-shaped inbox (``stream``, the gRPC path's own, tagging each sample with its
+    write number as it is written) drained by an :class:`Outbox`."""
 
-    def __init__(self, server: IpcServer, sock: socket.socket, port: OutputPort, policy: ConnPolicy) -> None:
+    def __init__(self, server: IpcServer, sock: socket.socket, stream: Any, heartbeat: float) -> None:
         self.server = server
         self.sock = sock
-        self.port = port
+        self.stream = stream
+        self.heartbeat = heartbeat
         self.sent_at = time.monotonic()
-        self._seq = 0
-        self.inp: InputPort = InputPort(port.type, name=f"ipc_{port.name}")
-        self.outbox = Outbox(self.inp, sock, self._frames, lambda: server.want_write(self),
+        self.outbox = Outbox(sock, lambda: stream.take(64), self._messages, lambda: server.want_write(self),
                              lambda: server.detach_later(self))
-        with self.outbox.lock:  # the "connected" heartbeat goes before any sample
-            self.connection = port.connect_to(self.inp, policy)
-            self.outbox._send(pb.SubscribeResponse(heartbeat=True, boot_id=server.boot_id).SerializeToString())
-        self.inp.add_data_callback(self._on_data)
-        self._on_data(self.inp)  # an init=True policy may have handed a sample over already
+        self.outbox.send_now(pb.SubscribeResponse(heartbeat=True, boot_id=server.boot_id).SerializeToString())
+        stream.inp.add_data_callback(self._on_data)  # after the inbox's own: it has tagged the sample
+        self.outbox.pump()  # what the inbox got before (an init=True policy's sample)
 
     @property
     def dropped(self) -> int:
-        return self.connection.dropped + self.outbox.dropped
+        return self.stream.dropped + self.outbox.dropped
 
-    def _frames(self, values: list[Any]) -> list[bytes]:
-        """Frames of ``values`` just read: called right after the writes, so the newest is
-        the port's latest write number (as :class:`~dataflow.remote._inbox.Inbox` tags them)."""
-        newest = max(self.port.last_sample()[0], self._seq + len(values))
-        self._seq = newest
-        now = time.time_ns()
-        return [pb.SubscribeResponse(samples=[pb.Sample(value=codec.encode(value, self.port.type),
-                                                         sequence=newest - len(values) + 1 + k, source_time_ns=now)],
+    def _messages(self, items: list[tuple[int, int, Any]]) -> list[bytes]:
+        port = self.stream.port
+        return [pb.SubscribeResponse(samples=[pb.Sample(value=codec.encode(value, port.type), sequence=seq,
+                                                         source_time_ns=stamp)],
                                      dropped=self.dropped).SerializeToString()
-                for k, value in enumerate(values)]
+                for seq, stamp, value in items]
 
-    def _on_data(self, _inp: InputPort) -> None:  # the writer's thread: never blocks for long
+    def _on_data(self, _inp: Any) -> None:  # the writer's thread: never blocks
         self.outbox.pump()
         self.sent_at = time.monotonic()
 
-    def heartbeat(self) -> None:
-        self.outbox.send_now(pb.SubscribeResponse(heartbeat=True, dropped=self.dropped).SerializeToString())
-        self.sent_at = time.monotonic()
+    def beat(self, now: float) -> None:
+        if now - self.sent_at >= self.heartbeat and not self.outbox.blocked:
+            self.outbox.send_now(pb.SubscribeResponse(heartbeat=True, dropped=self.dropped).SerializeToString())
+            self.sent_at = now
 
     def close(self) -> None:
-        self.port.disconnect(self.inp)
-        self.inp.remove_data_callback(self._on_data)
+        self.stream.inp.remove_data_callback(self._on_data)
+        self.outbox.close()
+        self.stream.close()
         close_quietly(self.sock)
 
 
 class IpcServer:
-    """A deployer's ipc socket: tickets, connections, and one thread that accepts, reads
-    tickets, notices readers gone and sends their heartbeats. Connections that carry
-    samples *in* each get a thread of their own (blocking reads: the lowest latency).
-    ``write_in(task, port, policy)`` makes the sink of such a connection: a callable
-    taking each frame's ``Value`` message, and a ``close``."""
+    """A deployer's ipc socket: tickets, connections, and one io thread that accepts,
+    reads tickets, notices readers gone, gives room to readers that were full and sends
+    their heartbeats. Connections carrying samples *in* each get a thread of their own
+    (blocking reads: the lowest latency).
 
-    def __init__(self, boot_id: str, heartbeat: float,
+    ``write_in(task, port, policy)`` makes the sink of such a connection (a callable
+    taking each ``Value`` message, and a ``close``); ``stream_out(task, port, policy)``
+    the policy-shaped inbox of a reader (the gRPC path's ``_Stream``)."""
+
+    def __init__(self, boot_id: str,
                  write_in: Callable[[str, str, ConnPolicy], tuple[Callable[[Any], None], Callable[[], None]]],
-                 output_port: Callable[[str, str], OutputPort]) -> None:
+                 stream_out: Callable[[str, str, ConnPolicy], Any]) -> None:
         self.boot_id = boot_id
         self.name = f"scart-{boot_id}-{secrets.token_hex(8)}"
-        self.heartbeat = heartbeat
         self._write_in = write_in
-        self._output_port = output_port
+        self._stream_out = stream_out
         self._lock = threading.Lock()
-        self._tickets: dict[bytes, tuple[float, str, str, str, ConnPolicy]] = {}
+        self._tickets: dict[bytes, tuple[float, str, str, str, str, ConnPolicy, float]] = {}
         self._readers: dict[socket.socket, _ReaderEnd] = {}
-        self._pending: dict[socket.socket, float] = {}  # accepted, ticket not read yet
+        self._pending: dict[socket.socket, float] = {}  # accepted, ticket not read yet (insertion order: oldest first)
         self._pumps: dict[socket.socket, threading.Thread] = {}
         self._broken: list[_ReaderEnd] = []
         self._blocked: list[_ReaderEnd] = []
         self._stopping = threading.Event()
         self._listener = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        self._listener.bind("\0" + self.name)
-        self._listener.listen(64)
-        self._listener.setblocking(False)
         self._wake_r, self._wake_w = socket.socketpair()
-        self._selector = selectors.DefaultSelector()
-        self._selector.register(self._listener, selectors.EVENT_READ, "accept")
-        self._selector.register(self._wake_r, selectors.EVENT_READ, "wake")
+        try:
+            self._listener.bind("\0" + self.name)
+            self._listener.listen(64)
+            self._listener.setblocking(False)
+            self._wake_w.setblocking(False)
+            self._selector = selectors.DefaultSelector()
+            self._selector.register(self._listener, selectors.EVENT_READ, "accept")
+            self._selector.register(self._wake_r, selectors.EVENT_READ, "wake")
+        except BaseException:
+            for sock in (self._listener, self._wake_r, self._wake_w):
+                sock.close()
+            raise
         self._thread = threading.Thread(target=self._run, name="scart-ipc", daemon=True)
         self._thread.start()
 
     @property
     def connections(self) -> int:
         with self._lock:
-            return len(self._readers) + len(self._pumps) + len(self._pending)
+            return len(self._readers) + len(self._pumps)
 
-    def ticket(self, kind: str, task: str, port: str, policy: ConnPolicy) -> bytes:
+    def ticket(self, kind: str, task: str, port: str, policy: ConnPolicy, peer: str, heartbeat: float = 0.5) -> bytes:
         """A one-time ticket for a connection of ``kind`` (``in``: into the input port
-        ``task.port``; ``out``: out of the output port). Raises ``OverflowError`` past the bounds."""
+        ``task.port``; ``out``: out of the output port) for ``peer``. Raises
+        ``OverflowError`` past the bounds."""
         now = time.monotonic()
         with self._lock:
             for key in [k for k, t in self._tickets.items() if t[0] < now]:
                 del self._tickets[key]
             if len(self._tickets) >= MAX_TICKETS:
                 raise OverflowError(f"{MAX_TICKETS} ipc tickets are pending")
+            if sum(1 for t in self._tickets.values() if t[1] == peer) >= TICKETS_PER_PEER:
+                raise OverflowError(f"{TICKETS_PER_PEER} ipc tickets of this peer are pending")
             if len(self._readers) + len(self._pumps) >= MAX_CONNECTIONS:
                 raise OverflowError(f"this deployer serves at most {MAX_CONNECTIONS} ipc connections")
             ticket = secrets.token_bytes(TICKET_BYTES)
-            self._tickets[ticket] = (now + TICKET_S, kind, task, port, policy)
+            self._tickets[ticket] = (now + TICKET_S, peer, kind, task, port, policy, heartbeat)
             return ticket
 
     # ---- the io thread -------------------------------------------------------------------
     def _run(self) -> None:
         while not self._stopping.is_set():
             try:
-                events = self._selector.select(timeout=self.heartbeat / 2)
-            except OSError:
-                return
-            for key, mask in events:
-                what = key.data
-                try:
+                with self._lock:
+                    beats = [end.heartbeat for end in self._readers.values()]
+                events = self._selector.select(timeout=min([0.5, *beats]) / 2)
+                for key, mask in events:
+                    what = key.data
                     if what == "accept":
                         self._accept()
                     elif what == "hello":
@@ -308,10 +423,12 @@ class IpcServer:
                     elif what == "reader":
                         self._reader_event(key.fileobj, mask)  # type: ignore[arg-type]
                     elif what == "wake":
-                        self._wake_r.recv(64)
-                except Exception:  # noqa: BLE001 - the io thread must not die
-                    log.exception("ipc: handling a connection failed")
-            self._housekeeping()
+                        self._wake_r.recv(4096)
+                self._housekeeping()
+            except Exception:  # noqa: BLE001 - the io thread must not die
+                if self._stopping.is_set():
+                    return
+                log.exception("ipc: the io thread hit an error; going on")
 
     def _accept(self) -> None:
         for _ in range(64):
@@ -319,18 +436,23 @@ class IpcServer:
                 conn, _ = self._listener.accept()
             except (BlockingIOError, InterruptedError):
                 return
-            with self._lock:
-                full = len(self._pending) + len(self._readers) + len(self._pumps) >= MAX_CONNECTIONS + 16
-                if not full:
-                    self._pending[conn] = time.monotonic() + HELLO_S
-            if full:
+            uid = struct.unpack("3i", conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i")))[1]
+            if uid != os.getuid():  # an abstract socket has no permissions: ours only
                 conn.close()
                 continue
+            with self._lock:
+                oldest = next(iter(self._pending)) if len(self._pending) >= MAX_PENDING else None
+                if oldest is not None:
+                    del self._pending[oldest]
+                self._pending[conn] = time.monotonic() + HELLO_S
+            if oldest is not None:
+                self._unregister(oldest)
+                oldest.close()
             conn.setblocking(False)
             self._selector.register(conn, selectors.EVENT_READ, "hello")
 
     def _hello(self, conn: socket.socket) -> None:
-        self._selector.unregister(conn)
+        self._unregister(conn)
         with self._lock:
             self._pending.pop(conn, None)
         try:
@@ -339,28 +461,37 @@ class IpcServer:
             ticket = b""
         with self._lock:
             entry = self._tickets.pop(ticket, None) if len(ticket) == TICKET_BYTES else None
-        if entry is None or entry[0] < time.monotonic() or self._stopping.is_set():
+            full = len(self._readers) + len(self._pumps) >= MAX_CONNECTIONS
+        if entry is None or entry[0] < time.monotonic() or full or self._stopping.is_set():
             conn.close()
             return
-        _, kind, task, port, policy = entry
+        _, _, kind, task, port, policy, heartbeat = entry
+        end: _ReaderEnd | None = None
         try:
+            conn.setblocking(True)
             if kind == "out":
-                conn.setblocking(True)
-                end = _ReaderEnd(self, conn, self._output_port(task, port), policy)
+                end = _ReaderEnd(self, conn, self._stream_out(task, port, policy), heartbeat)
                 with self._lock:
                     self._readers[conn] = end
                 self._selector.register(conn, selectors.EVENT_READ, "reader")
             else:
                 write, close = self._write_in(task, port, policy)
-                conn.setblocking(True)
-                pump = threading.Thread(target=self._pump, args=(conn, write, close), daemon=True,
-                                        name=f"scart-ipc-in-{task}.{port}")
+                pump = threading.Thread(target=self._pump_in, args=(conn, write, close, f"{task}.{port}"),
+                                        daemon=True, name=f"scart-ipc-in-{task}.{port}")
                 with self._lock:
                     self._pumps[conn] = pump
+                conn.send(WHOLE + pb.WritePortStreamResponse().SerializeToString())  # acknowledged: samples may come
                 pump.start()
         except Exception as exc:  # noqa: BLE001 - the port went away meanwhile: the peer sees the close
             log.info("ipc: %s.%s cannot be served: %s", task, port, exc)
-            conn.close()
+            with self._lock:
+                self._readers.pop(conn, None)
+                self._pumps.pop(conn, None)
+            self._unregister(conn)
+            if end is not None:
+                end.close()
+            else:
+                conn.close()
 
     def _reader_event(self, conn: socket.socket, mask: int) -> None:
         """A reader sends nothing after its ticket: readable means gone (or misbehaving);
@@ -375,35 +506,38 @@ class IpcServer:
         self._selector.modify(conn, selectors.EVENT_READ, "reader")
         end.outbox.pump()  # full again: want_write registers it again
 
+    def want_write(self, end: _ReaderEnd) -> None:
+        """``end``'s socket is full: the io thread pumps it again once writable."""
+        with self._lock:
+            self._blocked.append(end)
+        self._wake()
+
     def detach_later(self, end: _ReaderEnd) -> None:
         """Detach ``end`` from the io thread (its socket broke in a writer's thread, which
         must not disconnect ports while it writes)."""
         with self._lock:
             self._broken.append(end)
-        try:
-            self._wake_w.send(b"x", socket.MSG_DONTWAIT)
-        except OSError:
-            pass
+        self._wake()
 
-    def want_write(self, end: _ReaderEnd) -> None:
-        """``end``'s socket is full: the io thread pumps it again once writable."""
-        with self._lock:
-            self._blocked.append(end)
+    def _wake(self) -> None:
         try:
-            self._wake_w.send(b"x", socket.MSG_DONTWAIT)
-        except OSError:
+            self._wake_w.send(b"x")
+        except OSError:  # full: a wake-up is pending anyway
             pass
 
     def detach(self, end: _ReaderEnd) -> None:
-        """Stop serving a reader (gone, or its socket broke). Idempotent, any thread."""
+        """Stop serving a reader (gone, or its socket broke). Idempotent; the io thread."""
         with self._lock:
             if self._readers.pop(end.sock, None) is None:
                 return
+        self._unregister(end.sock)
+        end.close()
+
+    def _unregister(self, sock: socket.socket) -> None:
         try:
-            self._selector.unregister(end.sock)
+            self._selector.unregister(sock)
         except (KeyError, ValueError, OSError):
             pass
-        end.close()
 
     def _housekeeping(self) -> None:
         now = time.monotonic()
@@ -411,9 +545,12 @@ class IpcServer:
             late = [c for c, deadline in self._pending.items() if deadline < now]
             for conn in late:
                 del self._pending[conn]
-            idle = [e for e in self._readers.values() if now - e.sent_at >= self.heartbeat and not e.outbox.blocked]
+            ends = list(self._readers.values())
             broken, self._broken = self._broken, []
             blocked, self._blocked = self._blocked, []
+        for conn in late:
+            self._unregister(conn)
+            conn.close()
         for end in broken:
             self.detach(end)
         for end in blocked:
@@ -421,32 +558,31 @@ class IpcServer:
                 live = end.sock in self._readers
             if live:
                 self._selector.modify(end.sock, selectors.EVENT_READ | selectors.EVENT_WRITE, "reader")
-        for conn in late:
-            try:
-                self._selector.unregister(conn)
-            except (KeyError, ValueError):
-                pass
-            conn.close()
-        for end in idle:
-            end.heartbeat()
+        for end in ends:
+            end.beat(now)
 
-    def _pump(self, conn: socket.socket, write: Callable[[Any], None], close: Callable[[], None]) -> None:
-        """Frames into an input port until the peer closes (or the server stops)."""
+    def _pump_in(self, conn: socket.socket, write: Callable[[Any], None], close: Callable[[], None],
+                 where: str) -> None:
+        """Messages into an input port until the peer closes (or the server stops)."""
+        assembler = Reassembler()
+        refused = 0
         try:
-            while not self._stopping.is_set():
-                try:
-                    frame = conn.recv(MAX_FRAME)
-                except OSError:
-                    break
-                if not frame:
+            for message in messages_in(conn, None, assembler):
+                if self._stopping.is_set():
                     break
                 try:
-                    msg = pb.WritePortStreamRequest.FromString(frame)
+                    msg = pb.WritePortStreamRequest.FromString(message)
                     if msg.value.type_name:
                         write(msg.value)
-                except Exception as exc:  # noqa: BLE001 - one bad frame never ends the link; said once per ...
-                    log.warning("ipc: a sample refused: %s", exc)
+                except Exception as exc:  # noqa: BLE001 - one bad sample never ends the link; said once
+                    refused += 1
+                    if refused == 1:
+                        log.warning("ipc: a sample for %s refused: %s", where, exc)
+        except OSError:
+            pass
         finally:
+            if assembler.dropped:
+                log.warning("ipc: %d malformed or oversized message(s) for %s dropped", assembler.dropped, where)
             close()
             with self._lock:
                 self._pumps.pop(conn, None)
@@ -457,10 +593,7 @@ class IpcServer:
         if self._stopping.is_set():
             return
         self._stopping.set()
-        try:
-            self._wake_w.send(b"x")
-        except OSError:
-            pass
+        self._wake()
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5.0)
         with self._lock:
@@ -484,15 +617,3 @@ class IpcServer:
         self._listener.close()
         self._wake_r.close()
         self._wake_w.close()
-
-
-def frames_in(sock: socket.socket, timeout: float | None) -> Any:
-    """The frames a reader receives, until the peer closes (or ``socket.timeout`` after
-    ``timeout`` s of silence: a frozen peer)."""
-    sock.settimeout(timeout)
-    while True:
-        frame = sock.recv(MAX_FRAME)
-        if not frame:
-            return
-        yield frame
-

@@ -510,8 +510,10 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 raise Abort("FAILED_PRECONDITION", "the caller is on another host: ipc works on one host only")
             port = self._port(request.task, request.port, want_input=kind == "in")
             policy = cv.policy_from_msg(request.policy)
+            asked = getattr(request, "heartbeat_ms", 0) or self.heartbeat_ms
+            heartbeat = min(max(asked, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
             try:
-                ticket = self._ipc_server().ticket(kind, request.task, port.name, policy)
+                ticket = self._ipc_server().ticket(kind, request.task, port.name, policy, peer_key(context), heartbeat)
             except OverflowError as exc:
                 raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
             found = pb.IpcTicket(socket=self._ipc_server().name, secret=ticket, boot_id=self.owner.boot_id)
@@ -524,8 +526,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             if self._stopping.is_set():
                 raise Abort("UNAVAILABLE", "this deployer is stopping")
             if self._ipc is None:
-                self._ipc = _ipc.IpcServer(self.owner.boot_id, self.heartbeat_ms / 1000.0, self._ipc_write_in,
-                                           lambda task, port: self._port(task, port, want_input=False))
+                self._ipc = _ipc.IpcServer(self.owner.boot_id, self._ipc_write_in,
+                                           lambda task, port, policy: _Stream(self._port(task, port, False), policy))
             return self._ipc
 
     def _ipc_write_in(self, task: str, port_name: str, policy: ConnPolicy) -> tuple[Any, Any]:

@@ -130,6 +130,7 @@ class GrpcSubscription(Subscription):
         self._closed = threading.Event()
         self._call: Any = None
         self._sock: socket.socket | None = None
+        self._first = b""
         #: How samples come now: ``ipc`` (same host, see :mod:`dataflow.remote._ipc`) or ``grpc``.
         self.transport = ""
         self._connected = False
@@ -297,17 +298,19 @@ class GrpcSubscription(Subscription):
         """A socket carrying this port's samples on the same-host fast path, or None when
         ipc does not work between these two processes and the policy lets gRPC do."""
         request = pb.OpenIpcReaderRequest(task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy),
-                                          host_id=_ipc.host_id())
+                                          host_id=_ipc.host_id(), heartbeat_ms=self._system.heartbeat_ms)
         try:
             if not _ipc.available():
                 raise _ipc.IpcUnavailable("no ipc on this platform")
             try:
                 reply = self._system._stub(address).OpenIpcReader(request, timeout=self._system.timeout)  # noqa: SLF001
             except grpc.RpcError as exc:
-                if exc.code() not in (grpc.StatusCode.UNIMPLEMENTED, grpc.StatusCode.FAILED_PRECONDITION):
+                if exc.code().name not in _ipc.REFUSED:
                     raise
                 raise _ipc.IpcUnavailable(exc.details() or exc.code().name) from None
-            return _ipc.connect(reply.ticket.socket, reply.ticket.secret)
+            sock, first = _ipc.connect(reply.ticket.socket, reply.ticket.secret)
+            self._first = first  # the "connected" heartbeat: taken by _ipc_stream
+            return sock
         except _ipc.IpcUnavailable as exc:
             if self.policy.transport == "ipc":
                 raise errors.UnavailableError(f"transport ipc to {self.component}.{self.port}: {exc}",
@@ -323,9 +326,10 @@ class GrpcSubscription(Subscription):
             if self._closed.is_set():
                 return
             self._loss.new_stream()
+            self._take(pb.SubscribeResponse.FromString(self._first))
             try:
-                for frame in _ipc.frames_in(sock, 3 * self._heartbeat):
-                    self._take(pb.SubscribeResponse.FromString(frame))
+                for message in _ipc.messages_in(sock, 3 * self._heartbeat):
+                    self._take(pb.SubscribeResponse.FromString(message))
             except TimeoutError:
                 raise errors.RemoteTimeoutError(f"no heartbeat for {3 * self._heartbeat:.1f} s (peer frozen?)",
                                                 "DEADLINE_EXCEEDED", "ipc") from None

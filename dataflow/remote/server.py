@@ -18,7 +18,6 @@ except an RPC handler of this server).
 from __future__ import annotations
 
 import logging
-import os
 import secrets
 import select
 import socket
@@ -96,21 +95,36 @@ class _RemoteLink:
 
     def _on_data(self, _inp: InputPort) -> None:  # the writer's thread
         outbox = self._outbox
-        if outbox is None:
+        if outbox is None or outbox.closed:
             self._wake.set()  # gRPC (or connecting): the link's thread sends
         else:
             outbox.pump()
 
-    def _frames(self, values: list[Any]) -> list[bytes]:
+    def _take(self) -> list[Any]:
+        """The next samples waiting in the link's policy storage (at most 64)."""
+        values = []
+        for _ in range(64):
+            status, value = self.inp.read()
+            if status is not FlowStatus.NEW_DATA:
+                break
+            values.append(value)
+        return values
+
+    def _messages(self, values: list[Any]) -> list[bytes]:
         return [pb.WritePortStreamRequest(value=codec.encode(value, self.out.type)).SerializeToString()
                 for value in values]
 
-    def _requests(self) -> Any:
+    def _requests(self, ended: threading.Event) -> Any:
+        """The messages of one ``WritePortStream`` call; ``ended`` once the call is over
+        (grpc may still be waiting on this generator then: it must take no more samples)."""
         yield pb.WritePortStreamRequest(task=self.sink_task, port=self.sink_port, policy=cv.policy_to_msg(self.policy))
-        while not self._closed.is_set():
+        while not self._closed.is_set() and not ended.is_set():
             if not self._wake.wait(0.5):
                 continue
             self._wake.clear()
+            if ended.is_set():
+                self._wake.set()  # for the next call
+                return
             for _ in range(10_000):
                 status, value = self.inp.read()
                 if status is not FlowStatus.NEW_DATA:
@@ -129,14 +143,23 @@ class _RemoteLink:
                         self._run_ipc(sock)
                     else:
                         self.transport = "grpc"
-                        self._call = stub.WritePortStream.future(self._requests())
-                        self.settled.set()
-                        self._call.result()
+                        ended = threading.Event()
+                        try:
+                            self._call = stub.WritePortStream.future(self._requests(ended))
+                            self.settled.set()
+                            self._call.result()
+                        finally:
+                            ended.set()
+                            self._wake.set()  # a generator still waiting sees it ended
                 backoff = 0.05
             except (grpc.RpcError, grpc.FutureCancelledError, errors.RemoteError, NotFoundError) as exc:
                 if self._closed.is_set():
                     return
                 log.info("link to %s.%s interrupted: %s", self.sink_task, self.sink_port, exc)
+            except Exception:  # noqa: BLE001 - the link's thread must not die: log, back off, retry
+                if self._closed.is_set():
+                    return
+                log.exception("link to %s.%s failed; retrying", self.sink_task, self.sink_port)
             self.settled.set()
             self.transport = ""
             if self._closed.wait(backoff):
@@ -153,10 +176,10 @@ class _RemoteLink:
             try:
                 reply = stub.OpenIpcWriter(request, timeout=self.server.ns_timeout)
             except grpc.RpcError as exc:
-                if exc.code() not in (grpc.StatusCode.UNIMPLEMENTED, grpc.StatusCode.FAILED_PRECONDITION):
+                if exc.code().name not in _ipc.REFUSED:
                     raise
                 raise _ipc.IpcUnavailable(exc.details() or exc.code().name) from None
-            return _ipc.connect(reply.ticket.socket, reply.ticket.secret)
+            return _ipc.connect(reply.ticket.socket, reply.ticket.secret)[0]
         except _ipc.IpcUnavailable as exc:
             if self.policy.transport == "ipc":
                 raise errors.UnavailableError(f"transport ipc to {self.sink_task}.{self.sink_port}: {exc}",
@@ -166,41 +189,44 @@ class _RemoteLink:
     def _run_ipc(self, sock: socket.socket) -> None:
         """Samples go from the writer's thread; this thread waits for the sink to go away
         (its socket's end), for room when the socket was full, or for the link to close."""
-        wake_r, wake_w = os.pipe()
-        os.set_blocking(wake_w, False)
-
-        def wake() -> None:
-            try:
-                os.write(wake_w, b"x")
-            except OSError:  # full: a wake-up is pending anyway
-                pass
-
-        outbox = _ipc.Outbox(self.inp, sock, self._frames, wake, wake)
-        self.transport = "ipc"
-        self._outbox = outbox
-        self.settled.set()
+        wake_r = wake_w = None
+        outbox = None
         try:
+            wake_r, wake_w = socket.socketpair()
+            wake_w.setblocking(False)
+
+            def wake() -> None:
+                try:
+                    wake_w.send(b"x")
+                except OSError:  # full (a wake-up is pending anyway), or closed: the link moved on
+                    pass
+
+            outbox = _ipc.Outbox(sock, self._take, self._messages, wake, wake)
+            self.transport = "ipc"
+            self._outbox = outbox
+            self.settled.set()
             poller = select.poll()
             poller.register(wake_r, select.POLLIN)
             outbox.pump()  # what came while connecting
             while not self._closed.is_set() and not outbox.broken:
-                events = select.POLLIN | (select.POLLOUT if outbox.blocked else 0)
-                poller.register(sock, events)
+                poller.register(sock, select.POLLIN | (select.POLLOUT if outbox.blocked else 0))
                 ready = dict(poller.poll(500))
-                if ready.get(wake_r):
-                    os.read(wake_r, 4096)
+                if ready.get(wake_r.fileno()):
+                    wake_r.recv(4096)
                 if ready.get(sock.fileno(), 0) & (select.POLLIN | select.POLLHUP | select.POLLERR):
-                    break  # the sink sends nothing: any such event is its end
+                    break  # the sink sends nothing after its acknowledgement: any such event is its end
                 if ready.get(sock.fileno(), 0) & select.POLLOUT:
                     outbox.pump()
         finally:
             self._outbox = None
-            with outbox.lock:  # no writer's thread is sending any more; what it held is lost
-                self._ipc_dropped += outbox.dropped + outbox.pending
+            if outbox is not None:
+                outbox.close()  # waits for a pump in progress; what it held is lost, counted
+                self._ipc_dropped += outbox.dropped
             self._wake.set()  # what the port's storage holds goes by the next connection
             _ipc.close_quietly(sock)
-            os.close(wake_r)
-            os.close(wake_w)
+            for end in (wake_r, wake_w):
+                if end is not None:
+                    end.close()
         if not self._closed.is_set():
             log.info("link to %s.%s: the sink's ipc socket closed; reconnecting", self.sink_task, self.sink_port)
 

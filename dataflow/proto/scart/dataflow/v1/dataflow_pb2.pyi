@@ -75,16 +75,18 @@ class OpenIpcWriterResponse(_message.Message):
     def __init__(self, ticket: _Optional[_Union[IpcTicket, _Mapping]] = ...) -> None: ...
 
 class OpenIpcReaderRequest(_message.Message):
-    __slots__ = ("task", "port", "policy", "host_id")
+    __slots__ = ("task", "port", "policy", "host_id", "heartbeat_ms")
     TASK_FIELD_NUMBER: _ClassVar[int]
     PORT_FIELD_NUMBER: _ClassVar[int]
     POLICY_FIELD_NUMBER: _ClassVar[int]
     HOST_ID_FIELD_NUMBER: _ClassVar[int]
+    HEARTBEAT_MS_FIELD_NUMBER: _ClassVar[int]
     task: str
     port: str
     policy: ConnPolicy
     host_id: str
-    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ...) -> None: ...
+    heartbeat_ms: int
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
 
 class OpenIpcReaderResponse(_message.Message):
     __slots__ = ("ticket",)
