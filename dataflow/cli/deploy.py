@@ -26,6 +26,7 @@ import sys
 import threading
 from typing import Any
 
+from dataflow.cli import _zenoh as zenoh_args
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from dataflow.remote.security import add_arguments, from_args
 
@@ -47,6 +48,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
         help="connect a hosted output port to an input port here or in another deployer (repeatable)",
     )
     deploy.add_argument("--policy", default="data", help="policy of --connect: data | buffer:N | circular:N")
+    zenoh_args.add_arguments(deploy, "also publish every output port on Zenoh (scart/NS/TASK/PORT) and announce "
+                                     "the tasks with liveliness tokens")
     add_arguments(deploy, server=True)
     deploy.set_defaults(func=cmd_deploy)
 
@@ -143,6 +146,8 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     deployer = Deployer()
     server = None
     serving = False
+    zenoh_session: Any = None
+    publisher: Any = None
     try:
         try:
             for task in _make_tasks(args):
@@ -160,15 +165,31 @@ def cmd_deploy(args: argparse.Namespace) -> int:
         except (ValueError, DataflowError) as exc:
             _err(f"scart deploy: --connect: {exc}")
             return 1
+        if args.zenoh:
+            try:
+                zenoh_session = zenoh_args.session_of(args)
+                from dataflow.remote.zenoh_transport import ZenohPublisher
+
+                publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns)
+            except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
+                _err(f"scart deploy: --zenoh: {exc}")
+                return 1
         where = "embedded" if ns is None else "joined"
         _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.listen_address} "
              f"(name service {server.ns_address}, {where})")
+        if publisher is not None:  # after the line scripts wait for
+            _err(f"scart deploy: publishing {len(publisher.keys)} port(s) on Zenoh under scart/{args.zenoh_ns}/ "
+                 f"(listening on {', '.join(args.zenoh_listen) or 'tcp/127.0.0.1'})")
         serving = True
         while not stop.wait(1.0):
             pass
     finally:
         if serving:
             _err("scart deploy: stopping")
+        if publisher is not None:
+            publisher.close()
+        if zenoh_session is not None:
+            zenoh_session.close()
         if server is not None:
             server.stop()
         deployer.stop_all()

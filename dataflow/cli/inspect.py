@@ -25,6 +25,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from dataflow.cli import _zenoh as zenoh_args
 from dataflow.remote.api import TRANSITIONS
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 from dataflow.remote.security import add_arguments, from_args
@@ -43,6 +44,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
 
     p = verb("ls", "list components: name, state, period, measured rate, deployer", cmd_ls)
     p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
+    zenoh_args.add_arguments(p, "list what Zenoh announces (liveliness tokens), no name service needed")
     p = verb("describe", "properties, operations and ports of a component", cmd_describe)
     p.add_argument("component")
     p = verb("echo", "print samples of an output port", cmd_echo)
@@ -50,6 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("-n", type=int, default=None, help="stop after N samples")
     p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
     p.add_argument("--period", type=float, default=None, help="poll at this period instead of push")
+    zenoh_args.add_arguments(p, "take the samples from Zenoh (scart/NS/COMP/PORT), no name service needed")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--field", default=None, metavar="PATH",
                    help="print only this part of each sample: joints[2].position, joints[*].position")
@@ -148,6 +151,19 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
 
     from dataflow.cli.services import at
 
+    if getattr(args, "zenoh", False):  # Zenoh: no name service involved
+        try:
+            args.zenoh_session = zenoh_args.session_of(args)
+        except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
+            _err(f"{args.command}: --zenoh: {exc}")
+            return 1
+        try:
+            return func(args)
+        except (DataflowError, ValueError) as exc:
+            _err(f"{args.command}: {exc}")
+            return 1
+        finally:
+            args.zenoh_session.close()
     if at(args) is not None:  # SCA services: no name service involved
         try:
             return func(args)
@@ -223,7 +239,19 @@ def _with_rates(listing: Callable[[], list[Any]], count: Callable[[Any], int], s
 
 # ---- verbs -----------------------------------------------------------------------------
 def cmd_ls(args: argparse.Namespace) -> int:
-    """``scart ls``: one line per component; rate measured over ``--sample`` s."""
+    """``scart ls``: one line per component; rate measured over ``--sample`` s (``--zenoh``:
+    the components and output ports Zenoh's liveliness tokens announce)."""
+    if getattr(args, "zenoh", False):
+        from dataflow.remote.zenoh_transport import discover
+
+        found = discover(args.zenoh_session, args.zenoh_ns, timeout=max(args.timeout / 3, 0.2))
+        if args.json:
+            _out(_dump([{"name": name, "ports": ports} for name, ports in found.items()]))
+            return 0
+        _out(f"{'NAME':<24} PORTS (on Zenoh: scart/{args.zenoh_ns}/NAME/PORT)")
+        for name, ports in found.items():
+            _out(f"{name:<24} {' '.join(ports) or '-'}")
+        return 0
     rows = [{"name": c.name, "state": c.state, "activity": c.activity, "period": c.period, "rate": rate,
              "cycles": c.cycles, "overruns": c.overruns, "deployer": c.address}
             for c, rate in _with_rates(args.system.components, lambda c: c.cycles, args.sample)]
@@ -284,7 +312,7 @@ def cmd_echo(args: argparse.Namespace) -> int:
     path = parse_path(args.field) if args.field is not None else None
     if args.field is not None and path is None:
         raise ValueError(f"--field {args.field!r}: expected a path such as joints[2].position or joints[*].position")
-    proxy = args.system.component(component)
+    proxy = None if getattr(args, "zenoh", False) else args.system.component(component)
     done = threading.Event()
     count = [0]
     lock = threading.Lock()
@@ -310,7 +338,13 @@ def cmd_echo(args: argparse.Namespace) -> int:
             if args.n is not None and count[0] >= args.n:
                 done.set()
 
-    sub = proxy.subscribe(port, observer, policy=_policy(args.policy), period=args.period)
+    if getattr(args, "zenoh", False):
+        from dataflow.remote.zenoh_transport import ZenohSubscription
+
+        sub: Any = ZenohSubscription(args.zenoh_session, component, port, observer, args.zenoh_ns)
+    else:
+        assert proxy is not None
+        sub = proxy.subscribe(port, observer, policy=_policy(args.policy), period=args.period)
     try:
         _wait_until_stopped(done, args.duration)
     finally:

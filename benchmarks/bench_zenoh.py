@@ -1,0 +1,131 @@
+"""Benchmark of the Zenoh transport against bare zenoh-python pub/sub, same payload,
+measured in the same run.
+
+Usage: ``python benchmarks/bench_zenoh.py [--quick]`` (needs ``scart[zenoh]``). Two peer
+sessions in this process, connected over a Unix socket: a scart output port published
+with :class:`ZenohPublisher` and read with :class:`ZenohSubscription`, against a bare
+``declare_publisher``/``declare_subscriber`` pair sending the same bytes (the encoded
+youBot status). Latency is from the write (or ``put``) to the subscriber's callback, at
+100 Hz and 1 kHz on absolute deadlines. Prints one markdown table. Not a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "youbot"))
+
+from youbot_model import JointStatus, YouBotStatus  # noqa: E402
+
+from dataflow import Deployer, OutputPort, TaskContext, codec  # noqa: E402
+from dataflow.remote.zenoh_transport import ZenohPublisher, ZenohSubscription, open_session  # noqa: E402
+
+from _common import pct  # noqa: E402
+
+STATUS = YouBotStatus(joints=[JointStatus(position=0.1 * i, velocity=0.01, current=0.2, temperature=30.5)
+                              for i in range(5)], timestamp=1.0, sequence=1)
+
+
+class Arm(TaskContext):
+    status = OutputPort(YouBotStatus)
+
+
+def paced(n: int, rate: float, send: object) -> None:
+    period = 1.0 / rate
+    deadline = time.perf_counter()
+    for k in range(n):
+        deadline += period
+        send(k)  # type: ignore[operator]
+        pause = deadline - time.perf_counter()
+        if pause > 0:
+            time.sleep(pause)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    n100, n1k = (200, 1000) if args.quick else (500, 3000)
+    folder = tempfile.mkdtemp()
+    here = f"unixsock-stream/{folder}/a.sock"
+    a = open_session(listen=[here])
+    b = open_session(connect=[here], listen=[f"unixsock-stream/{folder}/b.sock"])
+    rows = []
+    try:
+        payload = codec.encode(STATUS, YouBotStatus).SerializeToString()
+        # bare zenoh-python: the same bytes, one put per sample
+        sent: dict[int, float] = {}
+        got: dict[int, float] = {}
+        lock = threading.Lock()
+
+        def bare_cb(sample: object) -> None:
+            k = int.from_bytes(sample.attachment.to_bytes(), "little")  # type: ignore[attr-defined]
+            with lock:
+                got[k] = time.perf_counter()
+
+        bare_pub = a.declare_publisher("bench/bare")
+        bare_sub = b.declare_subscriber("bench/bare", bare_cb)
+        time.sleep(0.5)
+
+        def bare_send(k: int) -> None:
+            sent[k] = time.perf_counter()
+            bare_pub.put(payload, attachment=k.to_bytes(8, "little"))
+
+        # scart: a port published by ZenohPublisher, read by ZenohSubscription
+        deployer = Deployer()
+        arm = deployer.add(Arm("arm"))
+        publisher = ZenohPublisher(deployer, a)
+        s_sent: dict[int, float] = {}
+        s_got: dict[int, float] = {}
+
+        def on_event(event: object) -> None:
+            with lock:
+                s_got[event.sequence] = time.perf_counter()  # type: ignore[attr-defined]
+
+        sub = ZenohSubscription(b, "arm", "status", on_event)
+        time.sleep(0.5)
+
+        def scart_send(k: int) -> None:
+            s_sent[arm.status.last_sample()[0] + 1] = time.perf_counter()
+            arm.status.write(STATUS)
+
+        for rate, n in ((100.0, n100), (1000.0, n1k)):
+            results = {}
+            for name, send, s, g in (("bare zenoh-python put → callback", bare_send, sent, got),
+                                     ("scart ZenohPublisher → ZenohSubscription", scart_send, s_sent, s_got)):
+                s.clear()
+                g.clear()
+                paced(50, rate, send)  # warm-up
+                s.clear()
+                g.clear()
+                paced(n, rate, send)
+                time.sleep(0.3)
+                with lock:
+                    lat = [g[k] - t for k, t in s.items() if k in g]
+                results[name] = (pct(lat, 0.5), pct(lat, 0.99), len(lat))
+            base = results["bare zenoh-python put → callback"][0]
+            for name, (p50, p99, count) in results.items():
+                rows.append((name, f"{rate:g} Hz", p50, p99, f"{count}/{n}", f"{p50 / base:.2f}"))
+        sub.close()
+        publisher.close()
+        bare_sub.undeclare()
+        bare_pub.undeclare()
+    finally:
+        b.close()
+        a.close()
+    print("\nZenoh transport vs bare zenoh-python (two peer sessions, Unix socket, youBot status payload)\n")
+    print("| path | rate | p50 | p99 | received | p50 vs bare |")
+    print("|---|---|---|---|---|---|")
+    for name, rate, p50, p99, count, ratio in rows:
+        print(f"| {name} | {rate} | {p50 * 1e6:.1f} µs | {p99 * 1e6:.1f} µs | {count} | {ratio} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
