@@ -33,10 +33,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from _common import pct, wait_until  # noqa: E402
+
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.remote import connect  # noqa: E402
-
-from _common import pct, wait_until  # noqa: E402
 
 
 class Source(TaskContext):

@@ -21,12 +21,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "youbot"))
 
+from _common import pct  # noqa: E402
 from youbot_model import JointStatus, YouBotStatus  # noqa: E402
 
 from dataflow import Deployer, OutputPort, TaskContext, codec  # noqa: E402
-from dataflow.remote.zenoh_transport import ZenohPublisher, ZenohSubscription, open_session  # noqa: E402
-
-from _common import pct  # noqa: E402
+from dataflow.remote.zenoh_transport import (  # noqa: E402
+    ZenohPublisher,
+    ZenohSubscription,
+    open_session,
+)
 
 STATUS = YouBotStatus(joints=[JointStatus(position=0.1 * i, velocity=0.01, current=0.2, temperature=30.5)
                               for i in range(5)], timestamp=1.0, sequence=1)

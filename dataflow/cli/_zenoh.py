@@ -4,29 +4,56 @@
 from __future__ import annotations
 
 import argparse
+import socket
 from typing import Any
 
-__all__ = ["add_arguments", "session_of"]
+__all__ = ["add_arguments", "peers", "session_of"]
 
 
 def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
     """``--zenoh`` (``what`` it does), ``--zenoh-connect/--zenoh-listen EP`` (repeatable),
-    ``--zenoh-ns NAME``."""
+    ``--zenoh-ns NAME``, ``--zenoh-insecure``."""
     group = parser.add_argument_group("Zenoh (pip install 'scart[zenoh]')")
     group.add_argument("--zenoh", action="store_true", help=what)
     group.add_argument("--zenoh-connect", action="append", default=[], metavar="EP",
-                       help="a Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 or unixsock-stream/PATH")
+                       help="a Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 or unixsock-stream/PATH "
+                            "(what scart deploy --zenoh prints)")
     group.add_argument("--zenoh-listen", action="append", default=[], metavar="EP",
-                       help="a Zenoh endpoint to listen on (default tcp/127.0.0.1:0; a routable one needs --insecure)")
+                       help="a Zenoh endpoint to listen on (default: loopback, a free port)")
     group.add_argument("--zenoh-ns", default="default", metavar="NAME",
                        help="the namespace word of the keys scart/NAME/COMPONENT/PORT (default 'default')")
+    group.add_argument("--zenoh-insecure", action="store_true",
+                       help="allow routable endpoints and gossip scouting (Zenoh traffic carries no scart token)")
 
 
-def session_of(args: argparse.Namespace) -> Any:
-    """The Zenoh session the options say (raises ``ValueError`` with what to install or fix)."""
+def session_of(args: argparse.Namespace, serve: bool = False) -> tuple[Any, list[str]]:
+    """The Zenoh session the options say and the endpoints it listens on. ``serve``
+    (``scart deploy``): a peer, listening (on a free loopback port when no endpoint is
+    given, so it can be printed); else a client of the endpoints given (``ls``, ``echo``),
+    or a peer when told to listen. Raises ``ValueError`` with what to install or fix."""
     try:
-        from dataflow.remote.zenoh_transport import open_session
         import zenoh  # noqa: F401
+
+        from dataflow.remote.zenoh_transport import key_of, open_session
     except ImportError:
         raise ValueError("--zenoh needs the Zenoh package: pip install 'scart[zenoh]'") from None
-    return open_session(args.zenoh_connect, args.zenoh_listen, insecure=getattr(args, "insecure", False))
+    key_of(args.zenoh_ns, "x")  # a plain key chunk: said before anything opens
+    if not serve and not args.zenoh_listen:
+        if not args.zenoh_connect:
+            raise ValueError("nowhere to look: give --zenoh-connect ENDPOINT (scart deploy --zenoh prints where "
+                             "it listens)")
+        return open_session(args.zenoh_connect, insecure=args.zenoh_insecure, mode="client"), []
+    listen = list(args.zenoh_listen) or [f"tcp/127.0.0.1:{_free_port()}"]
+    return open_session(args.zenoh_connect, listen, insecure=args.zenoh_insecure), listen
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def peers(session: Any) -> int:
+    """How many Zenoh peers and routers the session reached."""
+    info = session.info
+    return len(list(info.peers_zid())) + len(list(info.routers_zid()))

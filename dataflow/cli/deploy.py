@@ -147,8 +147,15 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     server = None
     serving = False
     zenoh_session: Any = None
+    zenoh_listen: list[str] = []
     publisher: Any = None
     try:
+        if args.zenoh:  # before any task starts: a bad endpoint or a missing package stops nothing running
+            try:
+                zenoh_session, zenoh_listen = zenoh_args.session_of(args, serve=True)
+            except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
+                _err(f"scart deploy: --zenoh: {exc}")
+                return 1
         try:
             for task in _make_tasks(args):
                 deployer.add(task)
@@ -165,31 +172,33 @@ def cmd_deploy(args: argparse.Namespace) -> int:
         except (ValueError, DataflowError) as exc:
             _err(f"scart deploy: --connect: {exc}")
             return 1
-        if args.zenoh:
+        if zenoh_session is not None:
             try:
-                zenoh_session = zenoh_args.session_of(args)
                 from dataflow.remote.zenoh_transport import ZenohPublisher
 
                 publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns)
-            except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
+            except Exception as exc:  # noqa: BLE001 - Zenoh's own errors say what is wrong
                 _err(f"scart deploy: --zenoh: {exc}")
                 return 1
         where = "embedded" if ns is None else "joined"
+        on_zenoh = "" if publisher is None else (
+            f"; Zenoh: {len(publisher.keys)} port(s) under scart/{args.zenoh_ns}/, listening on "
+            f"{' '.join(zenoh_listen)}")  # the same line: scripts wait for one
         _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.listen_address} "
-             f"(name service {server.ns_address}, {where})")
-        if publisher is not None:  # after the line scripts wait for
-            _err(f"scart deploy: publishing {len(publisher.keys)} port(s) on Zenoh under scart/{args.zenoh_ns}/ "
-                 f"(listening on {', '.join(args.zenoh_listen) or 'tcp/127.0.0.1'})")
+             f"(name service {server.ns_address}, {where}){on_zenoh}")
         serving = True
         while not stop.wait(1.0):
             pass
     finally:
         if serving:
             _err("scart deploy: stopping")
-        if publisher is not None:
-            publisher.close()
-        if zenoh_session is not None:
-            zenoh_session.close()
+        try:
+            if publisher is not None:
+                publisher.close()
+            if zenoh_session is not None:
+                zenoh_session.close()
+        except Exception as exc:  # noqa: BLE001 - Zenoh failing to close never keeps the tasks running
+            _err(f"scart deploy: closing Zenoh: {exc}")
         if server is not None:
             server.stop()
         deployer.stop_all()

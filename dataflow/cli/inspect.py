@@ -146,20 +146,27 @@ def _parse_json(text: str) -> Any:
 def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
     """Run a verb: connect, map errors to one stderr line and exit code 1."""
     from dataflow import DataflowError
+    from dataflow.cli.services import at
     from dataflow.remote import connect
     from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
 
-    from dataflow.cli.services import at
-
     if getattr(args, "zenoh", False):  # Zenoh: no name service involved
+        if args.command == "echo" and (args.policy != "data" or args.period is not None):
+            _err("echo: --policy and --period are for the name service's subscriptions, not --zenoh")
+            return 1
         try:
-            args.zenoh_session = zenoh_args.session_of(args)
+            args.zenoh_session, _ = zenoh_args.session_of(args)
         except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
             _err(f"{args.command}: --zenoh: {exc}")
             return 1
         try:
+            if not zenoh_args.peers(args.zenoh_session):
+                _err(f"{args.command}: --zenoh: no Zenoh peer reached; give --zenoh-connect ENDPOINT "
+                     "(scart deploy --zenoh prints where it listens)")
+                if args.command == "ls":
+                    return 1
             return func(args)
-        except (DataflowError, ValueError) as exc:
+        except Exception as exc:  # noqa: BLE001 - Zenoh's own errors too: one line, exit 1
             _err(f"{args.command}: {exc}")
             return 1
         finally:
@@ -349,7 +356,9 @@ def cmd_echo(args: argparse.Namespace) -> int:
         _wait_until_stopped(done, args.duration)
     finally:
         sub.close()
-    if sub.dropped:
+    if sub.dropped and getattr(args, "zenoh", False):
+        _err(f"echo: {sub.dropped} sample(s) lost on Zenoh or not decodable")
+    elif sub.dropped:
         _err(f"echo: {sub.dropped} sample(s) dropped by the policy {args.policy}")
     return 0
 

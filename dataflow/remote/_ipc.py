@@ -50,11 +50,11 @@ from typing import Any
 
 from dataflow import codec
 from dataflow.policy import ConnPolicy
-from dataflow.ports import OutputPort
 from dataflow.remote._proto import df as pb
 from dataflow.remote._rpc import MAX_MESSAGE_BYTES
 
-__all__ = ["REFUSED", "IpcServer", "IpcUnavailable", "Outbox", "available", "close_quietly", "connect", "host_id", "messages_in"]
+__all__ = ["REFUSED", "IpcServer", "IpcUnavailable", "Outbox", "available", "close_quietly", "connect", "host_id",
+           "messages_in", "open_with"]
 
 log = logging.getLogger(__name__)
 
@@ -176,6 +176,32 @@ def connect(name: str, ticket: bytes, timeout: float = 2.0) -> tuple[socket.sock
         if isinstance(exc, IpcUnavailable):
             raise
         raise IpcUnavailable(f"cannot reach the deployer's socket: {exc}") from None
+
+
+def open_with(ask: Callable[[], Any], transport: str, what: str, address: str = "") -> tuple[socket.socket, bytes] | None:
+    """Ask a deployer for a ticket (``ask()``: the ``OpenIpc*`` call, returning its reply)
+    and connect with it: the socket and the deployer's first message. None when ipc does
+    not work between the two ends and ``transport`` (``auto``) lets gRPC do; with ``ipc``
+    that raises :class:`~dataflow.remote.errors.UnavailableError` naming ``what`` and why.
+    Other failures of ``ask`` (the deployer unreachable, a refused token) propagate."""
+    from dataflow.remote import errors
+
+    try:
+        if not available():
+            raise IpcUnavailable("no ipc on this platform")
+        try:
+            reply = ask()
+        except Exception as exc:
+            code_of, details = getattr(exc, "code", None), getattr(exc, "details", None)  # a grpc.RpcError
+            code = code_of() if callable(code_of) else None
+            if code is None or code.name not in REFUSED:
+                raise
+            raise IpcUnavailable((details() if callable(details) else "") or code.name) from None
+        return connect(reply.ticket.socket, reply.ticket.secret)
+    except IpcUnavailable as exc:
+        if transport == "ipc":
+            raise errors.UnavailableError(f"transport ipc to {what}: {exc}", "FAILED_PRECONDITION", address) from None
+        return None
 
 
 def close_quietly(sock: socket.socket) -> None:

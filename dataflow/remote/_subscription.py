@@ -35,7 +35,14 @@ from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.remote import _convert as cv
 from dataflow.remote import _ipc, _rpc, errors
 from dataflow.remote._proto import df as pb
-from dataflow.remote.api import Dispatcher, GapEvent, Mailbox, Observer, SampleEvent, Subscription
+from dataflow.remote.api import (
+    Dispatcher,
+    GapEvent,
+    Mailbox,
+    Observer,
+    SampleEvent,
+    Subscription,
+)
 
 if TYPE_CHECKING:
     from dataflow.remote.client import GrpcComponentProxy
@@ -299,23 +306,13 @@ class GrpcSubscription(Subscription):
         ipc does not work between these two processes and the policy lets gRPC do."""
         request = pb.OpenIpcReaderRequest(task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy),
                                           host_id=_ipc.host_id(), heartbeat_ms=self._system.heartbeat_ms)
-        try:
-            if not _ipc.available():
-                raise _ipc.IpcUnavailable("no ipc on this platform")
-            try:
-                reply = self._system._stub(address).OpenIpcReader(request, timeout=self._system.timeout)  # noqa: SLF001
-            except grpc.RpcError as exc:
-                if exc.code().name not in _ipc.REFUSED:
-                    raise
-                raise _ipc.IpcUnavailable(exc.details() or exc.code().name) from None
-            sock, first = _ipc.connect(reply.ticket.socket, reply.ticket.secret)
-            self._first = first  # the "connected" heartbeat: taken by _ipc_stream
-            return sock
-        except _ipc.IpcUnavailable as exc:
-            if self.policy.transport == "ipc":
-                raise errors.UnavailableError(f"transport ipc to {self.component}.{self.port}: {exc}",
-                                              "FAILED_PRECONDITION", address) from None
+        stub = self._system._stub(address)  # noqa: SLF001
+        opened = _ipc.open_with(lambda: stub.OpenIpcReader(request, timeout=self._system.timeout),
+                                self.policy.transport, f"{self.component}.{self.port}", address)
+        if opened is None:
             return None
+        sock, self._first = opened  # the "connected" heartbeat: taken by _ipc_stream
+        return sock
 
     def _ipc_stream(self, sock: socket.socket) -> None:
         """Frames from the deployer's socket until it closes; silence for 3 heartbeats is a

@@ -36,14 +36,28 @@ from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
 from dataflow.remote import _convert as cv
 from dataflow.remote import _ipc, _rpc, errors
-from dataflow.remote._proto import DEPLOYER_ROLES, DEPLOYER_SERVICE_NAME, NAMING_ROLES, NAMING_SERVICE_NAME, df_grpc, ns_grpc
+from dataflow.remote._proto import (
+    DEPLOYER_ROLES,
+    DEPLOYER_SERVICE_NAME,
+    NAMING_ROLES,
+    NAMING_SERVICE_NAME,
+    df_grpc,
+    ns_grpc,
+)
 from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
-from dataflow.remote.security import Security
 from dataflow.remote.naming import (
-    DEFAULT_LEASE, NameClient, NameRegistry, NamingServicer, RegistryFullError, Registration, boot_service,
-    held_elsewhere, security_probe,
+    DEFAULT_LEASE,
+    NameClient,
+    NameRegistry,
+    NamingServicer,
+    Registration,
+    RegistryFullError,
+    boot_service,
+    held_elsewhere,
+    security_probe,
 )
+from dataflow.remote.security import Security
 
 __all__ = ["DeployerServer"]
 
@@ -170,21 +184,9 @@ class _RemoteLink:
         """The sink's ipc socket for this link, or None when gRPC must do (and may)."""
         request = pb.OpenIpcWriterRequest(task=self.sink_task, port=self.sink_port,
                                           policy=cv.policy_to_msg(self.policy), host_id=_ipc.host_id())
-        try:
-            if not _ipc.available():
-                raise _ipc.IpcUnavailable("no ipc on this platform")
-            try:
-                reply = stub.OpenIpcWriter(request, timeout=self.server.ns_timeout)
-            except grpc.RpcError as exc:
-                if exc.code().name not in _ipc.REFUSED:
-                    raise
-                raise _ipc.IpcUnavailable(exc.details() or exc.code().name) from None
-            return _ipc.connect(reply.ticket.socket, reply.ticket.secret)[0]
-        except _ipc.IpcUnavailable as exc:
-            if self.policy.transport == "ipc":
-                raise errors.UnavailableError(f"transport ipc to {self.sink_task}.{self.sink_port}: {exc}",
-                                              "FAILED_PRECONDITION") from None
-            return None
+        opened = _ipc.open_with(lambda: stub.OpenIpcWriter(request, timeout=self.server.ns_timeout),
+                                self.policy.transport, f"{self.sink_task}.{self.sink_port}")
+        return opened[0] if opened is not None else None
 
     def _run_ipc(self, sock: socket.socket) -> None:
         """Samples go from the writer's thread; this thread waits for the sink to go away

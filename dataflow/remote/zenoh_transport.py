@@ -6,9 +6,10 @@ Key scheme (documented in the README, "Transports"):
 - ``scart/<ns>/<component>/<port>``: the samples of an output port. Each is the gRPC
   path's own encoding, a ``scart.dataflow.v1.Value`` message; the Zenoh encoding says so
   and carries the port's registry type name: ``application/protobuf;scart.dataflow.v1.Value;<type>``.
-  The attachment is the port's write number and the time it was sent (two 8-byte little
-  endian integers, the time in ns since the epoch): a subscriber tells the writes it did
-  not get from the jumps in the write numbers, as on the other transports.
+  The attachment is the publisher's random id, the port's write number and the time it
+  was sent (three 8-byte little-endian integers, the time in ns since the epoch): a
+  subscriber tells the writes it did not get from the jumps in the write numbers, as on
+  the other transports, and starts counting afresh when the id changes (a restart).
 - Liveliness tokens announce what runs: ``scart/<ns>/<component>`` for each task and
   ``scart/<ns>/<component>/<port>`` for each of its output ports. A process that dies
   takes its tokens with it, so :func:`discover` lists only live components.
@@ -16,10 +17,14 @@ Key scheme (documented in the README, "Transports"):
 ``<ns>`` is a namespace word (default ``default``), as ``__ns`` is for remapping.
 
 gRPC stays the control plane (describe, operations, properties, state); only samples move
-here. Sessions are peers, loopback by default (``tcp/127.0.0.1``), with multicast
-scouting off: :func:`open_session` refuses to listen on a routable endpoint unless ``insecure`` (Zenoh
-traffic carries no scart token; secure a fleet with Zenoh's own TLS and access control).
-A publisher never blocks the writer: Zenoh's ``DROP`` congestion control.
+here. Sessions are loopback by default, with multicast and gossip scouting off (a
+session reaches only the endpoints it is given): :func:`open_session` refuses a routable
+endpoint, to listen on or to connect to, unless ``insecure`` (Zenoh traffic carries no
+scart token; secure a fleet with Zenoh's own TLS and access control).
+The writer's thread never waits: when another thread is publishing the port, it leaves
+the newest sample to that thread (the ones in between are counted as lost by the
+subscribers); Zenoh's ``DROP`` congestion control drops at once rather than wait for room;
+and nothing is encoded while no subscriber matches the key.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from __future__ import annotations
 import json
 import logging
 import re
+import secrets
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -36,8 +42,9 @@ from dataflow import codec
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote.api import SampleEvent
+from dataflow.types import registry
 
-__all__ = ["DEFAULT_NS", "ZenohPublisher", "ZenohSubscription", "discover", "key_of", "open_session"]
+__all__ = ["DEFAULT_NS", "ZenohInput", "ZenohPublisher", "ZenohSubscription", "discover", "key_of", "open_session"]
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +54,7 @@ ENCODING_PREFIX = "scart.dataflow.v1.Value;"
 MAX_PAYLOAD = 4 * 1024 * 1024  #: bytes of one sample a subscriber decodes at most (the gRPC path's limit)
 _WORD = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
 _LOOPBACK = re.compile(r"^(tcp|udp|quic|tls)/(127\.\d+\.\d+\.\d+|localhost|\[::1\]):\d+$")
+_ENDPOINT = re.compile(r"^[a-z][a-z0-9-]*/\S+$")
 
 
 def key_of(ns: str, component: str, port: str | None = None) -> str:
@@ -71,13 +79,23 @@ def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecu
     if mode not in ("peer", "router", "client"):
         raise ValueError(f"Zenoh mode {mode!r}: expected peer, router or client")
     connect, listen = list(connect), list(listen) or (["tcp/127.0.0.1:0"] if mode != "client" else [])
-    for endpoint in listen:
+    for endpoint in connect + listen:
+        if not _ENDPOINT.match(endpoint) or (endpoint.startswith(("tcp/", "udp/", "tls/", "quic/"))
+                                             and not re.search(r":\d+$", endpoint.split("#")[0])):
+            raise ValueError(f"Zenoh endpoint {endpoint!r}: expected PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447 "
+                             "or unixsock-stream/PATH")
         if not (insecure or endpoint.startswith("unixsock-stream/") or _LOOPBACK.match(endpoint)):
             raise ValueError(f"Zenoh endpoint {endpoint!r} is not loopback: Zenoh traffic carries no scart "
-                             "token (use Zenoh's TLS and access control), so it needs --insecure")
+                             "token (use Zenoh's TLS and access control), so it needs --zenoh-insecure")
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
+    if not insecure:  # reach only the endpoints given (gossip would pass on others' too)
+        config.insert_json5("scouting/gossip/enabled", "false")
+    drop = "transport/link/tx/queue/congestion_control/drop/"
+    config.insert_json5(drop + "wait_before_drop", "0")  # never wait for room: the writer's thread
+    config.insert_json5(drop + "max_wait_before_drop_fragments", "0")
+    config.insert_json5("transport/link/rx/max_message_size", str(MAX_PAYLOAD + 64 * 1024))
     config.insert_json5("listen/endpoints", json.dumps(listen))
     config.insert_json5("connect/endpoints", json.dumps(connect))
     return zenoh.open(config)
@@ -86,14 +104,16 @@ def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecu
 class ZenohPublisher:
     """Every output port of the tasks of ``deployer`` (those there now) published on
     ``session``, and a liveliness token per task and port. The samples are sent from the
-    writer's thread as they are written. :meth:`close` undeclares everything (idempotent)."""
+    writer's thread as they are written (see the module docstring). :meth:`close`
+    undeclares everything (idempotent, also after a failure half-way)."""
 
     def __init__(self, deployer: Any, session: Any, ns: str = DEFAULT_NS) -> None:
         import zenoh
 
         self.ns = ns
         self._closed = False
-        self._ends: list[tuple[OutputPort, InputPort, Any]] = []
+        self._id = secrets.randbits(64).to_bytes(8, "little")  # this publisher: a subscriber tells restarts by it
+        self._ends: list[_PortEnd] = []
         self._tokens: list[Any] = []
         try:
             for task in deployer.tasks():
@@ -105,44 +125,83 @@ class ZenohPublisher:
                     publisher = session.declare_publisher(
                         key, encoding=zenoh.Encoding.APPLICATION_PROTOBUF.with_schema(ENCODING_PREFIX + port.type_name),
                         congestion_control=zenoh.CongestionControl.DROP)
-                    self._attach(port, publisher)
+                    end = _PortEnd(port, publisher, self._id)
+                    self._ends.append(end)
+                    end.attach()
                     self._tokens.append(session.liveliness().declare_token(key))
         except BaseException:
             self.close()
             raise
 
-    def _attach(self, port: OutputPort, publisher: Any) -> None:
-        """A free input port on ``port``; its data callback puts each sample it reads."""
-        tap: InputPort = InputPort(port.type, name=f"zenoh_{port.name}")
-        lock = threading.Lock()
-
-        def on_data(inp: InputPort) -> None:  # the writer's thread
-            with lock:
-                for _ in range(10_000):
-                    status, value = inp.read()
-                    if status is not FlowStatus.NEW_DATA:
-                        return
-                    stamp = port.last_sample()[0].to_bytes(8, "little") + time.time_ns().to_bytes(8, "little")
-                    publisher.put(codec.encode(value, port.type).SerializeToString(), attachment=stamp)
-
-        tap.add_data_callback(on_data)
-        port.connect_to(tap, ConnPolicy.buffer(64))
-        self._ends.append((port, tap, publisher))
-
     @property
     def keys(self) -> list[str]:
         """The keys published."""
-        return [str(publisher.key_expr) for _, _, publisher in self._ends]
+        return [str(end.publisher.key_expr) for end in self._ends]
 
     def close(self) -> None:
         if self._closed:
             return
         self._closed = True
-        for port, tap, publisher in self._ends:
-            port.disconnect(tap)
-            publisher.undeclare()
+        for end in self._ends:
+            end.close()
         for token in self._tokens:
-            token.undeclare()
+            _quietly(token.undeclare, "liveliness token")
+
+
+def _quietly(undeclare: Callable[[], Any], what: str) -> None:
+    try:
+        undeclare()
+    except Exception as exc:  # noqa: BLE001 - a session already closed: nothing left to undeclare
+        log.info("zenoh: undeclaring a %s: %s", what, exc)
+
+
+class _PortEnd:
+    """One output port's publisher: a free DATA input port on it whose data callback (the
+    writer's thread) publishes the port's newest sample with its own write number."""
+
+    def __init__(self, port: OutputPort, publisher: Any, publisher_id: bytes) -> None:
+        self.port = port
+        self.publisher = publisher
+        self._id = publisher_id
+        self._lock = threading.Lock()
+        self._more = False
+        self._sent = 0  # the write number last published
+        self._closed = False
+        self._tap: InputPort = InputPort(port.type, name=f"zenoh_{port.name}")
+
+    def attach(self) -> None:
+        self._tap.add_data_callback(self._on_data)
+        self.port.connect_to(self._tap, ConnPolicy.data(init=False))
+
+    def _on_data(self, _tap: InputPort) -> None:  # the writer's thread: never waits
+        self._more = True  # before trying the lock: the holder re-checks it after releasing
+        for _ in range(1000):
+            if not self._lock.acquire(blocking=False):
+                return  # the holder publishes the newest
+            try:
+                self._more = False
+                self._tap.read()  # (the tap only says "written")
+                number, value = self.port.last_sample()  # a sample and its own write number, together
+                if self._closed or number <= self._sent:
+                    return
+                self._sent = number
+                if self.publisher.matching_status.matching:  # nobody listening: nothing to encode
+                    stamp = self._id + number.to_bytes(8, "little") + time.time_ns().to_bytes(8, "little")
+                    self.publisher.put(codec.encode(value, self.port.type).SerializeToString(), attachment=stamp)
+            except Exception as exc:  # noqa: BLE001 - Zenoh refusing (a closed session) never fails the write
+                log.info("zenoh %s: not published: %s", self.port.qualname, exc)
+                return
+            finally:
+                self._lock.release()
+            if not self._more:
+                return
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+        self._tap.remove_data_callback(self._on_data)
+        self.port.disconnect(self._tap)
+        _quietly(self.publisher.undeclare, "publisher")
 
 
 class ZenohSubscription:
@@ -157,40 +216,84 @@ class ZenohSubscription:
         self.delivered = 0
         self.dropped = 0
         self._last: int | None = None
+        self._writer = b""  # the publisher's id the write numbers belong to
         self._lock = threading.Lock()
+        self._closed = False
         self._observer = observer
         self._subscriber = session.declare_subscriber(key_of(ns, component, port), self._on_sample)
 
     def _on_sample(self, sample: Any) -> None:
-        with self._lock:
+        with self._lock:  # one sample at a time, in order, to the observer too
+            if self._closed:
+                return
             try:
-                payload = sample.payload.to_bytes()
-                if len(payload) > MAX_PAYLOAD:
-                    raise ValueError(f"{len(payload)} bytes, more than {MAX_PAYLOAD}")
-                value = codec.decode(codec.Value.FromString(payload))
+                if len(sample.payload) > MAX_PAYLOAD:
+                    raise ValueError(f"{len(sample.payload)} bytes, more than {MAX_PAYLOAD}")
+                value = codec.decode(codec.Value.FromString(sample.payload.to_bytes()))
                 attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
-                sequence, sent_ns = (int.from_bytes(attachment[:8], "little"), int.from_bytes(attachment[8:], "little")) \
-                    if len(attachment) == 16 else (0, time.time_ns())
+                if len(attachment) != 24:
+                    raise ValueError("no scart attachment (publisher id, write number, time)")
+                writer, sequence = attachment[:8], int.from_bytes(attachment[8:16], "little")
+                sent_ns = int.from_bytes(attachment[16:], "little")
             except Exception as exc:  # noqa: BLE001 - one bad sample never ends the subscription
                 self.dropped += 1
-                log.warning("zenoh %s.%s: a sample cannot be decoded: %s", self.component, self.port, exc)
+                if self.dropped == 1 or self.delivered == 0:
+                    log.warning("zenoh %s.%s: a sample cannot be decoded: %s", self.component, self.port, exc)
                 return
-            if sequence and self._last is not None:
-                if sequence <= self._last:  # the writer restarted: its numbers start over
-                    self._last = None
-                else:
-                    self.dropped += sequence - self._last - 1
-            self._last = sequence or self._last
+            if writer != self._writer or self._last is None or not self._last < sequence <= self._last + 1_000_000:
+                self._writer = writer  # a (re)started publisher, or numbers that make no sense: count afresh
+            else:
+                self.dropped += sequence - self._last - 1
+            self._last = sequence
             self.delivered += 1
-        self._observer(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, sent_ns / 1e9, sequence))
+            self._observer(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, sent_ns / 1e9,
+                                       sequence))
 
     def close(self) -> None:
-        self._subscriber.undeclare()
+        """Stop (idempotent)."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        _quietly(self._subscriber.undeclare, "subscriber")
+
+
+class ZenohInput:
+    """An input port fed from Zenoh: the samples of ``scart/<ns>/<component>/<port>``
+    written into ``target`` through a connection with ``policy`` (as a remote writer's: the
+    policy's storage keeps, overwrites or drops them, and counts). Each value is checked as
+    one written from outside is (its type, finiteness and the port's bounds); a refused one
+    is counted in ``refused`` and logged once."""
+
+    def __init__(self, session: Any, component: str, port: str, target: InputPort,
+                 policy: ConnPolicy | None = None, ns: str = DEFAULT_NS) -> None:
+        self.target = target
+        self.refused = 0
+        self._out: OutputPort = OutputPort(target.type, name=f"zenoh_{target.name}")
+        self._out.connect_to(target, policy or ConnPolicy.data())
+        try:
+            self.subscription = ZenohSubscription(session, component, port, self._write, ns)
+        except BaseException:
+            self._out.disconnect(target)
+            raise
+
+    def _write(self, event: SampleEvent) -> None:
+        try:
+            self._out.write(self.target.admit(registry.validate(self.target.type, event.value)))
+        except Exception as exc:  # noqa: BLE001 - a sample of another type or out of bounds: refused
+            self.refused += 1
+            if self.refused == 1:
+                log.warning("zenoh %s.%s into %s refused: %s", event.component, event.port, self.target.qualname, exc)
+
+    def close(self) -> None:
+        self.subscription.close()
+        self._out.disconnect(self.target)
 
 
 def discover(session: Any, ns: str = DEFAULT_NS, timeout: float = 1.0) -> dict[str, list[str]]:
     """``{component: [output ports]}`` of everything live on Zenoh in ``ns`` (from the
     liveliness tokens; no name service), sorted."""
+    key_of(ns, "x")  # a namespace that is one plain key chunk (no wildcards)
     found: dict[str, set[str]] = {}
     prefix = f"{ROOT}/{ns}/"
     for reply in session.liveliness().get(f"{ROOT}/{ns}/**", timeout=timeout):

@@ -10,12 +10,12 @@ import socket
 import time
 
 import pytest
+from support import wait_until
+from support.remote import start_scart, stop_process
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
 from dataflow.remote import _ipc, connect, errors
 from dataflow.remote._proto import df as pb
-from support import wait_until
-from support.remote import start_scart, stop_process
 
 DEPLOY_FAR = ["deploy", "support.remote:Pinger", "--name", "far", "--period", "0.01", "--heartbeat-ms", "200"]
 
