@@ -1,5 +1,8 @@
-"""Client side of a gRPC subscription (private; built by ``GrpcComponentProxy.subscribe``).
+"""Client side of a remote subscription (private; built by ``GrpcComponentProxy.subscribe``).
 
+The stream comes over the deployer's ipc socket when both are on one host and the policy's
+transport allows (``auto``, ``ipc``: see :mod:`dataflow.remote._ipc`), else over a gRPC
+``Subscribe`` stream; both carry the same ``SubscribeResponse`` messages, handled alike.
 Two threads per subscription: the *receiver* owns the stream (or the polling loop),
 puts samples into a policy-shaped :class:`Mailbox` and reconnects after failures; the
 *dispatcher* calls the observer. With DATA the mailbox keeps only the newest sample, so

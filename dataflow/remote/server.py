@@ -23,6 +23,7 @@ import select
 import socket
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import grpc
@@ -91,6 +92,7 @@ class _RemoteLink:
         self._call: Any = None
         self._outbox: _ipc.Outbox | None = None  # set while the link runs over ipc
         self._ipc_dropped = 0  # by outboxes of earlier ipc connections
+        self._ipc_wake: Callable[[], None] | None = None  # wakes the link's thread while on ipc
         #: How samples go now: ``ipc``, ``grpc``, or ``""`` while not connected.
         self.transport = ""
         self.settled = threading.Event()  # the first connection was made (or failed)
@@ -204,6 +206,7 @@ class _RemoteLink:
                     pass
 
             outbox = _ipc.Outbox(sock, self._take, self._messages, wake, wake)
+            self._ipc_wake = wake
             self.transport = "ipc"
             self._outbox = outbox
             self.settled.set()
@@ -220,7 +223,7 @@ class _RemoteLink:
                 if ready.get(sock.fileno(), 0) & select.POLLOUT:
                     outbox.pump()
         finally:
-            self._outbox = None
+            self._outbox = self._ipc_wake = None
             if outbox is not None:
                 outbox.close()  # waits for a pump in progress; what it held is lost, counted
                 self._ipc_dropped += outbox.dropped
@@ -236,9 +239,11 @@ class _RemoteLink:
         """Disconnect and end the link's thread (idempotent; joins ≤ 5 s)."""
         self._closed.set()
         self._wake.set()
-        call = self._call
+        call, wake = self._call, self._ipc_wake
         if call is not None:
             call.cancel()
+        if wake is not None:
+            wake()  # the link's thread waits on its socket: at once, not at its next poll
         self.out.disconnect(self.inp)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5.0)
