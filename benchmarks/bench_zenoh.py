@@ -21,7 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "youbot"))
 
-from _common import pct  # noqa: E402
+from _common import pct, wait_until  # noqa: E402
 from youbot_model import JointStatus, YouBotStatus  # noqa: E402
 
 from dataflow import Deployer, OutputPort, TaskContext, codec  # noqa: E402
@@ -74,7 +74,7 @@ def main() -> int:
 
         bare_pub = a.declare_publisher("bench/bare")
         bare_sub = b.declare_subscriber("bench/bare", bare_cb)
-        time.sleep(0.5)
+        wait_until(lambda: bare_pub.matching_status.matching, 10)
 
         def bare_send(k: int) -> None:
             sent[k] = time.perf_counter()
@@ -92,7 +92,7 @@ def main() -> int:
                 s_got[event.sequence] = time.perf_counter()  # type: ignore[attr-defined]
 
         sub = ZenohSubscription(b, "arm", "status", on_event)
-        time.sleep(0.5)
+        wait_until(lambda: arm.status.write(STATUS) and sub.delivered, 10)  # matched: samples arrive
 
         def scart_send(k: int) -> None:
             s_sent[arm.status.last_sample()[0] + 1] = time.perf_counter()
@@ -108,7 +108,7 @@ def main() -> int:
                 s.clear()
                 g.clear()
                 paced(n, rate, send)
-                time.sleep(0.3)
+                wait_until(lambda s=s, g=g: len(g) >= len(s), 2.0)  # the last ones arrive (or 2 s pass)
                 with lock:
                     lat = [g[k] - t for k, t in s.items() if k in g]
                 results[name] = (pct(lat, 0.5), pct(lat, 0.99), len(lat))

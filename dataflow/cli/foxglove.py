@@ -24,7 +24,7 @@ import logging
 import threading
 from typing import Any
 
-from dataflow.cli.record import _schema_of, type_schema
+from dataflow.cli.record import _schema_of, message_of, type_schema
 
 __all__ = ["FoxgloveLive", "cmd_foxglove"]
 
@@ -33,7 +33,6 @@ MAX_CHANNELS = 512
 MAX_SERVICES = 1024
 MAX_REQUEST_BYTES = 64 * 1024  # a service call's JSON payload
 CALL_TIMEOUT = 10.0  # s, a service call's operation
-LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 class _Bridge:
@@ -75,8 +74,7 @@ class _Bridge:
                         self.channels[topic] = self._channel(topic, port.type_name, _schema_of(port.type_name))
 
                 def observer(event: Any, topic: str = topic, type_name: str = port.type_name) -> None:
-                    data = registry.to_jsonable(event.value)
-                    data = data if isinstance(data, dict) else {"value": data}
+                    data = message_of(event.value)
                     channel = self.channels.get(topic)
                     if channel is None:
                         with self._lock:
@@ -136,7 +134,10 @@ class _Bridge:
 
         out = []
         wanted = set(param_names)
+        tasks = {name.rpartition(".")[0] for name in wanted}  # only the tasks asked about
         for task in self.system.component_names():
+            if wanted and task not in tasks:
+                continue
             try:
                 props = self.system.component(task).properties()
             except Exception:  # noqa: BLE001 - a task gone meanwhile
@@ -230,7 +231,9 @@ class FoxgloveLive:
 
     def __init__(self, system: Any, host: str = "127.0.0.1", port: int = 8765, refresh: float = 2.0,
                  insecure_host: bool = False, owns_system: bool = False) -> None:
-        if host not in LOOPBACK and not insecure_host:
+        from dataflow.remote.security import is_loopback
+
+        if not is_loopback(host) and not insecure_host:
             raise ValueError(f"host {host} is routable and the Foxglove protocol has no authentication "
                              "(allow it with --insecure-host; on scart run, --insecure)")
         self.host, self.port, self.refresh_period = host, port, refresh

@@ -426,11 +426,11 @@ def cmd_write(args: argparse.Namespace) -> int:
 def cmd_call(args: argparse.Namespace) -> int:
     """``scart call COMP.OP ARGS...`` (a task's operation), or with ``--at`` an SCA
     service's: prints the result."""
-    from dataflow.cli.services import at, call, parse_json_arg
+    from dataflow.cli.services import at, call
 
     address = at(args)
     if address is not None:
-        _out(_dump(call(address, args.operation, [parse_json_arg(a) for a in args.args], args)))
+        _out(_dump(call(address, args.operation, [_parse_json(a) for a in args.args], args)))
         return 0
     component, op = _split(args.operation, "OPERATION")
     result = args.system.component(component).call_json(op, [_parse_json(a) for a in args.args], timeout=args.timeout)

@@ -85,21 +85,37 @@ def _schema_of(type_name: str) -> dict[str, Any]:
     return schema
 
 
+def message_of(value: Any) -> dict[str, Any]:
+    """A sample as a JSON message: its JSON form, a non-object wrapped as ``{"value": ...}``
+    (the shape :func:`_schema_of` describes)."""
+    from dataflow import registry
+
+    data = registry.to_jsonable(value)
+    return data if isinstance(data, dict) else {"value": data}
+
+
 def _ports_to_record(args: argparse.Namespace) -> list[tuple[str, str, str]]:
     """``(task, port, type name)`` of each output port to record."""
     from dataflow.remote.api import split_port
 
     wanted = [split_port(p) for p in args.ports]
+    described: dict[str, dict[str, Any]] = {}  # each task described once
+
+    def ports_of(task: str) -> dict[str, Any]:
+        if task not in described:
+            described[task] = {p.name: p for p in args.system.component(task).describe().ports}
+        return described[task]
+
     if args.all:
-        wanted += [(c, p.name) for c in args.system.component_names()
-                   for p in args.system.component(c).describe().ports if p.direction == "out"]
+        wanted += [(c, name) for c in args.system.component_names()
+                   for name, p in ports_of(c).items() if p.direction == "out"]
     if not wanted:
         raise ValueError("name output ports (COMP.PORT ...) or give -a")
     if len(wanted) > MAX_RECORDED_PORTS:
         raise ValueError(f"{len(wanted)} ports: at most {MAX_RECORDED_PORTS}")
     out = []
     for task, port in dict.fromkeys(wanted):
-        ports = {p.name: p for p in args.system.component(task).describe().ports}
+        ports = ports_of(task)
         info = ports.get(port)
         if info is None or info.direction != "out":
             raise ValueError(f"{task} has no output port {port!r}; outputs: "
@@ -112,7 +128,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     """``scart record PORT... -o FILE``: see the module docstring."""
     from mcap.writer import Writer
 
-    from dataflow import ConnPolicy, registry
+    from dataflow import ConnPolicy
     from dataflow.cli.inspect import _err, _out, _wait_until_stopped
 
     ports = _ports_to_record(args)
@@ -135,7 +151,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 
         subs = []
         drain = threading.Thread(target=_write_samples, name="scart-record-writer",
-                                 args=(writer, channels, samples, counts, args.n, done, registry), daemon=True)
+                                 args=(writer, channels, samples, counts, args.n, done), daemon=True)
         drain.start()
         try:
             for task, port, _ in ports:
@@ -147,6 +163,8 @@ def cmd_record(args: argparse.Namespace) -> int:
                 sub.close()
             samples.put(_STOP)
             drain.join(30)
+            if drain.is_alive():  # never finish a file the writer thread is still writing
+                raise RuntimeError("record: the writer thread did not finish within 30 s; the file is incomplete")
             writer.finish()
     total = sum(counts.values())
     _out(json.dumps({"file": args.output, "samples": total, "channels": counts}) if args.json
@@ -155,24 +173,21 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 
 def _write_samples(writer: Any, channels: dict[str, int], samples: queue.SimpleQueue[Any], counts: dict[str, int],
-                   limit: int | None, done: threading.Event, registry: Any) -> None:
+                   limit: int | None, done: threading.Event) -> None:
     """The writer thread: every queued sample to the file until the stop mark (or ``limit``)."""
-    for _ in range(1 << 62):  # ends at the stop mark
-        item = samples.get()
-        if item is _STOP:
-            return
+    total = 0
+    for item in iter(samples.get, _STOP):  # ends at the stop mark
         topic, log_ns, source_time, value = item
-        if limit is not None and sum(counts.values()) >= limit:
+        if limit is not None and total >= limit:
             done.set()
             continue
-        data = registry.to_jsonable(value)
-        if not isinstance(data, dict):
-            data = {"value": data}
+        data = message_of(value)
         counts[topic] += 1
+        total += 1
         publish_ns = int(source_time * 1e9) if source_time else log_ns
         writer.add_message(channel_id=channels[topic], log_time=log_ns, publish_time=publish_ns,
                            sequence=counts[topic], data=json.dumps(data).encode())
-        if limit is not None and sum(counts.values()) >= limit:
+        if limit is not None and total >= limit:
             done.set()
 
 

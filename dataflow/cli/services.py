@@ -14,7 +14,6 @@ needs nothing of ``scart``.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 from typing import Any
 
@@ -24,8 +23,11 @@ SERVICES_ENV = "SCART_SERVICES"
 
 
 def at(args: argparse.Namespace) -> str | None:
-    """The services address: ``--at``, else ``$SCART_SERVICES``, else None."""
-    return getattr(args, "at", None) or os.environ.get(SERVICES_ENV) or None
+    """The services address of a verb that takes ``--at``: ``--at``, else ``$SCART_SERVICES``,
+    else None (always None for the other verbs: they use the name service)."""
+    if not hasattr(args, "at"):
+        return None
+    return args.at or os.environ.get(SERVICES_ENV) or None
 
 
 def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
@@ -94,10 +96,3 @@ def cmd_services(args: argparse.Namespace) -> int:
                                                                if len(s["names"]) > 1 else ""))
     return 0
 
-
-def parse_json_arg(text: str) -> Any:
-    """A JSON argument; a bare word is taken as a string."""
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text

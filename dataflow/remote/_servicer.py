@@ -107,6 +107,34 @@ class _Writer:
         self.out.disconnect(self.target)
 
 
+class _Sink(_Writer):
+    """A remote writer fed one value message at a time (a ``WritePortStream`` call, or an
+    ipc connection): each value is checked as any from outside (``check``: the servicer's
+    ``_value_for``, then the port's bounds); ``written`` and ``failures`` are counted, the
+    first refusal logged (a flood of bad samples is no flood of logs)."""
+
+    def __init__(self, task: str, port: InputPort, policy: ConnPolicy, check: Any, who: str) -> None:
+        super().__init__(task, port, policy)
+        self.where = f"{task}.{port.name}"
+        self.who = who
+        self.written = self.failures = 0
+        self._check = check
+
+    def write(self, value_msg: Any) -> None:
+        value = self._check(self.where, self.target.type, self.target.type_name, value_msg, "")
+        try:
+            value = self.target.admit(value)
+        except PortValueError as exc:
+            self.failures += 1
+            if self.failures == 1:
+                log.warning("a sample from %s refused: %s", self.who, exc)
+            return
+        if self.out.write(value) is WriteStatus.WRITE_SUCCESS:
+            self.written += 1
+        else:
+            self.failures += 1
+
+
 class _Writers:
     """The open remote writers of one server, by secret id: bounded per port, per peer and
     in total; each reclaimed when unused for ``idle`` s (:meth:`sweep`). O(1) open, use and
@@ -391,34 +419,21 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         return pb.CloseWriterResponse()
 
     def WritePortStream(self, request_iterator: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        writer: _Writer | None = None
-        written = failures = 0
+        sink: _Sink | None = None
         try:
             for msg in request_iterator:
-                if writer is None:
+                if sink is None:
                     port = self._port(msg.task, msg.port, want_input=True)
-                    writer = _Writer(msg.task, port, cv.policy_from_msg(msg.policy))
-                    where = f"{msg.task}.{port.name}"
-                if not msg.value.type_name:
-                    continue
-                value = self._value_for(where, writer.target.type, writer.target.type_name, msg.value, "")
-                try:
-                    value = writer.target.admit(value)
-                except PortValueError as exc:
-                    failures += 1
-                    if failures == 1:  # once per stream: a flood of bad samples is no flood of logs
-                        log.warning("a sample from %s refused: %s", context.peer(), exc)
-                    continue
-                if writer.out.write(value) is WriteStatus.WRITE_SUCCESS:
-                    written += 1
-                else:
-                    failures += 1
-            return pb.WritePortStreamResponse(written=written, failures=failures)
+                    sink = _Sink(msg.task, port, cv.policy_from_msg(msg.policy), self._value_for, context.peer())
+                if msg.value.type_name:
+                    sink.write(msg.value)
+            return pb.WritePortStreamResponse(written=sink.written if sink else 0,
+                                              failures=sink.failures if sink else 0)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
         finally:
-            if writer is not None:
-                writer.close()
+            if sink is not None:
+                sink.close()
 
     # ---- reading and subscribing -------------------------------------------------------
     def ReadPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
@@ -512,11 +527,12 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             policy = cv.policy_from_msg(request.policy)
             asked = getattr(request, "heartbeat_ms", 0) or self.heartbeat_ms
             heartbeat = min(max(asked, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
+            server = self._ipc_server()
             try:
-                ticket = self._ipc_server().ticket(kind, request.task, port.name, policy, peer_key(context), heartbeat)
+                ticket = server.ticket(kind, request.task, port.name, policy, peer_key(context), heartbeat)
             except OverflowError as exc:
                 raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
-            found = pb.IpcTicket(socket=self._ipc_server().name, secret=ticket, boot_id=self.owner.boot_id)
+            found = pb.IpcTicket(socket=server.name, secret=ticket, boot_id=self.owner.boot_id)
             return (pb.OpenIpcWriterResponse if kind == "in" else pb.OpenIpcReaderResponse)(ticket=found)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
@@ -531,24 +547,9 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             return self._ipc
 
     def _ipc_write_in(self, task: str, port_name: str, policy: ConnPolicy) -> tuple[Any, Any]:
-        """The sink of an ipc connection into ``task.port_name``: a writer connected with
-        ``policy``; each frame's value is checked as ``WritePortStream`` checks it."""
-        writer = _Writer(task, self._port(task, port_name, want_input=True), policy)
-        where = f"{task}.{writer.target.name}"
-        refused = [0]
-
-        def write(value_msg: Any) -> None:
-            value = self._value_for(where, writer.target.type, writer.target.type_name, value_msg, "")
-            try:
-                value = writer.target.admit(value)
-            except PortValueError as exc:
-                refused[0] += 1
-                if refused[0] == 1:  # once per connection: a flood of bad samples is no flood of logs
-                    log.warning("a sample for %s over ipc refused: %s", where, exc)
-                return
-            writer.out.write(value)
-
-        return write, writer.close
+        """The sink of an ipc connection into ``task.port_name``: as a ``WritePortStream``'s."""
+        sink = _Sink(task, self._port(task, port_name, want_input=True), policy, self._value_for, "an ipc peer")
+        return sink.write, sink.close
 
     # ---- operations and properties -----------------------------------------------------
     def CallOperation(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802

@@ -141,11 +141,12 @@ class _RemoteLink:
             if ended.is_set():
                 self._wake.set()  # for the next call
                 return
-            for _ in range(10_000):
-                status, value = self.inp.read()
-                if status is not FlowStatus.NEW_DATA:
+            for _ in range(160):  # bounded: at most 10 240 samples per wake-up
+                values = self._take()
+                if not values:
                     break
-                yield pb.WritePortStreamRequest(value=codec.encode(value, self.out.type))
+                for value in values:
+                    yield pb.WritePortStreamRequest(value=codec.encode(value, self.out.type))
 
     def _run(self) -> None:
         backoff = 0.05

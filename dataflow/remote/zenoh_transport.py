@@ -41,6 +41,7 @@ from typing import Any
 from dataflow import codec
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
+from dataflow.remote._loss import LossCount
 from dataflow.remote.api import SampleEvent
 from dataflow.types import registry
 
@@ -214,8 +215,8 @@ class ZenohSubscription:
                  ns: str = DEFAULT_NS) -> None:
         self.component, self.port = component, port
         self.delivered = 0
-        self.dropped = 0
-        self._last: int | None = None
+        self.undecodable = 0
+        self._loss = LossCount()
         self._writer = b""  # the publisher's id the write numbers belong to
         self._lock = threading.Lock()
         self._closed = False
@@ -236,18 +237,23 @@ class ZenohSubscription:
                 writer, sequence = attachment[:8], int.from_bytes(attachment[8:16], "little")
                 sent_ns = int.from_bytes(attachment[16:], "little")
             except Exception as exc:  # noqa: BLE001 - one bad sample never ends the subscription
-                self.dropped += 1
-                if self.dropped == 1 or self.delivered == 0:
+                self.undecodable += 1
+                if self.undecodable == 1:
                     log.warning("zenoh %s.%s: a sample cannot be decoded: %s", self.component, self.port, exc)
                 return
-            if writer != self._writer or self._last is None or not self._last < sequence <= self._last + 1_000_000:
+            last = self._loss.last
+            if writer != self._writer or (last is not None and not last < sequence <= last + 1_000_000):
                 self._writer = writer  # a (re)started publisher, or numbers that make no sense: count afresh
-            else:
-                self.dropped += sequence - self._last - 1
-            self._last = sequence
+                self._loss.restarted()
+            self._loss.sample(sequence)
             self.delivered += 1
             self._observer(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, sent_ns / 1e9,
                                        sequence))
+
+    @property
+    def dropped(self) -> int:
+        """Writes not received (jumps in the write numbers) and samples not decodable."""
+        return self._loss.lost + self.undecodable
 
     def close(self) -> None:
         """Stop (idempotent)."""

@@ -15,7 +15,7 @@ import sys
 import websockets
 
 from support import ROOT
-from support.cli import read_until
+from support.cli import finish, read_until
 from support.youbot import env, start_serving
 
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
@@ -71,7 +71,7 @@ def test_the_driver_live_in_the_foxglove_protocol() -> None:
         seen = asyncio.run(conversation(url))
     finally:
         proc.terminate()
-        proc.communicate(timeout=30)
+        finish(proc)  # killed if it hangs
         assert demo.stop() == 0
     assert "parameters" in seen["capabilities"]
     channel = seen["channels"]["youBotDriver.jointStatus"]

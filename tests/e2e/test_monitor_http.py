@@ -509,10 +509,8 @@ def test_the_event_log_tells_period_state_error_flag_and_connection_changes() ->
 
 def test_the_last_minute_is_kept_for_a_page_opened_now(server: MonitorServer,
                                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    from composites.youbot.monitor import hub as hub_module
-
     clock = [1000.0]
-    monkeypatch.setattr(hub_module.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(server._hub, "_clock", lambda: clock[0])  # noqa: SLF001 - this hub's clock only
     for seq in range(1, 3001):  # 30 s at 100 Hz
         clock[0] += 0.01
         server.publish_status(sample(seq, clock[0]))

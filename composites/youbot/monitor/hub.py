@@ -17,6 +17,7 @@ import math
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 RATE_WINDOW_S = 1.0
@@ -56,7 +57,8 @@ class StatusHub:
     version they sent and `wait` for a newer one. `close` wakes every waiter for good.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock  #: monotonic seconds (a test may give its own)
         self._cond = threading.Condition(threading.Lock())
         self._version = 0
         self._closed = False
@@ -82,7 +84,7 @@ class StatusHub:
 
         The hub keeps a reference: the caller must not mutate ``sample`` afterwards.
         """
-        now = time.monotonic()
+        now = self._clock()
         with self._cond:
             self._status = sample
             self._received_at = now
@@ -173,7 +175,7 @@ class StatusHub:
         ``message["status"]`` (a JSON string), encoded once per sample and outside the
         lock, so publishers never wait for JSON encoding.
         """
-        now = time.monotonic()
+        now = self._clock()
         with self._cond:
             status, samples = self._status, self._samples
             cached = self._status_json if self._status_json_of == samples else None

@@ -181,8 +181,8 @@ def _start_echo(ns: str):
 
 
 def _readers(server) -> int:
-    ipc = server._servicer._ipc  # noqa: SLF001 - how many readers the deployer serves over ipc
-    return 0 if ipc is None else len(ipc._readers)  # noqa: SLF001
+    ipc = server._servicer._ipc  # noqa: SLF001 - how many connections the deployer serves over ipc
+    return 0 if ipc is None else ipc.connections
 
 
 class FloatSource(TaskContext):

@@ -5,7 +5,7 @@ a jump)."""
 
 from __future__ import annotations
 
-from dataflow.remote._subscription import LossCount
+from dataflow.remote._loss import LossCount
 
 
 def feed(count: LossCount, messages: list[tuple[list[int], int]]) -> list[int]:
