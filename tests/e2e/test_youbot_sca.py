@@ -196,7 +196,9 @@ def test_proxy_survives_the_robot_restarting() -> None:
         finally:
             first.stop()
         wait_until(lambda: not probe.info()["connected"], 10, message="outage not noticed")
-        assert ["disconnected", f"youBotDriver at {address}"] in probe.events()
+        # the info flag is set just before the event is broadcast: wait for it, do not race it
+        wait_until(lambda: ["disconnected", f"youBotDriver at {address}"] in probe.events(), 10,
+                   message=f"no disconnected event: {probe.events()}")
         second = Robot(address)
         try:
             wait_until(lambda: probe.info()["connected"], 15, message="no reconnection")
