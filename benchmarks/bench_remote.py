@@ -8,8 +8,8 @@ same bytes). Prints one markdown table. Not a test: numbers depend on the machin
 Rows:
 - remote write → value read by the task (event port): p50/p99; baseline: bare unary call
   whose handler signals the waiting client;
-- task write → observer called, push, at 100 Hz and 1 kHz: p50/p99; baseline: bare
-  server streaming fed by a producer thread at the same rate;
+- task write → observer called, push, at 100 Hz and 1 kHz, over each transport (``grpc``,
+  ``ipc``): p50/p99; baseline: bare server streaming fed by a producer thread at the same rate;
 - maximum sustained rate of one subscription (BUFFER(1000)); baseline: bare streaming;
 - polling at 2× the task rate: latency and the share of wasted polls;
 - 10 subscribers on one port at 100 Hz, the task in its own ``scart deploy`` process:
@@ -210,7 +210,8 @@ def scart_write(n: int) -> list[float]:
     return lat
 
 
-def scart_push(rate: float, seconds: float, period: float | None = None) -> tuple[list[float], object]:
+def scart_push(rate: float, seconds: float, period: float | None = None,
+               transport: str = "grpc") -> tuple[list[float], object]:
     d = Deployer()
     src = d.add(Source())
     src.set_activity(PeriodicActivity(1.0 / rate))
@@ -219,7 +220,8 @@ def scart_push(rate: float, seconds: float, period: float | None = None) -> tupl
     lat: list[float] = []
     with connect(server.address) as system:
         sub = system.component("source").subscribe(
-            "status", lambda e: lat.append(time.time() - e.source_time), policy=ConnPolicy.buffer(100), period=period
+            "status", lambda e: lat.append(time.time() - e.source_time),
+            policy=ConnPolicy.buffer(100).with_(transport=transport), period=period,
         )
         d.start_all()
         threading.Event().wait(seconds)
@@ -231,7 +233,7 @@ def scart_push(rate: float, seconds: float, period: float | None = None) -> tupl
     return lat[1:], stats
 
 
-def scart_max_rate(seconds: float, offered: float) -> tuple[float, int, int]:
+def scart_max_rate(seconds: float, offered: float, transport: str = "grpc") -> tuple[float, int, int]:
     """The task's port written at ``offered`` samples/s (bursts every 1 ms); returns
     (delivered/s, delivered, dropped) for one BUFFER(1000) subscription."""
     d = Deployer()
@@ -241,7 +243,7 @@ def scart_max_rate(seconds: float, offered: float) -> tuple[float, int, int]:
     stop = threading.Event()
     with connect(server.address) as system:
         sub = system.component("source").subscribe("status", lambda e: n.__setitem__(0, n[0] + 1),
-                                                   policy=ConnPolicy.buffer(1000))
+                                                   policy=ConnPolicy.buffer(1000).with_(transport=transport))
 
         def produce() -> None:
             burst = max(1, int(offered / 1000))
@@ -335,15 +337,19 @@ def main() -> None:
     rows.append(("remote write → read by task, p99", us(pct(s, 0.99)), us(pct(b, 0.99)), f"{pct(s, 0.99) / pct(b, 0.99):.2f}×"))
     for rate in (100, 1000):
         b = bare_stream(rate, secs)
-        s, _ = scart_push(rate, secs)
-        rows.append((f"push {rate} Hz task write → observer, p50", us(pct(s, 0.5)), us(pct(b, 0.5)) + " (bare stream)",
-                     f"{pct(s, 0.5) / pct(b, 0.5):.2f}× (goal ≤ 1.5×)"))
-        rows.append((f"push {rate} Hz, p99", us(pct(s, 0.99)), us(pct(b, 0.99)), f"{pct(s, 0.99) / pct(b, 0.99):.2f}×"))
+        for transport in ("grpc", "ipc"):
+            s, _ = scart_push(rate, secs, transport=transport)
+            rows.append((f"push {rate} Hz task write → observer ({transport}), p50", us(pct(s, 0.5)),
+                         us(pct(b, 0.5)) + " (bare stream)", f"{pct(s, 0.5) / pct(b, 0.5):.2f}× (goal ≤ 1.3×)"))
+            rows.append((f"push {rate} Hz ({transport}), p99", us(pct(s, 0.99)), us(pct(b, 0.99)),
+                         f"{pct(s, 0.99) / pct(b, 0.99):.2f}×"))
     bm = bare_max_rate(secs)
-    for offered in (2000, 5000, 10000, 20000):
-        rate, got, dropped = scart_max_rate(secs, offered)
-        rows.append((f"one subscription, task writing {offered:,}/s", f"{rate:,.0f} /s delivered ({dropped} dropped)",
-                     f"{bm:,.0f} /s (bare stream, flat out)", "goal: sustain ≥ 5,000 /s"))
+    for transport in ("grpc", "ipc"):
+        for offered in (2000, 5000, 10000, 20000):
+            rate, got, dropped = scart_max_rate(secs, offered, transport)
+            rows.append((f"one subscription ({transport}), task writing {offered:,}/s",
+                         f"{rate:,.0f} /s delivered ({dropped} dropped)",
+                         f"{bm:,.0f} /s (bare stream, flat out)", "goal: sustain ≥ 5,000 /s"))
     s, sub = scart_push(100, secs, period=0.005)
     wasted = sub.wasted_polls / max(1, sub.polls)
     rows.append(("polling at 2× (100 Hz task, 5 ms), latency p50/p99", f"{us(pct(s, 0.5))} / {us(pct(s, 0.99))}", "-",

@@ -17,11 +17,23 @@ one window after a warm-up:
 - CPU: % of one core of the robot process and of the workstation process (this one);
 - overruns: the driver's overrun count during the window (must be 0 at 10 ms).
 
-The same again with the proxy polling ``jointStatus`` at half the driver period.
+The push run is made once per transport (``SCAYouBotDriver.transport``): ``ipc`` (the
+same-host fast path) and ``grpc``; ``auto``, the default, is ``ipc`` on one host, so it
+is not run again. The ``transport`` column is what the proxy's subscription reports it
+used (``GrpcSubscription.transport``), read after the run, not the value asked for.
+
+The same again with the proxy polling ``jointStatus`` at half the driver period (polling
+reads the port with gRPC ``ReadPort`` calls whatever the transport: its row says so).
 
 One-process way (``scart run youbot.composite`` and ``youbot-binding.composite``, both
 subprocesses): produced vs monitor samples/s (the monitor's own ``/api/state`` counter),
-CPU of the one process, overruns.
+CPU of the one process, overruns. In ``youbot.composite`` the hand-written proxy reaches
+the driver through the name service even in one process, so it is run per transport too
+(``--set SCAYouBotDriver.transport=T``); its column is what the proxy's
+``get_driver_info`` answers after the run (``scart call --at``, the SCA services the run
+serves). In ``youbot-binding.composite`` the binding has no ``ns`` and its task is in the
+composite: ``binding.dataflow`` uses the task in place (``local``), where a ``transport``
+attribute changes nothing, so it runs once.
 """
 
 from __future__ import annotations
@@ -63,11 +75,11 @@ def free_address() -> str:
 class Proc:
     """A ``scart run`` subprocess; output lines collected by a daemon reader."""
 
-    def __init__(self, composite: str, ns: str) -> None:
+    def __init__(self, composite: str, ns: str, *extra: str) -> None:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), str(YOUBOT), env.get("PYTHONPATH", "")) if p)
         env.pop("SCART_NS", None)
-        self.proc = subprocess.Popen([sys.executable, "-m", "scart", "run", str(YOUBOT / composite), "--ns", ns],
+        self.proc = subprocess.Popen([sys.executable, "-m", "scart", "run", str(YOUBOT / composite), "--ns", ns, *extra],
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, cwd=ROOT)
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -112,15 +124,25 @@ def wait(predicate: Any, timeout: float, what: str) -> None:
         raise RuntimeError(f"timed out waiting for {what}")
 
 
-def two_process(window: float, poll: bool = False) -> list[list[str]]:
-    """The robot subprocess + the workstation in this process, per period; ``poll``: the
-    proxy polls (JOrocos-style) at half the driver period instead of the push subscription."""
+def used_transport(proxy: Any) -> str:
+    """What the proxy's subscription says it used (measured, not the property's value)."""
+    sub = proxy._subscription
+    if sub is None:
+        return "?"
+    kind = " (polling)" if sub.period is not None else ""  # polling: unary ReadPort calls
+    return (sub.transport or "?") + kind
+
+
+def two_process(window: float, transport: str = "auto", poll: bool = False) -> list[list[str]]:
+    """The robot subprocess + the workstation in this process, per period, the proxy's
+    subscription on ``transport``; ``poll``: the proxy polls (JOrocos-style) at half the
+    driver period instead of the push subscription."""
     ns = free_address()
     robot = Proc("robot.composite", ns)
     rows: list[list[str]] = []
     try:
         robot.wait_for(r"scart: name service at")
-        overrides = {"SCAYouBotDriver.name_service": ns}
+        overrides = {"SCAYouBotDriver.name_service": ns, "SCAYouBotDriver.transport": transport}
         if poll:
             overrides["SCAYouBotDriver.poll_period"] = "1.0"  # clamped to half the driver period
         rt = scart.Runtime.from_file(YOUBOT / "workstation.composite", overrides=overrides)
@@ -148,7 +170,7 @@ def two_process(window: float, poll: bool = False) -> list[list[str]]:
                 lat = list(monitor._latencies)[lat0:] if len(monitor._latencies) < monitor._latencies.maxlen \
                     else list(monitor._latencies)[-(pub1 - pub0):]
                 rows.append([
-                    f"{period * 1000:g} ms", f"{(cycles1 - cycles0) / elapsed:.0f}",
+                    used_transport(proxy), f"{period * 1000:g} ms", f"{(cycles1 - cycles0) / elapsed:.0f}",
                     f"{(recv1 - recv0) / elapsed:.0f}", f"{(pub1 - pub0) / elapsed:.0f}",
                     f"{pct(lat, 0.5) * 1000:.2f}", f"{pct(lat, 0.99) * 1000:.2f}",
                     f"{cpu_robot:.0f}", f"{cpu_ws:.0f}", str(over1 - over0),
@@ -158,13 +180,29 @@ def two_process(window: float, poll: bool = False) -> list[list[str]]:
     return rows
 
 
-def one_process(composite: str, window: float) -> list[list[str]]:
-    """``scart run COMPOSITE`` alone; the period set through the monitor's HTTP API."""
+def proxy_transport(services: str) -> str:
+    """The transport the ``SCAYouBotDriver`` of a ``scart run`` serving its SCA services at
+    ``services`` says it uses (its ``get_driver_info``, through ``scart call --at``)."""
+    out = subprocess.run([sys.executable, "-m", "scart", "call", "--at", services, "--json",
+                          "SCAYouBotDriver/RetrievingStatus.get_driver_info"],
+                         capture_output=True, text=True, timeout=30, cwd=ROOT, check=False)
+    if out.returncode != 0:
+        return f"? (scart call: {' '.join(out.stderr.split())[:80]})"
+    info = json.loads(out.stdout)
+    return f"{info.get('transport') or '?'} (asked {info.get('transport_policy', '?')})"
+
+
+def one_process(composite: str, window: float, transport: str | None = None) -> list[list[str]]:
+    """``scart run COMPOSITE`` alone; the period set through the monitor's HTTP API;
+    ``transport``: ``--set SCAYouBotDriver.transport=`` (the hand-written proxy), else the
+    proxy is ``binding.dataflow`` on the task in place (``local``)."""
     ns = free_address()
-    demo = Proc(composite, ns)
+    extra = ("--set", f"SCAYouBotDriver.transport={transport}") if transport else ()
+    demo = Proc(composite, ns, *extra)
     rows: list[list[str]] = []
     try:
         url = demo.wait_for(r"youBot Monitor: (http://\S+)").group(1)
+        services = demo.wait_for(r"scart: SCA services at (\S+)").group(1)
         demo.wait_for(r"scart: name service at")
 
         def state() -> dict[str, Any]:
@@ -189,8 +227,11 @@ def one_process(composite: str, window: float) -> list[list[str]]:
                 cpu = demo.ps.cpu_percent(None)
                 cycles1, over1 = driver_counters(system)
                 s1 = state()["samples"]
-                rows.append([f"{period * 1000:g} ms", f"{(cycles1 - cycles0) / elapsed:.0f}",
+                rows.append(["", f"{period * 1000:g} ms", f"{(cycles1 - cycles0) / elapsed:.0f}",
                              f"{(s1 - s0) / elapsed:.0f}", f"{cpu:.0f}", str(over1 - over0)])
+        used = proxy_transport(services) if transport else "local (binding.dataflow in place)"
+        for row in rows:  # asked once, after the windows (a call registers no listener: no callback)
+            row[0] = used
     finally:
         demo.stop()
     return rows
@@ -208,15 +249,19 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     window = 2.0 if args.quick else 5.0
     print(f"youBot demo, {window:g} s windows, {os.cpu_count()} CPU(s), Python {sys.version.split()[0]}\n")
-    header = ["period", "produced/s", "proxy/s", "monitor/s", "latency p50 ms", "latency p99 ms",
+    header = ["transport", "period", "produced/s", "proxy/s", "monitor/s", "latency p50 ms", "latency p99 ms",
               "CPU robot %", "CPU workstation %", "overruns"]
-    print("Two processes (robot.composite subprocess; workstation in the benchmark process), push:\n")
-    print(table(header, two_process(window)))
+    print("Two processes (robot.composite subprocess; workstation in the benchmark process), push, once per "
+          "transport (auto = ipc on one host, not run again):\n")
+    rows = [row for transport in ("ipc", "grpc") for row in two_process(window, transport)]
+    print(table(header, rows))
     print("\nTwo processes, the proxy polling at half the driver period (JOrocos-style):\n")
     print(table(header, two_process(window, poll=True)))
-    for composite in ("youbot.composite", "youbot-binding.composite"):
-        print(f"\nOne process (scart run {composite}):\n")
-        print(table(["period", "produced/s", "monitor/s", "CPU %", "overruns"], one_process(composite, window)))
+    one_header = ["transport", "period", "produced/s", "monitor/s", "CPU %", "overruns"]
+    print("\nOne process (scart run youbot.composite --set SCAYouBotDriver.transport=T), once per transport:\n")
+    print(table(one_header, [row for t in ("ipc", "grpc") for row in one_process("youbot.composite", window, t)]))
+    print("\nOne process (scart run youbot-binding.composite):\n")
+    print(table(one_header, one_process("youbot-binding.composite", window)))
     return 0
 
 

@@ -16,7 +16,8 @@ constructor                     type             size    init   lock_policy   bu
 ``transport`` (RTT's ``ConnPolicy.transport``) says how samples cross processes:
 ``"auto"`` (default: the fastest that works — ``ipc`` when both deployers are on one host,
 else ``grpc``), ``"ipc"`` (the same-host fast path; ``"shm"`` is accepted for it), or
-``"grpc"``. A connection inside one process ignores it.
+``"grpc"``, or a plug-in's name (:func:`transport_names`). A connection inside one process
+ignores it.
 ``mandatory`` (default True, as RTT 2.9: "by default, all connections are mandatory"):
 a sample rejected by a mandatory connection makes ``write`` return ``WRITE_FAILURE``;
 a non-mandatory connection's rejection is only counted in its ``dropped``.
@@ -38,11 +39,27 @@ import enum
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
-__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus", "TRANSPORTS"]
+__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus", "TRANSPORTS",
+           "transport_names"]
 
-#: Transport names a policy may carry (``shm`` is taken as ``ipc``: see the module docstring).
+#: scart's own transport names (``shm`` is taken as ``ipc``: see the module docstring);
+#: plug-ins add theirs (:func:`transport_names`).
 TRANSPORTS = ("auto", "ipc", "grpc")
 _TRANSPORT_ALIASES = MappingProxyType({"shm": "ipc", "": "auto"})
+
+
+def transport_names() -> tuple[str, ...]:
+    """Every transport name a policy accepts: ``auto``, scart's own (with ``shm``), then
+    the plug-ins' found through the ``scart.transports`` entry points (see
+    :mod:`dataflow.remote.transport`)."""
+    from dataflow.remote.transport import names  # entry points: read once, when first needed
+
+    return ("auto", "ipc", "shm", "grpc", *(n for n in names() if n not in TRANSPORTS))
+
+
+def one_of(options: tuple[str, ...]) -> str:
+    """``a, b or c``."""
+    return f"{', '.join(options[:-1])} or {options[-1]}" if len(options) > 1 else "".join(options)
 
 
 class ConnType(enum.Enum):
@@ -104,8 +121,8 @@ class ConnPolicy:
     def __post_init__(self) -> None:
         transport = _TRANSPORT_ALIASES.get(self.transport, self.transport)
         if transport not in TRANSPORTS:
-            raise ValueError(f"ConnPolicy.transport must be one of {', '.join(TRANSPORTS)} (or shm), "
-                             f"got {self.transport!r}")
+            if transport not in transport_names():
+                raise ValueError(f"ConnPolicy.transport must be {one_of(transport_names())}, got {self.transport!r}")
         object.__setattr__(self, "transport", transport)
         if not isinstance(self.type, ConnType):
             raise ValueError(f"ConnPolicy.type must be a ConnType, got {self.type!r}")

@@ -5,7 +5,14 @@ the data-flow client library: at ``@init`` it connects to the data-flow system t
 the name service (property ``name_service``), gets the ``component`` proxy, subscribes
 to its ``jointStatus`` output port (push, or JOrocos-style polling every ``poll_period``
 s, at most half the driver period) and keeps the newest sample; it writes the
-``commands`` and ``period`` input ports. Services ``RetrievingStatus``,
+``commands`` and ``period`` input ports. Property ``transport`` is the push
+subscription's ``ConnPolicy.transport``: ``auto`` (default: ``ipc`` when the driver runs
+on this host, else ``grpc``), ``ipc`` (``shm`` is taken for it), ``grpc`` (or any other
+name ``ConnPolicy.transport`` accepts); a bad one fails ``@init``; polling reads
+over gRPC whatever it says. ``get_driver_info`` tells the transport in use
+(``transport``: ``ipc`` or ``grpc`` — polling is always ``grpc`` — or None while not
+subscribed) and the
+one asked for (``transport_policy``). Services ``RetrievingStatus``,
 ``SendingCommands`` (see :mod:`proxy_core`) and ``SettingPeriod``; callback ``Notifying``.
 
 Threads (all owned: created in ``@init``, signalled then joined in ``@destroy``):
@@ -51,6 +58,7 @@ class SCAYouBotDriver(DriverProxyCore):
     """SCA proxy of the data-flow youBot driver (see the module docstring)."""
 
     name_service: str = scart.prop(default="")
+    transport: str = scart.prop(default="auto")
     poll_period: float = scart.prop(default=0.0)
     retry_interval: float = scart.prop(default=0.2)
     info_interval: float = scart.prop(default=0.5)
@@ -60,11 +68,14 @@ class SCAYouBotDriver(DriverProxyCore):
 
     @scart.init
     def open(self) -> None:
-        """Start the supervisor (it connects in the background); returns at once."""
+        """Start the supervisor (it connects in the background); returns at once. Raises
+        ``ValueError`` naming the component and the property for a bad ``transport``."""
+        self._policy = self._subscription_policy()  # before anything starts: @destroy does not run after a failed @init
         self._core_open()
         self._system: System | None = None
         self._proxy: Any = None
         self._subscription: Any = None
+        self._subscribe_error = ""  # the last subscription failure logged (each reason once)
         self._info: dict[str, Any] = {"state": None, "period": None, "period_status": "", "connected": False}
         # the property, else the runtime's name service (scart run --ns, SCART_NS, the default)
         self._address = self.name_service.strip() or self.ctx.settings.ns_address
@@ -74,6 +85,18 @@ class SCAYouBotDriver(DriverProxyCore):
         self._ports = {p: remap.port(self.component, p) for p in ("commands", "period", "jointStatus")}
         self._supervisor = threading.Thread(target=self._supervise, name="scart-youbot-proxy", daemon=True)
         self._supervisor.start()
+
+    def _subscription_policy(self) -> ConnPolicy:
+        """``ConnPolicy.data()`` with the ``transport`` property (any name ``ConnPolicy``
+        accepts: auto, ipc, shm, grpc); its check's message, naming the accepted names, if not."""
+        try:
+            policy = ConnPolicy.data().with_(transport=str(self.transport).strip())
+        except ValueError as exc:
+            raise ValueError(f"component {self.ctx.name}: property transport={self.transport!r}: {exc}") from None
+        if self.poll_period > 0 and policy.transport == "ipc":
+            log.warning("%s: transport ipc applies to the push subscription only; polling (poll_period %g s) "
+                        "reads over gRPC", self.ctx.name, self.poll_period)
+        return policy
 
     @scart.destroy
     def close(self) -> None:
@@ -105,6 +128,9 @@ class SCAYouBotDriver(DriverProxyCore):
         with self._lock:
             info = dict(self._info)
         info["address"] = self._address
+        sub = self._subscription
+        info["transport"] = (getattr(sub, "transport", "") or None) if sub is not None else None
+        info["transport_policy"] = self._policy.transport
         return info
 
     # --- SettingPeriod -----------------------------------------------------------------
@@ -173,17 +199,25 @@ class SCAYouBotDriver(DriverProxyCore):
 
     def _try_connect(self) -> None:
         system = None
+        answered = False  # the driver answered: a failure now is the subscription's (e.g. transport ipc)
         try:
             system = connect(self._address, timeout=2.0, security=self.ctx.settings.security)
             proxy = system.component(self._task)
             period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
-            sub = proxy.subscribe(self._ports["jointStatus"], self._on_sample, policy=ConnPolicy.data(),
+            answered = True
+            sub = proxy.subscribe(self._ports["jointStatus"], self._on_sample, policy=self._policy,
                                   period=self._poll_for(period))
         except Exception as exc:  # noqa: BLE001 - not up yet: retry later
-            log.debug("connecting to %s at %s failed: %s", self._task, self._address, exc)
+            if answered and str(exc) != self._subscribe_error:  # told once per reason, not each retry
+                self._subscribe_error = str(exc)
+                log.warning("subscribing to %s.%s (transport %s) failed: %s; retrying", self._task,
+                            self._ports["jointStatus"], self._policy.transport, exc)
+            else:
+                log.debug("connecting to %s at %s failed: %s", self._task, self._address, exc)
             if system is not None:
                 system.close()
             return
+        self._subscribe_error = ""
         with self._lock:
             stale = self._stop.is_set()
             if not stale:
@@ -218,7 +252,7 @@ class SCAYouBotDriver(DriverProxyCore):
             return
         log.info("driver period %g s: polling every %g s now", period, wanted)
         try:
-            fresh = proxy.subscribe(self._ports["jointStatus"], self._on_sample, policy=ConnPolicy.data(), period=wanted)
+            fresh = proxy.subscribe(self._ports["jointStatus"], self._on_sample, policy=self._policy, period=wanted)
         except Exception as exc:  # noqa: BLE001 - keep the current subscription; retried on the next change
             log.warning("re-subscribing at %g s failed: %s", wanted, exc)
             return

@@ -87,9 +87,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("sink", metavar="B.in")
     p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
     p.add_argument("--name", default=None, help="the link's name (default A.out->B.in)")
-    p.add_argument("--transport", default="auto", choices=("auto", "ipc", "shm", "grpc"),
+    p.add_argument("--transport", default="auto", type=_transport,
                    help="across processes: auto (default: ipc on one host, else grpc), ipc (same-host fast path; "
-                        "shm is the same), grpc")
+                        "shm is the same), grpc, or an installed plug-in's name")
     p = verb("links", "list links: name, ends, policy, transport, measured rate, drops", cmd_links)
     p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
     p = verb("reroute", "point a link at another input port (made before the old one goes)", cmd_reroute)
@@ -307,6 +307,15 @@ def _policy(text: str) -> Any:
     from dataflow import ConnPolicy
 
     return ConnPolicy.parse(text)
+
+
+def _transport(text: str) -> str:
+    """``--transport``: a name a policy accepts (plug-ins are looked up only for another name)."""
+    from dataflow.policy import TRANSPORTS, one_of, transport_names
+
+    if text in TRANSPORTS or text == "shm" or text in transport_names():
+        return text
+    raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose {one_of(transport_names())})")
 
 
 def cmd_echo(args: argparse.Namespace) -> int:

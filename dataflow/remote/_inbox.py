@@ -4,7 +4,7 @@ in-process subscription; no gRPC here).
 A free-standing InputPort with the subscriber's policy is connected to the output port.
 Its data callback runs in the writer's thread right after a sample was stored: it takes
 the sample out at once and keeps it as ``(sequence, source_time_ns, value)`` in a
-policy-shaped :class:`~dataflow.remote.api.Mailbox`, so the sequence number and the
+policy-shaped :class:`~dataflow.remote._delivery.Mailbox`, so the sequence number and the
 timestamp always belong to the sample they travel with. The sequence number is the
 port's own write number (:meth:`OutputPort.last_sample`), the same for every subscriber:
 a jump tells a subscriber exactly how many writes it did not get. The callback is cheap (a read, a
@@ -21,7 +21,7 @@ from typing import Any
 
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
-from dataflow.remote.api import Mailbox
+from dataflow.remote._delivery import Mailbox
 
 __all__ = ["Inbox"]
 

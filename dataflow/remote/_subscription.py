@@ -1,8 +1,8 @@
 """Client side of a remote subscription (private; built by ``GrpcComponentProxy.subscribe``).
 
-The stream comes over the deployer's ipc socket when both are on one host and the policy's
-transport allows (``auto``, ``ipc``: see :mod:`dataflow.remote._ipc`), else over a gRPC
-``Subscribe`` stream; both carry the same ``SubscribeResponse`` messages, handled alike.
+The stream comes over the policy's transport (see :mod:`dataflow.remote.transport`;
+``auto``: the deployer's ipc socket when both are on one host, else a gRPC ``Subscribe``
+stream); every transport hands over the same ``SubscribeResponse`` messages, handled alike.
 Two threads per subscription: the *receiver* owns the stream (or the polling loop),
 puts samples into a policy-shaped :class:`Mailbox` and reconnects after failures; the
 *dispatcher* calls the observer. With DATA the mailbox keeps only the newest sample, so
@@ -24,7 +24,6 @@ failure is logged and the stream re-established — the receiver never dies sile
 from __future__ import annotations
 
 import logging
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -35,18 +34,11 @@ import grpc
 from dataflow import codec
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy, FlowStatus
-from dataflow.remote import _convert as cv
-from dataflow.remote import _ipc, _rpc, errors
+from dataflow.remote import _rpc, errors
 from dataflow.remote._loss import LossCount
-from dataflow.remote._proto import df as pb
-from dataflow.remote.api import (
-    Dispatcher,
-    GapEvent,
-    Mailbox,
-    Observer,
-    SampleEvent,
-    Subscription,
-)
+from dataflow.remote._delivery import Dispatcher, Mailbox
+from dataflow.remote.api import GapEvent, Observer, SampleEvent, Subscription
+from dataflow.remote.transport import candidates
 
 if TYPE_CHECKING:
     from dataflow.remote.client import GrpcComponentProxy
@@ -80,13 +72,11 @@ class GrpcSubscription(Subscription):
         self._system = proxy.system
         self._observer = observer
         self._on_gap = on_gap
-        self._heartbeat = self._system.heartbeat_ms / 1000.0
+        self.heartbeat = self._system.heartbeat_ms / 1000.0
         self._mailbox: Mailbox[SampleEvent] = Mailbox(policy)
-        self._closed = threading.Event()
-        self._call: Any = None
-        self._sock: socket.socket | None = None
-        self._first = b""
-        #: How samples come now: ``ipc`` (same host, see :mod:`dataflow.remote._ipc`) or ``grpc``.
+        self.closed = threading.Event()
+        self._cancel: Callable[[], None] | None = None  # ends the current stream (set by its transport)
+        #: How samples come now: the transport's name (``ipc`` on one host, ``grpc``, a plug-in's).
         self.transport = ""
         self._connected = False
         self._settled = threading.Event()  # connected, or failed for good (first attempt)
@@ -102,7 +92,7 @@ class GrpcSubscription(Subscription):
         self.decode_errors = 0
         label = f"{proxy.name}.{port}"
         self._dispatcher = Dispatcher(
-            f"scart-sub-{label}", self._mailbox, self._deliver, idle=self._heartbeat, on_idle=self._watchdog
+            f"scart-sub-{label}", self._mailbox, self._deliver, idle=self.heartbeat, on_idle=self._watchdog
         )
         self._receiver = threading.Thread(target=self._run, name=f"scart-recv-{label}", daemon=True)
         self._system.own(self)
@@ -135,12 +125,12 @@ class GrpcSubscription(Subscription):
 
     def _watchdog(self) -> None:
         """Dispatcher idle: cancel a stream whose peer stopped sending heartbeats."""
-        call = self._call
-        if self.period is None and call is not None and self._connected:
+        cancel = self._cancel
+        if self.period is None and cancel is not None and self._connected:
             silent = time.monotonic() - self._last_seen
-            if silent > 3 * self._heartbeat:
+            if silent > 3 * self.heartbeat:
                 self._mark_down(f"no heartbeat for {silent:.1f} s (peer frozen?)")
-                call.cancel()
+                cancel()
 
     # ---- connection state --------------------------------------------------------------
     def _mark_up(self, boot_id: str = "") -> None:
@@ -167,7 +157,7 @@ class GrpcSubscription(Subscription):
                     log.exception("on_gap callback raised")
 
     def _mark_down(self, reason: str) -> None:
-        if self._gap_start is None and not self._closed.is_set():
+        if self._gap_start is None and not self.closed.is_set():
             self._gap_start = time.time()
             self._gap_reason = reason
         self._connected = False
@@ -176,7 +166,7 @@ class GrpcSubscription(Subscription):
     def _run(self) -> None:
         backoff = 0.05
         fresh = False
-        while not self._closed.is_set():
+        while not self.closed.is_set():
             try:
                 address = self._system.resolve(self.component, fresh=fresh)
                 if self.period is None:
@@ -194,41 +184,56 @@ class GrpcSubscription(Subscription):
             except Exception as exc:  # noqa: BLE001 - never let the receiver die silently
                 log.exception("subscription %s.%s: receiver failed; reconnecting", self.component, self.port)
                 reason = _reason(exc)
-            if self._closed.is_set():
+            if self.closed.is_set():
                 return
             self._mark_down(reason)
             fresh = True
             self.reconnects += 1
-            if self._closed.wait(backoff):
+            if self.closed.wait(backoff):
                 return
             backoff = min(1.0, backoff * 2)
 
     def _stream(self, address: str) -> None:
-        if self.policy.transport != "grpc" and self.period is None:
-            sock = self._open_ipc(address)
-            if sock is not None:
-                self._ipc_stream(sock)
-                return
-        self.transport = "grpc"
-        req = pb.SubscribeRequest(
-            task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy),
-            heartbeat_ms=self._system.heartbeat_ms,
-        )
-        self._last_seen = time.monotonic()
-        call = self._system._stub(address).Subscribe(req)  # noqa: SLF001
-        self._call = call
-        if self._closed.is_set():
-            call.cancel()
-            return
-        self._loss.new_stream()
-        try:
-            for msg in call:
-                self._take(msg)
-        finally:
-            self._call = None
+        """One stream over the first transport that reaches the deployer (see
+        :mod:`dataflow.remote.transport`), until it ends."""
+        tried = []
+        for transport in candidates(self.policy.transport):
+            tried.append(transport.name)
+            try:
+                if transport.subscribe(self, address):
+                    return
+            finally:
+                self._cancel = None
+        raise errors.UnavailableError(f"no transport reaches {self.component}.{self.port} "
+                                      f"(tried {', '.join(tried) or 'none'})", "UNAVAILABLE", address)
 
-    def _take(self, msg: Any) -> None:
-        """One ``SubscribeResponse`` (from either transport): its samples into the mailbox."""
+    # ---- the ReaderEnd a transport sees ------------------------------------------------
+    @property
+    def heartbeat_ms(self) -> int:
+        """The heartbeat period the deployer is asked for (ms)."""
+        return self._system.heartbeat_ms
+
+    @property
+    def timeout(self) -> float:
+        """Deadline (s) of the control-plane calls a transport makes."""
+        return self._system.timeout
+
+    def stub(self, address: str) -> Any:
+        """The ``DeployerService`` stub of the deployer at ``address``."""
+        return self._system._stub(address)  # noqa: SLF001
+
+    def opened(self, transport: str, cancel: Callable[[], None]) -> bool:
+        """A new stream is up over ``transport``; ``cancel`` ends it. False when closed meanwhile."""
+        self._cancel = cancel
+        self.transport = transport
+        self._last_seen = time.monotonic()
+        if self.closed.is_set():  # close() may have looked before cancel was set
+            return False
+        self._loss.new_stream()
+        return True
+
+    def receive(self, msg: Any) -> None:
+        """One ``SubscribeResponse`` (from any transport): its samples into the mailbox."""
         self._mark_up(msg.boot_id)
         for sample in msg.samples:
             if not self._loss.sample(sample.sequence, msg.dropped):
@@ -249,43 +254,11 @@ class GrpcSubscription(Subscription):
             self._mailbox.put(event)
         self._loss.report(msg.dropped)
 
-    def _open_ipc(self, address: str) -> socket.socket | None:
-        """A socket carrying this port's samples on the same-host fast path, or None when
-        ipc does not work between these two processes and the policy lets gRPC do."""
-        request = pb.OpenIpcReaderRequest(task=self.component, port=self.port, policy=cv.policy_to_msg(self.policy),
-                                          host_id=_ipc.host_id(), heartbeat_ms=self._system.heartbeat_ms)
-        stub = self._system._stub(address)  # noqa: SLF001
-        opened = _ipc.open_with(lambda: stub.OpenIpcReader(request, timeout=self._system.timeout),
-                                self.policy.transport, f"{self.component}.{self.port}", address)
-        if opened is None:
-            return None
-        sock, self._first = opened  # the "connected" heartbeat: taken by _ipc_stream
-        return sock
-
-    def _ipc_stream(self, sock: socket.socket) -> None:
-        """Frames from the deployer's socket until it closes; silence for 3 heartbeats is a
-        frozen peer (raised: the receiver reconnects)."""
-        self._sock = sock
-        self.transport = "ipc"
-        try:
-            if self._closed.is_set():
-                return
-            self._loss.new_stream()
-            self._take(pb.SubscribeResponse.FromString(self._first))
-            try:
-                for message in _ipc.messages_in(sock, 3 * self._heartbeat):
-                    self._take(pb.SubscribeResponse.FromString(message))
-            except TimeoutError:
-                raise errors.RemoteTimeoutError(f"no heartbeat for {3 * self._heartbeat:.1f} s (peer frozen?)",
-                                                "DEADLINE_EXCEEDED", "ipc") from None
-        finally:
-            self._sock = None
-            sock.close()
-
     def _poll(self) -> None:
         """JOrocos-style polling: ReadPort every ``period`` s, deliver what is new."""
         assert self.period is not None
-        while not self._closed.is_set():
+        self.transport = "grpc"  # unary ReadPort calls, whatever the policy says
+        while not self.closed.is_set():
             flow, value, seq, stamp, boot = self._proxy.read_sample_of(self.port)
             self._mark_up(boot)
             self.polls += 1
@@ -293,24 +266,18 @@ class GrpcSubscription(Subscription):
                 self._mailbox.put(SampleEvent(self.component, self.port, value, flow, stamp / 1e9, seq))
             else:
                 self.wasted_polls += 1
-            if self._closed.wait(self.period):
+            if self.closed.wait(self.period):
                 return
 
     def close(self) -> None:
         """Cancel the stream, end both threads (joins ≤ 5 s each); idempotent."""
-        if self._closed.is_set():
+        if self.closed.is_set():
             return
-        self._closed.set()
+        self.closed.set()
         self._system.disown(self)
-        call = self._call
-        if call is not None:
-            call.cancel()
-        sock = self._sock
-        if sock is not None:
-            try:
-                sock.shutdown(socket.SHUT_RDWR)  # wakes the receiver; it closes the socket
-            except OSError:
-                pass
+        cancel = self._cancel
+        if cancel is not None:
+            cancel()  # wakes the receiver
         if threading.current_thread() is not self._receiver:
             self._receiver.join(timeout=5.0)
         self._dispatcher.stop()

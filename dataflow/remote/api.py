@@ -11,15 +11,13 @@ introspect (``ports()``, ``operations()``, ``properties()``, ``state``) → ``wr
 
 from __future__ import annotations
 
-import logging
 import threading
 from abc import ABC, abstractmethod
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Generic, TypeVar
+from typing import TYPE_CHECKING
 
-from dataflow.policy import ConnPolicy, ConnType, FlowStatus, WriteStatus
+from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 
 if TYPE_CHECKING:  # the core's description models
     from dataflow import OperationDescription, PortDescription, PropertyDescription, TaskDescription
@@ -37,7 +35,6 @@ __all__ = [
     "System",
 ]
 
-log = logging.getLogger(__name__)
 
 #: The lifecycle transitions :meth:`ComponentProxy.change_state` accepts.
 TRANSITIONS = ("configure", "start", "stop", "cleanup", "recover")
@@ -94,57 +91,6 @@ class ComponentInfo:
 
 Observer = Callable[[SampleEvent], None]
 
-T = TypeVar("T")
-
-
-class Mailbox(Generic[T]):
-    """A policy-shaped hand-over between a producer and the observer's thread.
-
-    DATA keeps only the newest item; BUFFER(n) refuses items when n are pending;
-    CIRCULAR_BUFFER(n) drops the oldest. Every item lost is counted in :attr:`dropped`.
-    :meth:`put` never blocks; :meth:`get` blocks up to ``timeout``. Thread-safe.
-    """
-
-    def __init__(self, policy: ConnPolicy) -> None:
-        self._kind = policy.type
-        self._size = self._policy_size = max(1, policy.size) if policy.type is not ConnType.DATA else 1
-        self._items: deque[T] = deque()
-        self._cond = threading.Condition()
-        self._closed = False
-        self.dropped = 0
-
-    def limit(self, size: int) -> None:
-        """Hold at most ``size`` items from now on (never more than the policy says; items
-        already pending stay). Used to keep a subscription within a byte budget."""
-        with self._cond:
-            self._size = max(1, min(size, self._policy_size))
-
-    def put(self, item: T) -> bool:
-        """Store ``item``; False when it was refused (full BUFFER)."""
-        with self._cond:
-            if len(self._items) >= self._size:
-                self.dropped += 1
-                if self._kind is ConnType.BUFFER:
-                    return False
-                self._items.popleft()
-            self._items.append(item)
-            self._cond.notify()
-            return True
-
-    def get(self, timeout: float) -> T | None:
-        """The oldest pending item, or None after ``timeout`` s or when closed."""
-        with self._cond:
-            if not self._items and not self._closed:
-                self._cond.wait(timeout)
-            return self._items.popleft() if self._items else None
-
-    def close(self) -> None:
-        """Wake :meth:`get` for good (idempotent)."""
-        with self._cond:
-            self._closed = True
-            self._cond.notify_all()
-
-
 class Subscription(ABC):
     """A live subscription to an output port; the observer runs on the subscription's own
     thread, so a slow observer never slows the task or other subscribers.
@@ -187,54 +133,6 @@ class Subscription(ABC):
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-class Dispatcher:
-    """The observer's thread: takes items from a :class:`Mailbox` and calls ``deliver``.
-
-    ``on_idle`` is called whenever ``idle`` s pass without an item (heartbeat watchdog).
-    An exception in ``deliver`` is logged and does not end the thread.
-    """
-
-    def __init__(
-        self,
-        name: str,
-        mailbox: Mailbox,
-        deliver: Callable[[object], None],
-        idle: float = 0.5,
-        on_idle: Callable[[], None] | None = None,
-    ) -> None:
-        self._mailbox = mailbox
-        self._deliver = deliver
-        self._idle = idle
-        self._on_idle = on_idle
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> None:
-        """Start the thread (once)."""
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            item = self._mailbox.get(self._idle)
-            if self._stop.is_set():
-                return
-            if item is None:
-                if self._on_idle is not None:
-                    self._on_idle()
-                continue
-            try:
-                self._deliver(item)
-            except Exception:  # noqa: BLE001 - an observer bug must not end the subscription
-                log.exception("observer of %s raised", self._thread.name)
-
-    def stop(self) -> None:
-        """Signal and join (unless called from the dispatcher thread itself)."""
-        self._stop.set()
-        self._mailbox.close()
-        if threading.current_thread() is not self._thread and self._thread.is_alive():
-            self._thread.join(timeout=5.0)
 
 
 class PortWriter(ABC):

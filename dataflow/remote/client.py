@@ -9,7 +9,7 @@ retried after any UNAVAILABLE; the others (write, call, set, lifecycle, connect)
 when the request provably never left (no connection could be made), so an operation
 is never run twice. Subscriptions run on two threads each — a receiver that owns
 the stream (and reconnects, reporting the gap), and the observer's dispatcher fed
-through a policy-shaped :class:`~dataflow.remote.api.Mailbox` — and detect a frozen
+through a policy-shaped :class:`~dataflow.remote._delivery.Mailbox` — and detect a frozen
 peer by the stream's heartbeats (3 missed → reconnect).
 """
 

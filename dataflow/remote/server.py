@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import logging
 import secrets
-import select
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -35,8 +33,7 @@ from dataflow.errors import DeploymentError, NotFoundError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort
-from dataflow.remote import _convert as cv
-from dataflow.remote import _ipc, _rpc, errors
+from dataflow.remote import _rpc, errors
 from dataflow.remote._proto import (
     DEPLOYER_ROLES,
     DEPLOYER_SERVICE_NAME,
@@ -59,6 +56,7 @@ from dataflow.remote.naming import (
     security_probe,
 )
 from dataflow.remote.security import Security
+from dataflow.remote.transport import candidates
 
 __all__ = ["DeployerServer"]
 
@@ -71,13 +69,14 @@ SETTLE_S = 2.0  #: how long connecting a remote link waits for its first connect
 class _RemoteLink:
     """An output port of this deployer feeding an input port in another deployer.
 
-    A free InputPort with the connection's policy is connected to the output port. On the
-    same host (transport ``auto`` or ``ipc``) the samples go over the sink deployer's ipc
-    socket, sent from the writer's thread as they are written (see
-    :mod:`dataflow.remote._ipc`); otherwise the port's data callback wakes this link's
-    thread, which streams them to the sink deployer (client streaming
-    ``WritePortStream``). Either way the thread re-resolves the sink through the name
-    service and reconnects after failures until :meth:`close`.
+    A free InputPort with the connection's policy is connected to the output port: its
+    storage is the link's, and it counts the policy's drops. A transport (see
+    :mod:`dataflow.remote.transport`; ``auto``: ipc on one host, else gRPC) carries the
+    samples to the sink's deployer: over ipc they are sent from the writer's thread as
+    they are written; over gRPC the port's data callback wakes the transport's call.
+    The link's thread re-resolves the sink through the name service and reconnects after
+    failures until :meth:`close`. This is the :class:`~dataflow.remote.transport.LinkEnd`
+    a transport sees.
     """
 
     def __init__(self, server: DeployerServer, out: Any, sink_task: str, sink_port: str, policy: ConnPolicy) -> None:
@@ -87,13 +86,14 @@ class _RemoteLink:
         self.sink_port = sink_port
         self.policy = policy
         self.inp: InputPort = InputPort(out.type, name=f"link_{out.name}")
+        self.closed = threading.Event()
         self._wake = threading.Event()
-        self._closed = threading.Event()
-        self._call: Any = None
-        self._outbox: _ipc.Outbox | None = None  # set while the link runs over ipc
-        self._ipc_dropped = 0  # by outboxes of earlier ipc connections
-        self._ipc_wake: Callable[[], None] | None = None  # wakes the link's thread while on ipc
-        #: How samples go now: ``ipc``, ``grpc``, or ``""`` while not connected.
+        # set by the transport while connected (see opened())
+        self._cancel: Callable[[], None] | None = None
+        self._pump: Callable[[], None] | None = None
+        self._dropping: Callable[[], int] | None = None
+        self._lost = 0  # by the transports of earlier connections
+        #: How samples go now: the transport's name (``ipc``, ``grpc``), or ``""`` while not connected.
         self.transport = ""
         self.settled = threading.Event()  # the first connection was made (or failed)
         self.inp.add_data_callback(self._on_data)
@@ -103,20 +103,26 @@ class _RemoteLink:
         self._thread.start()
 
     @property
+    def timeout(self) -> float:
+        """Deadline (s) of the control-plane calls a transport makes."""
+        return self.server.ns_timeout
+
+    @property
     def dropped(self) -> int:
-        """Samples lost: by the connection's policy, or by a full or broken ipc socket."""
+        """Samples lost: by the connection's policy, or by the transports (a full or broken socket)."""
         conn = next((c for c in self.out.connections() if c.input is self.inp), None)
-        outbox = self._outbox
-        return (conn.dropped if conn else 0) + self._ipc_dropped + (outbox.dropped if outbox else 0)
+        dropping = self._dropping
+        return (conn.dropped if conn else 0) + self._lost + (dropping() if dropping else 0)
 
     def _on_data(self, _inp: InputPort) -> None:  # the writer's thread
-        outbox = self._outbox
-        if outbox is None or outbox.closed:
-            self._wake.set()  # gRPC (or connecting): the link's thread sends
+        pump = self._pump
+        if pump is None:
+            self._wake.set()  # gRPC (or connecting): the transport's call sends
         else:
-            outbox.pump()
+            pump()
 
-    def _take(self) -> list[Any]:
+    # ---- the LinkEnd a transport sees ----------------------------------------------------
+    def take(self) -> list[Any]:
         """The next samples waiting in the link's policy storage (at most 64)."""
         values = []
         for _ in range(64):
@@ -126,125 +132,81 @@ class _RemoteLink:
             values.append(value)
         return values
 
-    def _messages(self, values: list[Any]) -> list[bytes]:
+    def messages(self, values: list[Any]) -> list[bytes]:
+        """``values`` as ``WritePortStreamRequest`` messages."""
         return [pb.WritePortStreamRequest(value=codec.encode(value, self.out.type)).SerializeToString()
                 for value in values]
 
-    def _requests(self, ended: threading.Event) -> Any:
-        """The messages of one ``WritePortStream`` call; ``ended`` once the call is over
-        (grpc may still be waiting on this generator then: it must take no more samples)."""
-        yield pb.WritePortStreamRequest(task=self.sink_task, port=self.sink_port, policy=cv.policy_to_msg(self.policy))
-        while not self._closed.is_set() and not ended.is_set():
-            if not self._wake.wait(0.5):
-                continue
-            self._wake.clear()
-            if ended.is_set():
-                self._wake.set()  # for the next call
-                return
-            for _ in range(160):  # bounded: at most 10 240 samples per wake-up
-                values = self._take()
-                if not values:
-                    break
-                for value in values:
-                    yield pb.WritePortStreamRequest(value=codec.encode(value, self.out.type))
+    def wait_data(self, timeout: float) -> bool:
+        """True once the port was written since the last call (or :meth:`wake`); False after ``timeout`` s."""
+        if not self._wake.wait(timeout):
+            return False
+        self._wake.clear()
+        return True
+
+    def wake(self) -> None:
+        """Make the next :meth:`wait_data` return at once."""
+        self._wake.set()
+
+    def opened(self, transport: str, cancel: Callable[[], None], *, pump: Callable[[], None] | None = None,
+                  dropped: Callable[[], int] | None = None) -> bool:
+        """The connection is up over ``transport`` (see :class:`~dataflow.remote.transport.LinkEnd`)."""
+        self._cancel, self._dropping = cancel, dropped
+        self.transport = transport
+        self._pump = pump
+        self.settled.set()
+        if self.closed.is_set():  # close() may have looked before cancel was set
+            cancel()
+            return False
+        return True
+
+    def _ended(self) -> None:
+        """The transport's connection is over: forget it, keep its count of losses."""
+        self._pump = self._cancel = None
+        dropping, self._dropping = self._dropping, None
+        self._lost += dropping() if dropping else 0
+        self.transport = ""
+        self._wake.set()  # what the port's storage holds goes by the next connection
 
     def _run(self) -> None:
         backoff = 0.05
-        while not self._closed.is_set():
+        while not self.closed.is_set():
             try:
                 address = self.server.resolve(self.sink_task)
                 with self.server.security.channel(address, _rpc.channel_options()) as channel:
                     stub = df_grpc.DeployerServiceStub(channel)
-                    sock = self._open_ipc(stub) if self.policy.transport != "grpc" else None
-                    if sock is not None:
-                        self._run_ipc(sock)
-                    else:
-                        self.transport = "grpc"
-                        ended = threading.Event()
+                    tried = []
+                    for transport in candidates(self.policy.transport):
+                        tried.append(transport.name)
                         try:
-                            self._call = stub.WritePortStream.future(self._requests(ended))
-                            self.settled.set()
-                            self._call.result()
+                            if transport.link(self, address, stub):
+                                break
                         finally:
-                            ended.set()
-                            self._wake.set()  # a generator still waiting sees it ended
+                            self._ended()
+                    else:
+                        raise errors.UnavailableError(f"no transport reaches {self.sink_task}.{self.sink_port} "
+                                                      f"(tried {', '.join(tried) or 'none'})", "UNAVAILABLE", address)
                 backoff = 0.05
             except (grpc.RpcError, grpc.FutureCancelledError, errors.RemoteError, NotFoundError) as exc:
-                if self._closed.is_set():
+                if self.closed.is_set():
                     return
                 log.info("link to %s.%s interrupted: %s", self.sink_task, self.sink_port, exc)
             except Exception:  # noqa: BLE001 - the link's thread must not die: log, back off, retry
-                if self._closed.is_set():
+                if self.closed.is_set():
                     return
                 log.exception("link to %s.%s failed; retrying", self.sink_task, self.sink_port)
             self.settled.set()
-            self.transport = ""
-            if self._closed.wait(backoff):
+            if self.closed.wait(backoff):
                 return
             backoff = min(1.0, backoff * 2)
 
-    def _open_ipc(self, stub: Any) -> socket.socket | None:
-        """The sink's ipc socket for this link, or None when gRPC must do (and may)."""
-        request = pb.OpenIpcWriterRequest(task=self.sink_task, port=self.sink_port,
-                                          policy=cv.policy_to_msg(self.policy), host_id=_ipc.host_id())
-        opened = _ipc.open_with(lambda: stub.OpenIpcWriter(request, timeout=self.server.ns_timeout),
-                                self.policy.transport, f"{self.sink_task}.{self.sink_port}")
-        return opened[0] if opened is not None else None
-
-    def _run_ipc(self, sock: socket.socket) -> None:
-        """Samples go from the writer's thread; this thread waits for the sink to go away
-        (its socket's end), for room when the socket was full, or for the link to close."""
-        wake_r = wake_w = None
-        outbox = None
-        try:
-            wake_r, wake_w = socket.socketpair()
-            wake_w.setblocking(False)
-
-            def wake() -> None:
-                try:
-                    wake_w.send(b"x")
-                except OSError:  # full (a wake-up is pending anyway), or closed: the link moved on
-                    pass
-
-            outbox = _ipc.Outbox(sock, self._take, self._messages, wake, wake)
-            self._ipc_wake = wake
-            self.transport = "ipc"
-            self._outbox = outbox
-            self.settled.set()
-            poller = select.poll()
-            poller.register(wake_r, select.POLLIN)
-            outbox.pump()  # what came while connecting
-            while not self._closed.is_set() and not outbox.broken:
-                poller.register(sock, select.POLLIN | (select.POLLOUT if outbox.blocked else 0))
-                ready = dict(poller.poll(500))
-                if ready.get(wake_r.fileno()):
-                    wake_r.recv(4096)
-                if ready.get(sock.fileno(), 0) & (select.POLLIN | select.POLLHUP | select.POLLERR):
-                    break  # the sink sends nothing after its acknowledgement: any such event is its end
-                if ready.get(sock.fileno(), 0) & select.POLLOUT:
-                    outbox.pump()
-        finally:
-            self._outbox = self._ipc_wake = None
-            if outbox is not None:
-                outbox.close()  # waits for a pump in progress; what it held is lost, counted
-                self._ipc_dropped += outbox.dropped
-            self._wake.set()  # what the port's storage holds goes by the next connection
-            _ipc.close_quietly(sock)
-            for end in (wake_r, wake_w):
-                if end is not None:
-                    end.close()
-        if not self._closed.is_set():
-            log.info("link to %s.%s: the sink's ipc socket closed; reconnecting", self.sink_task, self.sink_port)
-
     def close(self) -> None:
         """Disconnect and end the link's thread (idempotent; joins ≤ 5 s)."""
-        self._closed.set()
+        self.closed.set()
         self._wake.set()
-        call, wake = self._call, self._ipc_wake
-        if call is not None:
-            call.cancel()
-        if wake is not None:
-            wake()  # the link's thread waits on its socket: at once, not at its next poll
+        cancel = self._cancel
+        if cancel is not None:
+            cancel()  # the transport ends its connection at once, not at its next poll
         self.out.disconnect(self.inp)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5.0)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from dataflow import ConnPolicy
+from dataflow.policy import one_of, transport_names
 from scart.ext.dataflow._host import PortInfo, class_ports, remote_ports, type_name_of
 from scart.spi import SCART_NS, Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
 
@@ -63,7 +64,7 @@ def parse_policy(attributes: dict[str, str], problems: list[str], what: str = ""
         return policy.with_(transport=attributes.get("transport", "auto"))
     except ValueError as exc:
         del exc  # its wording is the Python API's
-        problems.append(f"{what}transport={attributes.get('transport')!r}: expected auto, ipc, shm or grpc")
+        problems.append(f"{what}transport={attributes.get('transport')!r}: expected {one_of(transport_names())}")
         return policy
 
 

@@ -1,0 +1,145 @@
+"""Transports are plug-ins found by entry point (``scart.transports``), as a third-party
+package would install one: a policy naming it gets it, for links and subscriptions; a
+plug-in that cannot be loaded is named in the error, and ``auto`` goes on without it."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from dataflow.policy import transport_names
+from dataflow.remote.transport import candidates, names
+
+ROOT = Path(__file__).resolve().parents[3]
+
+PLUGIN = '''
+from dataflow.remote._transports import GrpcTransport
+
+
+class Tap(GrpcTransport):
+    """gRPC streams under another name, counting the connections it carried."""
+
+    name = "tap"
+    rank = None  # only when a policy names it
+    opened = 0
+
+    def link(self, end, address, stub):
+        Tap.opened += 1
+        return super().link(end, address, stub)
+
+    def subscribe(self, end, address):
+        Tap.opened += 1
+        return super().subscribe(end, address)
+'''
+
+ENTRY_POINTS = """[scart.transports]
+tap = scart_tap:Tap
+broken = scart_no_such_module:Transport
+"""
+
+SCRIPT = '''
+import logging
+import threading
+from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
+from dataflow.policy import transport_names
+from dataflow.remote import connect
+from dataflow.remote.transport import TransportError, candidates
+import scart_tap
+
+logging.basicConfig(level=logging.WARNING)
+
+
+class Counter(TaskContext):
+    out = OutputPort(int)
+
+
+class Collector(TaskContext):
+    inp = InputPort(int)
+
+
+def until(predicate, what, timeout=10.0):
+    done = threading.Event()
+    for _ in range(int(timeout / 0.01)):
+        if predicate():
+            return
+        done.wait(0.01)
+    raise SystemExit(f"timed out: {what}")
+
+
+print("names", " ".join(transport_names()))
+try:
+    candidates("broken")
+except TransportError as exc:
+    print("broken:", exc)
+print("auto", " ".join(t.name for t in candidates("auto")))
+
+d1, d2 = Deployer(), Deployer()
+src, sink = d1.add(Counter("src")), d2.add(Collector("sink"))
+s1 = d1.serve("127.0.0.1:0")
+s2 = d2.serve("127.0.0.1:0", ns=s1.address)
+got = []
+
+
+def _drain(port):
+    for _ in range(1000):
+        status, value = port.read()
+        if status.name != "NEW_DATA":
+            return
+        got.append(value)
+
+
+sink.inp.add_data_callback(_drain)
+
+try:
+    with connect(s1.address, timeout=5.0) as system:
+        system.connect_ports("src.out", "sink.inp", ConnPolicy.buffer(100).with_(transport="tap"), name="l")
+        until(lambda: any(lk.transport == "tap" for lk in system.links()), "the link on tap")
+        for k in range(20):
+            src.out.write(k)
+        until(lambda: len(got) == 20, "20 samples over the link")
+        seen = []
+        sub = system.component("src").subscribe("out", lambda e: seen.append(e.value),
+                                                ConnPolicy.buffer(100).with_(transport="tap"))
+        src.out.write(20)
+        until(lambda: 20 in seen, "a sample to the subscription")
+        print("link", got[:20] == list(range(20)), "subscription", sub.transport, "opened", scart_tap.Tap.opened)
+        sub.close()
+finally:
+    s2.stop()
+    s1.stop()
+'''
+
+
+def _install_plugin(folder: Path) -> None:
+    """A package with its metadata, as ``pip install`` leaves it in site-packages."""
+    (folder / "scart_tap.py").write_text(PLUGIN)
+    info = folder / "scart_tap-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: scart-tap\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(ENTRY_POINTS)
+
+
+def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> None:
+    _install_plugin(tmp_path)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROOT)]))
+    result = subprocess.run([sys.executable, "-c", textwrap.dedent(SCRIPT)], env=env, cwd=tmp_path,
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = dict(line.split(" ", 1) for line in result.stdout.splitlines())
+    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "tap"]
+    # the broken plug-in is named with its entry point and what failed
+    assert "'broken'" in lines["broken:"] and "scart_no_such_module:Transport" in lines["broken:"]
+    assert "ModuleNotFoundError" in lines["broken:"]
+    # auto: scart's own by rank; the broken one skipped (said once), the unranked one not tried
+    assert lines["auto"].split() == ["ipc", "grpc"]
+    assert "transport 'broken'" in result.stderr and "auto goes without it" in result.stderr
+    assert lines["link"] == "True subscription tap opened 2"
+
+
+def test_scart_own_transports_are_entry_points() -> None:
+    assert {"ipc", "grpc"} <= set(names())
+    assert [t.name for t in candidates("auto")][:2] == ["ipc", "grpc"]
+    assert transport_names()[:4] == ("auto", "ipc", "shm", "grpc")
