@@ -258,13 +258,17 @@ class OutputPort(Port[T]):
         n, last = self._sample
         return n, (None if last is _NONE else last)
 
-    def connect_to(self, other: InputPort[T], policy: ConnPolicy | None = None) -> Connection:
+    def connect_to(self, other: InputPort[T], policy: ConnPolicy | None = None, *,
+                   storage: Storage | None = None) -> Connection:
         """Connect to ``other`` with ``policy`` (default ``ConnPolicy()``); returns the connection.
 
         Idempotent: connecting an already connected pair returns the existing connection.
         Thread-safe; allowed at any time, also while tasks run. Raises ``PortTypeError``
         when the types differ (naming both ports and types), ``DataflowError`` when
         ``other`` is not an input port or a port-level storage has another policy.
+        ``storage``: the connection's own storage, made for ``policy`` by the caller
+        (``PER_CONNECTION`` only; e.g. a remote subscriber's inbox, which tags samples
+        as they are written).
         """
         policy = policy if policy is not None else ConnPolicy()
         if not isinstance(other, InputPort):
@@ -278,7 +282,11 @@ class OutputPort(Port[T]):
                     f"cannot connect {self.qualname} ({self.type_name}) to "
                     f"{other.qualname} ({other.type_name}): types differ"
                 )
-            storage = self._storage_for(other, policy)
+            if storage is None:
+                storage = self._storage_for(other, policy)
+            elif policy.buffer_policy is not BufferPolicy.PER_CONNECTION or storage.policy != policy:
+                raise DataflowError(f"{self.qualname}: a storage given to connect_to must be made for "
+                                    f"{policy} with buffer_policy PER_CONNECTION")
             last = self._sample[1]
             if policy.init and last is not _NONE:
                 storage.write(last)

@@ -77,7 +77,7 @@ class Mailbox(Generic[T]):
         """The oldest pending item, or None after ``timeout`` s or when closed."""
         with self._cond:
             status, item = self._storage.read()
-            if status is not _NEW and not self._closed:
+            if status is not _NEW and not self._closed and timeout > 0:
                 self._cond.wait(timeout)
                 status, item = self._storage.read()
             return item if status is _NEW else None

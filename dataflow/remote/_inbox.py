@@ -1,16 +1,17 @@
-"""A subscriber's inbox on an output port (private; used by the gRPC servicer and the
-in-process subscription; no gRPC here).
+"""A subscriber's inbox on an output port (private; used by the gRPC servicer, the ipc
+reader and the in-process subscription; no gRPC here).
 
-A free-standing InputPort with the subscriber's policy is connected to the output port.
-Its data callback runs in the writer's thread right after a sample was stored: it takes
-the sample out at once and keeps it as ``(sequence, source_time_ns, value)`` in a
-policy-shaped :class:`~dataflow.remote._delivery.Mailbox`, so the sequence number and the
-timestamp always belong to the sample they travel with. The sequence number is the
-port's own write number (:meth:`OutputPort.last_sample`), the same for every subscriber:
-a jump tells a subscriber exactly how many writes it did not get. The callback is cheap (a read, a
-short lock, an ``Event.set``) and never blocks on the subscriber. Drops (full BUFFER,
-overwritten DATA/CIRCULAR sample) are counted by the mailbox; samples the consumer
-discards itself (e.g. too large to send) are added with :meth:`count_dropped`.
+The inbox *is* the connection's storage: the output port writes each sample straight
+into a policy-shaped :class:`~dataflow.remote._delivery.Mailbox` (the core's own storage
+for that policy), tagged on the way in as ``(sequence, source_time_ns, value)``, so the
+sequence number and the timestamp always belong to the sample they travel with. The
+sequence number is the port's own write number (:meth:`OutputPort.last_sample`, set just
+before the port writes to its connections), the same for every subscriber: a jump tells
+a subscriber exactly how many writes it did not get. One storage, one place that counts
+drops (full BUFFER, overwritten DATA/CIRCULAR sample, the consumer's byte budget);
+samples the consumer discards itself (e.g. too large to send) are added with
+:meth:`count_dropped`. The port's data callbacks on :attr:`inp` then run in the writer's
+thread (cheap: an ``Event.set``), and never block on the subscriber.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import threading
 import time
 from typing import Any
 
+from dataflow.buffers import Storage
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote._delivery import Mailbox
@@ -26,6 +28,40 @@ from dataflow.remote._delivery import Mailbox
 __all__ = ["Inbox"]
 
 Tagged = tuple[int, int, Any]  # (sequence, source_time_ns, value)
+_NEW = FlowStatus.NEW_DATA
+_time_ns = time.time_ns
+
+
+class _Tagging(Storage):
+    """The connection's storage: each sample written is tagged and kept in ``box``."""
+
+    __slots__ = ("_admit", "_port", "box")
+
+    def __init__(self, policy: ConnPolicy, port: OutputPort, admit: Any) -> None:
+        super().__init__(policy)
+        self.box: Mailbox[Tagged] = Mailbox(policy)
+        self._port = port
+        self._admit = admit
+
+    @property
+    def dropped(self) -> int:
+        return self.box.dropped
+
+    def write(self, value: Any) -> bool:  # the writer's thread
+        self._admit(value)
+        return self.box.put((self._port._sample[0], _time_ns(), value))  # this write's number
+
+    def read(self) -> tuple[FlowStatus, Any]:
+        item = self.box.get(0.0)
+        return (_NEW, item) if item is not None else (FlowStatus.NO_DATA, None)
+
+    def clear(self) -> None:
+        for _ in range(1_000_000):  # bounded by the policy's size
+            if self.box.get(0.0) is None:
+                return
+
+    def size(self) -> int:
+        return len(self.box)
 
 
 class Inbox:
@@ -36,45 +72,34 @@ class Inbox:
         self.policy = policy
         self.wake = threading.Event()
         self._lock = threading.Lock()
-        self._mailbox: Mailbox[Tagged] = Mailbox(policy)
-        self._seq = 0
         self._discarded = 0
+        self._storage = _Tagging(policy, port, self._admit)
         self.inp: InputPort = InputPort(port.type, name=name)
         self.inp.add_data_callback(self._on_data)
-        self.connection = port.connect_to(self.inp, policy)
-        self._on_data(self.inp)  # an init=True policy may have handed a sample over already
+        self.connection = port.connect_to(self.inp, policy, storage=self._storage)
+        if self._storage.size():
+            self.wake.set()  # an init=True policy handed a sample over already
 
-    def _on_data(self, _inp: InputPort) -> None:  # writer's thread: cheap, never blocks for long
-        with self._lock:  # one reader of self.inp at a time (several writers may call us)
-            values = []
-            for _ in range(10_000):  # bounded: the connection holds at most its size
-                status, value = self.inp.read()
-                if status is not FlowStatus.NEW_DATA:
-                    break
-                values.append(value)
-            if not values:
-                return
-            # called right after each write: the newest value read is the port's latest write
-            newest = max(self.port.last_sample()[0], self._seq + len(values))
-            now = time.time_ns()
-            for k, value in enumerate(values):
-                self._admit(value)
-                self._mailbox.put((newest - len(values) + 1 + k, now, value))
-            self._seq = newest
+    def _on_data(self, _inp: InputPort) -> None:  # the writer's thread, after the sample was kept
         self.wake.set()
 
     def _admit(self, value: Any) -> None:
-        """Called with each sample before it is kept (under the inbox's lock); a subclass
+        """Called with each sample before it is kept (in the writer's thread); a subclass
         may bound the inbox here (:meth:`limit`). Default: nothing."""
 
     def limit(self, samples: int) -> None:
         """Keep at most ``samples`` pending (within the policy's own size)."""
-        self._mailbox.limit(samples)
+        self._storage.box.limit(samples)
+
+    @property
+    def pending(self) -> int:
+        """Samples kept, not taken yet."""
+        return len(self._storage.box)
 
     @property
     def dropped(self) -> int:
-        """Samples lost: by the connection, by the policy-shaped inbox, or discarded by the consumer."""
-        return self.connection.dropped + self._mailbox.dropped + self._discarded
+        """Samples lost: by the policy-shaped inbox (its byte budget too), or discarded by the consumer."""
+        return self._storage.dropped + self._discarded
 
     def count_dropped(self, n: int = 1) -> None:
         """Count ``n`` samples the consumer had to discard."""
@@ -84,8 +109,9 @@ class Inbox:
     def take(self, limit: int = 10_000) -> list[Tagged]:
         """Every pending sample, oldest first (at most ``limit``; non-blocking)."""
         out: list[Tagged] = []
+        box = self._storage.box
         for _ in range(limit):
-            item = self._mailbox.get(0.0)
+            item = box.get(0.0)
             if item is None:
                 break
             out.append(item)
@@ -95,4 +121,4 @@ class Inbox:
         """Disconnect from the output port (idempotent)."""
         self.port.disconnect(self.inp)
         self.inp.remove_data_callback(self._on_data)
-        self._mailbox.close()
+        self._storage.box.close()

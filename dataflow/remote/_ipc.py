@@ -338,7 +338,7 @@ class _ReaderEnd:
         self.outbox = Outbox(sock, lambda: stream.take(64), self._messages, lambda: server.want_write(self),
                              lambda: server.detach_later(self))
         self.outbox.send_now(pb.SubscribeResponse(heartbeat=True, boot_id=server.boot_id).SerializeToString())
-        stream.inp.add_data_callback(self._on_data)  # after the inbox's own: it has tagged the sample
+        stream.inp.add_data_callback(self._on_data)  # the sample is in the inbox (tagged) by then
         self.outbox.pump()  # what the inbox got before (an init=True policy's sample)
 
     @property

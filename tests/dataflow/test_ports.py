@@ -296,3 +296,24 @@ def test_closing_an_old_connection_leaves_the_newer_one():
     out.connect_to(inp, ConnPolicy.buffer(2))
     old.close()
     assert out.connected() and out.write(1.0) is WriteStatus.WRITE_SUCCESS
+
+
+def test_a_connection_can_be_given_its_own_storage_for_its_policy() -> None:
+    """A remote subscriber's inbox is the connection's storage (made for its policy);
+    one made for another policy, or for a shared storage, is refused."""
+    from dataflow.buffers import make_storage
+    from dataflow.policy import BufferPolicy
+
+    out, inp = OutputPort(int, name="o"), InputPort(int, name="i")
+    policy = ConnPolicy.buffer(4)
+    storage = make_storage(policy)
+    conn = out.connect_to(inp, policy, storage=storage)
+    assert conn.storage is storage
+    out.write(7)
+    assert storage.size() == 1 and inp.read() == (FlowStatus.NEW_DATA, 7)
+    other = InputPort(int, name="j")
+    with pytest.raises(DataflowError, match="must be made for"):
+        out.connect_to(other, ConnPolicy.buffer(8), storage=make_storage(policy))
+    shared = ConnPolicy.buffer(4).with_(buffer_policy=BufferPolicy.SHARED)
+    with pytest.raises(DataflowError, match="PER_CONNECTION"):
+        out.connect_to(other, shared, storage=make_storage(shared))
