@@ -176,7 +176,8 @@ def cmd_deploy(args: argparse.Namespace) -> int:
             try:
                 from dataflow.remote.zenoh_transport import ZenohPublisher
 
-                publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns)
+                publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns,
+                                           served=(server.address, server.boot_id))
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors say what is wrong
                 _err(f"scart deploy: --zenoh: {exc}")
                 return 1

@@ -58,7 +58,8 @@ def _never_sent(exc: errors.RemoteError) -> bool:
 
 
 class GrpcSystem(System):
-    """A data-flow system reached through the name service at ``address``.
+    """A data-flow system reached through the name service at ``address`` (or through
+    ``names``, another source of lookups; ``address`` then only names it in messages).
 
     ``timeout``: deadline of every unary call (s). ``heartbeat_ms``: idle heartbeat the
     subscriptions ask for (a peer silent for 3 of them is treated as frozen).
@@ -66,12 +67,14 @@ class GrpcSystem(System):
     """
 
     def __init__(self, address: str, timeout: float = 2.0, heartbeat_ms: int = 500,
-                 security: Security | None = None) -> None:
+                 security: Security | None = None, names: Any = None) -> None:
         self.address = address
         self.timeout = timeout
         self.heartbeat_ms = heartbeat_ms
         self.security = security or Security()
-        self._ns = NameClient(address, timeout=timeout, security=self.security)
+        # lookups: the name service at ``address``, or another source with the name
+        # client's resolve/entries/close (e.g. Zenoh liveliness, ``zenoh_transport.ZenohNames``)
+        self._ns = names if names is not None else NameClient(address, timeout=timeout, security=self.security)
         self._lock = threading.Lock()
         self._channels: dict[str, tuple[grpc.Channel, df_grpc.DeployerServiceStub]] = {}
         self._where: dict[str, str] = {}

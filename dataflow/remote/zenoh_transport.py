@@ -13,6 +13,9 @@ Key scheme (documented in the README, "Transports"):
 - Liveliness tokens announce what runs: ``scart/<ns>/<component>`` for each task and
   ``scart/<ns>/<component>/<port>`` for each of its output ports. A process that dies
   takes its tokens with it, so :func:`discover` lists only live components.
+- ``scart-served/<ns>/<component>/<address>/<boot id>`` (a liveliness token per task, the
+  address percent-encoded) says which deployer serves it over gRPC, the control plane:
+  :class:`ZenohNames` answers lookups from these in place of a scart name service.
 
 ``<ns>`` is a namespace word (default ``default``), as ``__ns`` is for remapping.
 
@@ -31,12 +34,14 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import re
 import secrets
 import threading
 import time
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any
+from urllib.parse import quote, unquote
 
 from dataflow import codec
 from dataflow.policy import ConnPolicy, FlowStatus
@@ -45,12 +50,20 @@ from dataflow.remote._loss import LossCount
 from dataflow.remote.api import SampleEvent
 from dataflow.types import registry
 
-__all__ = ["DEFAULT_NS", "ZenohInput", "ZenohPublisher", "ZenohSubscription", "discover", "key_of", "open_session"]
+if TYPE_CHECKING:
+    from dataflow.remote._registry import NameEntry
+    from dataflow.remote.client import GrpcSystem
+    from dataflow.remote.security import Security
+
+__all__ = ["DEFAULT_NS", "ZenohInput", "ZenohNames", "ZenohPublisher", "ZenohSubscription", "check_endpoint",
+           "connect_zenoh", "discover", "key_of", "open_session", "served_key"]
 
 log = logging.getLogger(__name__)
 
 DEFAULT_NS = "default"
 ROOT = "scart"
+SERVED = "scart-served"  #: root of the tokens saying where a component is served
+MAX_REPLIES = 10_000  #: liveliness replies read per lookup, at most
 ENCODING_PREFIX = "scart.dataflow.v1.Value;"
 MAX_PAYLOAD = 4 * 1024 * 1024  #: bytes of one sample a subscriber decodes at most (the gRPC path's limit)
 _WORD = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
@@ -68,6 +81,25 @@ def key_of(ns: str, component: str, port: str | None = None) -> str:
     return "/".join([ROOT, *parts])
 
 
+def served_key(ns: str, component: str, address: str, boot_id: str) -> str:
+    """The liveliness token saying that the deployer at ``address`` (gRPC), process
+    ``boot_id``, serves ``component``."""
+    key_of(ns, component)
+    return f"{SERVED}/{ns}/{component}/{quote(address, safe='')}/{quote(boot_id, safe='')}"
+
+
+def check_endpoint(endpoint: str, insecure: bool = False) -> None:
+    """Raise ``ValueError`` for an endpoint that is not ``PROTOCOL/ADDRESS`` (with a port
+    for the IP protocols), or not loopback (nor a Unix socket) unless ``insecure``."""
+    if not _ENDPOINT.match(endpoint) or (endpoint.startswith(("tcp/", "udp/", "tls/", "quic/"))
+                                         and not re.search(r":\d+$", endpoint.split("#")[0])):
+        raise ValueError(f"Zenoh endpoint {endpoint!r}: expected PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447 "
+                         "or unixsock-stream/PATH")
+    if not (insecure or endpoint.startswith("unixsock-stream/") or _LOOPBACK.match(endpoint)):
+        raise ValueError(f"Zenoh endpoint {endpoint!r} is not loopback: Zenoh traffic carries no scart "
+                         "token (use Zenoh's TLS and access control), so it needs --zenoh-insecure")
+
+
 def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecure: bool = False,
                  mode: str = "peer") -> Any:
     """A Zenoh session in ``mode`` (``peer``; ``router`` for a fleet's router; ``client``
@@ -81,13 +113,7 @@ def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecu
         raise ValueError(f"Zenoh mode {mode!r}: expected peer, router or client")
     connect, listen = list(connect), list(listen) or (["tcp/127.0.0.1:0"] if mode != "client" else [])
     for endpoint in connect + listen:
-        if not _ENDPOINT.match(endpoint) or (endpoint.startswith(("tcp/", "udp/", "tls/", "quic/"))
-                                             and not re.search(r":\d+$", endpoint.split("#")[0])):
-            raise ValueError(f"Zenoh endpoint {endpoint!r}: expected PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447 "
-                             "or unixsock-stream/PATH")
-        if not (insecure or endpoint.startswith("unixsock-stream/") or _LOOPBACK.match(endpoint)):
-            raise ValueError(f"Zenoh endpoint {endpoint!r} is not loopback: Zenoh traffic carries no scart "
-                             "token (use Zenoh's TLS and access control), so it needs --zenoh-insecure")
+        check_endpoint(endpoint, insecure)
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
@@ -108,7 +134,9 @@ class ZenohPublisher:
     writer's thread as they are written (see the module docstring). :meth:`close`
     undeclares everything (idempotent, also after a failure half-way)."""
 
-    def __init__(self, deployer: Any, session: Any, ns: str = DEFAULT_NS) -> None:
+    def __init__(self, deployer: Any, session: Any, ns: str = DEFAULT_NS, served: tuple[str, str] | None = None) -> None:
+        """``served``: ``(address, boot id)`` of the deployer's gRPC server, announced with
+        each task (:func:`served_key`) so that :class:`ZenohNames` finds it."""
         import zenoh
 
         self.ns = ns
@@ -119,6 +147,8 @@ class ZenohPublisher:
         try:
             for task in deployer.tasks():
                 self._tokens.append(session.liveliness().declare_token(key_of(ns, task.name)))
+                if served is not None:
+                    self._tokens.append(session.liveliness().declare_token(served_key(ns, task.name, *served)))
                 for port in task.ports().values():
                     if port.is_input:
                         continue
@@ -311,3 +341,81 @@ def discover(session: Any, ns: str = DEFAULT_NS, timeout: float = 1.0) -> dict[s
         elif len(parts) == 2:
             found.setdefault(parts[0], set()).add(parts[1])
     return {name: sorted(ports) for name, ports in sorted(found.items())}
+
+
+class ZenohNames:
+    """Data-flow lookups answered from Zenoh liveliness tokens, in place of a scart name
+    service: which deployer serves a component (``scart deploy --zenoh`` announces its
+    gRPC address and boot id with each task, :func:`served_key`). It has the name
+    client's ``resolve``/``entries``/``close``, so a :class:`GrpcSystem` takes it as its
+    name service (:func:`connect_zenoh`). Tokens come from any Zenoh peer: an address
+    that is not loopback is ignored unless ``insecure`` (the system would send its token
+    there), as is anything malformed. The session stays the caller's.
+    """
+
+    def __init__(self, session: Any, ns: str = DEFAULT_NS, timeout: float = 1.0, insecure: bool = False) -> None:
+        key_of(ns, "x")  # a namespace that is one plain key chunk (no wildcards)
+        self.session = session
+        self.ns = ns
+        self.timeout = timeout
+        self.insecure = insecure
+
+    def _look(self, component: str, timeout: float | None) -> list[NameEntry]:
+        """The entries of ``component`` (``*``: of every one), one per component, sorted."""
+        from dataflow.remote._registry import NameEntry
+        from dataflow.remote.security import is_loopback
+
+        prefix = f"{SERVED}/{self.ns}/"
+        found: dict[str, NameEntry] = {}
+        replies = self.session.liveliness().get(f"{prefix}{component}/*/*", timeout=timeout or self.timeout)
+        for _, reply in zip(range(MAX_REPLIES), replies):
+            if reply.ok is None:
+                continue
+            parts = str(reply.ok.key_expr)[len(prefix):].split("/")
+            if len(parts) != 3 or not _WORD.match(parts[0]):
+                continue
+            name, address, boot = parts[0], unquote(parts[1]), unquote(parts[2])
+            host, colon, port = address.rpartition(":")
+            if not colon or not port.isdigit() or not 0 < int(port) < 65536 or len(address) > 260 or len(boot) > 64:
+                log.debug("ignoring a malformed Zenoh announcement %s", reply.ok.key_expr)
+                continue
+            if not (self.insecure or is_loopback(host.strip("[]"))):
+                log.warning("ignoring %s announced at %s on Zenoh: not loopback (needs insecure)", name, address)
+                continue
+            found.setdefault(name, NameEntry(name, address, boot, math.inf))
+        return [found[name] for name in sorted(found)]
+
+    def entries(self, timeout: float | None = None) -> list[NameEntry]:
+        """Every component served in the namespace, sorted (one per component)."""
+        return self._look("*", timeout)
+
+    def resolve(self, component: str, timeout: float | None = None) -> NameEntry:
+        """Where ``component`` is served; ``RemoteNotFoundError`` listing the known names."""
+        from dataflow.remote import errors
+
+        try:
+            key_of(self.ns, component)
+        except ValueError:
+            found: list[NameEntry] = []
+        else:
+            found = self._look(component, timeout)
+        if not found:
+            known = ", ".join(e.component for e in self.entries(timeout)[:20]) or "none"
+            raise errors.RemoteNotFoundError(f"no component named {component[:80]!r} is served on Zenoh "
+                                             f"(namespace {self.ns}); known: {known}", "NOT_FOUND", "zenoh")
+        return found[0]
+
+    def close(self) -> None:
+        """Nothing to release (the session is the caller's)."""
+
+
+def connect_zenoh(session: Any, ns: str = DEFAULT_NS, timeout: float = 2.0, heartbeat_ms: int = 500,
+                  security: Security | None = None, insecure: bool = False) -> GrpcSystem:
+    """A data-flow system whose lookups go through Zenoh (:class:`ZenohNames`) instead of
+    a scart name service; calls, subscriptions and links go to the deployers as usual."""
+    from dataflow.remote.client import GrpcSystem
+    from dataflow.remote.security import Security
+
+    return GrpcSystem(f"zenoh:{ns}", timeout=timeout, heartbeat_ms=heartbeat_ms,
+                      security=security if security is not None else Security.from_env(),
+                      names=ZenohNames(session, ns, timeout=timeout, insecure=insecure))

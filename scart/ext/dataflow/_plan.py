@@ -46,6 +46,9 @@ class Attributes:
     period: float | None
     mapping: dict[str, str]
     problems: tuple[str, ...]
+    #: Zenoh endpoint whose liveliness tokens answer the lookups (no name service), and its namespace.
+    zenoh: str | None = None
+    zenoh_ns: str = "default"
 
 
 MIN_PERIOD_S = 0.001  # smallest polling period of a service binding
@@ -108,7 +111,23 @@ def attributes(model: Binding) -> Attributes:
         if parsed is None or not port_in_range(parsed[1]):
             problems.append(f'ns {ns!r}: expected the name service as "host:port" (port 1..65535)')
             ns = None
-    return Attributes(component, ns, policy, period, mapping, tuple(problems))
+    zenoh = (a.get("zenoh") or "").strip() or None
+    zenoh_ns = (a.get("zenoh-ns") or "default").strip()
+    if zenoh is not None:
+        if ns is not None:
+            problems.append("give either ns (a scart name service) or zenoh (lookups on Zenoh), not both")
+        from dataflow.remote.zenoh_transport import (  # no Zenoh import
+            check_endpoint,
+            key_of,
+        )
+
+        try:
+            check_endpoint(zenoh)
+            key_of(zenoh_ns, "x")
+        except ValueError as exc:
+            problems.append(f"zenoh={zenoh!r} zenoh-ns={zenoh_ns!r}: {exc}")
+            zenoh = None
+    return Attributes(component, ns, policy, period, mapping, tuple(problems), zenoh, zenoh_ns)
 
 
 def _signature(iface: InterfaceInfo, op: str) -> tuple[list[Any], Any] | None:
@@ -203,11 +222,11 @@ def static_ports(s: Attributes, context: CheckContext) -> tuple[dict[str, PortIn
     """Ports to check against at load time and where they came from ("" when unknown):
     the task class of this contribution, else (only with ``settings.online``) the task as
     the name service knows it."""
-    if s.ns is None:
+    if s.ns is None and s.zenoh is None:
         cls = local_task_class(context, s.component)
         if cls is not None:
             return class_ports(cls), "local"
-    if not context.settings.online:
+    if not context.settings.online or s.zenoh is not None:  # a Zenoh lookup is made when the binding starts
         return None, ""
     ns = s.ns or context.settings.ns_address
     remap = context.settings.remap  # the task runs under its remapped name, its ports too

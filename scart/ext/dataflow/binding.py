@@ -162,13 +162,16 @@ class _Link:
         self.host = host_of(runtime)
         node = runtime.assembly.nodes.get(s.component)
         bridges = {prefix + el.attributes.get("name", "") for prefix, el in runtime.assembly.elements_of("bridge")}
-        self.local = s.ns is None and ((node is not None and node.kind == TASK_KIND) or s.component in bridges)
+        self.local = s.ns is None and s.zenoh is None and (
+            (node is not None and node.kind == TASK_KIND) or s.component in bridges)
         self.task = runtime.settings.remap.component(s.component)  # the name it runs under
         self._system: Any = None
         self._proxy: Any = None
         self._lock = threading.Lock()
         self._boot_id: str | None = None
         self._names: Any = None
+        self._zenoh: Any = None  # the Zenoh session of the lookups (zenoh="ENDPOINT")
+        self._zenoh_lock = threading.Lock()
         self._looked = 0.0
         self.state = "waiting"
 
@@ -176,6 +179,30 @@ class _Link:
     def ns(self) -> str:
         """The name service used (remote tasks)."""
         return self.s.ns or self.host.ns_address
+
+    @property
+    def where(self) -> str:
+        """Where the task is looked up, for messages."""
+        return f"Zenoh {self.s.zenoh} (namespace {self.s.zenoh_ns})" if self.s.zenoh else self.ns
+
+    def _lookups(self) -> Any:
+        """A new source of lookups: the name service, or Zenoh liveliness (one session, opened once)."""
+        timeout = self.runtime.settings.timeout
+        if self.s.zenoh is None:
+            from dataflow.remote.naming import NameClient
+
+            return NameClient(self.ns, timeout=timeout, security=self.runtime.settings.security)
+        from dataflow.remote.zenoh_transport import ZenohNames, open_session
+
+        with self._zenoh_lock:
+            if self._zenoh is None:
+                try:
+                    self._zenoh = open_session(connect=[self.s.zenoh], mode="client")
+                except Exception as exc:  # noqa: BLE001 - Zenoh's own error: not reachable (yet)
+                    from dataflow.remote.errors import UnavailableError
+
+                    raise UnavailableError(f"Zenoh {self.s.zenoh}: {exc}", "UNAVAILABLE", self.s.zenoh) from None
+            return ZenohNames(self._zenoh, self.s.zenoh_ns, timeout=timeout)
 
     def proxy(self) -> Any:
         """The component proxy (created on first success); raises ``DataflowError``."""
@@ -190,32 +217,29 @@ class _Link:
                     else:
                         from dataflow.remote.client import GrpcSystem
 
-                        self._system = GrpcSystem(self.ns, timeout=self.runtime.settings.timeout,
-                                                  security=self.runtime.settings.security)
+                        self._system = GrpcSystem(self.where, timeout=self.runtime.settings.timeout,
+                                                  security=self.runtime.settings.security, names=self._lookups())
                 self._proxy = self._system.component(self.task)
                 self._set_state("connected", "")
             return self._proxy
 
     def _set_state(self, state: str, detail: str) -> None:
         if state != self.state:
-            where = "in this process" if self.local else f"through {self.ns}"
+            where = "in this process" if self.local else f"through {self.where}"
             log.info("binding.dataflow %s: task %s %s (%s)%s", self.what, self.task, state, where, detail)
             self.state = state
 
     def watch(self) -> bool:
-        """One look at the name service: logs transitions; True while the task is registered."""
+        """One look at the name service (or Zenoh): logs transitions; True while the task is registered."""
         if self.local:
             return self.task in self.host.deployer.names()
-        from dataflow.remote.naming import NameClient
-
         now = time.monotonic()
         if self.state == "connected" and self._boot_id is not None and now - self._looked < 1.0:
             return True  # connected: the proxies reconnect by themselves; look once a second
         self._looked = now
-        if self._names is None:
-            self._names = NameClient(self.ns, timeout=self.runtime.settings.timeout,
-                                     security=self.runtime.settings.security)
         try:
+            if self._names is None:
+                self._names = self._lookups()
             entry = self._names.resolve(self.task)
         except DataflowError as exc:
             if self.state != "waiting":
@@ -237,6 +261,10 @@ class _Link:
             system.close()
         if self._names is not None:
             self._names.close()
+        with self._zenoh_lock:
+            session, self._zenoh = self._zenoh, None
+        if session is not None:
+            session.close()
 
 
 class DataflowReferenceBinding(ReferenceBinding):

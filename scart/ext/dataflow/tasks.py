@@ -239,6 +239,8 @@ class Link:
     ns: str | None
     where: str
     name: str | None = None  # the link's name (``scart links``); default "a.out->b.in"
+    zenoh: str | None = None  # the source is read from its Zenoh key through this endpoint
+    zenoh_ns: str = "default"
 
     @property
     def text(self) -> str:
@@ -263,9 +265,24 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
         else:
             ends.append((prefix + parsed[0], parsed[1]))
     policy = parse_policy(el.attributes, problems, "<scart:connect>: ")
+    zenoh = (el.attributes.get("zenoh") or "").strip() or None
+    zenoh_ns = (el.attributes.get("zenoh-ns") or "default").strip()
+    if zenoh is not None:
+        from dataflow.remote.zenoh_transport import check_endpoint, key_of  # no Zenoh import
+
+        if el.attributes.get("ns"):
+            problems.append("<scart:connect>: give either ns (a scart name service) or zenoh (the source's "
+                            "Zenoh key), not both")
+        try:
+            check_endpoint(zenoh)
+            if len(ends) == 2:
+                key_of(zenoh_ns, *ends[0])
+        except ValueError as exc:
+            problems.append(f"<scart:connect> zenoh={zenoh!r} zenoh-ns={zenoh_ns!r}: {exc}")
     if problems:
         return None, problems
-    return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc), el.attributes.get("name") or None), []
+    return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc), el.attributes.get("name") or None,
+                zenoh, zenoh_ns), []
 
 
 def links_of(elements: list[tuple[str, Element]], remap: Remap | None = None) -> list[Link]:
@@ -301,8 +318,15 @@ class ConnectElement(ElementProvider):
         ends: list[PortInfo | None] = []
         local = 0
         bridges = bridge_ends(assembly)
+        if link.zenoh is not None and (link.source[0] in assembly.nodes or link.source[0] in bridges):
+            add(TASK_CONNECT, f"<scart:connect zenoh=...> from: {link.source[0]!r} is in this composite; with zenoh "
+                "the source is a task of another deployer, read from its Zenoh key (scart deploy --zenoh)")
+            return
         for (comp, port), want, role in ((link.source, "out", "from"), (link.sink, "in", "to")):
             node = assembly.nodes.get(comp)
+            if node is None and link.zenoh is not None:  # the Zenoh source: nothing to look at before start
+                ends.append(None)
+                continue
             if node is None and comp in bridges:  # a bridge of this composite: its ports are its inputs and output
                 local += 1
                 inputs, output = bridges[comp]
@@ -390,7 +414,10 @@ class ConnectParticipant(Participant):
         remap = runtime.settings.remap
         tasks = {remap.component(n) for n in runtime.assembly.nodes} | {remap.component(b) for b in bridge_ends(runtime.assembly)}
         self._local = local or (lambda name: name in tasks)  # is this task (as it runs) in this runtime?
-        self._remote = [lk for lk in links if not self._is_local(lk)]
+        self._remote = [lk for lk in links if not self._is_local(lk) and lk.zenoh is None]
+        self._on_zenoh = [lk for lk in links if lk.zenoh is not None]
+        self._sessions: dict[str, Any] = {}  # Zenoh endpoint -> session
+        self._inputs: list[Any] = []  # ZenohInput of each link read from Zenoh
         self._made: dict[Link, str] = {}  # link -> boot id of the remote end it was made with
         self._watcher: Watcher | None = None
         self._clients: dict[str, Any] = {}
@@ -407,9 +434,33 @@ class ConnectParticipant(Participant):
         for link in self.links:  # an end not deployed yet (a bridge) connects when it is added
             if self._is_local(link) and link.source[0] in names and link.sink[0] in names:
                 deployer.connect(".".join(link.source), ".".join(link.sink), link.policy, name=link.name)
+        try:
+            for link in self._on_zenoh:
+                self._read_zenoh(link, deployer)
+        except BaseException:
+            self._close_zenoh()
+            raise
         if self._remote:
             self._watcher = Watcher("scart-connect", self._step, interval=0.25)
             self._watcher.start()
+
+    def _read_zenoh(self, link: Link, deployer: Any) -> None:
+        """Feed the link's input port from the source's Zenoh key (samples come whenever the
+        source publishes; Zenoh matches them when it appears)."""
+        from dataflow.remote.zenoh_transport import ZenohInput, open_session
+
+        comp, port = link.sink
+        target = deployer.task(comp).ports().get(port) if comp in deployer.names() else None
+        if target is None or not target.is_input:
+            raise DataflowError(f"connect {link.text} ({link.where}): {comp}.{port} is no input port of this runtime")
+        try:
+            session = self._sessions.get(link.zenoh)  # type: ignore[arg-type]
+            if session is None:
+                session = self._sessions[link.zenoh] = open_session(connect=[link.zenoh], mode="client")  # type: ignore[index]
+            self._inputs.append(ZenohInput(session, *link.source, target, link.policy, link.zenoh_ns))
+        except Exception as exc:  # noqa: BLE001 - Zenoh's own errors: say which link and endpoint
+            raise DataflowError(f"connect {link.text} ({link.where}): Zenoh {link.zenoh}: {exc}") from exc
+        log.info("connect %s: reading %s.%s from Zenoh %s", link.text, *link.source, link.zenoh)
 
     def _client(self, ns: str) -> Any:
         from dataflow.remote.naming import NameClient
@@ -488,3 +539,13 @@ class ConnectParticipant(Participant):
         for client in self._clients.values():
             client.close()
         self._clients.clear()
+        self._close_zenoh()
+
+    def _close_zenoh(self) -> None:
+        """Stop reading from Zenoh, then close its sessions (idempotent)."""
+        inputs, self._inputs = self._inputs, []
+        for inp in inputs:
+            inp.close()
+        sessions, self._sessions = dict(self._sessions), {}
+        for session in sessions.values():
+            session.close()

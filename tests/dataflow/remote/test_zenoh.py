@@ -16,6 +16,7 @@ from support import wait_until
 from support.remote import start_scart, stop_process, subprocess_env
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
+from dataflow.remote import errors
 
 zenoh_transport = pytest.importorskip("dataflow.remote.zenoh_transport")
 pytest.importorskip("zenoh")
@@ -164,10 +165,160 @@ def test_deploy_ls_and_echo_over_zenoh_without_a_name_service(tmp_path) -> None:
         assert echoed.returncode == 0 and len(ticks) == 2 and ticks[1] > ticks[0] > 0
         via_router = ["--zenoh", "--zenoh-connect", router_at]
         assert json.loads(_scart("ls", "--json", *via_router).stdout) == listed
+        # the Python API: lookups from Zenoh, then calls and a subscription to the deployer
+        client = open_session(connect=[router_at], mode="client")
+        system = zenoh_transport.connect_zenoh(client, timeout=5.0)
+        seen = Recorder()
+        wait_until(lambda: system.component_names() == ["zp"], timeout=15, message="zp not announced")
+        assert system.component("zp").call("add", 1.0, 2.0) == 3.0
+        sub = system.component("zp").subscribe("ticks", seen)
+        wait_until(lambda: len(seen.values()) >= 2, timeout=10, message="no ticks through a Zenoh lookup")
+        assert sub.transport == "ipc"  # the samples go the fastest way; only the lookup was Zenoh's
+        sub.close()
         proc.send_signal(signal.SIGKILL)  # its tokens go with the process
         proc.wait(timeout=10)
         wait_until(lambda: json.loads(_scart("ls", "--json", *via_router).stdout or "null") == [], timeout=20,
                    message="a killed deployer is still announced")
+        with pytest.raises(errors.RemoteNotFoundError, match="no component named 'zp' is served on Zenoh"):
+            system.component("zp")
+        system.close()
+        client.close()
     finally:
         stop_process(proc, signal.SIGKILL)
         router.close()
+
+
+def test_zenoh_lookups_take_only_loopback_deployers_unless_insecure(tmp_path) -> None:
+    """Anyone on Zenoh may announce a component: a routable address (where the system would
+    send its token) is ignored unless insecure, and a malformed announcement always is."""
+    here = f"unixsock-stream/{tmp_path}/a.sock"
+    a = open_session(listen=[here])
+    b = open_session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
+    served = zenoh_transport.served_key
+    tokens = [a.liveliness().declare_token(key) for key in (
+        served("lab", "near", "127.0.0.1:50051", "b1"), served("lab", "far", "10.1.2.3:50051", "b2"),
+        "scart-served/lab/odd/no-port/b3", "scart-served/lab/bad/127.0.0.1%3A99999/b4")]
+    try:
+        insecure = zenoh_transport.ZenohNames(b, "lab", timeout=2.0, insecure=True)
+        wait_until(lambda: [e.component for e in insecure.entries()] == ["far", "near"], timeout=10,
+                   message="the announcements did not arrive")  # the malformed ones never count
+        assert insecure.resolve("far").address == "10.1.2.3:50051"
+        names = zenoh_transport.ZenohNames(b, "lab", timeout=2.0)
+        assert [(e.component, e.address, e.boot_id) for e in names.entries()] == [("near", "127.0.0.1:50051", "b1")]
+        with pytest.raises(errors.RemoteNotFoundError, match="known: near"):
+            names.resolve("far")
+    finally:
+        for token in tokens:
+            token.undeclare()
+        b.close()
+        a.close()
+
+
+PROBE = """
+from typing import Protocol
+
+import scart
+from dataflow import FlowStatus, InputPort, TaskContext, operation
+
+
+class PingerPorts(Protocol):
+    def input(self, value: float) -> None: ...
+    def output(self) -> float: ...
+
+
+class Logged(Protocol):
+    def logged(self) -> list[int]: ...
+
+
+class Probe(Protocol):
+    def echo(self, value: float) -> float: ...
+    def ticks_seen(self) -> list[int]: ...
+
+
+class Logger(TaskContext):
+    ticks = InputPort(int, event=True)
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.seen: list[int] = []
+
+    def update_hook(self) -> None:
+        for _ in range(1000):
+            flow, value = self.ticks.read()
+            if flow is not FlowStatus.NEW_DATA:
+                return
+            self.seen.append(value)
+
+    @operation
+    def logged(self) -> list[int]:
+        return list(self.seen)
+
+
+@scart.component(services=[Probe])
+class ProbeImpl:
+    pinger: PingerPorts = scart.reference()
+    logger: Logged = scart.reference()
+
+    def echo(self, value: float) -> float:
+        self.pinger.input(value)
+        return self.pinger.output()
+
+    def ticks_seen(self) -> list[int]:
+        return self.logger.logged()
+"""
+
+
+def test_binding_dataflow_finds_its_task_on_zenoh_without_a_name_service(tmp_path) -> None:
+    """``<scart:binding.dataflow zenoh="ENDPOINT">``: the task is looked up through Zenoh
+    liveliness (the composite's runtime has no name service to ask), then written and read."""
+    from support.sca import composite, write
+
+    import scart
+
+    proc, line = start_scart(["deploy", "support.remote:Pinger", "--name", "zp", "--period", "0.01",
+                              "--ns", "127.0.0.1:0", "--zenoh"], ready="serving")
+    try:
+        endpoint = line.rpartition("listening on ")[2]
+        path = write(tmp_path, {"z.composite": composite(f"""
+            <component name="logger"><scart:implementation.task class="zprobe:Logger"/></component>
+            <scart:connect from="zp.ticks" to="logger.ticks" policy="buffer:64" zenoh="{endpoint}"/>
+            <component name="probe"><scart:implementation.python class="zprobe:ProbeImpl"/>
+              <reference name="pinger"><scart:binding.dataflow component="zp" zenoh="{endpoint}"/></reference>
+              <reference name="logger" target="logger"/>
+            </component>"""), "zprobe.py": PROBE}, with_components=False)
+        settings = scart.Settings(ns="127.0.0.1:1")  # nothing answers there: only Zenoh can find zp
+        with scart.Runtime.from_file(path, settings=settings) as rt:
+            probe = rt.service("probe/Probe")
+            wait_until(lambda: _echo(probe, 2.5) == 2.5, timeout=20, message="zp never answered through Zenoh")
+            # <scart:connect zenoh=...>: zp.ticks read from its Zenoh key into the local task
+            wait_until(lambda: len(probe.ticks_seen()) >= 3, timeout=20, message="no ticks came over Zenoh")
+            seen = probe.ticks_seen()
+            assert seen == sorted(seen) and seen[0] > 0  # the deployer's counter, in order
+    finally:
+        stop_process(proc, signal.SIGKILL)
+
+
+def _echo(probe, value: float) -> float | None:
+    try:
+        return probe.echo(value)
+    except Exception:  # noqa: BLE001 - not connected yet: the binding says so until it is
+        return None
+
+
+@pytest.mark.parametrize(("attrs", "words"), [
+    ('from="zp.ticks" zenoh="tcp/10.0.0.1:7447"', "Zenoh endpoint 'tcp/10.0.0.1:7447' is not loopback"),
+    ('from="zp.ticks" zenoh="unixsock-stream/z.sock" ns="127.0.0.1:1"', "give either ns"),
+    ('from="src.out" zenoh="unixsock-stream/z.sock"', "'src' is in this composite; with zenoh the source is a task"),
+])
+def test_a_zenoh_connect_is_checked_at_load(tmp_path, attrs: str, words: str) -> None:
+    import re
+
+    import scart
+    from support.sca import composite, write
+
+    path = write(tmp_path, {"c.composite": composite(f"""
+        <component name="logger"><scart:implementation.task class="zprobe:Logger"/></component>
+        <component name="src"><scart:implementation.task class="support.remote:Pinger"/></component>
+        <scart:connect {attrs} to="logger.ticks"/>"""), "zprobe.py": PROBE}, with_components=False)
+    with pytest.raises(scart.ScdlError, match=re.escape(words)):
+        scart.Runtime.from_file(path)
