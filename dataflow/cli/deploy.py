@@ -22,6 +22,7 @@ import argparse
 import importlib
 import os
 import signal
+import socket
 import sys
 import threading
 from typing import Any
@@ -177,7 +178,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
                 from dataflow.remote.zenoh_transport import ZenohPublisher
 
                 publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns,
-                                           served=(server.address, server.boot_id))
+                                           served=(_announced(server.listen_address), server.boot_id))
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors say what is wrong
                 _err(f"scart deploy: --zenoh: {exc}")
                 return 1
@@ -205,6 +206,16 @@ def cmd_deploy(args: argparse.Namespace) -> int:
         deployer.stop_all()
         deployer.cleanup_all()
     return 0
+
+
+def _announced(listen: str) -> str:
+    """The address to announce for a server listening on ``listen``: as bound, or for a
+    wildcard (every interface) this host's name, which other hosts can reach (a loopback
+    address would send them to their own machine)."""
+    host, _, port = listen.rpartition(":")
+    if host.strip("[]") in ("0.0.0.0", "::", ""):
+        return f"{socket.gethostname()}:{port}"  # its name, never a loopback one (getfqdn may say localhost)
+    return listen
 
 
 def _connect_at_start(server: Any, args: argparse.Namespace) -> None:

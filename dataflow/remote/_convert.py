@@ -11,6 +11,7 @@ from typing import Any
 
 from dataflow.policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
 from dataflow.remote._proto import df as pb
+from dataflow.remote.transport import MAX_NAME
 
 _CONN_TO_MSG = MappingProxyType({
     ConnType.DATA: pb.ConnType.Value("CONN_TYPE_DATA"),
@@ -53,7 +54,7 @@ def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
         lock_policy=_member(LockPolicy, "lock_policy", msg.lock_policy, LockPolicy.LOCK_FREE),
         buffer_policy=_member(BufferPolicy, "buffer_policy", msg.buffer_policy, BufferPolicy.PER_CONNECTION),
         mandatory=msg.mandatory if msg.HasField("mandatory") else True,
-        transport=msg.transport[:16],  # an unknown name: ValueError naming the known ones
+        transport=msg.transport[:MAX_NAME + 1],  # unknown or too long: ValueError naming the known ones
     )
 
 

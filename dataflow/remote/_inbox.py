@@ -6,8 +6,9 @@ into a policy-shaped :class:`~dataflow.remote._delivery.Mailbox` (the core's own
 for that policy), tagged on the way in as ``(sequence, source_time_ns, value)``, so the
 sequence number and the timestamp always belong to the sample they travel with. The
 sequence number is the port's own write number (:meth:`OutputPort.last_sample`, set just
-before the port writes to its connections), the same for every subscriber: a jump tells
-a subscriber exactly how many writes it did not get. One storage, one place that counts
+before the port writes to its connections; kept increasing when several threads write
+at once), the same for every subscriber: a jump tells a subscriber how many writes it
+did not get. A slow subscriber never fails the writer's ``write``: its inbox drops. One storage, one place that counts
 drops (full BUFFER, overwritten DATA/CIRCULAR sample, the consumer's byte budget);
 samples the consumer discards itself (e.g. too large to send) are added with
 :meth:`count_dropped`. The port's data callbacks on :attr:`inp` then run in the writer's
@@ -16,16 +17,19 @@ thread (cheap: an ``Event.set``), and never block on the subscriber.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from typing import Any
 
 from dataflow.buffers import Storage
-from dataflow.policy import ConnPolicy, FlowStatus
+from dataflow.policy import BufferPolicy, ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote._delivery import Mailbox
 
 __all__ = ["Inbox"]
+
+log = logging.getLogger(__name__)
 
 Tagged = tuple[int, int, Any]  # (sequence, source_time_ns, value)
 _NEW = FlowStatus.NEW_DATA
@@ -33,23 +37,41 @@ _time_ns = time.time_ns
 
 
 class _Tagging(Storage):
-    """The connection's storage: each sample written is tagged and kept in ``box``."""
+    """The connection's storage: each sample written is tagged and kept in ``box``.
 
-    __slots__ = ("_admit", "_port", "box")
+    Never fails the writer: a full inbox drops (counted) and still answers True, and an
+    error of the consumer's ``admit`` is logged, never raised. Sequence numbers only go
+    up: with several writers at once a port's newest number may be one a later writer
+    took (the sample it travels with is then one write off; nothing is lost or repeated).
+    """
+
+    __slots__ = ("_admit", "_last", "_lock", "_port", "_warned", "box")
 
     def __init__(self, policy: ConnPolicy, port: OutputPort, admit: Any) -> None:
         super().__init__(policy)
         self.box: Mailbox[Tagged] = Mailbox(policy)
         self._port = port
         self._admit = admit
+        self._lock = threading.Lock()
+        self._last = 0
+        self._warned = False
 
     @property
     def dropped(self) -> int:
         return self.box.dropped
 
-    def write(self, value: Any) -> bool:  # the writer's thread
-        self._admit(value)
-        return self.box.put((self._port._sample[0], _time_ns(), value))  # this write's number
+    def write(self, value: Any) -> bool:  # the writer's thread: never raises, never blocks for long
+        try:
+            self._admit(value)
+        except Exception:  # noqa: BLE001 - a subscriber's trouble must never reach the writer
+            if not self._warned:
+                self._warned = True
+                log.exception("subscriber inbox of %s: measuring a sample failed", self._port.qualname)
+        with self._lock:  # one number per sample, increasing, whatever the writers' order
+            number = max(self._port._sample[0], self._last + 1)  # this write's number
+            self._last = number
+            self.box.put((number, _time_ns(), value))
+        return True
 
     def read(self) -> tuple[FlowStatus, Any]:
         item = self.box.get(0.0)
@@ -73,10 +95,12 @@ class Inbox:
         self.wake = threading.Event()
         self._lock = threading.Lock()
         self._discarded = 0
-        self._storage = _Tagging(policy, port, self._admit)
+        # the inbox belongs to this subscriber alone, and never fails the writer's write
+        own = policy.with_(buffer_policy=BufferPolicy.PER_CONNECTION, mandatory=False)
+        self._storage = _Tagging(own, port, self._admit)
         self.inp: InputPort = InputPort(port.type, name=name)
         self.inp.add_data_callback(self._on_data)
-        self.connection = port.connect_to(self.inp, policy, storage=self._storage)
+        self.connection = port.connect_to(self.inp, own, storage=self._storage)
         if self._storage.size():
             self.wake.set()  # an init=True policy handed a sample over already
 

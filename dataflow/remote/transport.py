@@ -24,14 +24,16 @@ one with a line in its ``pyproject.toml`` and no change to scart::
     mine = "my_package.transport:MyTransport"
 
 The entry point names a :class:`Transport` subclass (made with no arguments) or
-instance whose :attr:`~Transport.name` is the entry point's name. It is loaded when a
-connection first asks for it (or for ``auto``, when it takes part). No gRPC is imported
-here.
+instance whose :attr:`~Transport.name` is the entry point's name (a lower-case word of at
+most :data:`MAX_NAME` characters). It is loaded when a connection first asks for it, or
+for ``auto`` (which loads every registered transport to learn its rank); one that cannot
+be loaded is not tried again. No gRPC is imported here.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 import threading
 from abc import ABC
 from collections.abc import Callable
@@ -58,6 +60,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ENTRY_POINT_GROUP = "scart.transports"
+MAX_NAME = 32  #: characters of a transport's name, at most (it travels in every remote policy)
+NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
 
 #: scart's own transports, used also when its entry points are not installed (a source tree).
 BUILTIN = MappingProxyType({"ipc": "dataflow.remote._transports:IpcTransport",
@@ -173,9 +177,10 @@ class TransportRegistry:
     loaded once, when first asked for. Thread-safe. :data:`default` is the one connections use."""
 
     def __init__(self) -> None:
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # a plug-in's import may build a policy naming a transport
         self._found: dict[str, EntryPoint] | None = None
         self._loaded: dict[str, Transport] = {}
+        self._failed: dict[str, TransportError] = {}  # not imported again on every reconnect
         self._warned: set[str] = set()
 
     def _entry_points(self) -> dict[str, EntryPoint]:
@@ -183,6 +188,10 @@ class TransportRegistry:
             if self._found is None:
                 found: dict[str, EntryPoint] = {}
                 for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: (e.name, e.value)):
+                    if not NAME.match(ep.name):
+                        log.warning("transport entry point %r (%s) ignored: a name is a lower-case word of at "
+                                    "most %d characters", ep.name, ep.value, MAX_NAME)
+                        continue
                     if ep.name in found and found[ep.name].value != ep.value:
                         log.warning("transport %r is provided twice (%s and %s); using %s", ep.name,
                                     found[ep.name].value, ep.value, found[ep.name].value)
@@ -205,28 +214,40 @@ class TransportRegistry:
             transport = self._loaded.get(name)
             if transport is not None:
                 return transport
+            if name in self._failed:
+                raise self._failed[name]
             ep = found.get(name)
             if ep is None:
                 raise TransportError(f"no transport {name!r}; known: {', '.join(sorted(found))}")
             try:
-                obj = ep.load()
-                transport = obj() if isinstance(obj, type) else obj
-            except Exception as exc:
-                dist = getattr(getattr(ep, "dist", None), "name", None) or "scart"
-                raise TransportError(f"transport {name!r} (entry point {ep.value!r} of {dist}) cannot be loaded: "
-                                     f"{type(exc).__name__}: {exc}") from exc
-            if not isinstance(transport, Transport):
-                raise TransportError(f"transport {name!r} ({ep.value}) is a {type(transport).__qualname__}, "
-                                     "not a dataflow.remote.transport.Transport")
-            if transport.name != name:
-                raise TransportError(f"transport {name!r} ({ep.value}) says its name is {transport.name!r}")
+                transport = self._make(name, ep)
+            except TransportError as exc:
+                self._failed[name] = exc
+                raise
             self._loaded[name] = transport
             return transport
+
+    @staticmethod
+    def _make(name: str, ep: EntryPoint) -> Transport:
+        try:
+            obj = ep.load()
+            transport = obj() if isinstance(obj, type) else obj
+        except Exception as exc:
+            dist = getattr(getattr(ep, "dist", None), "name", None) or "scart"
+            raise TransportError(f"transport {name!r} (entry point {ep.value!r} of {dist}) cannot be loaded: "
+                                 f"{type(exc).__name__}: {exc}") from exc
+        if not isinstance(transport, Transport):
+            raise TransportError(f"transport {name!r} ({ep.value}) is a {type(transport).__qualname__}, "
+                                 "not a dataflow.remote.transport.Transport")
+        if transport.name != name:
+            raise TransportError(f"transport {name!r} ({ep.value}) says its name is {transport.name!r}")
+        return transport
 
     def candidates(self, wanted: str) -> list[Transport]:
         """The transports to try, in order, for a policy's ``transport``: the one named, or
         for ``auto`` every one with a rank, lowest first (a plug-in that cannot be loaded is
-        skipped with a warning, once)."""
+        skipped with a warning, once). A transport that declines a connection passes it to
+        the next; one that fails is retried when the owner reconnects."""
         if wanted != "auto":
             return [self.load(wanted)]
         found = []

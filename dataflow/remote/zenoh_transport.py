@@ -350,7 +350,9 @@ class ZenohNames:
     client's ``resolve``/``entries``/``close``, so a :class:`GrpcSystem` takes it as its
     name service (:func:`connect_zenoh`). Tokens come from any Zenoh peer: an address
     that is not loopback is ignored unless ``insecure`` (the system would send its token
-    there), as is anything malformed. The session stays the caller's.
+    there), as is anything malformed, and a component announced by more than one deployer
+    is not used until only one announces it (a spoofed or a stale announcement). Each is
+    logged once. The session stays the caller's.
     """
 
     def __init__(self, session: Any, ns: str = DEFAULT_NS, timeout: float = 1.0, insecure: bool = False) -> None:
@@ -359,6 +361,7 @@ class ZenohNames:
         self.ns = ns
         self.timeout = timeout
         self.insecure = insecure
+        self._warned: set[str] = set()
 
     def _look(self, component: str, timeout: float | None) -> list[NameEntry]:
         """The entries of ``component`` (``*``: of every one), one per component, sorted."""
@@ -366,7 +369,7 @@ class ZenohNames:
         from dataflow.remote.security import is_loopback
 
         prefix = f"{SERVED}/{self.ns}/"
-        found: dict[str, NameEntry] = {}
+        seen: dict[str, dict[tuple[str, str], NameEntry]] = {}
         replies = self.session.liveliness().get(f"{prefix}{component}/*/*", timeout=timeout or self.timeout)
         for _, reply in zip(range(MAX_REPLIES), replies):
             if reply.ok is None:
@@ -380,10 +383,26 @@ class ZenohNames:
                 log.debug("ignoring a malformed Zenoh announcement %s", reply.ok.key_expr)
                 continue
             if not (self.insecure or is_loopback(host.strip("[]"))):
-                log.warning("ignoring %s announced at %s on Zenoh: not loopback (needs insecure)", name, address)
+                self._warn(f"{name}@{address}", "ignoring %s announced at %s on Zenoh: not loopback (needs "
+                           "insecure)", name, address)
                 continue
-            found.setdefault(name, NameEntry(name, address, boot, math.inf))
-        return [found[name] for name in sorted(found)]
+            seen.setdefault(name, {})[(address, boot)] = NameEntry(name, address, boot, math.inf)
+        found = []
+        for name in sorted(seen):
+            entries = seen[name]
+            if len(entries) > 1:  # two deployers, or someone spoofing one: never guess where to send a token
+                where = ", ".join(sorted(f"{a} ({b})" for a, b in entries))
+                self._warn(f"{name}@@{where}", "%s is announced on Zenoh by %d deployers (%s): not used until "
+                           "one goes", name, len(entries), where)
+                continue
+            found.append(next(iter(entries.values())))
+        return found
+
+    def _warn(self, key: str, message: str, *args: object) -> None:
+        """Log ``message`` once per ``key`` (announcements come again at every lookup)."""
+        if key not in self._warned and len(self._warned) < 1000:
+            self._warned.add(key)
+            log.warning(message, *args)
 
     def entries(self, timeout: float | None = None) -> list[NameEntry]:
         """Every component served in the namespace, sorted (one per component)."""

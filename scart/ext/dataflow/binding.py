@@ -172,6 +172,7 @@ class _Link:
         self._names: Any = None
         self._zenoh: Any = None  # the Zenoh session of the lookups (zenoh="ENDPOINT")
         self._zenoh_lock = threading.Lock()
+        self._closed = False
         self._looked = 0.0
         self.state = "waiting"
 
@@ -195,6 +196,8 @@ class _Link:
         from dataflow.remote.zenoh_transport import ZenohNames, open_session
 
         with self._zenoh_lock:
+            if self._closed:
+                raise DataflowError(f"binding.dataflow {self.what}: closed")
             if self._zenoh is None:
                 try:
                     self._zenoh = open_session(connect=[self.s.zenoh], mode="client")
@@ -259,9 +262,11 @@ class _Link:
             system, self._system, self._proxy = self._system, None, None
         if system is not None:
             system.close()
-        if self._names is not None:
-            self._names.close()
+        names, self._names = self._names, None
+        if names is not None:
+            names.close()
         with self._zenoh_lock:
+            self._closed = True
             session, self._zenoh = self._zenoh, None
         if session is not None:
             session.close()

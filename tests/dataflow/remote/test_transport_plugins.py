@@ -16,7 +16,11 @@ from dataflow.remote.transport import candidates, names
 ROOT = Path(__file__).resolve().parents[3]
 
 PLUGIN = '''
+from dataflow import ConnPolicy
 from dataflow.remote._transports import GrpcTransport
+
+#: a plug-in may name itself in a policy as it is imported (the registry is loading it then)
+DEFAULT = ConnPolicy.data().with_(transport="tap")
 
 
 class Tap(GrpcTransport):
@@ -38,6 +42,7 @@ class Tap(GrpcTransport):
 ENTRY_POINTS = """[scart.transports]
 tap = scart_tap:Tap
 broken = scart_no_such_module:Transport
+Not-A-Name = scart_tap:Tap
 """
 
 SCRIPT = '''
@@ -47,7 +52,6 @@ from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
 from dataflow.policy import transport_names
 from dataflow.remote import connect
 from dataflow.remote.transport import TransportError, candidates
-import scart_tap
 
 logging.basicConfig(level=logging.WARNING)
 
@@ -70,6 +74,10 @@ def until(predicate, what, timeout=10.0):
 
 
 print("names", " ".join(transport_names()))
+try:
+    ConnPolicy(transport="a-very-long-transport-name-" + "x" * 40)
+except ValueError as exc:
+    print("long:", exc)
 try:
     candidates("broken")
 except TransportError as exc:
@@ -105,6 +113,8 @@ try:
                                                 ConnPolicy.buffer(100).with_(transport="tap"))
         src.out.write(20)
         until(lambda: 20 in seen, "a sample to the subscription")
+        import scart_tap  # loaded by the registry already
+
         print("link", got[:20] == list(range(20)), "subscription", sub.transport, "opened", scart_tap.Tap.opened)
         sub.close()
 finally:
@@ -129,7 +139,9 @@ def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> N
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr
     lines = dict(line.split(" ", 1) for line in result.stdout.splitlines())
-    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "tap"]
+    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "tap"]  # Not-A-Name ignored
+    assert "transport entry point 'Not-A-Name'" in result.stderr and "a lower-case word" in result.stderr
+    assert "must be auto, ipc, shm, grpc, broken or tap" in lines["long:"]
     # the broken plug-in is named with its entry point and what failed
     assert "'broken'" in lines["broken:"] and "scart_no_such_module:Transport" in lines["broken:"]
     assert "ModuleNotFoundError" in lines["broken:"]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -190,14 +191,16 @@ def test_deploy_ls_and_echo_over_zenoh_without_a_name_service(tmp_path) -> None:
 
 def test_zenoh_lookups_take_only_loopback_deployers_unless_insecure(tmp_path) -> None:
     """Anyone on Zenoh may announce a component: a routable address (where the system would
-    send its token) is ignored unless insecure, and a malformed announcement always is."""
+    send its token) is ignored unless insecure, a malformed announcement always is, and a
+    component announced by two deployers is not used (a spoofed or stale one)."""
     here = f"unixsock-stream/{tmp_path}/a.sock"
     a = open_session(listen=[here])
     b = open_session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
     served = zenoh_transport.served_key
     tokens = [a.liveliness().declare_token(key) for key in (
         served("lab", "near", "127.0.0.1:50051", "b1"), served("lab", "far", "10.1.2.3:50051", "b2"),
-        "scart-served/lab/odd/no-port/b3", "scart-served/lab/bad/127.0.0.1%3A99999/b4")]
+        "scart-served/lab/odd/no-port/b3", "scart-served/lab/bad/127.0.0.1%3A99999/b4",
+        served("lab", "twin", "127.0.0.1:6001", "t1"), served("lab", "twin", "127.0.0.1:6002", "t2"))]
     try:
         insecure = zenoh_transport.ZenohNames(b, "lab", timeout=2.0, insecure=True)
         wait_until(lambda: [e.component for e in insecure.entries()] == ["far", "near"], timeout=10,
@@ -207,6 +210,8 @@ def test_zenoh_lookups_take_only_loopback_deployers_unless_insecure(tmp_path) ->
         assert [(e.component, e.address, e.boot_id) for e in names.entries()] == [("near", "127.0.0.1:50051", "b1")]
         with pytest.raises(errors.RemoteNotFoundError, match="known: near"):
             names.resolve("far")
+        with pytest.raises(errors.RemoteNotFoundError):  # announced twice: never a guess
+            names.resolve("twin")
     finally:
         for token in tokens:
             token.undeclare()
@@ -322,3 +327,10 @@ def test_a_zenoh_connect_is_checked_at_load(tmp_path, attrs: str, words: str) ->
         <scart:connect {attrs} to="logger.ticks"/>"""), "zprobe.py": PROBE}, with_components=False)
     with pytest.raises(scart.ScdlError, match=re.escape(words)):
         scart.Runtime.from_file(path)
+
+
+def test_a_wildcard_listener_is_announced_by_host_name() -> None:
+    from dataflow.cli.deploy import _announced
+
+    assert _announced("127.0.0.1:5000") == "127.0.0.1:5000"
+    assert _announced("0.0.0.0:5000") == _announced("[::]:5000") == f"{socket.gethostname()}:5000"
