@@ -59,6 +59,7 @@ __all__ = ["REFUSED", "IpcServer", "IpcUnavailable", "Outbox", "available", "clo
 log = logging.getLogger(__name__)
 
 CHUNK = 64 * 1024  #: bytes of a message in one frame, at most (well inside a socket's buffer)
+BATCH_BYTES = 48 * 1024  #: samples sent to a reader together, at most (one frame)
 MAX_MESSAGE = MAX_MESSAGE_BYTES  #: bytes of one message, as on gRPC
 MAX_CONNECTIONS = 256
 MAX_PENDING = 32
@@ -346,11 +347,23 @@ class _ReaderEnd:
         return self.stream.dropped + self.outbox.dropped
 
     def _messages(self, items: list[tuple[int, int, Any]]) -> list[bytes]:
-        port = self.stream.port
-        return [pb.SubscribeResponse(samples=[pb.Sample(value=codec.encode(value, port.type), sequence=seq,
-                                                         source_time_ns=stamp)],
-                                     dropped=self.dropped).SerializeToString()
-                for seq, stamp, value in items]
+        """The samples waiting, as few messages as fit in :data:`BATCH_BYTES` each (one
+        sample alone when it is larger): one send, one wake-up for a burst."""
+        port, dropped = self.stream.port, self.dropped
+        out: list[bytes] = []
+        batch: list[Any] = []
+        size = 0
+        for seq, stamp, value in items:
+            sample = pb.Sample(value=codec.encode(value, port.type), sequence=seq, source_time_ns=stamp)
+            n = sample.ByteSize()
+            if batch and size + n > BATCH_BYTES:
+                out.append(pb.SubscribeResponse(samples=batch, dropped=dropped).SerializeToString())
+                batch, size = [], 0
+            batch.append(sample)
+            size += n
+        if batch:
+            out.append(pb.SubscribeResponse(samples=batch, dropped=dropped).SerializeToString())
+        return out
 
     def _on_data(self, _inp: Any) -> None:  # the writer's thread: never blocks
         self.outbox.pump()
