@@ -38,7 +38,7 @@ from dataflow.remote import _rpc, errors
 from dataflow.remote._loss import LossCount
 from dataflow.remote._delivery import Dispatcher, Mailbox
 from dataflow.remote.api import GapEvent, Observer, SampleEvent, Subscription
-from dataflow.remote.transport import candidates
+from dataflow.remote.transport import TransportError, candidates
 
 if TYPE_CHECKING:
     from dataflow.remote.client import GrpcComponentProxy
@@ -290,6 +290,8 @@ def _first_failure(exc: BaseException, address: str) -> BaseException | None:
         if exc.code() in (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED, grpc.StatusCode.CANCELLED):
             return None
         return _rpc.translate(exc, address)
+    if isinstance(exc, TransportError):  # a plug-in that cannot be loaded: retrying cannot help
+        return exc
     return None
 
 

@@ -56,7 +56,7 @@ from dataflow.remote.naming import (
     security_probe,
 )
 from dataflow.remote.security import Security
-from dataflow.remote.transport import candidates
+from dataflow.remote.transport import TransportError, candidates
 
 __all__ = ["DeployerServer"]
 
@@ -170,6 +170,7 @@ class _RemoteLink:
 
     def _run(self) -> None:
         backoff = 0.05
+        failed = False
         while not self.closed.is_set():
             try:
                 address = self.server.resolve(self.sink_task)
@@ -187,6 +188,13 @@ class _RemoteLink:
                         raise errors.UnavailableError(f"no transport reaches {self.sink_task}.{self.sink_port} "
                                                       f"(tried {', '.join(tried) or 'none'})", "UNAVAILABLE", address)
                 backoff = 0.05
+            except TransportError as exc:  # a plug-in that cannot be loaded: said once, then retried quietly
+                if self.closed.is_set():
+                    return
+                if not failed:
+                    log.error("link to %s.%s: %s", self.sink_task, self.sink_port, exc)
+                failed = True
+                backoff = 1.0
             except (grpc.RpcError, grpc.FutureCancelledError, errors.RemoteError, NotFoundError) as exc:
                 if self.closed.is_set():
                     return

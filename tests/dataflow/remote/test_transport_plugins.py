@@ -117,6 +117,10 @@ try:
 
         print("link", got[:20] == list(range(20)), "subscription", sub.transport, "opened", scart_tap.Tap.opened)
         sub.close()
+        try:
+            system.component("src").subscribe("out", seen.append, ConnPolicy.data().with_(transport="broken"))
+        except TransportError as exc:
+            print("subscribe-broken:", type(exc).__name__)
 finally:
     s2.stop()
     s1.stop()
@@ -149,6 +153,7 @@ def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> N
     assert lines["auto"].split() == ["ipc", "grpc"]
     assert "transport 'broken'" in result.stderr and "auto goes without it" in result.stderr
     assert lines["link"] == "True subscription tap opened 2"
+    assert lines["subscribe-broken:"] == "TransportError"  # at once, not after the connect timeout
 
 
 def test_scart_own_transports_are_entry_points() -> None:
