@@ -180,7 +180,7 @@ class TransportRegistry:
         self._lock = threading.RLock()  # a plug-in's import may build a policy naming a transport
         self._found: dict[str, EntryPoint] | None = None
         self._loaded: dict[str, Transport] = {}
-        self._failed: dict[str, TransportError] = {}  # not imported again on every reconnect
+        self._failed: dict[str, str] = {}  # why: not imported again on every reconnect
         self._warned: set[str] = set()
 
     def _entry_points(self) -> dict[str, EntryPoint]:
@@ -215,14 +215,14 @@ class TransportRegistry:
             if transport is not None:
                 return transport
             if name in self._failed:
-                raise self._failed[name]
+                raise TransportError(self._failed[name])  # a new one: a re-raised one would grow its traceback
             ep = found.get(name)
             if ep is None:
                 raise TransportError(f"no transport {name!r}; known: {', '.join(sorted(found))}")
             try:
                 transport = self._make(name, ep)
             except TransportError as exc:
-                self._failed[name] = exc
+                self._failed[name] = str(exc)
                 raise
             self._loaded[name] = transport
             return transport

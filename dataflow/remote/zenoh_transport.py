@@ -97,7 +97,8 @@ def check_endpoint(endpoint: str, insecure: bool = False) -> None:
                          "or unixsock-stream/PATH")
     if not (insecure or endpoint.startswith("unixsock-stream/") or _LOOPBACK.match(endpoint)):
         raise ValueError(f"Zenoh endpoint {endpoint!r} is not loopback: Zenoh traffic carries no scart "
-                         "token (use Zenoh's TLS and access control), so it needs --zenoh-insecure")
+                         "token (use Zenoh's TLS and access control), so it needs --zenoh-insecure (zenoh-insecure=\"true\" "
+                         "in a composite)")
 
 
 def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecure: bool = False,

@@ -49,6 +49,7 @@ class Attributes:
     #: Zenoh endpoint whose liveliness tokens answer the lookups (no name service), and its namespace.
     zenoh: str | None = None
     zenoh_ns: str = "default"
+    zenoh_insecure: bool = False  # a routable endpoint, and deployers announced at routable addresses
 
 
 MIN_PERIOD_S = 0.001  # smallest polling period of a service binding
@@ -113,6 +114,7 @@ def attributes(model: Binding) -> Attributes:
             ns = None
     zenoh = (a.get("zenoh") or "").strip() or None
     zenoh_ns = (a.get("zenoh-ns") or "default").strip()
+    zenoh_insecure = (a.get("zenoh-insecure") or "").strip().lower() in ("true", "1")
     if zenoh is not None:
         if ns is not None:
             problems.append("give either ns (a scart name service) or zenoh (lookups on Zenoh), not both")
@@ -122,12 +124,12 @@ def attributes(model: Binding) -> Attributes:
         )
 
         try:
-            check_endpoint(zenoh)
+            check_endpoint(zenoh, zenoh_insecure)
             key_of(zenoh_ns, "x")
         except ValueError as exc:
             problems.append(f"zenoh={zenoh!r} zenoh-ns={zenoh_ns!r}: {exc}")
             zenoh = None
-    return Attributes(component, ns, policy, period, mapping, tuple(problems), zenoh, zenoh_ns)
+    return Attributes(component, ns, policy, period, mapping, tuple(problems), zenoh, zenoh_ns, zenoh_insecure)
 
 
 def _signature(iface: InterfaceInfo, op: str) -> tuple[list[Any], Any] | None:

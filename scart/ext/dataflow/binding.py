@@ -200,12 +200,12 @@ class _Link:
                 raise DataflowError(f"binding.dataflow {self.what}: closed")
             if self._zenoh is None:
                 try:
-                    self._zenoh = open_session(connect=[self.s.zenoh], mode="client")
+                    self._zenoh = open_session(connect=[self.s.zenoh], mode="client", insecure=self.s.zenoh_insecure)
                 except Exception as exc:  # noqa: BLE001 - Zenoh's own error: not reachable (yet)
                     from dataflow.remote.errors import UnavailableError
 
                     raise UnavailableError(f"Zenoh {self.s.zenoh}: {exc}", "UNAVAILABLE", self.s.zenoh) from None
-            return ZenohNames(self._zenoh, self.s.zenoh_ns, timeout=timeout)
+            return ZenohNames(self._zenoh, self.s.zenoh_ns, timeout=timeout, insecure=self.s.zenoh_insecure)
 
     def proxy(self) -> Any:
         """The component proxy (created on first success); raises ``DataflowError``."""

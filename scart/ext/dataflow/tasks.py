@@ -241,6 +241,7 @@ class Link:
     name: str | None = None  # the link's name (``scart links``); default "a.out->b.in"
     zenoh: str | None = None  # the source is read from its Zenoh key through this endpoint
     zenoh_ns: str = "default"
+    zenoh_insecure: bool = False  # the endpoint may be routable
 
     @property
     def text(self) -> str:
@@ -267,6 +268,7 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
     policy = parse_policy(el.attributes, problems, "<scart:connect>: ")
     zenoh = (el.attributes.get("zenoh") or "").strip() or None
     zenoh_ns = (el.attributes.get("zenoh-ns") or "default").strip()
+    zenoh_insecure = (el.attributes.get("zenoh-insecure") or "").strip().lower() in ("true", "1")
     if zenoh is not None:
         from dataflow.remote.zenoh_transport import check_endpoint, key_of  # no Zenoh import
 
@@ -274,7 +276,7 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
             problems.append("<scart:connect>: give either ns (a scart name service) or zenoh (the source's "
                             "Zenoh key), not both")
         try:
-            check_endpoint(zenoh)
+            check_endpoint(zenoh, zenoh_insecure)
             if len(ends) == 2:
                 key_of(zenoh_ns, *ends[0])
         except ValueError as exc:
@@ -282,7 +284,7 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
     if problems:
         return None, problems
     return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc), el.attributes.get("name") or None,
-                zenoh, zenoh_ns), []
+                zenoh, zenoh_ns, zenoh_insecure), []
 
 
 def links_of(elements: list[tuple[str, Element]], remap: Remap | None = None) -> list[Link]:
@@ -456,7 +458,8 @@ class ConnectParticipant(Participant):
         try:
             session = self._sessions.get(link.zenoh)  # type: ignore[arg-type]
             if session is None:
-                session = self._sessions[link.zenoh] = open_session(connect=[link.zenoh], mode="client")  # type: ignore[index]
+                session = self._sessions[link.zenoh] = open_session(  # type: ignore[index]
+                    connect=[link.zenoh], mode="client", insecure=link.zenoh_insecure)
             self._inputs.append(ZenohInput(session, *link.source, target, link.policy, link.zenoh_ns))
         except Exception as exc:  # noqa: BLE001 - Zenoh's own errors: say which link and endpoint
             raise DataflowError(f"connect {link.text} ({link.where}): Zenoh {link.zenoh}: {exc}") from exc

@@ -334,3 +334,19 @@ def test_a_wildcard_listener_is_announced_by_host_name() -> None:
 
     assert _announced("127.0.0.1:5000") == "127.0.0.1:5000"
     assert _announced("0.0.0.0:5000") == _announced("[::]:5000") == f"{socket.gethostname()}:5000"
+
+
+def test_a_routable_zenoh_endpoint_loads_with_zenoh_insecure(tmp_path) -> None:
+    """A fleet's router on another machine: allowed when the composite says so."""
+    import scart
+    from support.sca import composite, write
+
+    path = write(tmp_path, {"c.composite": composite("""
+        <component name="logger"><scart:implementation.task class="zprobe:Logger"/></component>
+        <scart:connect from="zp.ticks" to="logger.ticks" zenoh="tcp/10.0.0.1:7447" zenoh-insecure="true"/>
+        <component name="probe"><scart:implementation.python class="zprobe:ProbeImpl"/>
+          <reference name="pinger"><scart:binding.dataflow component="zp" zenoh="tcp/10.0.0.1:7447"
+                                                           zenoh-insecure="true"/></reference>
+          <reference name="logger" target="logger"/>
+        </component>"""), "zprobe.py": PROBE}, with_components=False)
+    scart.Runtime.from_file(path)  # loads: nothing is opened before start
