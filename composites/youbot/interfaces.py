@@ -48,7 +48,10 @@ class RetrievingStatus(Protocol):
     def get_driver_info(self) -> dict:
         """{"state", "period", "period_status", "measured_rate", "connected", "sample_age"}:
         state and period as last read from the driver (None while not connected), measured
-        rate in samples/s over the last second, age of the newest sample in s (None before any)."""
+        rate in samples/s over the last second, age of the newest sample in s (None before any).
+        A proxy of a remote driver adds "address" (the name service it uses), "transport"
+        (how its samples come: ipc or grpc; None while not subscribed) and "transport_policy"
+        (the one asked for)."""
         ...
 
 
