@@ -9,7 +9,7 @@ from typing import TypeVar
 
 T = TypeVar("T")
 
-__all__ = ["pct", "wait_until"]
+__all__ = ["paced", "pct", "wait_until"]
 
 
 def pct(values: list[float], q: float) -> float:
@@ -19,6 +19,19 @@ def pct(values: list[float], q: float) -> float:
         return float("nan")
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def paced(n: int, rate: float, step: Callable[[int], object]) -> None:
+    """Call ``step(k)`` for k in 0..n-1 at ``rate`` Hz on absolute deadlines (a late step
+    does not push the later ones back: ``sleep(period)`` would drift)."""
+    period = 1.0 / rate
+    deadline = time.perf_counter()
+    for k in range(n):
+        deadline += period
+        step(k)
+        pause = deadline - time.perf_counter()
+        if pause > 0:
+            time.sleep(pause)
 
 
 def wait_until(predicate: Callable[[], T], timeout: float, interval: float = 0.01) -> T | None:

@@ -33,7 +33,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from _common import pct, wait_until  # noqa: E402
+from _common import paced, pct, wait_until  # noqa: E402
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.remote import connect  # noqa: E402
@@ -52,14 +52,12 @@ class Mirror(TaskContext):
 
     inp = InputPort(int)
     out = OutputPort(int)
-    count = 0
 
     def echo(self, port: InputPort) -> None:
         for _ in range(10_000):
             status, value = port.read()
             if status.name != "NEW_DATA":
                 return
-            self.count += 1
             self.out.write(value)
 
 
@@ -71,7 +69,6 @@ def child(ns: str) -> int:
     server = deployer.serve("127.0.0.1:0", ns=ns)
     print("ready", flush=True)
     sys.stdin.read()
-    print(f"count {mirror.count}", flush=True)
     server.stop()
     return 0
 
@@ -91,17 +88,14 @@ def raw_socket_round_trips(rate: float, n: int) -> list[float]:
     kid.close()
     out = []
     payload = b"x" * 24
-    period = 1.0 / rate
-    deadline = time.perf_counter()
-    for _ in range(n + 20):
-        deadline += period
+
+    def ping(_: int) -> None:
         t0 = time.perf_counter()
         parent.send(payload)
         parent.recv(256)
         out.append((time.perf_counter() - t0) / 2)
-        pause = deadline - time.perf_counter()
-        if pause > 0:
-            time.sleep(pause)
+
+    paced(n + 20, rate, ping)
     parent.close()
     proc.wait(timeout=10)
     return out[20:]
@@ -124,22 +118,19 @@ def round_trips(src: Source, sink: Sink, rate: float, n: int) -> tuple[list[floa
                 done.set()
 
     sink.inp.add_data_callback(on_back)
-    period = 1.0 / rate
     base = 1_000_000 * int(rate)  # distinct values per row
+
+    def write(k: int) -> None:
+        sent[base + k] = time.perf_counter()
+        src.out.write(base + k)
+
     try:
-        deadline = time.perf_counter()
-        for k in range(n):
-            deadline += period
-            sent[base + k] = time.perf_counter()
-            src.out.write(base + k)
-            pause = deadline - time.perf_counter()
-            if pause > 0:
-                time.sleep(pause)
+        paced(n, rate, write)
         done.wait(10)
     finally:
         sink.inp.remove_data_callback(on_back)
     one_way = [(back[v] - t) / 2 for v, t in sent.items() if v in back]
-    in_time = sum(1 for v, t in sent.items() if v in back and back[v] - t <= period) / n
+    in_time = sum(1 for v, t in sent.items() if v in back and back[v] - t <= 1.0 / rate) / n
     return one_way, in_time
 
 

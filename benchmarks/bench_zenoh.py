@@ -21,7 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "youbot"))
 
-from _common import pct, wait_until  # noqa: E402
+from _common import paced, pct, wait_until  # noqa: E402
 from youbot_model import JointStatus, YouBotStatus  # noqa: E402
 
 from dataflow import Deployer, OutputPort, TaskContext, codec  # noqa: E402
@@ -39,26 +39,15 @@ class Arm(TaskContext):
     status = OutputPort(YouBotStatus)
 
 
-def paced(n: int, rate: float, send: object) -> None:
-    period = 1.0 / rate
-    deadline = time.perf_counter()
-    for k in range(n):
-        deadline += period
-        send(k)  # type: ignore[operator]
-        pause = deadline - time.perf_counter()
-        if pause > 0:
-            time.sleep(pause)
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
     n100, n1k = (200, 1000) if args.quick else (500, 3000)
-    folder = tempfile.mkdtemp()
-    here = f"unixsock-stream/{folder}/a.sock"
+    folder = tempfile.TemporaryDirectory()
+    here = f"unixsock-stream/{folder.name}/a.sock"
     a = open_session(listen=[here])
-    b = open_session(connect=[here], listen=[f"unixsock-stream/{folder}/b.sock"])
+    b = open_session(connect=[here], listen=[f"unixsock-stream/{folder.name}/b.sock"])
     rows = []
     try:
         payload = codec.encode(STATUS, YouBotStatus).SerializeToString()
@@ -122,6 +111,7 @@ def main() -> int:
     finally:
         b.close()
         a.close()
+        folder.cleanup()
     print("\nZenoh transport vs bare zenoh-python (two peer sessions, Unix socket, youBot status payload)\n")
     print("| path | rate | p50 | p99 | received | p50 vs bare |")
     print("|---|---|---|---|---|---|")

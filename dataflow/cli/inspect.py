@@ -310,12 +310,14 @@ def _policy(text: str) -> Any:
 
 
 def _transport(text: str) -> str:
-    """``--transport``: a name a policy accepts (plug-ins are looked up only for another name)."""
-    from dataflow.policy import TRANSPORTS, one_of, transport_names
+    """``--transport``: a name a policy accepts, checked by the policy (plug-ins are looked
+    up only for a name that is not scart's own)."""
+    from dataflow import ConnPolicy
 
-    if text in TRANSPORTS or text == "shm" or text in transport_names():
-        return text
-    raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose {one_of(transport_names())})")
+    try:
+        return ConnPolicy(transport=text).transport
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def cmd_echo(args: argparse.Namespace) -> int:

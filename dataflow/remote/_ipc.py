@@ -35,6 +35,7 @@ each closed after :data:`HELLO_S` s; at most :data:`MAX_CONNECTIONS` connections
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
 import secrets
@@ -48,7 +49,8 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from dataflow import codec
+import grpc
+
 from dataflow.policy import ConnPolicy
 from dataflow.remote._proto import df as pb
 from dataflow.remote._rpc import MAX_MESSAGE_BYTES
@@ -192,12 +194,10 @@ def open_with(ask: Callable[[], Any], transport: str, what: str, address: str = 
             raise IpcUnavailable("no ipc on this platform")
         try:
             reply = ask()
-        except Exception as exc:
-            code_of, details = getattr(exc, "code", None), getattr(exc, "details", None)  # a grpc.RpcError
-            code = code_of() if callable(code_of) else None
-            if code is None or code.name not in REFUSED:
+        except grpc.RpcError as exc:
+            if exc.code().name not in REFUSED:  # type: ignore[attr-defined]
                 raise
-            raise IpcUnavailable((details() if callable(details) else "") or code.name) from None
+            raise IpcUnavailable(exc.details() or exc.code().name) from None  # type: ignore[attr-defined]
         return connect(reply.ticket.socket, reply.ticket.secret)
     except IpcUnavailable as exc:
         if transport == "ipc":
@@ -205,12 +205,17 @@ def open_with(ask: Callable[[], Any], transport: str, what: str, address: str = 
         return None
 
 
-def close_quietly(sock: socket.socket) -> None:
-    """Shut down (wakes a thread blocked in ``recv`` on it) and close."""
+def shutdown_quietly(sock: socket.socket) -> None:
+    """Shut ``sock`` down, which wakes a thread blocked reading it (that thread closes it)."""
     try:
         sock.shutdown(socket.SHUT_RDWR)
     except OSError:
         pass
+
+
+def close_quietly(sock: socket.socket) -> None:
+    """Shut down (wakes a thread blocked in ``recv`` on it) and close."""
+    shutdown_quietly(sock)
     sock.close()
 
 
@@ -300,13 +305,9 @@ class Outbox:
             self.sock.send(frame, socket.MSG_DONTWAIT)
             self.blocked = False
             return True
-        except (BlockingIOError, InterruptedError):  # the reader is behind: its socket is full
-            if not self.blocked:
-                self.blocked = True
-                self._want_write()
-            return False
         except OSError as exc:
-            if exc.errno == getattr(os, "ENOBUFS", -1):  # the kernel is short of memory: as if full
+            # the reader is behind (its socket is full), or the kernel is short of memory: wait for room
+            if isinstance(exc, (BlockingIOError, InterruptedError)) or exc.errno == errno.ENOBUFS:
                 if not self.blocked:
                     self.blocked = True
                     self._want_write()
@@ -331,7 +332,6 @@ class _ReaderEnd:
     write number as it is written) drained by an :class:`Outbox`."""
 
     def __init__(self, server: IpcServer, sock: socket.socket, stream: Any, heartbeat: float) -> None:
-        self.server = server
         self.sock = sock
         self.stream = stream
         self.heartbeat = heartbeat
@@ -349,21 +349,9 @@ class _ReaderEnd:
     def _messages(self, items: list[tuple[int, int, Any]]) -> list[bytes]:
         """The samples waiting, as few messages as fit in :data:`BATCH_BYTES` each (one
         sample alone when it is larger): one send, one wake-up for a burst."""
-        port, dropped = self.stream.port, self.dropped
-        out: list[bytes] = []
-        batch: list[Any] = []
-        size = 0
-        for seq, stamp, value in items:
-            sample = pb.Sample(value=codec.encode(value, port.type), sequence=seq, source_time_ns=stamp)
-            n = sample.ByteSize()
-            if batch and size + n > BATCH_BYTES:
-                out.append(pb.SubscribeResponse(samples=batch, dropped=dropped).SerializeToString())
-                batch, size = [], 0
-            batch.append(sample)
-            size += n
-        if batch:
-            out.append(pb.SubscribeResponse(samples=batch, dropped=dropped).SerializeToString())
-        return out
+        dropped = self.dropped
+        return [pb.SubscribeResponse(samples=samples, dropped=dropped).SerializeToString()
+                for samples in self.stream.batches(items, len(items), BATCH_BYTES, MAX_MESSAGE - 64)]
 
     def _on_data(self, _inp: Any) -> None:  # the writer's thread: never blocks
         self.outbox.pump()
@@ -426,7 +414,11 @@ class IpcServer:
     @property
     def connections(self) -> int:
         with self._lock:
-            return len(self._readers) + len(self._pumps)
+            return self._connections()
+
+    def _connections(self) -> int:
+        """Connections carrying samples (the caller holds the lock)."""
+        return len(self._readers) + len(self._pumps)
 
     def ticket(self, kind: str, task: str, port: str, policy: ConnPolicy, peer: str, heartbeat: float = 0.5) -> bytes:
         """A one-time ticket for a connection of ``kind`` (``in``: into the input port
@@ -440,7 +432,7 @@ class IpcServer:
                 raise OverflowError(f"{MAX_TICKETS} ipc tickets are pending")
             if sum(1 for t in self._tickets.values() if t[1] == peer) >= TICKETS_PER_PEER:
                 raise OverflowError(f"{TICKETS_PER_PEER} ipc tickets of this peer are pending")
-            if len(self._readers) + len(self._pumps) >= MAX_CONNECTIONS:
+            if self._connections() >= MAX_CONNECTIONS:
                 raise OverflowError(f"this deployer serves at most {MAX_CONNECTIONS} ipc connections")
             ticket = secrets.token_bytes(TICKET_BYTES)
             self._tickets[ticket] = (now + TICKET_S, peer, kind, task, port, policy, heartbeat)
@@ -500,7 +492,7 @@ class IpcServer:
             ticket = b""
         with self._lock:
             entry = self._tickets.pop(ticket, None) if len(ticket) == TICKET_BYTES else None
-            full = len(self._readers) + len(self._pumps) >= MAX_CONNECTIONS
+            full = self._connections() >= MAX_CONNECTIONS
         if entry is None or entry[0] < time.monotonic() or full or self._stopping.is_set():
             conn.close()
             return
@@ -610,9 +602,7 @@ class IpcServer:
                 if self._stopping.is_set():
                     break
                 try:
-                    msg = pb.WritePortStreamRequest.FromString(message)
-                    if msg.value.type_name:
-                        write(msg.value)
+                    write(pb.WritePortStreamRequest.FromString(message).value)
                 except Exception as exc:  # noqa: BLE001 - one bad sample never ends the link; said once
                     refused += 1
                     if refused == 1:
@@ -647,10 +637,7 @@ class IpcServer:
         for conn in pending:
             conn.close()
         for conn, thread in pumps.items():
-            try:
-                conn.shutdown(socket.SHUT_RDWR)  # wakes its pump
-            except OSError:
-                pass
+            shutdown_quietly(conn)  # wakes its pump
             thread.join(timeout=5.0)
         self._selector.close()
         self._listener.close()

@@ -20,6 +20,7 @@ import logging
 import secrets
 import threading
 import time
+from collections.abc import Iterator
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
@@ -81,6 +82,29 @@ class _Stream(Inbox):
         super().__init__(port, policy, name=f"sub_{port.name}")
         self.wake.set()  # send the connected heartbeat and any init sample at once
 
+    def batches(self, items: list[tuple[int, int, Any]], most: int, most_bytes: int,
+                limit: int) -> Iterator[list[Any]]:
+        """``items`` (taken from this inbox) as lists of ``pb.Sample``, each at most ``most``
+        samples and ``most_bytes`` encoded bytes (a larger sample goes alone). A sample over
+        ``limit`` bytes is counted as dropped and logged instead of breaking the stream."""
+        batch: list[Any] = []
+        size = 0
+        for seq, stamp, value in items:
+            sample = pb.Sample(value=codec.encode(value, self.port.type), sequence=seq, source_time_ns=stamp)
+            n = sample.ByteSize() + 8  # + the field's tag and length
+            if n > limit:
+                self.count_dropped()
+                log.warning("%s: sample %d is %d bytes encoded, more than a message may carry (%d); dropped",
+                            self.port.qualname, seq, n, limit)
+                continue
+            if batch and (len(batch) >= most or size + n > most_bytes):
+                yield batch
+                batch, size = [], 0
+            batch.append(sample)
+            size += n
+        if batch:
+            yield batch
+
     def _admit(self, value: Any) -> None:
         if self._measured % 64 == 0:
             size = max(16, codec.encode(value, self.port.type).ByteSize())
@@ -121,6 +145,9 @@ class _Sink(_Writer):
         self._check = check
 
     def write(self, value_msg: Any) -> None:
+        """Check and write one ``Value`` message (an empty one, a stream's first, is skipped)."""
+        if not value_msg.type_name:
+            return
         value = self._check(self.where, self.target.type, self.target.type_name, value_msg, "")
         try:
             value = self.target.admit(value)
@@ -425,8 +452,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 if sink is None:
                     port = self._port(msg.task, msg.port, want_input=True)
                     sink = _Sink(msg.task, port, cv.policy_from_msg(msg.policy), self._value_for, context.peer())
-                if msg.value.type_name:
-                    sink.write(msg.value)
+                sink.write(msg.value)
             return pb.WritePortStreamResponse(written=sink.written if sink else 0,
                                               failures=sink.failures if sink else 0)
         except Exception as exc:  # noqa: BLE001
@@ -470,8 +496,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
         context.add_callback(stream.wake.set)  # a cancelled stream wakes at once
-        # a client's heartbeat request is clamped: too often is a busy loop, too rare hides a frozen peer
-        heartbeat = min(max(request.heartbeat_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
+        heartbeat = self._heartbeat_s(request.heartbeat_ms)
         try:
             yield pb.SubscribeResponse(heartbeat=True, boot_id=self.owner.boot_id)  # connected
             while context.is_active() and not self._stopping.is_set():
@@ -479,36 +504,17 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                     yield pb.SubscribeResponse(heartbeat=True, dropped=stream.dropped)
                     continue
                 stream.wake.clear()
-                for samples in self._batches(stream, request):
+                for samples in stream.batches(stream.take(), self.batch, self.batch_bytes, self.batch_bytes):
                     yield pb.SubscribeResponse(samples=samples, dropped=stream.dropped)
         finally:
             with self._lock:
                 self._streams.discard(stream)
             stream.close()
 
-    def _batches(self, stream: _Stream, request: Any) -> Any:
-        """The pending samples of ``stream`` as lists of ``pb.Sample``, each list at most
-        :attr:`batch` samples and :attr:`batch_bytes` encoded bytes. A sample larger than
-        that on its own is counted as dropped and logged instead of breaking the stream."""
-        batch: list[Any] = []
-        size = 0
-        for seq, stamp, value in stream.take():
-            sample = pb.Sample(value=codec.encode(value, stream.port.type), sequence=seq, source_time_ns=stamp)
-            n = sample.ByteSize() + 8  # + the field's tag and length
-            if n > self.batch_bytes:
-                stream.count_dropped()
-                log.warning(
-                    "%s.%s: sample %d is %d bytes encoded, more than a message may carry (%d); dropped",
-                    request.task, request.port, seq, n, self.batch_bytes,
-                )
-                continue
-            if batch and (len(batch) >= self.batch or size + n > self.batch_bytes):
-                yield batch
-                batch, size = [], 0
-            batch.append(sample)
-            size += n
-        if batch:
-            yield batch
+    def _heartbeat_s(self, asked_ms: int) -> float:
+        """A reader's heartbeat period (s): what it asked for (else this deployer's), clamped:
+        too often is a busy loop, too rare hides a frozen peer."""
+        return min(max(asked_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
 
     # ---- the same-host fast path (see dataflow.remote._ipc) ------------------------------
     def OpenIpcWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
@@ -525,8 +531,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 raise Abort("FAILED_PRECONDITION", "the caller is on another host: ipc works on one host only")
             port = self._port(request.task, request.port, want_input=kind == "in")
             policy = cv.policy_from_msg(request.policy)
-            asked = getattr(request, "heartbeat_ms", 0) or self.heartbeat_ms
-            heartbeat = min(max(asked, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
+            heartbeat = self._heartbeat_s(request.heartbeat_ms) if kind == "out" else 0.0  # readers only
             server = self._ipc_server()
             try:
                 ticket = server.ticket(kind, request.task, port.name, policy, peer_key(context), heartbeat)

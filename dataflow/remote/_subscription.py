@@ -38,7 +38,7 @@ from dataflow.remote import _rpc, errors
 from dataflow.remote._loss import LossCount
 from dataflow.remote._delivery import Dispatcher, Mailbox
 from dataflow.remote.api import GapEvent, Observer, SampleEvent, Subscription
-from dataflow.remote.transport import TransportError, candidates
+from dataflow.remote.transport import TransportError, carry
 
 if TYPE_CHECKING:
     from dataflow.remote.client import GrpcComponentProxy
@@ -196,16 +196,12 @@ class GrpcSubscription(Subscription):
     def _stream(self, address: str) -> None:
         """One stream over the first transport that reaches the deployer (see
         :mod:`dataflow.remote.transport`), until it ends."""
-        tried = []
-        for transport in candidates(self.policy.transport):
-            tried.append(transport.name)
-            try:
-                if transport.subscribe(self, address):
-                    return
-            finally:
-                self._cancel = None
-        raise errors.UnavailableError(f"no transport reaches {self.component}.{self.port} "
-                                      f"(tried {', '.join(tried) or 'none'})", "UNAVAILABLE", address)
+        carry(self.policy.transport, lambda t: t.subscribe(self, address), self._forget,
+              f"{self.component}.{self.port}", address)
+
+    def _forget(self) -> None:
+        """The transport's stream is over: nothing to cancel any more."""
+        self._cancel = None
 
     # ---- the ReaderEnd a transport sees ------------------------------------------------
     @property

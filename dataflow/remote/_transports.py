@@ -103,7 +103,7 @@ class IpcTransport(Transport):
             return False
         sock, first = opened  # first: the deployer's "connected" heartbeat
         try:
-            if not end.opened(self.name, lambda: _shutdown(sock)):
+            if not end.opened(self.name, lambda: _ipc.shutdown_quietly(sock)):
                 return True
             end.receive(pb.SubscribeResponse.FromString(first))
             silence = 3 * end.heartbeat
@@ -163,10 +163,3 @@ def _carry_link(end: LinkEnd, sock: socket.socket) -> None:
         wake_r.close()
         wake_w.close()
 
-
-def _shutdown(sock: socket.socket) -> None:
-    """Wake a thread blocked reading ``sock`` (it closes the socket itself)."""
-    try:
-        sock.shutdown(socket.SHUT_RDWR)
-    except OSError:
-        pass

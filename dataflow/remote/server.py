@@ -56,7 +56,7 @@ from dataflow.remote.naming import (
     security_probe,
 )
 from dataflow.remote.security import Security
-from dataflow.remote.transport import TransportError, candidates
+from dataflow.remote.transport import TransportError, carry
 
 __all__ = ["DeployerServer"]
 
@@ -176,17 +176,8 @@ class _RemoteLink:
                 address = self.server.resolve(self.sink_task)
                 with self.server.security.channel(address, _rpc.channel_options()) as channel:
                     stub = df_grpc.DeployerServiceStub(channel)
-                    tried = []
-                    for transport in candidates(self.policy.transport):
-                        tried.append(transport.name)
-                        try:
-                            if transport.link(self, address, stub):
-                                break
-                        finally:
-                            self._ended()
-                    else:
-                        raise errors.UnavailableError(f"no transport reaches {self.sink_task}.{self.sink_port} "
-                                                      f"(tried {', '.join(tried) or 'none'})", "UNAVAILABLE", address)
+                    carry(self.policy.transport, lambda t: t.link(self, address, stub), self._ended,
+                          f"{self.sink_task}.{self.sink_port}", address)
                 backoff = 0.05
             except TransportError as exc:  # a plug-in that cannot be loaded: said once, then retried quietly
                 if self.closed.is_set():

@@ -44,18 +44,8 @@ from typing import Any, Protocol
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy
 
-__all__ = [
-    "ENTRY_POINT_GROUP",
-    "LinkEnd",
-    "ReaderEnd",
-    "Transport",
-    "TransportError",
-    "TransportRegistry",
-    "candidates",
-    "default",
-    "load",
-    "names",
-]
+__all__ = ["ENTRY_POINT_GROUP", "LinkEnd", "ReaderEnd", "Transport", "TransportError", "TransportRegistry",
+           "candidates", "carry", "default", "load", "names"]
 
 log = logging.getLogger(__name__)
 
@@ -283,3 +273,22 @@ def load(name: str) -> Transport:
 def candidates(wanted: str) -> list[Transport]:
     """:meth:`TransportRegistry.candidates` of :data:`default`."""
     return default.candidates(wanted)
+
+
+def carry(wanted: str, attempt: Callable[[Transport], bool], after: Callable[[], None], what: str,
+          address: str) -> None:
+    """Offer one connection to the transports for a policy's ``wanted`` in order, until
+    ``attempt(transport)`` says one carried it (and it ended); ``after()`` runs after each
+    attempt, however it went. Raises what an attempt raised, or ``UnavailableError``
+    naming ``what`` and the transports tried when every one declined."""
+    from dataflow.remote.errors import UnavailableError
+
+    tried = []
+    for transport in candidates(wanted):
+        tried.append(transport.name)
+        try:
+            if attempt(transport):
+                return
+        finally:
+            after()
+    raise UnavailableError(f"no transport reaches {what} (tried {', '.join(tried) or 'none'})", "UNAVAILABLE", address)

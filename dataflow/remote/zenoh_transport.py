@@ -48,6 +48,7 @@ from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote._loss import LossCount
 from dataflow.remote.api import SampleEvent
+from dataflow.remote.security import is_loopback
 from dataflow.types import registry
 
 if TYPE_CHECKING:
@@ -67,7 +68,6 @@ MAX_REPLIES = 10_000  #: liveliness replies read per lookup, at most
 ENCODING_PREFIX = "scart.dataflow.v1.Value;"
 MAX_PAYLOAD = 4 * 1024 * 1024  #: bytes of one sample a subscriber decodes at most (the gRPC path's limit)
 _WORD = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
-_LOOPBACK = re.compile(r"^(tcp|udp|quic|tls)/(127\.\d+\.\d+\.\d+|localhost|\[::1\]):\d+$")
 _ENDPOINT = re.compile(r"^[a-z][a-z0-9-]*/\S+$")
 
 
@@ -95,7 +95,10 @@ def check_endpoint(endpoint: str, insecure: bool = False) -> None:
                                          and not re.search(r":\d+$", endpoint.split("#")[0])):
         raise ValueError(f"Zenoh endpoint {endpoint!r}: expected PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447 "
                          "or unixsock-stream/PATH")
-    if not (insecure or endpoint.startswith("unixsock-stream/") or _LOOPBACK.match(endpoint)):
+    protocol, _, address = endpoint.partition("/")
+    host = address.rpartition(":")[0].strip("[]")
+    loopback = protocol in ("tcp", "udp", "quic", "tls") and "#" not in address and is_loopback(host)
+    if not (insecure or protocol == "unixsock-stream" or loopback):
         raise ValueError(f"Zenoh endpoint {endpoint!r} is not loopback: Zenoh traffic carries no scart "
                          "token (use Zenoh's TLS and access control), so it needs --zenoh-insecure (zenoh-insecure=\"true\" "
                          "in a composite)")
@@ -367,8 +370,6 @@ class ZenohNames:
     def _look(self, component: str, timeout: float | None) -> list[NameEntry]:
         """The entries of ``component`` (``*``: of every one), one per component, sorted."""
         from dataflow.remote._registry import NameEntry
-        from dataflow.remote.security import is_loopback
-
         prefix = f"{SERVED}/{self.ns}/"
         seen: dict[str, dict[tuple[str, str], NameEntry]] = {}
         replies = self.session.liveliness().get(f"{prefix}{component}/*/*", timeout=timeout or self.timeout)

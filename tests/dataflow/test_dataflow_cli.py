@@ -250,3 +250,11 @@ def test_echo_until_sigint(system) -> None:
         assert proc.wait(timeout=15) == 0
     finally:
         stop_process(proc, signal.SIGKILL)
+
+
+def test_connect_refuses_an_unknown_transport_before_connecting() -> None:
+    from support.cli import run
+
+    result = run("connect", "a.out", "b.in", "--transport", "nope", "--ns", "127.0.0.1:1")
+    assert result.returncode == 2
+    assert "--transport: ConnPolicy.transport must be auto, ipc, shm or grpc, got 'nope'" in result.stderr

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import inspect
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,10 +47,52 @@ class Attributes:
     period: float | None
     mapping: dict[str, str]
     problems: tuple[str, ...]
-    #: Zenoh endpoint whose liveliness tokens answer the lookups (no name service), and its namespace.
-    zenoh: str | None = None
-    zenoh_ns: str = "default"
-    zenoh_insecure: bool = False  # a routable endpoint, and deployers announced at routable addresses
+    #: Where the task is looked up instead of a name service (its Zenoh liveliness tokens).
+    zenoh: ZenohEnd | None = None
+
+
+@dataclass(frozen=True)
+class ZenohEnd:
+    """The ``zenoh``, ``zenoh-ns`` and ``zenoh-insecure`` attributes of an element: the
+    endpoint a Zenoh client session connects to, the key namespace, and whether routable
+    endpoints and deployers announced at routable addresses are allowed."""
+
+    endpoint: str
+    ns: str = "default"
+    insecure: bool = False
+
+    def open(self) -> Any:
+        """A client session to the endpoint; ``UnavailableError`` naming it when Zenoh cannot open one."""
+        from dataflow.remote.errors import UnavailableError
+        from dataflow.remote.zenoh_transport import open_session
+
+        try:
+            return open_session(connect=[self.endpoint], mode="client", insecure=self.insecure)
+        except Exception as exc:  # noqa: BLE001 - Zenoh's own error: not reachable (yet)
+            raise UnavailableError(f"Zenoh {self.endpoint}: {exc}", "UNAVAILABLE", self.endpoint) from None
+
+
+def parse_zenoh(attributes: Mapping[str, str], problems: list[str], what: str,
+                key: tuple[str, ...] = ("x",)) -> ZenohEnd | None:
+    """The element's :class:`ZenohEnd` (None without ``zenoh``); a bad endpoint, a
+    namespace or ``key`` (component[, port]) that is no Zenoh key, or ``ns`` given as well
+    is added to ``problems`` (prefixed with ``what``) and None returned."""
+    endpoint = (attributes.get("zenoh") or "").strip()
+    if not endpoint:
+        return None
+    from dataflow.remote.zenoh_transport import check_endpoint, key_of  # no Zenoh import
+
+    end = ZenohEnd(endpoint, (attributes.get("zenoh-ns") or "default").strip(),
+                   (attributes.get("zenoh-insecure") or "").strip().lower() in ("true", "1"))
+    found = len(problems)
+    if (attributes.get("ns") or "").strip():
+        problems.append(f"{what}give either ns (a scart name service) or zenoh (Zenoh), not both")
+    try:
+        check_endpoint(end.endpoint, end.insecure)
+        key_of(end.ns, *key)
+    except ValueError as exc:
+        problems.append(f"{what}zenoh={end.endpoint!r} zenoh-ns={end.ns!r}: {exc}")
+    return end if len(problems) == found else None
 
 
 MIN_PERIOD_S = 0.001  # smallest polling period of a service binding
@@ -112,24 +155,8 @@ def attributes(model: Binding) -> Attributes:
         if parsed is None or not port_in_range(parsed[1]):
             problems.append(f'ns {ns!r}: expected the name service as "host:port" (port 1..65535)')
             ns = None
-    zenoh = (a.get("zenoh") or "").strip() or None
-    zenoh_ns = (a.get("zenoh-ns") or "default").strip()
-    zenoh_insecure = (a.get("zenoh-insecure") or "").strip().lower() in ("true", "1")
-    if zenoh is not None:
-        if ns is not None:
-            problems.append("give either ns (a scart name service) or zenoh (lookups on Zenoh), not both")
-        from dataflow.remote.zenoh_transport import (  # no Zenoh import
-            check_endpoint,
-            key_of,
-        )
-
-        try:
-            check_endpoint(zenoh, zenoh_insecure)
-            key_of(zenoh_ns, "x")
-        except ValueError as exc:
-            problems.append(f"zenoh={zenoh!r} zenoh-ns={zenoh_ns!r}: {exc}")
-            zenoh = None
-    return Attributes(component, ns, policy, period, mapping, tuple(problems), zenoh, zenoh_ns, zenoh_insecure)
+    zenoh = parse_zenoh(a, problems, "")
+    return Attributes(component, ns, policy, period, mapping, tuple(problems), zenoh)
 
 
 def _signature(iface: InterfaceInfo, op: str) -> tuple[list[Any], Any] | None:

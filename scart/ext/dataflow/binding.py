@@ -184,28 +184,24 @@ class _Link:
     @property
     def where(self) -> str:
         """Where the task is looked up, for messages."""
-        return f"Zenoh {self.s.zenoh} (namespace {self.s.zenoh_ns})" if self.s.zenoh else self.ns
+        zenoh = self.s.zenoh
+        return f"Zenoh {zenoh.endpoint} (namespace {zenoh.ns})" if zenoh else self.ns
 
     def _lookups(self) -> Any:
         """A new source of lookups: the name service, or Zenoh liveliness (one session, opened once)."""
-        timeout = self.runtime.settings.timeout
-        if self.s.zenoh is None:
+        timeout, zenoh = self.runtime.settings.timeout, self.s.zenoh
+        if zenoh is None:
             from dataflow.remote.naming import NameClient
 
             return NameClient(self.ns, timeout=timeout, security=self.runtime.settings.security)
-        from dataflow.remote.zenoh_transport import ZenohNames, open_session
+        from dataflow.remote.zenoh_transport import ZenohNames
 
         with self._zenoh_lock:
             if self._closed:
                 raise DataflowError(f"binding.dataflow {self.what}: closed")
             if self._zenoh is None:
-                try:
-                    self._zenoh = open_session(connect=[self.s.zenoh], mode="client", insecure=self.s.zenoh_insecure)
-                except Exception as exc:  # noqa: BLE001 - Zenoh's own error: not reachable (yet)
-                    from dataflow.remote.errors import UnavailableError
-
-                    raise UnavailableError(f"Zenoh {self.s.zenoh}: {exc}", "UNAVAILABLE", self.s.zenoh) from None
-            return ZenohNames(self._zenoh, self.s.zenoh_ns, timeout=timeout, insecure=self.s.zenoh_insecure)
+                self._zenoh = zenoh.open()
+            return ZenohNames(self._zenoh, zenoh.ns, timeout=timeout, insecure=zenoh.insecure)
 
     def proxy(self) -> Any:
         """The component proxy (created on first success); raises ``DataflowError``."""

@@ -51,7 +51,7 @@ from pydantic_core import core_schema
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
 from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError
 from scart.ext.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of, remote_ports
-from scart.ext.dataflow._plan import MIN_PERIOD_S, parse_policy
+from scart.ext.dataflow._plan import MIN_PERIOD_S, ZenohEnd, parse_policy, parse_zenoh
 from scart.spi import (
     DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Element, ElementProvider, Host, Implementation,
     ImplementationProblem, ImplementationProvider, InterfaceInfo, Node, Operation, Participant, Problem, PropSpec,
@@ -239,9 +239,7 @@ class Link:
     ns: str | None
     where: str
     name: str | None = None  # the link's name (``scart links``); default "a.out->b.in"
-    zenoh: str | None = None  # the source is read from its Zenoh key through this endpoint
-    zenoh_ns: str = "default"
-    zenoh_insecure: bool = False  # the endpoint may be routable
+    zenoh: ZenohEnd | None = None  # the source is read from its Zenoh key
 
     @property
     def text(self) -> str:
@@ -266,25 +264,11 @@ def _parse_link(prefix: str, el: Element) -> tuple[Link | None, list[str]]:
         else:
             ends.append((prefix + parsed[0], parsed[1]))
     policy = parse_policy(el.attributes, problems, "<scart:connect>: ")
-    zenoh = (el.attributes.get("zenoh") or "").strip() or None
-    zenoh_ns = (el.attributes.get("zenoh-ns") or "default").strip()
-    zenoh_insecure = (el.attributes.get("zenoh-insecure") or "").strip().lower() in ("true", "1")
-    if zenoh is not None:
-        from dataflow.remote.zenoh_transport import check_endpoint, key_of  # no Zenoh import
-
-        if el.attributes.get("ns"):
-            problems.append("<scart:connect>: give either ns (a scart name service) or zenoh (the source's "
-                            "Zenoh key), not both")
-        try:
-            check_endpoint(zenoh, zenoh_insecure)
-            if len(ends) == 2:
-                key_of(zenoh_ns, *ends[0])
-        except ValueError as exc:
-            problems.append(f"<scart:connect> zenoh={zenoh!r} zenoh-ns={zenoh_ns!r}: {exc}")
+    zenoh = parse_zenoh(el.attributes, problems, "<scart:connect>: ", ends[0] if len(ends) == 2 else ("x",))
     if problems:
         return None, problems
     return Link(ends[0], ends[1], policy, el.attributes.get("ns"), str(el.loc), el.attributes.get("name") or None,
-                zenoh, zenoh_ns, zenoh_insecure), []
+                zenoh), []
 
 
 def links_of(elements: list[tuple[str, Element]], remap: Remap | None = None) -> list[Link]:
@@ -449,21 +433,24 @@ class ConnectParticipant(Participant):
     def _read_zenoh(self, link: Link, deployer: Any) -> None:
         """Feed the link's input port from the source's Zenoh key (samples come whenever the
         source publishes; Zenoh matches them when it appears)."""
-        from dataflow.remote.zenoh_transport import ZenohInput, open_session
+        from dataflow.remote.zenoh_transport import ZenohInput
 
+        zenoh = link.zenoh
+        assert zenoh is not None
         comp, port = link.sink
         target = deployer.task(comp).ports().get(port) if comp in deployer.names() else None
         if target is None or not target.is_input:
             raise DataflowError(f"connect {link.text} ({link.where}): {comp}.{port} is no input port of this runtime")
         try:
-            session = self._sessions.get(link.zenoh)  # type: ignore[arg-type]
+            session = self._sessions.get(zenoh.endpoint)
             if session is None:
-                session = self._sessions[link.zenoh] = open_session(  # type: ignore[index]
-                    connect=[link.zenoh], mode="client", insecure=link.zenoh_insecure)
-            self._inputs.append(ZenohInput(session, *link.source, target, link.policy, link.zenoh_ns))
+                session = self._sessions[zenoh.endpoint] = zenoh.open()
+            self._inputs.append(ZenohInput(session, *link.source, target, link.policy, zenoh.ns))
+        except DataflowError as exc:  # the session (it names the endpoint)
+            raise DataflowError(f"connect {link.text} ({link.where}): {exc}") from exc
         except Exception as exc:  # noqa: BLE001 - Zenoh's own errors: say which link and endpoint
-            raise DataflowError(f"connect {link.text} ({link.where}): Zenoh {link.zenoh}: {exc}") from exc
-        log.info("connect %s: reading %s.%s from Zenoh %s", link.text, *link.source, link.zenoh)
+            raise DataflowError(f"connect {link.text} ({link.where}): Zenoh {zenoh.endpoint}: {exc}") from exc
+        log.info("connect %s: reading %s.%s from Zenoh %s", link.text, *link.source, zenoh.endpoint)
 
     def _client(self, ns: str) -> Any:
         from dataflow.remote.naming import NameClient
