@@ -119,22 +119,26 @@ def test_a_ticket_cannot_be_guessed_and_the_socket_goes_with_its_server() -> Non
         finally:
             stub.close()
         name = reply.ticket.socket
-        assert f"@{name}" in open("/proc/net/unix").read()  # abstract: no file anywhere
-        forged = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        forged.settimeout(10)
-        forged.connect("\0" + name)
-        forged.send(os.urandom(16))
-        assert forged.recv(100) == b""  # closed at once: no samples for a guessed ticket
-        forged.close()
+        assert f"@{name}" in _unix_sockets()  # abstract: no file anywhere
+        with socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET) as forged:
+            forged.settimeout(10)
+            forged.connect("\0" + name)
+            forged.send(os.urandom(16))
+            assert forged.recv(100) == b""  # closed at once: no samples for a guessed ticket
         good, first = _ipc.connect(name, reply.ticket.secret)
-        hello = pb.SubscribeResponse.FromString(first)
-        assert hello.heartbeat and hello.boot_id == server.boot_id
-        with pytest.raises(_ipc.IpcUnavailable, match="closed the connection"):
-            _ipc.connect(name, reply.ticket.secret)  # a ticket is good once
-        good.close()
+        with good:
+            hello = pb.SubscribeResponse.FromString(first)
+            assert hello.heartbeat and hello.boot_id == server.boot_id
+            with pytest.raises(_ipc.IpcUnavailable, match="closed the connection"):
+                _ipc.connect(name, reply.ticket.secret)  # a ticket is good once
     finally:
         server.stop()
-    assert f"@{name}" not in open("/proc/net/unix").read()
+    assert f"@{name}" not in _unix_sockets()
+
+
+def _unix_sockets() -> str:
+    with open("/proc/net/unix") as table:
+        return table.read()
 
 
 def _shm() -> set[str]:
@@ -252,17 +256,17 @@ def test_a_reader_that_falls_behind_gets_true_write_numbers_and_never_fails_the_
     server = deployer.serve("127.0.0.1:0")
     try:
         sock, _ = _raw_reader(server, "src", "out", ConnPolicy.circular_buffer(5))  # keeps the newest
-        statuses = {src.out.write(k).name for k in range(2000)}  # far more than the socket holds: it fills
-        assert statuses == {"WRITE_SUCCESS"}  # a subscriber never makes the task's writes fail
-        seen: list[int] = []
-        reported = 0
-        for message in _ipc.messages_in(sock, 2.0):
-            reply = pb.SubscribeResponse.FromString(message)
-            reported = max(reported, reply.dropped)
-            seen += [sample.sequence for sample in reply.samples]
-            if seen and seen[-1] == 2000:
-                break
-        sock.close()
+        with sock:
+            statuses = {src.out.write(k).name for k in range(2000)}  # far more than the socket holds: it fills
+            assert statuses == {"WRITE_SUCCESS"}  # a subscriber never makes the task's writes fail
+            seen: list[int] = []
+            reported = 0
+            for message in _ipc.messages_in(sock, 2.0):
+                reply = pb.SubscribeResponse.FromString(message)
+                reported = max(reported, reply.dropped)
+                seen += [sample.sequence for sample in reply.samples]
+                if seen and seen[-1] == 2000:
+                    break
         assert seen == sorted(seen) and len(set(seen)) == len(seen)
         values_ok = all(1 <= s <= 2000 for s in seen)
         assert values_ok and seen[-1] == 2000  # each sample tagged with its own write number

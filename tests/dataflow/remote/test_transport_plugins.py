@@ -47,7 +47,7 @@ Not-A-Name = scart_tap:Tap
 
 SCRIPT = '''
 import logging
-import threading
+from support import wait_until
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
 from dataflow.policy import transport_names
 from dataflow.remote import connect
@@ -64,13 +64,8 @@ class Collector(TaskContext):
     inp = InputPort(int)
 
 
-def until(predicate, what, timeout=10.0):
-    done = threading.Event()
-    for _ in range(int(timeout / 0.01)):
-        if predicate():
-            return
-        done.wait(0.01)
-    raise SystemExit(f"timed out: {what}")
+def until(predicate, what):
+    wait_until(predicate, timeout=10, message=what)
 
 
 print("names", " ".join(transport_names()))
@@ -138,7 +133,7 @@ def _install_plugin(folder: Path) -> None:
 
 def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> None:
     _install_plugin(tmp_path)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROOT)]))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROOT), str(ROOT / "tests")]))
     result = subprocess.run([sys.executable, "-c", textwrap.dedent(SCRIPT)], env=env, cwd=tmp_path,
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr

@@ -48,16 +48,31 @@ class Recorder:
             return [e.value for e in self.events]
 
 
+@pytest.fixture
+def session():
+    """``open_session`` for a test: every session it opened is closed after the test, also
+    when the test fails (a session left open keeps Zenoh's threads and sockets)."""
+    opened = []
+
+    def open_(*args, **kwargs):
+        opened.append(open_session(*args, **kwargs))
+        return opened[-1]
+
+    yield open_
+    for each in reversed(opened):
+        each.close()
+
+
 def _publish_until(port, value, recorder: Recorder) -> None:
     """Write ``value`` until it arrives (a subscription is live once Zenoh has matched it)."""
     wait_until(lambda: port.write(value) and value in recorder.values(), timeout=15,
                message=f"{value!r} never arrived over Zenoh")
 
 
-def test_a_port_on_zenoh_between_peers_and_through_a_router(tmp_path) -> None:
+def test_a_port_on_zenoh_between_peers_and_through_a_router(tmp_path, session) -> None:
     here = f"unixsock-stream/{tmp_path}/a.sock"
-    a = open_session(listen=[here])
-    b = open_session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
+    a = session(listen=[here])
+    b = session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
     deployer = Deployer()
     task = deployer.add(Counter("counter"))
     publisher = ZenohPublisher(deployer, a, ns="lab")
@@ -77,14 +92,12 @@ def test_a_port_on_zenoh_between_peers_and_through_a_router(tmp_path) -> None:
         sub.close()
         publisher.close()
     wait_until(lambda: discover(b, "lab") == {}, timeout=10, message="the liveliness tokens stayed")
-    b.close()
-    a.close()
 
     # a fleet: two clients that only reach each other through a router
     router_at = f"unixsock-stream/{tmp_path}/router.sock"
-    router = open_session(listen=[router_at], mode="router")
-    robot = open_session(connect=[router_at], mode="client")
-    desk = open_session(connect=[router_at], mode="client")
+    session(listen=[router_at], mode="router")
+    robot = session(connect=[router_at], mode="client")
+    desk = session(connect=[router_at], mode="client")
     publisher = ZenohPublisher(deployer, robot)
     seen = Recorder()
     sub = ZenohSubscription(desk, "counter", "status", seen)
@@ -94,20 +107,18 @@ def test_a_port_on_zenoh_between_peers_and_through_a_router(tmp_path) -> None:
     finally:
         sub.close()
         publisher.close()
-        for session in (desk, robot, router):
-            session.close()
 
 
 class Setpoint(TaskContext):
     target = InputPort(float, ge=0.0, doc="a set-point from the fleet")
 
 
-def test_an_input_port_fed_from_zenoh_checks_what_comes(tmp_path) -> None:
+def test_an_input_port_fed_from_zenoh_checks_what_comes(tmp_path, session) -> None:
     """An input port subscribed to another process's output key: good values arrive
     through the policy; NaN and out-of-bounds ones are refused as from any outside writer."""
     here = f"unixsock-stream/{tmp_path}/a.sock"
-    a = open_session(listen=[here])
-    b = open_session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
+    a = session(listen=[here])
+    b = session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
     source = Deployer()
     task = source.add(FloatOut("planner"))
     sink = Setpoint("arm")
@@ -126,8 +137,6 @@ def test_an_input_port_fed_from_zenoh_checks_what_comes(tmp_path) -> None:
     finally:
         feed.close()
         publisher.close()
-        b.close()
-        a.close()
 
 
 def test_a_routable_endpoint_needs_insecure() -> None:
@@ -146,11 +155,11 @@ def _scart(*args: str) -> subprocess.CompletedProcess[str]:
                           env=subprocess_env(), timeout=60)
 
 
-def test_deploy_ls_and_echo_over_zenoh_without_a_name_service(tmp_path) -> None:
+def test_deploy_ls_and_echo_over_zenoh_without_a_name_service(tmp_path, session) -> None:
     """A deployer prints where its Zenoh session listens; ls and echo reach it there with no
     name service. Killed, its liveliness tokens go with it: ls through a router lists nothing."""
     router_at = f"unixsock-stream/{tmp_path}/router.sock"
-    router = open_session(listen=[router_at], mode="router")
+    session(listen=[router_at], mode="router")
     proc, line = start_scart(["deploy", "support.remote:Pinger", "--name", "zp", "--period", "0.02",
                               "--ns", "127.0.0.1:0", "--zenoh", "--zenoh-connect", router_at], ready="serving")
     try:
@@ -167,35 +176,32 @@ def test_deploy_ls_and_echo_over_zenoh_without_a_name_service(tmp_path) -> None:
         via_router = ["--zenoh", "--zenoh-connect", router_at]
         assert json.loads(_scart("ls", "--json", *via_router).stdout) == listed
         # the Python API: lookups from Zenoh, then calls and a subscription to the deployer
-        client = open_session(connect=[router_at], mode="client")
-        system = zenoh_transport.connect_zenoh(client, timeout=5.0)
-        seen = Recorder()
-        wait_until(lambda: system.component_names() == ["zp"], timeout=15, message="zp not announced")
-        assert system.component("zp").call("add", 1.0, 2.0) == 3.0
-        sub = system.component("zp").subscribe("ticks", seen)
-        wait_until(lambda: len(seen.values()) >= 2, timeout=10, message="no ticks through a Zenoh lookup")
-        assert sub.transport == "ipc"  # the samples go the fastest way; only the lookup was Zenoh's
-        sub.close()
-        proc.send_signal(signal.SIGKILL)  # its tokens go with the process
-        proc.wait(timeout=10)
-        wait_until(lambda: json.loads(_scart("ls", "--json", *via_router).stdout or "null") == [], timeout=20,
-                   message="a killed deployer is still announced")
-        with pytest.raises(errors.RemoteNotFoundError, match="no component named 'zp' is served on Zenoh"):
-            system.component("zp")
-        system.close()
-        client.close()
+        client = session(connect=[router_at], mode="client")
+        with zenoh_transport.connect_zenoh(client, timeout=5.0) as system:  # closes its subscriptions too
+            seen = Recorder()
+            wait_until(lambda: system.component_names() == ["zp"], timeout=15, message="zp not announced")
+            assert system.component("zp").call("add", 1.0, 2.0) == 3.0
+            sub = system.component("zp").subscribe("ticks", seen)
+            wait_until(lambda: len(seen.values()) >= 2, timeout=10, message="no ticks through a Zenoh lookup")
+            assert sub.transport == "ipc"  # the samples go the fastest way; only the lookup was Zenoh's
+            sub.close()
+            proc.send_signal(signal.SIGKILL)  # its tokens go with the process
+            proc.wait(timeout=10)
+            wait_until(lambda: json.loads(_scart("ls", "--json", *via_router).stdout or "null") == [], timeout=20,
+                       message="a killed deployer is still announced")
+            with pytest.raises(errors.RemoteNotFoundError, match="no component named 'zp' is served on Zenoh"):
+                system.component("zp")
     finally:
         stop_process(proc, signal.SIGKILL)
-        router.close()
 
 
-def test_zenoh_lookups_take_only_loopback_deployers_unless_insecure(tmp_path) -> None:
+def test_zenoh_lookups_take_only_loopback_deployers_unless_insecure(tmp_path, session) -> None:
     """Anyone on Zenoh may announce a component: a routable address (where the system would
     send its token) is ignored unless insecure, a malformed announcement always is, and a
     component announced by two deployers is not used (a spoofed or stale one)."""
     here = f"unixsock-stream/{tmp_path}/a.sock"
-    a = open_session(listen=[here])
-    b = open_session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
+    a = session(listen=[here])
+    b = session(connect=[here], listen=[f"unixsock-stream/{tmp_path}/b.sock"])
     served = zenoh_transport.served_key
     tokens = [a.liveliness().declare_token(key) for key in (
         served("lab", "near", "127.0.0.1:50051", "b1"), served("lab", "far", "10.1.2.3:50051", "b2"),
@@ -215,8 +221,6 @@ def test_zenoh_lookups_take_only_loopback_deployers_unless_insecure(tmp_path) ->
     finally:
         for token in tokens:
             token.undeclare()
-        b.close()
-        a.close()
 
 
 PROBE = """
