@@ -181,9 +181,10 @@ def connect(name: str, ticket: bytes, timeout: float = 2.0) -> tuple[socket.sock
         raise IpcUnavailable(f"cannot reach the deployer's socket: {exc}") from None
 
 
-def open_with(ask: Callable[[], Any], transport: str, what: str, address: str = "") -> tuple[socket.socket, bytes] | None:
+def open_with(ask: Callable[[], Any], transport: str, what: str,
+              address: str = "") -> tuple[socket.socket, bytes, Any] | None:
     """Ask a deployer for a ticket (``ask()``: the ``OpenIpc*`` call, returning its reply)
-    and connect with it: the socket and the deployer's first message. None when ipc does
+    and connect with it: the socket, the deployer's first message and its reply. None when ipc does
     not work between the two ends and ``transport`` (``auto``) lets gRPC do; with ``ipc``
     that raises :class:`~dataflow.remote.errors.UnavailableError` naming ``what`` and why.
     Other failures of ``ask`` (the deployer unreachable, a refused token) propagate."""
@@ -198,7 +199,8 @@ def open_with(ask: Callable[[], Any], transport: str, what: str, address: str = 
             if exc.code().name not in REFUSED:  # type: ignore[attr-defined]
                 raise
             raise IpcUnavailable(exc.details() or exc.code().name) from None  # type: ignore[attr-defined]
-        return connect(reply.ticket.socket, reply.ticket.secret)
+        sock, first = connect(reply.ticket.socket, reply.ticket.secret)
+        return sock, first, reply
     except IpcUnavailable as exc:
         if transport == "ipc":
             raise errors.UnavailableError(f"transport ipc to {what}: {exc}", "FAILED_PRECONDITION", address) from None
@@ -602,11 +604,17 @@ class IpcServer:
                 if self._stopping.is_set():
                     break
                 try:
-                    write(pb.WritePortStreamRequest.FromString(message).value)
-                except Exception as exc:  # noqa: BLE001 - one bad sample never ends the link; said once
-                    refused += 1
-                    if refused == 1:
-                        log.warning("ipc: a sample for %s refused: %s", where, exc)
+                    request = pb.WritePortStreamRequest.FromString(message)
+                except Exception:  # noqa: BLE001 - not a message: counted with the malformed frames
+                    assembler.dropped += 1
+                    continue
+                for value in request.values or (request.value,):  # several: a batch, oldest first
+                    try:
+                        write(value)
+                    except Exception as exc:  # noqa: BLE001 - one bad sample never ends the link; said once
+                        refused += 1
+                        if refused == 1:
+                            log.warning("ipc: a sample for %s refused: %s", where, exc)
         except OSError:
             pass
         finally:

@@ -296,6 +296,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         given = msg.type_name or "None"
         try:
             value = codec.decode(msg)
+            if type(value) is py_type:  # decoded as the port's own type: nothing to coerce
+                return value
             return registry.validate(py_type, value)
         except (PortTypeError, TypeError, ValueError) as exc:
             raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, given {given}: {exc}") from None
@@ -452,7 +454,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 if sink is None:
                     port = self._port(msg.task, msg.port, want_input=True)
                     sink = _Sink(msg.task, port, cv.policy_from_msg(msg.policy), self._value_for, context.peer())
-                sink.write(msg.value)
+                for value in msg.values or (msg.value,):
+                    sink.write(value)
             return pb.WritePortStreamResponse(written=sink.written if sink else 0,
                                               failures=sink.failures if sink else 0)
         except Exception as exc:  # noqa: BLE001
@@ -538,7 +541,9 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             except OverflowError as exc:
                 raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
             found = pb.IpcTicket(socket=server.name, secret=ticket, boot_id=self.owner.boot_id)
-            return (pb.OpenIpcWriterResponse if kind == "in" else pb.OpenIpcReaderResponse)(ticket=found)
+            if kind == "in":
+                return pb.OpenIpcWriterResponse(ticket=found, batches=True)
+            return pb.OpenIpcReaderResponse(ticket=found)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 

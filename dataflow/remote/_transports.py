@@ -90,7 +90,8 @@ class IpcTransport(Transport):
                                 end.policy.transport, f"{end.sink_task}.{end.sink_port}", address)
         if opened is None:
             return False
-        _carry_link(end, opened[0])
+        sock, _, reply = opened
+        _carry_link(end, sock, _ipc.BATCH_BYTES if reply.batches else 0)
         return True
 
     def subscribe(self, end: ReaderEnd, address: str) -> bool:
@@ -101,7 +102,7 @@ class IpcTransport(Transport):
                                 end.policy.transport, f"{end.component}.{end.port}", address)
         if opened is None:
             return False
-        sock, first = opened  # first: the deployer's "connected" heartbeat
+        sock, first, _ = opened  # first: the deployer's "connected" heartbeat
         try:
             if not end.opened(self.name, lambda: _ipc.shutdown_quietly(sock)):
                 return True
@@ -118,10 +119,11 @@ class IpcTransport(Transport):
         return True
 
 
-def _carry_link(end: LinkEnd, sock: socket.socket) -> None:
+def _carry_link(end: LinkEnd, sock: socket.socket, batch_bytes: int) -> None:
     """Samples go from the writer's thread (the outbox's pump); this thread waits for the
     sink to go away (its socket's end), for room when the socket was full, or for the link
-    to be undone."""
+    to be undone. With ``batch_bytes`` (the sink reads batches), the samples waiting go
+    together in messages of at most that many bytes: one send and one wake-up for a burst."""
     wake_r, wake_w = socket.socketpair()
     wake_w.setblocking(False)
 
@@ -131,7 +133,7 @@ def _carry_link(end: LinkEnd, sock: socket.socket) -> None:
         except OSError:  # full (a wake-up is pending anyway), or closed: the link moved on
             pass
 
-    outbox = _ipc.Outbox(sock, end.take, end.messages, wake, wake)
+    outbox = _ipc.Outbox(sock, end.take, lambda values: end.messages(values, batch_bytes), wake, wake)
 
     def pump() -> None:  # the writer's thread
         if outbox.closed:

@@ -132,10 +132,26 @@ class _RemoteLink:
             values.append(value)
         return values
 
-    def messages(self, values: list[Any]) -> list[bytes]:
-        """``values`` as ``WritePortStreamRequest`` messages."""
-        return [pb.WritePortStreamRequest(value=codec.encode(value, self.out.type)).SerializeToString()
-                for value in values]
+    def messages(self, values: list[Any], batch_bytes: int = 0) -> list[bytes]:
+        """``values`` as ``WritePortStreamRequest`` messages: one each, or with
+        ``batch_bytes`` as few as fit in that many bytes (a larger value goes alone)."""
+        kind = self.out.type
+        if not batch_bytes:
+            return [pb.WritePortStreamRequest(value=codec.encode(value, kind)).SerializeToString() for value in values]
+        out: list[bytes] = []
+        batch: list[Any] = []
+        size = 0
+        for value in values:
+            encoded = codec.encode(value, kind)
+            n = encoded.ByteSize() + 8  # + the field's tag and length
+            if batch and size + n > batch_bytes:
+                out.append(pb.WritePortStreamRequest(values=batch).SerializeToString())
+                batch, size = [], 0
+            batch.append(encoded)
+            size += n
+        if batch:
+            out.append(pb.WritePortStreamRequest(values=batch).SerializeToString())
+        return out
 
     def wait_data(self, timeout: float) -> bool:
         """True once the port was written since the last call (or :meth:`wake`); False after ``timeout`` s."""

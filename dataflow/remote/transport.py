@@ -84,8 +84,10 @@ class LinkEnd(Protocol):
     def take(self) -> list[Any]:
         """The next samples waiting in the link's policy storage (at most 64; [] when none)."""
 
-    def messages(self, values: list[Any]) -> list[bytes]:
-        """``values`` encoded as ``WritePortStreamRequest`` messages (the wire format of every transport)."""
+    def messages(self, values: list[Any], batch_bytes: int = 0) -> list[bytes]:
+        """``values`` encoded as ``WritePortStreamRequest`` messages (the wire format of
+        every transport): one per value, or with ``batch_bytes`` as few as fit in that many
+        bytes each (``values``; only for a sink that said it reads them)."""
 
     def wait_data(self, timeout: float) -> bool:
         """Block until the output port was written since the last call (True) or ``timeout`` s."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import signal
 import socket
+import threading
 import time
 
 import pytest
@@ -230,6 +231,50 @@ def test_a_killed_sink_process_leaves_the_source_working() -> None:
             stop_process(proc, signal.SIGKILL)
         server.stop()
     assert _shm() == before
+
+
+class SlowCollector(Collector):
+    """A sink that holds its first sample until the test lets it go (a reader behind)."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.go = threading.Event()
+
+    def _take(self, port: InputPort) -> None:
+        self.go.wait(10)
+        super()._take(port)
+
+
+def test_a_link_whose_sink_falls_behind_sends_the_waiting_samples_together_in_order(monkeypatch) -> None:
+    frames: list[int] = []  # values per message the sink's deployer received
+    real = _ipc.messages_in
+
+    def counted(sock, timeout, assembler=None):
+        for message in real(sock, timeout, assembler):
+            frames.append(len(pb.WritePortStreamRequest.FromString(message).values))
+            yield message
+
+    monkeypatch.setattr(_ipc, "messages_in", counted)
+    d1, d2 = Deployer(), Deployer()
+    src = d1.add(Counter("src"))
+    sink = d2.add(SlowCollector("sink"))
+    s1 = d1.serve("127.0.0.1:0")
+    s2 = d2.serve("127.0.0.1:0", ns=s1.address)
+    try:
+        with connect(s1.address, timeout=5.0) as system:
+            system.connect_ports("src.out", "sink.inp", ConnPolicy.buffer(5000), name="behind")
+            assert _transport(system, "behind") == "ipc"
+            statuses = {src.out.write(k).name for k in range(3000)}  # the socket fills; the port's buffer keeps the rest
+            assert statuses == {"WRITE_SUCCESS"}
+            sink.go.set()
+            wait_until(lambda: len(sink.got) == 3000, timeout=20, message=f"{len(sink.got)} arrived")
+            assert sink.got == list(range(3000))  # in order, none lost, none twice
+            assert max(frames) > 1 and len(frames) < 3000  # what waited went several to a message
+            assert next(lk.dropped for lk in system.links() if lk.name == "behind") == 0
+    finally:
+        sink.go.set()
+        s2.stop()
+        s1.stop()
 
 
 class Floats(TaskContext):

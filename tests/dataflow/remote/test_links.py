@@ -172,3 +172,34 @@ def test_links_across_deployers_through_the_name_service() -> None:
             d.stop_all()
             d.cleanup_all()
         ns.stop()
+
+
+def test_a_write_stream_may_carry_several_values_per_message_in_order() -> None:
+    """``WritePortStreamRequest.values``: what a batching link sends (oldest first)."""
+    import grpc
+
+    from dataflow import codec
+    from dataflow.remote import _convert as cv
+    from dataflow.remote._proto import df as pb
+    from dataflow.remote._proto import df_grpc
+
+    d = Deployer()
+    sink = d.add(Collector("sink"))
+    d.configure_all()
+    d.start_all()
+    server = d.serve("127.0.0.1:0")
+    try:
+        def requests():
+            yield pb.WritePortStreamRequest(task="sink", port="inp", policy=cv.policy_to_msg(ConnPolicy.buffer(100)))
+            yield pb.WritePortStreamRequest(values=[codec.encode(k, int) for k in range(5)])
+            yield pb.WritePortStreamRequest(value=codec.encode(5, int))
+            yield pb.WritePortStreamRequest(values=[codec.encode(k, int) for k in range(6, 9)])
+
+        with grpc.insecure_channel(server.address) as channel:
+            reply = df_grpc.DeployerServiceStub(channel).WritePortStream(requests(), timeout=10)
+        assert (reply.written, reply.failures) == (9, 0)
+        wait_until(lambda: sink.seen() == list(range(9)), timeout=10, message=f"got {sink.seen()}")
+    finally:
+        server.stop()
+        d.stop_all()
+        d.cleanup_all()

@@ -69,10 +69,12 @@ class OpenIpcWriterRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ...) -> None: ...
 
 class OpenIpcWriterResponse(_message.Message):
-    __slots__ = ("ticket",)
+    __slots__ = ("ticket", "batches")
     TICKET_FIELD_NUMBER: _ClassVar[int]
+    BATCHES_FIELD_NUMBER: _ClassVar[int]
     ticket: IpcTicket
-    def __init__(self, ticket: _Optional[_Union[IpcTicket, _Mapping]] = ...) -> None: ...
+    batches: bool
+    def __init__(self, ticket: _Optional[_Union[IpcTicket, _Mapping]] = ..., batches: _Optional[bool] = ...) -> None: ...
 
 class OpenIpcReaderRequest(_message.Message):
     __slots__ = ("task", "port", "policy", "host_id", "heartbeat_ms")
@@ -269,16 +271,18 @@ class WritePortResponse(_message.Message):
     def __init__(self, status: _Optional[_Union[WriteStatus, str]] = ...) -> None: ...
 
 class WritePortStreamRequest(_message.Message):
-    __slots__ = ("task", "port", "policy", "value")
+    __slots__ = ("task", "port", "policy", "value", "values")
     TASK_FIELD_NUMBER: _ClassVar[int]
     PORT_FIELD_NUMBER: _ClassVar[int]
     POLICY_FIELD_NUMBER: _ClassVar[int]
     VALUE_FIELD_NUMBER: _ClassVar[int]
+    VALUES_FIELD_NUMBER: _ClassVar[int]
     task: str
     port: str
     policy: ConnPolicy
     value: _value_pb2.Value
-    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ...) -> None: ...
+    values: _containers.RepeatedCompositeFieldContainer[_value_pb2.Value]
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., values: _Optional[_Iterable[_Union[_value_pb2.Value, _Mapping]]] = ...) -> None: ...
 
 class WritePortStreamResponse(_message.Message):
     __slots__ = ("written", "failures")
