@@ -238,7 +238,8 @@ class Deployer:
                 task.cleanup()
 
     def serve(self, address: str = "127.0.0.1:0", ns: str | None = None, *, lease_seconds: float | None = None,
-              heartbeat_ms: int = 500, max_workers: int = 64, security: Security | None = None) -> DeployerServer:
+              heartbeat_ms: int = 500, max_workers: int = 64, security: Security | None = None,
+              advertise: str | None = None) -> DeployerServer:
         """Serve these tasks over gRPC at ``address``; returns the running server once it
         listens (does not block). The one public way to serve a deployer.
 
@@ -247,7 +248,9 @@ class Deployer:
         ``dataflow.remote.defaults.DEFAULT_LEASE``; renewed by heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
         heartbeats; ``max_workers``: concurrent RPCs; ``security``: TLS and tokens, for this
         server and for its calls to the name service and other deployers (see
-        :mod:`dataflow.remote.security`; default: plaintext, no tokens, loopback only). Raises
+        :mod:`dataflow.remote.security`; default: plaintext, no tokens, loopback only);
+        ``advertise``: the ``HOST[:PORT]`` registered in the name service (default: the bound
+        address, or this host's name when listening on every interface). Raises
         :class:`dataflow.remote.AlreadyRegisteredError` for a name held by another live
         deployer, :class:`dataflow.remote.UnavailableError` when nothing answers at ``ns``
         or ``address`` cannot be bound. See :mod:`dataflow.remote.server`."""
@@ -255,7 +258,8 @@ class Deployer:
         from dataflow.remote.server import DeployerServer
 
         return DeployerServer(self, address, ns=ns, lease_seconds=lease_seconds or DEFAULT_LEASE,
-                              heartbeat_ms=heartbeat_ms, max_workers=max_workers, security=security)
+                              heartbeat_ms=heartbeat_ms, max_workers=max_workers, security=security,
+                              advertise=advertise)
 
     def __enter__(self) -> Deployer:
         return self

@@ -22,7 +22,6 @@ import argparse
 import importlib
 import os
 import signal
-import socket
 import sys
 import threading
 from typing import Any
@@ -39,6 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     deploy.add_argument("--name", default=None, help="task name (one class only; default: the class's own)")
     deploy.add_argument("--period", type=float, default=None, help="run each task periodically (s)")
     deploy.add_argument("--listen", default=None, help="HOST:PORT to serve on (default: see above)")
+    deploy.add_argument("--advertise", default=None, metavar="HOST[:PORT]",
+                        help="the address registered in the name service and announced on Zenoh (default: "
+                             "the one listened on; this host's name when listening on every interface)")
     deploy.add_argument("--ns", default=None, help=f"name service HOST:PORT (or ${NS_ENV}): joined when one answers there, else embedded there; "
                         "default: embed one")
     deploy.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="name-service lease (s)")
@@ -164,7 +166,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
             if not args.no_start:
                 deployer.start_all()
             server = deployer.serve(listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms,
-                                    security=security)
+                                    security=security, advertise=args.advertise)
         except (ImportError, ValueError, DataflowError) as exc:
             _err(f"scart deploy: {exc}")
             return 1
@@ -178,7 +180,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
                 from dataflow.remote.zenoh_transport import ZenohPublisher
 
                 publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns,
-                                           served=(_announced(server.listen_address), server.boot_id))
+                                           served=(server.advertised, server.boot_id))
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors say what is wrong
                 _err(f"scart deploy: --zenoh: {exc}")
                 return 1
@@ -186,8 +188,9 @@ def cmd_deploy(args: argparse.Namespace) -> int:
         on_zenoh = "" if publisher is None else (
             f"; Zenoh: {len(publisher.keys)} port(s) under scart/{args.zenoh_ns}/, listening on "
             f"{' '.join(zenoh_listen)}")  # the same line: scripts wait for one
+        reach = "" if server.advertised == server.listen_address else f", reached as {server.advertised}"
         _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.listen_address} "
-             f"(name service {server.ns_address}, {where}){on_zenoh}")
+             f"(name service {server.ns_address}, {where}{reach}){on_zenoh}")
         serving = True
         while not stop.wait(1.0):
             pass
@@ -206,16 +209,6 @@ def cmd_deploy(args: argparse.Namespace) -> int:
         deployer.stop_all()
         deployer.cleanup_all()
     return 0
-
-
-def _announced(listen: str) -> str:
-    """The address to announce for a server listening on ``listen``: as bound, or for a
-    wildcard (every interface) this host's name, which other hosts can reach (a loopback
-    address would send them to their own machine)."""
-    host, _, port = listen.rpartition(":")
-    if host.strip("[]") in ("0.0.0.0", "::", ""):
-        return f"{socket.gethostname()}:{port}"  # its name, never a loopback one (getfqdn may say localhost)
-    return listen
 
 
 def _connect_at_start(server: Any, args: argparse.Namespace) -> None:

@@ -5,6 +5,8 @@ gRPC statuses to scart errors). Servicers and stubs are the generated ones of
 
 from __future__ import annotations
 
+import re
+import socket
 import threading
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
@@ -210,6 +212,44 @@ def bound_address(requested: str, port: int) -> str:
     if host in ("0.0.0.0", "[::]", ""):
         host = "127.0.0.1"
     return f"{host}:{port}"
+
+
+def advertised_address(listen: str, advertise: str | None = None) -> str:
+    """The address other processes are told to reach a server listening on ``listen``
+    (``host:port`` as bound) at: ``advertise`` when given (``HOST``, ``HOST:PORT``,
+    ``[V6]`` or ``[V6]:PORT``; the bound port when it has none), else ``listen`` itself, or
+    for a wildcard listener (every interface) this host's name: a loopback address would
+    send another host to itself. Raises ``ValueError`` for a malformed ``advertise``."""
+    port = listen.rpartition(":")[2]
+    if advertise:
+        host, given = parse_advertise(advertise)
+        return f"{host}:{given or port}"
+    if listen.rpartition(":")[0].strip("[]") in ("0.0.0.0", "::", ""):
+        return f"{socket.gethostname()}:{port}"  # its name, never a loopback one (getfqdn may say localhost)
+    return listen
+
+
+def parse_advertise(text: str) -> tuple[str, str]:
+    """``(host, port)`` of ``HOST[:PORT]`` or ``[V6][:PORT]`` (port ``""`` when absent)."""
+    bad = ValueError(f"advertise {text!r}: expected HOST, HOST:PORT, [V6] or [V6]:PORT")
+    if text.startswith("["):
+        inner, _, rest = text[1:].partition("]")
+        host, port = f"[{inner}]", rest[1:]
+        if not inner or (rest and not rest.startswith(":")) or not _V6.fullmatch(inner):
+            raise bad
+    else:
+        host, _, port = text.partition(":")
+        if not _HOST.fullmatch(host) or ":" in port:
+            raise bad
+    if port and not (port.isdigit() and 0 < int(port) < 65536):
+        raise ValueError(f"advertise {text!r}: the port must be a number from 1 to 65535")
+    if text.endswith(":") or len(host) > 253:
+        raise bad
+    return host, port
+
+
+_HOST = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?")
+_V6 = re.compile(r"[0-9A-Fa-f:.]+")
 
 
 def health_ok(address: str, timeout: float = 0.5, security: Security | None = None, service: str = "") -> bool:

@@ -258,7 +258,10 @@ class DeployerServer:
         max_workers: int = 64,
         ns_timeout: float = 2.0,
         security: Security | None = None,
+        advertise: str | None = None,
     ) -> None:
+        if advertise:
+            _rpc.parse_advertise(advertise)  # a malformed one raises before anything is bound
         self.deployer = deployer
         #: Public id of this server's process (random per start): its health service answers
         #: SERVING for ``scart.boot.<boot_id>``, name services and clients tell restarts by it.
@@ -282,6 +285,9 @@ class DeployerServer:
         self.address = _rpc.bound_address(address, port)
         #: What the server listens on (``0.0.0.0:P`` when bound to every interface).
         self.listen_address = f"{address.rpartition(':')[0] or '127.0.0.1'}:{port}"
+        #: Where other processes are told to reach it (name service, Zenoh): ``advertise``,
+        #: or the bound address; this host's name for a wildcard listener.
+        self.advertised = _rpc.advertised_address(self.listen_address, advertise)
         self.ns_address = ns or self.address
         self._links: dict[tuple[str, str, str, str], _RemoteLink] = {}
         self._lock = threading.Lock()
@@ -298,7 +304,7 @@ class DeployerServer:
             else:
                 self._ns_client = NameClient(self.ns_address, timeout=ns_timeout, security=security)
                 self._registration = Registration(
-                    self.ns_address, self.address, self.deployer.names, lease_seconds,
+                    self.ns_address, self.advertised, self.deployer.names, lease_seconds,
                     boot_id=self.boot_id, timeout=ns_timeout, security=security,
                 )
                 self._registration.start()
@@ -322,7 +328,7 @@ class DeployerServer:
             return self.refused_names
         self._retry_at = time.monotonic() + REASSERT_S  # refused names: claimed again after a while
         try:
-            self._lease_id, _ = self.registry.register(self.address, names, permanent=True, boot_id=self.boot_id,
+            self._lease_id, _ = self.registry.register(self.advertised, names, permanent=True, boot_id=self.boot_id,
                                                        lease_id=self._lease_id)
             self._refused = []
         except errors.AlreadyRegisteredError:
@@ -335,7 +341,7 @@ class DeployerServer:
                 )
             self._refused = sorted(held)
             try:
-                self._lease_id, _ = self.registry.register(self.address, free, permanent=True, boot_id=self.boot_id,
+                self._lease_id, _ = self.registry.register(self.advertised, free, permanent=True, boot_id=self.boot_id,
                                                            lease_id=self._lease_id)
             except (errors.AlreadyRegisteredError, RegistryFullError) as exc:  # raced, or busy
                 log.warning("deployer at %s: publishing %s failed: %s", self.address, free, exc)

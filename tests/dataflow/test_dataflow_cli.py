@@ -258,3 +258,18 @@ def test_connect_refuses_an_unknown_transport_before_connecting() -> None:
     result = run("connect", "a.out", "b.in", "--transport", "nope", "--ns", "127.0.0.1:1")
     assert result.returncode == 2
     assert "--transport: ConnPolicy.transport must be auto, ipc, shm or grpc, got 'nope'" in result.stderr
+
+
+def test_deploy_advertises_what_it_is_told_and_refuses_a_malformed_address() -> None:
+    ns = f"127.0.0.1:{free_port()}"
+    proc, line = start_scart(["deploy", "support.remote:Pinger@adv", "--listen", ns, "--advertise", "localhost"])
+    try:
+        port = ns.rpartition(":")[2]
+        assert f"reached as localhost:{port}" in line
+        rows = json.loads(scart(ns, "ls", "--json").stdout)  # dials the advertised address
+        assert [(r["name"], r["deployer"]) for r in rows] == [("adv", f"localhost:{port}")]
+        assert rows[0]["state"] == "RUNNING"  # reached there
+    finally:
+        assert stop_process(proc) == 0
+    bad = scart(None, "deploy", "support.remote:Pinger", "--advertise", "robot:0", check=False)
+    assert bad.returncode == 1 and "advertise 'robot:0'" in bad.stderr and "1 to 65535" in bad.stderr

@@ -138,3 +138,38 @@ def test_unregister_on_stop() -> None:
     finally:
         client.close()
         ns.stop()
+
+
+def test_a_wildcard_listener_is_advertised_by_host_name_or_as_told() -> None:
+    import socket
+
+    from dataflow.remote._rpc import advertised_address
+
+    host = socket.gethostname()
+    assert advertised_address("127.0.0.1:5000") == "127.0.0.1:5000"
+    assert advertised_address("0.0.0.0:5000") == advertised_address("[::]:5000") == f"{host}:5000"
+    assert advertised_address("0.0.0.0:5000", "robot-7.lan") == "robot-7.lan:5000"
+    assert advertised_address("0.0.0.0:5000", "10.0.0.2:6000") == "10.0.0.2:6000"
+    assert advertised_address("0.0.0.0:5000", "[fe80::1]") == "[fe80::1]:5000"
+    for bad in ("a b", "robot:", "robot:0", "robot:70000", "::1", "[::1]x", "-robot", "a:b:c", "x" * 300):
+        with pytest.raises(ValueError, match="advertise"):
+            advertised_address("0.0.0.0:5000", bad)
+
+
+def test_the_name_service_gives_the_advertised_address_and_clients_reach_it() -> None:
+    ns = serve_nameserver("127.0.0.1:0")
+    deployer = Deployer()
+    deployer.add(Pinger("p"))
+    with pytest.raises(ValueError, match="advertise 'robot:'"):
+        deployer.serve("127.0.0.1:0", ns=ns.address, advertise="robot:")  # before anything is bound
+    server = deployer.serve("127.0.0.1:0", ns=ns.address, advertise="localhost")
+    try:
+        port = server.address.rpartition(":")[2]
+        assert server.advertised == f"localhost:{port}"
+        wait_until(lambda: [(e.component, e.address) for e in NameClient(ns.address).entries()]
+                   == [("p", f"localhost:{port}")], timeout=10)
+        with connect(ns.address, timeout=5.0) as system:  # dials localhost:PORT, as told
+            assert system.component("p").state in ("PRE_OPERATIONAL", "STOPPED")
+    finally:
+        server.stop()
+        ns.stop()

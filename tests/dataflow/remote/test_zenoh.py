@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -331,13 +330,6 @@ def test_a_zenoh_connect_is_checked_at_load(tmp_path, attrs: str, words: str) ->
         <scart:connect {attrs} to="logger.ticks"/>"""), "zprobe.py": PROBE}, with_components=False)
     with pytest.raises(scart.ScdlError, match=re.escape(words)):
         scart.Runtime.from_file(path)
-
-
-def test_a_wildcard_listener_is_announced_by_host_name() -> None:
-    from dataflow.cli.deploy import _announced
-
-    assert _announced("127.0.0.1:5000") == "127.0.0.1:5000"
-    assert _announced("0.0.0.0:5000") == _announced("[::]:5000") == f"{socket.gethostname()}:5000"
 
 
 def test_a_routable_zenoh_endpoint_loads_with_zenoh_insecure(tmp_path) -> None:
