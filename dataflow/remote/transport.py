@@ -239,7 +239,7 @@ class TransportRegistry:
         """The transports to try, in order, for a policy's ``transport``: the one named, or
         for ``auto`` every one with a rank, lowest first (a plug-in that cannot be loaded is
         skipped with a warning, once). A transport that declines a connection passes it to
-        the next; one that fails is retried when the owner reconnects."""
+        the next; one that fails is retried when the owner reconnects (see :func:`carry`)."""
         if wanted != "auto":
             return [self.load(wanted)]
         found = []
@@ -247,15 +247,20 @@ class TransportRegistry:
             try:
                 transport = self.load(name)
             except TransportError as exc:
-                with self._lock:
-                    first = name not in self._warned
-                    self._warned.add(name)
-                if first:
-                    log.warning("%s; auto goes without it", exc)
+                self.warn_once(name, f"{exc}; auto goes without it")
                 continue
             if transport.rank is not None:
                 found.append(transport)
         return sorted(found, key=lambda t: (t.rank, t.name))
+
+    def warn_once(self, name: str, message: str) -> None:
+        """Log ``message`` about transport ``name`` once per process (a flood of failures
+        is no flood of logs)."""
+        with self._lock:
+            first = name not in self._warned
+            self._warned.add(name)
+        if first:
+            log.warning("%s", message)
 
 
 #: The registry connections use (entry points are process-wide).
@@ -281,9 +286,15 @@ def carry(wanted: str, attempt: Callable[[Transport], bool], after: Callable[[],
           address: str) -> None:
     """Offer one connection to the transports for a policy's ``wanted`` in order, until
     ``attempt(transport)`` says one carried it (and it ended); ``after()`` runs after each
-    attempt, however it went. Raises what an attempt raised, or ``UnavailableError``
-    naming ``what`` and the transports tried when every one declined."""
-    from dataflow.remote.errors import UnavailableError
+    attempt, however it went. Raises what an attempt raised (the peer's failure: a
+    :class:`~dataflow.remote.errors.RemoteError`, a gRPC or socket error; the owner
+    reconnects), or ``UnavailableError`` naming ``what`` and the transports tried when
+    every one declined. Under ``auto``, a transport that raises anything else (a plug-in's
+    bug) is passed over, said once, and the next one tried: it never keeps the connection
+    from the transports that work."""
+    import grpc
+
+    from dataflow.remote.errors import RemoteError, UnavailableError
 
     tried = []
     for transport in candidates(wanted):
@@ -291,6 +302,13 @@ def carry(wanted: str, attempt: Callable[[Transport], bool], after: Callable[[],
         try:
             if attempt(transport):
                 return
+        except (RemoteError, grpc.RpcError, OSError):
+            raise
+        except Exception as exc:
+            if wanted != "auto":
+                raise
+            default.warn_once(f"failed:{transport.name}", f"transport {transport.name!r} failed for {what} "
+                              f"({type(exc).__name__}: {exc}); auto goes on with the next one")
         finally:
             after()
     raise UnavailableError(f"no transport reaches {what} (tried {', '.join(tried) or 'none'})", "UNAVAILABLE", address)

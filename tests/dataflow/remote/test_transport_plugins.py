@@ -37,11 +37,25 @@ class Tap(GrpcTransport):
     def subscribe(self, end, address):
         Tap.opened += 1
         return super().subscribe(end, address)
+
+
+class Faulty(GrpcTransport):
+    """Ranked before scart's own, and broken: every connection it is offered raises."""
+
+    name = "faulty"
+    rank = 5
+
+    def link(self, end, address, stub):
+        raise RuntimeError("a bug in the plug-in")
+
+    def subscribe(self, end, address):
+        raise RuntimeError("a bug in the plug-in")
 '''
 
 ENTRY_POINTS = """[scart.transports]
 tap = scart_tap:Tap
 broken = scart_no_such_module:Transport
+faulty = scart_tap:Faulty
 Not-A-Name = scart_tap:Tap
 """
 
@@ -80,7 +94,7 @@ except TransportError as exc:
 print("auto", " ".join(t.name for t in candidates("auto")))
 
 d1, d2 = Deployer(), Deployer()
-src, sink = d1.add(Counter("src")), d2.add(Collector("sink"))
+src, sink, other = d1.add(Counter("src")), d2.add(Collector("sink")), d2.add(Collector("other"))
 s1 = d1.serve("127.0.0.1:0")
 s2 = d2.serve("127.0.0.1:0", ns=s1.address)
 got = []
@@ -112,6 +126,12 @@ try:
 
         print("link", got[:20] == list(range(20)), "subscription", sub.transport, "opened", scart_tap.Tap.opened)
         sub.close()
+        # auto passes over the ranked plug-in that raises (said once) to scart's own
+        system.connect_ports("src.out", "other.inp", ConnPolicy.buffer(100), name="a")
+        until(lambda: any(lk.name == "a" and lk.transport == "ipc" for lk in system.links()), "the auto link on ipc")
+        plain = system.component("src").subscribe("out", lambda e: None, ConnPolicy.buffer(10))
+        print("auto-link ipc auto-subscription", plain.transport)
+        plain.close()
         try:
             system.component("src").subscribe("out", seen.append, ConnPolicy.data().with_(transport="broken"))
         except TransportError as exc:
@@ -138,17 +158,20 @@ def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> N
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr
     lines = dict(line.split(" ", 1) for line in result.stdout.splitlines())
-    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "tap"]  # Not-A-Name ignored
+    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "faulty", "tap"]  # Not-A-Name ignored
     assert "transport entry point 'Not-A-Name'" in result.stderr and "a lower-case word" in result.stderr
-    assert "must be auto, ipc, shm, grpc, broken or tap" in lines["long:"]
+    assert "must be auto, ipc, shm, grpc, broken, faulty or tap" in lines["long:"]
     # the broken plug-in is named with its entry point and what failed
     assert "'broken'" in lines["broken:"] and "scart_no_such_module:Transport" in lines["broken:"]
     assert "ModuleNotFoundError" in lines["broken:"]
-    # auto: scart's own by rank; the broken one skipped (said once), the unranked one not tried
-    assert lines["auto"].split() == ["ipc", "grpc"]
+    # auto: by rank; the broken one skipped (said once), the unranked one not tried
+    assert lines["auto"].split() == ["faulty", "ipc", "grpc"]
     assert "transport 'broken'" in result.stderr and "auto goes without it" in result.stderr
     assert lines["link"] == "True subscription tap opened 2"
     assert lines["subscribe-broken:"] == "TransportError"  # at once, not after the connect timeout
+    # a ranked plug-in that raises never keeps auto from the transports that work; said once
+    assert lines["auto-link"] == "ipc auto-subscription ipc"
+    assert result.stderr.count("transport 'faulty' failed") == 1 and "a bug in the plug-in" in result.stderr
 
 
 def test_scart_own_transports_are_entry_points() -> None:
