@@ -42,6 +42,10 @@ JSON_TYPE = "scart.json"
 FLOAT_LIST = registry.type_name(list[float])  # "float64[]": packed little-endian doubles
 
 _PLAIN = (float, int, bool, str, bytes)
+#: A number written to a port of its own type, without the registry's lookups (the hot case).
+_NUMBER = {float: (registry.type_name(float), struct.Struct("<d").pack),
+           int: (registry.type_name(int), struct.Struct("<q").pack)}
+_UNPACK = {registry.type_name(float): struct.Struct("<d").unpack, registry.type_name(int): struct.Struct("<q").unpack}
 
 
 def encode(value: Any, py_type: Any = None) -> Value:
@@ -51,6 +55,9 @@ def encode(value: Any, py_type: Any = None) -> Value:
     if value is None:
         return Value(type_name=NONE_TYPE)
     try:
+        if type(value) is py_type and py_type in _NUMBER:
+            name, pack = _NUMBER[py_type]
+            return Value(type_name=name, data=pack(value))
         if py_type is not None:
             enc = registry.encode(value, py_type)
             return Value(type_name=enc.type_name, data=enc.data)
@@ -101,6 +108,12 @@ def decode(msg: Value) -> Any:
 
     Raises :class:`~dataflow.PortTypeError` when the bytes do not fit their type name."""
     name = msg.type_name
+    unpack = _UNPACK.get(name)
+    if unpack is not None:  # a number, without the registry's lookups (the hot case)
+        try:
+            return unpack(msg.data)[0]
+        except struct.error as exc:
+            raise PortTypeError(f"cannot decode {name}: {exc}") from None
     if name == NONE_TYPE:
         return None
     if name == FLOAT_LIST:  # the hot case, without the registry's lookups

@@ -391,10 +391,15 @@ class InputPort(Port[T]):
     def admit(self, value: Any) -> Any:
         """``value`` checked against the port's bounds (a value written from outside);
         raises :class:`~dataflow.errors.PortValueError` naming the port, its bounds and the value."""
-        if self.bounds is None:
+        bounds = self.bounds
+        if bounds is None:
             return value
+        kind = type(value)
+        if kind is self.type and (kind is int or (kind is float and value - value == 0.0)) and \
+                bounds.ge is None and bounds.gt is None and bounds.le is None and bounds.lt is None:
+            return value  # a finite number of the port's own type, no limits: nothing to check (the hot case)
         try:
-            return bounded_adapter(self.type, self.bounds).validate_python(value)
+            return bounded_adapter(self.type, bounds).validate_python(value)
         except pydantic.ValidationError as exc:
             raise PortValueError(f"{self.qualname}: {value!r:.80} refused: {exc.errors()[0]['msg']} "
                                  f"(accepts {self.bounds.text})") from None

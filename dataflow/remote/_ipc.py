@@ -246,6 +246,7 @@ class Outbox:
         self._want_write = want_write
         self._on_broken = on_broken
         self._held: deque[bytes] = deque()
+        self.sent_at = 0.0  #: ``time.monotonic()`` of the last frame sent
         self._more = False
         self._warned = False
         self.lock = threading.Lock()
@@ -306,6 +307,7 @@ class Outbox:
         try:
             self.sock.send(frame, socket.MSG_DONTWAIT)
             self.blocked = False
+            self.sent_at = time.monotonic()
             return True
         except OSError as exc:
             # the reader is behind (its socket is full), or the kernel is short of memory: wait for room

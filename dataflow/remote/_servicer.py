@@ -143,12 +143,13 @@ class _Sink(_Writer):
         self.who = who
         self.written = self.failures = 0
         self._check = check
+        self._type_name = port.type_name
 
     def write(self, value_msg: Any) -> None:
         """Check and write one ``Value`` message (an empty one, a stream's first, is skipped)."""
         if not value_msg.type_name:
             return
-        value = self._check(self.where, self.target.type, self.target.type_name, value_msg, "")
+        value = self._check(self.where, self.target.type, self._type_name, value_msg, "")
         try:
             value = self.target.admit(value)
         except PortValueError as exc:

@@ -63,7 +63,16 @@ def test_a_port_type_decides_the_encoding() -> None:
     assert encode([1, 2], list[float]).type_name == FLOAT_LIST
 
 
-@pytest.mark.parametrize(("name", "data"), [(FLOAT_LIST, b"\0" * 12), ("float64", b"\0"), (JSON_TYPE, b"{nope")])
+@pytest.mark.parametrize("value", [0, -7, 2**63 - 1, -(2**63), 2**70, 2.5, -0.0, math.inf, -math.inf])
+def test_a_number_of_the_port_type_encodes_as_without_one(value: object) -> None:
+    """The numbers' short path (a port's own type) gives the registry's bytes, and its limits."""
+    typed = encode(value, type(value))
+    assert typed == encode(value) and decode(Value.FromString(typed.SerializeToString())) == value
+    assert typed.type_name == ("scart.json" if value == 2**70 else {int: "int64", float: "float64"}[type(value)])
+
+
+@pytest.mark.parametrize(("name", "data"), [(FLOAT_LIST, b"\0" * 12), ("float64", b"\0"), ("int64", b"\0" * 9),
+                                            (JSON_TYPE, b"{nope")])
 def test_bad_bytes_are_a_port_type_error_naming_the_type(name: str, data: bytes) -> None:
     with pytest.raises(PortTypeError, match=re.escape(f"cannot decode {name}")):
         decode(Value(type_name=name, data=data))

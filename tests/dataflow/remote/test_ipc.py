@@ -71,7 +71,9 @@ def test_one_host_takes_ipc_and_grpc_when_asked(two) -> None:
     for k in range(50):
         src.out.write(k)
     wait_until(lambda: len(sink.got) == 50, timeout=10, message=f"got {sink.got}")
-    assert sink.got == list(range(50))  # in order, none lost
+    assert sink.got == list(range(50))  # in order, none lost (a burst: the link's thread sends most)
+    src.out.write(50)  # and a lone write after it goes too
+    wait_until(lambda: sink.got[-1:] == [50], timeout=10, message=f"got {sink.got[-3:]}")
     system.disconnect_link("fast")
 
     system.connect_ports("src.out", "sink.inp", ConnPolicy.buffer(100).with_(transport="grpc"), name="slow")
