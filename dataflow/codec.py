@@ -26,6 +26,7 @@ Importing this module imports protobuf (the ``Value`` message class), never grpc
 from __future__ import annotations
 
 import struct
+from types import MappingProxyType
 from typing import Any
 
 import pydantic
@@ -43,9 +44,10 @@ FLOAT_LIST = registry.type_name(list[float])  # "float64[]": packed little-endia
 
 _PLAIN = (float, int, bool, str, bytes)
 #: A number written to a port of its own type, without the registry's lookups (the hot case).
-_NUMBER = {float: (registry.type_name(float), struct.Struct("<d").pack),
-           int: (registry.type_name(int), struct.Struct("<q").pack)}
-_UNPACK = {registry.type_name(float): struct.Struct("<d").unpack, registry.type_name(int): struct.Struct("<q").unpack}
+_NUMBER = MappingProxyType({float: (registry.type_name(float), struct.Struct("<d").pack),
+                            int: (registry.type_name(int), struct.Struct("<q").pack)})
+_UNPACK = MappingProxyType({registry.type_name(float): struct.Struct("<d").unpack,
+                            registry.type_name(int): struct.Struct("<q").unpack})
 
 
 def encode(value: Any, py_type: Any = None) -> Value:

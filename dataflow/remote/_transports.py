@@ -30,9 +30,6 @@ __all__ = ["GrpcTransport", "IpcTransport"]
 
 log = logging.getLogger(__name__)
 
-#: A write this soon (s) after an ipc link's last send leaves the send to the link's own
-#: thread, which sends what came meanwhile together (writes faster than 5 kHz).
-SOON_S = 200e-6
 BATCHES_PER_WAKE = 160  #: a gRPC link sends at most 160 × 64 samples per wake-up, then looks again
 
 
@@ -128,10 +125,10 @@ def _carry_link(end: LinkEnd, sock: socket.socket, batch_bytes: int) -> None:
     sink to go away (its socket's end), for room when the socket was full, or for the link
     to be undone. With ``batch_bytes`` (the sink reads batches), the samples waiting go
     together in messages of at most that many bytes: one send and one wake-up for a burst.
-    Then too, a write less than :data:`SOON_S` after the last send leaves the sending to
-    this thread, which takes what came meanwhile in one message: a fast writer pays for
-    storing a sample, not for a send each (a periodic one, slower than that, still sends
-    from its own thread at once)."""
+    Then too, a write less than :data:`~dataflow.remote._ipc.SOON_S` after the last send
+    leaves the sending to this thread, which takes what came meanwhile in one message: a
+    fast writer pays for storing a sample, not for a send each (a periodic one, slower
+    than that, still sends from its own thread at once)."""
     wake_r, wake_w = socket.socketpair()
     wake_w.setblocking(False)
     deferred = [False]  # this thread is woken to send what the writer left
@@ -147,7 +144,7 @@ def _carry_link(end: LinkEnd, sock: socket.socket, batch_bytes: int) -> None:
     def pump() -> None:  # the writer's thread
         if outbox.closed:
             end.wake()  # the next connection sends it
-        elif batch_bytes and time.monotonic() - outbox.sent_at < SOON_S:
+        elif batch_bytes and time.monotonic() - outbox.sent_at < _ipc.SOON_S:
             if not deferred[0]:  # one wake-up per round, however many writes
                 deferred[0] = True
                 wake()
