@@ -21,6 +21,10 @@ peer, no heartbeat) and reconnects, over gRPC if ipc no longer works.
 
 The writer never blocks: a sample is sent from the writing thread with ``MSG_DONTWAIT``,
 and the writer never waits for a lock another thread holds (that thread sends for it).
+A write less than :data:`SOON_S` after the last send is left to another thread (the
+link's, or the io thread for a reader), which sends what came meanwhile in one message:
+a periodic writer pays one send per sample and no thread hand-off, a fast one pays for
+storing a sample and shares the sends.
 When the socket is full (a slow or frozen reader), the samples wait in the connection's
 policy storage — the link's input port, or a subscription's policy-shaped inbox, the same
 as on the gRPC path — which keeps, overwrites or drops them as the policy says and counts
