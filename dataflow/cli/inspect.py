@@ -14,6 +14,7 @@ transition), 2 usage.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -22,7 +23,7 @@ import statistics
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from dataflow.cli import _zenoh as zenoh_args
@@ -208,14 +209,25 @@ def _split(text: str, what: str = "PORT") -> tuple[str, str]:
     return split_port(text, what)
 
 
-def _wait_until_stopped(done: threading.Event, duration: float | None, tick: float = 1.0,
-                        on_tick: Callable[[], None] | None = None) -> None:
-    """Block until ``done``, SIGINT/SIGTERM, or ``duration`` s; call ``on_tick`` every ``tick`` s."""
+@contextlib.contextmanager
+def _stopped_by_signals(done: threading.Event) -> Iterator[None]:
+    """SIGINT and SIGTERM set ``done`` inside the block (then the former handlers again):
+    set before a subscription starts printing, so a Ctrl-C after its first line stops it."""
     def handler(signum: int, frame: Any) -> None:
         done.set()
 
     old = [signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)]
     try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old[0])
+        signal.signal(signal.SIGTERM, old[1])
+
+
+def _wait_until_stopped(done: threading.Event, duration: float | None, tick: float = 1.0,
+                        on_tick: Callable[[], None] | None = None) -> None:
+    """Block until ``done``, SIGINT/SIGTERM, or ``duration`` s; call ``on_tick`` every ``tick`` s."""
+    with _stopped_by_signals(done):
         deadline = None if duration is None else time.monotonic() + duration
         while not done.is_set():
             wait = tick if deadline is None else min(tick, max(0.0, deadline - time.monotonic()))
@@ -225,9 +237,6 @@ def _wait_until_stopped(done: threading.Event, duration: float | None, tick: flo
                 break
             if on_tick is not None:
                 on_tick()
-    finally:
-        signal.signal(signal.SIGINT, old[0])
-        signal.signal(signal.SIGTERM, old[1])
 
 
 def _with_rates(listing: Callable[[], list[Any]], count: Callable[[Any], int], sample: float) -> list[tuple[Any, float]]:
@@ -356,17 +365,18 @@ def cmd_echo(args: argparse.Namespace) -> int:
             if args.n is not None and count[0] >= args.n:
                 done.set()
 
-    if getattr(args, "zenoh", False):
-        from dataflow.remote.zenoh_transport import ZenohSubscription
+    with _stopped_by_signals(done):  # before the first sample can be printed
+        if getattr(args, "zenoh", False):
+            from dataflow.remote.zenoh_transport import ZenohSubscription
 
-        sub: Any = ZenohSubscription(args.zenoh_session, component, port, observer, args.zenoh_ns)
-    else:
-        assert proxy is not None
-        sub = proxy.subscribe(port, observer, policy=_policy(args.policy), period=args.period)
-    try:
-        _wait_until_stopped(done, args.duration)
-    finally:
-        sub.close()
+            sub: Any = ZenohSubscription(args.zenoh_session, component, port, observer, args.zenoh_ns)
+        else:
+            assert proxy is not None
+            sub = proxy.subscribe(port, observer, policy=_policy(args.policy), period=args.period)
+        try:
+            _wait_until_stopped(done, args.duration)
+        finally:
+            sub.close()
     if sub.dropped and getattr(args, "zenoh", False):
         _err(f"echo: {sub.dropped} sample(s) lost on Zenoh or not decodable")
     elif sub.dropped:
@@ -417,11 +427,12 @@ def cmd_hz(args: argparse.Namespace) -> int:
             _out(f"average rate: {stats['rate']:.3f}\n\tmin: {stats['min']:.6f}s max: {stats['max']:.6f}s "
                  f"std dev: {stats['std_dev']:.6f}s window: {stats['window']}")
 
-    sub = proxy.subscribe(port, observer, policy=ConnPolicy.buffer(1000))
-    try:
-        _wait_until_stopped(done, args.duration, on_tick=report if args.n is None else None)
-    finally:
-        sub.close()
+    with _stopped_by_signals(done):  # a Ctrl-C while subscribing stops it too
+        sub = proxy.subscribe(port, observer, policy=ConnPolicy.buffer(1000))
+        try:
+            _wait_until_stopped(done, args.duration, on_tick=report if args.n is None else None)
+        finally:
+            sub.close()
     report()
     return 0
 

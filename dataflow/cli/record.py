@@ -129,7 +129,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     from mcap.writer import Writer
 
     from dataflow import ConnPolicy
-    from dataflow.cli.inspect import _err, _out, _wait_until_stopped
+    from dataflow.cli.inspect import _err, _out, _stopped_by_signals, _wait_until_stopped
 
     ports = _ports_to_record(args)
     samples: queue.SimpleQueue[Any] = queue.SimpleQueue()
@@ -154,10 +154,12 @@ def cmd_record(args: argparse.Namespace) -> int:
                                  args=(writer, channels, samples, counts, args.n, done), daemon=True)
         drain.start()
         try:
-            for task, port, _ in ports:
-                subs.append(args.system.component(task).subscribe(port, observer, policy=ConnPolicy.buffer(10_000)))
-            _err(f"record: {len(ports)} port(s) to {args.output}; Ctrl-C to stop")
-            _wait_until_stopped(done, args.duration)
+            with _stopped_by_signals(done):  # before it says Ctrl-C stops it
+                for task, port, _ in ports:
+                    subs.append(args.system.component(task).subscribe(port, observer,
+                                                                      policy=ConnPolicy.buffer(10_000)))
+                _err(f"record: {len(ports)} port(s) to {args.output}; Ctrl-C to stop")
+                _wait_until_stopped(done, args.duration)
         finally:
             for sub in subs:
                 sub.close()

@@ -7,6 +7,7 @@
   has no ipc, so ``auto`` goes on to gRPC; a policy naming ``ipc`` gets an error saying why.
 * :class:`GrpcTransport` — gRPC streams (client streaming ``WritePortStream`` for links,
   server streaming ``Subscribe`` for subscriptions). Rank 100: works between any two hosts.
+  A link sends the samples waiting together when the sink's deployer says it reads them.
 
 Both carry the same messages (``WritePortStreamRequest``, ``SubscribeResponse``).
 """
@@ -20,7 +21,6 @@ import threading
 import time
 from typing import Any
 
-from dataflow import codec
 from dataflow.remote import _convert as cv
 from dataflow.remote import _ipc, errors
 from dataflow.remote._proto import df as pb
@@ -41,6 +41,7 @@ class GrpcTransport(Transport):
 
     def link(self, end: LinkEnd, address: str, stub: Any) -> bool:
         ended = threading.Event()  # grpc may still wait on the generator after the call ended
+        batch_bytes = _ipc.BATCH_BYTES if end.reads_batches() else 0  # an older sink: one value a message
 
         def requests() -> Any:
             yield pb.WritePortStreamRequest(task=end.sink_task, port=end.sink_port, policy=cv.policy_to_msg(end.policy))
@@ -54,8 +55,7 @@ class GrpcTransport(Transport):
                     values = end.take()
                     if not values:
                         break
-                    for value in values:
-                        yield pb.WritePortStreamRequest(value=codec.encode(value, end.out.type))
+                    yield from end.requests(values, batch_bytes)
 
         call = stub.WritePortStream.future(requests())
         try:

@@ -43,6 +43,7 @@ from dataflow.remote._proto import (
     ns_grpc,
 )
 from dataflow.remote._proto import df as pb
+from dataflow.remote._registry import BATCHES_SERVICE
 from dataflow.remote._servicer import DeployerServicer
 from dataflow.remote.naming import (
     DEFAULT_LEASE,
@@ -93,6 +94,7 @@ class _RemoteLink:
         self._pump: Callable[[], None] | None = None
         self._dropping: Callable[[], int] | None = None
         self._lost = 0  # by the transports of earlier connections
+        self._channel: Any = None  # to the sink's deployer, while connected
         #: How samples go now: the transport's name (``ipc``, ``grpc``), or ``""`` while not connected.
         self.transport = ""
         self.settled = threading.Event()  # the first connection was made (or failed)
@@ -133,25 +135,45 @@ class _RemoteLink:
         return values
 
     def messages(self, values: list[Any], batch_bytes: int = 0) -> list[bytes]:
+        """``values`` as ``WritePortStreamRequest`` messages, serialized (see :meth:`requests`)."""
+        return [request.SerializeToString() for request in self.requests(values, batch_bytes)]
+
+    def requests(self, values: list[Any], batch_bytes: int = 0) -> list[Any]:
         """``values`` as ``WritePortStreamRequest`` messages: one each, or with
         ``batch_bytes`` as few as fit in that many bytes (a larger value goes alone)."""
         kind = self.out.type
         if not batch_bytes:
-            return [pb.WritePortStreamRequest(value=codec.encode(value, kind)).SerializeToString() for value in values]
-        out: list[bytes] = []
+            return [pb.WritePortStreamRequest(value=codec.encode(value, kind)) for value in values]
+        out: list[Any] = []
         batch: list[Any] = []
         size = 0
         for value in values:
             encoded = codec.encode(value, kind)
             n = encoded.ByteSize() + 8  # + the field's tag and length
             if batch and size + n > batch_bytes:
-                out.append(pb.WritePortStreamRequest(values=batch).SerializeToString())
+                out.append(pb.WritePortStreamRequest(values=batch))
                 batch, size = [], 0
             batch.append(encoded)
             size += n
         if batch:
-            out.append(pb.WritePortStreamRequest(values=batch).SerializeToString())
+            out.append(pb.WritePortStreamRequest(values=batch))
         return out
+
+    def reads_batches(self) -> bool:
+        """Whether the sink's deployer reads several values per message (it says so in its
+        health service, :data:`~dataflow.remote._registry.BATCHES_SERVICE`); False for an
+        older one, or when it cannot tell within the control-plane deadline."""
+        from grpc_health.v1 import health_pb2, health_pb2_grpc
+
+        channel = self._channel
+        if channel is None:
+            return False
+        try:
+            reply = health_pb2_grpc.HealthStub(channel).Check(
+                health_pb2.HealthCheckRequest(service=BATCHES_SERVICE), timeout=self.timeout)
+        except grpc.RpcError:
+            return False
+        return reply.status == health_pb2.HealthCheckResponse.SERVING
 
     def wait_data(self, timeout: float) -> bool:
         """True once the port was written since the last call (or :meth:`wake`); False after ``timeout`` s."""
@@ -191,9 +213,13 @@ class _RemoteLink:
             try:
                 address = self.server.resolve(self.sink_task)
                 with self.server.security.channel(address, _rpc.channel_options()) as channel:
+                    self._channel = channel
                     stub = df_grpc.DeployerServiceStub(channel)
-                    carry(self.policy.transport, lambda t: t.link(self, address, stub), self._ended,
-                          f"{self.sink_task}.{self.sink_port}", address)
+                    try:
+                        carry(self.policy.transport, lambda t: t.link(self, address, stub), self._ended,
+                              f"{self.sink_task}.{self.sink_port}", address)
+                    finally:
+                        self._channel = None
                 backoff = 0.05
             except TransportError as exc:  # a plug-in that cannot be loaded: said once, then retried quietly
                 if self.closed.is_set():
@@ -282,6 +308,8 @@ class DeployerServer:
         self._server, port, health, self._executor = _rpc.make_server(
             address, servicers, names, max_workers, security=security, roles=roles)
         health.set(boot_service(self.boot_id), health_pb2.HealthCheckResponse.SERVING)
+        health.set(BATCHES_SERVICE, health_pb2.HealthCheckResponse.SERVING)
+        self._health = health
         self.address = _rpc.bound_address(address, port)
         #: What the server listens on (``0.0.0.0:P`` when bound to every interface).
         self.listen_address = f"{address.rpartition(':')[0] or '127.0.0.1'}:{port}"

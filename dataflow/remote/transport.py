@@ -89,6 +89,13 @@ class LinkEnd(Protocol):
         every transport): one per value, or with ``batch_bytes`` as few as fit in that many
         bytes each (``values``; only for a sink that said it reads them)."""
 
+    def requests(self, values: list[Any], batch_bytes: int = 0) -> list[Any]:
+        """:meth:`messages`, as message objects (for a transport that serializes them itself)."""
+
+    def reads_batches(self) -> bool:
+        """Whether the sink's deployer reads ``WritePortStreamRequest.values`` (several
+        values per message), asked over the control plane; False for an older one."""
+
     def wait_data(self, timeout: float) -> bool:
         """Block until the output port was written since the last call (True) or ``timeout`` s."""
 

@@ -203,3 +203,50 @@ def test_a_write_stream_may_carry_several_values_per_message_in_order() -> None:
         server.stop()
         d.stop_all()
         d.cleanup_all()
+
+
+@pytest.mark.parametrize("batches", [True, False], ids=["batching-sink", "older-sink"])
+def test_a_grpc_link_batches_only_to_a_sink_that_says_it_reads_batches(monkeypatch, batches: bool) -> None:
+    """A burst goes several values to a message to a deployer that announces
+    ``WritePortStreamRequest.values`` in its health service, one per message to one that
+    does not (an older deployer would drop what it cannot read); in order, none lost."""
+    from grpc_health.v1 import health_pb2
+
+    from dataflow.remote._registry import BATCHES_SERVICE
+    from dataflow.remote._servicer import DeployerServicer
+
+    per_message: list[int] = []
+    real = DeployerServicer.WritePortStream
+
+    def counted(self, request_iterator, context):
+        def spy():
+            for msg in request_iterator:
+                if not msg.task:
+                    per_message.append(len(msg.values) or 1)
+                yield msg
+        return real(self, spy(), context)
+
+    monkeypatch.setattr(DeployerServicer, "WritePortStream", counted)
+    d1, d2 = Deployer(), Deployer()
+    src = d1.add(Counter("src"))
+    sink = d2.add(Collector("sink"))
+    d2.configure_all()
+    d2.start_all()
+    s1 = d1.serve("127.0.0.1:0")
+    s2 = d2.serve("127.0.0.1:0", ns=s1.address)
+    if not batches:
+        s2._health.set(BATCHES_SERVICE, health_pb2.HealthCheckResponse.NOT_SERVING)  # noqa: SLF001 - as an older one
+    try:
+        s1.connect_ports("src", "out", "sink", "inp", ConnPolicy.buffer(5000).with_(transport="grpc"), name="g")
+        assert wait_until(lambda: any(lk.transport == "grpc" for lk in s1.links()), timeout=10)
+        for k in range(2000):
+            src.out.write(k)
+        wait_until(lambda: len(sink.seen()) == 2000, timeout=20, message=f"{len(sink.seen())} arrived")
+        assert sink.seen() == list(range(2000))
+        assert sum(per_message) == 2000
+        assert (max(per_message) > 1) is batches and (len(per_message) < 2000) is batches
+    finally:
+        s2.stop()
+        s1.stop()
+        d2.stop_all()
+        d2.cleanup_all()
