@@ -82,6 +82,12 @@ class Mailbox(Generic[T]):
                 status, item = self._storage.read()
             return item if status is _NEW else None
 
+    def clear(self) -> None:
+        """Forget the pending items (the storage's own clear, which counts them as a local
+        connection's clear does)."""
+        with self._cond:
+            self._storage.clear()
+
     def close(self) -> None:
         """Wake :meth:`get` for good (idempotent)."""
         with self._cond:

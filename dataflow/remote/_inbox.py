@@ -70,17 +70,14 @@ class _Tagging(Storage):
         with self._lock:  # one number per sample, increasing, whatever the writers' order
             number = max(self._port._sample[0], self._last + 1)  # this write's number
             self._last = number
-            self.box.put((number, _time_ns(), value))
-        return True
+            return self.box.put((number, _time_ns(), value))  # refused: counted; never a failed write (not mandatory)
 
     def read(self) -> tuple[FlowStatus, Any]:
         item = self.box.get(0.0)
         return (_NEW, item) if item is not None else (FlowStatus.NO_DATA, None)
 
     def clear(self) -> None:
-        for _ in range(1_000_000):  # bounded by the policy's size
-            if self.box.get(0.0) is None:
-                return
+        self.box.clear()
 
     def size(self) -> int:
         return len(self.box)

@@ -240,10 +240,16 @@ class Outbox:
     the frames made so far are held (at most one batch) and ``want_write`` is called once;
     the rest waits in the storage. A message larger than :data:`MAX_MESSAGE`, and the
     messages held when the socket breaks, are dropped and counted in :attr:`dropped`; a
-    broken socket calls ``on_broken`` once and leaves the storage alone."""
+    broken socket calls ``on_broken`` once and leaves the storage alone.
+
+    The writer calls :meth:`offer`: with ``defer`` (the owner has a thread of its own), a
+    write less than :data:`SOON_S` after the last send calls ``defer`` (once per round)
+    and leaves the send to that thread's :meth:`pump_deferred`, which sends what came
+    meanwhile together."""
 
     def __init__(self, sock: socket.socket, take: Callable[[], list[Any]], encode: Callable[[list[Any]], list[bytes]],
-                 want_write: Callable[[], None], on_broken: Callable[[], None]) -> None:
+                 want_write: Callable[[], None], on_broken: Callable[[], None],
+                 defer: Callable[[], None] | None = None) -> None:
         self.sock = sock
         self.dropped = 0
         self.broken = False
@@ -253,6 +259,8 @@ class Outbox:
         self._encode = encode
         self._want_write = want_write
         self._on_broken = on_broken
+        self._defer = defer
+        self._deferred = False  # defer was called, pump_deferred not yet
         self._held: deque[bytes] = deque()
         self.sent_at = 0.0  #: ``time.monotonic()`` of the last frame sent
         self._more = False
@@ -277,6 +285,22 @@ class Outbox:
                 self.lock.release()
             if not self._more:
                 return
+
+    def offer(self) -> None:
+        """The writer's call after a write: :meth:`pump` now, or leave it to the owner's
+        thread when the last send was less than :data:`SOON_S` ago (see the class)."""
+        if self._defer is not None and time.monotonic() - self.sent_at < SOON_S:
+            if not self._deferred:  # one wake-up per round, however many writes
+                self._deferred = True
+                self._defer()
+            return
+        self.pump()
+
+    def pump_deferred(self) -> None:
+        """The owner's thread: send what the writer left to it (nothing when it left nothing)."""
+        if self._deferred:
+            self._deferred = False  # before pumping: a write after this defers again
+            self.pump()
 
     def _pump_locked(self) -> None:
         held = self._held
@@ -344,14 +368,11 @@ class _ReaderEnd:
     write number as it is written) drained by an :class:`Outbox`."""
 
     def __init__(self, server: IpcServer, sock: socket.socket, stream: Any, heartbeat: float) -> None:
-        self.server = server
-        self.deferred = False  # the io thread is asked to send what the writer left
         self.sock = sock
         self.stream = stream
         self.heartbeat = heartbeat
-        self.sent_at = time.monotonic()
         self.outbox = Outbox(sock, lambda: stream.take(64), self._messages, lambda: server.want_write(self),
-                             lambda: server.detach_later(self))
+                             lambda: server.detach_later(self), defer=lambda: server.pump_later(self))
         self.outbox.send_now(pb.SubscribeResponse(heartbeat=True, boot_id=server.boot_id).SerializeToString())
         stream.inp.add_data_callback(self._on_data)  # the sample is in the inbox (tagged) by then
         self.outbox.pump()  # what the inbox got before (an init=True policy's sample)
@@ -368,18 +389,12 @@ class _ReaderEnd:
                 for samples in self.stream.batches(items, len(items), BATCH_BYTES, MAX_MESSAGE - 64)]
 
     def _on_data(self, _inp: Any) -> None:  # the writer's thread: never blocks
-        if time.monotonic() - self.outbox.sent_at < SOON_S:  # a fast writer: the io thread sends them together
-            if not self.deferred:  # one wake-up per round, however many writes
-                self.deferred = True
-                self.server.pump_later(self)
-            return
-        self.outbox.pump()
-        self.sent_at = time.monotonic()
+        self.outbox.offer()
 
     def beat(self, now: float) -> None:
-        if now - self.sent_at >= self.heartbeat and not self.outbox.blocked:
+        """A heartbeat when nothing was sent for :attr:`heartbeat` s."""
+        if now - self.outbox.sent_at >= self.heartbeat and not self.outbox.blocked:
             self.outbox.send_now(pb.SubscribeResponse(heartbeat=True, dropped=self.dropped).SerializeToString())
-            self.sent_at = now
 
     def close(self) -> None:
         self.stream.inp.remove_data_callback(self._on_data)
@@ -618,12 +633,10 @@ class IpcServer:
             if live:
                 self._selector.modify(end.sock, selectors.EVENT_READ | selectors.EVENT_WRITE, "reader")
         for end in deferred:
-            end.deferred = False  # before pumping: a write after this asks again
             with self._lock:
                 live = end.sock in self._readers
             if live:
-                end.outbox.pump()
-                end.sent_at = time.monotonic()
+                end.outbox.pump_deferred()
         for end in ends:
             end.beat(now)
 

@@ -18,7 +18,6 @@ import logging
 import select
 import socket
 import threading
-import time
 from typing import Any
 
 from dataflow.remote import _convert as cv
@@ -131,7 +130,6 @@ def _carry_link(end: LinkEnd, sock: socket.socket, batch_bytes: int) -> None:
     than that, still sends from its own thread at once)."""
     wake_r, wake_w = socket.socketpair()
     wake_w.setblocking(False)
-    deferred = [False]  # this thread is woken to send what the writer left
 
     def wake() -> None:
         try:
@@ -139,17 +137,14 @@ def _carry_link(end: LinkEnd, sock: socket.socket, batch_bytes: int) -> None:
         except OSError:  # full (a wake-up is pending anyway), or closed: the link moved on
             pass
 
-    outbox = _ipc.Outbox(sock, end.take, lambda values: end.messages(values, batch_bytes), wake, wake)
+    outbox = _ipc.Outbox(sock, end.take, lambda values: end.messages(values, batch_bytes), wake, wake,
+                         defer=wake if batch_bytes else None)
 
     def pump() -> None:  # the writer's thread
         if outbox.closed:
             end.wake()  # the next connection sends it
-        elif batch_bytes and time.monotonic() - outbox.sent_at < _ipc.SOON_S:
-            if not deferred[0]:  # one wake-up per round, however many writes
-                deferred[0] = True
-                wake()
         else:
-            outbox.pump()
+            outbox.offer()
 
     try:
         if not end.opened("ipc", wake, pump=pump, dropped=lambda: outbox.dropped):
@@ -164,9 +159,9 @@ def _carry_link(end: LinkEnd, sock: socket.socket, batch_bytes: int) -> None:
                 wake_r.recv(4096)
             if ready.get(sock.fileno(), 0) & (select.POLLIN | select.POLLHUP | select.POLLERR):
                 break  # the sink sends nothing after its acknowledgement: any such event is its end
-            if deferred[0] or ready.get(sock.fileno(), 0) & select.POLLOUT:
-                deferred[0] = False  # before pumping: a write after this wakes this thread again
+            if ready.get(sock.fileno(), 0) & select.POLLOUT:
                 outbox.pump()
+            outbox.pump_deferred()
         if not end.closed.is_set():
             log.info("link to %s.%s: the sink's ipc socket closed; reconnecting", end.sink_task, end.sink_port)
     finally:

@@ -4,6 +4,7 @@ blocks the writer, and a peer killed leaves nothing behind and the other side wo
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -43,12 +44,13 @@ class Collector(TaskContext):
             self.got.append(value)
 
 
-@pytest.fixture
-def two():
-    """Two deployers serving on one host (the second joins the first's name service)."""
+@contextlib.contextmanager
+def serving(sink_task: TaskContext):
+    """Two deployers serving on one host (the second, with ``sink_task``, joins the first's
+    name service): the system, the source task and the sink task."""
     d1, d2 = Deployer(), Deployer()
     src = d1.add(Counter("src"))
-    sink = d2.add(Collector("sink"))
+    sink = d2.add(sink_task)
     s1 = d1.serve("127.0.0.1:0")
     s2 = d2.serve("127.0.0.1:0", ns=s1.address)
     try:
@@ -57,6 +59,12 @@ def two():
     finally:
         s2.stop()
         s1.stop()
+
+
+@pytest.fixture
+def two():
+    with serving(Collector("sink")) as ends:
+        yield ends
 
 
 def _transport(system, name: str) -> str:
@@ -257,13 +265,8 @@ def test_a_link_whose_sink_falls_behind_sends_the_waiting_samples_together_in_or
             yield message
 
     monkeypatch.setattr(_ipc, "messages_in", counted)
-    d1, d2 = Deployer(), Deployer()
-    src = d1.add(Counter("src"))
-    sink = d2.add(SlowCollector("sink"))
-    s1 = d1.serve("127.0.0.1:0")
-    s2 = d2.serve("127.0.0.1:0", ns=s1.address)
-    try:
-        with connect(s1.address, timeout=5.0) as system:
+    with serving(SlowCollector("sink")) as (system, src, sink):
+        try:
             system.connect_ports("src.out", "sink.inp", ConnPolicy.buffer(5000), name="behind")
             assert _transport(system, "behind") == "ipc"
             statuses = {src.out.write(k).name for k in range(3000)}  # the socket fills; the port's buffer keeps the rest
@@ -273,10 +276,8 @@ def test_a_link_whose_sink_falls_behind_sends_the_waiting_samples_together_in_or
             assert sink.got == list(range(3000))  # in order, none lost, none twice
             assert max(frames) > 1 and len(frames) < 3000  # what waited went several to a message
             assert next(lk.dropped for lk in system.links() if lk.name == "behind") == 0
-    finally:
-        sink.go.set()
-        s2.stop()
-        s1.stop()
+        finally:
+            sink.go.set()  # before the servers stop: never leave the sink's delivering thread waiting
 
 
 class Floats(TaskContext):
