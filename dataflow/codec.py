@@ -57,9 +57,16 @@ def encode(value: Any, py_type: Any = None) -> Value:
     if value is None:
         return Value(type_name=NONE_TYPE)
     try:
-        if type(value) is py_type and py_type in _NUMBER:
-            name, pack = _NUMBER[py_type]
-            return Value(type_name=name, data=pack(value))
+        if type(value) is py_type:
+            if py_type in _NUMBER:
+                name, pack = _NUMBER[py_type]
+                return Value(type_name=name, data=pack(value))
+            if isinstance(value, pydantic.BaseModel):
+                # pydantic's own JSON, in one call: it writes inf and NaN as null, so a
+                # sample holding null takes the general path below, which keeps them.
+                data = value.__pydantic_serializer__.to_json(value)
+                if b"null" not in data:
+                    return Value(type_name=registry.type_name(py_type), data=data)
         if py_type is not None:
             enc = registry.encode(value, py_type)
             return Value(type_name=enc.type_name, data=enc.data)

@@ -134,8 +134,10 @@ class _Writer:
 class _Sink(_Writer):
     """A remote writer fed one value message at a time (a ``WritePortStream`` call, or an
     ipc connection): each value is checked as any from outside (``check``: the servicer's
-    ``_value_for``, then the port's bounds); ``written`` and ``failures`` are counted, the
-    first refusal logged (a flood of bad samples is no flood of logs)."""
+    ``_value_for``, then the port's bounds). A value of another type or out of bounds is
+    refused alone, on every transport alike: the connection goes on. ``written`` and
+    ``failures`` are counted, the first refusal logged (a flood of bad samples is no flood
+    of logs)."""
 
     def __init__(self, task: str, port: InputPort, policy: ConnPolicy, check: Any, who: str) -> None:
         super().__init__(task, port, policy)
@@ -149,10 +151,9 @@ class _Sink(_Writer):
         """Check and write one ``Value`` message (an empty one, a stream's first, is skipped)."""
         if not value_msg.type_name:
             return
-        value = self._check(self.where, self.target.type, self._type_name, value_msg, "")
         try:
-            value = self.target.admit(value)
-        except PortValueError as exc:
+            value = self.target.admit(self._check(self.where, self.target.type, self._type_name, value_msg, ""))
+        except (Abort, PortValueError) as exc:
             self.failures += 1
             if self.failures == 1:
                 log.warning("a sample from %s refused: %s", self.who, exc)

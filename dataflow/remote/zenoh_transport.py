@@ -203,8 +203,13 @@ class _PortEnd:
         self._sent = 0  # the write number last published
         self._closed = False
         self._tap: InputPort = InputPort(port.type, name=f"zenoh_{port.name}")
+        # Whether a subscriber matches the key, as Zenoh tells it (at once when one does
+        # already): the writer's thread reads a bool instead of asking Zenoh every write.
+        self._matching = False
+        self._listener: Any = None
 
     def attach(self) -> None:
+        self._listener = self.publisher.declare_matching_listener(self._on_matching)
         self._tap.add_data_callback(self._on_data)
         self.port.connect_to(self._tap, ConnPolicy.data(init=False))
 
@@ -220,7 +225,7 @@ class _PortEnd:
                 if self._closed or number <= self._sent:
                     return
                 self._sent = number
-                if self.publisher.matching_status.matching:  # nobody listening: nothing to encode
+                if self._matching:  # nobody listening: nothing to encode
                     stamp = self._id + number.to_bytes(8, "little") + time.time_ns().to_bytes(8, "little")
                     self.publisher.put(codec.encode(value, self.port.type).SerializeToString(), attachment=stamp)
             except Exception as exc:  # noqa: BLE001 - Zenoh refusing (a closed session) never fails the write
@@ -231,11 +236,16 @@ class _PortEnd:
             if not self._more:
                 return
 
+    def _on_matching(self, status: Any) -> None:  # Zenoh's thread
+        self._matching = bool(status.matching)
+
     def close(self) -> None:
         with self._lock:
             self._closed = True
         self._tap.remove_data_callback(self._on_data)
         self.port.disconnect(self._tap)
+        if self._listener is not None:
+            _quietly(self._listener.undeclare, "matching listener")
         _quietly(self.publisher.undeclare, "publisher")
 
 

@@ -71,6 +71,28 @@ def test_a_number_of_the_port_type_encodes_as_without_one(value: object) -> None
     assert typed.type_name == ("scart.json" if value == 2**70 else {int: "int64", float: "float64"}[type(value)])
 
 
+@register_type("test.codec.Nested")
+class Nested(BaseModel):
+    pose: Pose
+    poses: list[Pose] = []
+    label: str | None = None
+    count: int = 0
+
+
+@pytest.mark.parametrize("value", [
+    Registered(name="r", values=[1.0, 2.5]), Registered(name="r", values=[1.0, -math.inf, math.nan]),
+    Nested(pose=Pose(x=1.0, theta=-0.5), poses=[Pose(x=2.0, theta=0.0)] * 3, label="é", count=-3),
+    Nested(pose=Pose(x=math.inf, theta=0.0)), Nested(pose=Pose(x=0.0, theta=0.0)),
+])
+def test_a_model_of_the_port_type_encodes_as_without_one(value: BaseModel) -> None:
+    """A model's short path (one pydantic call) gives the general path's bytes, inf and NaN kept."""
+    typed = encode(value, type(value))
+    assert typed == encode(value)
+    back = decode(Value.FromString(typed.SerializeToString()))
+    assert type(back) is type(value) and back.model_dump_json() == value.model_dump_json()
+    assert ("Infinity" in typed.data.decode()) == ("inf" in repr(value))
+
+
 @pytest.mark.parametrize(("name", "data"), [(FLOAT_LIST, b"\0" * 12), ("float64", b"\0"), ("int64", b"\0" * 9),
                                             (JSON_TYPE, b"{nope")])
 def test_bad_bytes_are_a_port_type_error_naming_the_type(name: str, data: bytes) -> None:

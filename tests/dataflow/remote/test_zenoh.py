@@ -87,6 +87,10 @@ def test_a_port_on_zenoh_between_peers_and_through_a_router(tmp_path, session) -
         assert sequences == sorted(sequences) and sub.dropped == 0  # the port's write numbers, none lost
         assert discover(b, "lab") == {"counter": ["out", "status"]}  # no name service anywhere
         assert discover(b, "other") == {}
+        sub.close()  # the publisher hears that nobody matches, then that someone does again
+        again = Recorder()
+        sub = ZenohSubscription(b, "counter", "out", again, ns="lab")
+        _publish_until(task.out, -2, again)
     finally:
         sub.close()
         publisher.close()
