@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict
 
-__all__ = ["LinkDescription", "TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription"]
+__all__ = ["LinkDescription", "SubscriptionDescription", "TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription"]
 
 
 class PortDescription(BaseModel):
@@ -74,3 +74,25 @@ class LinkDescription(BaseModel):
     transport: str = "local"
     samples: int = 0
     dropped: int = 0
+
+
+class SubscriptionDescription(BaseModel):
+    """A subscription a deployer serves to another process, as ``scart links
+    --subscriptions`` shows it: the deployer's address and its number for it (``id``), the
+    ``task.port`` it reads, the subscriber's address, its policy and transport (``grpc``,
+    ``ipc``), samples the port wrote so far and samples lost on the way to the subscriber."""
+
+    model_config = ConfigDict(frozen=True)
+    deployer: str
+    id: int
+    source: str
+    subscriber: str
+    policy: str
+    transport: str
+    samples: int = 0
+    dropped: int = 0
+
+    @property
+    def name(self) -> str:
+        """``deployer#id``: unique among the subscriptions of a system."""
+        return f"{self.deployer}#{self.id}"

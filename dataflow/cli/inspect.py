@@ -93,6 +93,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
                         "shm is the same), grpc, or an installed plug-in's name")
     p = verb("links", "list links: name, ends, policy, transport, measured rate, drops", cmd_links)
     p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
+    p.add_argument("--subscriptions", "-s", action="store_true",
+                   help="list the subscriptions the deployers serve instead: port, subscriber, policy, transport, "
+                        "measured rate, drops")
     p = verb("reroute", "point a link at another input port (made before the old one goes)", cmd_reroute)
     p.add_argument("name", metavar="LINK")
     p.add_argument("sink", metavar="C.in")
@@ -513,7 +516,10 @@ def cmd_connect(args: argparse.Namespace) -> int:
 
 
 def cmd_links(args: argparse.Namespace) -> int:
-    """``scart links``: one line per link; rate measured over ``--sample`` s."""
+    """``scart links``: one line per link; rate measured over ``--sample`` s
+    (``--subscriptions``: one line per subscription served)."""
+    if args.subscriptions:
+        return _subscriptions(args)
     rows = [{**lk.model_dump(), "rate": rate}
             for lk, rate in _with_rates(args.system.links, lambda lk: lk.samples, args.sample)]
     if args.json:
@@ -523,6 +529,21 @@ def cmd_links(args: argparse.Namespace) -> int:
     for r in rows:
         _out(f"{r['name']:<28} {r['source']:<28} {r['sink']:<28} {r['policy']:<12} {r['transport']:<9} "
              f"{r['rate']:>9.1f} {r['dropped']:>8}")
+    return 0
+
+
+def _subscriptions(args: argparse.Namespace) -> int:
+    """``scart links --subscriptions``: which port goes to whom, over which transport (what
+    ``auto`` picked), at what rate, losing how many."""
+    rows = [{**sub.model_dump(), "rate": rate}
+            for sub, rate in _with_rates(args.system.subscriptions, lambda sub: sub.samples, args.sample)]
+    if args.json:
+        _out(_dump(rows))
+        return 0
+    _out(f"{'SOURCE':<28} {'SUBSCRIBER':<28} {'POLICY':<12} {'TRANSPORT':<9} {'RATE(Hz)':>9} {'DROPPED':>8} DEPLOYER")
+    for r in rows:
+        _out(f"{r['source']:<28} {r['subscriber']:<28} {r['policy']:<12} {r['transport']:<9} {r['rate']:>9.1f} "
+             f"{r['dropped']:>8} {r['deployer']}#{r['id']}")
     return 0
 
 

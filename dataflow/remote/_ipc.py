@@ -410,18 +410,19 @@ class IpcServer:
     (blocking reads: the lowest latency).
 
     ``write_in(task, port, policy)`` makes the sink of such a connection (a callable
-    taking each ``Value`` message, and a ``close``); ``stream_out(task, port, policy)``
-    the policy-shaped inbox of a reader (the gRPC path's ``_Stream``)."""
+    taking each ``Value`` message, and a ``close``); ``stream_out(task, port, policy, who)``
+    the policy-shaped inbox of a reader (the gRPC path's ``_Stream``; ``who``: the
+    ticket's, for listings)."""
 
     def __init__(self, boot_id: str,
                  write_in: Callable[[str, str, ConnPolicy], tuple[Callable[[Any], None], Callable[[], None]]],
-                 stream_out: Callable[[str, str, ConnPolicy], Any]) -> None:
+                 stream_out: Callable[[str, str, ConnPolicy, str], Any]) -> None:
         self.boot_id = boot_id
         self.name = f"scart-{boot_id}-{secrets.token_hex(8)}"
         self._write_in = write_in
         self._stream_out = stream_out
         self._lock = threading.Lock()
-        self._tickets: dict[bytes, tuple[float, str, str, str, str, ConnPolicy, float]] = {}
+        self._tickets: dict[bytes, tuple[float, str, str, str, str, ConnPolicy, float, str]] = {}
         self._readers: dict[socket.socket, _ReaderEnd] = {}
         self._pending: dict[socket.socket, float] = {}  # accepted, ticket not read yet (insertion order: oldest first)
         self._pumps: dict[socket.socket, threading.Thread] = {}
@@ -455,9 +456,11 @@ class IpcServer:
         """Connections carrying samples (the caller holds the lock)."""
         return len(self._readers) + len(self._pumps)
 
-    def ticket(self, kind: str, task: str, port: str, policy: ConnPolicy, peer: str, heartbeat: float = 0.5) -> bytes:
+    def ticket(self, kind: str, task: str, port: str, policy: ConnPolicy, peer: str, heartbeat: float = 0.5,
+               who: str = "") -> bytes:
         """A one-time ticket for a connection of ``kind`` (``in``: into the input port
-        ``task.port``; ``out``: out of the output port) for ``peer``. Raises
+        ``task.port``; ``out``: out of the output port) for ``peer`` (its key for the
+        per-peer bounds; ``who``: its address, as listings show it). Raises
         ``OverflowError`` past the bounds."""
         now = time.monotonic()
         with self._lock:
@@ -470,8 +473,15 @@ class IpcServer:
             if self._connections() >= MAX_CONNECTIONS:
                 raise OverflowError(f"this deployer serves at most {MAX_CONNECTIONS} ipc connections")
             ticket = secrets.token_bytes(TICKET_BYTES)
-            self._tickets[ticket] = (now + TICKET_S, peer, kind, task, port, policy, heartbeat)
+            self._tickets[ticket] = (now + TICKET_S, peer, kind, task, port, policy, heartbeat, who)
             return ticket
+
+    def readers(self) -> list[tuple[Any, int]]:
+        """Each reader's inbox (``stream_out``'s) and the samples it lost (the inbox's and
+        the socket's), for listings."""
+        with self._lock:
+            ends = list(self._readers.values())
+        return [(end.stream, end.dropped) for end in ends]
 
     # ---- the io thread -------------------------------------------------------------------
     def _run(self) -> None:
@@ -531,12 +541,12 @@ class IpcServer:
         if entry is None or entry[0] < time.monotonic() or full or self._stopping.is_set():
             conn.close()
             return
-        _, _, kind, task, port, policy, heartbeat = entry
+        _, _, kind, task, port, policy, heartbeat, who = entry
         end: _ReaderEnd | None = None
         try:
             conn.setblocking(True)
             if kind == "out":
-                end = _ReaderEnd(self, conn, self._stream_out(task, port, policy), heartbeat)
+                end = _ReaderEnd(self, conn, self._stream_out(task, port, policy, who), heartbeat)
                 with self._lock:
                     self._readers[conn] = end
                 self._selector.register(conn, selectors.EVENT_READ, "reader")

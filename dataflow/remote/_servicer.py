@@ -15,6 +15,7 @@ DescribeTask, so introspection shows only the connections users made.
 
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import secrets
@@ -77,8 +78,12 @@ class _Stream(Inbox):
     encoded size is measured on the first sample, then every 64th): a subscriber too slow
     for that loses samples, counted, instead of growing the server."""
 
-    def __init__(self, port: OutputPort, policy: ConnPolicy) -> None:
+    def __init__(self, port: OutputPort, policy: ConnPolicy, serial: int = 0, subscriber: str = "",
+                 transport: str = "grpc") -> None:
+        """``serial``, ``subscriber`` (the peer's address) and ``transport``: what
+        ``ListLinks`` says of it."""
         self._measured = 0
+        self.serial, self.subscriber, self.transport = serial, subscriber, transport
         super().__init__(port, policy, name=f"sub_{port.name}")
         self.wake.set()  # send the connected heartbeat and any init sample at once
 
@@ -255,6 +260,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         self._defaults: dict[tuple[str, str], _Writer] = {}
         self._writers = _Writers(WRITER_IDLE_S, WRITERS_PER_PORT, WRITERS_PER_PEER, MAX_WRITERS)
         self._streams: set[_Stream] = set()
+        self._serials = itertools.count(1)  # the subscriptions' numbers, for ListLinks
         self._stopping = threading.Event()
         self._sweeper: threading.Thread | None = None  # started with the first remote writer
         self._ipc: _ipc.IpcServer | None = None  # started with the first ipc ticket
@@ -496,7 +502,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             with self._lock:
                 if len(self._streams) >= self.max_streams:
                     raise Abort("RESOURCE_EXHAUSTED", f"this deployer serves at most {self.max_streams} subscriptions")
-                stream = _Stream(port, policy)
+                stream = _Stream(port, policy, next(self._serials), context.peer() or "", "grpc")
                 self._streams.add(stream)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
@@ -539,7 +545,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             heartbeat = self._heartbeat_s(request.heartbeat_ms) if kind == "out" else 0.0  # readers only
             server = self._ipc_server()
             try:
-                ticket = server.ticket(kind, request.task, port.name, policy, peer_key(context), heartbeat)
+                ticket = server.ticket(kind, request.task, port.name, policy, peer_key(context), heartbeat,
+                                       context.peer() or "")
             except OverflowError as exc:
                 raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
             found = pb.IpcTicket(socket=server.name, secret=ticket, boot_id=self.owner.boot_id)
@@ -554,8 +561,10 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             if self._stopping.is_set():
                 raise Abort("UNAVAILABLE", "this deployer is stopping")
             if self._ipc is None:
-                self._ipc = _ipc.IpcServer(self.owner.boot_id, self._ipc_write_in,
-                                           lambda task, port, policy: _Stream(self._port(task, port, False), policy))
+                self._ipc = _ipc.IpcServer(
+                    self.owner.boot_id, self._ipc_write_in,
+                    lambda task, port, policy, who: _Stream(self._port(task, port, False), policy,
+                                                            next(self._serials), who, "ipc"))
             return self._ipc
 
     def _ipc_write_in(self, task: str, port_name: str, policy: ConnPolicy) -> tuple[Any, Any]:
@@ -655,7 +664,15 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
 
     def ListLinks(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
-            return pb.ListLinksResponse(links=[_link_info(lk) for lk in self.owner.links()[:MAX_LINKS_LISTED]])
+            with self._lock:
+                served = [(stream, stream.dropped) for stream in self._streams]
+                ipc = self._ipc
+            if ipc is not None:
+                served += ipc.readers()
+            served.sort(key=lambda item: item[0].serial)
+            return pb.ListLinksResponse(links=[_link_info(lk) for lk in self.owner.links()[:MAX_LINKS_LISTED]],
+                                        subscriptions=[_subscription_info(stream, dropped)
+                                                       for stream, dropped in served[:MAX_LINKS_LISTED]])
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
@@ -668,6 +685,13 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
 
 
 MAX_LINKS_LISTED = 2000  # with names of at most ~600 bytes: well under the message bound
+
+
+def _subscription_info(stream: _Stream, dropped: int) -> Any:
+    port = stream.port
+    return pb.SubscriptionInfo(id=stream.serial, source=port.qualname, subscriber=stream.subscriber[:300],
+                               policy=str(stream.policy), transport=stream.transport,
+                               samples=port.last_sample()[0], dropped=dropped)
 
 
 def _link_info(link: Any) -> Any:

@@ -21,7 +21,7 @@ from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 
 if TYPE_CHECKING:  # the core's description models
     from dataflow import OperationDescription, PortDescription, PropertyDescription, TaskDescription
-    from dataflow.introspection import LinkDescription
+    from dataflow.introspection import LinkDescription, SubscriptionDescription
 
 __all__ = [
     "TRANSITIONS",
@@ -299,6 +299,11 @@ class System(ABC):
     @abstractmethod
     def links(self) -> list[LinkDescription]:
         """Every link between ports (name, ends, policy, transport, samples, drops), by name."""
+
+    def subscriptions(self) -> list[SubscriptionDescription]:
+        """Every subscription the deployers serve to other processes (port, subscriber,
+        policy, transport, samples, drops). A system with no served deployers has none."""
+        return []
 
     @abstractmethod
     def reroute(self, name: str, sink: str) -> LinkDescription:

@@ -26,7 +26,8 @@ import grpc
 from dataflow import codec
 from dataflow.errors import DataflowError, NotFoundError
 from dataflow.introspection import (
-    LinkDescription, OperationDescription, PortDescription, PropertyDescription, TaskDescription,
+    LinkDescription, OperationDescription, PortDescription, PropertyDescription, SubscriptionDescription,
+    TaskDescription,
 )
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.remote import _convert as cv
@@ -176,19 +177,31 @@ class GrpcSystem(System):
         )
         self._invoke(st, "ConnectPorts", req)
 
-    def links(self) -> list[LinkDescription]:
-        """Every link of every deployer the name service knows (one ListLinks each), by name."""
-        out: list[LinkDescription] = []
+    def _listings(self) -> list[tuple[str, Any]]:
+        """``(address, ListLinks reply)`` of every deployer the name service knows that answers."""
+        out = []
         for address in sorted({e.address for e in self._ns.entries()}):
             try:
-                reply = _rpc.call(self._stub(address).ListLinks, pb.ListLinksRequest(), self.timeout, address)
+                out.append((address, _rpc.call(self._stub(address).ListLinks, pb.ListLinksRequest(),
+                                               self.timeout, address)))
             except errors.RemoteError as exc:
                 log.warning("deployer %s: %s", address, exc)
-                continue
-            out += [LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy,
-                                    transport=lk.transport, samples=lk.samples, dropped=lk.dropped)
-                    for lk in reply.links]
+        return out
+
+    def links(self) -> list[LinkDescription]:
+        """Every link of every deployer the name service knows (one ListLinks each), by name."""
+        out = [LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy,
+                               transport=lk.transport, samples=lk.samples, dropped=lk.dropped)
+               for _, reply in self._listings() for lk in reply.links]
         return sorted(out, key=lambda lk: lk.name)
+
+    def subscriptions(self) -> list[SubscriptionDescription]:
+        """Every subscription the deployers the name service knows serve (one ListLinks
+        each), by deployer and number."""
+        return [SubscriptionDescription(deployer=address, id=sub.id, source=sub.source, subscriber=sub.subscriber,
+                                        policy=sub.policy, transport=sub.transport, samples=sub.samples,
+                                        dropped=sub.dropped)
+                for address, reply in self._listings() for sub in reply.subscriptions]
 
     def _link(self, name: str) -> LinkDescription:
         links = self.links()

@@ -192,6 +192,38 @@ def test_named_links_listed_rerouted_and_disconnected(system) -> None:
     assert gone.returncode == 1 and "no link 'floats'" in gone.stderr
 
 
+def test_links_lists_the_subscriptions_served_with_their_transport(system) -> None:
+    """``scart links --subscriptions``: each subscription a deployer serves, with the
+    transport it came over (what ``auto`` picked), its policy and the subscriber's address;
+    gone from the listing once closed."""
+    from dataflow import ConnPolicy
+    from dataflow.remote import connect
+
+    ns, _ = system
+    mine = {"policy": "buffer:7", "source": "pinger.ticks"}
+    with connect(ns) as client:
+        pinger = client.component("pinger")
+        subs = [pinger.subscribe("ticks", lambda event: None, policy=ConnPolicy.buffer(7).with_(transport=transport))
+                for transport in ("grpc", "auto")]
+        try:
+            wait_until(lambda: all(sub.delivered for sub in subs), timeout=30, message="no sample arrived")
+            rows = [r for r in json.loads(scart(ns, "links", "--subscriptions", "--json", "--sample", "0.3").stdout)
+                    if {k: r[k] for k in mine} == mine]
+            assert sorted(r["transport"] for r in rows) == ["grpc", "ipc"]  # auto on one host: the fast path
+            for row in rows:
+                assert row["subscriber"].startswith(("ipv4:127.0.0.1:", "ipv6:")) and row["deployer"] == ns
+                assert row["rate"] > 10 and row["samples"] > 0 and row["dropped"] >= 0  # the pinger runs at 100 Hz
+            assert len({r["id"] for r in rows}) == 2
+            table = scart(ns, "links", "-s", "--sample", "0").stdout.splitlines()
+            assert table[0].split()[:4] == ["SOURCE", "SUBSCRIBER", "POLICY", "TRANSPORT"]
+            assert sum("pinger.ticks" in line and "buffer:7" in line for line in table) == 2
+        finally:
+            for sub in subs:
+                sub.close()
+        wait_until(lambda: not [s for s in client.subscriptions() if s.policy == "buffer:7"], timeout=30,
+                   message="closed subscriptions still listed")
+
+
 def test_echo_picks_a_field_and_reads_well(system) -> None:
     ns, _ = system
     one = json.loads(scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--json", "--field",

@@ -490,11 +490,31 @@ class ListLinksRequest(_message.Message):
     __slots__ = ()
     def __init__(self) -> None: ...
 
+class SubscriptionInfo(_message.Message):
+    __slots__ = ("id", "source", "subscriber", "policy", "transport", "samples", "dropped")
+    ID_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_FIELD_NUMBER: _ClassVar[int]
+    SUBSCRIBER_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    TRANSPORT_FIELD_NUMBER: _ClassVar[int]
+    SAMPLES_FIELD_NUMBER: _ClassVar[int]
+    DROPPED_FIELD_NUMBER: _ClassVar[int]
+    id: int
+    source: str
+    subscriber: str
+    policy: str
+    transport: str
+    samples: int
+    dropped: int
+    def __init__(self, id: _Optional[int] = ..., source: _Optional[str] = ..., subscriber: _Optional[str] = ..., policy: _Optional[str] = ..., transport: _Optional[str] = ..., samples: _Optional[int] = ..., dropped: _Optional[int] = ...) -> None: ...
+
 class ListLinksResponse(_message.Message):
-    __slots__ = ("links",)
+    __slots__ = ("links", "subscriptions")
     LINKS_FIELD_NUMBER: _ClassVar[int]
+    SUBSCRIPTIONS_FIELD_NUMBER: _ClassVar[int]
     links: _containers.RepeatedCompositeFieldContainer[LinkInfo]
-    def __init__(self, links: _Optional[_Iterable[_Union[LinkInfo, _Mapping]]] = ...) -> None: ...
+    subscriptions: _containers.RepeatedCompositeFieldContainer[SubscriptionInfo]
+    def __init__(self, links: _Optional[_Iterable[_Union[LinkInfo, _Mapping]]] = ..., subscriptions: _Optional[_Iterable[_Union[SubscriptionInfo, _Mapping]]] = ...) -> None: ...
 
 class RerouteLinkRequest(_message.Message):
     __slots__ = ("name", "sink_task", "sink_port")

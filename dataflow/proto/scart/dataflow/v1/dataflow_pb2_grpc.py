@@ -227,7 +227,8 @@ class DeployerServiceServicer:
 
     def ListLinks(self, request, context):
         """The links whose source is a task of this deployer: name, ends, policy, transport,
-        samples the source wrote, samples dropped (at most 2000).
+        samples the source wrote, samples dropped (at most 2000); and the subscriptions it
+        serves (which port, to whom, over which transport).
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
