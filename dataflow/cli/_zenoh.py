@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import argparse
 import socket
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["add_arguments", "peers", "session_of"]
+if TYPE_CHECKING:
+    from dataflow.remote.security import Security
+
+__all__ = ["add_arguments", "peers", "refusal_hint", "session_of"]
 
 
 def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
@@ -23,14 +26,16 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
     group.add_argument("--zenoh-ns", default="default", metavar="NAME",
                        help="the namespace word of the keys scart/NAME/COMPONENT/PORT (default 'default')")
     group.add_argument("--zenoh-insecure", action="store_true",
-                       help="allow routable endpoints and gossip scouting (Zenoh traffic carries no scart token)")
+                       help="allow routable endpoints and gossip scouting (scart does not encrypt Zenoh traffic)")
 
 
-def session_of(args: argparse.Namespace, serve: bool = False) -> tuple[Any, list[str]]:
+def session_of(args: argparse.Namespace, serve: bool = False, security: Security | None = None) -> tuple[Any, list[str]]:
     """The Zenoh session the options say and the endpoints it listens on. ``serve``
     (``scart deploy``): a peer, listening (on a free loopback port when no endpoint is
     given, so it can be printed); else a client of the endpoints given (``ls``, ``echo``),
-    or a peer when told to listen. Raises ``ValueError`` with what to install or fix."""
+    or a peer when told to listen. ``security``: the command's tokens (see
+    :func:`~dataflow.remote.zenoh_transport.open_session`). Raises ``ValueError`` with
+    what to install or fix."""
     try:
         import zenoh  # noqa: F401
 
@@ -42,9 +47,9 @@ def session_of(args: argparse.Namespace, serve: bool = False) -> tuple[Any, list
         if not args.zenoh_connect:
             raise ValueError("nowhere to look: give --zenoh-connect ENDPOINT (scart deploy --zenoh prints where "
                              "it listens)")
-        return open_session(args.zenoh_connect, insecure=args.zenoh_insecure, mode="client"), []
+        return open_session(args.zenoh_connect, insecure=args.zenoh_insecure, mode="client", security=security), []
     listen = list(args.zenoh_listen) or [f"tcp/127.0.0.1:{_free_port()}"]
-    return open_session(args.zenoh_connect, listen, insecure=args.zenoh_insecure), listen
+    return open_session(args.zenoh_connect, listen, insecure=args.zenoh_insecure, security=security), listen
 
 
 def _free_port() -> int:
@@ -57,3 +62,12 @@ def peers(session: Any) -> int:
     """How many Zenoh peers and routers the session reached."""
     info = session.info
     return len(list(info.peers_zid())) + len(list(info.routers_zid()))
+
+
+def refusal_hint(security: Security) -> str:
+    """Why a peer may have refused this command's session (Zenoh says only that it could
+    not connect): scart tokens on one end of the link and not on the other."""
+    if security.token:
+        return ("; this command presents its token (SCART_TOKEN / --token-file), which only a peer that checks "
+                "tokens (--auth-file) admits, and only an operate or admin one")
+    return "; a peer that checks tokens (--auth-file) admits only a command given one (SCART_TOKEN / --token-file)"

@@ -155,7 +155,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     try:
         if args.zenoh:  # before any task starts: a bad endpoint or a missing package stops nothing running
             try:
-                zenoh_session, zenoh_listen = zenoh_args.session_of(args, serve=True)
+                zenoh_session, zenoh_listen = zenoh_args.session_of(args, serve=True, security=security)
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
                 _err(f"scart deploy: --zenoh: {exc}")
                 return 1

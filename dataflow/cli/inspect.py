@@ -159,14 +159,18 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
             _err("echo: --policy and --period are for the name service's subscriptions, not --zenoh")
             return 1
         try:
-            args.zenoh_session, _ = zenoh_args.session_of(args)
-        except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
+            security = from_args(args)
+            args.zenoh_session, _ = zenoh_args.session_of(args, security=security)
+        except ValueError as exc:  # ours: a bad endpoint, namespace or auth file, a missing package
             _err(f"{args.command}: --zenoh: {exc}")
+            return 1
+        except Exception as exc:  # noqa: BLE001 - Zenoh's own errors: nothing reached, perhaps refused
+            _err(f"{args.command}: --zenoh: {exc}{zenoh_args.refusal_hint(security)}")
             return 1
         try:
             if not zenoh_args.peers(args.zenoh_session):
                 _err(f"{args.command}: --zenoh: no Zenoh peer reached; give --zenoh-connect ENDPOINT "
-                     "(scart deploy --zenoh prints where it listens)")
+                     f"(scart deploy --zenoh prints where it listens){zenoh_args.refusal_hint(security)}")
                 if args.command == "ls":
                     return 1
             return func(args)

@@ -22,8 +22,10 @@ Key scheme (documented in the README, "Transports"):
 gRPC stays the control plane (describe, operations, properties, state); only samples move
 here. Sessions are loopback by default, with multicast and gossip scouting off (a
 session reaches only the endpoints it is given): :func:`open_session` refuses a routable
-endpoint, to listen on or to connect to, unless ``insecure`` (Zenoh traffic carries no
-scart token; secure a fleet with Zenoh's own TLS and access control).
+endpoint, to listen on or to connect to, unless ``insecure`` (Zenoh traffic is not
+encrypted by scart; secure a fleet with Zenoh's own TLS and access control). With scart's
+tokens (an auth file), a listening session admits only peers presenting an ``operate`` or
+``admin`` token, through Zenoh's own user/password authentication (``usrpwd``).
 The writer's thread never waits: when another thread is publishing the port, it leaves
 the newest sample to that thread (the ones in between are counted as lost by the
 subscribers); Zenoh's ``DROP`` congestion control drops at once rather than wait for room;
@@ -32,11 +34,14 @@ and nothing is encoded while no subscriber matches the key.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import math
+import os
 import re
 import secrets
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -57,7 +62,7 @@ if TYPE_CHECKING:
     from dataflow.remote.security import Security
 
 __all__ = ["DEFAULT_NS", "ZenohInput", "ZenohNames", "ZenohPublisher", "ZenohSubscription", "check_endpoint",
-           "connect_zenoh", "discover", "key_of", "open_session", "served_key"]
+           "connect_zenoh", "discover", "key_of", "open_session", "served_key", "zenoh_credentials"]
 
 log = logging.getLogger(__name__)
 
@@ -99,18 +104,33 @@ def check_endpoint(endpoint: str, insecure: bool = False) -> None:
     host = address.rpartition(":")[0].strip("[]")
     loopback = protocol in ("tcp", "udp", "quic", "tls") and "#" not in address and is_loopback(host)
     if not (insecure or protocol == "unixsock-stream" or loopback):
-        raise ValueError(f"Zenoh endpoint {endpoint!r} is not loopback: Zenoh traffic carries no scart "
-                         "token (use Zenoh's TLS and access control), so it needs --zenoh-insecure (zenoh-insecure=\"true\" "
-                         "in a composite)")
+        raise ValueError(f"Zenoh endpoint {endpoint!r} is not loopback: scart does not encrypt Zenoh traffic "
+                         "(use Zenoh's TLS), so it needs --zenoh-insecure (zenoh-insecure=\"true\" in a composite)")
+
+
+def zenoh_credentials(token: str) -> tuple[str, str]:
+    """The Zenoh user name and password a scart token authenticates with (Zenoh's
+    ``usrpwd``): ``scart-`` and 16 hex digits of the token's SHA-256, and the hex SHA-256
+    of ``scart-zenoh:`` and the token. Derived, so they hold no character Zenoh's
+    ``user:password`` lines cannot, and the token itself never goes into Zenoh's file."""
+    user = "scart-" + hashlib.sha256(token.encode()).hexdigest()[:16]
+    return user, hashlib.sha256(b"scart-zenoh:" + token.encode()).hexdigest()
 
 
 def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecure: bool = False,
-                 mode: str = "peer") -> Any:
+                 mode: str = "peer", security: Security | None = None) -> Any:
     """A Zenoh session in ``mode`` (``peer``; ``router`` for a fleet's router; ``client``
     to talk through routers only): listening on ``listen`` (default ``tcp/127.0.0.1:0``;
     a client listens on nothing) and connecting to ``connect``, with multicast scouting
     off. Raises ``ValueError`` for a routable endpoint to listen on without ``insecure``
-    or an unknown mode, and Zenoh's own error when it cannot open."""
+    or an unknown mode, and Zenoh's own error when it cannot open.
+
+    ``security`` (scart's tokens, as for gRPC): a session that listens, given an auth file,
+    admits only the peers that present one of its ``operate`` or ``admin`` tokens (a Zenoh
+    link both reads and writes, so ``read`` tokens are not admitted); a session given a
+    token presents it (:func:`zenoh_credentials`). Zenoh refuses a link whose two ends
+    disagree (one presents a token the other does not check, or one checks and the other
+    presents none)."""
     import zenoh
 
     if mode not in ("peer", "router", "client"):
@@ -118,6 +138,7 @@ def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecu
     connect, listen = list(connect), list(listen) or (["tcp/127.0.0.1:0"] if mode != "client" else [])
     for endpoint in connect + listen:
         check_endpoint(endpoint, insecure)
+    admitted = _admitted(security) if listen else []
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
@@ -129,7 +150,33 @@ def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecu
     config.insert_json5("transport/link/rx/max_message_size", str(MAX_PAYLOAD + 64 * 1024))
     config.insert_json5("listen/endpoints", json.dumps(listen))
     config.insert_json5("connect/endpoints", json.dumps(connect))
-    return zenoh.open(config)
+    if security is not None and security.token:
+        user, password = zenoh_credentials(security.token)
+        config.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
+        config.insert_json5("transport/auth/usrpwd/password", json.dumps(password))
+    if not admitted:
+        return zenoh.open(config)
+    with tempfile.TemporaryDirectory(prefix="scart-zenoh-") as folder:  # only this user may enter
+        users = os.path.join(folder, "users")
+        with os.fdopen(os.open(users, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600), "w") as out:
+            out.write("".join(f"{user}:{password}\n" for user, password in admitted))
+        config.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(users))
+        return zenoh.open(config)  # Zenoh reads the file as it opens: it goes right after
+
+
+def _admitted(security: Security | None) -> list[tuple[str, str]]:
+    """The credentials of the auth file's ``operate`` and ``admin`` tokens (none without
+    one). Raises ``ValueError`` for an auth file with neither: no peer could connect."""
+    from dataflow.remote.security import Role
+
+    table = security.auth_table() if security is not None else None
+    if table is None:
+        return []
+    admitted = sorted({zenoh_credentials(token.decode()) for token, role in table.entries if role >= Role.OPERATE})
+    if not admitted:
+        raise ValueError(f"{security.auth_file}: no operate or admin token, so no Zenoh peer could connect "  # type: ignore[union-attr]
+                         "(a Zenoh link both reads and writes)")
+    return admitted
 
 
 class ZenohPublisher:

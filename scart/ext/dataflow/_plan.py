@@ -13,12 +13,15 @@ import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow import ConnPolicy
 from dataflow.policy import one_of, transport_names
 from scart.ext.dataflow._host import PortInfo, class_ports, remote_ports, type_name_of
 from scart.spi import SCART_NS, Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
+
+if TYPE_CHECKING:
+    from dataflow.remote.security import Security
 
 #: Problem codes.
 DF_ATTRIBUTE = "SCART-D001"  # missing/invalid attribute or mapping
@@ -61,13 +64,14 @@ class ZenohEnd:
     ns: str = "default"
     insecure: bool = False
 
-    def open(self) -> Any:
-        """A client session to the endpoint; ``UnavailableError`` naming it when Zenoh cannot open one."""
+    def open(self, security: Security | None = None) -> Any:
+        """A client session to the endpoint, presenting ``security``'s token if it has one;
+        ``UnavailableError`` naming it when Zenoh cannot open one."""
         from dataflow.remote.errors import UnavailableError
         from dataflow.remote.zenoh_transport import open_session
 
         try:
-            return open_session(connect=[self.endpoint], mode="client", insecure=self.insecure)
+            return open_session(connect=[self.endpoint], mode="client", insecure=self.insecure, security=security)
         except Exception as exc:  # noqa: BLE001 - Zenoh's own error: not reachable (yet)
             raise UnavailableError(f"Zenoh {self.endpoint}: {exc}", "UNAVAILABLE", self.endpoint) from None
 

@@ -200,7 +200,7 @@ class _Link:
             if self._closed:
                 raise DataflowError(f"binding.dataflow {self.what}: closed")
             if self._zenoh is None:
-                self._zenoh = zenoh.open()
+                self._zenoh = zenoh.open(self.runtime.settings.security)
             return ZenohNames(self._zenoh, zenoh.ns, timeout=timeout, insecure=zenoh.insecure)
 
     def proxy(self) -> Any:

@@ -444,7 +444,7 @@ class ConnectParticipant(Participant):
         try:
             session = self._sessions.get(zenoh.endpoint)
             if session is None:
-                session = self._sessions[zenoh.endpoint] = zenoh.open()
+                session = self._sessions[zenoh.endpoint] = zenoh.open(self.runtime.settings.security)
             self._inputs.append(ZenohInput(session, *link.source, target, link.policy, zenoh.ns))
         except DataflowError as exc:  # the session (it names the endpoint)
             raise DataflowError(f"connect {link.text} ({link.where}): {exc}") from exc

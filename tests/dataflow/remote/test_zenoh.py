@@ -153,9 +153,71 @@ def test_a_routable_endpoint_needs_insecure() -> None:
         zenoh_transport.key_of("lab", "a/b", "out")
 
 
-def _scart(*args: str) -> subprocess.CompletedProcess[str]:
+def _scart(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "scart", *args], capture_output=True, text=True,
-                          env=subprocess_env(), timeout=60)
+                          env={**subprocess_env(), **(env or {})}, timeout=60)
+
+
+OPERATOR, READER = "zenoh-operator-token-0123456789", "zenoh-reader-token-0123456789"
+
+
+def _reached(zenoh_session) -> int:
+    info = zenoh_session.info
+    return len(list(info.peers_zid())) + len(list(info.routers_zid()))
+
+
+def test_with_tokens_a_zenoh_session_admits_only_peers_presenting_an_operate_token(tmp_path, session) -> None:
+    """A session listening with scart's auth file admits a peer presenting an ``operate``
+    token (it reads the samples), and neither a peer without one nor one with a ``read``
+    token (a Zenoh link both reads and writes): those reach no peer and get nothing. The
+    command line says why nothing was reached."""
+    from dataflow.remote.security import Security
+
+    auth = tmp_path / "auth"
+    auth.write_text(f"operate {OPERATOR}\nread {READER}\n")
+    auth.chmod(0o600)
+    here = f"unixsock-stream/{tmp_path}/a.sock"
+    served = session(listen=[here], security=Security(auth_file=str(auth)))
+    deployer = Deployer()
+    task = deployer.add(FloatOut("guarded"))
+    publisher = ZenohPublisher(deployer, served)
+    operator = session(connect=[here], mode="client", security=Security(token=OPERATOR))
+    got = Recorder()
+    subs = [ZenohSubscription(operator, "guarded", "out", got)]
+    # a peer without a token, or with a read one, is refused
+    for security in (None, Security(token=READER)):
+        with pytest.raises(Exception, match="Unable to connect"):
+            open_session(connect=[here], mode="client", security=security)
+    # and a guarded session dialing a listener that checks no token (one posing as a
+    # router, say) is refused there: that listener gets none of its samples
+    peer_at = f"unixsock-stream/{tmp_path}/outsider.sock"
+    outsider = session(listen=[peer_at])
+    heard = Recorder()
+    subs.append(ZenohSubscription(outsider, "guarded", "out", heard))
+    dialing = session(listen=[f"unixsock-stream/{tmp_path}/c.sock"], connect=[peer_at],
+                      security=Security(auth_file=str(auth), token=OPERATOR))
+    also = ZenohPublisher(deployer, dialing)
+    try:
+        _publish_until(task.out, 1.0, got)
+        assert _reached(operator) == 1 and discover(operator) == {"guarded": ["out"]}
+        for k in range(20):
+            task.out.write(2.0 + k)
+        wait_until(lambda: 21.0 in got.values(), timeout=10, message=f"got {got.values()}")
+        assert _reached(outsider) == 0 and _reached(dialing) == 0 and heard.values() == []
+        ls = _scart("ls", "--zenoh", "--zenoh-connect", here, "--timeout", "2", env={"SCART_TOKEN": ""})
+        assert ls.returncode == 1 and "Unable to connect" in ls.stderr and "admits only a command given one" in ls.stderr
+        ls = _scart("ls", "--zenoh", "--zenoh-connect", here, "--json", env={"SCART_TOKEN": OPERATOR})
+        assert ls.returncode == 0 and json.loads(ls.stdout) == [{"name": "guarded", "ports": ["out"]}], ls.stderr
+    finally:
+        for sub in subs:
+            sub.close()
+        also.close()
+        publisher.close()
+    only_readers = tmp_path / "readers"
+    only_readers.write_text(f"read {READER}\n")
+    only_readers.chmod(0o600)
+    with pytest.raises(ValueError, match="no operate or admin token"):
+        open_session(listen=[f"unixsock-stream/{tmp_path}/b.sock"], security=Security(auth_file=str(only_readers)))
 
 
 def test_deploy_ls_and_echo_over_zenoh_without_a_name_service(tmp_path, session) -> None:
