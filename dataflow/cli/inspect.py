@@ -160,8 +160,12 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
             return 1
         try:
             security = from_args(args)
+        except DataflowError as exc:  # unusable security files
+            _err(f"{args.command}: {exc}")
+            return 1
+        try:
             args.zenoh_session, _ = zenoh_args.session_of(args, security=security)
-        except ValueError as exc:  # ours: a bad endpoint, namespace or auth file, a missing package
+        except (ValueError, DataflowError) as exc:  # ours: a bad endpoint, namespace or auth file, a missing package
             _err(f"{args.command}: --zenoh: {exc}")
             return 1
         except Exception as exc:  # noqa: BLE001 - Zenoh's own errors: nothing reached, perhaps refused
