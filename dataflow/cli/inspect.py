@@ -95,7 +95,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
     p.add_argument("--subscriptions", "-s", action="store_true",
                    help="list the subscriptions the deployers serve instead: port, subscriber, policy, transport, "
-                        "measured rate, drops")
+                        "the port's measured write rate, drops")
     p = verb("reroute", "point a link at another input port (made before the old one goes)", cmd_reroute)
     p.add_argument("name", metavar="LINK")
     p.add_argument("sink", metavar="C.in")
