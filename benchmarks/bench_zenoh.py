@@ -18,7 +18,9 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "youbot"))
@@ -41,6 +43,34 @@ class Arm(TaskContext):
     status = OutputPort(YouBotStatus)
 
 
+def bare_pair(a: Any, b: Any, key: str, lock: threading.Lock, with_codec: bool,
+              payload: bytes) -> tuple[Callable[[int], None], dict[int, float], dict[int, float], tuple[Any, Any]]:
+    """A bare publisher on ``a`` and subscriber on ``b`` for ``key``, matched: ``(send,
+    sent, got, (subscriber, publisher))``, ``send(k)`` putting sample ``k`` (``payload``, or
+    with ``with_codec`` the status encoded then, and decoded on arrival), ``sent``/``got``
+    the times by ``k``."""
+    sent: dict[int, float] = {}
+    got: dict[int, float] = {}
+
+    def received(sample: Any) -> None:
+        if with_codec:
+            codec.decode(codec.Value.FromString(sample.payload.to_bytes()))
+        k = int.from_bytes(sample.attachment.to_bytes(), "little")
+        with lock:
+            got[k] = time.perf_counter()
+
+    publisher = a.declare_publisher(key)
+    subscriber = b.declare_subscriber(key, received)
+    wait_until(lambda: publisher.matching_status.matching, 10)
+
+    def send(k: int) -> None:
+        sent[k] = time.perf_counter()
+        data = codec.encode(STATUS, YouBotStatus).SerializeToString() if with_codec else payload
+        publisher.put(data, attachment=k.to_bytes(8, "little"))
+
+    return send, sent, got, (subscriber, publisher)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
@@ -53,42 +83,12 @@ def main() -> int:
     rows = []
     try:
         payload = codec.encode(STATUS, YouBotStatus).SerializeToString()
-        # bare zenoh-python: the same bytes, one put per sample
-        sent: dict[int, float] = {}
-        got: dict[int, float] = {}
         lock = threading.Lock()
-
-        def bare_cb(sample: object) -> None:
-            k = int.from_bytes(sample.attachment.to_bytes(), "little")  # type: ignore[attr-defined]
-            with lock:
-                got[k] = time.perf_counter()
-
-        bare_pub = a.declare_publisher("bench/bare")
-        bare_sub = b.declare_subscriber("bench/bare", bare_cb)
-        wait_until(lambda: bare_pub.matching_status.matching, 10)
-
-        def bare_send(k: int) -> None:
-            sent[k] = time.perf_counter()
-            bare_pub.put(payload, attachment=k.to_bytes(8, "little"))
-
+        # bare zenoh-python: the same bytes, one put per sample
+        bare_send, sent, got, bare = bare_pair(a, b, "bench/bare", lock, with_codec=False, payload=payload)
         # bare zenoh-python carrying scart's codec: encode each sample, decode (and so check)
         # each one received. No port, no counting: the floor any checked transport stands on.
-        c_sent: dict[int, float] = {}
-        c_got: dict[int, float] = {}
-
-        def codec_cb(sample: object) -> None:
-            codec.decode(codec.Value.FromString(sample.payload.to_bytes()))  # type: ignore[attr-defined]
-            k = int.from_bytes(sample.attachment.to_bytes(), "little")  # type: ignore[attr-defined]
-            with lock:
-                c_got[k] = time.perf_counter()
-
-        codec_pub = a.declare_publisher("bench/codec")
-        codec_sub = b.declare_subscriber("bench/codec", codec_cb)
-        wait_until(lambda: codec_pub.matching_status.matching, 10)
-
-        def codec_send(k: int) -> None:
-            c_sent[k] = time.perf_counter()
-            codec_pub.put(codec.encode(STATUS, YouBotStatus).SerializeToString(), attachment=k.to_bytes(8, "little"))
+        codec_send, c_sent, c_got, with_codec = bare_pair(a, b, "bench/codec", lock, with_codec=True, payload=payload)
 
         # scart: a port published by ZenohPublisher, read by ZenohSubscription
         deployer = Deployer()
@@ -129,7 +129,7 @@ def main() -> int:
                 rows.append((name, f"{rate:g} Hz", p50, p99, f"{count}/{n}", f"{p50 / base:.2f}", f"{p50 / floor:.2f}"))
         sub.close()
         publisher.close()
-        for declared in (codec_sub, codec_pub, bare_sub, bare_pub):
+        for declared in (*with_codec, *bare):
             declared.undeclare()
     finally:
         b.close()

@@ -34,7 +34,7 @@ import pydantic_core
 
 from dataflow.errors import PortTypeError
 from dataflow.proto.scart.dataflow.v1.value_pb2 import Value
-from dataflow.types import UnknownValue, registry
+from dataflow.types import UnknownValue, model_json, registry
 
 __all__ = ["FLOAT_LIST", "JSON_TYPE", "NONE_TYPE", "Value", "decode", "encode"]
 
@@ -57,16 +57,12 @@ def encode(value: Any, py_type: Any = None) -> Value:
     if value is None:
         return Value(type_name=NONE_TYPE)
     try:
-        if type(value) is py_type:
+        if type(value) is py_type:  # a port's own type: the hot cases without the registry's lookups
             if py_type in _NUMBER:
                 name, pack = _NUMBER[py_type]
                 return Value(type_name=name, data=pack(value))
             if isinstance(value, pydantic.BaseModel):
-                # pydantic's own JSON, in one call: it writes inf and NaN as null, so a
-                # sample holding null takes the general path below, which keeps them.
-                data = value.__pydantic_serializer__.to_json(value)
-                if b"null" not in data:
-                    return Value(type_name=registry.type_name(py_type), data=data)
+                return Value(type_name=registry.type_name(py_type), data=model_json(value))
         if py_type is not None:
             enc = registry.encode(value, py_type)
             return Value(type_name=enc.type_name, data=enc.data)

@@ -525,33 +525,30 @@ def cmd_connect(args: argparse.Namespace) -> int:
 
 def cmd_links(args: argparse.Namespace) -> int:
     """``scart links``: one line per link; rate measured over ``--sample`` s
-    (``--subscriptions``: one line per subscription served)."""
+    (``--subscriptions``: one line per subscription served: which port goes to whom, over
+    which transport (what ``auto`` picked), at what rate, losing how many)."""
     if args.subscriptions:
-        return _subscriptions(args)
-    rows = [{**lk.model_dump(), "rate": rate}
-            for lk, rate in _with_rates(args.system.links, lambda lk: lk.samples, args.sample)]
+        return _rated_table(args, args.system.subscriptions, (
+            ("source", "SOURCE", "<28"), ("subscriber", "SUBSCRIBER", "<28"), ("policy", "POLICY", "<12"),
+            ("transport", "TRANSPORT", "<9"), ("rate", "RATE(Hz)", ">9.1f"), ("dropped", "DROPPED", ">8"),
+            ("name", "DEPLOYER", "")))
+    return _rated_table(args, args.system.links, (
+        ("name", "NAME", "<28"), ("source", "SOURCE", "<28"), ("sink", "SINK", "<28"), ("policy", "POLICY", "<12"),
+        ("transport", "TRANSPORT", "<9"), ("rate", "RATE(Hz)", ">9.1f"), ("dropped", "DROPPED", ">8")))
+
+
+def _rated_table(args: argparse.Namespace, listing: Callable[[], list[Any]],
+                 columns: tuple[tuple[str, str, str], ...]) -> int:
+    """Each item of ``listing()`` (links, subscriptions) with the rate its ``samples`` grow
+    at over ``--sample`` s: JSON rows, or a table of ``columns`` (``(key, header, format)``)."""
+    rows = [{**item.model_dump(), "name": item.name, "rate": rate}
+            for item, rate in _with_rates(listing, lambda item: item.samples, args.sample)]
     if args.json:
         _out(_dump(rows))
         return 0
-    _out(f"{'NAME':<28} {'SOURCE':<28} {'SINK':<28} {'POLICY':<12} {'TRANSPORT':<9} {'RATE(Hz)':>9} {'DROPPED':>8}")
+    _out(" ".join(f"{header:{spec.split('.')[0]}}" for _, header, spec in columns))
     for r in rows:
-        _out(f"{r['name']:<28} {r['source']:<28} {r['sink']:<28} {r['policy']:<12} {r['transport']:<9} "
-             f"{r['rate']:>9.1f} {r['dropped']:>8}")
-    return 0
-
-
-def _subscriptions(args: argparse.Namespace) -> int:
-    """``scart links --subscriptions``: which port goes to whom, over which transport (what
-    ``auto`` picked), at what rate, losing how many."""
-    rows = [{**sub.model_dump(), "rate": rate}
-            for sub, rate in _with_rates(args.system.subscriptions, lambda sub: sub.samples, args.sample)]
-    if args.json:
-        _out(_dump(rows))
-        return 0
-    _out(f"{'SOURCE':<28} {'SUBSCRIBER':<28} {'POLICY':<12} {'TRANSPORT':<9} {'RATE(Hz)':>9} {'DROPPED':>8} DEPLOYER")
-    for r in rows:
-        _out(f"{r['source']:<28} {r['subscriber']:<28} {r['policy']:<12} {r['transport']:<9} {r['rate']:>9.1f} "
-             f"{r['dropped']:>8} {r['deployer']}#{r['id']}")
+        _out(" ".join(f"{r[key]:{spec}}" for key, _, spec in columns))
     return 0
 
 

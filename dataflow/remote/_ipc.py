@@ -582,6 +582,11 @@ class IpcServer:
         self._selector.modify(conn, selectors.EVENT_READ, "reader")
         end.outbox.pump()  # full again: want_write registers it again
 
+    def _live(self, end: _ReaderEnd) -> bool:
+        """Whether ``end`` is still one of the readers (not detached meanwhile)."""
+        with self._lock:
+            return end.sock in self._readers
+
     def pump_later(self, end: _ReaderEnd) -> None:
         """Send what ``end``'s inbox holds from the io thread (its writer writes faster than
         :data:`SOON_S` apart: one send carries what came meanwhile)."""
@@ -638,14 +643,10 @@ class IpcServer:
         for end in broken:
             self.detach(end)
         for end in blocked:
-            with self._lock:
-                live = end.sock in self._readers
-            if live:
+            if self._live(end):
                 self._selector.modify(end.sock, selectors.EVENT_READ | selectors.EVENT_WRITE, "reader")
         for end in deferred:
-            with self._lock:
-                live = end.sock in self._readers
-            if live:
+            if self._live(end):
                 end.outbox.pump_deferred()
         for end in ends:
             end.beat(now)
