@@ -29,7 +29,7 @@ from _common import paced, pct, wait_until  # noqa: E402
 from youbot_model import JointStatus, YouBotStatus  # noqa: E402
 
 from dataflow import Deployer, OutputPort, TaskContext, codec  # noqa: E402
-from dataflow.remote.zenoh_transport import (  # noqa: E402
+from dataflow.transports.zenoh import (  # noqa: E402
     ZenohPublisher,
     ZenohSubscription,
     open_session,

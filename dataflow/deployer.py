@@ -47,6 +47,7 @@ class Deployer:
         self._lock = threading.Lock()
         self._link_names: dict[tuple[str, str], str] = {}  # ("a.out", "b.in") -> name given
         self._link_lock = threading.RLock()  # links are checked, made and named as one step
+        self._streams: dict[str, Any] = {}  # name -> a stream (anything with describe() -> LinkDescription)
 
     def add(self, task: TaskContext) -> TaskContext:
         """Add ``task``; returns it. Raises ``DeploymentError`` if its name is taken."""
@@ -94,6 +95,84 @@ class Deployer:
                 self._link_names[(source, target)] = name
             return conn
 
+    def connect_or_change(self, source: str, target: str, policy: ConnPolicy, name: str | None = None) -> str:
+        """:meth:`connect`, or for a pair connected already: change its policy (the new
+        connection is made before the old one is undone) and its name, as asked. Returns
+        what holds when it is not simply "connected": ``""`` for a new link, else e.g.
+        ``"policy changed from buffer:8 to circular:4"`` or ``"connected already"``."""
+        with self._link_lock:
+            old = self.connection(source, target)
+            if old is None:
+                self.connect(source, target, policy, name)
+                return ""
+            notes = []
+            if name is not None and name != self.link_name(source, target):
+                self._check_name(source, target, name)
+                notes.append(f"renamed from {self.link_name(source, target)} to {name}")
+                self._link_names[(source, target)] = name
+            if not same_policy(old.policy, policy):
+                old.close()
+                self._port(source).connect_to(self._port(target), policy)
+                notes.insert(0, f"policy changed from {old.policy} to {policy}")
+            return "; ".join(notes) or "connected already"
+
+    def add_stream(self, name: str, stream: Any) -> None:
+        """Keep ``stream`` (a port joined to a topic of a transport: anything whose
+        ``describe()`` gives a :class:`LinkDescription`) under ``name``, listed with the
+        links; ``DeploymentError`` when a link or stream has that name already. Its owner
+        makes and closes it (RTT's deployer ``stream()``)."""
+        with self._link_lock:
+            if name in self._streams or name in self._link_names.values():
+                raise DeploymentError(f"a link or stream named {name!r} exists already")
+            if len(self._streams) >= MAX_NAMED_LINKS:
+                raise DeploymentError(f"more than {MAX_NAMED_LINKS} streams")
+            self._streams[name] = stream
+
+    def stream(self, port: str, policy: ConnPolicy, options: dict[str, str] | None = None,
+               name: str | None = None) -> LinkDescription:
+        """Join ``"task.port"`` to the topic ``policy.topic`` of ``policy.transport`` (RTT's
+        ``stream()``: an output port publishes there, an input port is fed from there,
+        under ``policy``), as the stream ``name`` (default ``"task.port~transport:topic"``);
+        returns its description. Raises ``DeploymentError`` (no topic, a bad or taken
+        name), ``NotFoundError`` (no such port), or the transport's ``TransportError`` (no
+        topics on it, a bad topic)."""
+        from dataflow.transports.streams import STREAM_NAME, PortStream, default_name
+
+        if not policy.topic:
+            raise DeploymentError(f"a stream needs a topic: {policy.transport}:TOPIC")
+        target = self._port(port)
+        name = name or default_name(port, policy)
+        if not STREAM_NAME.fullmatch(name):  # a default name's topic is the transport's to judge, below
+            raise DeploymentError(f"stream name {name[:80]!r}: letters, digits and _ . / : ~ - only, at most 300")
+        with self._link_lock:
+            if name in self._streams or name in self._link_names.values():
+                raise DeploymentError(f"a link or stream named {name!r} exists already")
+            stream = PortStream(target, policy, options or {}, name)
+            try:
+                self.add_stream(name, stream)
+            except BaseException:
+                stream.close()
+                raise
+        return stream.describe()
+
+    def unstream(self, name: str) -> bool:
+        """Undo the stream ``name`` (leave its topic); False when there is none."""
+        stream = self.remove_stream(name)
+        if stream is None:
+            return False
+        stream.close()
+        return True
+
+    def remove_stream(self, name: str) -> Any:
+        """Forget the stream ``name`` (returned, for its owner to close); None if there is none."""
+        with self._link_lock:
+            return self._streams.pop(name, None)
+
+    def streams(self) -> dict[str, Any]:
+        """The streams kept, by name."""
+        with self._link_lock:
+            return dict(self._streams)
+
     def name_link(self, source: str, sink: str, name: str) -> None:
         """Call the link ``source`` → ``sink`` ``name`` (once it is made). Raises
         ``DeploymentError`` for a malformed name or one another link has."""
@@ -127,8 +206,9 @@ class Deployer:
     def links(self, remote: Iterable[LinkDescription] = ()) -> list[LinkDescription]:
         """Every connection from an output port of these tasks to an input port of these
         tasks, as a link (name, ends, policy, samples the source wrote, samples dropped),
-        then ``remote`` (links to other deployers, described by their server). Names of
-        links that are gone (a task's ports disconnected) are forgotten here."""
+        then ``remote`` (links to other deployers, described by their server), then the
+        streams. Names of links that are gone (a task's ports disconnected) are forgotten
+        here."""
         out: list[LinkDescription] = []
         for task in self.tasks():
             for port in task.ports().values():
@@ -145,6 +225,7 @@ class Deployer:
                                                dropped=conn.dropped))
         out += list(remote)
         live = {(lk.source, lk.sink) for lk in out}
+        out += [stream.describe() for stream in self.streams().values()]
         with self._link_lock:
             for key in [k for k in self._link_names if k not in live]:
                 del self._link_names[key]
@@ -267,3 +348,9 @@ class Deployer:
     def __exit__(self, *exc: object) -> None:
         self.stop_all()
         self.cleanup_all()
+
+
+def same_policy(a: ConnPolicy, b: ConnPolicy) -> bool:
+    """Whether two policies make the same connection (the transport aside, which a
+    connection in one process ignores)."""
+    return a.with_(transport="auto") == b.with_(transport="auto")

@@ -8,6 +8,8 @@ message that names where (``task.port``), what is wrong and what would be valid.
 from __future__ import annotations
 
 __all__ = [
+    "CONNECT_DIRECTION",
+    "CONNECT_TYPE",
     "DataflowError",
     "PortTypeError",
     "NotFoundError",
@@ -15,6 +17,13 @@ __all__ = [
     "PropertyValueError",
     "PortValueError",
 ]
+
+
+#: The codes a refused connection carries, the same for ``scart connect`` and a
+#: composite's ``<scart:connect>``: ports of different types; an output used as a sink
+#: (or an input as a source).
+CONNECT_TYPE = "SCART-T003"
+CONNECT_DIRECTION = "SCART-T002"
 
 
 class DataflowError(Exception):

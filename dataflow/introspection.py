@@ -62,9 +62,14 @@ class TaskDescription(BaseModel):
 
 
 class LinkDescription(BaseModel):
-    """A connection between ports, as ``scart links`` shows it: its name, ``task.port`` ends,
-    policy, transport (``local``: in one process; ``grpc``: to another deployer), samples
-    the source port wrote so far and samples lost on the link."""
+    """A connection between ports, or a stream, as ``scart links`` shows it: its name,
+    ``task.port`` ends (a stream's sink or source is ``transport:topic``), policy,
+    transport (``local``: in one process; ``ipc``, ``grpc``...: to another deployer; with
+    ``?`` while not connected), samples the source port wrote so far and samples lost on
+    the link (counted wherever they were lost, the sink's buffer included). ``kind`` is
+    ``link`` or ``stream``; ``state`` ``connected``, ``waiting`` (for its peer) or
+    ``refused`` (``detail`` says why); ``pending``: samples sent and not yet confirmed by
+    the reader end."""
 
     model_config = ConfigDict(frozen=True)
     name: str
@@ -74,6 +79,10 @@ class LinkDescription(BaseModel):
     transport: str = "local"
     samples: int = 0
     dropped: int = 0
+    kind: Literal["link", "stream"] = "link"
+    state: Literal["connected", "waiting", "refused"] = "connected"
+    detail: str = ""
+    pending: int = 0
 
 
 class SubscriptionDescription(BaseModel):

@@ -16,8 +16,10 @@ constructor                     type             size    init   lock_policy   bu
 ``transport`` (RTT's ``ConnPolicy.transport``) says how samples cross processes:
 ``"auto"`` (default: the fastest that works — ``ipc`` when both deployers are on one host,
 else ``grpc``), ``"ipc"`` (the same-host fast path; ``"shm"`` is accepted for it), or
-``"grpc"``, or a plug-in's name (:func:`transport_names`). A connection inside one process
-ignores it.
+``"grpc"``, or a plug-in's name (:func:`transport_names`: ``"zenoh"``...). A connection
+inside one process ignores it. ``topic`` (RTT's ``name_id``) makes a *stream*: the port
+joined to a named topic of that transport rather than to another port.
+``size`` is at most :data:`MAX_BUFFER`, everywhere.
 ``mandatory`` (default True, as RTT 2.9: "by default, all connections are mandatory"):
 a sample rejected by a mandatory connection makes ``write`` return ``WRITE_FAILURE``;
 a non-mandatory connection's rejection is only counted in its ``dropped``.
@@ -39,8 +41,8 @@ import enum
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
-__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus", "TRANSPORTS",
-           "transport_names"]
+__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus", "MAX_BUFFER",
+           "TRANSPORTS", "transport_names"]
 
 #: scart's own transport names (``shm`` is taken as ``ipc``: see the module docstring);
 #: plug-ins add theirs (:func:`transport_names`).
@@ -48,11 +50,17 @@ TRANSPORTS = ("auto", "ipc", "grpc")
 _TRANSPORT_ALIASES = MappingProxyType({"shm": "ipc", "": "auto"})
 
 
+#: The largest BUFFER / CIRCULAR_BUFFER a policy may ask for, in one process and across
+#: processes alike (a bigger one is refused when the policy is made, naming this limit).
+MAX_BUFFER = 100_000
+MAX_TOPIC = 256  #: characters of a stream's topic, at most
+
+
 def transport_names() -> tuple[str, ...]:
     """Every transport name a policy accepts: ``auto``, scart's own (with ``shm``), then
     the plug-ins' found through the ``scart.transports`` entry points (see
-    :mod:`dataflow.remote.transport`)."""
-    from dataflow.remote.transport import names  # entry points: read once, when first needed
+    :mod:`dataflow.transports`)."""
+    from dataflow.transports import names  # entry points: read once, when first needed
 
     return ("auto", "ipc", "shm", "grpc", *(n for n in names() if n not in TRANSPORTS))
 
@@ -117,6 +125,7 @@ class ConnPolicy:
     buffer_policy: BufferPolicy = field(default=BufferPolicy.PER_CONNECTION)
     mandatory: bool = True
     transport: str = "auto"
+    topic: str = ""
 
     def __post_init__(self) -> None:
         transport = _TRANSPORT_ALIASES.get(self.transport, self.transport)
@@ -130,6 +139,10 @@ class ConnPolicy:
             raise ValueError(f"ConnPolicy.size must be >= 0, got {self.size}")
         if self.type is not ConnType.DATA and self.size < 1:
             raise ValueError(f"a {self.type.name} connection needs size >= 1, got {self.size}")
+        if self.size > MAX_BUFFER:
+            raise ValueError(f"ConnPolicy.size {self.size} is over the limit MAX_BUFFER ({MAX_BUFFER} samples)")
+        if len(self.topic) > MAX_TOPIC or not self.topic.isprintable():
+            raise ValueError(f"ConnPolicy.topic: at most {MAX_TOPIC} printable characters, got {self.topic[:40]!r}")
 
     @classmethod
     def data(

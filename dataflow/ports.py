@@ -78,7 +78,7 @@ from .types import registry
 if TYPE_CHECKING:
     from .task import TaskContext
 
-__all__ = ["InputPort", "OutputPort", "Connection", "Port"]
+__all__ = ["InputPort", "OutputPort", "Connection", "ChannelConnection", "Port"]
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -117,6 +117,38 @@ class Connection:
 
     def __repr__(self) -> str:
         return f"<Connection {self.output.qualname} -> {self.input.qualname} [{self.policy}]>"
+
+
+class ChannelConnection(Connection):
+    """A connection into an input port fed from another process: the reader end of a
+    channel (a link, a remote writer, a stream; see :mod:`dataflow.transports`) writes
+    into its storage, which the port reads like any other. ``output`` is None; ``peer``
+    says where the samples come from (for listings)."""
+
+    __slots__ = ("peer",)
+
+    def __init__(self, input: InputPort[Any], policy: ConnPolicy, storage: Storage, peer: str) -> None:
+        super().__init__(None, input, policy, storage)  # type: ignore[arg-type]  # no output port in this process
+        self.peer = peer
+
+    def write(self, value: Any) -> bool:
+        """Store ``value`` (already checked) and wake the port's readers; False when the
+        storage refused it (a full BUFFER: counted in :attr:`dropped`). Never blocks."""
+        storage = self.storage
+        if not storage.write(value):
+            return False
+        for reader in storage.readers:
+            if reader._callbacks:
+                reader._notify()
+        return True
+
+    def close(self) -> None:
+        """Detach from the input port (idempotent); what the storage held unread is
+        counted as dropped."""
+        self.input._detach(self)
+
+    def __repr__(self) -> str:
+        return f"<ChannelConnection {self.peer} -> {self.input.qualname} [{self.policy}]>"
 
 
 class Port(Generic[T]):
@@ -173,7 +205,7 @@ class Port(Generic[T]):
         """Remove every connection of this port (idempotent, thread-safe, also while running)."""
         with _setup_lock:
             for conn in list(self._conns.values()):
-                conn.output._remove(conn)
+                conn.close()
 
     def __repr__(self) -> str:
         kind = "InputPort" if self.is_input else "OutputPort"
@@ -195,6 +227,9 @@ class OutputPort(Port[T]):
         self._single_data: DataObject | None = None  # the one lock-free DATA storage, if so
         self._port_storage: Storage | None = None  # PER_OUTPUT_PORT
         self._shared: Storage | None = None  # SHARED
+        #: The channel ends crossing a process (links, subscriptions, streams; see
+        #: :mod:`dataflow.transports`): one fan-out, which encodes each sample once for all.
+        self._fanout: Any = None
 
     def _clone(self) -> OutputPort[T]:
         port: OutputPort[T] = OutputPort(self.type, self.name, self.doc)
@@ -209,7 +244,11 @@ class OutputPort(Port[T]):
         """
         if type(value) is not self.type:
             value = self._checked(value)
-        self._sample = (next(self._writes), value)
+        number = next(self._writes)
+        self._sample = (number, value)
+        fanout = self._fanout
+        if fanout is not None:  # channel ends: after the local connections, never instead
+            return self._write_all(number, value, fanout)
         cell_store = self._single_data
         if cell_store is not None:  # hot path, inlined DataObject.write (keep the two in sync)
             prev = cell_store._cell
@@ -236,6 +275,28 @@ class OutputPort(Port[T]):
             elif storage.policy.mandatory:
                 status = _FAILURE
         return status
+
+    def _write_all(self, number: int, value: Any, fanout: Any) -> WriteStatus:
+        """``write`` with channel ends attached: the local connections, then the fan-out
+        (which hands the sample to each end; False when a mandatory end refused it)."""
+        status = _SUCCESS
+        for storage in self._storages:
+            if storage.write(value):
+                for reader in storage.readers:
+                    if reader._callbacks:
+                        reader._notify()
+            elif storage.policy.mandatory:
+                status = _FAILURE
+        if not fanout.push(number, value):
+            status = _FAILURE
+        return status
+
+    def attach_fanout(self, fanout: Any) -> None:
+        """Make ``fanout`` (a :class:`dataflow.transports.Fanout`) receive every sample
+        written from now on, with its write number; None detaches it. Setup path."""
+        with _setup_lock:
+            self._fanout = fanout
+            self._publish(self._storages)
 
     def _checked(self, value: Any) -> Any:
         try:
@@ -348,7 +409,7 @@ class OutputPort(Port[T]):
         # cleared before the tuple changes, and set only after it.
         self._single_data = None
         self._storages = storages
-        if single is not None and type(single) is DataObject:
+        if single is not None and type(single) is DataObject and self._fanout is None:
             self._single_data = single
         if self._port_storage is not None and self._port_storage not in self._storages:
             self._port_storage = None
@@ -387,6 +448,28 @@ class InputPort(Port[T]):
         port.bounds = self.bounds
         port.attr = self.attr
         return port
+
+    def open_channel(self, policy: ConnPolicy, peer: str) -> ChannelConnection:
+        """A new connection into this port fed by a channel's reader end (see
+        :class:`ChannelConnection`), with its own storage made for ``policy``. Setup path;
+        thread-safe, also while the task runs."""
+        storage = make_storage(policy.with_(buffer_policy=BufferPolicy.PER_CONNECTION))
+        conn = ChannelConnection(self, policy, storage, peer)
+        with _setup_lock:
+            self._conns[conn] = conn  # type: ignore[index]  # keyed by itself: no output port here
+            if _counted(self._refs, storage, +1):
+                self._publish((*self._sources, storage))
+            _rebuild_readers(storage, self)
+        return conn
+
+    def _detach(self, conn: ChannelConnection) -> None:
+        with _setup_lock:
+            if self._conns.pop(conn, None) is None:  # type: ignore[call-overload]
+                return
+            if _counted(self._refs, conn.storage, -1):
+                self._publish(_without(self._sources, conn.storage))
+            _rebuild_readers(conn.storage)
+        conn.storage.clear()  # unread samples: counted as dropped by the storage
 
     def admit(self, value: Any) -> Any:
         """``value`` checked against the port's bounds (a value written from outside);

@@ -1,5 +1,5 @@
 """The ``--zenoh`` options of ``scart deploy``, ``ls`` and ``echo`` (see
-:mod:`dataflow.remote.zenoh_transport`)."""
+:mod:`dataflow.transports.zenoh`)."""
 
 from __future__ import annotations
 
@@ -34,12 +34,12 @@ def session_of(args: argparse.Namespace, serve: bool = False, security: Security
     (``scart deploy``): a peer, listening (on a free loopback port when no endpoint is
     given, so it can be printed); else a client of the endpoints given (``ls``, ``echo``),
     or a peer when told to listen. ``security``: the command's tokens (see
-    :func:`~dataflow.remote.zenoh_transport.open_session`). Raises ``ValueError`` with
+    :func:`~dataflow.transports.zenoh.open_session`). Raises ``ValueError`` with
     what to install or fix."""
     try:
         import zenoh  # noqa: F401
 
-        from dataflow.remote.zenoh_transport import key_of, open_session
+        from dataflow.transports.zenoh import key_of, open_session
     except ImportError:
         raise ValueError("--zenoh needs the Zenoh package: pip install 'scart[zenoh]'") from None
     key_of(args.zenoh_ns, "x")  # a plain key chunk: said before anything opens

@@ -177,7 +177,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
             return 1
         if zenoh_session is not None:
             try:
-                from dataflow.remote.zenoh_transport import ZenohPublisher
+                from dataflow.transports.zenoh import ZenohPublisher
 
                 publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns,
                                            served=(server.advertised, server.boot_id))

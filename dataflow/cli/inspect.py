@@ -91,7 +91,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("--transport", default="auto", type=_transport,
                    help="across processes: auto (default: ipc on one host, else grpc), ipc (same-host fast path; "
                         "shm is the same), grpc, or an installed plug-in's name")
-    p = verb("links", "list links: name, ends, policy, transport, measured rate, drops", cmd_links)
+    p = verb("stream", "join a port to a topic of a transport (zenoh, ros1, ros2...): a stream", cmd_stream)
+    p.add_argument("port", metavar="COMP.PORT")
+    p.add_argument("topic", metavar="TRANSPORT:TOPIC")
+    p.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
+    p.add_argument("--type", default=None, help="the topic's message type, for a transport with its own (ROS)")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="what the transport needs besides (e.g. connect=tcp/127.0.0.1:7447 for zenoh)")
+    p.add_argument("--name", default=None, help="the stream's name (default COMP.PORT~TRANSPORT:TOPIC)")
+    p = verb("links", "list links and streams: name, ends, policy, transport, state, measured rate, drops",
+             cmd_links)
     p.add_argument("--sample", type=float, default=0.25, help="time over which the rate is measured (s)")
     p.add_argument("--subscriptions", "-s", action="store_true",
                    help="list the subscriptions the deployers serve instead: port, subscriber, policy, transport, "
@@ -269,7 +278,7 @@ def cmd_ls(args: argparse.Namespace) -> int:
     """``scart ls``: one line per component; rate measured over ``--sample`` s (``--zenoh``:
     the components and output ports Zenoh's liveliness tokens announce)."""
     if getattr(args, "zenoh", False):
-        from dataflow.remote.zenoh_transport import discover
+        from dataflow.transports.zenoh import discover
 
         found = discover(args.zenoh_session, args.zenoh_ns, timeout=max(args.timeout / 3, 0.2))
         if args.json:
@@ -378,7 +387,7 @@ def cmd_echo(args: argparse.Namespace) -> int:
 
     with _stopped_by_signals(done):  # before the first sample can be printed
         if getattr(args, "zenoh", False):
-            from dataflow.remote.zenoh_transport import ZenohSubscription
+            from dataflow.transports.zenoh import ZenohSubscription
 
             sub: Any = ZenohSubscription(args.zenoh_session, component, port, observer, args.zenoh_ns)
         else:
@@ -516,11 +525,36 @@ def cmd_state(args: argparse.Namespace) -> int:
 def cmd_connect(args: argparse.Namespace) -> int:
     """``scart connect A.out B.in [--policy P]``."""
     policy = _policy(args.policy).with_(transport=args.transport)
-    args.system.connect_ports(args.source, args.sink, policy, name=args.name)
-    name = args.name or f"{args.source}->{args.sink}"
-    doc = {"name": name, "source": args.source, "sink": args.sink, "policy": str(policy), "connected": True}
-    _out(_dump(doc) if args.json else f"connected {args.source} -> {args.sink} ({policy}) as {name}")
+    note = args.system.connect_ports(args.source, args.sink, policy, name=args.name)
+    name = args.name or next((lk.name for lk in args.system.links()
+                              if (lk.source, lk.sink) == (args.source, args.sink)), f"{args.source}->{args.sink}")
+    doc = {"name": name, "source": args.source, "sink": args.sink, "policy": str(policy), "connected": True,
+           "note": note}
+    _out(_dump(doc) if args.json else f"connected {args.source} -> {args.sink} ({policy}) as {name}"
+         + (f": {note}" if note else ""))
     return 0
+
+
+def cmd_stream(args: argparse.Namespace) -> int:
+    """``scart stream COMP.PORT TRANSPORT:TOPIC``: the port's deployer joins it to the topic."""
+    transport, colon, topic = args.topic.partition(":")
+    if not colon or not topic:
+        raise ValueError(f"{args.topic!r}: expected TRANSPORT:TOPIC, e.g. zenoh:robot/status or ros1:/joint_states")
+    options = dict(_option(o) for o in args.option)
+    if args.type:
+        options["type"] = args.type
+    policy = _policy(args.policy).with_(transport=transport, topic=topic)
+    link = args.system.stream(args.port, policy, options, name=args.name)
+    _out(_dump(link.model_dump()) if args.json else f"streaming {link.source} -> {link.sink} ({link.policy}) "
+         f"as {link.name}")
+    return 0
+
+
+def _option(text: str) -> tuple[str, str]:
+    key, eq, value = text.partition("=")
+    if not eq or not key:
+        raise ValueError(f"--option {text!r}: expected KEY=VALUE")
+    return key, value
 
 
 def cmd_links(args: argparse.Namespace) -> int:
@@ -534,7 +568,8 @@ def cmd_links(args: argparse.Namespace) -> int:
             ("name", "DEPLOYER", "")))
     return _rated_table(args, args.system.links, (
         ("name", "NAME", "<28"), ("source", "SOURCE", "<28"), ("sink", "SINK", "<28"), ("policy", "POLICY", "<12"),
-        ("transport", "TRANSPORT", "<9"), ("rate", "RATE(Hz)", ">9.1f"), ("dropped", "DROPPED", ">8")))
+        ("transport", "TRANSPORT", "<9"), ("state", "STATE", "<9"), ("rate", "RATE(Hz)", ">9.1f"),
+        ("dropped", "DROPPED", ">8")))
 
 
 def _rated_table(args: argparse.Namespace, listing: Callable[[], list[Any]],

@@ -9,9 +9,9 @@ from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
 
-from dataflow.policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
+from dataflow.policy import MAX_BUFFER, MAX_TOPIC, BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
 from dataflow.remote._proto import df as pb
-from dataflow.remote.transport import MAX_NAME
+from dataflow.transports import MAX_NAME
 
 _CONN_TO_MSG = MappingProxyType({
     ConnType.DATA: pb.ConnType.Value("CONN_TYPE_DATA"),
@@ -31,6 +31,7 @@ def policy_to_msg(policy: ConnPolicy) -> Any:
         buffer_policy=policy.buffer_policy.name,
         mandatory=policy.mandatory,
         transport=policy.transport,
+        topic=policy.topic,
     )
 
 
@@ -39,14 +40,15 @@ def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
 
     Raises ``ValueError`` (→ ``INVALID_ARGUMENT`` on the wire) naming the bad field for an
     unknown connection type, lock or buffer policy name, a size beyond
-    :data:`MAX_BUFFER_SIZE`, or an invalid combination (e.g. a buffer of size 0).
+    :data:`~dataflow.policy.MAX_BUFFER` (the same limit as in one process), or an invalid
+    combination (e.g. a buffer of size 0).
     """
     if msg is None or msg.type == 0:
         return default if default is not None else ConnPolicy.data()
     if msg.type not in _CONN_FROM_MSG:
         raise ValueError(f"policy.type {msg.type} is not a known connection type")
-    if msg.size > MAX_BUFFER_SIZE:
-        raise ValueError(f"policy.size {msg.size} exceeds the limit of {MAX_BUFFER_SIZE} samples")
+    if msg.size > MAX_BUFFER:
+        raise ValueError(f"policy.size {msg.size} is over the limit MAX_BUFFER ({MAX_BUFFER} samples)")
     return ConnPolicy(
         type=_CONN_FROM_MSG[msg.type],
         size=msg.size,
@@ -55,12 +57,8 @@ def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
         buffer_policy=_member(BufferPolicy, "buffer_policy", msg.buffer_policy, BufferPolicy.PER_CONNECTION),
         mandatory=msg.mandatory if msg.HasField("mandatory") else True,
         transport=msg.transport[:MAX_NAME + 1],  # unknown or too long: ValueError naming the known ones
+        topic=msg.topic[:MAX_TOPIC + 1],
     )
-
-
-#: Largest buffer a remote peer may ask for (samples); a subscription is bounded in bytes
-#: too (see ``dataflow.remote._servicer.STREAM_BYTE_BUDGET``).
-MAX_BUFFER_SIZE = 10_000
 
 
 def _member(enum: Any, field: str, name: str, default: Any) -> Any:

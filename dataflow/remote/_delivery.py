@@ -4,8 +4,8 @@ A :class:`Mailbox` is the policy-shaped hand-over: it keeps items in the core's 
 connection storage (:mod:`dataflow.buffers`), so DATA / BUFFER / CIRCULAR_BUFFER mean
 exactly what they mean between two local ports, and losses are counted where a local
 connection counts them. A :class:`Dispatcher` is the observer's thread that drains one.
-Used by the server side of a subscription (:mod:`dataflow.remote._inbox`) and its client
-side (:mod:`dataflow.remote._subscription`).
+Used by the client side of a subscription (:mod:`dataflow.remote._subscription`) and the
+in-process one (:mod:`dataflow.remote.local`).
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from typing import Generic, TypeVar
 
 from dataflow.buffers import make_storage
 from dataflow.policy import ConnPolicy, ConnType, FlowStatus, LockPolicy
+from dataflow.threads import OwnedThread
 
 __all__ = ["Dispatcher", "Mailbox"]
 
@@ -114,17 +115,16 @@ class Dispatcher:
         self._deliver = deliver
         self._idle = idle
         self._on_idle = on_idle
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._thread = OwnedThread(self._run, name, wake=mailbox.close)
 
     def start(self) -> None:
         """Start the thread (once)."""
         self._thread.start()
 
-    def _run(self) -> None:
-        while not self._stop.is_set():
+    def _run(self, stopping: threading.Event) -> None:
+        while not stopping.is_set():
             item = self._mailbox.get(self._idle)
-            if self._stop.is_set():
+            if stopping.is_set():
                 return
             if item is None:
                 if self._on_idle is not None:
@@ -137,7 +137,4 @@ class Dispatcher:
 
     def stop(self) -> None:
         """Signal and join (unless called from the dispatcher thread itself)."""
-        self._stop.set()
-        self._mailbox.close()
-        if threading.current_thread() is not self._thread and self._thread.is_alive():
-            self._thread.join(timeout=5.0)
+        self._thread.stop()

@@ -291,11 +291,6 @@ def _health_probe(address: str, boot_id: str) -> bool | None:
     return health_state(address, service=boot_service(boot_id) if boot_id else "")
 
 
-#: The gRPC health service name a deployer answers SERVING for when it reads several
-#: values per ``WritePortStreamRequest`` (``values``): a gRPC link may batch to it.
-BATCHES_SERVICE = "scart.dataflow.v1.WritePortStream.values"
-
-
 def boot_service(boot_id: str) -> str:
     """The gRPC health service name a deployer process answers SERVING for while it lives."""
     return f"scart.boot.{boot_id}"

@@ -1,27 +1,21 @@
-"""The DeployerService implementation (private; see :mod:`dataflow.remote.server`).
+"""The DeployerService implementation (private; see :mod:`dataflow.remote.server`):
+the control plane — introspection, lifecycle, operations, properties, single writes,
+and making, listing and undoing links and streams. The sample path's RPCs (subscriptions
+and links carried over gRPC or ipc) are :mod:`dataflow.remote._channel_rpcs`'.
 
-Threading: every RPC runs on a worker of the server's pool. A subscription never runs
-on, nor blocks, the task's thread: the task's output port is connected to an
-:class:`~dataflow.remote._inbox.Inbox` with the subscriber's policy, whose data callback
-tags each sample with its sequence and time and wakes the stream's own worker, which
-drains the inbox and sends. A slow subscriber therefore fills its own inbox (drops
-counted there) and nothing else. A batch of samples stays under half the largest
-message; a sample too large on its own is counted as dropped and logged, never sent.
-
-ReadPort attaches nothing to the task (it reads ``last_sample()``), and the one
-connection the server keeps per input port for plain remote writes is not counted in
-DescribeTask, so introspection shows only the connections users made.
+Every RPC runs on a worker of the server's pool, never on a task's thread. ReadPort
+attaches nothing to the task (it reads ``last_sample()``), and the one connection the
+server keeps per input port for plain remote writes is not counted in DescribeTask, so
+introspection shows only the connections users made.
 """
 
 from __future__ import annotations
 
-import itertools
 import json
 import logging
 import secrets
 import threading
 import time
-from collections.abc import Iterator
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
@@ -32,24 +26,22 @@ from dataflow.errors import NotFoundError, PortTypeError, PortValueError
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote import _convert as cv
-from dataflow.remote import _ipc
-from dataflow.remote._inbox import Inbox
+from dataflow.remote._channel_rpcs import ChannelRpcs
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
-from dataflow.remote._rpc import MAX_MESSAGE_BYTES, Abort, abort, peer_key
+from dataflow.remote._rpc import Abort, abort, peer_key
+from dataflow.threads import OwnedThread
+from dataflow.transports.sinks import LINGER_S
 
 if TYPE_CHECKING:
     from dataflow.remote.server import DeployerServer
 
 log = logging.getLogger(__name__)
 
-STREAM_BYTE_BUDGET = 4 * 1024 * 1024  #: encoded bytes a subscription may have pending, at most
 WRITER_IDLE_S = 60.0  #: a remote writer unused this long is reclaimed (its client may be gone)
 WRITERS_PER_PORT = 2_048  #: remote writers open on one input port, at most
 WRITERS_PER_PEER = 2_048  #: remote writers one peer may have open, at most
 MAX_WRITERS = 8_192  #: remote writers open on one deployer, at most
-MIN_HEARTBEAT_MS = 50  #: shortest idle heartbeat a subscriber may ask for
-MAX_HEARTBEAT_MS = 10_000  #: longest
 
 _TRANSITIONS = MappingProxyType({
     pb.Transition.Value("TRANSITION_CONFIGURE"): "configure",
@@ -72,51 +64,6 @@ class _Seen:
         self.stamp = 0
 
 
-class _Stream(Inbox):
-    """Server side of one subscription: an :class:`Inbox` with the subscriber's policy,
-    holding at most :data:`STREAM_BYTE_BUDGET` encoded bytes of pending samples (the
-    encoded size is measured on the first sample, then every 64th): a subscriber too slow
-    for that loses samples, counted, instead of growing the server."""
-
-    def __init__(self, port: OutputPort, policy: ConnPolicy, serial: int = 0, subscriber: str = "",
-                 transport: str = "grpc") -> None:
-        """``serial``, ``subscriber`` (the peer's address) and ``transport``: what
-        ``ListLinks`` says of it."""
-        self._measured = 0
-        self.serial, self.subscriber, self.transport = serial, subscriber, transport
-        super().__init__(port, policy, name=f"sub_{port.name}")
-        self.wake.set()  # send the connected heartbeat and any init sample at once
-
-    def batches(self, items: list[tuple[int, int, Any]], most: int, most_bytes: int,
-                limit: int) -> Iterator[list[Any]]:
-        """``items`` (taken from this inbox) as lists of ``pb.Sample``, each at most ``most``
-        samples and ``most_bytes`` encoded bytes (a larger sample goes alone). A sample over
-        ``limit`` bytes is counted as dropped and logged instead of breaking the stream."""
-        batch: list[Any] = []
-        size = 0
-        for seq, stamp, value in items:
-            sample = pb.Sample(value=codec.encode(value, self.port.type), sequence=seq, source_time_ns=stamp)
-            n = sample.ByteSize() + 8  # + the field's tag and length
-            if n > limit:
-                self.count_dropped()
-                log.warning("%s: sample %d is %d bytes encoded, more than a message may carry (%d); dropped",
-                            self.port.qualname, seq, n, limit)
-                continue
-            if batch and (len(batch) >= most or size + n > most_bytes):
-                yield batch
-                batch, size = [], 0
-            batch.append(sample)
-            size += n
-        if batch:
-            yield batch
-
-    def _admit(self, value: Any) -> None:
-        if self._measured % 64 == 0:
-            size = max(16, codec.encode(value, self.port.type).ByteSize())
-            self.limit(max(1, STREAM_BYTE_BUDGET // size))
-        self._measured += 1
-
-
 class _Writer:
     """A free OutputPort connected to a task's input port (a remote writer)."""
 
@@ -132,41 +79,16 @@ class _Writer:
     def key(self) -> tuple[str, str]:
         return self.task, self.target.name
 
-    def close(self) -> None:
+    def close(self, linger: float = 0.0) -> int:
+        """Undo the writer: first, for at most ``linger`` s, let the task read what its
+        connection still holds; returns the samples it never read (counted as dropped)."""
+        conn = next((c for c in self.out.connections() if c.input is self.target), None)
+        deadline = time.monotonic() + linger
+        while conn is not None and conn.storage.size() and time.monotonic() < deadline:
+            time.sleep(0.01)  # the task's thread reads; nothing here can wake on it
+        left = conn.storage.size() if conn is not None else 0
         self.out.disconnect(self.target)
-
-
-class _Sink(_Writer):
-    """A remote writer fed one value message at a time (a ``WritePortStream`` call, or an
-    ipc connection): each value is checked as any from outside (``check``: the servicer's
-    ``_value_for``, then the port's bounds). A value of another type or out of bounds is
-    refused alone, on every transport alike: the connection goes on. ``written`` and
-    ``failures`` are counted, the first refusal logged (a flood of bad samples is no flood
-    of logs)."""
-
-    def __init__(self, task: str, port: InputPort, policy: ConnPolicy, check: Any, who: str) -> None:
-        super().__init__(task, port, policy)
-        self.where = f"{task}.{port.name}"
-        self.who = who
-        self.written = self.failures = 0
-        self._check = check
-        self._type_name = port.type_name
-
-    def write(self, value_msg: Any) -> None:
-        """Check and write one ``Value`` message (an empty one, a stream's first, is skipped)."""
-        if not value_msg.type_name:
-            return
-        try:
-            value = self.target.admit(self._check(self.where, self.target.type, self._type_name, value_msg, ""))
-        except (Abort, PortValueError) as exc:
-            self.failures += 1
-            if self.failures == 1:
-                log.warning("a sample from %s refused: %s", self.who, exc)
-            return
-        if self.out.write(value) is WriteStatus.WRITE_SUCCESS:
-            self.written += 1
-        else:
-            self.failures += 1
+        return left
 
 
 class _Writers:
@@ -245,7 +167,7 @@ class _Writers:
                 writer.close()
 
 
-class DeployerServicer(df_grpc.DeployerServiceServicer):
+class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
     """Implements every method of ``scart.dataflow.v1.DeployerService`` for one server."""
 
     def __init__(self, owner: DeployerServer, heartbeat_ms: int, max_streams: int) -> None:
@@ -253,28 +175,18 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         self.deployer = owner.deployer
         self.heartbeat_ms = heartbeat_ms
         self.max_streams = max_streams
-        self.batch = 64  # samples per message at most (bounded message size and latency)
-        self.batch_bytes = MAX_MESSAGE_BYTES // 2  # encoded samples per message at most
         self._lock = threading.Lock()
         self._seen: dict[tuple[str, str], _Seen] = {}
         self._defaults: dict[tuple[str, str], _Writer] = {}
         self._writers = _Writers(WRITER_IDLE_S, WRITERS_PER_PORT, WRITERS_PER_PEER, MAX_WRITERS)
-        self._streams: set[_Stream] = set()
-        self._serials = itertools.count(1)  # the subscriptions' numbers, for ListLinks
         self._stopping = threading.Event()
-        self._sweeper: threading.Thread | None = None  # started with the first remote writer
-        self._ipc: _ipc.IpcServer | None = None  # started with the first ipc ticket
-        self._host_id = _ipc.host_id()  # ipc serves callers of this host only
+        # started with the first remote writer: reclaims those of clients gone away
+        self._sweeper = OwnedThread(self._sweep, "scart-writer-sweeper")
+        self._init_channels(max_streams)
 
-    def _start_sweeper(self) -> None:
-        with self._lock:
-            if self._sweeper is None and not self._stopping.is_set():
-                self._sweeper = threading.Thread(target=self._sweep, name="scart-writer-sweeper", daemon=True)
-                self._sweeper.start()
-
-    def _sweep(self) -> None:
+    def _sweep(self, stopping: threading.Event) -> None:
         """Reclaim the writers of clients that went away (bounded: idle + a quarter of it)."""
-        while not self._stopping.wait(self._writers.idle / 4):
+        while not stopping.wait(self._writers.idle / 4):
             self._writers.sweep()
 
     # ---- lookup helpers -------------------------------------------------------------
@@ -311,23 +223,16 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, given {given}: {exc}") from None
 
     def stop(self) -> None:
-        """Wake every stream so it ends; close taps and writers; end the sweeper (idempotent)."""
+        """End every channel; close taps and writers; end the sweeper (idempotent)."""
         self._stopping.set()
         with self._lock:
-            for stream in list(self._streams):
-                stream.wake.set()
             for item in self._defaults.values():
                 item.close()
             self._seen.clear()
             self._defaults.clear()
         self._writers.close_all()
-        with self._lock:
-            ipc, self._ipc = self._ipc, None
-        if ipc is not None:
-            ipc.stop()
-        sweeper = self._sweeper
-        if sweeper is not None and sweeper.is_alive() and threading.current_thread() is not sweeper:
-            sweeper.join(timeout=5.0)
+        self._stop_channels()
+        self._sweeper.stop()
 
     # ---- introspection and lifecycle ---------------------------------------------------
     @staticmethod
@@ -444,33 +349,18 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             except Abort:
                 writer.close()
                 raise
-            self._start_sweeper()
+            self._sweeper.start()
             return pb.OpenWriterResponse(writer=wid, idle_seconds=self._writers.idle)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
     def CloseWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         writer = self._writers.pop(request.writer, peer_key(context))
-        if writer is not None:
-            writer.close()
-        return pb.CloseWriterResponse()
-
-    def WritePortStream(self, request_iterator: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        sink: _Sink | None = None
-        try:
-            for msg in request_iterator:
-                if sink is None:
-                    port = self._port(msg.task, msg.port, want_input=True)
-                    sink = _Sink(msg.task, port, cv.policy_from_msg(msg.policy), self._value_for, context.peer())
-                for value in msg.values or (msg.value,):
-                    sink.write(value)
-            return pb.WritePortStreamResponse(written=sink.written if sink else 0,
-                                              failures=sink.failures if sink else 0)
-        except Exception as exc:  # noqa: BLE001
-            abort(context, exc)
-        finally:
-            if sink is not None:
-                sink.close()
+        left = writer.close(LINGER_S) if writer is not None else 0
+        if left:
+            log.warning("a remote writer of %s closed with %d sample(s) its task never read",
+                        ".".join(writer.key), left)  # type: ignore[union-attr]
+        return pb.CloseWriterResponse(undelivered=left)
 
     # ---- reading and subscribing -------------------------------------------------------
     def ReadPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
@@ -494,83 +384,6 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             )
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
-
-    def Subscribe(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        try:
-            port = self._port(request.task, request.port, want_input=False)
-            policy = cv.policy_from_msg(request.policy)
-            with self._lock:
-                if len(self._streams) >= self.max_streams:
-                    raise Abort("RESOURCE_EXHAUSTED", f"this deployer serves at most {self.max_streams} subscriptions")
-                stream = _Stream(port, policy, next(self._serials), context.peer() or "", "grpc")
-                self._streams.add(stream)
-        except Exception as exc:  # noqa: BLE001
-            abort(context, exc)
-        context.add_callback(stream.wake.set)  # a cancelled stream wakes at once
-        heartbeat = self._heartbeat_s(request.heartbeat_ms)
-        try:
-            yield pb.SubscribeResponse(heartbeat=True, boot_id=self.owner.boot_id)  # connected
-            while context.is_active() and not self._stopping.is_set():
-                if not stream.wake.wait(heartbeat):
-                    yield pb.SubscribeResponse(heartbeat=True, dropped=stream.dropped)
-                    continue
-                stream.wake.clear()
-                for samples in stream.batches(stream.take(), self.batch, self.batch_bytes, self.batch_bytes):
-                    yield pb.SubscribeResponse(samples=samples, dropped=stream.dropped)
-        finally:
-            with self._lock:
-                self._streams.discard(stream)
-            stream.close()
-
-    def _heartbeat_s(self, asked_ms: int) -> float:
-        """A reader's heartbeat period (s): what it asked for (else this deployer's), clamped:
-        too often is a busy loop, too rare hides a frozen peer."""
-        return min(max(asked_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
-
-    # ---- the same-host fast path (see dataflow.remote._ipc) ------------------------------
-    def OpenIpcWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        return self._open_ipc("in", request, context)
-
-    def OpenIpcReader(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        return self._open_ipc("out", request, context)
-
-    def _open_ipc(self, kind: str, request: Any, context: grpc.ServicerContext) -> Any:
-        try:
-            if not _ipc.available():
-                raise Abort("FAILED_PRECONDITION", "this deployer's platform has no ipc transport")
-            if not request.host_id or request.host_id != self._host_id:
-                raise Abort("FAILED_PRECONDITION", "the caller is on another host: ipc works on one host only")
-            port = self._port(request.task, request.port, want_input=kind == "in")
-            policy = cv.policy_from_msg(request.policy)
-            heartbeat = self._heartbeat_s(request.heartbeat_ms) if kind == "out" else 0.0  # readers only
-            server = self._ipc_server()
-            try:
-                ticket = server.ticket(kind, request.task, port.name, policy, peer_key(context), heartbeat,
-                                       context.peer() or "")
-            except OverflowError as exc:
-                raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
-            found = pb.IpcTicket(socket=server.name, secret=ticket, boot_id=self.owner.boot_id)
-            if kind == "in":
-                return pb.OpenIpcWriterResponse(ticket=found, batches=True)
-            return pb.OpenIpcReaderResponse(ticket=found)
-        except Exception as exc:  # noqa: BLE001
-            abort(context, exc)
-
-    def _ipc_server(self) -> _ipc.IpcServer:
-        with self._lock:
-            if self._stopping.is_set():
-                raise Abort("UNAVAILABLE", "this deployer is stopping")
-            if self._ipc is None:
-                self._ipc = _ipc.IpcServer(
-                    self.owner.boot_id, self._ipc_write_in,
-                    lambda task, port, policy, who: _Stream(self._port(task, port, False), policy,
-                                                            next(self._serials), who, "ipc"))
-            return self._ipc
-
-    def _ipc_write_in(self, task: str, port_name: str, policy: ConnPolicy) -> tuple[Any, Any]:
-        """The sink of an ipc connection into ``task.port_name``: as a ``WritePortStream``'s."""
-        sink = _Sink(task, self._port(task, port_name, want_input=True), policy, self._value_for, "an ipc peer")
-        return sink.write, sink.close
 
     # ---- operations and properties -----------------------------------------------------
     def CallOperation(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
@@ -640,20 +453,19 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
     # ---- connections (delegated to the server, which owns the links) -------------------
     def ConnectPorts(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
-            local, address = self.owner.connect_ports(
+            local, address, note, link = self.owner.connect_ports(
                 request.source_task, request.source_port, request.sink_task, request.sink_port,
-                cv.policy_from_msg(request.policy), name=request.name or None,
+                cv.policy_from_msg(request.policy), name=request.name or None, resume=request.resume,
             )
-            return pb.ConnectPortsResponse(local=local, sink_address=address)
+            return pb.ConnectPortsResponse(local=local, sink_address=address, note=note,
+                                           link=_link_info(link) if link is not None else None)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
     def DisconnectPorts(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
             if request.name:
-                link = self.owner.find_link(request.name)
-                (st, sp), (kt, kp) = link.source.rsplit(".", 1), link.sink.rsplit(".", 1)
-                done = self.owner.disconnect_ports(st, sp, kt, kp)
+                done = self.owner.disconnect_link(request.name)
             else:
                 done = self.owner.disconnect_ports(
                     request.source_task, request.source_port, request.sink_task, request.sink_port
@@ -664,15 +476,9 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
 
     def ListLinks(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
         try:
-            with self._lock:
-                served = [(stream, stream.dropped) for stream in self._streams]
-                ipc = self._ipc
-            if ipc is not None:
-                served += ipc.readers()
-            served.sort(key=lambda item: item[0].serial)
+            served = [pb.SubscriptionInfo(**info) for info in self.served.info()[:MAX_LINKS_LISTED]]
             return pb.ListLinksResponse(links=[_link_info(lk) for lk in self.owner.links()[:MAX_LINKS_LISTED]],
-                                        subscriptions=[_subscription_info(stream, dropped)
-                                                       for stream, dropped in served[:MAX_LINKS_LISTED]])
+                                        subscriptions=served)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
@@ -683,17 +489,25 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
+    def StreamPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            link = self.owner.stream(request.task, request.port, cv.policy_from_msg(request.policy),
+                                     dict(request.options), name=request.name or None)
+            return pb.StreamPortResponse(link=_link_info(link))
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
+    def UnstreamPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+        try:
+            return pb.UnstreamPortResponse(removed=self.owner.unstream(request.name))
+        except Exception as exc:  # noqa: BLE001
+            abort(context, exc)
+
 
 MAX_LINKS_LISTED = 2000  # with names of at most ~600 bytes: well under the message bound
 
 
-def _subscription_info(stream: _Stream, dropped: int) -> Any:
-    port = stream.port
-    return pb.SubscriptionInfo(id=stream.serial, source=port.qualname, subscriber=stream.subscriber[:300],
-                               policy=str(stream.policy), transport=stream.transport,
-                               samples=port.last_sample()[0], dropped=dropped)
-
-
 def _link_info(link: Any) -> Any:
     return pb.LinkInfo(name=link.name, source=link.source, sink=link.sink, policy=link.policy,
-                       transport=link.transport, samples=link.samples, dropped=link.dropped)
+                       transport=link.transport, samples=link.samples, dropped=link.dropped, kind=link.kind,
+                       state=link.state, detail=link.detail[:300], pending=link.pending)

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 
 if TYPE_CHECKING:  # the core's description models
@@ -288,9 +289,12 @@ class System(ABC):
 
     @abstractmethod
     def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),
-                      name: str | None = None) -> None:
+                      name: str | None = None) -> str:
         """Connect ``"task.out"`` to ``"task.in"`` (possibly in another deployer), as the link
-        ``name`` (default ``"task.out->task.in"``)."""
+        ``name`` (default ``"task.out->task.in"``). Returns what holds when the pair was
+        connected already (``"policy changed from X to Y"``, ``"renamed from A to B"``,
+        ``"connected already"``), ``""`` for a new link. Raises, before anything is linked,
+        for ports of different types, an output used as a sink, an unknown port."""
 
     @abstractmethod
     def disconnect_ports(self, source: str, sink: str) -> bool:
@@ -311,7 +315,14 @@ class System(ABC):
 
     @abstractmethod
     def disconnect_link(self, name: str) -> bool:
-        """Undo the link called ``name``; False if it was gone already."""
+        """Undo the link (or stream) called ``name``; False if it was gone already."""
+
+    def stream(self, port: str, policy: ConnPolicy, options: dict[str, str] | None = None,
+               name: str | None = None) -> LinkDescription:
+        """Join ``"task.port"`` to the topic ``policy.topic`` of the transport
+        ``policy.transport`` (a stream; its deployer makes it). Raises
+        :class:`~dataflow.errors.DataflowError` where streams are not served."""
+        raise DataflowError("streams are made by a served deployer (scart deploy / scart run)")
 
     @abstractmethod
     def close(self) -> None:

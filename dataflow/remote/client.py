@@ -167,15 +167,24 @@ class GrpcSystem(System):
         return sorted(out, key=lambda c: c.name)
 
     def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),
-                      name: str | None = None) -> None:
+                      name: str | None = None) -> str:
         """Connect ``"a.out"`` to ``"b.in"`` as the link ``name`` (default ``"a.out->b.in"``);
-        the source's deployer makes the link."""
+        the source's deployer makes the link (see :meth:`System.connect_ports`)."""
         (st, sp), (kt, kp) = split_port(source), split_port(sink)
         req = pb.ConnectPortsRequest(
             source_task=st, source_port=sp, sink_task=kt, sink_port=kp, policy=cv.policy_to_msg(policy),
             name=name or "",
         )
-        self._invoke(st, "ConnectPorts", req)
+        return str(self._invoke(st, "ConnectPorts", req).note)
+
+    def stream(self, port: str, policy: ConnPolicy, options: dict[str, str] | None = None,
+               name: str | None = None) -> LinkDescription:
+        """Join ``"task.port"`` to ``policy.topic`` of ``policy.transport``; the port's
+        deployer makes the stream (see :meth:`System.stream`)."""
+        task, port_name = split_port(port)
+        req = pb.StreamPortRequest(task=task, port=port_name, policy=cv.policy_to_msg(policy),
+                                   options=options or {}, name=name or "")
+        return _link_description(self._invoke(task, "StreamPort", req).link)
 
     def _listings(self) -> list[tuple[str, Any]]:
         """``(address, ListLinks reply)`` of every deployer the name service knows that answers."""
@@ -190,9 +199,7 @@ class GrpcSystem(System):
 
     def links(self) -> list[LinkDescription]:
         """Every link of every deployer the name service knows (one ListLinks each), by name."""
-        out = [LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy,
-                               transport=lk.transport, samples=lk.samples, dropped=lk.dropped)
-               for _, reply in self._listings() for lk in reply.links]
+        out = [_link_description(lk) for _, reply in self._listings() for lk in reply.links]
         return sorted(out, key=lambda lk: lk.name)
 
     def subscriptions(self) -> list[SubscriptionDescription]:
@@ -220,9 +227,7 @@ class GrpcSystem(System):
         kt, kp = split_port(sink)
         reply = self._invoke(split_port(link.source)[0], "RerouteLink",
                              pb.RerouteLinkRequest(name=name, sink_task=kt, sink_port=kp))
-        lk = reply.link
-        return LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy,
-                               transport=lk.transport, samples=lk.samples, dropped=lk.dropped)
+        return _link_description(reply.link)
 
     def disconnect_link(self, name: str) -> bool:
         """Undo the link called ``name``; False if it was gone already."""
@@ -252,6 +257,13 @@ class GrpcSystem(System):
         for channel in channels:
             channel.close()
         self._ns.close()
+
+
+def _link_description(lk: Any) -> LinkDescription:
+    """A ``LinkInfo`` message as the core's description."""
+    return LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy, transport=lk.transport,
+                           samples=lk.samples, dropped=lk.dropped, kind=lk.kind or "link",
+                           state=lk.state or "connected", detail=lk.detail, pending=lk.pending)
 
 
 def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
@@ -409,14 +421,20 @@ class GrpcPortWriter(PortWriter):
             return cv.write_from_msg(self._proxy._invoke("WritePort", req).status)
 
     def close(self) -> None:
+        """Close the writer: the deployer first lets its task read what is still pending
+        (a moment, at most); samples it never read are logged here, as not delivered."""
         if self._closed:
             return
         self._closed = True
         self._proxy.system.disown(self)
         try:
-            self._proxy._invoke("CloseWriter", pb.CloseWriterRequest(writer=self._id), timeout=0.5)
+            reply = self._proxy._invoke("CloseWriter", pb.CloseWriterRequest(writer=self._id), timeout=2.0)
         except DataflowError:
-            pass
+            return
+        self.undelivered = int(reply.undelivered)
+        if self.undelivered:
+            log.warning("writer to %s.%s closed: %d sample(s) were never read by the task", self.component,
+                        self.port, self.undelivered)
 
 
 def connect(address: str, timeout: float = 2.0, heartbeat_ms: int = 500,

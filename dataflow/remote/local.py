@@ -1,9 +1,9 @@
 """The in-process implementation of the proxy API (JOrocos's *core* package): the same
 :class:`~dataflow.remote.api.System` / :class:`~dataflow.remote.api.ComponentProxy` over a
-``Deployer`` in this process, without gRPC. Subscriptions connect an
-:class:`~dataflow.remote._inbox.Inbox` with the subscriber's policy (samples tagged with
-sequence and source time when stored) and call the observer on the subscription's own
-thread; an observer that raises is logged and the subscription goes on.
+``Deployer`` in this process, without gRPC. A subscription is a writer end on the port,
+as a remote one is (each sample with its write number and time), keeping samples in a
+mailbox with the subscriber's policy; the observer is called on the subscription's own
+thread, and one that raises is logged while the subscription goes on.
 """
 
 from __future__ import annotations
@@ -22,8 +22,10 @@ from dataflow.remote.api import (
     TRANSITIONS, ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, SampleEvent, Subscription, System,
     split_port,
 )
-from dataflow.remote._inbox import Inbox
+from dataflow.remote._delivery import Mailbox
 from dataflow.remote.errors import ClosedError
+from dataflow.threads import OwnedThread
+from dataflow.transports.ends import OutSample, WriterEnd, attach, detach
 
 __all__ = ["LocalSystem", "LocalComponentProxy", "LocalSubscription", "LocalPortWriter"]
 
@@ -65,32 +67,41 @@ class LocalPortWriter(PortWriter):
 
 
 class LocalSubscription(Subscription):
-    """Samples of an output port delivered on this subscription's own thread.
-
-    Each sample is tagged with its sequence number and source time when it is stored (in
-    the writer's thread, see :class:`~dataflow.remote._inbox.Inbox`). An observer that
-    raises is logged and the subscription keeps going (:attr:`observer_errors` counts them).
+    """Samples of an output port delivered on this subscription's own thread: a writer end
+    on the port (as a remote subscription's) whose carrier keeps each sample, with its
+    write number and time, in a policy-shaped mailbox, in the writer's thread. An observer
+    that raises is logged and the subscription keeps going (:attr:`observer_errors`
+    counts them). With ``period``, the mailbox is looked at every ``period`` s.
     """
 
     def __init__(self, task: Any, port: Any, observer: Observer, policy: ConnPolicy, period: float | None) -> None:
         super().__init__(task.name, port.name, policy, period)
         self._port = port
         self._observer = observer
-        self._closed = threading.Event()
         self.polls = self.wasted_polls = 0
         self.observer_errors = 0
-        self._inbox = Inbox(port, policy, name=f"sub_{port.name}")
-        self._inbox.wake.set()
-        self._thread = threading.Thread(target=self._run, name=f"scart-local-sub-{task.name}.{port.name}", daemon=True)
+        self._mailbox: Mailbox[SampleEvent] = Mailbox(policy)
+        self._end = WriterEnd(port, policy.with_(mandatory=False), f"local subscription to {port.qualname}",
+                              reports=False)
+        self._thread = OwnedThread(self._run, f"scart-local-sub-{task.name}.{port.name}", wake=self._mailbox.close)
+        self._end.connected("local", self, new_peer=True)
+        attach(port, self._end)
         self._thread.start()
+
+    encode = staticmethod(lambda sample: sample.value)  # no encoding: the value itself
+
+    def send(self, sample: OutSample, value: Any) -> bool:  # the writer's thread: the carrier
+        self._mailbox.put(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, sample.t_ns / 1e9,
+                                      sample.n))
+        return True  # a full mailbox drops as its policy says, counted there
 
     @property
     def dropped(self) -> int:
-        return self._inbox.dropped
+        return self._mailbox.dropped + self._end.unsent
 
     @property
     def connected(self) -> bool:
-        return not self._closed.is_set() and self._thread.is_alive()
+        return not self._thread.stopping.is_set() and self._thread.alive
 
     def _notify(self, event: SampleEvent) -> None:
         self.delivered += 1
@@ -100,31 +111,25 @@ class LocalSubscription(Subscription):
             self.observer_errors += 1
             log.exception("observer of %s.%s raised; the subscription goes on", self.component, self.port)
 
-    def _run(self) -> None:
-        wake = self._inbox.wake
-        while not self._closed.is_set():
-            if self.period is None:
-                wake.wait()
-                wake.clear()
-            elif self._closed.wait(self.period):
+    def _run(self, stopping: threading.Event) -> None:
+        while not stopping.is_set():
+            if self.period is not None and stopping.wait(self.period):
                 return
             found = False
-            for seq, stamp, value in self._inbox.take():
-                if self._closed.is_set():
-                    return
+            for _ in range(100_000):  # bounded: what waits now, at most
+                event = self._mailbox.get(0.0 if self.period is not None or found else 0.5)
+                if event is None or stopping.is_set():
+                    break
                 found = True
-                self._notify(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, stamp / 1e9, seq))
-            self.polls += 1
-            self.wasted_polls += 0 if found else 1
+                self._notify(event)
+            if self.period is not None:
+                self.polls += 1
+                self.wasted_polls += 0 if found else 1
 
     def close(self) -> None:
-        if self._closed.is_set():
-            return
-        self._closed.set()
-        self._inbox.wake.set()
-        self._inbox.close()
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout=5.0)
+        detach(self._port, self._end)
+        self._end.disconnected()
+        self._thread.stop()
 
 
 class LocalComponentProxy(ComponentProxy):
@@ -253,8 +258,8 @@ class LocalSystem(System):
         return sorted(out, key=lambda c: c.name)
 
     def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),
-                      name: str | None = None) -> None:
-        self.deployer.connect(source, sink, policy, name=name)
+                      name: str | None = None) -> str:
+        return self.deployer.connect_or_change(source, sink, policy, name=name)
 
     def disconnect_ports(self, source: str, sink: str) -> bool:
         split_port(source), split_port(sink)  # the same errors as the remote system

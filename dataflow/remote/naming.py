@@ -32,6 +32,7 @@ from dataflow.remote._proto import NAMING_ROLES, NAMING_SERVICE_NAME, ns_grpc
 from dataflow.remote._registry import Limits, NameEntry, NameRegistry, RegistryFullError, boot_service
 from dataflow.remote._proto import ns as pb
 from dataflow.remote.security import Security
+from dataflow.threads import OwnedThread
 
 __all__ = [
     "DEFAULT_NS_PORT",
@@ -288,8 +289,7 @@ class Registration:
         self._components = components
         self._lease_seconds = lease_seconds
         self._client = NameClient(ns_address, timeout=timeout, security=security)
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._thread = OwnedThread(self._run, f"scart-ns-heartbeat-{self.address}")
         self.lease_id = ""
         self.registrations = 0
         #: This deployer's names the name service refused (held by another deployer).
@@ -299,7 +299,6 @@ class Registration:
     def start(self) -> None:
         """Register now (raises on failure) and start heartbeating."""
         self._register()
-        self._thread = threading.Thread(target=self._run, name=f"scart-ns-heartbeat-{self.address}", daemon=True)
         self._thread.start()
 
     def _register(self) -> None:
@@ -339,8 +338,8 @@ class Registration:
         self._warn_refused(held)
         self.refused, self._checked = sorted(held), names
 
-    def _run(self) -> None:
-        while not self._stop.wait(self._lease_seconds / 3.0):
+    def _run(self, stopping: threading.Event) -> None:
+        while not stopping.wait(self._lease_seconds / 3.0):
             try:
                 if self.lease_id:
                     self._heartbeat()
@@ -360,10 +359,7 @@ class Registration:
 
     def stop(self) -> None:
         """Stop heartbeating, join the thread, unregister (best effort, short deadline)."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-            self._thread = None
+        self._thread.stop()
         if self.lease_id:
             try:
                 self._client.unregister(self.lease_id, timeout=0.5)

@@ -17,6 +17,7 @@ except an RPC handler of this server).
 
 from __future__ import annotations
 
+import itertools
 import logging
 import secrets
 import threading
@@ -27,13 +28,13 @@ from typing import Any
 import grpc
 from grpc_health.v1 import health_pb2
 
-from dataflow import codec
-from dataflow.deployer import Deployer
-from dataflow.errors import DeploymentError, NotFoundError
+from dataflow.deployer import Deployer, same_policy
+from dataflow.errors import CONNECT_DIRECTION, CONNECT_TYPE, DeploymentError, NotFoundError, PortTypeError
 from dataflow.introspection import LinkDescription
-from dataflow.policy import ConnPolicy, FlowStatus
-from dataflow.ports import InputPort
+from dataflow.policy import ConnPolicy
 from dataflow.remote import _rpc, errors
+from dataflow.remote._links import SETTLE_S, LinkKeeper, RemoteLink
+from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import (
     DEPLOYER_ROLES,
     DEPLOYER_SERVICE_NAME,
@@ -43,7 +44,6 @@ from dataflow.remote._proto import (
     ns_grpc,
 )
 from dataflow.remote._proto import df as pb
-from dataflow.remote._registry import BATCHES_SERVICE
 from dataflow.remote._servicer import DeployerServicer
 from dataflow.remote.naming import (
     DEFAULT_LEASE,
@@ -57,200 +57,33 @@ from dataflow.remote.naming import (
     security_probe,
 )
 from dataflow.remote.security import Security
-from dataflow.remote.transport import TransportError, carry
+from dataflow.transports.streams import PortStream
 
 __all__ = ["DeployerServer"]
 
 log = logging.getLogger(__name__)
 
 REASSERT_S = 1.0  #: how often an embedded deployer claims again the names another deployer held
-SETTLE_S = 2.0  #: how long connecting a remote link waits for its first connection
 
 
-class _RemoteLink:
-    """An output port of this deployer feeding an input port in another deployer.
+def add_deployer_service(servicer: Any, server: grpc.Server) -> None:
+    """Register the DeployerService: the generated handlers, except that ``Subscribe``
+    sends frames that are encoded already (bytes), as they were made once per write."""
+    from dataflow.transports.grpc import passthrough
 
-    A free InputPort with the connection's policy is connected to the output port: its
-    storage is the link's, and it counts the policy's drops. A transport (see
-    :mod:`dataflow.remote.transport`; ``auto``: ipc on one host, else gRPC) carries the
-    samples to the sink's deployer: over ipc they are sent from the writer's thread as
-    they are written; over gRPC the port's data callback wakes the transport's call.
-    The link's thread re-resolves the sink through the name service and reconnects after
-    failures until :meth:`close`. This is the :class:`~dataflow.remote.transport.LinkEnd`
-    a transport sees.
-    """
+    handlers: dict[str, Any] = {}
 
-    def __init__(self, server: DeployerServer, out: Any, sink_task: str, sink_port: str, policy: ConnPolicy) -> None:
-        self.server = server
-        self.out = out
-        self.sink_task = sink_task
-        self.sink_port = sink_port
-        self.policy = policy
-        self.inp: InputPort = InputPort(out.type, name=f"link_{out.name}")
-        self.closed = threading.Event()
-        self._wake = threading.Event()
-        # set by the transport while connected (see opened())
-        self._cancel: Callable[[], None] | None = None
-        self._pump: Callable[[], None] | None = None
-        self._dropping: Callable[[], int] | None = None
-        self._lost = 0  # by the transports of earlier connections
-        self._channel: Any = None  # to the sink's deployer, while connected
-        #: How samples go now: the transport's name (``ipc``, ``grpc``), or ``""`` while not connected.
-        self.transport = ""
-        self.settled = threading.Event()  # the first connection was made (or failed)
-        self.inp.add_data_callback(self._on_data)
-        out.connect_to(self.inp, policy)
-        self._wake.set()
-        self._thread = threading.Thread(target=self._run, name=f"scart-link-{out.name}->{sink_task}", daemon=True)
-        self._thread.start()
+    class _Capture:
+        def add_generic_rpc_handlers(self, found: Any) -> None:
+            pass
 
-    @property
-    def timeout(self) -> float:
-        """Deadline (s) of the control-plane calls a transport makes."""
-        return self.server.ns_timeout
+        def add_registered_method_handlers(self, _name: str, found: dict[str, Any]) -> None:
+            handlers.update(found)
 
-    @property
-    def dropped(self) -> int:
-        """Samples lost: by the connection's policy, or by the transports (a full or broken socket)."""
-        conn = next((c for c in self.out.connections() if c.input is self.inp), None)
-        dropping = self._dropping
-        return (conn.dropped if conn else 0) + self._lost + (dropping() if dropping else 0)
-
-    def _on_data(self, _inp: InputPort) -> None:  # the writer's thread
-        pump = self._pump
-        if pump is None:
-            self._wake.set()  # gRPC (or connecting): the transport's call sends
-        else:
-            pump()
-
-    # ---- the LinkEnd a transport sees ----------------------------------------------------
-    def take(self) -> list[Any]:
-        """The next samples waiting in the link's policy storage (at most 64)."""
-        values = []
-        for _ in range(64):
-            status, value = self.inp.read()
-            if status is not FlowStatus.NEW_DATA:
-                break
-            values.append(value)
-        return values
-
-    def messages(self, values: list[Any], batch_bytes: int = 0) -> list[bytes]:
-        """``values`` as ``WritePortStreamRequest`` messages, serialized (see :meth:`requests`)."""
-        return [request.SerializeToString() for request in self.requests(values, batch_bytes)]
-
-    def requests(self, values: list[Any], batch_bytes: int = 0) -> list[Any]:
-        """``values`` as ``WritePortStreamRequest`` messages: one each, or with
-        ``batch_bytes`` as few as fit in that many bytes (a larger value goes alone)."""
-        kind = self.out.type
-        if not batch_bytes:
-            return [pb.WritePortStreamRequest(value=codec.encode(value, kind)) for value in values]
-        out: list[Any] = []
-        batch: list[Any] = []
-        size = 0
-        for value in values:
-            encoded = codec.encode(value, kind)
-            n = encoded.ByteSize() + 8  # + the field's tag and length
-            if batch and size + n > batch_bytes:
-                out.append(pb.WritePortStreamRequest(values=batch))
-                batch, size = [], 0
-            batch.append(encoded)
-            size += n
-        if batch:
-            out.append(pb.WritePortStreamRequest(values=batch))
-        return out
-
-    def reads_batches(self) -> bool:
-        """Whether the sink's deployer reads several values per message (it says so in its
-        health service, :data:`~dataflow.remote._registry.BATCHES_SERVICE`); False for an
-        older one, or when it cannot tell within the control-plane deadline."""
-        from grpc_health.v1 import health_pb2, health_pb2_grpc
-
-        channel = self._channel
-        if channel is None:
-            return False
-        try:
-            reply = health_pb2_grpc.HealthStub(channel).Check(
-                health_pb2.HealthCheckRequest(service=BATCHES_SERVICE), timeout=self.timeout)
-        except grpc.RpcError:
-            return False
-        return reply.status == health_pb2.HealthCheckResponse.SERVING
-
-    def wait_data(self, timeout: float) -> bool:
-        """True once the port was written since the last call (or :meth:`wake`); False after ``timeout`` s."""
-        if not self._wake.wait(timeout):
-            return False
-        self._wake.clear()
-        return True
-
-    def wake(self) -> None:
-        """Make the next :meth:`wait_data` return at once."""
-        self._wake.set()
-
-    def opened(self, transport: str, cancel: Callable[[], None], *, pump: Callable[[], None] | None = None,
-                  dropped: Callable[[], int] | None = None) -> bool:
-        """The connection is up over ``transport`` (see :class:`~dataflow.remote.transport.LinkEnd`)."""
-        self._cancel, self._dropping = cancel, dropped
-        self.transport = transport
-        self._pump = pump
-        self.settled.set()
-        if self.closed.is_set():  # close() may have looked before cancel was set
-            cancel()
-            return False
-        return True
-
-    def _ended(self) -> None:
-        """The transport's connection is over: forget it, keep its count of losses."""
-        self._pump = self._cancel = None
-        dropping, self._dropping = self._dropping, None
-        self._lost += dropping() if dropping else 0
-        self.transport = ""
-        self._wake.set()  # what the port's storage holds goes by the next connection
-
-    def _run(self) -> None:
-        backoff = 0.05
-        failed = False
-        while not self.closed.is_set():
-            try:
-                address = self.server.resolve(self.sink_task)
-                with self.server.security.channel(address, _rpc.channel_options()) as channel:
-                    self._channel = channel
-                    stub = df_grpc.DeployerServiceStub(channel)
-                    try:
-                        carry(self.policy.transport, lambda t: t.link(self, address, stub), self._ended,
-                              f"{self.sink_task}.{self.sink_port}", address)
-                    finally:
-                        self._channel = None
-                backoff = 0.05
-            except TransportError as exc:  # a plug-in that cannot be loaded: said once, then retried quietly
-                if self.closed.is_set():
-                    return
-                if not failed:
-                    log.error("link to %s.%s: %s", self.sink_task, self.sink_port, exc)
-                failed = True
-                backoff = 1.0
-            except (grpc.RpcError, grpc.FutureCancelledError, errors.RemoteError, NotFoundError) as exc:
-                if self.closed.is_set():
-                    return
-                log.info("link to %s.%s interrupted: %s", self.sink_task, self.sink_port, exc)
-            except Exception:  # noqa: BLE001 - the link's thread must not die: log, back off, retry
-                if self.closed.is_set():
-                    return
-                log.exception("link to %s.%s failed; retrying", self.sink_task, self.sink_port)
-            self.settled.set()
-            if self.closed.wait(backoff):
-                return
-            backoff = min(1.0, backoff * 2)
-
-    def close(self) -> None:
-        """Disconnect and end the link's thread (idempotent; joins ≤ 5 s)."""
-        self.closed.set()
-        self._wake.set()
-        cancel = self._cancel
-        if cancel is not None:
-            cancel()  # the transport ends its connection at once, not at its next poll
-        self.out.disconnect(self.inp)
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout=5.0)
+    df_grpc.add_DeployerServiceServicer_to_server(servicer, _Capture())
+    handlers["Subscribe"] = grpc.unary_stream_rpc_method_handler(
+        servicer.Subscribe, request_deserializer=pb.SubscribeRequest.FromString, response_serializer=passthrough)
+    server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(DEPLOYER_SERVICE_NAME, handlers),))
 
 
 class _EmbeddedNaming(NamingServicer):
@@ -298,7 +131,7 @@ class DeployerServer:
             default_lease=lease_seconds, probe=security_probe(security), own_boot_id=self.boot_id)
         self._lease_id = ""  # of our own names in the embedded registry
         self._servicer = DeployerServicer(self, heartbeat_ms=heartbeat_ms, max_streams=max(1, max_workers - 8))
-        servicers: list[_rpc.Servicer] = [(df_grpc.add_DeployerServiceServicer_to_server, self._servicer)]
+        servicers: list[_rpc.Servicer] = [(add_deployer_service, self._servicer)]
         names = [DEPLOYER_SERVICE_NAME]
         roles = dict(DEPLOYER_ROLES)
         if self.registry is not None:
@@ -308,7 +141,6 @@ class DeployerServer:
         self._server, port, health, self._executor = _rpc.make_server(
             address, servicers, names, max_workers, security=security, roles=roles)
         health.set(boot_service(self.boot_id), health_pb2.HealthCheckResponse.SERVING)
-        health.set(BATCHES_SERVICE, health_pb2.HealthCheckResponse.SERVING)
         self._health = health
         self.address = _rpc.bound_address(address, port)
         #: What the server listens on (``0.0.0.0:P`` when bound to every interface).
@@ -317,7 +149,8 @@ class DeployerServer:
         #: or the bound address; this host's name for a wildcard listener.
         self.advertised = _rpc.advertised_address(self.listen_address, advertise)
         self.ns_address = ns or self.address
-        self._links: dict[tuple[str, str, str, str], _RemoteLink] = {}
+        self._links: dict[tuple[str, str, str, str], RemoteLink] = {}
+        self._serials = itertools.count(1)
         self._lock = threading.Lock()
         self._reroute_lock = threading.Lock()  # one reroute at a time (check, connect, disconnect)
         self._stopped = False
@@ -326,6 +159,7 @@ class DeployerServer:
         self._published: list[str] = []
         self._refused: list[str] = []
         self._retry_at = 0.0
+        self._keeper = LinkKeeper(self, self._servicer.sinks)
         try:
             if self.registry is not None:
                 self.refresh_names()
@@ -397,37 +231,55 @@ class DeployerServer:
         assert self._ns_client is not None
         return self._ns_client.resolve(component).address
 
-    # ---- connections -------------------------------------------------------------------
-    def connect_ports(
-        self,
-        source_task: str,
-        source_port: str,
-        sink_task: str,
-        sink_port: str,
-        policy: ConnPolicy,
-        defer: bool = False,
-        name: str | None = None,
-    ) -> tuple[bool, str]:
-        """Connect a local output port to a local or remote input port, as the link ``name``
-        (default ``"a.out->b.in"``); returns ``(local, sink address)``.
+    def resolve_entry(self, component: str, ns: str = "") -> Any:
+        """The name service's entry for ``component`` (address and boot id): from the name
+        service at ``ns`` when given and not this deployer's own, else from its own."""
+        if ns and ns != self.ns_address:
+            client = NameClient(ns, timeout=self.ns_timeout, security=self.security)
+            try:
+                return client.resolve(component)
+            finally:
+                client.close()
+        if self.registry is not None:
+            self.refresh_names()
+            return self.registry.resolve(component)
+        assert self._ns_client is not None
+        return self._ns_client.resolve(component)
 
-        Idempotent for the same pair. Raises ``NotFoundError`` (source not here, sink
-        unknown — unless ``defer``: then the link waits for the sink to be registered, as
-        when deployers start in any order), ``PortTypeError`` (types differ, local case;
-        across deployers a type mismatch makes the sink refuse the samples, logged).
-        """
-        if source_task not in self.deployer.names():
+    # ---- connections -------------------------------------------------------------------
+    def _output(self, task: str, port: str) -> Any:
+        """The output port ``task.port`` of this deployer; raises naming what is wrong."""
+        if task not in self.deployer.names():
             raise NotFoundError(
-                f"source task {source_task!r} is not in the deployer at {self.address}; "
+                f"source task {task!r} is not in the deployer at {self.address}; "
                 f"it has: {', '.join(self.deployer.names()) or '(none)'} — send the request to the source's deployer"
             )
-        out = self.deployer.task(source_task).port(source_port)
+        out = self.deployer.task(task).port(port)
         if out.is_input:
-            raise _rpc.Abort("INVALID_ARGUMENT", f"{source_task}.{source_port} is an input port; the source must be an output")
+            raise DeploymentError(f"{task}.{port} is an input port; a link's source must be an output port "
+                                  f"[{CONNECT_DIRECTION}]")
+        return out
+
+    def connect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str, policy: ConnPolicy,
+                      defer: bool = False, name: str | None = None,
+                      resume: bool = False) -> tuple[bool, str, str, LinkDescription | None]:
+        """Connect a local output port to a local or remote input port, as the link ``name``
+        (default ``"a.out->b.in"``); returns ``(local, sink address, note, link)`` where
+        ``note`` says what holds when the pair was connected already (its policy changed,
+        it was renamed, or nothing changed; "" for a new link).
+
+        Refused before anything is linked: the source not here or not an output port, the
+        sink unknown (unless ``defer``: then the link waits for it, as when deployers
+        start in any order), not an input port, or of another type (``PortTypeError``,
+        both types named). A sink's refusal or a limit met by the first connection (a
+        transport's streams per peer) is raised too, and the link undone. ``resume``: the
+        sink's deployer makes the link again after this deployer restarted.
+        """
+        out = self._output(source_task, source_port)
         source, sink = f"{source_task}.{source_port}", f"{sink_task}.{sink_port}"
         if sink_task in self.deployer.names():
-            self.deployer.connect(source, sink, policy, name=name)
-            return True, self.address
+            note = self.deployer.connect_or_change(source, sink, policy, name)
+            return True, self.address, note, self.deployer.find_link(self.deployer.link_name(source, sink))
         if name is not None:
             self.deployer.check_link_name(source, sink, name)
         try:
@@ -436,43 +288,79 @@ class DeployerServer:
             if not defer:
                 raise
             address = ""
+        if address:
+            self._check_sink(address, sink_task, sink_port, out)
         key = (source_task, source_port, sink_task, sink_port)
         with self._lock:
-            link = self._links.get(key)
-            if link is None:
-                link = self._links[key] = _RemoteLink(self, out, sink_task, sink_port, policy)
-        if name is not None:  # named once made
+            old = self._links.get(key)
+            given = name or (old.name if old is not None else f"{source}->{sink}")
+            if old is not None and same_policy(old.policy, policy) and old.policy.transport == policy.transport:
+                note = f"renamed from {old.name} to {given}" if given != old.name else "connected already"
+                old.name = given
+                if name is not None:
+                    self.deployer.name_link(source, sink, name)
+                return False, address, note, old.describe()
+            link = self._links[key] = RemoteLink(self, out, sink_task, sink_port, policy, given, next(self._serials),
+                                                 resume=resume)
+        note = ""
+        if old is not None:
+            old.close()
+            note = f"policy changed from {old.policy} to {policy}"
+        if name is not None:
             self.deployer.name_link(source, sink, name)
-        if address:  # the sink is known: return once its transport is chosen (``links`` then tells it)
+        if address:  # the sink is known: return once the first connection is settled (links then tells how)
             link.settled.wait(SETTLE_S)
-        return False, address
+            if link.refusal is not None:
+                self.disconnect_ports(source_task, source_port, sink_task, sink_port, graceful=False)
+                raise link.refusal
+        return False, address, note, link.describe()
 
-    def disconnect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str) -> bool:
-        """Undo :meth:`connect_ports`; False when they were not connected."""
+    def _check_sink(self, address: str, task: str, port: str, out: Any) -> None:
+        """Refuse a link whose sink is not an input port of the source's type (asked to
+        the sink's deployer): naming both types, as a composite's check does."""
+        with self.security.channel(address, _rpc.channel_options()) as channel:
+            reply = _rpc.call(df_grpc.DeployerServiceStub(channel).DescribeTask, pb.DescribeTaskRequest(task=task),
+                              self.ns_timeout, address)
+        ports = {p.name: p for p in reply.task.ports}
+        info = ports.get(port)
+        if info is None:
+            raise NotFoundError(f"{task} has no port {port!r}; its ports: {', '.join(sorted(ports)) or '(none)'}")
+        if info.direction != "in":
+            raise DeploymentError(f"{task}.{port} is an output port; a link's sink must be an input port "
+                                  f"[{CONNECT_DIRECTION}]")
+        if info.type_name != out.type_name:
+            raise PortTypeError(f"cannot connect {out.qualname} ({out.type_name}) to {task}.{port} "
+                                f"({info.type_name}): types differ [{CONNECT_TYPE}]")
+
+    def disconnect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str,
+                         graceful: bool = True) -> bool:
+        """Undo :meth:`connect_ports` (what waits is delivered first, unless not
+        ``graceful``); False when they were not connected."""
         key = (source_task, source_port, sink_task, sink_port)
         with self._lock:
             link = self._links.pop(key, None)
         if link is not None:
-            link.close()
+            link.close(graceful)
             self.deployer.forget_link(f"{source_task}.{source_port}", f"{sink_task}.{sink_port}")
             return True
         if source_task in self.deployer.names() and sink_task in self.deployer.names():
             return self.deployer.disconnect(f"{source_task}.{source_port}", f"{sink_task}.{sink_port}")
         return False
 
+    def disconnect_link(self, name: str) -> bool:
+        """Undo the link or stream called ``name``; raises ``NotFoundError`` listing names."""
+        if name in self.deployer.streams():
+            return self.unstream(name)
+        link = self.find_link(name)
+        (st, sp), (kt, kp) = link.source.rsplit(".", 1), link.sink.rsplit(".", 1)
+        return self.disconnect_ports(st, sp, kt, kp)
+
     def links(self) -> list[LinkDescription]:
-        """The links whose source is one of these tasks: in-process ones, then those to
-        other deployers (transport ``ipc`` or ``grpc``; ``auto?`` while not connected)."""
+        """The links whose source is one of these tasks (in-process ones, then those to
+        other deployers), then the streams of these tasks."""
         with self._lock:
-            remote = list(self._links.items())
-        described = []
-        for (st, sp, kt, kp), link in remote:
-            source, sink = f"{st}.{sp}", f"{kt}.{kp}"
-            described.append(LinkDescription(
-                name=self.deployer.link_name(source, sink), source=source, sink=sink, policy=str(link.policy),
-                transport=link.transport or f"{link.policy.transport}?", samples=link.out.last_sample()[0],
-                dropped=link.dropped))
-        return self.deployer.links(described)
+            remote = [link.describe() for link in self._links.values()]
+        return self.deployer.links(remote)
 
     def find_link(self, name: str) -> LinkDescription:
         """The link called ``name``; raises ``NotFoundError`` listing some names."""
@@ -488,9 +376,12 @@ class DeployerServer:
     def reroute(self, name: str, sink_task: str, sink_port: str) -> LinkDescription:
         """Point the link ``name`` at ``sink_task.sink_port`` (same source, policy and name):
         connected first, then the old sink disconnected. Raises ``NotFoundError``,
-        ``PortTypeError``, ``DeploymentError`` (the source feeds that sink already)."""
+        ``PortTypeError``, ``DeploymentError`` (the source feeds that sink already, or the
+        new sink is not an input)."""
         with self._reroute_lock:
             link = self.find_link(name)
+            if link.kind != "link":
+                raise DeploymentError(f"{name} is a stream; streams are not rerouted (unstream it, stream again)")
             new_sink = f"{sink_task}.{sink_port}"
             if new_sink == link.sink:
                 return link
@@ -519,6 +410,17 @@ class DeployerServer:
         conn = self.deployer.connection(link.source, link.sink)
         return conn.policy if conn is not None else ConnPolicy.parse(link.policy)
 
+    # ---- streams -----------------------------------------------------------------------
+    def stream(self, task: str, port: str, policy: ConnPolicy, options: dict[str, str] | None = None,
+               name: str | None = None) -> LinkDescription:
+        """:meth:`dataflow.Deployer.stream` of the port ``task.port`` (the server undoes
+        the streams it made when it stops)."""
+        return self.deployer.stream(f"{task}.{port}", policy, options, name)
+
+    def unstream(self, name: str) -> bool:
+        """:meth:`dataflow.Deployer.unstream`."""
+        return self.deployer.unstream(name)
+
     # ---- lifecycle ---------------------------------------------------------------------
     def stop(self, grace: float = 0.2) -> None:
         """Stop serving: end streams and links, unregister, stop gRPC, wait (idempotent)."""
@@ -528,8 +430,12 @@ class DeployerServer:
             self._stopped = True
             links = list(self._links.values())
             self._links.clear()
+        streams = [self.deployer.remove_stream(n) for n, s in self.deployer.streams().items() if isinstance(s, PortStream)]
         for link in links:
-            link.close()
+            link.close(graceful=False)  # the sink keeps it, and makes it again when this deployer is back
+        for stream in streams:
+            stream.close()
+        self._keeper.stop()
         if self._registration is not None:
             self._registration.stop()
         if self._ns_client is not None:

@@ -162,7 +162,7 @@ def test_connect_and_disconnect_across_deployers(system) -> None:
     ns, _ = system
     out = json.loads(scart(ns, "connect", "pinger.output", "far.input", "--policy", "buffer:8", "--json").stdout)
     assert out == {"name": "pinger.output->far.input", "source": "pinger.output", "sink": "far.input", "policy": "buffer:8",
-                   "connected": True}
+                   "connected": True, "note": ""}
     scart(ns, "write", "pinger.input", "7.0")
     # far echoes what arrived from the other deployer (DATA subscription: last written value first)
     assert json.loads(scart(ns, "echo", "far.output", "-n", "1", "--json").stdout) == 7.0
@@ -289,7 +289,7 @@ def test_connect_refuses_an_unknown_transport_before_connecting() -> None:
 
     result = run("connect", "a.out", "b.in", "--transport", "nope", "--ns", "127.0.0.1:1")
     assert result.returncode == 2
-    assert "--transport: ConnPolicy.transport must be auto, ipc, shm or grpc, got 'nope'" in result.stderr
+    assert "--transport: ConnPolicy.transport must be auto, ipc, shm, grpc or zenoh, got 'nope'" in result.stderr
 
 
 def test_deploy_advertises_what_it_is_told_and_refuses_a_malformed_address() -> None:

@@ -16,7 +16,7 @@ from support import wait_until
 from support.youbot import YOUBOT, Demo, ns_address, start_serving
 
 import scart
-from dataflow.remote import _ipc
+from dataflow.transports.ipc import _wire as _ipc
 
 WORKSTATION = YOUBOT / "workstation.composite"
 

@@ -38,7 +38,7 @@ def test_idle_streams_cannot_starve_health_and_lookups(monkeypatch: pytest.Monke
     names = NameClient(server.address, timeout=2.0)
     try:
         stub = df_grpc.DeployerServiceStub(channel)
-        calls = [stub.WritePortStream.future(_silent(stop)) for _ in range(40)]
+        calls = [stub.Link(_silent(stop)) for _ in range(40)]
         wait_until(lambda: sum(1 for c in calls if c.done() and c.code() == grpc.StatusCode.RESOURCE_EXHAUSTED) >= 32,
                    timeout=10, message="streams beyond the budget were not refused")
         for _ in range(20):  # health and lookups still answer, promptly, while 8 streams sit idle
@@ -164,29 +164,38 @@ class _Big(Pinger):
 
 
 def test_a_remote_buffer_is_capped_and_a_stuck_subscriber_is_bounded_in_bytes() -> None:
+    """The same buffer limit holds in one process and across processes (a policy over it
+    is refused where it is made, and on the wire), and a subscriber that stops reading
+    costs the deployer a bounded number of bytes, its losses counted."""
     from dataflow import ConnPolicy
-    from dataflow.remote import RemoteError, connect
-    from dataflow.remote._convert import MAX_BUFFER_SIZE, policy_to_msg
-    from dataflow.remote._servicer import STREAM_BYTE_BUDGET
+    from dataflow.policy import MAX_BUFFER
+    from dataflow.remote import connect
+    from dataflow.remote._convert import policy_to_msg
+    from dataflow.transports.grpc import ROOM_BYTES
+    from dataflow.transports.served import BYTE_BUDGET
 
+    with pytest.raises(ValueError, match="over the limit MAX_BUFFER \\(100000 samples\\)"):
+        ConnPolicy.buffer(MAX_BUFFER + 1)
     deployer = Deployer()
     task = _Big("p")
     deployer.add(task)
     server = deployer.serve("127.0.0.1:0")
     try:
-        with connect(server.address) as system, pytest.raises(RemoteError, match="exceeds the limit of 10000 samples"):
-            system.component("p").subscribe("big", lambda e: None, policy=ConnPolicy.buffer(1_000_000))
-        assert MAX_BUFFER_SIZE == 10_000
+        too_big = policy_to_msg(ConnPolicy.buffer(10))
+        too_big.size = MAX_BUFFER + 1
+        with connect(server.address) as system, pytest.raises(grpc.RpcError, match="over the limit MAX_BUFFER"):
+            system._stub(server.address).Subscribe(pb.SubscribeRequest(task="p", port="big", policy=too_big),
+                                                   timeout=5).next()
         with grpc.insecure_channel(server.address) as channel:  # a subscriber that stops reading
             stream = df_grpc.DeployerServiceStub(channel).Subscribe(pb.SubscribeRequest(
                 task="p", port="big", policy=policy_to_msg(ConnPolicy.buffer(10_000))))
             assert next(stream).heartbeat
-            (inbox,) = server._servicer._streams
-            for i in range(400):  # 64 MB written; the stream may hold 4 MB
+            (served,) = server._servicer.served.all()
+            for i in range(400):  # 64 MB written; the deployer may hold a few MB of it
                 task.big.write([float(i)] * 20_000)
-            wait_until(lambda: inbox.dropped > 0, timeout=10, message="nothing dropped: unbounded")
-            pending = inbox.pending
-            assert 0 < pending * 160_000 <= STREAM_BYTE_BUDGET * 1.1, pending
+            wait_until(lambda: served.dropped > 0, timeout=10, message="nothing dropped: unbounded")
+            assert 0 < served.end.pending * 160_000 <= BYTE_BUDGET * 1.1, served.end.pending
+            assert ROOM_BYTES <= 4 * 1024 * 1024
             stream.cancel()
     finally:
         server.stop()

@@ -63,6 +63,47 @@ class Pinger(TaskContext):
         self.ticks.write(self.count)
 
 
+class Slow(TaskContext):
+    """A sink behind its writers: reads at most one sample of ``inp`` per cycle; ``seen()``
+    says how many it read (run it periodic: ``scart deploy support.remote:Slow --period 0.01``)."""
+
+    inp = InputPort(int, doc="read one per cycle")
+
+    def __init__(self, name: str = "slow") -> None:
+        super().__init__(name)
+        self.count = 0
+
+    @operation
+    def seen(self) -> int:
+        """Samples read so far."""
+        return self.count
+
+    def update_hook(self) -> None:
+        if self.inp.read()[0].name == "NEW_DATA":
+            self.count += 1
+
+
+class Tally(TaskContext):
+    """Counts what arrives on ``inp`` (an event port); ``seen()`` says how many."""
+
+    inp = InputPort(int, event=True, doc="counted")
+
+    def __init__(self, name: str = "tally") -> None:
+        super().__init__(name)
+        self.count = 0
+
+    @operation
+    def seen(self) -> int:
+        """Samples read so far."""
+        return self.count
+
+    def update_hook(self) -> None:
+        for _ in range(100_000):
+            if self.inp.read()[0].name != "NEW_DATA":
+                return
+            self.count += 1
+
+
 class Plain(TaskContext):
     """A task whose ``__init__`` has no default name (``scart deploy`` names it after the class)."""
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from dataflow import DataflowError, Deployer, OutputPort, TaskContext, registry
+from dataflow.threads import OwnedThread
 from scart.spi import Host, Participant
 
 if TYPE_CHECKING:
@@ -92,7 +93,7 @@ def type_name_of(annotation: Any) -> str | None:
 
 
 class Watcher:
-    """An owned daemon thread calling ``step()`` every ``interval`` s until :meth:`stop`.
+    """An owned thread calling ``step()`` every ``interval`` s until :meth:`stop`.
 
     ``step`` exceptions are logged, never fatal. :meth:`stop` signals, then joins (≤ 5 s);
     idempotent; safe from inside ``step``.
@@ -101,8 +102,7 @@ class Watcher:
     def __init__(self, name: str, step: Callable[[], None], interval: float = 0.2) -> None:
         self._step = step
         self._interval = interval
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._thread = OwnedThread(self._run, name)
 
     def start(self) -> None:
         """Start the thread (once)."""
@@ -111,22 +111,20 @@ class Watcher:
     @property
     def stopping(self) -> bool:
         """True once :meth:`stop` was called."""
-        return self._stop.is_set()
+        return self._thread.stopping.is_set()
 
-    def _run(self) -> None:
-        while not self._stop.is_set():
+    def _run(self, stopping: threading.Event) -> None:
+        while not stopping.is_set():
             try:
                 self._step()
             except Exception:  # noqa: BLE001 - a connector bug must not end the thread
                 log.exception("%s: step failed", self._thread.name)
-            if self._stop.wait(self._interval):
+            if stopping.wait(self._interval):
                 return
 
     def stop(self) -> None:
         """Signal and join (unless called from the thread itself)."""
-        self._stop.set()
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join(timeout=5.0)
+        self._thread.stop()
 
 
 class DataflowHost(Participant):

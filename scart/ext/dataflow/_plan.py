@@ -68,7 +68,7 @@ class ZenohEnd:
         """A client session to the endpoint, presenting ``security``'s token if it has one;
         ``UnavailableError`` naming it when Zenoh cannot open one."""
         from dataflow.remote.errors import UnavailableError
-        from dataflow.remote.zenoh_transport import open_session
+        from dataflow.transports.zenoh import open_session
 
         try:
             return open_session(connect=[self.endpoint], mode="client", insecure=self.insecure, security=security)
@@ -84,7 +84,7 @@ def parse_zenoh(attributes: Mapping[str, str], problems: list[str], what: str,
     endpoint = (attributes.get("zenoh") or "").strip()
     if not endpoint:
         return None
-    from dataflow.remote.zenoh_transport import check_endpoint, key_of  # no Zenoh import
+    from dataflow.transports.zenoh import check_endpoint, key_of  # no Zenoh import
 
     end = ZenohEnd(endpoint, (attributes.get("zenoh-ns") or "default").strip(),
                    (attributes.get("zenoh-insecure") or "").strip().lower() in ("true", "1"))

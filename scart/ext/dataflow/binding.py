@@ -194,7 +194,7 @@ class _Link:
             from dataflow.remote.naming import NameClient
 
             return NameClient(self.ns, timeout=timeout, security=self.runtime.settings.security)
-        from dataflow.remote.zenoh_transport import ZenohNames
+        from dataflow.transports.zenoh import ZenohNames
 
         with self._zenoh_lock:
             if self._closed:

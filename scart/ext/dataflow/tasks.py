@@ -433,7 +433,7 @@ class ConnectParticipant(Participant):
     def _read_zenoh(self, link: Link, deployer: Any) -> None:
         """Feed the link's input port from the source's Zenoh key (samples come whenever the
         source publishes; Zenoh matches them when it appears)."""
-        from dataflow.remote.zenoh_transport import ZenohInput
+        from dataflow.transports.zenoh import ZenohInput
 
         zenoh = link.zenoh
         assert zenoh is not None
@@ -445,7 +445,10 @@ class ConnectParticipant(Participant):
             session = self._sessions.get(zenoh.endpoint)
             if session is None:
                 session = self._sessions[zenoh.endpoint] = zenoh.open(self.runtime.settings.security)
-            self._inputs.append(ZenohInput(session, *link.source, target, link.policy, zenoh.ns))
+            feed = ZenohInput(session, *link.source, target, link.policy, zenoh.ns)
+            self._inputs.append(feed)
+            name = link.name or f"zenoh:{feed.key}->{target.qualname}"
+            deployer.add_stream(name, _Described(feed, name))  # listed with the links, with its drops
         except DataflowError as exc:  # the session (it names the endpoint)
             raise DataflowError(f"connect {link.text} ({link.where}): {exc}") from exc
         except Exception as exc:  # noqa: BLE001 - Zenoh's own errors: say which link and endpoint
@@ -534,8 +537,22 @@ class ConnectParticipant(Participant):
     def _close_zenoh(self) -> None:
         """Stop reading from Zenoh, then close its sessions (idempotent)."""
         inputs, self._inputs = self._inputs, []
+        deployer = host_of(self.runtime).deployer
+        for name, stream in deployer.streams().items():
+            if isinstance(stream, _Described):
+                deployer.remove_stream(name)
         for inp in inputs:
             inp.close()
         sessions, self._sessions = dict(self._sessions), {}
         for session in sessions.values():
             session.close()
+
+
+class _Described:
+    """A Zenoh-fed input as the deployer lists it (its stream name kept)."""
+
+    def __init__(self, feed: Any, name: str) -> None:
+        self.feed, self.name = feed, name
+
+    def describe(self) -> Any:
+        return self.feed.describe(self.name)

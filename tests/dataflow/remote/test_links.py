@@ -174,9 +174,10 @@ def test_links_across_deployers_through_the_name_service() -> None:
         ns.stop()
 
 
-def test_a_write_stream_may_carry_several_values_per_message_in_order() -> None:
-    """``WritePortStreamRequest.values``: what a batching link sends (oldest first). A value
-    of another type is refused alone and counted: the stream goes on (as an ipc one does)."""
+def test_a_link_stream_carries_samples_checked_once_and_reports_what_it_lost() -> None:
+    """The ``Link`` RPC as a foreign writer end speaks it: frames holding several samples
+    (joined frames are one), a sample of another type refused alone and counted, a jump in
+    the write numbers counted, and every report telling the writer end what it has had."""
     import grpc
 
     from dataflow import codec
@@ -189,67 +190,53 @@ def test_a_write_stream_may_carry_several_values_per_message_in_order() -> None:
     d.configure_all()
     d.start_all()
     server = d.serve("127.0.0.1:0")
+
+    def frame(*samples: tuple[int, object]) -> object:
+        return pb.LinkRequest(samples=[pb.Sample(value=codec.encode(v), sequence=n) for n, v in samples])
+
     try:
-        def requests():
-            yield pb.WritePortStreamRequest(task="sink", port="inp", policy=cv.policy_to_msg(ConnPolicy.buffer(100)))
-            yield pb.WritePortStreamRequest(values=[codec.encode(k, int) for k in range(5)])
-            yield pb.WritePortStreamRequest(value=codec.encode("five"))
-            yield pb.WritePortStreamRequest(value=codec.encode(5, int))
-            yield pb.WritePortStreamRequest(values=[codec.encode(6, int), codec.encode([1.5]), codec.encode(7, int),
-                                                    codec.encode(8, int)])
+        hello = pb.LinkHello(task="sink", port="inp", policy=cv.policy_to_msg(ConnPolicy.buffer(100)),
+                             channel="test/1", after=0, boot_id="b1", source="src.out", type_name="int64")
+
+        def frames():
+            yield pb.LinkRequest(hello=hello)
+            yield frame(*[(k + 1, k) for k in range(5)])
+            yield frame((6, "five"))  # another type: refused alone, the link goes on
+            yield frame((7, 5), (9, 6))  # 8 never came
+            yield pb.LinkRequest(closing=True)
 
         with grpc.insecure_channel(server.address) as channel:
-            reply = df_grpc.DeployerServiceStub(channel).WritePortStream(requests(), timeout=10)
-        assert (reply.written, reply.failures) == (9, 2)
-        wait_until(lambda: sink.seen() == list(range(9)), timeout=10, message=f"got {sink.seen()}")
+            reports = list(df_grpc.DeployerServiceStub(channel).Link(frames(), timeout=10))
+        assert reports[0].known is False and not reports[0].refused
+        assert reports[-1].final and reports[-1].last == 9 and reports[-1].lost == 2  # "five" and write 8
+        assert sink.seen() == list(range(7))
     finally:
         server.stop()
         d.stop_all()
         d.cleanup_all()
 
 
-@pytest.mark.parametrize("batches", [True, False], ids=["batching-sink", "older-sink"])
-def test_a_grpc_link_batches_only_to_a_sink_that_says_it_reads_batches(monkeypatch, batches: bool) -> None:
-    """A burst goes several values to a message to a deployer that announces
-    ``WritePortStreamRequest.values`` in its health service, one per message to one that
-    does not (an older deployer would drop what it cannot read); in order, none lost."""
-    from grpc_health.v1 import health_pb2
+def test_a_link_of_another_type_is_refused_at_connect_naming_both_types() -> None:
+    from dataflow import PortTypeError
 
-    from dataflow.remote._registry import BATCHES_SERVICE
-    from dataflow.remote._servicer import DeployerServicer
+    class Text(TaskContext):
+        inp = InputPort(str)
 
-    per_message: list[int] = []
-    real = DeployerServicer.WritePortStream
-
-    def counted(self, request_iterator, context):
-        def spy():
-            for msg in request_iterator:
-                if not msg.task:
-                    per_message.append(len(msg.values) or 1)
-                yield msg
-        return real(self, spy(), context)
-
-    monkeypatch.setattr(DeployerServicer, "WritePortStream", counted)
     d1, d2 = Deployer(), Deployer()
-    src = d1.add(Counter("src"))
-    sink = d2.add(Collector("sink"))
-    d2.configure_all()
-    d2.start_all()
+    d1.add(Counter("src"))
+    d2.add(Text("t"))
+    d2.add(Counter("other"))
     s1 = d1.serve("127.0.0.1:0")
     s2 = d2.serve("127.0.0.1:0", ns=s1.address)
-    if not batches:
-        s2._health.set(BATCHES_SERVICE, health_pb2.HealthCheckResponse.NOT_SERVING)  # noqa: SLF001 - as an older one
     try:
-        s1.connect_ports("src", "out", "sink", "inp", ConnPolicy.buffer(5000).with_(transport="grpc"), name="g")
-        assert wait_until(lambda: any(lk.transport == "grpc" for lk in s1.links()), timeout=10)
-        for k in range(2000):
-            src.out.write(k)
-        wait_until(lambda: len(sink.seen()) == 2000, timeout=20, message=f"{len(sink.seen())} arrived")
-        assert sink.seen() == list(range(2000))
-        assert sum(per_message) == 2000
-        assert (max(per_message) > 1) is batches and (len(per_message) < 2000) is batches
+        with connect(s1.address, timeout=5.0) as system:
+            with pytest.raises(PortTypeError, match=r"src.out \(int64\) to t.inp \(string\): types differ \[SCART-T003\]"):
+                system.connect_ports("src.out", "t.inp")
+            with pytest.raises(DataflowError, match=r"other.out is an output port.*\[SCART-T002\]"):
+                system.connect_ports("src.out", "other.out")
+            with pytest.raises(NotFoundError, match="t has no port 'nope'"):
+                system.connect_ports("src.out", "t.nope")
+            assert system.links() == []  # nothing was linked
     finally:
         s2.stop()
         s1.stop()
-        d2.stop_all()
-        d2.cleanup_all()

@@ -11,13 +11,13 @@ import textwrap
 from pathlib import Path
 
 from dataflow.policy import transport_names
-from dataflow.remote.transport import candidates, names
+from dataflow.transports import candidates, names
 
 ROOT = Path(__file__).resolve().parents[3]
 
 PLUGIN = '''
 from dataflow import ConnPolicy
-from dataflow.remote._transports import GrpcTransport
+from dataflow.transports.grpc import GrpcTransport
 
 #: a plug-in may name itself in a policy as it is imported (the registry is loading it then)
 DEFAULT = ConnPolicy.data().with_(transport="tap")
@@ -30,13 +30,13 @@ class Tap(GrpcTransport):
     rank = None  # only when a policy names it
     opened = 0
 
-    def link(self, end, address, stub):
+    def link(self, end, peer):
         Tap.opened += 1
-        return super().link(end, address, stub)
+        return super().link(end, peer)
 
-    def subscribe(self, end, address):
+    def subscribe(self, end, peer):
         Tap.opened += 1
-        return super().subscribe(end, address)
+        return super().subscribe(end, peer)
 
 
 class Faulty(GrpcTransport):
@@ -45,10 +45,10 @@ class Faulty(GrpcTransport):
     name = "faulty"
     rank = 5
 
-    def link(self, end, address, stub):
+    def link(self, end, peer):
         raise RuntimeError("a bug in the plug-in")
 
-    def subscribe(self, end, address):
+    def subscribe(self, end, peer):
         raise RuntimeError("a bug in the plug-in")
 '''
 
@@ -65,7 +65,7 @@ from support import wait_until
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
 from dataflow.policy import transport_names
 from dataflow.remote import connect
-from dataflow.remote.transport import TransportError, candidates
+from dataflow.transports import TransportError, candidates
 
 logging.basicConfig(level=logging.WARNING)
 
@@ -158,9 +158,9 @@ def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> N
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr
     lines = dict(line.split(" ", 1) for line in result.stdout.splitlines())
-    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "faulty", "tap"]  # Not-A-Name ignored
+    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "faulty", "tap", "zenoh"]  # Not-A-Name ignored
     assert "transport entry point 'Not-A-Name'" in result.stderr and "a lower-case word" in result.stderr
-    assert "must be auto, ipc, shm, grpc, broken, faulty or tap" in lines["long:"]
+    assert "must be auto, ipc, shm, grpc, broken, faulty, tap or zenoh" in lines["long:"]
     # the broken plug-in is named with its entry point and what failed
     assert "'broken'" in lines["broken:"] and "scart_no_such_module:Transport" in lines["broken:"]
     assert "ModuleNotFoundError" in lines["broken:"]

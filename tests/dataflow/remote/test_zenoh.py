@@ -18,7 +18,7 @@ from support.remote import start_scart, stop_process, subprocess_env
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
 from dataflow.remote import errors
 
-zenoh_transport = pytest.importorskip("dataflow.remote.zenoh_transport")
+zenoh_transport = pytest.importorskip("dataflow.transports.zenoh")
 pytest.importorskip("zenoh")
 open_session, discover = zenoh_transport.open_session, zenoh_transport.discover
 ZenohPublisher, ZenohSubscription = zenoh_transport.ZenohPublisher, zenoh_transport.ZenohSubscription

@@ -57,24 +57,80 @@ TRANSITION_CLEANUP: Transition
 TRANSITION_RECOVER: Transition
 
 class OpenIpcWriterRequest(_message.Message):
-    __slots__ = ("task", "port", "policy", "host_id")
+    __slots__ = ("task", "port", "policy", "host_id", "hello")
     TASK_FIELD_NUMBER: _ClassVar[int]
     PORT_FIELD_NUMBER: _ClassVar[int]
     POLICY_FIELD_NUMBER: _ClassVar[int]
     HOST_ID_FIELD_NUMBER: _ClassVar[int]
+    HELLO_FIELD_NUMBER: _ClassVar[int]
     task: str
     port: str
     policy: ConnPolicy
     host_id: str
-    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ...) -> None: ...
+    hello: LinkHello
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ...) -> None: ...
 
 class OpenIpcWriterResponse(_message.Message):
-    __slots__ = ("ticket", "batches")
+    __slots__ = ("ticket",)
     TICKET_FIELD_NUMBER: _ClassVar[int]
-    BATCHES_FIELD_NUMBER: _ClassVar[int]
     ticket: IpcTicket
-    batches: bool
-    def __init__(self, ticket: _Optional[_Union[IpcTicket, _Mapping]] = ..., batches: _Optional[bool] = ...) -> None: ...
+    def __init__(self, ticket: _Optional[_Union[IpcTicket, _Mapping]] = ...) -> None: ...
+
+class LinkHello(_message.Message):
+    __slots__ = ("task", "port", "policy", "channel", "after", "boot_id", "source", "type_name", "name", "source_ns")
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    CHANNEL_FIELD_NUMBER: _ClassVar[int]
+    AFTER_FIELD_NUMBER: _ClassVar[int]
+    BOOT_ID_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_FIELD_NUMBER: _ClassVar[int]
+    TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    SOURCE_NS_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    policy: ConnPolicy
+    channel: str
+    after: int
+    boot_id: str
+    source: str
+    type_name: str
+    name: str
+    source_ns: str
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., channel: _Optional[str] = ..., after: _Optional[int] = ..., boot_id: _Optional[str] = ..., source: _Optional[str] = ..., type_name: _Optional[str] = ..., name: _Optional[str] = ..., source_ns: _Optional[str] = ...) -> None: ...
+
+class LinkRequest(_message.Message):
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "hello", "closing")
+    HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
+    SAMPLES_FIELD_NUMBER: _ClassVar[int]
+    DROPPED_FIELD_NUMBER: _ClassVar[int]
+    BOOT_ID_FIELD_NUMBER: _ClassVar[int]
+    HELLO_FIELD_NUMBER: _ClassVar[int]
+    CLOSING_FIELD_NUMBER: _ClassVar[int]
+    heartbeat: bool
+    samples: _containers.RepeatedCompositeFieldContainer[Sample]
+    dropped: int
+    boot_id: str
+    hello: LinkHello
+    closing: bool
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ..., closing: _Optional[bool] = ...) -> None: ...
+
+class LinkResponse(_message.Message):
+    __slots__ = ("last", "lost", "known", "final", "refused", "pending")
+    LAST_FIELD_NUMBER: _ClassVar[int]
+    LOST_FIELD_NUMBER: _ClassVar[int]
+    KNOWN_FIELD_NUMBER: _ClassVar[int]
+    FINAL_FIELD_NUMBER: _ClassVar[int]
+    REFUSED_FIELD_NUMBER: _ClassVar[int]
+    PENDING_FIELD_NUMBER: _ClassVar[int]
+    last: int
+    lost: int
+    known: bool
+    final: bool
+    refused: str
+    pending: int
+    def __init__(self, last: _Optional[int] = ..., lost: _Optional[int] = ..., known: _Optional[bool] = ..., final: _Optional[bool] = ..., refused: _Optional[str] = ..., pending: _Optional[int] = ...) -> None: ...
 
 class OpenIpcReaderRequest(_message.Message):
     __slots__ = ("task", "port", "policy", "host_id", "heartbeat_ms")
@@ -107,7 +163,7 @@ class IpcTicket(_message.Message):
     def __init__(self, socket: _Optional[str] = ..., secret: _Optional[bytes] = ..., boot_id: _Optional[str] = ...) -> None: ...
 
 class ConnPolicy(_message.Message):
-    __slots__ = ("type", "size", "init", "lock_policy", "buffer_policy", "mandatory", "transport")
+    __slots__ = ("type", "size", "init", "lock_policy", "buffer_policy", "mandatory", "transport", "topic")
     TYPE_FIELD_NUMBER: _ClassVar[int]
     SIZE_FIELD_NUMBER: _ClassVar[int]
     INIT_FIELD_NUMBER: _ClassVar[int]
@@ -115,6 +171,7 @@ class ConnPolicy(_message.Message):
     BUFFER_POLICY_FIELD_NUMBER: _ClassVar[int]
     MANDATORY_FIELD_NUMBER: _ClassVar[int]
     TRANSPORT_FIELD_NUMBER: _ClassVar[int]
+    TOPIC_FIELD_NUMBER: _ClassVar[int]
     type: ConnType
     size: int
     init: bool
@@ -122,7 +179,8 @@ class ConnPolicy(_message.Message):
     buffer_policy: str
     mandatory: bool
     transport: str
-    def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ..., transport: _Optional[str] = ...) -> None: ...
+    topic: str
+    def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ..., transport: _Optional[str] = ..., topic: _Optional[str] = ...) -> None: ...
 
 class TaskSummary(_message.Message):
     __slots__ = ("name", "state", "activity", "period", "cycles", "overruns")
@@ -270,28 +328,6 @@ class WritePortResponse(_message.Message):
     status: WriteStatus
     def __init__(self, status: _Optional[_Union[WriteStatus, str]] = ...) -> None: ...
 
-class WritePortStreamRequest(_message.Message):
-    __slots__ = ("task", "port", "policy", "value", "values")
-    TASK_FIELD_NUMBER: _ClassVar[int]
-    PORT_FIELD_NUMBER: _ClassVar[int]
-    POLICY_FIELD_NUMBER: _ClassVar[int]
-    VALUE_FIELD_NUMBER: _ClassVar[int]
-    VALUES_FIELD_NUMBER: _ClassVar[int]
-    task: str
-    port: str
-    policy: ConnPolicy
-    value: _value_pb2.Value
-    values: _containers.RepeatedCompositeFieldContainer[_value_pb2.Value]
-    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., values: _Optional[_Iterable[_Union[_value_pb2.Value, _Mapping]]] = ...) -> None: ...
-
-class WritePortStreamResponse(_message.Message):
-    __slots__ = ("written", "failures")
-    WRITTEN_FIELD_NUMBER: _ClassVar[int]
-    FAILURES_FIELD_NUMBER: _ClassVar[int]
-    written: int
-    failures: int
-    def __init__(self, written: _Optional[int] = ..., failures: _Optional[int] = ...) -> None: ...
-
 class OpenWriterRequest(_message.Message):
     __slots__ = ("task", "port", "policy")
     TASK_FIELD_NUMBER: _ClassVar[int]
@@ -317,8 +353,10 @@ class CloseWriterRequest(_message.Message):
     def __init__(self, writer: _Optional[str] = ...) -> None: ...
 
 class CloseWriterResponse(_message.Message):
-    __slots__ = ()
-    def __init__(self) -> None: ...
+    __slots__ = ("undelivered",)
+    UNDELIVERED_FIELD_NUMBER: _ClassVar[int]
+    undelivered: int
+    def __init__(self, undelivered: _Optional[int] = ...) -> None: ...
 
 class ReadPortRequest(_message.Message):
     __slots__ = ("task", "port")
@@ -355,16 +393,18 @@ class SubscribeRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
 
 class SubscribeResponse(_message.Message):
-    __slots__ = ("heartbeat", "samples", "dropped", "boot_id")
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "written")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
     BOOT_ID_FIELD_NUMBER: _ClassVar[int]
+    WRITTEN_FIELD_NUMBER: _ClassVar[int]
     heartbeat: bool
     samples: _containers.RepeatedCompositeFieldContainer[Sample]
     dropped: int
     boot_id: str
-    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ...) -> None: ...
+    written: int
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., written: _Optional[int] = ...) -> None: ...
 
 class Sample(_message.Message):
     __slots__ = ("value", "sequence", "source_time_ns")
@@ -431,28 +471,34 @@ class SetPropertyResponse(_message.Message):
     def __init__(self, json_value: _Optional[str] = ...) -> None: ...
 
 class ConnectPortsRequest(_message.Message):
-    __slots__ = ("source_task", "source_port", "sink_task", "sink_port", "policy", "name")
+    __slots__ = ("source_task", "source_port", "sink_task", "sink_port", "policy", "name", "resume")
     SOURCE_TASK_FIELD_NUMBER: _ClassVar[int]
     SOURCE_PORT_FIELD_NUMBER: _ClassVar[int]
     SINK_TASK_FIELD_NUMBER: _ClassVar[int]
     SINK_PORT_FIELD_NUMBER: _ClassVar[int]
     POLICY_FIELD_NUMBER: _ClassVar[int]
     NAME_FIELD_NUMBER: _ClassVar[int]
+    RESUME_FIELD_NUMBER: _ClassVar[int]
     source_task: str
     source_port: str
     sink_task: str
     sink_port: str
     policy: ConnPolicy
     name: str
-    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., name: _Optional[str] = ...) -> None: ...
+    resume: bool
+    def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., name: _Optional[str] = ..., resume: _Optional[bool] = ...) -> None: ...
 
 class ConnectPortsResponse(_message.Message):
-    __slots__ = ("local", "sink_address")
+    __slots__ = ("local", "sink_address", "note", "link")
     LOCAL_FIELD_NUMBER: _ClassVar[int]
     SINK_ADDRESS_FIELD_NUMBER: _ClassVar[int]
+    NOTE_FIELD_NUMBER: _ClassVar[int]
+    LINK_FIELD_NUMBER: _ClassVar[int]
     local: bool
     sink_address: str
-    def __init__(self, local: _Optional[bool] = ..., sink_address: _Optional[str] = ...) -> None: ...
+    note: str
+    link: LinkInfo
+    def __init__(self, local: _Optional[bool] = ..., sink_address: _Optional[str] = ..., note: _Optional[str] = ..., link: _Optional[_Union[LinkInfo, _Mapping]] = ...) -> None: ...
 
 class DisconnectPortsRequest(_message.Message):
     __slots__ = ("source_task", "source_port", "sink_task", "sink_port", "name")
@@ -469,7 +515,7 @@ class DisconnectPortsRequest(_message.Message):
     def __init__(self, source_task: _Optional[str] = ..., source_port: _Optional[str] = ..., sink_task: _Optional[str] = ..., sink_port: _Optional[str] = ..., name: _Optional[str] = ...) -> None: ...
 
 class LinkInfo(_message.Message):
-    __slots__ = ("name", "source", "sink", "policy", "transport", "samples", "dropped")
+    __slots__ = ("name", "source", "sink", "policy", "transport", "samples", "dropped", "kind", "state", "detail", "pending")
     NAME_FIELD_NUMBER: _ClassVar[int]
     SOURCE_FIELD_NUMBER: _ClassVar[int]
     SINK_FIELD_NUMBER: _ClassVar[int]
@@ -477,6 +523,10 @@ class LinkInfo(_message.Message):
     TRANSPORT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
+    KIND_FIELD_NUMBER: _ClassVar[int]
+    STATE_FIELD_NUMBER: _ClassVar[int]
+    DETAIL_FIELD_NUMBER: _ClassVar[int]
+    PENDING_FIELD_NUMBER: _ClassVar[int]
     name: str
     source: str
     sink: str
@@ -484,7 +534,50 @@ class LinkInfo(_message.Message):
     transport: str
     samples: int
     dropped: int
-    def __init__(self, name: _Optional[str] = ..., source: _Optional[str] = ..., sink: _Optional[str] = ..., policy: _Optional[str] = ..., transport: _Optional[str] = ..., samples: _Optional[int] = ..., dropped: _Optional[int] = ...) -> None: ...
+    kind: str
+    state: str
+    detail: str
+    pending: int
+    def __init__(self, name: _Optional[str] = ..., source: _Optional[str] = ..., sink: _Optional[str] = ..., policy: _Optional[str] = ..., transport: _Optional[str] = ..., samples: _Optional[int] = ..., dropped: _Optional[int] = ..., kind: _Optional[str] = ..., state: _Optional[str] = ..., detail: _Optional[str] = ..., pending: _Optional[int] = ...) -> None: ...
+
+class StreamPortRequest(_message.Message):
+    __slots__ = ("task", "port", "policy", "options", "name")
+    class OptionsEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: str
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[str] = ...) -> None: ...
+    TASK_FIELD_NUMBER: _ClassVar[int]
+    PORT_FIELD_NUMBER: _ClassVar[int]
+    POLICY_FIELD_NUMBER: _ClassVar[int]
+    OPTIONS_FIELD_NUMBER: _ClassVar[int]
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    task: str
+    port: str
+    policy: ConnPolicy
+    options: _containers.ScalarMap[str, str]
+    name: str
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., options: _Optional[_Mapping[str, str]] = ..., name: _Optional[str] = ...) -> None: ...
+
+class StreamPortResponse(_message.Message):
+    __slots__ = ("link",)
+    LINK_FIELD_NUMBER: _ClassVar[int]
+    link: LinkInfo
+    def __init__(self, link: _Optional[_Union[LinkInfo, _Mapping]] = ...) -> None: ...
+
+class UnstreamPortRequest(_message.Message):
+    __slots__ = ("name",)
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    def __init__(self, name: _Optional[str] = ...) -> None: ...
+
+class UnstreamPortResponse(_message.Message):
+    __slots__ = ("removed",)
+    REMOVED_FIELD_NUMBER: _ClassVar[int]
+    removed: bool
+    def __init__(self, removed: _Optional[bool] = ...) -> None: ...
 
 class ListLinksRequest(_message.Message):
     __slots__ = ()

@@ -54,10 +54,10 @@ class DeployerServiceStub:
                 request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortRequest.SerializeToString,
                 response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortResponse.FromString,
                 _registered_method=True)
-        self.WritePortStream = channel.stream_unary(
-                '/scart.dataflow.v1.DeployerService/WritePortStream',
-                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortStreamRequest.SerializeToString,
-                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortStreamResponse.FromString,
+        self.Link = channel.stream_stream(
+                '/scart.dataflow.v1.DeployerService/Link',
+                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.LinkRequest.SerializeToString,
+                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.LinkResponse.FromString,
                 _registered_method=True)
         self.OpenWriter = channel.unary_unary(
                 '/scart.dataflow.v1.DeployerService/OpenWriter',
@@ -114,6 +114,16 @@ class DeployerServiceStub:
                 request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.SerializeToString,
                 response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.FromString,
                 _registered_method=True)
+        self.StreamPort = channel.unary_unary(
+                '/scart.dataflow.v1.DeployerService/StreamPort',
+                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.StreamPortRequest.SerializeToString,
+                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.StreamPortResponse.FromString,
+                _registered_method=True)
+        self.UnstreamPort = channel.unary_unary(
+                '/scart.dataflow.v1.DeployerService/UnstreamPort',
+                request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.UnstreamPortRequest.SerializeToString,
+                response_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.UnstreamPortResponse.FromString,
+                _registered_method=True)
         self.OpenIpcWriter = channel.unary_unary(
                 '/scart.dataflow.v1.DeployerService/OpenIpcWriter',
                 request_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.OpenIpcWriterRequest.SerializeToString,
@@ -157,9 +167,10 @@ class DeployerServiceServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
-    def WritePortStream(self, request_iterator, context):
-        """A connection from a remote writer: the first message names task, port and policy,
-        the following ones carry samples. Used for ports connected across deployers.
+    def Link(self, request_iterator, context):
+        """A link's channel over gRPC (transport "grpc"): the first frame says which input
+        port and channel (LinkRequest.hello), the following ones carry samples; the reader
+        end answers with reports of what it has had and lost.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
@@ -242,11 +253,25 @@ class DeployerServiceServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def StreamPort(self, request, context):
+        """Join a port of a task of this deployer to a named topic of a transport (a stream:
+        ConnPolicy.transport and .topic), and undo it by name. Listed with the links.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
+    def UnstreamPort(self, request, context):
+        """Missing associated documentation comment in .proto file."""
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
     def OpenIpcWriter(self, request, context):
         """The same-host fast path (transport "ipc"): a one-time ticket for this deployer's
-        Unix socket. OpenIpcWriter: the socket then carries WritePortStreamRequest frames
-        (value only) into an input port; OpenIpcReader: SubscribeResponse frames out of an
-        output port. FAILED_PRECONDITION when the caller is on another host.
+        Unix socket. OpenIpcWriter: the socket then carries a link's LinkRequest frames into
+        an input port, and LinkResponse frames back; OpenIpcReader: SubscribeResponse frames
+        out of an output port. FAILED_PRECONDITION when the caller is on another host.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
@@ -281,10 +306,10 @@ def add_DeployerServiceServicer_to_server(servicer, server):
                     request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortRequest.FromString,
                     response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortResponse.SerializeToString,
             ),
-            'WritePortStream': grpc.stream_unary_rpc_method_handler(
-                    servicer.WritePortStream,
-                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortStreamRequest.FromString,
-                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortStreamResponse.SerializeToString,
+            'Link': grpc.stream_stream_rpc_method_handler(
+                    servicer.Link,
+                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.LinkRequest.FromString,
+                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.LinkResponse.SerializeToString,
             ),
             'OpenWriter': grpc.unary_unary_rpc_method_handler(
                     servicer.OpenWriter,
@@ -340,6 +365,16 @@ def add_DeployerServiceServicer_to_server(servicer, server):
                     servicer.RerouteLink,
                     request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.FromString,
                     response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.SerializeToString,
+            ),
+            'StreamPort': grpc.unary_unary_rpc_method_handler(
+                    servicer.StreamPort,
+                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.StreamPortRequest.FromString,
+                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.StreamPortResponse.SerializeToString,
+            ),
+            'UnstreamPort': grpc.unary_unary_rpc_method_handler(
+                    servicer.UnstreamPort,
+                    request_deserializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.UnstreamPortRequest.FromString,
+                    response_serializer=scart_dot_dataflow_dot_v1_dot_dataflow__pb2.UnstreamPortResponse.SerializeToString,
             ),
             'OpenIpcWriter': grpc.unary_unary_rpc_method_handler(
                     servicer.OpenIpcWriter,
@@ -471,7 +506,7 @@ class DeployerService:
             _registered_method=True)
 
     @staticmethod
-    def WritePortStream(request_iterator,
+    def Link(request_iterator,
             target,
             options=(),
             channel_credentials=None,
@@ -481,12 +516,12 @@ class DeployerService:
             wait_for_ready=None,
             timeout=None,
             metadata=None):
-        return grpc.experimental.stream_unary(
+        return grpc.experimental.stream_stream(
             request_iterator,
             target,
-            '/scart.dataflow.v1.DeployerService/WritePortStream',
-            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortStreamRequest.SerializeToString,
-            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.WritePortStreamResponse.FromString,
+            '/scart.dataflow.v1.DeployerService/Link',
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.LinkRequest.SerializeToString,
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.LinkResponse.FromString,
             options,
             channel_credentials,
             insecure,
@@ -784,6 +819,60 @@ class DeployerService:
             '/scart.dataflow.v1.DeployerService/RerouteLink',
             scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkRequest.SerializeToString,
             scart_dot_dataflow_dot_v1_dot_dataflow__pb2.RerouteLinkResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def StreamPort(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/scart.dataflow.v1.DeployerService/StreamPort',
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.StreamPortRequest.SerializeToString,
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.StreamPortResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def UnstreamPort(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/scart.dataflow.v1.DeployerService/UnstreamPort',
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.UnstreamPortRequest.SerializeToString,
+            scart_dot_dataflow_dot_v1_dot_dataflow__pb2.UnstreamPortResponse.FromString,
             options,
             channel_credentials,
             insecure,

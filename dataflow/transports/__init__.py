@@ -1,0 +1,368 @@
+"""Transports: how samples cross a process boundary, in one shape (RTT's
+``ConnPolicy.transport``, ``createStream(port, policy, is_sender)``), as plug-ins.
+
+Vocabulary — these words, and no others, name the parts of a crossing:
+
+==================  ======================================================================
+word                what it is
+==================  ======================================================================
+**channel**         one connection whose two ends are in different processes, with its
+                    :class:`~dataflow.policy.ConnPolicy`.
+**writer end**      :class:`~dataflow.transports.ends.WriterEnd`: the channel's side next to
+                    an output port. It takes every sample the port writes, in the
+                    writer's thread, never blocking, and hands it to its carrier.
+**reader end**      :class:`~dataflow.transports.ends.ReaderEnd`: the side next to an input
+                    port (or an observer). It checks each sample once and keeps it in the
+                    channel's **one policy-shaped buffer** (RTT: the connection owns the
+                    buffer, at the reader); it counts what was lost, and reports it back.
+**carrier**         what a transport attaches to a writer end while connected
+                    (:class:`~dataflow.transports.ends.Carrier`): ``send(sample)``.
+**fan-out**         the writer ends of one output port; a sample is encoded once for all.
+**link**            a channel between an output port of one deployer and an input port
+                    of another, made through the control plane (``scart connect``).
+**subscription**    a channel from an output port to an observer in another process
+                    (``proxy.subscribe``, ``scart echo``).
+**stream**          one end joined to a named **topic** of a transport instead of a
+                    peer's port (``ConnPolicy(transport=..., topic=...)``, ``scart
+                    stream``, ``<scart:stream>``): RTT's ``name_id``.
+**peer**            the other side of a link or subscription as the control plane found
+                    it (:class:`Peer`): its address, port and control-plane stub.
+==================  ======================================================================
+
+gRPC is the control plane (lookups, introspection, operations, negotiating a channel);
+a transport only moves samples. :class:`Transport` has three methods, one per kind of
+channel; each returns False when it cannot carry that one (``auto`` then tries the
+next), True once a connection it carried has ended, and raises what interrupted it:
+
+* :meth:`Transport.link` — carry a link's writer end to a peer's input port;
+* :meth:`Transport.subscribe` — carry a peer's output port to a subscription's reader end;
+* :meth:`Transport.stream` — join a writer or reader end to a topic (transports with
+  :attr:`Transport.topics`; a transport that converts types, such as ROS, says so with
+  :attr:`Transport.converts` and is given the port's type to map).
+
+``transport="auto"`` tries every transport that takes part in ``auto`` by
+:attr:`Transport.rank` (lowest first); a named transport is the only one tried.
+Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
+``grpc``, ``zenoh``) are registered exactly as a third party's would be::
+
+    [project.entry-points."scart.transports"]
+    mine = "my_package.transport:MyTransport"
+
+The entry point names a :class:`Transport` subclass (made with no arguments) or an
+instance whose :attr:`~Transport.name` is the entry point's name (a lower-case word of at
+most :data:`MAX_NAME` characters). It is loaded when a channel first asks for it (or for
+``auto``); one that cannot be loaded is not tried again. This module imports no transport.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+from abc import ABC
+from collections.abc import Callable
+from importlib.metadata import EntryPoint, entry_points
+from types import MappingProxyType
+from typing import Any
+
+from dataflow.errors import DataflowError
+from dataflow.transports.ends import ReaderEnd, WriterEnd
+
+__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "Transport", "TransportError", "TransportRegistry",
+           "candidates", "carry", "default", "load", "names"]
+
+log = logging.getLogger(__name__)
+
+ENTRY_POINT_GROUP = "scart.transports"
+MAX_NAME = 32  #: characters of a transport's name, at most (it travels in every remote policy)
+NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
+
+#: scart's own transports, used also when its entry points are not installed (a source tree).
+BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
+                            "grpc": "dataflow.transports.grpc:GrpcTransport",
+                            "zenoh": "dataflow.transports.zenoh:ZenohTransport"})
+
+
+class TransportError(DataflowError):
+    """A transport is unknown, cannot be loaded, is not what its name says, or cannot do
+    what a channel asks of it (a stream on a transport without topics)."""
+
+
+class Peer:
+    """The other side of a link or a subscription, as the control plane found it.
+
+    ``address`` and ``stub`` (its ``DeployerService``), the ``task`` and ``port`` there,
+    ``timeout`` (s) for control-plane calls, ``heartbeat`` (s, a subscription's), and
+    ``channel`` (a link's id: ``boot id/serial`` of its source). The owner cancels a
+    connection in progress through :meth:`cancel`; a transport registers how with
+    :meth:`opened`. Thread-safe.
+    """
+
+    def __init__(self, address: str, task: str, port: str, stub: Any, timeout: float, *,
+                 policy: Any = None, channel_of: Any = None, heartbeat: float = 0.5, channel: str = "",
+                 name: str = "", boot_id: str = "", source_ns: str = "") -> None:
+        self.address = address
+        self.task = task
+        self.port = port
+        self.stub = stub
+        self.timeout = timeout
+        self.policy = policy  #: a subscription's policy (a link's is its writer end's)
+        self.channel_of = channel_of  #: the gRPC channel to the peer (for a transport's own calls)
+        self.heartbeat = heartbeat
+        self.channel = channel
+        self.name = name
+        self.boot_id = boot_id
+        self.source_ns = source_ns
+        self.cancelled = threading.Event()
+        self._cancel: Callable[[], None] | None = None
+        self._finish: Callable[[float], bool] | None = None
+        self._lock = threading.Lock()
+
+    @property
+    def transport(self) -> str:
+        """The transport a subscription's policy names (``auto`` by default)."""
+        return self.policy.transport if self.policy is not None else "auto"
+
+    @property
+    def policy_msg(self) -> Any:
+        """The subscription's policy as the wire's message."""
+        from dataflow.remote._convert import policy_to_msg
+
+        return policy_to_msg(self.policy)
+
+    @property
+    def where(self) -> str:
+        """``task.port`` at the peer."""
+        return f"{self.task}.{self.port}"
+
+    def opened(self, cancel: Callable[[], None], finish: Callable[[float], bool] | None = None) -> bool:
+        """A connection is up; ``cancel`` ends it at once, ``finish(timeout)`` (a link's)
+        ends it gracefully. False (and ``cancel`` called) when the owner cancelled meanwhile."""
+        with self._lock:
+            self._cancel, self._finish = cancel, finish
+            cancelled = self.cancelled.is_set()
+        if cancelled:
+            cancel()
+        return not cancelled
+
+    def cancel(self) -> None:
+        """End the connection in progress, and any later one (idempotent)."""
+        with self._lock:
+            self.cancelled.set()
+            cancel, self._cancel, self._finish = self._cancel, None, None
+        if cancel is not None:
+            cancel()
+
+    def finish(self, timeout: float) -> bool:
+        """End the connection in progress gracefully (what waits is delivered, the reader
+        reports) within ``timeout`` s, and any later one; True when the reader confirmed."""
+        with self._lock:
+            self.cancelled.set()
+            finish, cancel, self._cancel, self._finish = self._finish, self._cancel, None, None
+        if finish is not None:
+            return finish(timeout)
+        if cancel is not None:
+            cancel()
+        return False
+
+
+class Stream(ABC):
+    """A writer or reader end joined to a topic (what :meth:`Transport.stream` returns)."""
+
+    topic: str = ""
+
+    def close(self) -> None:
+        """Leave the topic (idempotent)."""
+
+
+class Transport(ABC):
+    """One way of carrying samples between processes (see the module docstring)."""
+
+    #: The name a policy selects it by (``ConnPolicy(transport=name)``).
+    name: str = ""
+    #: ``auto`` tries lower ranks first; None: used only when named.
+    rank: int | None = None
+    #: It joins ends to named topics (:meth:`stream`).
+    topics: bool = False
+    #: It carries its own message types (a port's type is mapped onto them: ROS).
+    converts: bool = False
+
+    def link(self, end: WriterEnd, peer: Peer) -> bool:
+        """Carry ``end``'s samples to the input port ``peer.where`` until the connection
+        ends. Default: links not carried (False)."""
+        return False
+
+    def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
+        """Carry the samples of the output port ``peer.where`` to ``end`` until the
+        connection ends. Default: subscriptions not carried (False)."""
+        return False
+
+    def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
+        """Join ``end`` to ``topic`` (a writer end publishes, a reader end receives);
+        ``options``: what the user gave besides (a ROS message type...). Raises
+        :class:`TransportError` for a transport without topics or a bad topic."""
+        raise TransportError(f"transport {self.name!r} carries links and subscriptions, not topics; "
+                             f"streams need one of: {', '.join(n for n in names() if _has_topics(n)) or 'none'}")
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r}>"
+
+
+def _has_topics(name: str) -> bool:
+    try:
+        return load(name).topics
+    except TransportError:
+        return False
+
+
+class TransportRegistry:
+    """The transports of this process, by name: entry points read once, each transport
+    loaded once, when first asked for. Thread-safe. :data:`default` is the one channels
+    use (the entry points are process-wide, so is it)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.RLock()  # a plug-in's import may build a policy naming a transport
+        self._found: dict[str, EntryPoint] | None = None
+        self._loaded: dict[str, Transport] = {}
+        self._failed: dict[str, str] = {}  # why: not imported again on every reconnect
+        self._warned: set[str] = set()
+
+    def _entry_points(self) -> dict[str, EntryPoint]:
+        with self._lock:
+            if self._found is None:
+                found: dict[str, EntryPoint] = {}
+                for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: (e.name, e.value)):
+                    if not NAME.match(ep.name):
+                        log.warning("transport entry point %r (%s) ignored: a name is a lower-case word of at "
+                                    "most %d characters", ep.name, ep.value, MAX_NAME)
+                        continue
+                    if ep.name in found and found[ep.name].value != ep.value:
+                        log.warning("transport %r is provided twice (%s and %s); using %s", ep.name,
+                                    found[ep.name].value, ep.value, found[ep.name].value)
+                        continue
+                    found.setdefault(ep.name, ep)
+                for name, value in BUILTIN.items():
+                    found.setdefault(name, EntryPoint(name, value, ENTRY_POINT_GROUP))
+                self._found = found
+            return self._found
+
+    def names(self) -> tuple[str, ...]:
+        """Every transport a policy may name (nothing is loaded), sorted."""
+        return tuple(sorted(self._entry_points()))
+
+    def load(self, name: str) -> Transport:
+        """The transport called ``name`` (loaded once); :class:`TransportError` naming the
+        entry point when it is unknown or cannot be loaded."""
+        found = self._entry_points()
+        with self._lock:
+            transport = self._loaded.get(name)
+            if transport is not None:
+                return transport
+            if name in self._failed:
+                raise TransportError(self._failed[name])  # a new one: a re-raised one would grow its traceback
+            ep = found.get(name)
+            if ep is None:
+                raise TransportError(f"no transport {name!r}; known: {', '.join(sorted(found))}")
+            try:
+                transport = self._make(name, ep)
+            except TransportError as exc:
+                self._failed[name] = str(exc)
+                raise
+            self._loaded[name] = transport
+            return transport
+
+    @staticmethod
+    def _make(name: str, ep: EntryPoint) -> Transport:
+        try:
+            obj = ep.load()
+            transport = obj() if isinstance(obj, type) else obj
+        except Exception as exc:
+            dist = getattr(getattr(ep, "dist", None), "name", None) or "scart"
+            raise TransportError(f"transport {name!r} (entry point {ep.value!r} of {dist}) cannot be loaded: "
+                                 f"{type(exc).__name__}: {exc}") from exc
+        if not isinstance(transport, Transport):
+            raise TransportError(f"transport {name!r} ({ep.value}) is a {type(transport).__qualname__}, "
+                                 "not a dataflow.transports.Transport")
+        if transport.name != name:
+            raise TransportError(f"transport {name!r} ({ep.value}) says its name is {transport.name!r}")
+        return transport
+
+    def candidates(self, wanted: str) -> list[Transport]:
+        """The transports to try, in order, for a policy's ``transport``: the one named, or
+        for ``auto`` every one with a rank, lowest first (one that cannot be loaded is
+        skipped with a warning, once)."""
+        if wanted != "auto":
+            return [self.load(wanted)]
+        found = []
+        for name in self.names():
+            try:
+                transport = self.load(name)
+            except TransportError as exc:
+                self.warn_once(name, f"{exc}; auto goes without it")
+                continue
+            if transport.rank is not None:
+                found.append(transport)
+        return sorted(found, key=lambda t: (t.rank, t.name))
+
+    def warn_once(self, name: str, message: str) -> None:
+        """Log ``message`` about transport ``name`` once per process."""
+        with self._lock:
+            first = name not in self._warned
+            self._warned.add(name)
+        if first:
+            log.warning("%s", message)
+
+
+#: The registry channels use (entry points are process-wide; so is it).
+default = TransportRegistry()
+
+
+def names() -> tuple[str, ...]:
+    """:meth:`TransportRegistry.names` of :data:`default`."""
+    return default.names()
+
+
+def load(name: str) -> Transport:
+    """:meth:`TransportRegistry.load` of :data:`default`."""
+    return default.load(name)
+
+
+def candidates(wanted: str) -> list[Transport]:
+    """:meth:`TransportRegistry.candidates` of :data:`default`."""
+    return default.candidates(wanted)
+
+
+#: Failures of a peer (not of a plug-in): a carry that raises one of these is retried by
+#: its owner. Transports that talk to a peer raise these; the control plane adds gRPC's.
+PEER_FAILURES: tuple[type[BaseException], ...] = (OSError, ConnectionError, TimeoutError)
+
+
+def carry(wanted: str, attempt: Callable[[Transport], bool], after: Callable[[], None], what: str,
+          peer_failures: tuple[type[BaseException], ...] = PEER_FAILURES) -> None:
+    """Offer one connection to the transports for a policy's ``wanted`` in order, until
+    ``attempt(transport)`` says one carried it (and it ended); ``after()`` runs after each
+    attempt, however it went. Raises what an attempt raised when it is a peer's failure
+    (``peer_failures``: the owner reconnects), or :class:`TransportError` naming ``what``
+    and the transports tried when every one declined. Under ``auto``, a transport that
+    raises anything else (a plug-in's bug) is passed over, said once, and the next one
+    tried: it never keeps the connection from the transports that work."""
+    tried = []
+    for transport in candidates(wanted):
+        tried.append(transport.name)
+        try:
+            if attempt(transport):
+                return
+        except peer_failures:
+            raise
+        except Exception as exc:
+            if wanted != "auto":
+                raise
+            default.warn_once(f"failed:{transport.name}", f"transport {transport.name!r} failed for {what} "
+                              f"({type(exc).__name__}: {exc}); auto goes on with the next one")
+        finally:
+            after()
+    raise NoTransportError(f"no transport reaches {what} (tried {', '.join(tried) or 'none'})")
+
+
+class NoTransportError(TransportError):
+    """Every transport a policy allows declined a connection (a peer with none in common)."""

@@ -1,0 +1,207 @@
+"""Transport ``grpc``: samples over gRPC streams, between any two hosts (registered as
+the ``scart.transports`` entry point ``grpc``; rank 100: ``auto``'s fallback).
+
+* A link is one bidirectional ``Link`` stream: ``LinkRequest`` s to the sink (the first
+  says which port and channel), ``LinkResponse`` s back. The writer end's samples wait in
+  a small queue (:data:`ROOM` frames) for the stream's sending thread, which sends what
+  waits together (frames joined end to end are one frame holding all their samples).
+* A subscription is one server-streaming ``Subscribe`` call of ``SubscribeResponse`` s
+  (the deployer's side is :func:`serve_subscription`).
+
+The frames are the same bytes as on ipc, encoded once per write (:mod:`~dataflow.transports.frames`).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Iterator
+from typing import Any
+
+from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from dataflow.transports import Peer, Transport, frames
+from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
+from dataflow.transports.ipc import LinkRefused, link_hello
+
+__all__ = ["GrpcTransport", "LINK_METHOD", "ROOM", "passthrough"]
+
+log = logging.getLogger(__name__)
+
+LINK_METHOD = "/scart.dataflow.v1.DeployerService/Link"
+ROOM = 256  #: frames a gRPC link or subscription holds for its stream's thread, at most ...
+ROOM_BYTES = 4 * 1024 * 1024  #: ... and encoded bytes (then the writer end's own queue, by its policy)
+BATCH_BYTES = 1024 * 1024  #: encoded samples sent in one message, at most
+REPORT_ASK_S = 0.1  #: an idle link with samples not yet confirmed asks the sink for a report this often
+HEARTBEAT = pb.LinkRequest(heartbeat=True).SerializeToString()
+
+
+def passthrough(data: bytes) -> bytes:
+    """A gRPC serializer for frames that are bytes already."""
+    return data
+
+
+class GrpcTransport(Transport):
+    """Samples over gRPC streams: works between any two hosts (the fallback of ``auto``)."""
+
+    name = "grpc"
+    rank = 100
+
+    def link(self, end: WriterEnd, peer: Peer) -> bool:
+        carrier = _LinkCarrier(end)
+        call = peer.channel_of.stream_stream(LINK_METHOD, request_serializer=passthrough,
+                                             response_deserializer=pb.LinkResponse.FromString)(
+            carrier.frames(link_hello(end, peer)))
+        try:
+            first = next(call)
+            if first.refused:
+                raise LinkRefused(first.refused)
+            end.report(first.last, first.lost)
+            end.connected(self.name, carrier, new_peer=not first.known)
+            if peer.opened(call.cancel, finish=carrier.finish):
+                for report in call:
+                    end.report(report.last, report.lost)
+                    if report.final:
+                        carrier.final.set()
+                        break
+        finally:
+            carrier.close()
+            call.cancel()
+            end.disconnected()
+        return True
+
+    def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
+        request = pb.SubscribeRequest(task=peer.task, port=peer.port, policy=peer.policy_msg,
+                                      heartbeat_ms=int(peer.heartbeat * 1000))
+        call = peer.stub.Subscribe(request)
+        end.transport = self.name
+        if not peer.opened(call.cancel):
+            call.cancel()
+            return True
+        for message in call:
+            end.seen = time.monotonic()
+            frames.feed(end, message)
+        return True
+
+
+class _LinkCarrier:
+    """A gRPC link's carrier: frames wait in a bounded queue for the stream's thread."""
+
+    encode = staticmethod(frames.sample_frame)
+
+    def __init__(self, end: WriterEnd) -> None:
+        self.end = end
+        self.final = threading.Event()
+        self._queue: deque[bytes] = deque()
+        self._size = [0]  # bytes in the queue
+        self._wake = threading.Event()
+        self._closing = False
+        self._closed = False
+
+    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread
+        if self._closing or not _room(self._queue, self._size, data):
+            return False
+        self._queue.append(data)
+        self._size[0] += len(data)
+        self._wake.set()
+        return True
+
+    def frames(self, hello: Any) -> Iterator[bytes]:
+        """The stream's requests (gRPC's thread): the hello, then what waits, joined."""
+        yield pb.LinkRequest(hello=hello).SerializeToString()
+        while not self._closed:
+            if not self._wake.wait(REPORT_ASK_S):
+                if self.end.undelivered():  # the sink reports when it hears from us: ask for the rest
+                    yield HEARTBEAT
+                continue
+            self._wake.clear()
+            while self._queue:
+                batch, size = [], 0
+                while self._queue and size < BATCH_BYTES:
+                    data = self._queue.popleft()
+                    self._size[0] -= len(data)
+                    batch.append(data)
+                    size += len(data)
+                yield b"".join(batch)
+                self.end.flush()  # what waited in the end's own queue comes in now
+            if self._closing:
+                yield pb.LinkRequest(closing=True).SerializeToString()
+                self._closing = False
+
+    def finish(self, timeout: float) -> bool:
+        """Close gracefully (see :meth:`Peer.finish`): the rest, a closing frame, the final report."""
+        self.end.flush()
+        self._closing = True
+        self._wake.set()
+        return self.final.wait(timeout)
+
+    def close(self) -> None:
+        self._closed = True
+        self._wake.set()
+
+
+def _room(queue: deque[bytes], size: list[int], data: bytes) -> bool:
+    """Whether a frame of ``data`` fits in a carrier's queue (:data:`ROOM`, :data:`ROOM_BYTES`)."""
+    return not queue or (len(queue) < ROOM and size[0] + len(data) <= ROOM_BYTES)
+
+
+def wait_frames(queue: deque[bytes], size: list[int], wake: threading.Event, timeout: float) -> list[bytes]:
+    """What waits in ``queue`` (after waiting up to ``timeout`` s for it), taken."""
+    if not queue and wake.wait(timeout):
+        wake.clear()
+    out = []
+    while queue:
+        data = queue.popleft()
+        size[0] -= len(data)
+        out.append(data)
+    return out
+
+
+class ServedCarrier:
+    """The deployer's side of a subscription over gRPC: frames wait here for the
+    ``Subscribe`` call's thread, which sends them joined (:func:`serve_subscription`)."""
+
+    encode = staticmethod(frames.sample_frame)
+
+    def __init__(self) -> None:
+        self.queue: deque[bytes] = deque()
+        self.size = [0]  # bytes in the queue
+        self.wake = threading.Event()
+
+    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread
+        if not _room(self.queue, self.size, data):
+            return False
+        self.queue.append(data)
+        self.size[0] += len(data)
+        self.wake.set()
+        return True
+
+    def first(self, data: bytes) -> None:
+        """Put ``data`` before anything else (the "connected" frame)."""
+        self.queue.appendleft(data)
+        self.size[0] += len(data)
+        self.wake.set()
+
+
+def serve_subscription(end: WriterEnd, carrier: ServedCarrier, boot_id: str, heartbeat: float, alive: Any,
+                       dropped: Any) -> Iterator[bytes]:
+    """The ``Subscribe`` responses for a served writer end (the call's thread), as bytes:
+    "connected", then samples as they come (what waits, joined into one message), and a
+    heartbeat after ``heartbeat`` s without one, until ``alive()`` is false (set
+    ``carrier.wake`` to have it looked at at once)."""
+    end.connected("grpc", carrier, new_peer=True,  # "connected", first: from now on every write comes
+                  first=lambda: carrier.first(frames.connected(end, boot_id)))
+    last = time.monotonic()
+    try:
+        while alive():
+            batch = wait_frames(carrier.queue, carrier.size, carrier.wake, heartbeat)
+            if batch:
+                yield b"".join(batch)
+                end.flush()
+                last = time.monotonic()
+            elif time.monotonic() - last >= heartbeat:
+                yield frames.heartbeat(dropped=dropped())
+                last = time.monotonic()
+    finally:
+        end.disconnected()

@@ -1,0 +1,183 @@
+"""Transport ``ipc``: the same-host fast path (registered as the ``scart.transports``
+entry point ``ipc``; rank 10, so ``auto`` tries it first).
+
+gRPC stays the control plane: a peer asks for a one-time ticket with ``OpenIpcWriter`` (a
+link into an input port; role ``operate``) or ``OpenIpcReader`` (a subscription of an
+output port; role ``read``), connects to the deployer's abstract Unix socket
+(``SOCK_SEQPACKET``, Linux only), sends the ticket as its first frame and waits for the
+deployer's first message (a link's first report, or a subscription's "connected"
+heartbeat). Then samples flow: a link's ``LinkRequest`` frames one way and its
+``LinkResponse`` s back; a subscription's ``SubscribeResponse`` frames.
+
+Every ipc socket of a process is read by its one io thread (:mod:`._hub`, RTT's mqueue
+dispatcher); a sample is sent from the writer's own thread, encoded once for every
+reader of its port. It declines (``auto`` goes on to gRPC) when the two ends are not on
+one host, or the peer has no ipc; a policy naming ``ipc`` gets an error saying why.
+
+Why a socket and not a shared-memory ring: a ring still needs a kernel wake-up per
+sample in Python (no spinning under the GIL), and a datagram socket is a bounded kernel
+ring with that wake-up built in; an abstract socket has no file to clean up.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from dataflow.transports import Peer, Transport, TransportError, frames
+from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
+from dataflow.transports.ipc._hub import Conn, Hub
+from dataflow.transports.ipc._wire import IpcUnavailable, available, connect, host_id
+
+__all__ = ["IpcTransport", "LinkRefused", "REFUSED"]
+
+log = logging.getLogger(__name__)
+
+#: What ``OpenIpc*`` may answer that means "use gRPC" under transport ``auto``: an old
+#: deployer, another host or platform, a deployer out of ipc room.
+REFUSED = frozenset({"UNIMPLEMENTED", "FAILED_PRECONDITION", "RESOURCE_EXHAUSTED"})
+
+
+class LinkRefused(TransportError):
+    """The sink refused a link (another type, no such input port): retrying cannot help."""
+
+
+class IpcTransport(Transport):
+    """Samples over the deployer's abstract Unix socket, when both ends are on one host."""
+
+    name = "ipc"
+    rank = 10
+
+    def link(self, end: WriterEnd, peer: Peer) -> bool:
+        hello = link_hello(end, peer)
+        request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=policy_msg(end),
+                                          host_id=host_id(), hello=hello)
+        opened = _open(lambda: peer.stub.OpenIpcWriter(request, timeout=peer.timeout), end.policy.transport, peer)
+        if opened is None:
+            return False
+        sock, first = opened
+        report = pb.LinkResponse.FromString(first)
+        if report.refused:
+            sock.close()
+            raise LinkRefused(report.refused)
+        conn = _LinkOut(Hub.acquire(), sock, end)
+        end.report(report.last, report.lost)
+        conn.start()
+        end.connected(self.name, conn, new_peer=not report.known)
+        try:
+            if peer.opened(conn.close, finish=conn.finish):
+                conn.ended.wait()
+        finally:
+            conn.close()
+            end.disconnected()
+        return True
+
+    def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
+        request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=peer.policy_msg, host_id=host_id(),
+                                          heartbeat_ms=int(peer.heartbeat * 1000))
+        opened = _open(lambda: peer.stub.OpenIpcReader(request, timeout=peer.timeout), peer.transport, peer)
+        if opened is None:
+            return False
+        sock, first = opened
+        conn = _SubIn(Hub.acquire(), sock, end)
+        end.transport = self.name
+        try:
+            if peer.opened(conn.close):
+                conn.message(first)  # the "connected" heartbeat
+                conn.start()
+                conn.ended.wait()
+        finally:
+            conn.close()
+        return True
+
+
+def policy_msg(end: WriterEnd) -> Any:
+    """``end``'s policy as the wire's message."""
+    from dataflow.remote._convert import policy_to_msg
+
+    return policy_to_msg(end.policy)
+
+
+def link_hello(end: WriterEnd, peer: Peer) -> Any:
+    """What a link's reader end is told when its channel opens."""
+    return pb.LinkHello(task=peer.task, port=peer.port, policy=policy_msg(end), channel=peer.channel,
+                        after=end.peer_last or end.start, boot_id=peer.boot_id, source=end.port.qualname,
+                        type_name=end.port.type_name, name=peer.name, source_ns=peer.source_ns)
+
+
+def _open(ask: Callable[[], Any], transport: str, peer: Peer) -> tuple[socket.socket, bytes] | None:
+    """Ask the deployer for a ticket and connect with it: the socket (non-blocking) and the
+    deployer's first message. None when ipc does not work between the two ends and the
+    policy (``auto``) lets another transport do; with ``ipc`` that raises
+    :class:`TransportError` saying why. Other failures of ``ask`` propagate."""
+    import grpc
+
+    try:
+        if not available():
+            raise IpcUnavailable("no ipc on this platform")
+        try:
+            reply = ask()
+        except grpc.RpcError as exc:
+            if exc.code().name not in REFUSED:  # type: ignore[attr-defined]
+                raise
+            raise IpcUnavailable(exc.details() or exc.code().name) from None  # type: ignore[attr-defined]
+        return connect(reply.ticket.socket, reply.ticket.secret, peer.timeout)
+    except IpcUnavailable as exc:
+        if transport == "ipc":
+            raise TransportError(f"transport ipc to {peer.where}: {exc}") from None
+        return None
+
+
+class _LinkOut(Conn):
+    """A link going out: the carrier of its writer end; reports come back."""
+
+    encode = staticmethod(frames.sample_frame)
+
+    def __init__(self, hub: Hub, sock: socket.socket, end: WriterEnd) -> None:
+        super().__init__(hub, sock, end.label)
+        self.end = end
+        self.final = threading.Event()
+
+    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread
+        return self.put(data)
+
+    def drained(self) -> None:
+        self.end.flush()
+
+    def message(self, data: bytes) -> None:
+        report = pb.LinkResponse.FromString(data)
+        self.end.report(report.last, report.lost)
+        if report.final:
+            self.final.set()
+
+    def finish(self, timeout: float) -> bool:
+        """Close gracefully: what waits goes, the sink lets its task read what it holds,
+        and reports (True) — or ``timeout`` s pass (False). Then the connection ends."""
+        self.end.flush()
+        self.put(pb.LinkRequest(closing=True).SerializeToString())
+        done = self.final.wait(timeout)
+        self.close()
+        return done
+
+    def ended_hook(self) -> None:
+        self.final.set()
+
+
+class _SubIn(Conn):
+    """A subscription coming in: frames into its reader end."""
+
+    def __init__(self, hub: Hub, sock: socket.socket, end: ReaderEnd) -> None:
+        super().__init__(hub, sock, end.label)
+        self.end = end
+
+    def readable(self) -> None:
+        self.end.seen = time.monotonic()  # any byte: alive (a large sample is many frames)
+        super().readable()
+
+    def message(self, data: bytes) -> None:
+        frames.feed(self.end, pb.SubscribeResponse.FromString(data))

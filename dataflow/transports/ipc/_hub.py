@@ -1,0 +1,327 @@
+"""ipc's one io thread per process (private): RTT's mqueue dispatcher.
+
+Every ipc socket of a process — a deployer's listener, the links it sends and receives,
+the subscriptions it serves and the ones it reads — is watched by one selector in one
+thread, the :class:`Hub`'s. It reads every incoming frame and hands it to its
+connection (a reader end checks and stores it: one hand-over to the task or observer);
+it gives room back to writers whose socket was full, and runs each connection's
+periodic work (heartbeats, reports) every :data:`TICK_S`.
+
+Samples go out from the writer's own thread (``send`` with ``MSG_DONTWAIT``): the io
+thread sends only what had to wait for room, and control frames. The hub starts with
+its first connection and ends with its last (:meth:`Hub.acquire`, :meth:`Hub.release`).
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import selectors
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+
+from dataflow.threads import OwnedThread
+from dataflow.transports.ipc._wire import CHUNK, WHOLE, Reassembler, frames_of, shutdown_quietly
+
+__all__ = ["Conn", "Hub", "TICK_S"]
+
+log = logging.getLogger(__name__)
+
+TICK_S = 0.05  #: how often each connection's periodic work runs (heartbeats, reports)
+READS_PER_WAKE = 256  #: datagrams one connection may read per wake-up before the others' turn
+
+
+class Hub:
+    """The process's ipc io thread (see the module docstring). Thread-safe."""
+
+    _the: Hub | None = None
+    _the_lock = threading.Lock()
+
+    def __init__(self) -> None:
+        self._selector = selectors.DefaultSelector()
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+        self._selector.register(self._wake_r, selectors.EVENT_READ, None)
+        self._calls: deque[Callable[[], None]] = deque()
+        self._conns: set[Conn] = set()
+        self._users = 0
+        self._thread = OwnedThread(self._run, "scart-ipc", wake=self.wake)
+
+    # ---- one per process ----------------------------------------------------------------
+    @classmethod
+    def acquire(cls) -> Hub:
+        """The process's hub, started if needed; each call is matched by one :meth:`release`."""
+        with cls._the_lock:
+            hub = cls._the
+            if hub is None:
+                hub = cls._the = Hub()
+                hub._thread.start()
+            hub._users += 1
+            return hub
+
+    def release(self) -> None:
+        """One user less; the last one stops the thread and closes the selector."""
+        with Hub._the_lock:
+            self._users -= 1
+            if self._users > 0:
+                return
+            if Hub._the is self:
+                Hub._the = None
+        self._thread.stop()
+        if not self._thread.in_thread():
+            self._shut()
+
+    def _shut(self) -> None:
+        self._run_calls()
+        for conn in list(self._conns):
+            self.forget(conn)
+            conn.sock.close()
+        self._selector.close()
+        self._wake_r.close()
+        self._wake_w.close()
+
+    # ---- from any thread --------------------------------------------------------------
+    def wake(self) -> None:
+        """Wake the io thread (never blocks)."""
+        try:
+            self._wake_w.send(b"x")
+        except OSError:  # full: a wake-up is pending anyway; closed: stopping
+            pass
+
+    def call_soon(self, fn: Callable[[], None]) -> None:
+        """Run ``fn`` in the io thread, soon (at once when called from it)."""
+        if self._thread.in_thread():
+            fn()
+            return
+        self._calls.append(fn)
+        self.wake()
+
+    def add(self, conn: Conn) -> None:
+        """Watch ``conn``'s socket (it reads; it writes when it asks)."""
+        def register() -> None:
+            if conn.ended.is_set():
+                return
+            self._conns.add(conn)
+            wanted = selectors.EVENT_WRITE if conn._blocked else 0  # it filled up before it was watched
+            self._selector.register(conn.sock, selectors.EVENT_READ | wanted, conn)
+        self.call_soon(register)
+
+    def want_write(self, conn: Conn, wanted: bool) -> None:
+        """Watch ``conn`` for room to write (True) or not any more (False)."""
+        def modify() -> None:
+            if conn in self._conns:
+                events = selectors.EVENT_READ | (selectors.EVENT_WRITE if wanted else 0)
+                self._selector.modify(conn.sock, events, conn)
+        self.call_soon(modify)
+
+    def watch(self, sock: socket.socket, handler: object) -> None:
+        """Watch a socket for reading with a handler that is not a :class:`Conn` (the io thread)."""
+        self._selector.register(sock, selectors.EVENT_READ, handler)
+
+    def unwatch(self, sock: socket.socket) -> None:
+        """Stop watching a socket given to :meth:`watch` (the io thread; idempotent)."""
+        try:
+            self._selector.unregister(sock)
+        except (KeyError, ValueError, OSError):
+            pass
+
+    def forget(self, conn: Conn) -> None:
+        """Stop watching ``conn`` (the io thread; :meth:`Conn.close` calls it)."""
+        if conn in self._conns:
+            self._conns.discard(conn)
+            try:
+                self._selector.unregister(conn.sock)
+            except (KeyError, ValueError, OSError):
+                pass
+
+    # ---- the io thread ------------------------------------------------------------------
+    def _run(self, stopping: threading.Event) -> None:
+        next_tick = time.monotonic() + TICK_S
+        while not stopping.is_set():
+            try:
+                timeout = max(0.0, next_tick - time.monotonic())
+                for key, mask in self._selector.select(timeout):
+                    conn = key.data
+                    if conn is None:
+                        self._drain_wake()
+                        continue
+                    if mask & selectors.EVENT_READ:
+                        conn.readable()
+                    if mask & selectors.EVENT_WRITE and not conn.ended.is_set():
+                        conn.writable()
+                self._run_calls()
+                now = time.monotonic()
+                if now >= next_tick:
+                    next_tick = now + TICK_S
+                    for conn in list(self._conns):
+                        conn.tick(now)
+            except Exception:  # noqa: BLE001 - the io thread must not die
+                if stopping.is_set():
+                    break
+                log.exception("ipc: the io thread hit an error; going on")
+        if self._thread.in_thread() and Hub._the is not self:
+            self._shut()
+
+    def _drain_wake(self) -> None:
+        try:
+            while self._wake_r.recv(4096):
+                pass
+        except OSError:
+            pass
+
+    def _run_calls(self) -> None:
+        for _ in range(len(self._calls)):
+            try:
+                fn = self._calls.popleft()
+            except IndexError:
+                return
+            try:
+                fn()
+            except Exception:  # noqa: BLE001
+                log.exception("ipc: a call in the io thread failed")
+
+
+class Conn:
+    """One ipc socket watched by the hub. Subclasses say what a message means
+    (:meth:`message`), what to do when there is room again (:meth:`drained`), what runs
+    every tick (:meth:`tick`) and when it ends (:meth:`ended_hook`).
+
+    :meth:`put` may be called from any thread; it never blocks: False when the socket
+    is full (the hub calls :meth:`drained` once it has room) or another thread is
+    sending on it, or it broke (the hub closes it).
+    """
+
+    def __init__(self, hub: Hub, sock: socket.socket, label: str) -> None:
+        sock.setblocking(False)
+        self.hub = hub
+        self.sock = sock
+        self.label = label
+        self.ended = threading.Event()
+        self.sent_at = time.monotonic()
+        self._assembler = Reassembler()
+        self._held: deque[bytes] = deque()  # the rest of a chunked message, waiting for room
+        self._lock = threading.Lock()
+        self._blocked = False
+        self._closing = threading.Lock()
+
+    def start(self) -> None:
+        """Begin watching the socket (after the subclass is ready for messages)."""
+        self.hub.add(self)
+
+    # ---- sending ---------------------------------------------------------------------------
+    def put(self, message: bytes) -> bool:
+        """Send one message without blocking (see the class); True once it is committed."""
+        if not self._lock.acquire(blocking=False):
+            return False
+        try:
+            if self._held or self.ended.is_set():
+                return False
+            if len(message) <= CHUNK:
+                return self._out([WHOLE, message])
+            frames = frames_of(message)
+            if not self._out([frames[0]]):
+                return False
+            self._held.extend(frames[1:])
+            self._push_held()
+            return True
+        finally:
+            self._lock.release()
+
+    def _out(self, parts: list[bytes]) -> bool:
+        try:
+            self.sock.sendmsg(parts, (), socket.MSG_DONTWAIT)
+        except (BlockingIOError, InterruptedError):
+            self._block()
+            return False
+        except OSError as exc:
+            if exc.errno == errno.ENOBUFS:  # the kernel is short of memory: wait for room
+                self._block()
+                return False
+            self.hub.call_soon(self.close)  # the peer is gone
+            return False
+        self.sent_at = time.monotonic()
+        return True
+
+    def _block(self) -> None:
+        if not self._blocked:
+            self._blocked = True
+            self.hub.want_write(self, True)
+
+    def _push_held(self) -> None:
+        held = self._held
+        while held:
+            if not self._out([held[0]]):
+                return
+            held.popleft()
+
+    # ---- the io thread -------------------------------------------------------------------
+    def writable(self) -> None:
+        with self._lock:
+            self._blocked = False
+            self._push_held()
+            if self._held:
+                return
+        self.hub.want_write(self, False)
+        self.drained()
+        if self._blocked:  # drained() filled it again
+            self.hub.want_write(self, True)
+
+    def readable(self) -> None:
+        for _ in range(READS_PER_WAKE):
+            try:
+                frame, _, flags, _ = self.sock.recvmsg(CHUNK + 1)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                frame = b""
+            if not frame:
+                self.close()
+                return
+            message = self._assembler.feed(frame, bool(flags & socket.MSG_TRUNC))
+            if message is not None:
+                try:
+                    self.message(message)
+                except Exception:  # noqa: BLE001 - one bad message never ends the io thread
+                    log.exception("ipc %s: a message could not be handled", self.label)
+
+    def message(self, data: bytes) -> None:
+        """One message arrived (the io thread)."""
+
+    def drained(self) -> None:
+        """The socket has room again (the io thread)."""
+
+    def tick(self, now: float) -> None:
+        """Periodic work (the io thread, every :data:`TICK_S`)."""
+
+    def ended_hook(self) -> None:
+        """The connection is over (called once, from the thread that closed it)."""
+
+    @property
+    def malformed(self) -> int:
+        """Frames dropped as malformed or oversized."""
+        return self._assembler.dropped
+
+    def close(self) -> None:
+        """End the connection (idempotent, any thread): the socket is shut at once (the
+        peer sees its end) and closed by the io thread, which stops watching it first."""
+        with self._closing:
+            if self.ended.is_set():
+                return
+            self.ended.set()
+        shutdown_quietly(self.sock)
+
+        def finish() -> None:
+            self.hub.forget(self)
+            self.sock.close()
+
+        self.hub.call_soon(finish)
+        with self._lock:
+            self._held.clear()
+        try:
+            self.ended_hook()
+        finally:
+            self.hub.release()

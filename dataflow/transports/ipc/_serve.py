@@ -1,0 +1,340 @@
+"""A deployer's side of ipc (private): its socket, the tickets it hands out through the
+control plane, and the connections they open — links coming in (a reader end each) and
+subscriptions going out (a writer end each), all read by the process's one io thread.
+
+Bounds: only processes of this deployer's user may connect (``SO_PEERCRED``); at most
+:data:`MAX_PENDING` connections without a ticket yet (the oldest is closed for a new one),
+each closed after :data:`HELLO_S` s; at most :data:`MAX_CONNECTIONS` connections;
+:data:`MAX_TICKETS` tickets pending (:data:`TICKETS_PER_PEER` per peer), each valid
+:data:`TICKET_S` s, used once.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import secrets
+import socket
+import struct
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from dataflow.policy import ConnPolicy
+from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from dataflow.transports import frames
+from dataflow.transports.ends import OutSample
+from dataflow.transports.ipc._hub import Conn, Hub
+from dataflow.transports.sinks import LINGER_S, IncomingLink, Refused, Sinks
+from dataflow.transports.served import Served
+
+__all__ = ["IpcServer", "MAX_CONNECTIONS"]
+
+log = logging.getLogger(__name__)
+
+MAX_CONNECTIONS = 256
+MAX_PENDING = 32
+MAX_TICKETS = 1024
+TICKETS_PER_PEER = 64
+TICKET_S = 10.0
+HELLO_S = 2.0
+TICKET_BYTES = 16
+REPORT_EVERY = 64  #: samples between two reports of a link's reader end, at most ...
+REPORT_S = 0.1  #: ... or this many seconds, when something changed
+
+
+@dataclass(frozen=True)
+class _Ticket:
+    expires: float
+    peer: str
+    kind: str  # "in": a link into an input port; "out": a subscription of an output port
+    request: Any  # OpenIpcWriterRequest / OpenIpcReaderRequest
+    policy: ConnPolicy
+    heartbeat: float
+    who: str
+
+
+class IpcServer:
+    """A deployer's ipc socket (see the module docstring). ``sinks`` are the deployer's
+    incoming links; ``serve(task, port, policy, who)`` makes the :class:`Served` writer end
+    of a new subscription, ``unserve(served)`` ends it."""
+
+    def __init__(self, boot_id: str, sinks: Sinks, serve: Callable[[str, str, ConnPolicy, str], Served],
+                 unserve: Callable[[Served], None]) -> None:
+        self.boot_id = boot_id
+        self.name = f"scart-{boot_id}-{secrets.token_hex(8)}"
+        self.sinks = sinks
+        self._serve = serve
+        self._unserve = unserve
+        self._lock = threading.Lock()
+        self._tickets: dict[bytes, _Ticket] = {}
+        self._conns: set[Conn] = set()
+        self._pending: dict[socket.socket, float] = {}  # accepted, no ticket yet (oldest first)
+        self._stopping = False
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        try:
+            sock.bind("\0" + self.name)
+            sock.listen(64)
+        except BaseException:
+            sock.close()
+            raise
+        self.hub = Hub.acquire()
+        self._listener = _Listener(self.hub, sock, self)
+        self._listener.start()
+
+    @property
+    def connections(self) -> int:
+        with self._lock:
+            return len(self._conns)
+
+    def ticket(self, kind: str, request: Any, policy: ConnPolicy, peer: str, heartbeat: float = 0.5,
+               who: str = "") -> bytes:
+        """A one-time ticket for a connection of ``kind`` (``in`` or ``out``) asked by
+        ``request``, for ``peer`` (its key for the per-peer bounds; ``who``: its address).
+        Raises ``OverflowError`` naming the bound past it."""
+        now = time.monotonic()
+        with self._lock:
+            for key in [k for k, t in self._tickets.items() if t.expires < now]:
+                del self._tickets[key]
+            if len(self._tickets) >= MAX_TICKETS:
+                raise OverflowError(f"{MAX_TICKETS} ipc tickets are pending")
+            if sum(1 for t in self._tickets.values() if t.peer == peer) >= TICKETS_PER_PEER:
+                raise OverflowError(f"{TICKETS_PER_PEER} ipc tickets of this peer are pending")
+            if len(self._conns) >= MAX_CONNECTIONS:
+                raise OverflowError(f"this deployer serves at most {MAX_CONNECTIONS} ipc connections")
+            secret = secrets.token_bytes(TICKET_BYTES)
+            self._tickets[secret] = _Ticket(now + TICKET_S, peer, kind, request, policy, heartbeat, who)
+            return secret
+
+    # ---- the io thread ------------------------------------------------------------------
+    def accepted(self, conn: socket.socket) -> None:
+        uid = struct.unpack("3i", conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i")))[1]
+        if uid != os.getuid():  # an abstract socket has no permissions: ours only
+            conn.close()
+            return
+        conn.setblocking(False)
+        with self._lock:
+            oldest = next(iter(self._pending)) if len(self._pending) >= MAX_PENDING else None
+            if oldest is not None:
+                del self._pending[oldest]
+            self._pending[conn] = time.monotonic() + HELLO_S
+        if oldest is not None:
+            self._listener.forget_pending(oldest)
+        self._listener.watch_pending(conn)
+
+    def hello(self, conn: socket.socket) -> None:
+        """A pending connection spoke: its ticket opens a link or a subscription."""
+        with self._lock:
+            self._pending.pop(conn, None)
+        try:
+            secret = conn.recv(64)
+        except OSError:
+            secret = b""
+        with self._lock:
+            ticket = self._tickets.pop(secret, None) if len(secret) == TICKET_BYTES else None
+            full = len(self._conns) >= MAX_CONNECTIONS
+        if ticket is None or ticket.expires < time.monotonic() or full or self._stopping:
+            conn.close()
+            return
+        try:
+            made = self._link_in(conn, ticket) if ticket.kind == "in" else self._reader_out(conn, ticket)
+        except Exception as exc:  # noqa: BLE001 - the port went away meanwhile: the peer sees the close
+            log.info("ipc: %s cannot be served: %s", ticket.request.task, exc)
+            conn.close()
+            return
+        with self._lock:
+            self._conns.add(made)
+        made.start()
+
+    def _link_in(self, sock: socket.socket, ticket: _Ticket) -> Conn:
+        hello = ticket.request.hello
+        try:
+            link, known = self.sinks.open(hello, ticket.policy)
+        except Refused as exc:
+            sock.send(frames_whole(pb.LinkResponse(refused=str(exc)).SerializeToString()))
+            raise
+        return _LinkIn(Hub.acquire(), sock, self, link, known)
+
+    def _reader_out(self, sock: socket.socket, ticket: _Ticket) -> Conn:
+        request = ticket.request
+        served = self._serve(request.task, request.port, ticket.policy, ticket.who)
+        return _ReaderOut(Hub.acquire(), sock, self, served, ticket.heartbeat)
+
+    def housekeeping(self, now: float) -> None:
+        with self._lock:
+            late = [c for c, deadline in self._pending.items() if deadline < now]
+            for conn in late:
+                del self._pending[conn]
+        for conn in late:
+            self._listener.forget_pending(conn)
+
+    def forget(self, conn: Conn) -> None:
+        with self._lock:
+            self._conns.discard(conn)
+
+    def readers(self) -> list[Served]:
+        """The subscriptions served over ipc now."""
+        with self._lock:
+            return [c.served for c in self._conns if isinstance(c, _ReaderOut)]
+
+    def stop(self) -> None:
+        """Close the socket and every connection (idempotent)."""
+        with self._lock:
+            if self._stopping:
+                return
+            self._stopping = True
+            conns = list(self._conns)
+            pending = list(self._pending)
+            self._conns.clear()
+            self._pending.clear()
+            self._tickets.clear()
+        for conn in conns:
+            conn.close()
+        for sock in pending:
+            self._listener.forget_pending(sock)
+        self._listener.close()
+
+
+def frames_whole(message: bytes) -> bytes:
+    """One whole-message frame (a control message sent before the io thread owns the socket)."""
+    return b"\x00" + message
+
+
+class _Listener(Conn):
+    """The deployer's listening socket; pending connections until their ticket comes."""
+
+    def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer) -> None:
+        super().__init__(hub, sock, f"listener {server.name}")
+        self.server = server
+
+    def readable(self) -> None:
+        for _ in range(64):
+            try:
+                conn, _ = self.sock.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                return
+            self.server.accepted(conn)
+
+    def watch_pending(self, conn: socket.socket) -> None:
+        self.hub.call_soon(lambda: self.hub.watch(conn, _Pending(self.server, conn)))
+
+    def forget_pending(self, conn: socket.socket) -> None:
+        def drop() -> None:
+            self.hub.unwatch(conn)
+            conn.close()
+        self.hub.call_soon(drop)
+
+    def tick(self, now: float) -> None:
+        self.server.housekeeping(now)
+
+
+class _Pending:
+    """A connection waiting for its ticket (not a :class:`Conn`: it holds no hub reference)."""
+
+    def __init__(self, server: IpcServer, sock: socket.socket) -> None:
+        self.server = server
+        self.sock = sock
+        self.ended = threading.Event()
+
+    def readable(self) -> None:
+        self.server.hub.unwatch(self.sock)
+        self.server.hello(self.sock)
+
+    def writable(self) -> None:
+        pass
+
+    def tick(self, now: float) -> None:
+        pass
+
+
+class _LinkIn(Conn):
+    """A link coming in: frames into its reader end; reports back (see :mod:`~dataflow.transports.sinks`)."""
+
+    def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, link: IncomingLink, known: bool) -> None:
+        super().__init__(hub, sock, link.end.label)
+        self.server = server
+        self.link = link
+        self.known = known
+        self._unreported = 0
+        self._reported: tuple[int, int] = (-1, -1)
+        self._reported_at = 0.0
+        self._closing_at: float | None = None
+        self._finished = False
+        self.link.end.transport = "ipc"
+
+    def start(self) -> None:
+        self.put(frames.report_of(self.link.end, known=self.known).SerializeToString())  # the first message: accepted
+        super().start()
+
+    def message(self, data: bytes) -> None:
+        try:
+            frame = pb.LinkRequest.FromString(data)
+        except Exception:  # noqa: BLE001 - not a frame: counted with the malformed ones
+            self._assembler.dropped += 1
+            return
+        self._unreported += frames.feed(self.link.end, frame) + 1
+        if frame.closing:
+            self._closing_at = time.monotonic() + LINGER_S
+            self.tick(time.monotonic())
+        elif self._unreported >= REPORT_EVERY:
+            self._report(time.monotonic())
+
+    def _report(self, now: float, final: bool = False) -> None:
+        end = self.link.end
+        self.put(frames.report_of(end, final=final, pending=self.link.pending).SerializeToString())
+        self._reported, self._reported_at, self._unreported = (end.last, end.lost), now, 0
+
+    def tick(self, now: float) -> None:
+        if self._closing_at is not None:
+            if self.link.pending and now < self._closing_at:
+                return
+            self._finished = True
+            self.server.sinks.finish(self.link)  # what the task never read is counted now
+            self._report(now, final=True)
+            self._closing_at = None
+            return
+        end = self.link.end
+        if (end.last, end.lost) != self._reported and now - self._reported_at >= REPORT_S:
+            self._report(now)
+
+    def ended_hook(self) -> None:
+        if self.malformed:
+            log.warning("ipc: %d malformed or oversized frame(s) for %s dropped", self.malformed, self.label)
+        if not self._finished:
+            self.server.sinks.carried(self.link)
+        self.server.forget(self)
+
+
+class _ReaderOut(Conn):
+    """A subscription going out: the carrier of its writer end."""
+
+    encode = staticmethod(frames.sample_frame)
+
+    def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> None:
+        super().__init__(hub, sock, served.end.label)
+        self.server = server
+        self.served = served
+        self.heartbeat = heartbeat
+
+    def start(self) -> None:
+        super().start()
+        end = self.served.end  # "connected", first: from now on every write comes
+        end.connected("ipc", self, new_peer=True, first=lambda: self.put(frames.connected(end, self.server.boot_id)))
+
+    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread
+        return self.put(data)
+
+    def drained(self) -> None:
+        self.served.end.flush()
+
+    def tick(self, now: float) -> None:
+        if now - self.sent_at >= self.heartbeat:
+            self.put(frames.heartbeat(dropped=self.served.tail))
+
+    def ended_hook(self) -> None:
+        self.server._unserve(self.served)
+        self.server.forget(self)

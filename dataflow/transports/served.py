@@ -1,0 +1,91 @@
+"""The writer ends a deployer serves to subscribers in other processes (private to the
+transports and the deployer's server): one per subscription, whatever carries it."""
+
+from __future__ import annotations
+
+import itertools
+import threading
+from typing import Any
+
+from dataflow.policy import ConnPolicy
+from dataflow.ports import OutputPort
+from dataflow.transports.ends import WriterEnd, attach, detach
+
+__all__ = ["BYTE_BUDGET", "Served", "ServedSet"]
+
+BYTE_BUDGET = 4 * 1024 * 1024  #: encoded bytes a subscription may have waiting on the deployer's side, at most
+
+
+class Served:
+    """An output port's samples going to one subscriber: a writer end attached to the
+    port. It never fails the writer's ``write`` (a subscriber is never mandatory); what it
+    could not send is counted (:attr:`dropped`), and the subscriber counts the rest from
+    the write numbers."""
+
+    def __init__(self, port: OutputPort, policy: ConnPolicy, serial: int, subscriber: str, transport: str) -> None:
+        self.port = port
+        self.policy = policy
+        self.serial = serial
+        self.subscriber = subscriber
+        self.transport = transport
+        self.end = WriterEnd(port, policy.with_(mandatory=False), f"subscription {serial} of {port.qualname}",
+                             reports=False, byte_budget=BYTE_BUDGET)
+        attach(port, self.end)
+
+    @property
+    def dropped(self) -> int:
+        """Samples this side could not send to the subscriber."""
+        return self.end.unsent
+
+    @property
+    def tail(self) -> int:
+        """Samples not sent since the last one sent (its heartbeats tell the subscriber)."""
+        return self.end.tail
+
+    def close(self) -> None:
+        """Stop serving (idempotent)."""
+        detach(self.port, self.end)
+        self.end.disconnected()
+
+
+class ServedSet:
+    """The subscriptions one deployer serves, numbered; bounded (``limit``)."""
+
+    def __init__(self, limit: int) -> None:
+        self.limit = limit
+        self._lock = threading.Lock()
+        self._serials = itertools.count(1)
+        self._served: dict[int, Served] = {}
+
+    def open(self, port: OutputPort, policy: ConnPolicy, subscriber: str, transport: str) -> Served:
+        """A new subscription of ``port``; ``OverflowError`` naming the limit past it."""
+        with self._lock:
+            if len(self._served) >= self.limit:
+                raise OverflowError(f"this deployer serves at most {self.limit} subscriptions")
+            served = Served(port, policy, next(self._serials), subscriber, transport)
+            self._served[served.serial] = served
+            return served
+
+    def close(self, served: Served) -> None:
+        with self._lock:
+            self._served.pop(served.serial, None)
+        served.close()
+
+    def all(self) -> list[Served]:
+        with self._lock:
+            return sorted(self._served.values(), key=lambda s: s.serial)
+
+    def close_all(self) -> None:
+        with self._lock:
+            served = list(self._served.values())
+            self._served.clear()
+        for item in served:
+            item.close()
+
+    def __len__(self) -> int:
+        return len(self._served)
+
+    def info(self) -> list[dict[str, Any]]:
+        """What listings show of each subscription."""
+        return [dict(id=s.serial, source=s.port.qualname, subscriber=s.subscriber[:300], policy=str(s.policy),
+                     transport=s.transport, samples=s.port.last_sample()[0], dropped=s.dropped) for s in self.all()]
