@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from scart.api import ComponentType, InterfaceInfo
+from scart.errors import Problem
 from scart.model import Binding, Component, Composite, Element
 
 if TYPE_CHECKING:
@@ -71,6 +72,7 @@ class Assembly:
     aliases: dict[str, Target] = field(default_factory=dict)  # "Comp", "Comp/Service" of top-level components
     elements: list[tuple[str, Element]] = field(default_factory=list)  # (prefix, <scart:...>) of all composites
     unused_overrides: set[str] = field(default_factory=set)  # overrides naming no property (non-strict mode)
+    warnings: list[Problem] = field(default_factory=list)  # what loads but looks wrong (``scart validate`` shows it)
 
     def elements_of(self, kind: str) -> list[tuple[str, Element]]:
         """The ``(prefix, element)`` pairs of extension elements whose local name is ``kind``."""
