@@ -280,6 +280,7 @@ class _Assembler(Checks):
         result = Assembly(root, self.contribution, self.registry, self.nodes, self.init_order(), services, bindings,
                           aliases, self.extensions)
         self.check_bindings(result)
+        self.check_implementations(result)
         self.check_extensions(result)
         return result
 
@@ -349,8 +350,10 @@ class _Assembler(Checks):
             given = raw.get(name)
             if given is None and side is not None:
                 given = side.defaults.get(name)
-            node.properties[name] = self.property_value(comp, name, spec, py_type, given,
-                                                        override=f"{path}.{name}" if f"{path}.{name}" in self.overrides else None)
+            override = f"{path}.{name}" if f"{path}.{name}" in self.overrides else None
+            node.properties[name] = self.property_value(comp, name, spec, py_type, given, override=override)
+            node.property_locations[name] = (Location(path="<command line>", line=0) if override else
+                                             next((p.loc for p in comp.properties if p.name == name), comp.loc))
         node.service_bindings = {s.name: s.bindings for s in comp.services if s.bindings and s.name in ctype.services}
         self.nodes[path] = node
         return node

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from scart.api import ComponentType, InterfaceInfo
 from scart.errors import Problem
-from scart.model import Binding, Component, Composite, Element
+from scart.model import Binding, Component, Composite, Element, Location
 
 if TYPE_CHECKING:
     from scart.contribution import Contribution
@@ -54,6 +54,8 @@ class Node:
     # service -> the paths it is promoted as out of nested composites whose bindings it carries
     service_aliases: dict[str, list[str]] = field(default_factory=dict)
     ref_interfaces: dict[str, InterfaceInfo] = field(default_factory=dict)  # as declared in the composite
+    # property -> where its value was given: its <property>, "<command line>" (--set), else the component
+    property_locations: dict[str, Location] = field(default_factory=dict)
 
 
 @dataclass
