@@ -38,7 +38,6 @@ import fnmatch
 import importlib
 import logging
 import os
-import re
 import sys
 import tempfile
 from collections.abc import Callable, Iterator, Sequence

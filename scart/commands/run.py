@@ -324,7 +324,7 @@ def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None
 def summary(assembly: Assembly, addresses: dict[str, str | None], remap: Remap | None = None) -> str:
     """A short text of what runs: components, their wires, promoted services, bound addresses."""
     c = assembly.composite
-    lines = [f"scart: composite {c.name} ({c.loc.path})"]
+    lines = [f"scart: composite {c.name} ({assembly.contribution.display(c.loc.path)})"]
     for path, node in assembly.nodes.items():
         impl = node.model.implementation
         what = (impl.attributes.get("class") or "") if impl else ""

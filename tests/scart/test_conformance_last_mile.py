@@ -246,7 +246,7 @@ VALUE_XYZ = "<value><geo:x>1</geo:x><geo:y>2</geo:y><geo:z>3</geo:z></value>"
 @pytest.mark.parametrize("given", [
     f'<property name="where" type="geo:Point">{VALUE_XY}</property>',
     f'<property name="where" type="geo:Point3">{VALUE_XYZ}</property>',  # derived from geo:Point
-    f'<property name="where" element="geo:point"><geo:point><geo:x>1</geo:x><geo:y>2</geo:y></geo:point></property>',
+    '<property name="where" element="geo:point"><geo:point><geo:x>1</geo:x><geo:y>2</geo:y></geo:point></property>',
 ])
 def test_a_component_property_of_the_same_or_a_derived_complex_type_loads(tmp_path: Path, given: str) -> None:
     with scart.Runtime.from_file(str(typed(tmp_path, given)[0])) as rt:
@@ -263,7 +263,7 @@ def test_asm50036_a_component_property_of_another_complex_type_is_refused(tmp_pa
 
 
 def test_asm50038_a_source_of_another_complex_type_is_refused(tmp_path: Path) -> None:
-    size = f'<property name="size" type="geo:Size"><value><geo:w>1</geo:w><geo:h>2</geo:h></value></property>'
+    size = '<property name="size" type="geo:Size"><value><geo:w>1</geo:w><geo:h>2</geo:h></value></property>'
     path, text = typed(tmp_path, '<property name="where" type="geo:Point" source="$size"/>', size)
     err = refused(path)
     assert err.codes == ["ASM50038"] and "property 'where' (geo:Point): @source $size is geo:Size" in str(err)

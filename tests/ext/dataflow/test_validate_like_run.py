@@ -175,6 +175,10 @@ def loose(value):
 
 def wrong(text: str) -> str:
     return text
+
+
+def from_text(text: str) -> float:
+    return float(text)
 '''
 
 
@@ -249,3 +253,32 @@ def test_a_bridge_whose_remote_source_is_absent_waits_for_it(tmp_path: Path) -> 
         other.stop_all()
         other.cleanup_all()
         ns.stop()
+
+
+def test_a_remote_source_that_appears_with_the_wrong_type_is_logged_and_the_run_goes_on(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    path, _ = bridge(tmp_path, ' trigger="any"', source="farSrc.value", convert="mods:from_text")
+    ns = serve_nameserver("127.0.0.1:0")
+    other = Deployer()
+    servers = []
+    try:
+        with scart.Runtime.from_file(str(path), settings=scart.Settings(ns=ns.address, serve=True)) as rt:
+            import mods
+
+            other.add(mods.Source("farSrc"))  # a float port; the converter takes str
+            servers.append(other.serve("127.0.0.1:0", ns=ns.address))
+            wait_until(lambda: "converter mods:from_text takes str, but farSrc.value is float" in caplog.text,
+                       timeout=15, message="the mismatch was not logged")
+            assert "b" not in deployer_of(rt).names() and "src" in deployer_of(rt).names()
+    finally:
+        for server in servers:
+            server.stop()
+        ns.stop()
+
+
+def test_runtime_from_file_logs_the_warnings(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    path, _ = first(tmp_path, "tikcer.ticks")
+    with caplog.at_level("WARNING", logger="scart.runtime"):
+        rt = scart.Runtime.from_file(str(path))
+    assert "warning: <scart:connect> from: 'tikcer' is no task of this composite (did you mean 'ticker'?)" in caplog.text
+    assert [w.code for w in rt.assembly.warnings] == ["SCART-T002"]
