@@ -13,6 +13,7 @@ a backslash, or that is a link, is refused — the archive is then not used at a
 
 from __future__ import annotations
 
+import os
 import stat
 import tempfile
 import zipfile
@@ -46,22 +47,26 @@ def unpack(archive: Path) -> tempfile.TemporaryDirectory[str]:
     docstring); the caller keeps the returned object alive as long as the folder is
     used. Raises :class:`ArchiveError` saying which limit or entry; nothing is left
     behind then."""
-    try:
-        size = archive.stat().st_size
+    try:  # opened without blocking (a FIFO swapped in must not hang), then checked on the open file
+        fd = os.open(archive, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         raise ArchiveError(f"cannot read {archive}: {exc.strerror or exc}") from None
-    if size > MAX_ARCHIVE_BYTES:
-        raise ArchiveError(f"{archive} is {size} bytes, over the {MAX_ARCHIVE_BYTES} bytes bound")
-    target = tempfile.TemporaryDirectory(prefix="scart-contribution-")
-    try:
-        with zipfile.ZipFile(archive) as zf:
-            _extract(zf, Path(target.name), archive)
-    except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError) as exc:
-        target.cleanup()
-        raise ArchiveError(f"{archive} cannot be read as a ZIP archive: {exc}") from None
-    except ArchiveError:
-        target.cleanup()
-        raise
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise ArchiveError(f"{archive} is not a regular file")
+        if info.st_size > MAX_ARCHIVE_BYTES:
+            raise ArchiveError(f"{archive} is {info.st_size} bytes, over the {MAX_ARCHIVE_BYTES} bytes bound")
+        target = tempfile.TemporaryDirectory(prefix="scart-contribution-")
+        try:
+            with zipfile.ZipFile(fh) as zf:
+                _extract(zf, Path(target.name), archive)
+        except (zipfile.BadZipFile, OSError, RuntimeError, NotImplementedError) as exc:
+            target.cleanup()
+            raise ArchiveError(f"{archive} cannot be read as a ZIP archive: {exc}") from None
+        except ArchiveError:
+            target.cleanup()
+            raise
     return target
 
 
