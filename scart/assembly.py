@@ -20,21 +20,24 @@ import dataclasses
 import os
 import re
 import sys
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, PropSpec, RefSpec, interface_info
+from scart.archive import ArchiveError, is_archive, unpack
 from scart.checks import NARROWINGS as _NARROWINGS
 from scart.checks import Checks, mismatches
+from scart.component_types import SideFile, composite_reference_defaults
 from scart.contribution import METADATA, Contribution, deployable_of, import_object
 from scart.errors import Problem, ScdlError
 from scart.extensions import ExtensionError, ExtensionRegistry
 from scart.graph import DEFAULT, Assembly, Bound, Endpoint, Node, Target
 from scart.model import (
-    Binding, Component, ComponentReference, ComponentTypeFile, Composite, CompositeReference, CompositeService, Element,
+    Binding, Component, ComponentReference, Composite, CompositeReference, CompositeService, Element,
     Interface, Location, PropertyValue,
 )
 from scart.scdl import SCA_NAMESPACES as _SCA_NAMESPACES
@@ -84,23 +87,15 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
     problem; the keys not used are then in ``unused_overrides`` of the result (or of the
     ``ScdlError``), for callers checking several files (``scart validate --set``)."""
     registry = extensions if extensions is not None else ExtensionRegistry()
-    if Path(path).is_dir():
-        found, why = deployable_of(Path(path))
-        if found is None:
-            err = ScdlError(why)
-            err.unused_overrides = set(overrides or {})  # type: ignore[attr-defined]
-            raise err
-        path = found
+    path, root_archive = _root_file(path, overrides)
     contribution = Contribution(path, is_element=lambda name: _is_element(registry, name),
-                                contributions=[str(c) for c in contributions])
+                                contributions=[str(c) for c in contributions], root_archive=root_archive)
     root = contribution.load_root()
     context = CheckContext(contribution.folder, contribution.root_file, settings or Settings(), contribution.import_object)
     assembler = _Assembler(contribution, registry, context, dict(overrides or {}), strict_overrides)
     if root is None:
-        err = ScdlError(contribution.problems)
-        err.unused_overrides = set(overrides or {})  # type: ignore[attr-defined]
-        raise err
-    result = assembler.run(root)
+        _refuse([contribution.display_problem(p) for p in contribution.problems], set(overrides or {}))
+    result = assembler.run(root)  # type: ignore[arg-type]
     # a composite used by several components is checked once per use: report each problem once
     # causes first, their knock-ons after: the contributions' metadata, then what was read
     # wrong, then the rest; within each, the root file first, by line
@@ -109,89 +104,53 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
     root_path = str(path)
     problems.sort(key=lambda p: (not p.path.endswith(METADATA.name), p not in reading, p.path != root_path,
                                  p.path, p.line))
+    problems = [contribution.display_problem(p) for p in problems]
+    errors = [p for p in problems if p.severity == "error"]
+    warnings = [p for p in problems if p.severity != "error"]
     unused = set(assembler.overrides) - assembler.used_overrides
-    if problems:
-        err = ScdlError(problems)
-        err.unused_overrides = unused  # type: ignore[attr-defined]
-        raise err
+    if errors:
+        _refuse(errors, unused, warnings)
     result.unused_overrides = unused
+    result.warnings = warnings
     return result
 
 
+def _refuse(errors: list[Problem], unused: set[str], warnings: list[Problem] | None = None) -> NoReturn:
+    """Raise the ``ScdlError`` of ``errors`` (with the overrides not used, and the warnings)."""
+    err = ScdlError(errors)
+    err.unused_overrides = unused
+    err.warnings = list(warnings or [])
+    raise err
+
+
+def _root_file(path: str, overrides: dict[str, str] | None
+               ) -> tuple[str, tuple[Path, tempfile.TemporaryDirectory[str]] | None]:
+    """The composite file to load for ``path`` — a ``.composite`` file, or the one
+    deployable of a contribution folder or ZIP archive (unpacked: see
+    :mod:`scart.archive`) — and the unpacked archive; raises ``ScdlError`` when there is
+    none."""
+    given = Path(path)
+    unpacked = None
+    if is_archive(given):
+        try:
+            unpacked = unpack(given)
+        except ArchiveError as exc:
+            _refuse([Problem(E.SCART_ARCHIVE, str(exc), path, 0)], set(overrides or {}))
+        folder = Path(unpacked.name).resolve()
+    elif given.is_dir():
+        folder = given
+    else:
+        return path, None
+    found, why = deployable_of(folder)
+    if found is None:
+        shown = [p if unpacked is None else dataclasses.replace(
+            p, path=p.path.replace(str(folder), f"{path}!"), message=p.message.replace(str(folder), f"{path}!"))
+                 for p in why]
+        _refuse(shown, set(overrides or {}))
+    return found, (given, unpacked) if unpacked is not None else None
+
+
 _REFUSED = re.compile(r"refused by its check: (.*?)(?: \[type=|$)", re.S)
-
-class SideFile:
-    """A componentType side file checked against its implementation class: it may type
-    properties, give them defaults or make them mustSupply, narrow reference
-    multiplicities and give references default targets (``binding.sca`` ``@uri``) or
-    bindings. Names the class does not declare are problems (SCART-C007)."""
-
-    def __init__(self, model: ComponentTypeFile, ctype: ComponentType, assembler: _Assembler) -> None:
-        self.types: dict[str, TypeRef] = {}
-        self.defaults: dict[str, list[str] | None] = {}
-        self.required: set[str] = set()
-        self.multiplicity: dict[str, str] = {}
-        self.targets: dict[str, list[tuple[str, Location]]] = {}
-        self.bindings: dict[str, list[Binding]] = {}
-        what = f"componentType of {ctype.cls.__name__}"
-        for s in model.services:
-            if s.name not in ctype.services:
-                assembler.problem(E.SCART_SIDE_FILE, f"{what}: service {s.name!r} is not one the class offers "
-                                  f"({', '.join(ctype.services) or 'none'})", s.loc)
-            elif s.interface is not None:
-                declared = assembler.declared_interface(s.interface)
-                if declared is not None:
-                    assembler.check_subset(declared, ctype.services[s.name], E.SCART_SIDE_FILE,
-                                           f"{what}: service {s.name!r} declared as {declared.name}", s.interface.loc)
-        for r in model.references:
-            if r.name not in ctype.references:
-                assembler.problem(E.SCART_SIDE_FILE, f"{what}: reference {r.name!r} is not one the class declares "
-                                  f"({', '.join(ctype.references) or 'none'})", r.loc)
-                continue
-            declared_mult = ctype.references[r.name][0].multiplicity
-            if r.multiplicity and r.multiplicity not in _NARROWINGS.get(declared_mult, ()):
-                assembler.problem(E.SCART_SIDE_FILE, f"{what}: reference {r.name!r} is {declared_mult} in the class; "
-                                  f"{r.multiplicity} does not narrow it", r.loc)
-            elif r.multiplicity:
-                self.multiplicity[r.name] = r.multiplicity
-            uris: list[tuple[str, Location]] = []
-            self.bindings[r.name] = assembler.reference_bindings(Component(name=what, loc=r.loc), r.name, r, uris)
-            self.targets[r.name] = uris
-        for p in model.properties:
-            if p.name not in ctype.properties:
-                assembler.problem(E.SCART_SIDE_FILE, f"{what}: property {p.name!r} is not one the class declares "
-                                  f"({', '.join(ctype.properties) or 'none'})", p.loc)
-                continue
-            ref = assembler.reader.declared(p)
-            if ref is not None:
-                family, own = python_family(ctype.properties[p.name][1]), assembler.reader.family(ref)
-                if not compatible(own, family):
-                    assembler.problem(E.SCART_SIDE_FILE, f"{what}: property {p.name!r} is {family} in the class, "
-                                      f"{assembler.reader.shown(ref, p.namespaces)} here", p.loc)
-                self.types[p.name] = ref
-            if p.values is not None or p.xml is not None or p.file is not None:
-                self.defaults[p.name] = assembler.declaration_values(p)
-            if p.must_supply:
-                self.required.add(p.name)
-
-    def merge(self, ctype: ComponentType) -> ComponentType:
-        """``ctype`` with this file's mustSupply properties and narrowed multiplicities."""
-        if not self.required and not self.multiplicity:
-            return ctype
-        props = dict(ctype.properties)
-        for name in self.required:
-            spec, py_type = props[name]
-            required = PropSpec(spec.default, True)
-            required.name = name
-            props[name] = (required, py_type)
-        refs = dict(ctype.references)
-        for name, mult in self.multiplicity.items():
-            spec, ref_type = refs[name]
-            narrowed = RefSpec(mult.startswith("1"), mult.endswith("n"))
-            narrowed.name = name
-            refs[name] = (narrowed, ref_type)
-        return dataclasses.replace(ctype, properties=props, references=refs)
-
 
 def _is_element(registry: ExtensionRegistry, name: str) -> bool:
     try:
@@ -249,6 +208,7 @@ class _Assembler(Checks):
         result = Assembly(root, self.contribution, self.registry, self.nodes, self.init_order(), services, bindings,
                           aliases, self.extensions)
         self.check_bindings(result)
+        self.check_implementations(result)
         self.check_extensions(result)
         return result
 
@@ -313,13 +273,15 @@ class _Assembler(Checks):
         families = {n: python_family(t) for n, (_, t) in ctype.properties.items()}
         if side is not None:
             families.update({n: self.reader.family(t) for n, t in side.types.items()})
-        raw = self.component_raw_props(comp, ctype, scope, path, families)
+        raw = self.component_raw_props(comp, ctype, scope, path, families, dict(side.types) if side else None)
         for name, (spec, py_type) in ctype.properties.items():
             given = raw.get(name)
             if given is None and side is not None:
                 given = side.defaults.get(name)
-            node.properties[name] = self.property_value(comp, name, spec, py_type, given,
-                                                        override=f"{path}.{name}" if f"{path}.{name}" in self.overrides else None)
+            override = f"{path}.{name}" if f"{path}.{name}" in self.overrides else None
+            node.properties[name] = self.property_value(comp, name, spec, py_type, given, override=override)
+            node.property_locations[name] = (Location(path="<command line>", line=0) if override else
+                                             next((p.loc for p in comp.properties if p.name == name), comp.loc))
         node.service_bindings = {s.name: s.bindings for s in comp.services if s.bindings and s.name in ctype.services}
         self.nodes[path] = node
         return node
@@ -340,8 +302,9 @@ class _Assembler(Checks):
         fake = ComponentType(object, {}, {}, {n: (PropSpec(None, p.must_supply), str) for n, p in declared.items()},
                              (), (), (), (), "composite", True)
         self.check_component_names(comp, fake, check_services=False)
-        families = {n: self.reader.family(self.reader.declared(p)) for n, p in declared.items()}
-        raw = self.component_raw_props(comp, fake, scope, path, families)
+        types = {n: self.reader.declared(p) for n, p in declared.items()}
+        families = {n: self.reader.family(t) for n, t in types.items()}
+        raw = self.component_raw_props(comp, fake, scope, path, families, types)
         props: dict[str, list[str] | None] = {}
         for name, decl in declared.items():
             given = raw.get(name)
@@ -445,13 +408,15 @@ class _Assembler(Checks):
     # --- properties ---------------------------------------------------------------------
 
     def component_raw_props(self, comp: Component, ctype: ComponentType, scope: Scope, path: str,
-                            families: dict[str, str | None]) -> dict[str, list[str] | None]:
+                            families: dict[str, str | None],
+                            declared: dict[str, TypeRef | None] | None = None) -> dict[str, list[str] | None]:
         """The raw values a component gives its properties (``@source`` from ``scope``,
-        then ``--set``), their types checked against the componentType's ``families``."""
+        then ``--set``), their types checked against the componentType's ``families`` (and
+        the XML types it ``declared``)."""
         raw: dict[str, list[str] | None] = {}
         for p in comp.properties:
             if p.name in ctype.properties:
-                if self.check_property_types(comp, p, scope, families.get(p.name)):
+                if self.check_property_types(comp, p, scope, families.get(p.name), (declared or {}).get(p.name)):
                     raw[p.name] = self.raw_value(p, scope.props)
                 else:
                     raw[p.name] = Refused()
@@ -462,23 +427,28 @@ class _Assembler(Checks):
                 self.used_overrides.add(key)
         return raw
 
-    def check_property_types(self, comp: Component, p: PropertyValue, scope: Scope, family: str | None) -> bool:
-        """A component property's declared type matches its componentType's (ASM50036); a
-        composite property it takes whole through ``@source`` matches too (ASM50038).
-        False when one does not (reported)."""
+    def check_property_types(self, comp: Component, p: PropertyValue, scope: Scope, family: str | None,
+                             theirs: TypeRef | None = None) -> bool:
+        """A component property's declared type matches its componentType's (``family``,
+        and ``theirs`` when the componentType declares an XML type) (ASM50036); a composite
+        property it takes whole through ``@source`` matches too (ASM50038). False when one
+        does not (reported, naming both types)."""
         reader = self.reader
         own = reader.declared(p)
-        if own is not None and not compatible(reader.family(own), family):
+        if own is not None and not (compatible(reader.family(own), family) and reader.agree(own, theirs)):
+            their_type = reader.shown(theirs, p.namespaces) if theirs is not None else family
             self.problem(E.ASM_PROPERTY_TYPE_MISMATCH, f"component {comp.name!r} property {p.name!r}: declared "
-                         f"{reader.shown(own, p.namespaces)}, but its componentType's is {family}", p.loc)
+                         f"{reader.shown(own, p.namespaces)}, but its componentType's is {their_type}", p.loc)
             return False
         m = re.fullmatch(r"\s*\$([A-Za-z_][\w.-]*)\s*", p.source or "")
         if m is None or m[1] not in scope.types:
             return True
         source = scope.types[m[1]]
+        wanted_ref = own if own is not None else theirs
         wanted = reader.family(own) if own is not None else family
-        if source is not None and not compatible(reader.family(source), wanted):
-            self.problem(E.ASM_SOURCE_TYPE, f"component {comp.name!r} property {p.name!r} ({wanted}): @source "
+        if source is not None and not (compatible(reader.family(source), wanted) and reader.agree(source, wanted_ref)):
+            shown = reader.shown(wanted_ref, p.namespaces) if wanted_ref is not None else wanted
+            self.problem(E.ASM_SOURCE_TYPE, f"component {comp.name!r} property {p.name!r} ({shown}): @source "
                          f"${m[1]} is {reader.shown(source, p.namespaces)}", p.loc)
             return False
         return True
@@ -585,6 +555,14 @@ class _Assembler(Checks):
                 return None
             return Target(child.path, service)
         promoted = next(cs for cs in child.composite.services if cs.name == service)
+        if binding:  # the bindings it has: the component's <service>'s, else the composite service's
+            xml = next((s for s in child.component.services if s.name == service), None) if child.component else None
+            names = sorted({b.name or service for b in (xml.bindings if xml and xml.bindings else promoted.bindings)}
+                           or {service})
+            if binding not in names:
+                self.problem(E.ASM_NO_SUCH_BINDING, f"{what}{uri!r}: service {comp_name}/{service} has no binding "
+                             f"named {binding!r}{did_you_mean(binding, names)}; its bindings: {', '.join(names)}", loc)
+                return None
         return self.resolve_service(child, promoted.promote, promoted.loc, E.ASM_PROMOTED_SERVICE)
 
     @staticmethod
@@ -674,6 +652,8 @@ class _Assembler(Checks):
                 self.problem(E.ASM_COMPOSITE_MULTIPLICITY, f"{where} ({mult}): multiplicity {cr.multiplicity!r} "
                              f"would widen it (allowed: {', '.join(allowed)})", cr.loc)
         promoted = self.reference_interface(xml.interface if xml else None, ref_type, cr.loc)
+        if promoted is None and isinstance(child, Scope):
+            promoted = self.nested_reference_interface(child, ref, 0)
         if promoted is None:
             return
         if cr.interface is not None:
@@ -682,10 +662,11 @@ class _Assembler(Checks):
                 self.check_subset(promoted, declared, E.ASM_COMPOSITE_REFERENCE_INTERFACE,
                                   f"{where} ({promoted.name}): its declared interface {declared.name}", cr.interface.loc)
         first = self._promoted_interfaces.setdefault(id(cr), (f"{comp_name}/{ref}", promoted))
-        if first[1] is not promoted and cr.interface is None:
-            self.check_subset(first[1], promoted, E.ASM_PROMOTED_INTERFACES,
-                              f"composite reference {cr.name!r} promotes {first[0]} ({first[1].name}) and "
-                              f"{comp_name}/{ref} ({promoted.name}) together", cr.loc)
+        if first[1] is not promoted and cr.interface is None:  # without an interface of its own: one interface
+            where = (f"composite reference {cr.name!r} promotes {first[0]} ({first[1].name}) and "
+                     f"{comp_name}/{ref} ({promoted.name}) together, and declares no interface of its own")
+            if self.check_subset(first[1], promoted, E.ASM_PROMOTED_INTERFACES, where, cr.loc):
+                self.check_subset(promoted, first[1], E.ASM_PROMOTED_INTERFACES, where, cr.loc)
 
     def reference_endpoints(self, scope: Scope, comp_name: str, child: Node | Scope, ref: str,
                             from_outside: list[Endpoint]) -> list[Endpoint]:
@@ -699,6 +680,8 @@ class _Assembler(Checks):
         side = self.side_files.get(child.path) if isinstance(child, Node) else None
         if side is not None and not uris and not bindings and ref in side.targets:  # the componentType's default
             uris, bindings = list(side.targets[ref]), list(side.bindings.get(ref, []))
+        elif isinstance(child, Scope) and not uris and not bindings:  # the composite reference's own bindings
+            uris, bindings = composite_reference_defaults(child.composite, ref)
         replaced = False
         for w in scope.composite.wires:
             src_comp, _, src_ref = w.source.partition("/")
@@ -712,11 +695,18 @@ class _Assembler(Checks):
         unresolved = len(targets) < len(uris)
         iface = self.reference_interface(xml.interface if xml else None, ref_type, loc)
         if iface is not None and xml is not None and xml.interface is not None:
-            # the declared interface may add to the implementation's, never take (when it does,
-            # checking it against the targets would only repeat the problem)
-            if ref_type is not None and not self.check_subset(
-                    interface_info(ref_type), iface, E.ASM_REFERENCE_INTERFACE,
-                    f"reference {ref!r} of {comp.name!r}: the implementation's {ref_type.__name__} "
+            # the declared interface may add to the implementation's, never take — nor declare a
+            # callback it lacks (when it does, checking it against the targets would only repeat the problem)
+            implemented = (interface_info(ref_type) if ref_type is not None else
+                           self.nested_reference_interface(child, ref, 0) if isinstance(child, Scope) else None)
+            if implemented is not None and implemented.callback is None and iface.callback is not None:
+                self.problem(E.ASM_REFERENCE_INTERFACE, f"component {comp.name!r} reference {ref!r} declares callback "
+                             f"interface {iface.callback.name}, but its componentType's reference ({implemented.name}) "
+                             "has no callback interface", xml.interface.loc)
+                iface = None
+            elif implemented is not None and not self.check_subset(
+                    implemented, iface, E.ASM_REFERENCE_INTERFACE,
+                    f"reference {ref!r} of {comp.name!r}: the implementation's {implemented.name} "
                     f"and the declared interface {iface.name}", xml.interface.loc):
                 iface = None
             if iface is not None and isinstance(child, Node):
@@ -799,6 +789,28 @@ class _Assembler(Checks):
         if declared is not None:
             return self.declared_interface(declared)
         return interface_info(ref_type) if ref_type is not None else None
+
+    def nested_reference_interface(self, child: Scope, ref: str, depth: int) -> InterfaceInfo | None:
+        """The interface of reference ``ref`` of a composite used as an implementation:
+        the one its composite reference declares, else the one of the reference it
+        promotes (through nested composites); None when unknown."""
+        cr = next((r for r in child.composite.references if r.name == ref), None)
+        if cr is None or depth > 32:  # bounded (cycles are refused at load)
+            return None
+        if cr.interface is not None:
+            return self.declared_interface(cr.interface)
+        comp_name, _, inner_ref = (cr.promote[0] if cr.promote else "").partition("/")
+        inner = child.children.get(comp_name)
+        if inner is None or isinstance(inner, Failed) or inner.ctype is None or inner_ref not in inner.ctype.references:
+            return None
+        comp = inner.model if isinstance(inner, Node) else inner.component
+        xml = next((r for r in comp.references if r.name == inner_ref), None) if comp is not None else None
+        if xml is not None and xml.interface is not None:
+            return self.declared_interface(xml.interface)
+        ref_type = inner.ctype.references[inner_ref][1]
+        if ref_type is not None:
+            return interface_info(ref_type)
+        return self.nested_reference_interface(inner, inner_ref, depth + 1) if isinstance(inner, Scope) else None
 
     def declared_interface(self, declared: Interface) -> InterfaceInfo | None:
         """An ``<interface.wsdl>``, ``<interface.java>`` or ``<scart:interface.python>``

@@ -10,7 +10,7 @@ from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, interface_info
 from scart.errors import Problem
 from scart.extensions import ExtensionError, ExtensionRegistry
-from scart.graph import Assembly, Bound, Endpoint, Target
+from scart.graph import Assembly, Bound, Endpoint, Node, Target
 from scart.model import Binding, Component, Element, Location
 from scart.spi import BindingProvider, CheckContext, Side
 
@@ -72,6 +72,19 @@ class Checks:
             if provider is not None and side in provider.sides:
                 usable.append(name)
         return usable
+
+    def check_implementations(self, result: Assembly) -> None:
+        """Run each implementation kind's static check on its assembled components."""
+        by_kind: dict[str, list[Node]] = {}
+        for node in result.nodes.values():
+            by_kind.setdefault(node.kind, []).append(node)
+        for kind, nodes in by_kind.items():
+            try:
+                provider = self.registry.implementation(kind)
+            except ExtensionError:
+                continue  # reported where the component was built
+            if provider is not None:
+                self.problems.extend(provider.check(nodes, result, self.context))
 
     def check_extensions(self, result: Assembly) -> None:
         """Run each registered composite element's static check on its elements."""

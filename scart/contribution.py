@@ -18,8 +18,9 @@ A root composite is resolved in its folder's contribution, the other contributio
 (``scart run --contribution DIR``, ``Runtime.from_file(..., contributions=[...])``) and
 those its imports locate (``@location``, relative to the importing folder). A QName — a
 composite, a WSDL portType, an XML Schema type or element — in a namespace a contribution
-imports is looked up in the contributions exporting it, in import order, and only there
-(ASM12023, ASM12024); an import no contribution exports is an error (ASM12021). Other
+imports is looked up in the contributions exporting it, in import order, then — when none
+of them holds it — in the importing contribution itself (ASM12022, ASM12023); an import
+no contribution exports is an error (ASM12021). Other
 QNames are looked up in the contribution itself. A contribution without metadata sees its
 own artifacts first, then whatever the others export. Every contribution folder is on
 ``sys.path`` (the root's first), so implementation classes are found across them as on a
@@ -37,8 +38,8 @@ import fnmatch
 import importlib
 import logging
 import os
-import re
 import sys
+import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,13 +48,16 @@ from types import MappingProxyType
 from lxml import etree
 
 from scart import errors as E
-from scart.api import InterfaceInfo, Operation
+from scart.api import InterfaceInfo
+from scart.archive import ArchiveError, is_archive, unpack
 from scart.errors import Problem
 from scart.model import SCA10_NS, SCA11_NS, ComponentTypeFile, Composite, Location
 from scart.schemas import SchemaSet
 from scart.scdl import Loader, did_you_mean, parse_xml
+from scart.wsdl import (
+    Need, WsdlTypes, missing_schemas, parse_wsdl_target, port_type_needs, read_port_types, wsdl_types,
+)
 
-WSDL_NS = "http://schemas.xmlsoap.org/wsdl/"
 METADATA = Path("META-INF") / "sca-contribution.xml"
 log = logging.getLogger(__name__)
 MAX_CONTRIBUTIONS = 64  #: contributions one composite may be resolved in (given and located)
@@ -115,8 +119,8 @@ def read_metadata(folder: Path, problems: list[Problem], shown: Path | None = No
         return meta
     for child in root.iterchildren(tag=etree.Element):
         local = etree.QName(child).localname
-        if local in ("documentation", "extensions"):
-            continue
+        if local in ("documentation", "extensions") or local.startswith(("import.", "export.")):
+            continue  # import.java, export.resource...: another language's artifacts (the importBase group)
         allowed = _METADATA_CHILDREN.get(local)
         if allowed is None or etree.QName(child).namespace not in (SCA11_NS, SCA10_NS):
             problem(f"unknown element <{local}> inside <contribution>{did_you_mean(local, _METADATA_CHILDREN)}", child)
@@ -151,15 +155,19 @@ _NOT_ARTIFACTS = frozenset({"__pycache__", "node_modules", "build", "dist", "sit
 class _Folder:
     """One contribution: its folder, how it is shown, its metadata and lazy indices."""
 
-    def __init__(self, path: Path, shown: Path, metadata: Metadata) -> None:
+    def __init__(self, path: Path, shown: Path, metadata: Metadata, origin: Path | None = None,
+                 label: Path | None = None) -> None:
         self.path = path
         self.shown = shown
         self.metadata = metadata
+        self.origin = origin or path  # what a @location names: the folder, or the ZIP archive it was unpacked from
+        self.label = label or shown  # how the user names it (the base of its imports' @location)
         self.composites: dict[str, str] | None = None  # QName -> file (as shown)
         self.same_qname: dict[str, list[str]] = {}  # QName -> every file declaring it (when more than one)
         self.unparsed: list[Problem] = []  # problems of composites that could not be parsed
         self.wsdl: dict[str, InterfaceInfo] | None = None
         self.wsdl_callbacks: dict[str, tuple[str, Problem]] = {}
+        self.wsdl_needs: dict[str, tuple[list[Need], WsdlTypes, str]] = {}  # portType -> what its messages name
         self._files: list[Path] | None = None
         self.given = True  # given by the user (else found through an import's @location)
 
@@ -194,13 +202,23 @@ class Contribution:
     Not thread-safe (loading is single-threaded)."""
 
     def __init__(self, root_file: str, is_element: Callable[[str], bool] = lambda name: False,
-                 contributions: Sequence[str | Path] = ()) -> None:
+                 contributions: Sequence[str | Path] = (),
+                 root_archive: tuple[Path, tempfile.TemporaryDirectory[str]] | None = None) -> None:
         self.root_file = root_file
         self.folder = Path(root_file).resolve().parent
         self.is_element = is_element  # which <scart:NAME> composite children are extension elements
         self.problems: list[Problem] = []
+        self.archives: dict[str, str] = {}  # unpacked folder -> how its archive is shown ("lib.zip!")
+        self._unpacked: list[tempfile.TemporaryDirectory[str]] = []  # kept alive as long as this contribution
         root_shown = Path(root_file).parent
-        self.folders = [_Folder(self.folder, root_shown, read_metadata(self.folder, self.problems, root_shown))]
+        origin = label = None
+        if root_archive is not None:  # the root contribution was a ZIP archive, unpacked by the caller
+            label, unpacked = root_archive
+            origin = label.resolve()
+            self._unpacked.append(unpacked)
+            self.archives[str(self.folder)] = f"{label}!"
+        self.folders = [_Folder(self.folder, root_shown, read_metadata(self.folder, self.problems, root_shown),
+                                origin, label)]
         for given in contributions:
             self._add(Path(given), None)
         i = 0
@@ -208,23 +226,25 @@ class Contribution:
             folder = self.folders[i]
             for ns, location, loc in folder.metadata.imports:
                 if location:
-                    self._add(folder.shown / location, loc)
+                    self._add(folder.label / location, loc)
             i += 1
         self._check_imports()
         self._loaded: dict[str, Composite | None] = {}  # file -> loaded once, reused (problems reported once)
         self._loading: list[str] = []
         self._schemas: SchemaSet | None = None
         self._component_types: dict[str, ComponentTypeFile | None] = {}
+        self._wsdl_checked: set[str] = set()
 
     # --- the contributions ----------------------------------------------------------
 
     def _add(self, shown: Path, where: Location | None) -> _Folder | None:
         path = shown.resolve()
         for f in self.folders:
-            if f.path == path:
+            if f.path == path or f.origin == path:
                 return f
-        if not path.is_dir():
-            message = f"contribution {shown}: no such folder"
+        archive = is_archive(path)
+        if not path.is_dir() and not archive:
+            message = f"contribution {shown}: no such folder or ZIP archive"
             self.problems.append(Problem(E.ASM_UNRESOLVED, message, where.path if where else str(shown),
                                          where.line if where else 0))
             return None
@@ -232,10 +252,41 @@ class Contribution:
             self.problems.append(Problem(E.ASM_UNRESOLVED, f"contribution {shown}: more than {MAX_CONTRIBUTIONS} "
                                          "contributions", where.path if where else str(shown), where.line if where else 0))
             return None
-        folder = _Folder(path, shown, read_metadata(path, self.problems, shown))
+        if archive:
+            folder = self._unpack(shown, path, where)
+            if folder is None:
+                return None
+        else:
+            folder = _Folder(path, shown, read_metadata(path, self.problems, shown))
         folder.given = where is None
         self.folders.append(folder)
         return folder
+
+    def _unpack(self, shown: Path, path: Path, where: Location | None) -> _Folder | None:
+        """A ZIP contribution, unpacked into a private temporary folder (:mod:`scart.archive`)."""
+        try:
+            unpacked = unpack(path)
+        except ArchiveError as exc:
+            self.problems.append(Problem(E.SCART_ARCHIVE, f"contribution {shown}: {exc}",
+                                         where.path if where else str(shown), where.line if where else 0))
+            return None
+        self._unpacked.append(unpacked)
+        folder = Path(unpacked.name).resolve()
+        self.archives[str(folder)] = f"{shown}!"
+        return _Folder(folder, folder, read_metadata(folder, self.problems, folder), path, shown)
+
+    def display_problem(self, problem: Problem) -> Problem:
+        """``problem`` with :meth:`display` applied to its path and message."""
+        if not self.archives:
+            return problem
+        return dataclasses.replace(problem, path=self.display(problem.path), message=self.display(problem.message))
+
+    def display(self, text: str) -> str:
+        """``text`` with the folders ZIP contributions were unpacked into named by their
+        archives ("lib.zip!/parts.composite")."""
+        for folder, archive in self.archives.items():
+            text = text.replace(folder, archive)
+        return text
 
     def _check_imports(self) -> None:
         for folder in self.folders:
@@ -247,8 +298,8 @@ class Contribution:
 
     def _exporters(self, folder: _Folder, ns: str, location: str | None) -> list[_Folder]:
         if location:
-            path = (folder.shown / location).resolve()
-            return [f for f in self.folders if f.path == path and f.exports(ns)]
+            path = (folder.label / location).resolve()
+            return [f for f in self.folders if (f.path == path or f.origin == path) and f.exports(ns)]
         return [f for f in self.folders if f is not folder and f.exports(ns)]
 
     def folder_of(self, path: str) -> _Folder:
@@ -266,7 +317,7 @@ class Contribution:
             found: list[_Folder] = []
             for _, location in imports:
                 found += [f for f in self._exporters(origin, ns, location) if f not in found]
-            return found
+            return found if origin in found else [*found, origin]  # its own copy comes next
         if not origin.metadata.present:
             return [origin] + [f for f in self.folders if f is not origin and f.exports(ns)]
         return [origin]
@@ -403,6 +454,7 @@ class Contribution:
             index = self._wsdl_index(folder)
             found = index.get(f"{{{ns}}}{name}")
             if found is not None:
+                self._check_wsdl_schemas(folder, f"{{{ns}}}{name}")
                 return found
             near += [k.partition("}")[2] for k in index if k.startswith(f"{{{ns}}}")]
         hint = f"; that namespace has: {', '.join(sorted(near)[:LISTED])}{did_you_mean(name, near)}" if near else ""
@@ -420,6 +472,9 @@ class Contribution:
                     types, declared = read_port_types(root, folder.shown_file(file))
                     folder.wsdl.update(types)
                     callbacks.update(declared)
+                    schemas = wsdl_types(root)
+                    for qname, needs in port_type_needs(root).items():
+                        folder.wsdl_needs[qname] = (needs, schemas, folder.shown_file(file))
             for qname, (cb, missing) in callbacks.items():  # sca:callback="QName" on a portType
                 if cb in folder.wsdl:
                     folder.wsdl[qname] = dataclasses.replace(folder.wsdl[qname], callback=folder.wsdl[cb])
@@ -427,48 +482,26 @@ class Contribution:
                     self.problems.append(missing)
         return folder.wsdl
 
+    def _check_wsdl_schemas(self, folder: _Folder, qname: str) -> None:
+        """The elements and types the messages of portType ``qname`` need are declared
+        (see :mod:`scart.wsdl`); checked once per portType."""
+        if qname in self._wsdl_checked or qname not in folder.wsdl_needs:
+            return
+        self._wsdl_checked.add(qname)
+        needs, types, path = folder.wsdl_needs[qname]
+        schemas = self.schemas
+        names = {file.name for f in self.folders for file in f.files("*.xsd")}
 
-#: What an ``interface.wsdl`` @interface (or @callbackInterface) may say.
-_WSDL_TARGET = re.compile(r"(?P<ns>[^#\s]*)#wsdl\.(?:porttype|interface)\((?P<name>[^()\s]+)\)")
+        def known(what: str, name: str) -> bool:
+            return name in schemas.elements if what == "element" else schemas.kind(name) is not None
+
+        self.problems.extend(missing_schemas(needs, types, known, names.__contains__, path,
+                                             qname.partition("}")[2]))
+
 
 #: Names an error message lists, at most.
 LISTED = 20
 
-
-def parse_wsdl_target(target: str) -> tuple[str, str] | None:
-    """``(namespace, name)`` of ``ns#wsdl.porttype(Name)`` or ``ns#wsdl.interface(Name)``; None otherwise."""
-    m = _WSDL_TARGET.fullmatch(target.strip())
-    return (m["ns"], m["name"]) if m else None
-
-
-def read_port_types(root: etree._Element, path: str = "<memory>"
-                    ) -> tuple[dict[str, InterfaceInfo], dict[str, tuple[str, Problem]]]:
-    """WSDL 1.1 ``portType`` s of a parsed ``definitions`` element, by Clark QName, and the
-    callback portType each names with an ``sca:callback`` attribute (Clark QName, and the
-    problem to report if it names nothing).
-
-    An operation with an ``input`` and no ``output`` is one-way.
-    """
-    tns = root.get("targetNamespace", "")
-    out: dict[str, InterfaceInfo] = {}
-    callbacks: dict[str, tuple[str, Problem]] = {}
-    for pt in root.iterchildren(f"{{{WSDL_NS}}}portType"):
-        ops: dict[str, Operation] = {}
-        for op in pt.iterchildren(f"{{{WSDL_NS}}}operation"):
-            has_out = op.find(f"{{{WSDL_NS}}}output") is not None
-            ops[op.get("name", "")] = Operation(op.get("name", ""), oneway=not has_out, returns_value=has_out)
-        qname = f"{{{tns}}}{pt.get('name', '')}"
-        out[qname] = InterfaceInfo(pt.get("name", ""), ops, remotable=True)
-        for sca in (SCA11_NS, SCA10_NS):
-            raw = pt.get(f"{{{sca}}}callback")
-            if raw is None:
-                continue
-            prefix, _, local = raw.strip().rpartition(":")
-            ns = pt.nsmap.get(prefix) if prefix else tns
-            callbacks[qname] = (f"{{{ns}}}{local}", Problem(
-                E.SCART_WSDL, f"portType {pt.get('name', '')!r}: sca:callback {raw!r} names no portType in the "
-                "contribution", path, pt.sourceline or 0))
-    return out, callbacks
 
 def import_object(ref: str, folder: Path, others: Sequence[Path] = ()) -> object:
     """Import ``"pkg.mod:Attr"`` with ``folder`` first on ``sys.path``, then ``others``.

@@ -10,6 +10,7 @@ Tools and tests match the code, never the wording.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 # --- codes: OASIS SCA Assembly 1.1 conformance statements -----------------------------
 ASM_DUPLICATE_COMPONENT = "ASM50001"  # component names unique in a composite
@@ -75,6 +76,7 @@ SCART_XML = "SCART-X001"  # malformed XML
 SCART_UNSAFE_XML = "SCART-X002"  # DOCTYPE / entities / too large
 SCART_SCHEMA = "SCART-X003"  # element of urn:scart:1.0 violates the shipped XSD
 SCART_UNKNOWN_ELEMENT = "SCART-X004"  # an element scart does not know
+SCART_ARCHIVE = "SCART-X005"  # a ZIP contribution that cannot be read, is over a limit, or has an entry that would escape
 SCART_IMPORT = "SCART-I001"  # implementation/interface class cannot be imported
 SCART_MISSING_OPERATION = "SCART-I002"  # class lacks an operation of a declared service
 SCART_ONEWAY_RETURNS = "SCART-I003"  # a one-way operation declares a return value
@@ -92,18 +94,23 @@ SCART_WIRE_SOURCE = "SCART-C008"  # a <wire>'s @source names no component refere
 
 @dataclass(frozen=True)
 class Problem:
-    """One composite problem: ``code``, human ``message``, and where (``path``, ``line``)."""
+    """One composite problem: ``code``, human ``message``, and where (``path``, ``line``).
+
+    ``severity`` is "error" (the composite is refused) or "warning" (it loads; the warning
+    is shown by ``scart validate`` and ``scart run``, logged by ``Runtime.from_file``)."""
 
     code: str
     message: str
     path: str
     line: int
+    severity: Literal["error", "warning"] = "error"
 
     def __str__(self) -> str:
+        said = f"warning: {self.message}" if self.severity == "warning" else self.message
         if self.line <= 0:  # no line to point at (a file that cannot be read, the command line)
             where = "" if self.path in self.message else f"{self.path}: "
-            return f"{where}{self.message} [{self.code}]"
-        return f"{self.path}:{self.line}: {self.message} [{self.code}]"
+            return f"{where}{said} [{self.code}]"
+        return f"{self.path}:{self.line}: {said} [{self.code}]"
 
 
 class ScartError(Exception):
@@ -122,6 +129,7 @@ class ScdlError(ScartError):
             raise ValueError("ScdlError needs at least one problem")
         self.errors: list[Problem] = list(errors)
         self.unused_overrides: set[str] = set()  # filled by ``assemble(..., strict_overrides=False)``
+        self.warnings: list[Problem] = []  # warnings found beside the errors (filled by ``assemble``)
         self.path: str = errors[0].path
         self.line: int = errors[0].line
         super().__init__("\n".join(str(p) for p in self.errors))

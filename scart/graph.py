@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from scart.api import ComponentType, InterfaceInfo
-from scart.model import Binding, Component, Composite, Element
+from scart.errors import Problem
+from scart.model import Binding, Component, Composite, Element, Location
 
 if TYPE_CHECKING:
     from scart.contribution import Contribution
@@ -53,6 +54,8 @@ class Node:
     # service -> the paths it is promoted as out of nested composites whose bindings it carries
     service_aliases: dict[str, list[str]] = field(default_factory=dict)
     ref_interfaces: dict[str, InterfaceInfo] = field(default_factory=dict)  # as declared in the composite
+    # property -> where its value was given: its <property>, "<command line>" (--set), else the component
+    property_locations: dict[str, Location] = field(default_factory=dict)
 
 
 @dataclass
@@ -71,6 +74,7 @@ class Assembly:
     aliases: dict[str, Target] = field(default_factory=dict)  # "Comp", "Comp/Service" of top-level components
     elements: list[tuple[str, Element]] = field(default_factory=list)  # (prefix, <scart:...>) of all composites
     unused_overrides: set[str] = field(default_factory=set)  # overrides naming no property (non-strict mode)
+    warnings: list[Problem] = field(default_factory=list)  # what loads but looks wrong (``scart validate`` shows it)
 
     def elements_of(self, kind: str) -> list[tuple[str, Element]]:
         """The ``(prefix, element)`` pairs of extension elements whose local name is ``kind``."""

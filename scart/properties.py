@@ -17,7 +17,7 @@ checked before anything starts (private helper of :mod:`scart.assembly`).
   componentType's (ASM50036), and a composite property it takes through ``@source``
   with its own (ASM50038). A Python annotation counts as a type (``str``: a string,
   ``int``: an integer, ``float``: a number, ``bool``: a boolean, a model or dict:
-  complex).
+  complex); two complex XML types must be one type, or one derived from the other.
 
 A problem never shows a file's content.
 """
@@ -59,6 +59,7 @@ _STRINGS = frozenset("string normalizedString token language Name NCName ID IDRE
 _INTEGERS = frozenset("""integer int long short byte nonNegativeInteger nonPositiveInteger negativeInteger
     positiveInteger unsignedLong unsignedInt unsignedShort unsignedByte""".split())
 _NUMBERS = frozenset("double float decimal".split())
+_ANY_TYPE = f"{{{XSD_NS}}}anyType"
 
 
 class Refused(list):  # type: ignore[type-arg]
@@ -151,6 +152,30 @@ class PropertyReader:
             return xml_family(ref, lambda q: None)
         return xml_family(ref, self.contribution.schemas.kind)
 
+    def complex_type(self, ref: TypeRef | None) -> str | None:
+        """The complex type a declaration stands for: a complex ``@type`` itself, an
+        ``@element``'s named type (the element itself when its type is anonymous); None
+        for a simple or unknown type."""
+        if ref is None:
+            return None
+        what, qname = ref
+        schemas = self.contribution.schemas
+        if what == "element":
+            return schemas.element_types.get(qname, qname)
+        return qname if schemas.kind(qname) == "complex" else None
+
+    def agree(self, a: TypeRef | None, b: TypeRef | None) -> bool:
+        """Can values declared ``a`` stand where ``b`` is declared? Their families are
+        compatible, and two complex XML types are one type, or one derives from the other
+        (``xs:anyType`` takes anything)."""
+        if not compatible(self.family(a), self.family(b)):
+            return False
+        ta, tb = self.complex_type(a), self.complex_type(b)
+        if ta is None or tb is None or _ANY_TYPE in (ta, tb):
+            return True
+        schemas = self.contribution.schemas
+        return schemas.derives(ta, tb) or schemas.derives(tb, ta)
+
     @staticmethod
     def shown(ref: TypeRef | None, namespaces: dict[str, str] | None = None) -> str:
         """``xs:int``, ``geo:Point`` (a prefix of ``namespaces``, as the user wrote it),
@@ -239,6 +264,8 @@ class PropertyReader:
             return None
         if m is not None and not m["path"].strip():
             return ctx[m["name"]]
+        if any(isinstance(ctx[k], Refused) for k in names):
+            return Refused()  # what it is taken from was refused (reported): nothing more to say
         files = [vs.file for k in sorted(names) if isinstance(vs := ctx[k], FileValues)]
         try:
             xpath = etree.XPath(p.source or "", namespaces=p.namespaces)
@@ -316,13 +343,14 @@ class PropertyReader:
                          f"elements (or global elements), not <{etree.QName(root).localname}>", p.loc)
             return None
         children = [c for c in root if isinstance(c.tag, str)]
-        if p.element is None and any(c.tag not in _VALUE_TAGS for c in children):
-            self.problem(E.ASM_PROPERTY_FILE_FORMAT, f"{where}: <sca:values> holds <value> elements (global "
-                         "elements only for a property with @element)", p.loc)
+        if any(c.tag in _VALUE_TAGS for c in children) and any(c.tag not in _VALUE_TAGS for c in children):
+            self.problem(E.ASM_PROPERTY_FILE_FORMAT, f"{where}: <sca:values> holds either <value> elements or "
+                         "global elements, not both", p.loc)
             return None
         if not children:
             self.problem(E.ASM_PROPERTY_FILE_FORMAT, f"{where}: <sca:values> holds no value", p.loc)
             return None
+        # a global element is a value of the property's @type (its content checked) or an instance of its @element
         values = [XmlValue(etree.tostring(c, encoding="unicode", with_tail=False)) if len(c) or p.element
                   else (c.text or "").strip() for c in children]
         return FileValues(values, p.file or "")

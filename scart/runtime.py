@@ -183,10 +183,12 @@ class Runtime:
         ``overrides`` maps "Component.property" to a raw value (like ``--set``);
         ``settings`` configure the runtime and its extensions (default:
         ``Settings.from_env()``); ``extensions`` is the registry of kinds (default: the
-        installed entry points)."""
+        installed entry points). Warnings of the composite (``assembly.warnings``) are logged."""
         settings = settings if settings is not None else Settings.from_env()
         assembly = assemble(str(path), overrides, extensions=extensions, settings=settings,
                             contributions=contributions)
+        for warning in assembly.warnings:
+            log.warning("%s", warning)
         return cls(assembly, settings=settings, max_workers=max_workers, max_pending=max_pending,
                    drain_timeout=drain_timeout)
 

@@ -534,9 +534,13 @@ class Loader:
             values = [el.get("value") or ""]
         children = [c for c in el.iterchildren(tag=etree.Element) if _local(c)[1] not in _IGNORED]
         if element is not None:  # the values are instances of the global element
-            given = [c for c in children if etree.QName(c).text == element]
+            given = []
             for c in children:
-                if c not in given:
+                if etree.QName(c).text == element:
+                    given.append(c)
+                elif _local(c) == (SCA11_NS, "value"):  # <value> standing for one: its content and attributes
+                    given.append(_renamed(c, element))
+                else:
                     self.problem(E.ASM_PROPERTY_VALUE, f"{shown}: <{_local(c)[1]}> is not its element "
                                  f"<{etree.QName(element).localname}>", c)
         elif _local(el)[0] == SCA10_NS and children and all(_local(c)[0] not in SCA_NAMESPACES for c in children):
@@ -693,6 +697,16 @@ def _schema_message(message: str, local: str) -> str:
         if m is not None:
             return say(m, local)
     return message.rstrip(".")
+
+
+def _renamed(el: etree._Element, tag: str) -> etree._Element:
+    """A copy of ``el`` named ``tag`` (Clark), its attributes, content and every namespace
+    in its scope kept (a QName in an attribute value still resolves)."""
+    renamed = etree.Element(tag, dict(el.attrib), nsmap=el.nsmap)
+    renamed.text = el.text
+    for child in el:
+        renamed.append(copy.deepcopy(child))
+    return renamed
 
 
 def _detached(el: etree._Element) -> etree._Element:

@@ -1,8 +1,9 @@
 """XML Schema types and elements for property values (SCA Assembly 1.1 §4.4, §5.4).
 
 A :class:`SchemaSet` holds the ``.xsd`` files of the contributions a composite sees, plus
-the XML Schema built-in types and the SCA namespace's simple types
-(``scart/schema/sca-types.xsd``). It answers what a ``@type`` or ``@element`` QName names
+the XML Schema built-in types and the SCA namespace's own schemas, shipped in the package
+(``scart/schema/sca-core.xsd``, ``sca-policy.xsd``, ``sca-contribution.xsd``: ``sca:Callback``,
+``sca:callback``, ``sca:Multiplicity``...). It answers what a ``@type`` or ``@element`` QName names
 and checks a value against it with lxml's validator: a ``@type`` value is validated as
 an element of that type, an ``@element`` value as an instance of that global element.
 
@@ -27,7 +28,9 @@ __all__ = ["XSD_NS", "SchemaSet", "builtin_simple"]
 
 XSD_NS = "http://www.w3.org/2001/XMLSchema"
 _CHECK_NS = "urn:scart:check"  # the namespace of the wrapper element a @type value is checked as
-_SCA_TYPES = Path(__file__).with_name("schema") / "sca-types.xsd"
+_SCHEMA_DIR = Path(__file__).with_name("schema")
+#: The SCA 1.1 namespace's schemas shipped with scart (one namespace, included together).
+SCA_SCHEMAS = ("sca-core.xsd", "sca-policy.xsd", "sca-contribution.xsd")
 
 #: XML Schema built-in simple types (Part 2, §3): what ``xs:NAME`` may name besides anyType.
 _BUILTINS = frozenset("""
@@ -64,21 +67,26 @@ class SchemaSet:
     def __init__(self, files: Sequence[Path], problems: list[Problem]) -> None:
         from scart.scdl import parse_xml
 
-        self._data: dict[str, bytes] = {"sca-types.xsd": _SCA_TYPES.read_bytes()}
-        self._by_ns: dict[str, list[str]] = {SCA11_NS: ["sca-types.xsd"]}
+        self._data: dict[str, bytes] = {name: (_SCHEMA_DIR / name).read_bytes() for name in SCA_SCHEMAS}
+        self._by_ns: dict[str, list[str]] = {SCA11_NS: list(SCA_SCHEMAS)}
         self.types: dict[str, str] = {}  # Clark QName -> "simple" | "complex"
         self.elements: set[str] = set()
-        roots = [("sca-types.xsd", etree.fromstring(self._data["sca-types.xsd"]))]
+        roots = [(name, etree.fromstring(self._data[name])) for name in SCA_SCHEMAS]
         pending: list[tuple[str, str, str]] = []  # (namespace, stored name, file name)
         included: set[str] = set()  # file names another schema includes: loaded through it, not again
+        seen: set[bytes] = set()
         for file in files:
             root = parse_xml(str(file), problems)
             if root is None:
                 continue
             if etree.QName(root).text != f"{{{XSD_NS}}}schema":
                 continue
+            data = file.read_bytes() if file.stat().st_size <= (8 << 20) else b""
+            if data in seen:  # the same schema in two contributions: declared once
+                continue
+            seen.add(data)
             name = f"f{len(self._data)}-{file.name}"
-            self._data[name] = file.read_bytes() if file.stat().st_size <= (8 << 20) else b""
+            self._data[name] = data
             self._data.setdefault(file.name, self._data[name])  # what another schema's schemaLocation names
             pending.append((root.get("targetNamespace", ""), name, file.name))
             included |= {str(el.get("schemaLocation", "")).rpartition("/")[2]
@@ -87,18 +95,40 @@ class SchemaSet:
         for ns, name, file_name in pending:
             if file_name not in included:
                 self._by_ns.setdefault(ns, []).append(name)
+        self.element_types: dict[str, str] = {}  # global element -> its named type (anonymous ones absent)
+        self.bases: dict[str, str] = {}  # complex type -> the type it extends or restricts
         for _, root in roots:
-            tns = root.get("targetNamespace", "")
-            for child in root.iterchildren(tag=etree.Element):
-                local, name = etree.QName(child).localname, child.get("name")
-                if name is None:
-                    continue
-                if local == "simpleType":
-                    self.types[f"{{{tns}}}{name}"] = "simple"
-                elif local == "complexType":
-                    self.types[f"{{{tns}}}{name}"] = "complex"
-                elif local == "element":
-                    self.elements.add(f"{{{tns}}}{name}")
+            self._index(root)
+
+    def _index(self, root: etree._Element) -> None:
+        """Record the global types and elements a schema document declares."""
+        tns = root.get("targetNamespace", "")
+        for child in root.iterchildren(tag=etree.Element):
+            local, name = etree.QName(child).localname, child.get("name")
+            if name is None:
+                continue
+            qname = f"{{{tns}}}{name}"
+            if local == "simpleType":
+                self.types[qname] = "simple"
+            elif local == "complexType":
+                self.types[qname] = "complex"
+                derived = child.find(f"{{{XSD_NS}}}complexContent/*[@base]")
+                if derived is not None:
+                    self.bases[qname] = _resolve(derived, derived.get("base", ""))
+            elif local == "element":
+                self.elements.add(qname)
+                if child.get("type"):
+                    self.element_types[qname] = _resolve(child, child.get("type", ""))
+
+    def derives(self, qname: str, base: str) -> bool:
+        """Is the complex type ``qname`` ``base`` or derived from it (by extension or restriction)?"""
+        for _ in range(32):  # bounded: a chain of bases (a cycle is the schema's own error)
+            if qname == base:
+                return True
+            if qname not in self.bases:
+                return False
+            qname = self.bases[qname]
+        return False
 
     def kind(self, qname: str) -> str | None:
         """"simple", "complex" or None (no such type) for a type's Clark QName."""
@@ -115,6 +145,8 @@ class SchemaSet:
         wrapper = etree.Element(f"{{{_CHECK_NS}}}value",
                                 nsmap={**{k: v for k, v in value.nsmap.items() if k}, None: _CHECK_NS})
         wrapper.text = value.text
+        for name, attribute in value.attrib.items():  # a complex type's attributes (requires="..." on sca:Callback)
+            wrapper.set(name, attribute)
         for child in value:
             wrapper.append(_copy(child))
         return self._validate(self._schema(("type", qname)), wrapper)
@@ -160,6 +192,12 @@ class SchemaSet:
         if schema.validate(doc):
             return None
         return _tidy(schema.error_log[0].message) if schema.error_log else "not valid"
+
+
+def _resolve(el: etree._Element, qname: str) -> str:
+    """A QName attribute value of ``el`` as a Clark QName (its prefix in ``el``'s scope)."""
+    prefix, _, local = qname.strip().rpartition(":")
+    return f"{{{el.nsmap.get(prefix or None, '') or ''}}}{local}"
 
 
 def _copy(el: etree._Element) -> etree._Element:

@@ -16,8 +16,9 @@ provider                   provides
                            ``reference`` (a :class:`ReferenceBinding`: one invoker per
                            operation)
 :class:`ImplementationProvider`  ``component_type`` (what the implementation declares, at
-                           load time) and ``manager`` (a :class:`ComponentManager` creating,
-                           starting and stopping its instances)
+                           load time), ``check`` (static, of its assembled components) and
+                           ``manager`` (a :class:`ComponentManager` creating, starting and
+                           stopping its instances)
 :class:`ElementProvider`   ``check`` of ``<scart:NAME>`` children of ``<composite>``
 every provider             ``activate(host)``: a :class:`Participant` run with the composite
 =========================  ==================================================================
@@ -34,7 +35,9 @@ resources by key, and stop hooks. Lifecycle, in one table::
       @init, before any service binding)       1 reference bindings: stop(), then stop hooks
     4 service bindings: start()
 
-Static checks must not touch the network unless ``context.settings.online`` is set.
+Static checks must not touch the network unless ``context.settings.online`` is set. A
+check may return warnings (``Problem(..., severity="warning")``): the composite still
+loads, and ``scart validate`` and ``scart run`` show them.
 """
 
 from __future__ import annotations
@@ -49,15 +52,16 @@ from typing import Any, ClassVar, Literal, Protocol, TypeVar
 from scart.api import CURRENT_CALLBACK, ComponentType, InterfaceInfo, Operation, PropSpec
 from scart.errors import Problem
 from scart.graph import DEFAULT, Node, Target
-from scart.model import SCART_NS, Binding, Element, Implementation
-from scart.scdl import parse_xml
+from scart.model import SCART_NS, Binding, Element, Implementation, Location
+from scart.scdl import did_you_mean, parse_xml
 from scart.settings import Remap, Settings
 
 __all__ = [
     "CURRENT_CALLBACK", "DEFAULT", "SCART_NS", "AssemblyView", "Binding", "BindingProvider", "CheckContext", "ComponentManager", "ComponentType", "Element",
     "ElementProvider", "Extension", "Host", "Implementation", "ImplementationProblem", "ImplementationProvider",
-    "InterfaceInfo", "Invocation", "Node", "Operation", "Participant", "Problem", "PropSpec", "ReferenceBinding",
-    "Remap", "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target", "parse_host_port", "parse_xml", "port_in_range",
+    "InterfaceInfo", "Invocation", "Location", "Node", "Operation", "Participant", "Problem", "PropSpec", "ReferenceBinding",
+    "Remap", "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target", "did_you_mean", "parse_host_port",
+    "parse_xml", "port_in_range",
 ]
 
 T = TypeVar("T")
@@ -317,6 +321,12 @@ class ImplementationProvider(Extension):
     def manager(self, node: Node, host: Host) -> ComponentManager:
         """A manager for the component ``node``."""
 
+    def check(self, nodes: list[Node], assembly: AssemblyView, context: CheckContext) -> list[Problem]:
+        """Static problems of the components of this kind, once the composite is assembled
+        (their property values parsed; ``node.property_locations`` says where each was
+        given): what starting them would refuse and needs no running peer. Default none."""
+        return []
+
 
 class ElementProvider(Extension):
     """A composite-level extension element (``<scart:NAME>`` child of ``<composite>``),
@@ -341,6 +351,10 @@ SCART_NS = SCART_NS
 #: ``parse_xml(path, problems)``: parse an XML file of the contribution safely (size bound,
 #: no DTD, no entities, no network); problems are appended, None returned on failure.
 parse_xml = parse_xml
+
+#: ``did_you_mean(word, known)``: " (did you mean 'x'?)" when ``word`` looks like a
+#: misspelling of one of ``known``, else "" (for messages naming what a composite names).
+did_you_mean = did_you_mean
 
 _HOST_PORT = re.compile(r"^(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
 

@@ -12,6 +12,11 @@ has a line per thing served (``scart: dataflow server at HOST:PORT (N task(s))``
 
 Loading is offline: ``scart validate`` never touches the network unless ``--online``,
 which lets the extensions' checks ask the name service (``--ns``) about remote tasks.
+``scart validate`` makes every check ``scart run`` makes before it starts anything (and
+each one it would only meet at start that needs no running peer, such as a task
+property's bounds), with the same ``path:line: message [CODE]``; ``scart run --dry-run``
+loads exactly as ``run`` does and starts nothing. Warnings (``path:line: warning: ...``)
+do not fail either.
 
 Exit codes: 0 success (``run``: after a clean stop on SIGINT/SIGTERM), 2 an invalid
 composite (every problem listed on stderr as ``path:line: message [CODE]``, nothing
@@ -36,7 +41,7 @@ from dataflow import DataflowError
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 from dataflow.remote.security import add_arguments, from_args
 from scart.assembly import assemble
-from scart.errors import ScartError, ScdlError
+from scart.errors import Problem, ScartError, ScdlError
 from scart.graph import Assembly, Bound, Target
 from scart.model import SCART_NS, Binding, Composite, Location
 from scart.settings import Remap, Settings
@@ -67,6 +72,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.add_argument("--foxglove", default=None, metavar="[HOST:]PORT",
                      help="also serve the data-flow tasks live to the Foxglove app here (as `scart foxglove`: "
                           "ports, properties, operations; 0: a free port; a routable HOST needs --insecure)")
+    run.add_argument("--dry-run", action="store_true",
+                     help="load and check the composite exactly as run would (settings, --set, --remap), print "
+                          "what would run, and start nothing")
     add_arguments(run, server=True)
     run.set_defaults(func=cmd_run)
 
@@ -138,17 +146,25 @@ def _assemble(file: str, raw_overrides: list[str], settings: Settings, unused: s
                           contributions=contributions or [])
         if unused is not None:
             unused |= result.unused_overrides
+        _print_warnings(result.warnings)
         return result
     except ScdlError as exc:
         if unused is not None:
             unused |= exc.unused_overrides
         print(str(exc), file=sys.stderr)
+        _print_warnings(exc.warnings)
         print(f"scart: {file}: {len(exc.errors)} problem(s); nothing started", file=sys.stderr)
     except ValueError as exc:
         if unused is not None:
             unused.add("")  # malformed --set: fails every file
         print(f"scart: {exc}", file=sys.stderr)
     return None
+
+
+def _print_warnings(warnings: list[Problem]) -> None:
+    """Each warning as ``path:line: warning: message [CODE]`` on stderr."""
+    for warning in warnings:
+        print(warning, file=sys.stderr)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -172,6 +188,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         assembly = _assemble(args.file, args.overrides, settings, contributions=args.contributions)
         if assembly is None:
             return 2
+        if getattr(args, "dry_run", False):
+            print(summary(assembly, {}, settings.remap), flush=True)
+            print(f"scart: dry run: {len(assembly.nodes)} component(s) would start; nothing started", flush=True)
+            return 0
         runtime = Runtime(assembly, settings=settings, max_workers=args.workers, drain_timeout=args.stop_timeout)
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.
@@ -304,7 +324,7 @@ def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None
 def summary(assembly: Assembly, addresses: dict[str, str | None], remap: Remap | None = None) -> str:
     """A short text of what runs: components, their wires, promoted services, bound addresses."""
     c = assembly.composite
-    lines = [f"scart: composite {c.name} ({c.loc.path})"]
+    lines = [f"scart: composite {c.name} ({assembly.contribution.display(c.loc.path)})"]
     for path, node in assembly.nodes.items():
         impl = node.model.implementation
         what = (impl.attributes.get("class") or "") if impl else ""
@@ -343,7 +363,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
         if assembly is None:
             failed += 1
         else:
-            print(f"{file}: ok ({len(assembly.nodes)} component(s))")
+            warned = f", {len(assembly.warnings)} warning(s)" if assembly.warnings else ""
+            print(f"{file}: ok ({len(assembly.nodes)} component(s){warned})")
     if several and args.overrides:  # an override must fit at least one of the files
         try:
             keys = parse_overrides(args.overrides)

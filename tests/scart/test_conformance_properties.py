@@ -228,7 +228,7 @@ def test_a_file_is_an_sca_values_document(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("content, message", [
     ("<points><point/></points>", "must be an <sca:values>"),
-    (VALUES.format("<geo:x>1</geo:x>"), "holds <value> elements"),
+    (VALUES.format("<value>1</value><geo:x>1</geo:x>"), "either <value> elements or global elements"),
     (VALUES.format(""), "holds no value"),
     ("<values", "not well-formed"),
 ])

@@ -13,7 +13,7 @@ import pytest
 import scart
 from scart.assembly import assemble
 from support import ROOT
-from support.sca import SCA, composite, write
+from support.sca import SCA, composite, line_of, write
 
 SHARED_NS = "urn:shared"
 
@@ -125,6 +125,26 @@ def test_asm12024_an_imported_name_is_not_taken_from_the_importer_itself(tmp_pat
         assert rt.service("User").go() == "arm moved to home"
 
 
+def test_asm12023_an_import_that_does_not_hold_it_is_followed_by_the_importer_s_own(tmp_path: Path) -> None:
+    lib = shared(tmp_path / "shared")
+    (lib / "parts.composite").unlink()  # the exporter holds no Parts: the importer's own copy comes next
+    path = app(tmp_path / "app", f'<import namespace="{SHARED_NS}"/>')
+    (tmp_path / "app" / "own.composite").write_text(SHARED_PARTS)
+    (tmp_path / "app" / "shared_parts.py").write_text(SHARED_PY)
+    with scart.Runtime.from_file(str(path), contributions=[lib]) as rt:
+        assert rt.service("User").go() == "arm moved to home"
+    (tmp_path / "app" / "own.composite").unlink()  # in neither: named where it is used
+    err = refused(path, contributions=[lib])
+    assert err.codes == ["ASM60030"] and "names no composite {urn:shared}Parts" in str(err)
+
+
+def test_imports_and_exports_of_other_languages_are_accepted(tmp_path: Path) -> None:
+    lib = shared(tmp_path / "shared", f'<export namespace="{SHARED_NS}"/>', '<export.java package="org.parts"/>')
+    path = app(tmp_path / "app", f'<import namespace="{SHARED_NS}"/>', '<import.java package="org.parts"/>')
+    with scart.Runtime.from_file(str(path), contributions=[lib]) as rt:
+        assert rt.service("User").go() == "arm moved to home"
+
+
 def test_without_metadata_a_contribution_sees_what_the_others_export(tmp_path: Path) -> None:
     lib = shared(tmp_path / "shared")
     path = app(tmp_path / "app")
@@ -182,6 +202,56 @@ def test_artifacts_in_subfolders_are_found_and_nested_contributions_left_out(tmp
     (lib / "composites" / "arm" / "parts.composite").write_text(SHARED_PARTS.replace("<service", "<servise"))
     err = refused(path, contributions=[lib])
     assert err.errors[0].path.endswith(str(Path("composites") / "arm" / "parts.composite")), str(err)
+
+
+# ---- the schemas a WSDL's messages need ------------------------------------------------------
+
+TYPED_WSDL = f"""<?xml version="1.0"?>
+<definitions xmlns="http://schemas.xmlsoap.org/wsdl/" xmlns:tns="{SHARED_NS}" targetNamespace="{SHARED_NS}"
+             xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance" xmlns:m="urn:messages"
+             xsi:schemaLocation="urn:messages {{location}}" name="Arm">
+  {{types}}
+  <message name="where"><part name="where" element="m:where"/></message>
+  <message name="done"><part name="done" element="m:done"/></message>
+  <portType name="Arm"><operation name="move"><input message="tns:where"/><output message="tns:done"/></operation>
+  </portType>
+</definitions>
+"""
+
+MESSAGES_XSD = """<?xml version="1.0"?>
+<xs:schema xmlns:xs="http://www.w3.org/2001/XMLSchema" targetNamespace="urn:messages">
+  <xs:element name="where" type="xs:string"/><xs:element name="done" type="xs:string"/>
+</xs:schema>
+"""
+
+INLINE = """<types><xs:schema xmlns:xs="http://www.w3.org/2001/XMLSchema" targetNamespace="urn:messages">
+    <xs:element name="where" type="xs:string"/><xs:element name="done" type="xs:string"/></xs:schema></types>"""
+
+
+@pytest.mark.parametrize("location, types, xsd", [
+    ("http://example.com/schemas/messages.xsd", "", True),  # the named file, found in the contribution by name
+    ("messages.xsd", INLINE, False),  # declared inside the WSDL
+])
+def test_a_wsdl_s_schemas_are_resolved(tmp_path: Path, location: str, types: str, xsd: bool) -> None:
+    lib = shared(tmp_path / "shared")
+    (lib / "arm.wsdl").write_text(TYPED_WSDL.format(location=location, types=types))
+    if xsd:
+        (lib / "messages.xsd").write_text(MESSAGES_XSD)
+    path = app(tmp_path / "app", f'<import namespace="{SHARED_NS}"/>')
+    with scart.Runtime.from_file(str(path), contributions=[lib]) as rt:
+        assert rt.service("User").go() == "arm moved to home"
+
+
+def test_a_wsdl_schema_that_cannot_be_found_is_named_with_the_wsdl(tmp_path: Path) -> None:
+    lib = shared(tmp_path / "shared")
+    wsdl = TYPED_WSDL.format(location="http://example.com/schemas/missing.xsd", types="")
+    (lib / "arm.wsdl").write_text(wsdl)
+    err = refused(app(tmp_path / "app", f'<import namespace="{SHARED_NS}"/>'), contributions=[lib])
+    assert err.codes == ["ASM12021", "ASM12021"], str(err)  # the input part and the output part
+    first = err.errors[0]
+    assert first.path.endswith("arm.wsdl") and first.line == line_of(wsdl, 'name="where"')
+    assert "part 'where' names element 'where' of namespace 'urn:messages'" in first.message
+    assert "'http://example.com/schemas/missing.xsd') is not in the contributions" in first.message
 
 
 REPOSITORY_COMPOSITES = sorted(p for top in ("composites", "tests/data") for p in (ROOT / top).rglob("*.composite")

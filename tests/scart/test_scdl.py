@@ -140,7 +140,7 @@ def test_interface_wsdl_port_types(tmp_path: Path) -> None:
 
 
 def test_wsdl_one_way_operations() -> None:
-    from scart.contribution import read_port_types
+    from scart.wsdl import read_port_types
 
     types, _ = read_port_types(etree.fromstring(WSDL.encode(), scdl._parser()))
     hello = types["{urn:greet}HelloPortType"]

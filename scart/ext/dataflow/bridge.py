@@ -23,17 +23,21 @@ generated code and with the types checked at load time::
 * **Trigger** — ``periodic`` (every ``period`` s, the default when ``period`` is given),
   ``any`` (on any new input, the default otherwise) or ``all`` (when every input has a new
   sample and their arrival times lie within ``window`` s of each other, as
-  message_filters' ApproximateTime; an older sample is dropped for a newer one).
+  message_filters' ApproximateTime; an older sample is dropped for a newer one). A
+  ``period`` with ``any`` or ``all`` is refused (it would not apply).
 * **Missing inputs** (``missing``, periodic and any-input triggers) — ``hold`` (default: the last value; no output until
   the first one), ``skip`` (no output unless this input has a new sample) or ``default``
   (the last value, and the ``default`` value, JSON, until the first sample).
 
-**Type-checked at load time** (``file:line``, naming the input, the converter and both
-types): a converter's parameter against its source port's type, a field path through the
-source's model, the builder's parameters against the converted inputs and its return
-against the output type (or the model's fields against them). A source of another
-deployer is checked when its name service answers at load time (``settings.online``),
-else when the bridge starts (a mismatch then fails the start, naming the same things).
+**Type-checked at load time** (``file:line`` — the ``<scart:input>``'s for what concerns
+one input — naming the input, the converter and both types): a converter's parameter
+against its source port's type, a field path through the source's model, the builder's
+parameters against the converted inputs and its return against the output type (or the
+model's fields against them); a converter without type annotations is a warning. A
+source of another deployer is checked when its name service answers at load time
+(``settings.online``; one it does not know is then an error, and offline a warning), else
+when the bridge starts: a mismatch then fails the start, naming the same things, and a
+source not in the name service yet is waited for (the bridge starts when it appears).
 
 It runs as a :class:`dataflow.TaskContext` (:class:`BridgeTask`) in the runtime's
 deployer, named after the bridge, connected like ``scart:connect`` links, served and
@@ -65,11 +69,12 @@ from dataflow import (
 from dataflow.fields import apply_path, parse_path
 from dataflow.introspection import PropertyDescription, TaskDescription
 from scart.errors import ScartError
-from scart.ext.dataflow._host import TASK_KIND, host_of, remote_ports
+from scart.ext.dataflow._checks import remap_problems, remote_end
+from scart.ext.dataflow._host import TASK_KIND, Watcher, host_of, remote_ports
 from scart.ext.dataflow._plan import MIN_PERIOD_S
 from scart.ext.dataflow.tasks import ConnectParticipant, Link, connect_present, retire
 from scart.spi import (
-    AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem, Remap, Settings,
+    AssemblyView, CheckContext, Element, ElementProvider, Host, Location, Participant, Problem, Remap, Settings,
 )
 
 log = logging.getLogger("scart.dataflow")
@@ -99,6 +104,7 @@ class InputSpec:
     default: str | None
     ns: str | None
     where: str
+    loc: Location | None = None  # the <scart:input>: where problems about this input are said
 
 
 @dataclass(frozen=True)
@@ -145,6 +151,9 @@ def parse_bridge(prefix: str, el: Element) -> tuple[BridgeSpec | None, list[tupl
         bad(f"trigger {trigger!r}: expected one of {', '.join(TRIGGERS)}")
     elif trigger == "periodic" and period is None and a.get("period") is None:
         bad('trigger "periodic" needs a period (seconds)')
+    elif trigger != "periodic" and a.get("period") is not None:  # it would be ignored: say so rather than guess
+        bad(f'period {a["period"]!r} applies to trigger "periodic" only; trigger "{trigger}" outputs on new input '
+            '(drop the period, or drop the trigger)')
     try:
         window = float(a.get("window", "0.05"))
     except ValueError:
@@ -221,7 +230,7 @@ def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None], 
         bad(f"input {name!r}: missing=\"default\" needs a default value", el)
         return None
     return InputSpec(name, (prefix + source[0], source[1]), policy, a.get("convert") or None, path, missing,
-                     a.get("default"), a.get("ns") or None, str(el.loc))
+                     a.get("default"), a.get("ns") or None, str(el.loc), el.loc)
 
 
 # --- types ------------------------------------------------------------------------------
@@ -334,7 +343,8 @@ class Resolved:
 
 
 class Resolver:
-    """Resolves bridges against an assembly: each problem is ``(code, message)``."""
+    """Resolves bridges against an assembly: each problem is ``(code, message, where,
+    severity)``, ``where`` the ``<scart:input>`` it is about (None: the bridge itself)."""
 
     def __init__(self, assembly: AssemblyView, settings: Settings, importer: Callable[[str], object],
                  bridges: dict[str, BridgeSpec]) -> None:
@@ -342,11 +352,16 @@ class Resolver:
         self.settings = settings
         self.importer = importer
         self.bridges = bridges
-        self.problems: list[tuple[str, str]] = []
+        self.problems: list[tuple[str, str, Location | None, str]] = []
         self._resolved: dict[str, Resolved | None] = {}
+        self._at: Location | None = None  # the input being resolved
 
-    def problem(self, code: str, message: str) -> None:
-        self.problems.append((code, message))
+    def problem(self, code: str, message: str, severity: str = "error") -> None:
+        self.problems.append((code, message, self._at, severity))
+
+    def errors(self) -> int:
+        """How many problems are errors (warnings do not keep a bridge from running)."""
+        return sum(1 for p in self.problems if p[3] == "error")
 
     def _import(self, ref: str, what: str) -> Any:
         try:
@@ -367,6 +382,7 @@ class Resolver:
 
     def source_type(self, spec: BridgeSpec, inp: InputSpec, online: bool) -> tuple[Any, bool]:
         """(the source port's type or unknown, whether the source runs in this runtime)."""
+        self._at = inp.loc
         comp, port = inp.source
         where = f"bridge {spec.name!r} input {inp.name!r}: {comp}.{port}"
         node = self.assembly.nodes.get(comp)
@@ -387,6 +403,7 @@ class Resolver:
                 self.problem(BRIDGE, f"{where}: bridge {comp!r} has one output, {other.output!r}")
                 return _UNKNOWN, True
             resolved = self.resolve(other, online) if comp != spec.name else None
+            self._at = inp.loc
             return (resolved.output_type if resolved is not None else _UNKNOWN), True
         if not online:
             return _UNKNOWN, False
@@ -412,21 +429,27 @@ class Resolver:
             return self._resolved[spec.name]
         self._resolved[spec.name] = None  # a cycle of bridges resolves as unknown
         online = self.settings.online if online is None else online
-        before = len(self.problems)
+        before, outer = self.errors(), self._at
+        self._at = None
         out_type = self.output_type(spec)
         sources: dict[str, Any] = {}
         converters: dict[str, Callable[[Any], Any] | None] = {}
         converted: dict[str, Any] = {}
+        defaults: dict[str, Any] = {}
         local: set[str] = set()
         for inp in spec.inputs:
             src, is_local = self.source_type(spec, inp, online)
+            self._at = inp.loc  # after the source: another bridge resolved through it says its own
             sources[inp.name] = src
             if is_local:
                 local.add(inp.name)
             converters[inp.name], converted[inp.name] = self.converter(spec, inp, src)
-        defaults = {i.name: self.default(spec, i, converted[i.name]) for i in spec.inputs if i.missing == "default"}
+            if inp.missing == "default":
+                defaults[inp.name] = self.default(spec, inp, converted[inp.name])
+            self._at = None
         build = self.builder(spec, converted, out_type) if out_type is not None else None
-        if len(self.problems) > before or build is None or out_type is None:
+        self._at = outer
+        if self.errors() > before or build is None or out_type is None:
             return None
         resolved = Resolved(spec, sources, converters, converted, defaults, out_type, build, local)
         self._resolved[spec.name] = resolved
@@ -457,6 +480,12 @@ class Resolver:
             self.problem(BRIDGE, f"{where}: converter {inp.convert} must take one argument (the sample)")
             return None, _UNKNOWN
         wanted = hints.get(params[0].name, _UNKNOWN)
+        unannotated = [w for w, n in (("parameter", params[0].name), ("return", "return")) if n not in hints]
+        if unannotated:
+            self.problem(BRIDGE, f"{where}: converter {inp.convert} has no type annotation on its "
+                         f"{' and '.join(unannotated)}: what it is given and gives is not checked, and pydantic "
+                         "coerces it silently where a type is declared (\"1.5\" becomes 1.5); annotate it",
+                         severity="warning")
         if not same_type(src, wanted):
             self.problem(BRIDGE_TYPE, f"{where}: converter {inp.convert} takes {shown(_plain(wanted))}, but "
                          f"{'.'.join(inp.source)} is {shown(src)}")
@@ -676,9 +705,13 @@ class BridgeElement(ElementProvider):
             specs[spec.name] = (spec, el)
         resolver = Resolver(assembly, context.settings, context.import_object, {n: s for n, (s, _) in specs.items()})
         for spec, el in specs.values():
+            out += _remote_inputs(spec, assembly, context, specs)
             before = len(resolver.problems)
             resolver.resolve(spec)
-            out += [Problem(code, msg, el.loc.path, el.loc.line) for code, msg in resolver.problems[before:]]
+            out += [Problem(code, msg, (at or el.loc).path, (at or el.loc).line, severity)  # type: ignore[arg-type]
+                    for code, msg, at, severity in resolver.problems[before:]]
+        if not any(n.kind == TASK_KIND for n in assembly.nodes.values()):  # else the tasks' check says it
+            out += remap_problems([], assembly, context.settings.remap)
         return out
 
     def activate(self, host: Host) -> BridgeParticipant:
@@ -686,22 +719,47 @@ class BridgeElement(ElementProvider):
         return BridgeParticipant(host)
 
 
+def _remote_inputs(spec: BridgeSpec, assembly: AssemblyView, context: CheckContext,
+                   specs: dict[str, tuple[BridgeSpec, Element]]) -> list[Problem]:
+    """The inputs whose source is no task or bridge of the composite: a warning offline,
+    an error online when no name service knows it (see :func:`remote_end`)."""
+    out: list[Problem] = []
+    for inp in spec.inputs:
+        comp = inp.source[0]
+        if comp in assembly.nodes or comp in specs or inp.loc is None:
+            continue
+        loc = inp.loc
+
+        def add(message: str, severity: str, _loc: Location = loc) -> None:
+            out.append(Problem(BRIDGE, message, _loc.path, _loc.line, severity))  # type: ignore[arg-type]
+
+        remote_end(comp, f"bridge {spec.name!r} input {inp.name!r}", inp.ns, assembly, context, add)
+    return out
+
+
 def _fail(resolver: Resolver, spec: BridgeSpec) -> ScartError:
-    why = "; ".join(msg for _, msg in resolver.problems) or "it cannot be resolved"
+    why = "; ".join(p[1] for p in resolver.problems if p[3] == "error") or "it cannot be resolved"
     return ScartError(f"bridge {spec.name} ({spec.where}): {why}")
 
 
 class BridgeParticipant(Participant):
-    """Creates, connects, starts and stops the bridges of one runtime."""
+    """Creates, connects, starts and stops the bridges of one runtime. A bridge whose
+    source of another deployer is not in the name service yet waits for it, as
+    ``scart:connect`` does: a watcher resolves it again every :data:`RETRY_S` s and starts
+    it once every source is known (one of the wrong type is then logged, not retried)."""
 
     def __init__(self, host: Host) -> None:
         self.host = host
         self.tasks: list[BridgeTask] = []
-        self._connector: ConnectParticipant | None = None
+        self._connectors: list[ConnectParticipant] = []
+        self._pending: list[BridgeSpec] = []
+        self._waiting: Watcher | None = None
+        self._lock = threading.Lock()  # the watcher adds bridges while stop may run
 
     def start(self) -> None:
         """Resolve each bridge (remote sources through the name service now), add its task,
-        connect its inputs and start it. Raises ``ScartError`` naming the bridge."""
+        connect its inputs and start it; one waiting for a remote source starts when it
+        appears. Raises ``ScartError`` naming the bridge."""
         dataflow_host = host_of(self.host)
         specs = bridges_of(self.host.assembly.elements_of(BridgeElement.name))
         resolver = Resolver(self.host.assembly, self.host.settings, self.host.assembly.import_object, specs)
@@ -710,47 +768,105 @@ class BridgeParticipant(Participant):
             resolved = resolver.resolve(spec, online=True)
             if resolved is None:
                 raise _fail(resolver, spec)
-            unknown = [n for n in resolved.sources if resolved.sources[n] is _UNKNOWN]
-            if unknown:
-                raise ScartError(f"bridge {spec.name} ({spec.where}): the type of input(s) {', '.join(unknown)} is not "
-                                 "known: their source is neither in this composite nor found in the name service")
-            remap = self.host.settings.remap
-            task = BridgeTask(resolved, remap)
-            dataflow_host.deployer.add(task)
-            self.tasks.append(task)
-            if not task.configure():
-                raise ScartError(f"bridge {spec.name}: configure refused (state {task.state.name})")
-            names = set(dataflow_host.deployer.names())
-            for inp in spec.inputs:
-                source = remap.endpoint(*inp.source)
-                sink = (task.name, task._inputs[inp.name].port.name)
-                if source[0] in names:
-                    dataflow_host.deployer.connect(".".join(source), ".".join(sink), inp.policy)
-                else:
-                    remote.append(Link(source, sink, inp.policy, inp.ns, inp.where))
-            connect_present(self.host, task.name)
-            if not task.start():
-                raise ScartError(f"bridge {spec.name}: start refused (state {task.state.name})")
+            if self._unknown(resolved):
+                self._pending.append(spec)
+                continue
+            remote += self._add(resolved)
         dataflow_host.start()  # served (settings.serve) even when the bridges are the only data-flow parts
         dataflow_host.refresh()
-        if remote:
+        self._connect_remote(remote)
+        if self._pending:
+            self._waiting = Watcher("scart-bridge-wait", self._retry, interval=RETRY_S)
+            self._waiting.start()
+
+    def _unknown(self, resolved: Resolved) -> list[str]:
+        """The inputs of a resolved bridge whose source type is not known yet (logged once)."""
+        unknown = [n for n in resolved.sources if resolved.sources[n] is _UNKNOWN]
+        if unknown and resolved.spec not in self._pending:
+            sources = ", ".join(".".join(i.source) for i in resolved.spec.inputs if i.name in unknown)
+            log.warning("bridge %s (%s): waiting for %s in the name service %s", resolved.spec.name,
+                        resolved.spec.where, sources, host_of(self.host).ns_address)
+        return unknown
+
+    def _add(self, resolved: Resolved) -> list[Link]:
+        """Add, configure, connect (in-process inputs) and start one bridge's task; its
+        inputs from other deployers, to connect. Raises ``ScartError`` naming the bridge."""
+        spec, remap = resolved.spec, self.host.settings.remap
+        deployer = host_of(self.host).deployer
+        task = BridgeTask(resolved, remap)
+        deployer.add(task)
+        with self._lock:
+            self.tasks.append(task)
+        if not task.configure():
+            raise ScartError(f"bridge {spec.name}: configure refused (state {task.state.name})")
+        names = set(deployer.names())
+        remote: list[Link] = []
+        for inp in spec.inputs:
+            source = remap.endpoint(*inp.source)
+            sink = (task.name, task._inputs[inp.name].port.name)
+            if source[0] in names:
+                deployer.connect(".".join(source), ".".join(sink), inp.policy)
+            else:
+                remote.append(Link(source, sink, inp.policy, inp.ns, inp.where))
+        connect_present(self.host, task.name)
+        if not task.start():
+            raise ScartError(f"bridge {spec.name}: start refused (state {task.state.name})")
+        return remote
+
+    def _connect_remote(self, links: list[Link]) -> None:
+        """Connect inputs from other deployers in the background (whenever their source appears)."""
+        if not links:
+            return
+        with self._lock:
             local = {t.name for t in self.tasks}
-            self._connector = ConnectParticipant(remote, self.host, local=lambda name: name in local)
-            self._connector.start()
+            connector = ConnectParticipant(links, self.host, local=lambda name: name in local)
+            self._connectors.append(connector)
+        connector.start()
+
+    def _retry(self) -> None:
+        """Watcher step: resolve the waiting bridges again; start those now known."""
+        specs = bridges_of(self.host.assembly.elements_of(BridgeElement.name))
+        for spec in list(self._pending):
+            resolver = Resolver(self.host.assembly, self.host.settings, self.host.assembly.import_object, specs)
+            resolved = resolver.resolve(spec, online=True)
+            if resolved is None:  # the source appeared, and does not fit: say so once, stop waiting
+                log.error("%s", _fail(resolver, spec))
+                self._pending.remove(spec)
+                continue
+            if self._unknown(resolved):
+                continue
+            self._pending.remove(spec)
+            try:
+                links = self._add(resolved)
+            except (ScartError, DataflowError) as exc:  # the run goes on without this bridge
+                log.error("bridge %s (%s): not started: %s", spec.name, spec.where, exc)
+                continue
+            host_of(self.host).refresh()
+            self._connect_remote(links)
+            log.info("bridge %s: its sources appeared: started", spec.name)
 
     def addresses(self) -> dict[str, str]:
         """What the runtime's data-flow host serves (the same as its tasks' participant says)."""
         return host_of(self.host).addresses()
 
     def stop(self) -> None:
-        """Stop the connector and every bridge task (idempotent)."""
-        if self._connector is not None:
-            self._connector.stop()
-        for task in reversed(self.tasks):
+        """Stop waiting, the connectors and every bridge task (idempotent)."""
+        if self._waiting is not None:
+            self._waiting.stop()
+        with self._lock:
+            connectors, self._connectors = list(self._connectors), []
+            tasks = list(self.tasks)
+        for connector in connectors:
+            connector.stop()
+        for task in reversed(tasks):
             try:
                 retire(task)
             except DataflowError as exc:
                 log.warning("bridge %s: stopping: %s", task.name, exc)
+
+
+#: How often (s) a bridge waiting for a source of another deployer looks for it again.
+RETRY_S = 0.5
 
 
 __all__ = ["BRIDGE", "BRIDGE_TYPE", "BridgeElement", "BridgeParticipant", "BridgeSpec", "BridgeTask", "InputSpec",

@@ -8,8 +8,11 @@ runtime, :func:`~scart.ext.dataflow.deployer_of`):
   ``period`` (seconds, > 0) gives it a ``PeriodicActivity``; without it the task keeps
   its own default activity (event-driven);
 * ``<property name="gain">2.5</property>`` sets the task's dataflow ``Property`` of that
-  name; values are parsed and validated at load time against the Property's type (and
-  its ``check``), problems reported as ``file:line``;
+  name; values are parsed and validated at load time against the Property's type,
+  bounds and ``check`` (a read-only property refuses any value), problems reported as
+  ``file:line`` (``scart validate`` says what ``scart run`` would: see
+  :mod:`~scart.ext.dataflow._checks`), as are names ``--remap`` would give that a task
+  could not run under;
 * lifecycle: at the component's start the task is added to the deployer, its
   properties set, configured, connected to the tasks already added (see below) and
   started; at the component's stop (reverse order of start) it is stopped, cleaned up
@@ -32,7 +35,9 @@ settings' ``serve``, as ``scart run`` does). Static errors (``file:line``): malf
 ``comp.port``, a component of this composite that is not a task, an unknown port (the
 message lists the ports), wrong direction, a bad policy, type mismatch (for a remote
 end: with ``settings.online`` when its name service answers at load time, else checked
-when connecting and logged), neither end in this composite.
+when connecting and logged), neither end in this composite. An end naming no task of this
+composite is a warning ("did you mean"; not when ``ns`` says where to look); with
+``settings.online`` one that no name service knows is an error.
 """
 
 from __future__ import annotations
@@ -50,7 +55,8 @@ from pydantic_core import core_schema
 
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
 from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError
-from scart.ext.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of, remote_ports
+from scart.ext.dataflow._checks import property_problems, remap_problems, remote_end
+from scart.ext.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of
 from scart.ext.dataflow._plan import MIN_PERIOD_S, ZenohEnd, parse_policy, parse_zenoh
 from scart.spi import (
     DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Element, ElementProvider, Host, Implementation,
@@ -149,6 +155,10 @@ class TaskImplementation(ImplementationProvider):
             exc.partial = ctype  # the assembler still checks the rest
             raise
         return ctype
+
+    def check(self, nodes: list[Node], assembly: AssemblyView, context: CheckContext) -> list[Problem]:
+        """What starting the tasks would refuse: property values, names after ``--remap``."""
+        return property_problems(nodes) + remap_problems(nodes, assembly, context.settings.remap)
 
     def manager(self, node: Node, host: Host) -> ComponentManager:
         """A :class:`TaskManager`."""
@@ -289,8 +299,8 @@ class ConnectElement(ElementProvider):
         """Static problems of every connect element."""
         out: list[Problem] = []
         for prefix, el in elements:
-            def add(code: str, msg: str, _el: Element = el) -> None:
-                out.append(Problem(code, msg, _el.loc.path, _el.loc.line))
+            def add(code: str, msg: str, _el: Element = el, severity: str = "error") -> None:
+                out.append(Problem(code, msg, _el.loc.path, _el.loc.line, severity))  # type: ignore[arg-type]
 
             link, problems = _parse_link(prefix, el)
             for msg in problems:
@@ -300,7 +310,7 @@ class ConnectElement(ElementProvider):
         return out
 
     def _check_link(self, link: Link, assembly: AssemblyView, context: CheckContext,
-                    add: Callable[[str, str], None]) -> None:
+                    add: Callable[..., None]) -> None:
         ends: list[PortInfo | None] = []
         local = 0
         bridges = bridge_ends(assembly)
@@ -323,12 +333,9 @@ class ConnectElement(ElementProvider):
                 ends.append(None)
                 continue
             if node is None:
-                ns = link.ns or context.settings.ns_address
                 remap = context.settings.remap  # a task of another deployer runs under its remapped name
-                ports = remote_ports(ns, remap.component(comp), timeout=0.5,
-                                     security=context.settings.security) if context.settings.online else None
-                if ports is None:
-                    log.info("%s: %s is not in this composite: resolved through the name service at start", link.where, comp)
+                ports = remote_end(comp, f"<scart:connect> {role}", link.ns, assembly, context,
+                                   lambda msg, severity: add(TASK_CONNECT, msg, severity=severity))
                 ends.append(_port_or_problem(ports, comp, remap.port(comp, port), want, role, add)
                             if ports is not None else None)
                 continue

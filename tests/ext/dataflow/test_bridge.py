@@ -226,8 +226,8 @@ def test_three_inputs_local_and_of_another_deployer(tmp_path: Path) -> None:
 
 def test_a_remote_source_of_the_wrong_type_fails_the_start_or_the_online_load(tmp_path: Path) -> None:
     path, text = make(tmp_path, """
-        <scart:bridge name="b"><!--HERE-->
-          <scart:input name="n" from="remoteCount.count" convert="bridgemods:wrong"/>
+        <scart:bridge name="b">
+          <scart:input name="n" from="remoteCount.count" convert="bridgemods:wrong"/><!--HERE-->
           <scart:output name="o" type="string" build="bridgemods:ident"/>
         </scart:bridge>
     """)
