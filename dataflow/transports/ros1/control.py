@@ -174,14 +174,14 @@ class Registrar:
     def tick(self) -> float:
         """Reconcile with the master; returns when to tick again (s)."""
         try:
+            if self._down_since is not None:
+                self.master.get_pid()  # raises while the master is still down
+                self._back(time.monotonic() - self._down_since)
             self._reconcile()
             if self._registered and time.monotonic() - self._last_check >= self.poll:
                 self._check_remembered()
         except MasterUnreachable as exc:
             return self._waiting(exc)
-        if self._down_since is not None:
-            self._back(time.monotonic() - self._down_since)
-            return 0.0
         return self.poll
 
     def _reconcile(self) -> None:
@@ -268,7 +268,8 @@ class Registrar:
         return delay
 
     def _back(self, downtime: float) -> None:
-        log.warning("ROS master %s answers again after %.1f s: node %s registered again",
+        """The master answers after being down: count it; the caller registers everything."""
+        log.warning("ROS master %s answers again after %.1f s: registering node %s again",
                     self.master.uri, downtime, self.master.caller_id)
         self.counters["master_reregistrations"] += 1
         self._down_since, self._backoff = None, BACKOFF_FIRST

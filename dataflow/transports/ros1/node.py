@@ -85,7 +85,8 @@ class Node:
         self._slave: SlaveServer | None = None
         try:
             self._listener = Listener(self.loop, self.host, 0, self._accept)
-            self._slave = SlaveServer(SlaveApi(self), self.host, 0, self.counters, self.caller_id)
+            self._slave = SlaveServer(SlaveApi(self), self.host, 0, self.counters, self.caller_id,
+                                      self.limits.xmlrpc_bytes, self.limits.xmlrpc_seconds)
         except OSError:
             if self._listener is not None:
                 self._listener.close()

@@ -34,6 +34,8 @@ class Limits:
     max_connections: int = 1000  #: accepted connections open at once (more are refused)
     queue_size: int = 100  #: messages a publisher queues per slow subscriber (oldest dropped)
     queue_bytes: int = 32 << 20  #: bytes a publisher queues per slow subscriber
+    xmlrpc_bytes: int = 1 << 20  #: bytes of one request to the node's XML-RPC API
+    xmlrpc_seconds: float = 5.0  #: s one XML-RPC request may take, first byte to last
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
