@@ -12,7 +12,6 @@ Every call opens its own connection, so both are thread-safe.
 from __future__ import annotations
 
 import http.client
-import socket
 import xmlrpc.client
 from typing import Any
 
@@ -146,7 +145,3 @@ def parse_rosrpc(uri: str) -> tuple[str, int]:
     if not host or not port.isdigit() or not 0 < int(port) < 65536:
         raise ValueError(f"service URI {uri!r} is not rosrpc://HOST:PORT")
     return host, int(port)
-
-
-def is_timeout(exc: BaseException) -> bool:
-    return isinstance(exc, (TimeoutError, socket.timeout))

@@ -162,10 +162,13 @@ class Node:
         """Call ``service`` with ``request`` and return the response (blocks ≤ ``timeout`` s).
 
         Raises :class:`~.services.ServiceError` (no such service, refused, its error,
-        no answer in time) or ``ValueError``/``TypeError`` for a bad request.
+        no answer in time), ``ValueError``/``TypeError`` for a bad request, and
+        ``RuntimeError`` when called on the io thread (from a subscriber callback).
         """
         if not (0 < timeout < float("inf")):
             raise ValueError(f"timeout must be a finite number of seconds > 0, not {timeout!r}")
+        if self.loop.in_loop() and not self.closed:
+            raise RuntimeError("call_service from a subscriber callback would block the node's io thread")
         return call_service(self, self.resolve(service), self.types.srv(type_name), request, timeout)
 
     def master_for(self, timeout: float) -> Master:

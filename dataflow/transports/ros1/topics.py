@@ -68,9 +68,14 @@ class Publisher:
     def publish(self, msg: object) -> int:
         """Send ``msg`` (a message object of this type) to every subscriber.
 
-        Returns how many connections took it (sent or queued); 0 once closed.
-        Raises ``ValueError``/``TypeError`` if ``msg`` does not serialise as this type.
+        Returns how many connections took it (sent or queued); 0 once closed. With no
+        subscriber and no latch, ``msg`` is not even serialised. Raises
+        ``ValueError``/``TypeError``/``AttributeError`` if ``msg`` is not of this type.
         """
+        if not self._conns and not self.latch:
+            with self._cond:
+                self._counters["published"] += not self.closed
+            return 0
         return self._send(self.type.frame(msg))
 
     def publish_raw(self, data: bytes | bytearray | memoryview) -> int:
@@ -85,9 +90,10 @@ class Publisher:
                 self._latched = frame
             conns = self._conns
             self._counters["published"] += 1
+        taken = 0
         for conn in conns:
-            conn.send(frame)
-        return len(conns)
+            taken += conn.send(frame)
+        return taken
 
     @property
     def num_connections(self) -> int:

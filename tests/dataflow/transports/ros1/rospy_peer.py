@@ -5,7 +5,8 @@ Not collected by pytest (no ``test_`` prefix). Usage, one role per process::
     rospy_peer.py pub TOPIC COUNT RATE_HZ      # std_msgs/Int64 data = 0..COUNT-1, then waits
     rospy_peer.py sub TOPIC COUNT              # prints "got N" per std_msgs/Int64, exits after COUNT
     rospy_peer.py serve SERVICE                # roscpp/GetLoggers: answers one logger "scart.test"
-    rospy_peer.py call SERVICE                 # calls roscpp/GetLoggers once, prints the names
+    rospy_peer.py call SERVICE                 # calls roscpp/GetLoggers twice on one persistent
+                                               # connection, prints the names each time
 
 Each prints "ready" once registered, flushes every line, and ends by itself (a deadline
 of 60 s) or at SIGTERM.
@@ -62,8 +63,11 @@ def serve(service):
 
 def call(service):
     rospy.wait_for_service(service, timeout=20)
-    answer = rospy.ServiceProxy(service, GetLoggers)()
-    say("loggers " + " ".join(f"{lg.name}={lg.level}" for lg in answer.loggers))
+    proxy = rospy.ServiceProxy(service, GetLoggers, persistent=True)
+    for _ in range(2):
+        answer = proxy()
+        say("loggers " + " ".join(f"{lg.name}={lg.level}" for lg in answer.loggers))
+    proxy.close()
 
 
 if __name__ == "__main__":

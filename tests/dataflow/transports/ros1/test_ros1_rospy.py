@@ -70,12 +70,13 @@ def test_we_call_a_rospy_service(ros: RosMaster, node: Node) -> None:
 def test_rospy_calls_our_service(ros: RosMaster, node: Node) -> None:
     srvtype = node.types.srv("roscpp/GetLoggers")
     logger = node.types.msg("roscpp/Logger")
-    node.advertise_service("/scart/get_loggers", "roscpp/GetLoggers",
-                           lambda req: srvtype.response.new(loggers=[logger.new(name="scart", level="debug")]))
+    srv = node.advertise_service("/scart/get_loggers", "roscpp/GetLoggers",
+                                 lambda req: srvtype.response.new(loggers=[logger.new(name="scart", level="debug")]))
     assert node.wait_registered(10)
-    peer = ros.rospy("call", "/scart/get_loggers")
+    peer = ros.rospy("call", "/scart/get_loggers")  # twice, on one persistent connection
     with running(peer):
-        assert "loggers scart=debug" in peer.read_until("loggers", timeout=60)
+        assert peer.read_until("loggers", timeout=60, count=2).count("loggers scart=debug") == 2
+    assert srv.counters["requests"] == 2 and srv.counters["handler_errors"] == 0
 
 
 def _service_known(node: Node, name: str) -> bool:

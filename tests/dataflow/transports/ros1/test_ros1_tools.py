@@ -4,7 +4,9 @@ record + info, rosservice call — each a subprocess against a real ``rosmaster 
 from __future__ import annotations
 
 import contextlib
+import os
 import re
+import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -15,6 +17,8 @@ from support import wait_until
 from support.ros1 import RosMaster, needs_ros, rosmaster, running
 
 from dataflow.transports.ros1 import MessageTypes, Node, Publisher
+from dataflow.transports.ros1.master import call
+from dataflow.transports.ros1.tcpros import encode_header, read_header
 
 pytestmark = [pytest.mark.integration, needs_ros]
 
@@ -164,3 +168,34 @@ def test_rosservice_call_sees_our_handlers_error(ros: RosMaster, node: Node) -> 
     assert done.returncode != 0
     assert "the arm is not homed" in done.stdout + done.stderr
     assert srv.counters["handler_errors"] == 1 and node.counters["service_errors"] == 1
+
+
+def test_the_slave_api_answers_as_ros_says(ros: RosMaster, node: Node) -> None:
+    pub = node.advertise("/out", "std_msgs/Int64")
+    node.subscribe("/in", "std_msgs/String", lambda msg: None)
+    assert node.wait_registered(10)
+
+    def ask(method: str, *args: object) -> object:
+        return call(node.uri, method, "/tester", *args, timeout=5)
+
+    assert ask("getPid") == os.getpid() and ask("getMasterUri") == ros.uri
+    assert ask("getPublications") == [["/out", "std_msgs/Int64"]]
+    assert ask("getSubscriptions") == [["/in", "std_msgs/String"]]
+    assert ask("requestTopic", "/out", [["UDPROS"], ["TCPROS"]]) == ["TCPROS", "127.0.0.1", node.tcpros_port]
+    assert ask("paramUpdate", "/some/param", 3) == 0 and ask("publisherUpdate", "/in", []) == 0
+    # tcp_nodelay as each subscriber asks
+    peers = []
+    for nodelay in ("1", "0"):
+        sock = socket.create_connection(("127.0.0.1", node.tcpros_port), timeout=10)
+        sock.sendall(encode_header({"callerid": f"/nd{nodelay}", "topic": "/out", "md5sum": "*", "tcp_nodelay": nodelay}))
+        assert read_header(sock, time.monotonic() + 10, 1 << 20)["type"] == "std_msgs/Int64"
+        peers.append(sock)
+    assert pub.wait_for_connections(2, timeout=10)
+    flags = {c.peer_id: c.sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) for c in pub.connections()}
+    assert flags == {"/nd1": 1, "/nd0": 0}
+    pub.publish(pub.type.new(data=3))
+    wait_until(lambda: ask("getBusStats")[0][0][2][0][2] >= 1, timeout=10)  # [pubs][topic][conns][conn][numSent]
+    info = ask("getBusInfo")
+    assert sorted(row[1] for row in info) == ["/nd0", "/nd1"] and all(row[2:6] == ["o", "TCPROS", "/out", True] for row in info)
+    for sock in peers:
+        sock.close()
