@@ -84,13 +84,29 @@ def test_rostopic_echo_gets_the_latched_message(ros: RosMaster, node: Node) -> N
 
 def test_rostopic_pub_reaches_our_subscriber(ros: RosMaster, node: Node) -> None:
     got: list[int] = []
+    raw: list[bytes] = []
     sub = node.subscribe("/scart_in", "std_msgs/Int64", lambda msg: got.append(msg.data))
-    assert node.wait_registered(10)
-    done = ros.tool("rostopic", "pub", "-1", "/scart_in", "std_msgs/Int64", "data: 42", timeout=60)
-    assert done.returncode == 0, done.stderr
-    wait_until(lambda: got, timeout=10, message="rostopic pub's value never reached the callback")
-    assert got == [42]
+    with Node("raw", master_uri=ros.uri, types=node.types) as other:
+        other.subscribe("/scart_in", "*", raw.append, raw=True)  # any type, bytes: as rostopic hz
+        assert node.wait_registered(10) and other.wait_registered(10)
+        done = ros.tool("rostopic", "pub", "-1", "/scart_in", "std_msgs/Int64", "data: 42", timeout=60)
+        assert done.returncode == 0, done.stderr
+        wait_until(lambda: got and raw, timeout=10, message="rostopic pub's value never reached the callbacks")
+    assert got == [42] and raw == [(42).to_bytes(8, "little")]
     assert sub.counters["received"] == 1 and sub.counters["bad_messages"] == 0
+
+
+def test_remapped_name_namespace_and_topic_as_ros_tools_see_them(ros: RosMaster) -> None:
+    with Node("scart", master_uri=ros.uri, remaps=["__name:=renamed", "__ns:=/robot", "chatter:=/remapped"]) as n:
+        n.advertise("chatter", "std_msgs/Int64")
+        n.advertise("~private", "std_msgs/Int64")
+        n.advertise("relative", "std_msgs/Int64")
+        assert n.wait_registered(10)
+        info = ros.tool("rosnode", "info", "/robot/renamed")
+    assert info.returncode == 0, info.stderr
+    published = info.stdout.split("Subscriptions:")[0]
+    for topic in ("/remapped", "/robot/renamed/private", "/robot/relative"):
+        assert f" * {topic} [std_msgs/Int64]" in published
 
 
 def test_rostopic_hz_measures_our_rate(ros: RosMaster, node: Node) -> None:
