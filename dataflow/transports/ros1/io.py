@@ -337,7 +337,10 @@ class Conn:
         self.recv()  # a peer that should not talk: its bytes are read and dropped
 
     def close(self, reason: str = "closed") -> None:
-        """End the connection (any thread; idempotent): unregister, close, tell ``on_close``."""
+        """End the connection (any thread; idempotent): unregister, close, tell ``on_close``.
+
+        Messages still queued are counted in ``dropped``.
+        """
         if not self.loop.in_loop():
             with self._lock:
                 self.closed = True
@@ -348,6 +351,7 @@ class Conn:
         with self._lock:
             self.closed = True
             self.reason = self.reason or reason
+            self.stats["dropped"] += sum(entry[1] for entry in self._queue)  # never sent: lost, counted
             self._queue.clear()
         self.loop.unregister(self.sock)
         self.sock.close()

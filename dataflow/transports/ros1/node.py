@@ -40,11 +40,19 @@ def _advertised_host(host: str, env: Mapping[str, str]) -> str:
 class Node:
     """A ROS 1 node: its XML-RPC API, TCPROS listener, io and control threads.
 
-    The constructor starts the servers and threads (loopback ``host`` by default; an
-    explicit host opens them there) and raises ``OSError`` if a port cannot be bound,
-    :class:`~.names.RosNameError` for a bad name, remap or master URI. Registration with
-    the master is asynchronous: a master that is down is waited for (logged, retried).
-    Thread-safe; :meth:`close` (idempotent) unregisters and ends every thread.
+    ``name`` is a base name; ``namespace``, ``remaps`` (``["from:=to", "__ns:=/x"]`` or a
+    mapping) and ``master_uri`` resolve as :mod:`.names` says. ``host``: where the XML-RPC
+    API and TCPROS listen (loopback by default; another host opens them there, a wildcard
+    is advertised as ``ROS_HOSTNAME``/``ROS_IP``/the hostname). ``types``: a shared
+    :class:`MessageTypes` (else one of its own). ``limits``: the bounds on peers.
+    ``master_timeout``: s per master call; ``master_poll``: s between checks that the
+    master still knows the node. ``env`` stands for ``os.environ`` (tests).
+
+    The constructor starts the servers and threads and raises ``OSError`` if a port
+    cannot be bound, :class:`~.names.RosNameError` for a bad name, remap or master URI,
+    ``ValueError`` for a bad timeout. Registration with the master is asynchronous: a
+    master that is down is waited for (logged, retried). Thread-safe; :meth:`close`
+    (idempotent) unregisters and ends every thread.
     """
 
     def __init__(
@@ -62,6 +70,9 @@ class Node:
         env: Mapping[str, str] | None = None,
     ) -> None:
         env = os.environ if env is None else env
+        for what, value in (("master_timeout", master_timeout), ("master_poll", master_poll)):
+            if not (isinstance(value, (int, float)) and 0 < value < float("inf")):
+                raise ValueError(f"{what} must be a finite number of seconds > 0, not {value!r}")
         self.names: NodeNames = node_names(name, namespace=namespace, master_uri=master_uri, remaps=remaps, env=env)
         self.caller_id: str = self.names.node
         self.master_uri: str = self.names.master_uri
