@@ -1,0 +1,224 @@
+"""Benchmark of our ROS 1 node (dataflow.transports.ros1) against rospy, hop by hop, one run.
+
+Usage: ``python benchmarks/bench_ros1.py [--quick | --smoke]`` (needs Debian's ``ros-core``
+and, for the rospy rows, ``python3-rospy`` for ``/usr/bin/python3``; says so and measures
+what it can when they are missing). Not a test; CI does not run it.
+
+A ``rosmaster --core`` on a free port; then, alternating in each round, four same-host
+hops, each a publisher process and a subscriber process: rospy → rospy, ours → rospy,
+rospy → ours, ours → ours. The publisher sends ``std_msgs/Int64(time.monotonic_ns())`` on
+absolute deadlines at 1 kHz and at 100 Hz (rospy with ``queue_size=1`` and
+``tcp_nodelay=True``, the subscriber with ``tcp_nodelay=True``); the subscriber's callback
+records arrival − stamp. The first second is discarded. Prints one markdown table: p50
+and p99 per hop and rate, samples pooled over the rounds, and each hop's p50 against
+rospy → rospy's in the same run (the goal of issue 22: ≤ 1.2×).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import xmlrpc.client
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from _common import paced, pct, wait_until  # noqa: E402
+
+SYSTEM_PYTHON = "/usr/bin/python3"
+TOPIC = "/bench_hop"
+
+# The rospy side: run by the system Python (Debian's rospy), as publisher or subscriber.
+ROSPY_PEER = r'''
+import json, sys, time
+import rospy
+from std_msgs.msg import Int64
+role, rate, count, warmup = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4])
+rospy.init_node("rospy_" + role, anonymous=True, disable_signals=True)
+if role == "pub":
+    pub = rospy.Publisher(sys.argv[5], Int64, queue_size=1, tcp_nodelay=True)
+    deadline = time.monotonic() + 30
+    while pub.get_num_connections() == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    period, t = 1.0 / rate, time.perf_counter()
+    for _ in range(count):
+        t += period
+        pub.publish(Int64(data=time.monotonic_ns()))
+        pause = t - time.perf_counter()
+        if pause > 0:
+            time.sleep(pause)
+    time.sleep(0.5)
+else:
+    got = []
+    rospy.Subscriber(sys.argv[5], Int64, lambda m: got.append((time.monotonic_ns(), m.data)), tcp_nodelay=True)
+    print("ready", flush=True)
+    deadline, last = time.monotonic() + count / rate + 60, None
+    while len(got) < count and time.monotonic() < deadline:
+        if got and last == len(got) and time.monotonic() - seen > 2.0:
+            break
+        if last != len(got):
+            last, seen = len(got), time.monotonic()
+        time.sleep(0.01)
+    first = got[0][1] if got else 0
+    print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
+rospy.signal_shutdown("done")
+'''
+
+
+def ours(role: str, rate: float, count: int, warmup: float, topic: str) -> None:
+    """The ``--child`` side: our node as publisher or subscriber (same protocol as ROSPY_PEER)."""
+    from dataflow.transports.ros1 import Node
+
+    with Node(f"ours_{role}_{os.getpid()}") as node:
+        if role == "pub":
+            pub = node.advertise(topic, "std_msgs/Int64", queue_size=1)
+            pub.wait_for_connections(1, timeout=30)
+            make = pub.type.cls
+            paced(count, rate, lambda k: pub.publish(make(data=time.monotonic_ns())))
+            time.sleep(0.5)
+            return
+        got: list[tuple[int, int]] = []
+        node.subscribe(topic, "std_msgs/Int64", lambda m: got.append((time.monotonic_ns(), m.data)), tcp_nodelay=True)
+        node.wait_registered(30)
+        print("ready", flush=True)
+        _wait_for(got, count, rate)
+    first = got[0][1] if got else 0
+    print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
+
+
+def _wait_for(got: list, count: int, rate: float) -> None:
+    """Until ``count`` samples, or 2 s without a new one, or a deadline."""
+    deadline, last, seen = time.monotonic() + count / rate + 60, -1, time.monotonic()
+    while len(got) < count and time.monotonic() < deadline:
+        if len(got) != last:
+            last, seen = len(got), time.monotonic()
+        elif got and time.monotonic() - seen > 2.0:
+            break
+        time.sleep(0.01)
+
+
+class Bench:
+    """The master and the peers' command lines."""
+
+    def __init__(self, folder: Path, rospy_script: Path) -> None:
+        self.port = _free_port()
+        self.env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{self.port}/", ROS_HOSTNAME="127.0.0.1",
+                        ROS_LOG_DIR=str(folder), ROS_HOME=str(folder))
+        self.rospy_script = rospy_script
+        self.master: subprocess.Popen[bytes] | None = None
+
+    def start_master(self) -> None:
+        self.master = subprocess.Popen(["rosmaster", "--core", "-p", str(self.port)], env=self.env,
+                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        proxy = xmlrpc.client.ServerProxy(self.env["ROS_MASTER_URI"])
+        if not wait_until(lambda: _answers(proxy), timeout=30):
+            raise SystemExit("rosmaster did not start")
+
+    def stop_master(self) -> None:
+        if self.master is not None:
+            os.killpg(self.master.pid, signal.SIGTERM)
+            self.master.wait(timeout=10)
+
+    def command(self, side: str, role: str, rate: float, count: int, warmup: float) -> list[str]:
+        args = [role, str(rate), str(count), str(warmup), TOPIC]
+        if side == "rospy":
+            return [SYSTEM_PYTHON, str(self.rospy_script), *args]
+        return [sys.executable, __file__, "--child", *args]
+
+    def hop(self, pub: str, sub: str, rate: float, seconds: float, warmup: float) -> list[float]:
+        """One hop: start the subscriber, then the publisher; the latencies in µs."""
+        count = int(rate * (seconds + warmup))
+        subscriber = subprocess.Popen(self.command(sub, "sub", rate, count, warmup), env=self.env,
+                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            assert subscriber.stdout is not None
+            if subscriber.stdout.readline().strip() != "ready":
+                raise RuntimeError(f"{sub} subscriber failed: {subscriber.stderr.read() if subscriber.stderr else ''}")
+            publisher = subprocess.run(self.command(pub, "pub", rate, count, warmup), env=self.env,
+                                       capture_output=True, text=True, timeout=count / rate + 120)
+            if publisher.returncode != 0:
+                raise RuntimeError(f"{pub} publisher failed: {publisher.stderr[-2000:]}")
+            out, err = subscriber.communicate(timeout=120)
+        finally:
+            if subscriber.poll() is None:
+                subscriber.kill()
+                subscriber.wait()
+        return [ns / 1000 for ns in json.loads(out.strip().splitlines()[-1])]
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def _answers(proxy: xmlrpc.client.ServerProxy) -> bool:
+    try:
+        return proxy.getPid("/bench")[0] == 1
+    except OSError:
+        return False
+
+
+def _has_rospy() -> bool:
+    if not os.path.exists(SYSTEM_PYTHON):
+        return False
+    return subprocess.run([SYSTEM_PYTHON, "-c", "import rospy, std_msgs.msg"], capture_output=True).returncode == 0
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="one round of 3 s hops")
+    parser.add_argument("--smoke", action="store_true", help="one short round (proves every path works)")
+    parser.add_argument("--child", nargs=5, metavar=("ROLE", "RATE", "COUNT", "WARMUP", "TOPIC"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        role, rate, count, warmup, topic = args.child
+        ours(role, float(rate), int(count), float(warmup), topic)
+        return 0
+    if shutil.which("rosmaster") is None:
+        print("rosmaster is missing (Debian: apt-get install ros-core python3-rospy): nothing to measure")
+        return 0
+    rounds, seconds, warmup = (1, 0.5, 0.2) if args.smoke else (1, 2.0, 1.0) if args.quick else (3, 5.0, 1.0)
+    sides = ["rospy", "ours"] if _has_rospy() else ["ours"]
+    if sides == ["ours"]:
+        print(f"rospy is missing for {SYSTEM_PYTHON} (Debian: apt-get install python3-rospy): only ours → ours measured")
+    hops = [(p, s) for p in sides for s in sides]
+    samples: dict[tuple[float, str, str], list[float]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        script = Path(tmp) / "rospy_peer.py"
+        script.write_text(ROSPY_PEER)
+        bench = Bench(Path(tmp), script)
+        bench.start_master()
+        try:
+            for _ in range(rounds):
+                for rate in (1000.0, 100.0):
+                    for pub, sub in hops:
+                        samples.setdefault((rate, pub, sub), []).extend(bench.hop(pub, sub, rate, seconds, warmup))
+        finally:
+            bench.stop_master()
+    print_table(samples, rounds, seconds, warmup)
+    return 0
+
+
+def print_table(samples: dict[tuple[float, str, str], list[float]], rounds: int, seconds: float, warmup: float) -> None:
+    print(f"\nROS 1 same-host hop, std_msgs/Int64 stamp → callback, {rounds} round(s) of {seconds:g} s per hop "
+          f"(the first {warmup:g} s discarded), alternating; load average {os.getloadavg()[0]:.1f}\n")
+    print("| rate | hop | samples | p50 µs | p99 µs | p50 / rospy→rospy |")
+    print("|---|---|---|---|---|---|")
+    for (rate, pub, sub), values in samples.items():
+        base = samples.get((rate, "rospy", "rospy"))
+        ratio = f"{pct(values, 0.5) / pct(base, 0.5):.2f}×" if base else "—"
+        print(f"| {rate:g} Hz | {pub} → {sub} | {len(values)} | {pct(values, 0.5):.0f} | {pct(values, 0.99):.0f} | {ratio} |")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

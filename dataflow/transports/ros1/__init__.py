@@ -1,0 +1,78 @@
+"""A native ROS 1 node, without rospy: the Master API, the Slave API, TCPROS topics and services.
+
+It depends on the standard library, ``rosbags`` (message types and the ROS 1 wire format)
+and numpy (rosbags' arrays) only, and knows nothing of scart's ports: its edges are bytes
+and rosbags message objects, so a scart transport can wrap it.
+
+The story — make a node, offer and use topics and services, close it::
+
+    from dataflow.transports.ros1 import Node
+
+    node = Node("scart", master_uri=None, host="127.0.0.1", remaps=["__ns:=/robot"])
+    pub = node.advertise("/joint_states", "sensor_msgs/JointState", latch=False)
+    pub.publish(pub.type.new(name=["a1"], position=[0.5]))    # or pub.publish_raw(ros1_bytes)
+    sub = node.subscribe("cmd", "std_msgs/Float64", lambda msg: print(msg.data))  # /robot/cmd
+    srv = node.advertise_service("~reset", "std_srvs/Trigger",
+                                 lambda req: srv.type.response.new(success=True, message="done"))
+    trigger = node.types.srv("std_srvs/Trigger")
+    resp = node.call_service("/other/trigger", "std_srvs/Trigger", trigger.request.new(), timeout=2.0)
+    node.close()
+
+**Threads.** ``Node(...)`` starts, and :meth:`Node.close` ends (idempotent, from any
+thread): one *io* thread reading every TCPROS socket through a selector (subscriber
+callbacks run there: keep them short); one *XML-RPC* thread serving the node's Slave API;
+one *control* thread for blocking control-plane work (master calls, connecting to
+publishers); and, once a service is advertised, one *service* thread running handlers.
+``publish()`` sends from the caller's thread when the socket takes the bytes, else queues
+them for the io thread; a slow subscriber's queue is bounded (oldest dropped, counted).
+
+**The master.** Taken from ``master_uri``, ``__master:=``, ``ROS_MASTER_URI``, or ROS's
+default. Registration is asynchronous and kept true: while the master is down the node
+waits and retries with backoff, logging that it waits (once, then every 30 s); when it
+answers again, or a poll shows a new master forgot the node, everything is registered
+again. :meth:`Node.wait_registered` blocks until the master knows it all.
+
+**Names.** As rospy: global ``/a``, relative ``a`` (in the node's namespace), private
+``~a``; remaps ``from:=to``, ``__name:=``, ``__ns:=`` (:mod:`.names`).
+
+**Types.** :class:`MessageTypes`: rosbags' Noetic store, std_srvs' Empty/Trigger/SetBool,
+and ``.msg``/``.srv`` files or texts the user adds; md5sums and definitions as genmsg.
+
+**Robustness.** Peers are bounded (:class:`Limits`): header size and time, message size,
+connections, XML-RPC request size and time. Malformed headers, oversized messages,
+stalled peers, md5sum mismatches, vanished peers and master retries are each counted in
+``node.counters`` (and the publisher's, subscriber's or service's ``counters``), logged,
+and survived.
+
+**Security.** ROS 1 authenticates no one: the node listens on ``host`` (loopback by
+default); an explicit other host opens it to that network.
+"""
+
+from .msgs import MessageTypes, MsgType, SrvType, TypeDefinitionError, UnknownTypeError
+from .master import Master, MasterError, MasterUnreachable
+from .names import NodeNames, RosNameError
+from .node import NODE_COUNTERS, Node
+from .services import ServiceError, ServiceServer
+from .tcpros import HeaderError, Limits
+from .topics import Publisher, Subscriber
+
+__all__ = [
+    "NODE_COUNTERS",
+    "HeaderError",
+    "Limits",
+    "Master",
+    "MasterError",
+    "MasterUnreachable",
+    "MessageTypes",
+    "MsgType",
+    "Node",
+    "NodeNames",
+    "Publisher",
+    "RosNameError",
+    "ServiceError",
+    "ServiceServer",
+    "SrvType",
+    "Subscriber",
+    "TypeDefinitionError",
+    "UnknownTypeError",
+]

@@ -1,0 +1,499 @@
+"""The node's one io thread: every TCPROS socket it receives on, read through a selector.
+
+* :class:`IoLoop` owns the thread, the selector and every socket registered with it;
+  :meth:`IoLoop.close` ends the thread and closes them all (idempotent).
+* :class:`Conn` is a non-blocking socket with a bounded send queue. :meth:`Conn.send`
+  may be called from any thread: it writes straight to the socket when the queue is
+  empty and the kernel takes the bytes, and otherwise queues them for the io thread;
+  past the queue's bounds (messages, bytes) the oldest message still unsent is dropped
+  and counted. A stalled peer therefore never blocks the sender or other peers.
+* :class:`FrameReader` cuts a byte stream into TCPROS frames, dropping (and skipping
+  the bytes of) a frame larger than its bound.
+* :class:`Listener` accepts connections; :class:`InboundConn` reads a peer's connection
+  header (bounded in bytes and time) and hands it to a router.
+
+Handlers run on the io thread; one that raises is logged and its connection closed —
+the thread goes on.
+"""
+
+from __future__ import annotations
+
+import collections
+import heapq
+import itertools
+import logging
+import selectors
+import socket
+import struct
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from .tcpros import LEN, HeaderError, decode_header
+
+__all__ = ["Conn", "Counters", "FrameReader", "InboundConn", "IoLoop", "Listener"]
+
+log = logging.getLogger(__name__)
+
+RECV_BYTES = 256 * 1024
+_READ, _WRITE = selectors.EVENT_READ, selectors.EVENT_WRITE
+
+
+class Counters(dict):
+    """Named event counts (a ``dict`` of int); :meth:`snapshot` copies them."""
+
+    def __init__(self, *names: str) -> None:
+        super().__init__(dict.fromkeys(names, 0))
+
+    def snapshot(self) -> dict[str, int]:
+        return dict(self)
+
+
+class IoLoop:
+    """One selector thread: readiness callbacks, calls from other threads, and timers."""
+
+    def __init__(self, name: str) -> None:
+        self._sel = selectors.DefaultSelector()
+        self._wake_r, self._wake_w = socket.socketpair()
+        for sock in (self._wake_r, self._wake_w):
+            sock.setblocking(False)
+        self._sel.register(self._wake_r, _READ, None)
+        self._calls: collections.deque[tuple[Callable[..., Any], tuple]] = collections.deque()
+        self._timers: list[tuple[float, int, Callable[..., Any], tuple]] = []
+        self._seq = itertools.count()
+        self._ids = itertools.count(1)
+        self._stopping = False
+        self._owned: set[Any] = set()
+        self._thread = threading.Thread(target=self._run, name=f"ros1-io {name}", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def in_loop(self) -> bool:
+        """True on the io thread (or once it has ended: then the caller may act directly)."""
+        return threading.current_thread() is self._thread or not self._thread.is_alive()
+
+    def adopt(self, conn: Any) -> None:
+        """Own ``conn`` until it closes: :meth:`close` closes it if it is still open."""
+        self._owned.add(conn)
+
+    def disown(self, conn: Any) -> None:
+        self._owned.discard(conn)
+
+    def next_id(self) -> int:
+        """A connection id unique in this loop (getBusInfo's connectionId)."""
+        return next(self._ids)
+
+    def owned(self) -> int:
+        """How many connections are open (or not yet closed) on this loop."""
+        return len(self._owned)
+
+    def call_soon(self, fn: Callable[..., Any], *args: Any) -> None:
+        """Run ``fn(*args)`` on the io thread (thread-safe; never blocks)."""
+        self._calls.append((fn, args))
+        try:
+            self._wake_w.send(b"\0")
+        except (BlockingIOError, OSError):
+            pass  # already awake (pipe full) or closing
+
+    def call_later(self, delay: float, fn: Callable[..., Any], *args: Any) -> None:
+        """Run ``fn(*args)`` on the io thread after ``delay`` seconds (thread-safe)."""
+        entry = (time.monotonic() + delay, next(self._seq), fn, args)
+        if self.in_loop():
+            heapq.heappush(self._timers, entry)
+        else:
+            self.call_soon(heapq.heappush, self._timers, entry)
+
+    def register(self, sock: socket.socket, handler: Any, events: int = _READ) -> None:
+        """Watch ``sock`` for ``handler`` (io thread only); the loop now owns ``sock``."""
+        self._sel.register(sock, events, handler)
+
+    def modify(self, sock: socket.socket, handler: Any, events: int) -> None:
+        self._sel.modify(sock, events, handler)
+
+    def unregister(self, sock: socket.socket) -> None:
+        try:
+            self._sel.unregister(sock)
+        except (KeyError, ValueError):
+            pass
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop the thread, then close every registered handler (idempotent; blocks ≤ timeout)."""
+        self._stopping = True
+        self.call_soon(lambda: None)
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout)
+        if self._thread.is_alive():
+            return  # called from the loop itself: it closes everything as it ends
+        self._close_all()
+
+    def _close_all(self) -> None:
+        if self._sel.get_map() is None:
+            return
+        handlers = {key.data for key in self._sel.get_map().values() if key.data is not None}
+        for handler in handlers | set(self._owned):
+            handler.close("node closing")
+        self._sel.close()
+        self._wake_r.close()
+        self._wake_w.close()
+
+    def _run(self) -> None:
+        while not self._stopping:
+            for key, mask in self._sel.select(self._timeout()):
+                if key.data is None:
+                    self._drain_wake()
+                else:
+                    self._dispatch(key.data, mask)
+            self._run_calls()
+            self._run_timers()
+        self._close_all()
+
+    def _timeout(self) -> float | None:
+        if self._calls:
+            return 0.0
+        if self._timers:
+            return max(0.0, self._timers[0][0] - time.monotonic())
+        return None
+
+    def _drain_wake(self) -> None:
+        try:
+            while self._wake_r.recv(4096):
+                pass
+        except (BlockingIOError, OSError):
+            pass
+
+    @staticmethod
+    def _dispatch(handler: Any, mask: int) -> None:
+        try:
+            if mask & _READ:
+                handler.on_readable()
+            if mask & _WRITE and not handler.closed:
+                handler.on_writable()
+        except Exception as exc:  # a handler's bug must not end the io thread
+            log.exception("ROS 1 io: %s failed", handler)
+            handler.close(f"internal error: {exc}")
+
+    def _run_calls(self) -> None:
+        for _ in range(len(self._calls)):
+            fn, args = self._calls.popleft()
+            self._safely(fn, args)
+
+    def _run_timers(self) -> None:
+        now = time.monotonic()
+        while self._timers and self._timers[0][0] <= now:
+            _, _, fn, args = heapq.heappop(self._timers)
+            self._safely(fn, args)
+
+    @staticmethod
+    def _safely(fn: Callable[..., Any], args: tuple) -> None:
+        try:
+            fn(*args)
+        except Exception:
+            log.exception("ROS 1 io: %s failed", getattr(fn, "__qualname__", fn))
+
+
+class Conn:
+    """A registered non-blocking socket with a bounded send queue (see the module doc).
+
+    ``on_close(conn, reason)`` runs once, on the io thread, when the connection ends.
+    """
+
+    def __init__(self, loop: IoLoop, sock: socket.socket, peer: str) -> None:
+        sock.setblocking(False)
+        self.loop, self.sock, self.peer = loop, sock, peer
+        self.conn_id = loop.next_id()
+        self.peer_id, self.topic, self.direction = peer, "", "b"  # for getBusInfo, set by the owner
+        self.closed = False
+        self.reason = ""
+        self.max_queue, self.max_queue_bytes = 1000, 64 << 20
+        self.on_close: Callable[[Conn, str], None] | None = None
+        self.stats = Counters("messages_sent", "bytes_sent", "dropped", "messages_received", "bytes_received")
+        self._lock = threading.Lock()
+        self._queue: collections.deque[Any] = collections.deque()
+        self._queued_bytes = 0
+        self._protected = 0  # entries at the queue's head that must not be dropped
+        self._writing = False
+        self._close_when_flushed = False
+        loop.adopt(self)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.peer})"
+
+    def set_nodelay(self, on: bool) -> None:
+        try:
+            self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1 if on else 0)
+        except OSError:
+            pass
+
+    # -- sending (any thread) -------------------------------------------------------------
+    def send(self, data: bytes | bytearray | memoryview, droppable: bool = True) -> bool:
+        """Send ``data`` or queue it (never blocks); False if the connection is closed.
+
+        ``droppable=False`` (a header, a service answer) is never dropped and not
+        counted in ``messages_sent``.
+        """
+        with self._lock:
+            if self.closed:
+                return False
+            if not self._queue:
+                try:
+                    sent = self.sock.send(data)
+                except (BlockingIOError, InterruptedError):
+                    sent = 0
+                except OSError as exc:
+                    self._fail_later(f"send failed: {exc}")
+                    return False
+                self.stats["bytes_sent"] += sent
+                if sent == len(data):
+                    self.stats["messages_sent"] += droppable
+                    return True
+                if sent:
+                    data = memoryview(data)[sent:]
+                    self._protected = 1
+            self._enqueue(data, droppable)
+            return True
+
+    def _enqueue(self, data: Any, droppable: bool) -> None:
+        self._queue.append([data, droppable])
+        self._queued_bytes += len(data)
+        if not droppable:
+            self._protected = len(self._queue)
+        while len(self._queue) > self._protected + 1 and (
+            len(self._queue) > self.max_queue or self._queued_bytes > self.max_queue_bytes
+        ):
+            victim = self._queue[self._protected]
+            del self._queue[self._protected]
+            self._queued_bytes -= len(victim[0])
+            self.stats["dropped"] += 1
+        if not self._writing:
+            self._writing = True
+            self._apply_events()
+
+    def close_when_flushed(self) -> None:
+        """Close once everything queued has been sent (any thread)."""
+        with self._lock:
+            self._close_when_flushed = True
+            empty = not self._queue
+        if empty:
+            self.close("done")
+
+    def on_writable(self) -> None:
+        with self._lock:
+            while self._queue:
+                entry = self._queue[0]
+                try:
+                    sent = self.sock.send(entry[0])
+                except (BlockingIOError, InterruptedError):
+                    return
+                except OSError as exc:
+                    self._fail_later(f"send failed: {exc}")
+                    return
+                self.stats["bytes_sent"] += sent
+                self._queued_bytes -= sent
+                if sent < len(entry[0]):
+                    entry[0] = memoryview(entry[0])[sent:]
+                    self._protected = max(self._protected, 1)
+                    return
+                self._queue.popleft()
+                self._protected = max(0, self._protected - 1)
+                self.stats["messages_sent"] += entry[1]
+            self._writing = False
+            self._apply_events()
+            done = self._close_when_flushed
+        if done:
+            self.close("done")
+
+    def _apply_events(self) -> None:
+        if self.loop.in_loop():
+            self._set_events()
+        else:
+            self.loop.call_soon(self._set_events)
+
+    def _set_events(self) -> None:
+        if not self.closed:
+            self.loop.modify(self.sock, self, _READ | _WRITE if self._writing else _READ)
+
+    def _fail_later(self, reason: str) -> None:
+        self.loop.call_soon(self.close, reason)
+
+    # -- receiving and closing (io thread) ------------------------------------------------
+    def recv(self) -> bytes | None:
+        """Bytes the peer sent; ``None`` if nothing now. Closes the connection at EOF/error."""
+        try:
+            data = self.sock.recv(RECV_BYTES)
+        except (BlockingIOError, InterruptedError):
+            return None
+        except OSError as exc:
+            self.close(f"receive failed: {exc}")
+            return None
+        if not data:
+            self.close("peer closed the connection")
+            return None
+        self.stats["bytes_received"] += len(data)
+        return data
+
+    def on_readable(self) -> None:
+        self.recv()  # a peer that should not talk: its bytes are read and dropped
+
+    def close(self, reason: str = "closed") -> None:
+        """End the connection (any thread; idempotent): unregister, close, tell ``on_close``.
+
+        Messages still queued are counted in ``dropped``.
+        """
+        if not self.loop.in_loop():
+            with self._lock:
+                self.closed = True
+            self.loop.call_soon(self.close, reason)
+            return
+        if self.sock.fileno() < 0:
+            return
+        with self._lock:
+            self.closed = True
+            self.reason = self.reason or reason
+            self.stats["dropped"] += sum(entry[1] for entry in self._queue)  # never sent: lost, counted
+            self._queue.clear()
+        self.loop.unregister(self.sock)
+        self.sock.close()
+        self.loop.disown(self)
+        if self.on_close is not None:
+            self.on_close(self, self.reason)
+
+
+class FrameReader:
+    """Cuts bytes into frames; ``on_frame(payload: bytes)`` per frame (io thread).
+
+    A frame longer than ``max_bytes`` is skipped, its bytes never buffered, and
+    ``on_oversized(size)`` told.
+    """
+
+    __slots__ = ("_buf", "_skip", "max_bytes", "on_frame", "on_oversized")
+
+    def __init__(self, max_bytes: int, on_frame: Callable[[bytes], None], on_oversized: Callable[[int], None]) -> None:
+        self.max_bytes, self.on_frame, self.on_oversized = max_bytes, on_frame, on_oversized
+        self._buf = b""
+        self._skip = 0
+
+    def feed(self, data: bytes) -> None:
+        if self._skip:
+            cut = min(self._skip, len(data))
+            self._skip -= cut
+            data = data[cut:]
+        if self._buf:  # a frame cut short last time: gather (amortised), deliver copies
+            buf = self._buf
+            buf += data
+            rest = self._cut(buf, lambda a, b: bytes(memoryview(buf)[a:b]))
+        else:
+            rest = self._cut(data, lambda a, b: data[a:b])
+        self._buf = rest if isinstance(rest, bytearray) else bytearray(rest) if rest else b""
+
+    def _cut(self, data: Any, piece: Callable[[int, int], bytes]) -> Any:
+        """Deliver each whole frame in ``data``; return what is left (``data`` itself if none)."""
+        pos, end, unpack = 0, len(data), LEN.unpack_from
+        while end - pos >= 4:
+            (size,) = unpack(data, pos)
+            if size > self.max_bytes:
+                self.on_oversized(size)
+                cut = min(size, end - pos - 4)
+                pos += 4 + cut
+                self._skip = size - cut
+                continue
+            if end - pos - 4 < size:
+                break
+            self.on_frame(piece(pos + 4, pos + 4 + size))
+            pos += 4 + size
+        if pos == 0:
+            return data
+        return data[pos:] if pos < end else b""
+
+
+class Listener:
+    """A listening socket on the io loop; ``on_accept(sock, addr)`` per connection."""
+
+    def __init__(self, loop: IoLoop, host: str, port: int, on_accept: Callable[[socket.socket, Any], None]) -> None:
+        self.loop, self.on_accept = loop, on_accept
+        self.closed = False
+        self.sock = socket.create_server((host, port), family=_family(host), backlog=128)
+        self.sock.setblocking(False)
+        self.port: int = self.sock.getsockname()[1]
+
+    def start(self) -> None:
+        self.loop.call_soon(self.loop.register, self.sock, self)
+
+    def on_readable(self) -> None:
+        for _ in range(64):  # bounded per wake-up: other sockets get their turn
+            try:
+                sock, addr = self.sock.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:
+                log.warning("ROS 1: accept failed: %s", exc)
+                return
+            self.on_accept(sock, addr)
+
+    def close(self, reason: str = "") -> None:
+        if not self.closed:
+            self.closed = True
+            self.loop.unregister(self.sock)
+            self.sock.close()
+
+
+def _family(host: str) -> socket.AddressFamily:
+    return socket.AF_INET6 if ":" in host else socket.AF_INET
+
+
+class InboundConn(Conn):
+    """An accepted connection: reads the peer's header, then becomes what the router says.
+
+    ``route(conn, header)`` runs on the io thread once the header is in; it answers the
+    peer and sets :attr:`on_data` (or closes the connection). ``counters`` (the node's)
+    count ``malformed_headers`` and ``stalled_peers``.
+    """
+
+    def __init__(self, loop: IoLoop, sock: socket.socket, peer: str, max_header: int,
+                 route: Callable[[InboundConn, dict[str, str]], None], counters: Counters) -> None:
+        super().__init__(loop, sock, peer)
+        self.max_header, self.route, self.counters = max_header, route, counters
+        self.header: dict[str, str] | None = None
+        self.on_data: Callable[[bytes], None] = self._header_data
+        self._buf = b""
+
+    def expect_header_within(self, seconds: float) -> None:
+        self.loop.call_later(seconds, self._check_header, seconds)
+
+    def _check_header(self, seconds: float) -> None:
+        if self.header is None and not self.closed:
+            self.counters["stalled_peers"] += 1
+            log.warning("ROS 1: peer %s sent no connection header within %.1f s: dropped", self.peer, seconds)
+            self.close("no header in time")
+
+    def on_readable(self) -> None:
+        data = self.recv()
+        if data:
+            self.on_data(data)
+
+    def _header_data(self, data: bytes) -> None:
+        buf = self._buf + data
+        if len(buf) < 4:
+            self._buf = buf
+            return
+        (size,) = struct.unpack_from("<I", buf)
+        if size > self.max_header:
+            return self._malformed(f"header of {size} bytes is larger than the {self.max_header}-byte limit")
+        if len(buf) < 4 + size:
+            self._buf = buf
+            return
+        try:
+            header = decode_header(buf[4 : 4 + size])
+        except HeaderError as exc:
+            return self._malformed(str(exc))
+        self.header, self._buf = header, b""
+        self.route(self, header)
+        rest = buf[4 + size :]
+        if rest and not self.closed:
+            self.on_data(rest)
+
+    def _malformed(self, why: str) -> None:
+        self.counters["malformed_headers"] += 1
+        log.warning("ROS 1: malformed connection header from %s: %s; dropped", self.peer, why)
+        self.close(f"malformed header: {why}")
