@@ -20,8 +20,8 @@ from typing import Any
 import pydantic
 
 from dataflow import codec
-from dataflow.bounds import from_outside
-from dataflow.errors import PortTypeError
+from dataflow.bounds import argument_adapter, check_argument
+from dataflow.errors import DataflowError, PortTypeError
 from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
 from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
 from dataflow.remote.security import Role, roles_of_service
@@ -113,13 +113,16 @@ def reader(annotation: Any) -> Converter:
 
 
 class Signature:
-    """Per-operation readers (see :func:`reader`): parameters by position and by name
-    (checked as values from outside: declared bounds, numbers finite; see
-    :func:`dataflow.bounds.from_outside`), the result."""
+    """Per-operation readers: parameters by position and by name, each decoded and then
+    checked by the one check of operation arguments from outside that every entry uses
+    (:func:`dataflow.bounds.check_argument`: declared type, numbers strict, bounds,
+    finiteness; a refusal says ``LABEL.op(param): VALUE refused: REASON``), the result
+    (see :func:`reader`)."""
 
     __slots__ = ("positional", "named", "result")
 
-    def __init__(self, func: Callable[..., Any] | None) -> None:
+    def __init__(self, func: Callable[..., Any] | None, label: str = "") -> None:
+        """``label``: what refusals name the operation (default: the function's name)."""
         self.positional: list[Converter] = []
         self.named: dict[str, Converter] = {}
         self.result: Converter = decode
@@ -130,9 +133,9 @@ class Signature:
             params = [p for p in inspect.signature(func).parameters.values() if p.name != "self"]
         except Exception:  # unresolvable annotations: values pass as decoded
             return
-        for p in params:  # arguments come from outside: bounds, and numbers finite
-            hint = hints.get(p.name)
-            read = reader(from_outside(hint) if hint is not None else None)
+        op = label or func.__name__
+        for p in params:
+            read = _checked_reader(f"{op}({p.name})", hints.get(p.name))
             if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
                 self.positional.append(read)
             self.named[p.name] = read
@@ -150,9 +153,24 @@ class Signature:
         return {k: named.get(k, decode)(v) for k, v in values.items()}
 
 
-def signatures(iface_cls: type | None, names: typing.Iterable[str]) -> dict[str, Signature]:
-    """A :class:`Signature` per operation name, read from ``iface_cls`` (None: no coercion)."""
-    return {n: Signature(getattr(iface_cls, n, None) if iface_cls is not None else None) for n in names}
+def _checked_reader(where: str, hint: Any) -> Converter:
+    """``Value`` message -> the argument, decoded and checked (see :class:`Signature`)."""
+    if argument_adapter(hint) is None:
+        return decode
+
+    def read(v: Any) -> Any:
+        try:
+            return check_argument(where, hint, decode(v))
+        except DataflowError as exc:  # the same refusal, in this side's error tree
+            raise InvocationError(str(exc)) from None
+    return read
+
+
+def signatures(iface_cls: type | None, names: typing.Iterable[str], label: str = "") -> dict[str, Signature]:
+    """A :class:`Signature` per operation name, read from ``iface_cls`` (None: no coercion);
+    ``label`` (e.g. the component) starts the refusals' ``where``."""
+    return {n: Signature(getattr(iface_cls, n, None) if iface_cls is not None else None, f"{label}.{n}" if label else n)
+            for n in names}
 
 
 def fill_invocation(msg: Any, args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
