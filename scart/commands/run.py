@@ -66,7 +66,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
                           "port); 'off' to serve none")
     run.add_argument("--foxglove", default=None, metavar="[HOST:]PORT",
                      help="also serve the data-flow tasks live to the Foxglove app here (as `scart foxglove`: "
-                          "ports, properties, operations; 0: a free port; a routable HOST needs --insecure)")
+                          "ports, properties, operations; 0: a free port; a routable HOST needs --insecure); "
+                          "read-only unless --foxglove-control")
+    run.add_argument("--foxglove-control", nargs="?", const="", default=None, metavar="TOKEN_FILE",
+                     help="make --foxglove writable (set properties, call operations), acting with the 'operate' "
+                          "token in TOKEN_FILE (needed when the runtime checks tokens; never the runtime's own)")
     add_arguments(run, server=True)
     run.set_defaults(func=cmd_run)
 
@@ -193,7 +197,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 return 1
             if args.foxglove is not None:
                 try:
-                    foxglove = _serve_foxglove(runtime, args.foxglove, settings)
+                    foxglove = _serve_foxglove(runtime, args.foxglove, settings, args.foxglove_control)
                 except Exception as exc:  # noqa: BLE001 - bad address, port taken, no tasks: said, all stopped
                     print(f"scart: start failed: --foxglove {args.foxglove}: {exc}", file=sys.stderr)
                     return 1
@@ -202,7 +206,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             if services:
                 print(_services_line(services), flush=True)
             if foxglove is not None:
-                print(f"scart: Foxglove at {foxglove.url} ({foxglove.channels} channel(s))", flush=True)
+                print(f"scart: Foxglove at {foxglove.url} ({foxglove.channels} channel(s), "
+                      f"{'writable' if foxglove.writable else 'read-only'})", flush=True)
             for what, where in runtime.served().items():
                 print(f"scart: {what} at {where}", flush=True)
             print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
@@ -258,10 +263,14 @@ def _serve_services(runtime: Runtime, address: str) -> list[Any]:
     return started
 
 
-def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings) -> Any:
+def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings, control: str | None = None) -> Any:
     """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service
-    ``runtime`` serves or joined (``scart foxglove``'s, on this process's credentials).
-    Raises when the composite serves no tasks or the server cannot start."""
+    ``runtime`` serves or joined: read-only (on this process's credentials), or with
+    ``control`` (``--foxglove-control [TOKEN_FILE]``) writable, acting with that file's
+    token (see :func:`dataflow.cli.foxglove.control_token`). Raises when the composite
+    serves no tasks, the control token is refused or the server cannot start."""
+    import dataclasses
+
     host, _, port = spec.rpartition(":")
     host = host.strip("[]") or "127.0.0.1"
     if not port.isdigit() or int(port) > 65535:
@@ -269,16 +278,23 @@ def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings) -> Any:
     where = runtime.served().get("name service")
     if where is None:
         raise ScartError("this composite serves no data-flow tasks to show")
-    from dataflow.cli.foxglove import FoxgloveLive
+    from dataflow.cli.foxglove import FoxgloveLive, control_token
     from dataflow.remote import connect
 
+    writer = None
+    if control is not None:
+        token = control_token(control or None, settings.security, "--foxglove-control")
+        writer = connect(where.split()[0], security=dataclasses.replace(settings.security, token=token))
     system = connect(where.split()[0], security=settings.security)
     try:
-        live = FoxgloveLive(system, host, int(port), insecure_host=settings.security.insecure, owns_system=True)
+        live = FoxgloveLive(system, host, int(port), insecure_host=settings.security.insecure, owns_system=True,
+                            control=writer)
     except BaseException:
         system.close()
+        if writer is not None:
+            writer.close()
         raise
-    live.start()  # its stop (also when start raises) closes the client
+    live.start()  # its stop (also when start raises) closes the clients
     return live
 
 
