@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import functools
 import inspect
-import traceback
+import logging
+import secrets
 import typing
 from types import MappingProxyType
 from collections.abc import Callable
@@ -26,13 +27,14 @@ from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
 from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
 from dataflow.remote.security import Role, roles_of_service
 from dataflow.types import registry
-from scart.errors import InvocationError, RemoteError
+from scart.errors import InvocationError, RemoteError, RuntimeStateError, ServiceNotFoundError
 
 SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
 #: The role each method needs on a server with an auth file: listing needs ``read``, calling ``operate``.
 SCA_ROLES: MappingProxyType[str, Role] = MappingProxyType(roles_of_service(SCA_SERVICE.full_name, reads={"ListServices"}))
 PATHS: MappingProxyType[str, str] = MappingProxyType(
     {m.name: f"/{SCA_SERVICE.full_name}/{m.name}" for m in SCA_SERVICE.methods})
+log = logging.getLogger("scart.ext.grpc")
 NONE_TYPE = codec.NONE_TYPE
 JSON_TYPE = codec.JSON_TYPE
 
@@ -162,7 +164,7 @@ def _checked_reader(where: str, hint: Any) -> Converter:
         try:
             return check_argument(where, hint, decode(v))
         except DataflowError as exc:  # the same refusal, in this side's error tree
-            raise InvocationError(str(exc)) from None
+            raise ArgumentRefused(str(exc)) from None
     return read
 
 
@@ -189,17 +191,38 @@ class UnknownSessionError(InvocationError):
     the client reopens its session and sends again, once."""
 
 
+class ArgumentRefused(InvocationError):
+    """An argument refused by the one check of operation arguments (a fault's INVALID_ARGUMENT)."""
+
+
+def fault_code(exc: BaseException) -> str:
+    """What a fault is, for programs (see ``Fault.code`` in ``sca.proto``)."""
+    if isinstance(exc, ArgumentRefused) or (isinstance(exc, InvocationError) and "malformed value" in str(exc)):
+        return "INVALID_ARGUMENT"
+    if isinstance(exc, (ServiceNotFoundError, UnknownSessionError)) or (
+            isinstance(exc, InvocationError) and " has no operation " in str(exc)):
+        return "NOT_FOUND"
+    if isinstance(exc, RuntimeStateError) or str(exc).startswith("server stopping"):
+        return "UNAVAILABLE"
+    return "FAILED"
+
+
 def fault(exc: BaseException) -> Any:
-    """A ``Fault`` message describing ``exc``."""
+    """A ``Fault`` message describing ``exc`` to the caller: its type, message, code and a
+    reference. The traceback (with this side's paths) never leaves: it is logged here
+    under that reference (a warning when the operation itself failed)."""
     kind = type(exc)
     name = kind.__qualname__ if kind.__module__ == "builtins" else f"{kind.__module__}.{kind.__qualname__}"
     message = exc.remote_message if isinstance(exc, RemoteError) else str(exc)
-    return pb.Fault(type=name, message=message, traceback="".join(traceback.format_exception(exc))[-4000:])
+    code, reference = fault_code(exc), secrets.token_hex(6)
+    log.log(logging.WARNING if code == "FAILED" else logging.INFO, "binding.grpc fault %s (%s): %s: %s",
+            reference, code, name, message, exc_info=exc)
+    return pb.Fault(type=name, message=message, code=code, reference=reference)
 
 
 def failure(where: str, f: Any) -> RemoteError:
     """The :class:`RemoteError` for a received ``Fault``."""
-    return RemoteError(where, f.type, f.message, f.traceback)
+    return RemoteError(where, f.type, f.message, code=f.code, reference=f.reference)
 
 
 def outcome_of(fn: Callable[[], Any]) -> Any:
