@@ -18,6 +18,14 @@ composite (every problem listed on stderr as ``path:line: message [CODE]``, noth
 started), 1 a failure while starting or stopping. A second SIGINT/SIGTERM while ``run``
 stops exits at once with 128+signal (130/143) after a message on stderr. One-way calls
 still running ``--stop-timeout`` seconds into the stop are logged and left behind.
+
+Starting is bounded too: a component whose start (``@init``, ``configure_hook``,
+``start_hook``) has not returned ``--start-timeout`` seconds after the start began fails
+the start with one line naming the component and the hook, and a SIGINT/SIGTERM during
+the start is obeyed at once, saying where the start was; either way what started is
+stopped (the hook that hangs is left behind) and ``run`` exits with 1. Every stop is
+bounded: if it has not finished ``--stop-timeout`` + 30 s after it began, ``run`` says
+so and exits with 1.
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
@@ -46,6 +55,16 @@ if TYPE_CHECKING:
 
 TASK_KIND = "implementation.task"  # the data-flow extension's kind (the core does not import it)
 SERVICES_DEFAULT = "localhost:0"  # apart from any binding.grpc server of the composite (they share by address)
+START_TIMEOUT = 60.0  # s: the whole start (every @init and start_hook)
+STOP_MARGIN = 30.0  # s past --stop-timeout after which a stop that has not finished is given up
+
+
+def _seconds(text: str) -> float:
+    """A positive, finite number of seconds (argparse type)."""
+    value = float(text)
+    if not 0 < value < 1e6:
+        raise argparse.ArgumentTypeError(f"{text}: expected seconds, > 0")
+    return value
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -57,6 +76,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.add_argument("--stop-timeout", type=float, default=10.0, metavar="SECONDS",
                      help="on stop, how long one-way calls may still run before they are left behind "
                           "(logged by operation; default 10)")
+    run.add_argument("--start-timeout", type=_seconds, default=START_TIMEOUT, metavar="SECONDS",
+                     help="how long starting may take: then the start fails, naming the component and the hook "
+                          f"(@init, start_hook...) still running (default {START_TIMEOUT:g})")
     run.add_argument("--ns", default=None, metavar="HOST:PORT",
                      help="name service of data-flow tasks: where the embedded one listens, or the running one "
                           f"to join (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
@@ -180,12 +202,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.
         announced = io.StringIO()
-        try:
-            with contextlib.redirect_stdout(announced):
-                runtime.start()
-        except ScartError as exc:
-            _stop_listening(runtime)
-            print(f"scart: start failed: {exc}", file=sys.stderr)
+        failure = _start(runtime, announced, stop, args.start_timeout)
+        if failure is not None:
+            print(f"scart: {failure}", file=sys.stderr, flush=True)
+            _stop_listening(runtime, limit=args.stop_timeout + STOP_MARGIN)
             return 1
         services: list[Any] = []
         foxglove: Any = None
@@ -220,7 +240,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             # the services endpoint first, then SCA components (their one-way calls drain while
             # the tasks they use still run; then the components, task components included,
             # are destroyed in reverse start order), the data-flow server last (a stop hook).
-            _stop_listening(runtime, services)
+            _stop_listening(runtime, services, limit=args.stop_timeout + STOP_MARGIN)
         print("scart: stopped", flush=True)
         return 0
     finally:
@@ -298,12 +318,45 @@ def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings, control: st
     return live
 
 
-def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None:
+def _start(runtime: Runtime, announced: io.StringIO, stop: threading.Event, timeout: float) -> str | None:
+    """Start ``runtime`` on a thread of its own while this (main) thread waits in short
+    slices (it must stay free to run the signal handlers) for the start to end, for
+    ``stop`` (a signal) or for ``timeout`` s. What components print meanwhile goes to
+    ``announced``. None when started; else what went wrong, in one line naming the
+    component and what its start was doing when it did not return."""
+    outcome: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            runtime.start()
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+            outcome.append(exc)
+
+    starter = threading.Thread(target=run, name="scart-start", daemon=True)  # a hung hook is left behind
+    deadline = time.monotonic() + timeout
+    with contextlib.redirect_stdout(announced):
+        starter.start()
+        while starter.is_alive() and not stop.is_set() and time.monotonic() < deadline:
+            starter.join(0.1)
+    if not starter.is_alive():
+        if not outcome:
+            return None
+        exc = outcome[0]
+        return f"start failed: {exc}" if isinstance(exc, ScartError) else f"start failed: {type(exc).__name__}: {exc}"
+    where = runtime.starting()
+    doing = f"component {where[0]} ({where[1]})" if where is not None else "the runtime"
+    if stop.is_set():
+        return f"stopping while starting: {doing} had not returned"
+    return f"start failed: {doing} did not return within {timeout:g} s (--start-timeout); stopping"
+
+
+def _stop_listening(runtime: Runtime, services: list[Any] | None = None, limit: float | None = None) -> None:
     """Stop the ``services`` endpoint, then ``runtime``, on a thread of their own while this
     (main) thread waits in short slices. Python runs signal handlers only on the main
     thread, and the kernel may deliver a signal to any thread: a main thread blocked in one
     long wait (a drain deadline of minutes) would not run the second Ctrl-C's handler until
-    that wait ended."""
+    that wait ended. A stop not done within ``limit`` s is given up: said, and the process
+    exits with 1 (what hangs cannot be ended otherwise)."""
     def stop() -> None:
         try:
             for binding in reversed(services or []):
@@ -313,7 +366,12 @@ def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None
 
     stopper = threading.Thread(target=stop, name="scart-stop", daemon=True)
     stopper.start()
+    deadline = None if limit is None else time.monotonic() + limit
     while stopper.is_alive():
+        if deadline is not None and time.monotonic() > deadline:
+            os.write(2, f"scart: the stop has not finished within {limit:g} s; exiting (what hangs is left "
+                        "behind)\n".encode())
+            os._exit(1)
         stopper.join(0.2)
 
 

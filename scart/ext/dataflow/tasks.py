@@ -203,11 +203,15 @@ class TaskManager(ComponentManager):
                 task.set_property(name, value)
         dataflow_host.deployer.add(task)
         self.task = task
+        self.stage = "configure_hook"
         if not task.configure():
             raise ScartError(f"task {task.name}: configure refused (state {task.state.name})")
+        self.stage = "connecting its ports"
         connect_present(self.host, task.name)
+        self.stage = "start_hook"
         if not task.start():
             raise ScartError(f"task {task.name}: start refused (state {task.state.name})")
+        self.stage = "started"
         dataflow_host.refresh()
 
     def stop(self) -> None:
