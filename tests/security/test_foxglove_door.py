@@ -143,9 +143,9 @@ def test_another_user_changes_nothing_through_a_read_only_server(robot: Robot) -
     user = second_user()
     with served(robot) as live:
         seen = probe(live, WRITES, user=user)
-    assert "read-only" in live.line
     assert seen["status"] == 101
     assert robot.task.max_velocity == 1.0 and robot.task.noise == 1.0  # untouched
+    assert "read-only" in live.line
     assert seen["services"] == {} and seen["calls"] == {"1": "no such service advertised"}
     assert any("read-only" in s and "--foxglove-control" in s for s in statuses(seen)), seen["messages"]
     values = next(m for m in seen["messages"] if m.get("op") == "parameterValues" and m.get("id") == "s")
