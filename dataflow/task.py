@@ -53,7 +53,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .activities import Activity, EventActivity
-from .errors import NotFoundError, PortValueError
+from .errors import NotFoundError
 from .introspection import (
     OperationDescription,
     PortDescription,

@@ -290,39 +290,57 @@ def _check_key_pair(cert: str, key: str) -> None:
 def tls_mismatch(address: str, details: str, timeout: float = 1.0) -> str | None:
     """Why a connection to ``address`` that failed with gRPC's ``details`` failed, when
     the two ends disagree about TLS: one line naming the flag that fixes it (None when
-    that is not the cause). A plaintext client sees the server close the connection
-    ("Socket closed"): then a TLS handshake is tried (at most ``timeout`` s) to tell."""
-    if "WRONG_VERSION_NUMBER" in details or ("handshake" in details.lower() and "PROTOCOL" in details):
+    that is not the cause). A server that closes the connection at once ("Socket closed")
+    is asked with a TLS handshake of its own (at most ``timeout`` s) whether it speaks TLS
+    and wants a client certificate."""
+    if "WRONG_VERSION_NUMBER" in details or ("handshake" in details.lower() and "PROTOCOL" in details
+                                             and "CERTIFICATE" not in details):
         return (f"{address} does not speak TLS: drop --tls-ca/--tls-cert (and $SCART_TLS_CA, $SCART_TLS_CERT) to "
                 "talk to it in plaintext, or give that server --tls-cert/--tls-key")
     if "CERTIFICATE_VERIFY_FAILED" in details or "certificate verify failed" in details.lower():
         return (f"{address} speaks TLS with a certificate that --tls-ca does not trust: give --tls-ca (or "
                 "$SCART_TLS_CA) the CA that signed it")
-    if ("Socket closed" in details or "Connection reset" in details) and _speaks_tls(address, timeout):
+    if "Socket closed" not in details and "Connection reset" not in details:
+        return None
+    speaks = _speaks_tls(address, timeout)
+    if speaks == "mtls":
+        return (f"{address} wants a client certificate (mTLS): give --tls-cert/--tls-key signed by the CA it "
+                "trusts, and --tls-ca (or $SCART_TLS_CERT, $SCART_TLS_KEY, $SCART_TLS_CA)")
+    if speaks == "tls":
         return f"{address} speaks TLS and this client does not: give --tls-ca (or $SCART_TLS_CA) the server's CA"
     return None
 
 
-def _speaks_tls(address: str, timeout: float) -> bool:
-    """Does a TLS handshake with ``host:port`` get a TLS answer (any certificate)?"""
+def _speaks_tls(address: str, timeout: float) -> str | None:
+    """``"tls"`` when a TLS handshake with ``host:port`` succeeds, ``"mtls"`` when the
+    server then asks for a client certificate, None when it does not speak TLS."""
     import socket
     import ssl
 
     host, _, port = address.rpartition(":")
     if not port.isdigit() or not host:
-        return False
+        return None
     context = ssl.create_default_context()
     context.check_hostname = False
     context.verify_mode = ssl.CERT_NONE
     context.set_alpn_protocols(["h2"])
     try:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout) as raw:
-            with context.wrap_socket(raw):
-                return True
-    except ssl.SSLError as exc:  # an alert from a TLS server (e.g. mTLS wants a certificate): TLS all the same
-        return "WRONG_VERSION_NUMBER" not in str(exc) and not isinstance(exc, ssl.SSLEOFError)
+            with context.wrap_socket(raw) as tls:
+                # TLS 1.3: a server wanting a client certificate refuses after the handshake
+                # (it closes, or alerts), where another sends its HTTP/2 settings
+                try:
+                    return "tls" if tls.recv(1) else "mtls"
+                except ssl.SSLError as exc:
+                    return "mtls" if "CERTIFICATE" in str(exc).upper() else "tls"
+                except OSError:  # nothing within the timeout: it waits for us, as a TLS server does
+                    return "tls"
+    except ssl.SSLError as exc:  # an alert from a TLS server (TLS 1.2 asks for the certificate in the handshake)
+        if "WRONG_VERSION_NUMBER" in str(exc) or isinstance(exc, ssl.SSLEOFError):
+            return None
+        return "mtls" if "CERTIFICATE" in str(exc).upper() else "tls"
     except OSError:
-        return False
+        return None
 
 
 def is_loopback(host: str) -> bool:

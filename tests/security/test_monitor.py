@@ -103,7 +103,9 @@ def test_a_slowloris_of_520_connections_leaves_the_page_answering(monitor: Monit
             stop.wait(0.5)
         print(f"GET / under a slowloris of {SLOW_CLIENTS}: worst {max(latencies) * 1000:.1f} ms of {len(latencies)}")
         assert max(latencies) < 1.0
-        wait_until(lambda: monitor._httpd.open_connections() < 8, timeout=10.0, interval=0.1,  # type: ignore[union-attr]
+        httpd = monitor._httpd
+        assert httpd is not None
+        wait_until(lambda: httpd.open_connections() < 8, timeout=10.0, interval=0.1,
                    message="slow connections outlived their request deadline")
     finally:
         stop.set()

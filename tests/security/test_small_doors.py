@@ -45,7 +45,8 @@ def test_a_hard_link_to_a_file_outside_the_contribution_is_not_read(tmp_path: Pa
 
 def test_a_fault_carries_a_code_and_a_reference_never_the_traceback(tmp_path: Path,
                                                                      caplog: pytest.LogCaptureFixture) -> None:
-    provider = f'<component name="G">{gpy("GeometryImpl")}<service name="Geometry">{grpc_service()}</service></component>'
+    provider = (f'<component name="G">{gpy("GeometryImpl")}<service name="Geometry">{grpc_service()}</service>'
+                '</component>')
 
     def client(address: str) -> str:
         return f'<component name="C">{gpy("GeometryClient")}<reference name="geo">' \
@@ -107,8 +108,9 @@ def test_tls_on_one_end_only_is_said_with_the_flag_that_fixes_it(pki) -> None:  
             connect(tls_server.address, timeout=3.0)  # type: ignore[attr-defined]
         with pytest.raises(errors.TlsMismatchError, match=r"does not speak TLS: drop --tls-ca"):
             connect(plain_server.address, timeout=3.0, security=Security(ca=ca.ca))  # type: ignore[attr-defined]
-        done = subprocess.run([sys.executable, "-m", "scart", "ls", "--ns", tls_server.address],  # type: ignore[attr-defined]
-                              capture_output=True, text=True, timeout=60, cwd=ROOT,
+        address = tls_server.address  # type: ignore[attr-defined]
+        done = subprocess.run([sys.executable, "-m", "scart", "ls", "--ns", address], capture_output=True, text=True,
+                              timeout=60, cwd=ROOT,
                               env={k: v for k, v in os.environ.items() if not k.startswith("SCART_")})
         assert done.returncode == 1 and "--tls-ca" in done.stderr
         assert "nameserver" not in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr

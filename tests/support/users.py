@@ -48,7 +48,8 @@ def _python_for(user: str) -> str | None:
     return None
 
 
-def run_as(user: str, source: str, *args: str, stdin: str = "", timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
+def run_as(user: str, source: str, *args: str, stdin: str = "",
+           timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
     """Run the Python program ``source`` (standard library only) as ``user`` with ``args``
     and ``stdin``."""
     python = _python_for(user)

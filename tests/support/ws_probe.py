@@ -73,8 +73,8 @@ def main(host, port, origin, actions, seconds):
     key = base64.b64encode(os.urandom(16)).decode()
     request = (f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
-               "Sec-WebSocket-Protocol: foxglove.sdk.v1, foxglove.websocket.v1\r\n" + (f"Origin: {origin}\r\n" if origin else "")
-               + "\r\n")
+               "Sec-WebSocket-Protocol: foxglove.sdk.v1, foxglove.websocket.v1\r\n"
+               + (f"Origin: {origin}\r\n" if origin else "") + "\r\n")
     sock.sendall(request.encode())
     head = b""
     while b"\r\n\r\n" not in head:
