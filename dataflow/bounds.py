@@ -8,6 +8,10 @@ a list or tuple, an ``Optional[float]``, the fields of a pydantic model, the val
 dict — so a NaN or an infinite set-point is refused before it reaches the task. Operation
 parameters declare limits with ``typing.Annotated[float, pydantic.Field(ge=0.0)]`` and
 are held finite the same way (``Field(allow_inf_nan=True)`` lets NaN and inf through).
+Operation arguments from outside go through one check, :func:`check_argument`, whatever
+the entry (the data-flow path, Foxglove, binding.grpc and the services endpoint): the
+declared type with numbers strict (``"0.5"`` and ``true`` are no float), the bounds,
+finiteness; every entry refuses a value with the same message.
 The check walks the value once (linear in its size, which the transport bounds). What a
 task writes to its own output ports is not checked here (the hot path stays free of
 it): bounds are for what crosses in.
@@ -18,13 +22,16 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import types
 import typing
 from dataclasses import dataclass
 from typing import Annotated, Any
 
 import pydantic
 
-__all__ = ["Bounds", "bounded_adapter", "from_outside", "non_finite"]
+from .errors import PortTypeError, PortValueError
+
+__all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "non_finite"]
 
 _NUMBERS = (float, int)
 _ATOMS = (int, bool, str, bytes, type(None))
@@ -189,8 +196,8 @@ def bounded_adapter(py_type: Any, bounds: Bounds) -> pydantic.TypeAdapter[Any]:
 
 
 def argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
-    """For each parameter of ``fn`` that declares bounds (``Annotated[..., Field(...)]``)
-    or can hold numbers (then: finite), the adapter that checks a value from outside."""
+    """For each annotated parameter of ``fn`` pydantic can check, the adapter that checks
+    a value from outside (see :func:`argument_adapter`)."""
     return _argument_adapters(getattr(fn, "__func__", fn))
 
 
@@ -202,12 +209,74 @@ def _argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
         return {}
     out: dict[str, pydantic.TypeAdapter[Any]] = {}
     for name, hint in hints.items():
-        if name == "return":
-            continue
-        checked = from_outside(hint)
-        if typing.get_origin(checked) is Annotated:
-            try:
-                out[name] = pydantic.TypeAdapter(checked)
-            except Exception:  # a type pydantic cannot check: finiteness alone
-                out[name] = pydantic.TypeAdapter(Annotated[Any, FINITE])
+        adapter = argument_adapter(hint) if name != "return" else None
+        if adapter is not None:
+            out[name] = adapter
     return out
+
+
+def argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+    """The adapter checking an operation argument of type ``hint`` from outside: its type,
+    with numbers strict (a string or a bool is no number), its declared bounds, numbers
+    finite (:func:`from_outside`). None when there is nothing to check (no annotation,
+    ``Any``, a type pydantic cannot check)."""
+    if hint is None or hint is Any or hint is object or isinstance(hint, (str, typing.TypeVar)):
+        return None
+    try:
+        return _cached_argument_adapter(hint)
+    except TypeError:  # unhashable annotation: made each time
+        return _make_argument_adapter(hint)
+
+
+@functools.lru_cache(maxsize=1024)
+def _cached_argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+    return _make_argument_adapter(hint)
+
+
+def _make_argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+    checked = from_outside(hint)
+    try:
+        return pydantic.TypeAdapter(_strict_numbers(checked))
+    except Exception:  # noqa: BLE001 - a type pydantic cannot check: finiteness alone, where it applies
+        return pydantic.TypeAdapter(Annotated[Any, FINITE]) if checked is not hint else None
+
+
+def _strict_numbers(hint: Any, depth: int = 0) -> Any:
+    """``hint`` with each ``float`` and ``int`` in it (inside ``Annotated``, unions and
+    containers) strict: pydantic's lax mode would take ``"0.5"`` or ``true`` as a number."""
+    if hint is float or hint is int:
+        return Annotated[hint, pydantic.Strict()]
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is None or not args or depth > 8:
+        return hint
+    if origin is Annotated:
+        return Annotated[(_strict_numbers(args[0], depth + 1), *hint.__metadata__)]  # type: ignore[attr-defined]
+    new = tuple(a if a is Ellipsis else _strict_numbers(a, depth + 1) for a in args)
+    if new == args:
+        return hint
+    if origin is typing.Union or isinstance(hint, types.UnionType):
+        return typing.Union[new]  # noqa: UP007 - rebuilt from a tuple
+    if isinstance(hint, types.GenericAlias):
+        return types.GenericAlias(origin, new)
+    try:
+        return hint.copy_with(new)
+    except Exception:  # noqa: BLE001 - a generic we cannot rebuild: as declared
+        return hint
+
+
+def check_argument(where: str, hint: Any, value: Any) -> Any:
+    """The one check of an operation argument from outside, used by every entry (the
+    data-flow path and its CLI, Foxglove, binding.grpc, the services endpoint): ``value``
+    validated as :func:`argument_adapter` says, returned as converted. Raises
+    :class:`~dataflow.errors.PortTypeError` (not of the declared type) or
+    :class:`~dataflow.errors.PortValueError` (out of bounds, not finite), each saying
+    ``WHERE: VALUE refused: REASON`` (``where`` is e.g. ``task.operation(parameter)``)."""
+    adapter = argument_adapter(hint)
+    if adapter is None:
+        return value
+    try:
+        return adapter.validate_python(value)
+    except pydantic.ValidationError as exc:
+        error = exc.errors()[0]
+        kind = PortTypeError if error["type"].endswith(("_type", "_parsing", "_class")) else PortValueError
+        raise kind(f"{where}: {value!r:.80} refused: {error['msg']}") from None

@@ -53,7 +53,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .activities import Activity, EventActivity
-from .errors import NotFoundError, PortValueError
+from .errors import NotFoundError
 from .introspection import (
     OperationDescription,
     PortDescription,
@@ -433,30 +433,28 @@ class TaskContext:
         return out
 
     def check_arguments(self, name: str, args: list[Any]) -> list[Any]:
-        """``args`` of operation ``name`` checked as values from outside: each against its
-        parameter's declared bounds (``Annotated[float, Field(ge=...)]``), numbers finite
-        (see :mod:`dataflow.bounds`). Raises ``NotFoundError`` for an unknown operation,
-        :class:`~dataflow.errors.PortValueError` naming the parameter."""
-        import pydantic
+        """``args`` of operation ``name`` checked as values from outside, by the one check
+        every remote entry uses (:func:`dataflow.bounds.check_argument`): each against its
+        parameter's declared type (numbers strict: no string, no bool), bounds
+        (``Annotated[float, Field(ge=...)]``) and finiteness. Returns them converted.
+        Raises ``NotFoundError`` for an unknown operation, :class:`~dataflow.errors.PortTypeError`
+        or :class:`~dataflow.errors.PortValueError` naming ``task.operation(parameter)``."""
+        import typing
 
-        from .bounds import argument_adapters
+        from .bounds import check_argument
 
         attr = self._operation_attrs.get(name)
         if attr is None:
             raise NotFoundError(f"task {self.name} has no operation {name!r}")
         fn = getattr(type(self), attr)
-        adapters = argument_adapters(fn)
+        try:
+            hints = typing.get_type_hints(fn, include_extras=True)
+        except Exception:  # noqa: BLE001 - unresolvable annotations: nothing checkable
+            hints = {}
         params = [p for p in inspect.signature(fn).parameters if p != "self"]
         out = list(args)
         for i, (param, value) in enumerate(zip(params, args, strict=False)):
-            adapter = adapters.get(param)
-            if adapter is None:
-                continue
-            try:
-                out[i] = adapter.validate_python(value)
-            except pydantic.ValidationError as exc:
-                raise PortValueError(f"{self.name}.{name}({param}): {value!r:.80} refused: "
-                                     f"{exc.errors()[0]['msg']}") from None
+            out[i] = check_argument(f"{self.name}.{name}({param})", hints.get(param), value)
         return out
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> Any:

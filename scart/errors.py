@@ -167,13 +167,18 @@ class RemoteError(InvocationError):
     """An operation raised on the other side of a remote binding (``binding.grpc``).
 
     ``remote_type`` is the qualified type name of the remote exception (e.g.
-    "ZeroDivisionError", "mymodule.Rejected"), ``remote_message`` its message and
-    ``remote_traceback`` its formatted traceback (for logs)."""
+    "ZeroDivisionError", "mymodule.Rejected"), ``remote_message`` its message,
+    ``remote_code`` what kind of fault it is (``INVALID_ARGUMENT``, ``NOT_FOUND``,
+    ``FAILED``, ``UNAVAILABLE``) and ``reference`` the name under which the other side
+    logged its traceback (which never crosses the wire)."""
 
-    def __init__(self, where: str, remote_type: str, remote_message: str, remote_traceback: str = "") -> None:
-        super().__init__(f"{where}: remote {remote_type}: {remote_message}", remote_type)
+    def __init__(self, where: str, remote_type: str, remote_message: str, *, code: str = "",
+                 reference: str = "") -> None:
+        ref = f" (reference {reference} in the server's log)" if reference else ""
+        super().__init__(f"{where}: remote {remote_type}: {remote_message}{ref}", remote_type)
         self.remote_message = remote_message
-        self.remote_traceback = remote_traceback
+        self.remote_code = code
+        self.reference = reference
 
 
 class ServiceUnavailableError(InvocationError):

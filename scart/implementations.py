@@ -26,8 +26,11 @@ if TYPE_CHECKING:
 __all__ = ["CompositeScopeManager", "PythonImplementation", "StatelessManager"]
 
 
-def _call_all(instance: object, names: tuple[str, ...]) -> None:
+def _call_all(instance: object, names: tuple[str, ...], manager: ComponentManager | None = None,
+              label: str = "") -> None:
     for name in names:
+        if manager is not None:
+            manager.stage = f"{label} {name}"
         getattr(instance, name)()
 
 
@@ -61,9 +64,11 @@ class CompositeScopeManager(ComponentManager):
                 self._creating = True
                 try:
                     ctype = self.node.ctype
+                    self.stage = "creating the instance"
                     fresh = ctype.cls()
                     self.host.configure(self.node, fresh)
-                    _call_all(fresh, ctype.init)
+                    _call_all(fresh, ctype.init, self, "@init")
+                    self.stage = "started"
                     self._instance = fresh
                 finally:
                     self._creating = False

@@ -295,8 +295,8 @@ class PropertyReader:
     # --- @file --------------------------------------------------------------------------
 
     def file(self, p: PropertyValue) -> list[str] | None:
-        """The values in ``@file``: a regular file inside the contribution folder, at most
-        :data:`MAX_PROPERTY_FILE_BYTES`; an ``sca:values`` document (ASM50046), or plain
+        """The values in ``@file``: a regular file inside the contribution folder with no
+        other hard link, at most :data:`MAX_PROPERTY_FILE_BYTES`; an ``sca:values`` document (ASM50046), or plain
         UTF-8 text (one value). Problems never show its content."""
         folder = self.contribution.folder_of(p.loc.path).path
         where = f"property {p.name!r}: file {p.file!r}"
@@ -312,6 +312,10 @@ class PropertyReader:
                 info = os.fstat(fd)
                 if not stat.S_ISREG(info.st_mode):
                     self.problem(E.ASM_PROPERTY_FILE, f"{where} is not a regular file", p.loc)
+                    return None
+                if info.st_nlink > 1:  # another name of it may be any file outside the folder
+                    self.problem(E.ASM_PROPERTY_FILE, f"{where} has {info.st_nlink} hard links: a hard link can "
+                                 "make a file outside the contribution look inside it; use a plain copy", p.loc)
                     return None
                 if info.st_size > MAX_PROPERTY_FILE_BYTES:
                     self.problem(E.ASM_PROPERTY_FILE, f"{where} is {info.st_size} bytes, over the "

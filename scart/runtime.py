@@ -29,8 +29,10 @@ One-way calls queue on a bounded pool: at most ``max_pending`` (default 10 000) 
 calls; beyond that the caller gets a ``ScartError`` at once (backpressure), counted in
 ``oneway_rejected``.
 
-Thread-safety: ``service()`` and the proxies are thread-safe; ``start``/``stop`` are
-serialised by a lock. ``stop()`` may be called from a component (even a one-way worker).
+Thread-safety: ``service()`` and the proxies are thread-safe; ``start``/``stop`` change
+the state under a lock, which ``start`` does not hold while components start: ``stop()``
+from another thread ends a start that hangs (see :meth:`Runtime.start`). ``stop()`` may be
+called from a component (even a one-way worker).
 """
 
 from __future__ import annotations
@@ -169,6 +171,7 @@ class Runtime:
         self._stop_hooks: list[Callable[[], None]] = []
         self._stopping_thread: threading.Thread | None = None
         self._proxies: dict[str, ServiceProxy] = {}
+        self._starting: str | None = None  # the component whose start runs now
 
     @classmethod
     def from_file(cls, path: str | os.PathLike[str], *, overrides: dict[str, str] | None = None,
@@ -207,26 +210,49 @@ class Runtime:
     # --- lifecycle --------------------------------------------------------------------
 
     def start(self) -> None:
-        """Start everything (see the module docstring). Raises ``RuntimeStateError`` unless CREATED."""
+        """Start everything (see the module docstring). Raises ``RuntimeStateError`` unless
+        CREATED. The lock is not held while components start, so another thread may
+        ``stop()`` a start that hangs (an ``@init`` or ``start_hook`` that never returns):
+        what started is stopped, and this start raises ``RuntimeStateError`` if its
+        component ever returns."""
         with self._lock:
             if self.state is not RuntimeState.CREATED:
                 raise RuntimeStateError(f"cannot start a runtime in state {self.state.value}")
             self.state = RuntimeState.STARTED
             self._pool = OnewayPool(self.max_workers, self.max_pending, self._run_oneway)
-            try:
-                self._create_managers()
-                self._create_reference_bindings()
-                for path in self.assembly.order:
-                    self._started.append(path)
-                    try:
-                        self._managers[path].start()
-                    except Exception as exc:
-                        raise ScartError(f"starting component {path} failed: {type(exc).__name__}: {exc}") from exc
-                self._start_participants()
-                self._start_service_bindings()
-            except BaseException:
-                self.stop()
-                raise
+        try:
+            self._create_managers()
+            self._create_reference_bindings()
+            for path in self.assembly.order:
+                self._next_step(path)
+                try:
+                    self._managers[path].start()
+                except Exception as exc:
+                    raise ScartError(f"starting component {path} failed: {type(exc).__name__}: {exc}") from exc
+            self._next_step(None)
+            self._start_participants()
+            self._start_service_bindings()
+        except BaseException:
+            self.stop()
+            raise
+        finally:
+            self._starting = None
+
+    def _next_step(self, path: str | None) -> None:
+        """Go on starting (``path``: that component next), unless stopped meanwhile."""
+        with self._lock:
+            if self.state is not RuntimeState.STARTED:
+                raise RuntimeStateError("the runtime was stopped while it started")
+            if path is not None:
+                self._started.append(path)
+            self._starting = path
+
+    def starting(self) -> tuple[str, str] | None:
+        """While ``start()`` runs: the component starting now and what it is doing (its
+        manager's ``stage``, e.g. ``"@init open"``, ``"start_hook"``); None otherwise."""
+        path = self._starting
+        manager = self._managers.get(path) if path is not None else None
+        return (path, manager.stage) if path is not None and manager is not None else None
 
     def stop(self) -> None:
         """Stop everything, in reverse; idempotent; errors in @destroy are logged, not raised.

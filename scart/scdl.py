@@ -23,6 +23,7 @@ import difflib
 import functools
 import os
 import re
+import stat
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from types import MappingProxyType
@@ -155,11 +156,17 @@ def parse_xml(path: str, problems: list[Problem], max_bytes: int = MAX_BYTES) ->
     declaration (checked before and after parsing), never touching the network.
     """
     try:
-        size = os.path.getsize(path)
-        if size > max_bytes:
-            problems.append(Problem(E.SCART_UNSAFE_XML, f"file is {size} bytes, over the {max_bytes} bytes bound", path, 0))
-            return None
-        with open(path, "rb") as fh:
+        # opened without blocking (a FIFO would wait for a writer forever), checked on the open file
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        with os.fdopen(fd, "rb") as fh:
+            info = os.fstat(fd)
+            if not stat.S_ISREG(info.st_mode):
+                problems.append(Problem(E.SCART_XML, "not a regular file (a composite is read from a file)", path, 0))
+                return None
+            if info.st_size > max_bytes:
+                problems.append(Problem(E.SCART_UNSAFE_XML, f"file is {info.st_size} bytes, over the {max_bytes} "
+                                        "bytes bound", path, 0))
+                return None
             data = fh.read(max_bytes + 1)
     except OSError as exc:
         problems.append(Problem(E.SCART_XML, f"cannot read {path}: {exc.strerror or exc}", path, 0))

@@ -236,11 +236,15 @@ class ReferenceBinding(ABC):
 
 
 class ComponentManager(ABC):
-    """Owns the instances of one component. ``start``/``stop`` are called once each."""
+    """Owns the instances of one component. ``start``/``stop`` are called once each.
+
+    ``stage`` says what ``start`` is doing (e.g. ``"@init open"``, ``"start_hook"``), so a
+    start that does not return can be named (``scart run --start-timeout``)."""
 
     def __init__(self, node: Node, host: Host) -> None:
         self.node = node
         self.host = host
+        self.stage = "start"
 
     @abstractmethod
     def method(self, operation: str) -> Callable[..., Any]:

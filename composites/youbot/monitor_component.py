@@ -14,6 +14,9 @@ At start it prints ``youBot Monitor: http://HOST:PORT/`` on stdout (flushed). Wi
 ``control_token`` true, a fresh random token is made at each start and the printed URL
 is ``http://HOST:PORT/?token=...``: only a page opened from that URL can send commands
 (see the Security section of :mod:`monitor.server`); the token is printed, never logged.
+Unset, ``control_token`` follows the runtime: on when it checks tokens (``--auth-file``),
+so the control API is never more open than the gRPC surfaces; ``false`` turns it off
+(then a warning says that anyone on this host can command the arm).
 """
 
 from __future__ import annotations
@@ -53,12 +56,13 @@ class YouBotMonitor:
     host: str = scart.prop(default="127.0.0.1")
     port: int = scart.prop(default=0)
     info_interval: float = scart.prop(default=0.5)
-    control_token: bool = scart.prop(default=False)
+    control_token: bool | None = scart.prop(default=None)  # None: on when the runtime checks tokens
     insecure: bool = scart.prop(default=False)  # serve a routable host without a control token
     status: RetrievingStatus = scart.reference()
     period: SettingPeriod = scart.reference()
     locomotor: Moving = scart.reference()
     bridge: ArmSummaryReader | None = scart.reference(required=False)
+    context: scart.ComponentContext = scart.context()
 
     @scart.init
     def open(self) -> None:
@@ -73,7 +77,7 @@ class YouBotMonitor:
         self._first_sequence: int | None = None
         self._latencies: deque[float] = deque(maxlen=20_000)
         self._events: deque[tuple[str, str]] = deque(maxlen=200)
-        token = secrets.token_urlsafe(16) if self.control_token else None
+        token = secrets.token_urlsafe(16) if self._wants_token() else None
         self.server = MonitorServer(self, host=self.host, port=int(self.port), token=token, insecure=self.insecure)
         self.server.error_flag_names = dict(ERROR_BITS)
         self.server.joint_limits = list(JOINT_LIMITS)
@@ -89,6 +93,16 @@ class YouBotMonitor:
             self.server.stop()  # @destroy does not run after a failed @init
             raise
         print(f"youBot Monitor: {self.server.page_url}", flush=True)
+
+    def _wants_token(self) -> bool:
+        """``control_token`` as set, else whether the runtime checks tokens (an auth file)."""
+        checks_tokens = bool(self.context.settings.security.auth_file)
+        if self.control_token is None:
+            return checks_tokens
+        if checks_tokens and not self.control_token:
+            log.warning("youBot Monitor: control_token=false while the runtime checks tokens: any local user "
+                        "can command the arm through the monitor")
+        return bool(self.control_token)
 
     @scart.destroy
     def close(self) -> None:

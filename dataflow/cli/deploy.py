@@ -180,7 +180,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
                 from dataflow.transports.zenoh import ZenohPublisher
 
                 publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns,
-                                           served=(server.advertised, server.boot_id))
+                                           served=(server.advertised, server.boot_id), auth=security.auth_table())
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors say what is wrong
                 _err(f"scart deploy: --zenoh: {exc}")
                 return 1

@@ -6,12 +6,31 @@ task the name service lists becomes a channel ``task.port`` (JSON messages, a JS
 generated from the port's type: pydantic models describe themselves), fed by a ``data``
 subscription (a type this process does not know gets the schema of its first sample's
 shape); tasks that appear later are added every ``--refresh`` s. Task properties
-are Foxglove *parameters* named ``task.property``: read, and set. Task operations are
-Foxglove *services* named ``task.operation`` (JSON: the request is an object of the
-arguments by name, or a list of them in order; the response is ``{"result": ...}``; a
-refusal comes back as the protocol's call failure, with the reason). Sets and calls go
-through this command's token, so they need the ``operate`` role where the deployer checks
-tokens. The address to open in the app (``ws://HOST:PORT``) is printed on stdout.
+are Foxglove *parameters* named ``task.property``. The address to open in the app
+(``ws://HOST:PORT``) is printed on stdout.
+
+Security (the protocol carries no credentials, so the server decides alone):
+
+- **Handshake**: the SDK's server listens on a loopback port of its own, behind a gate
+  (:mod:`dataflow.cli._ws_gate`) that admits a WebSocket only with a loopback ``Host``
+  and either no ``Origin`` (a program) or one of the Foxglove app's
+  (:data:`~dataflow.cli._ws_gate.FOXGLOVE_ORIGINS`): no other web page can connect.
+- **Read-only by default**, whatever token this process holds: parameters can be read,
+  a ``setParameters`` is refused, and no service is offered. ``--foxglove-control``
+  (``scart foxglove --control``) makes it writable: parameters can be set and task
+  operations are Foxglove *services* named ``task.operation`` (JSON: the request is an
+  object of the arguments by name, or a list of them in order; the response is
+  ``{"result": ...}``). Writes then act with a token given for that purpose (a file
+  holding a token of the ``operate`` role, never this process's own token; where the
+  auth file is known, its role is checked and ``admin`` refused), and only on loopback.
+- **Refusals** (by the task: a bound, a type; by the deployer: the role; read-only) come
+  back as the protocol's failures: a service call's ``serviceCallFailure`` with the
+  reason; a parameter's ``status`` message (level error) with the reason, the value
+  answered being the one the task kept.
+- **Bounds**: at most :data:`MAX_PARAMETER_NAMES` names per ``getParameters`` or
+  ``setParameters`` (more: refused whole), :data:`MAX_REQUEST_BYTES` per service request.
+- A routable ``--host`` needs ``--insecure`` and is logged as a warning; control is
+  never offered there.
 
 :class:`FoxgloveLive` is the same server for other hosts of it: ``scart run --foxglove``.
 """
@@ -32,15 +51,22 @@ log = logging.getLogger("scart.foxglove")
 MAX_CHANNELS = 512
 MAX_SERVICES = 1024
 MAX_REQUEST_BYTES = 64 * 1024  # a service call's JSON payload
+MAX_PARAMETER_NAMES = 64  #: names in one getParameters / setParameters message, at most
 CALL_TIMEOUT = 10.0  # s, a service call's operation
+READ_ONLY = ("this Foxglove server is read-only: start it with --foxglove-control (scart run) or --control "
+             "(scart foxglove) and an operate token for it")
 
 
 class _Bridge:
-    """Channels and subscriptions of the ports seen so far; the server's listener."""
+    """Channels and subscriptions of the ports seen so far; the server's listener (every
+    method of the SDK's ``ServerListener``). ``control``: the system writes go through
+    (None: read-only)."""
 
-    def __init__(self, system: Any, context: Any) -> None:
+    def __init__(self, system: Any, context: Any, control: Any = None) -> None:
         self.system = system
+        self.control = control
         self.context = context
+        self.server: Any = None  # set once listening: refusals are published through it
         self.channels: dict[str, Any] = {}
         self.services: dict[str, Any] = {}  # name → foxglove.Service, once made
         self.subs: list[Any] = []
@@ -59,7 +85,7 @@ class _Bridge:
             except Exception as exc:  # noqa: BLE001 - a task gone meanwhile: the next refresh
                 log.info("task %s: %s", task, exc)
                 continue
-            for op in description.operations:
+            for op in description.operations if self.control is not None else ():
                 name = f"{task}.{op.name}"
                 if name not in self.services and len(self.services) < MAX_SERVICES:
                     self.services[name] = self._service(name, task, op)
@@ -118,7 +144,7 @@ class _Bridge:
 
         def handler(call: Any) -> bytes:
             args = _call_arguments(name, params, call.payload)
-            result = self.system.component(task).call_json(op.name, args, timeout=CALL_TIMEOUT)
+            result = self.control.component(task).call_json(op.name, args, timeout=CALL_TIMEOUT)
             return json.dumps({"result": registry.to_jsonable(result)}).encode()
 
         return Service(name, schema=ServiceSchema(name, request=schema(f"{name} request", request),
@@ -127,11 +153,15 @@ class _Bridge:
     # --- foxglove.ServerListener ------------------------------------------------------------
 
     def on_get_parameters(self, client: Any, param_names: list[str], request_id: str | None = None) -> list[Any]:
-        """Task properties as parameters (all of them when none are named)."""
+        """Task properties as parameters (all of them when none are named; more than
+        :data:`MAX_PARAMETER_NAMES` names: refused, none answered)."""
         import foxglove
 
         from dataflow import registry
 
+        if len(param_names) > MAX_PARAMETER_NAMES:
+            self._refused(f"getParameters with {len(param_names)} names refused: at most {MAX_PARAMETER_NAMES}")
+            return []
         out = []
         wanted = set(param_names)
         tasks = {name.rpartition(".")[0] for name in wanted}  # only the tasks asked about
@@ -149,16 +179,66 @@ class _Bridge:
         return out
 
     def on_set_parameters(self, client: Any, parameters: list[Any], request_id: str | None = None) -> list[Any]:
-        """Set task properties (refusals are logged; the answer carries the values as they are)."""
+        """Set task properties through ``control``; each refusal (read-only, the role, the
+        task's bounds or type) is published as an error status with its reason, and the
+        answer carries the values the tasks kept."""
+        names = [p.name for p in parameters]
+        if len(parameters) > MAX_PARAMETER_NAMES:
+            self._refused(f"setParameters with {len(parameters)} names refused: at most {MAX_PARAMETER_NAMES}")
+            return []
+        if self.control is None:
+            self._refused(f"set {', '.join(names)[:200]} refused: {READ_ONLY}")
+            return self.on_get_parameters(client, names, request_id)
+        refusals = []
         for parameter in parameters:
             task, dot, name = parameter.name.rpartition(".")
-            if not dot:
-                continue
             try:
-                self.system.component(task).set_property_json(name, parameter.get_value())
-            except Exception as exc:  # noqa: BLE001 - refused (role, bounds, type): said in the log
-                log.warning("set %s refused: %s", parameter.name, exc)
-        return self.on_get_parameters(client, [p.name for p in parameters], request_id)
+                if not dot:
+                    raise ValueError("a parameter is named TASK.PROPERTY")
+                self.control.component(task).set_property_json(name, parameter.get_value())
+            except Exception as exc:  # noqa: BLE001 - refused (role, bounds, type): said to the client
+                refusals.append(f"set {parameter.name[:120]} refused: {exc}")
+        if refusals:
+            self._refused("; ".join(refusals[:8]) + (f"; and {len(refusals) - 8} more" if len(refusals) > 8 else ""))
+        return self.on_get_parameters(client, names, request_id)
+
+    def _refused(self, message: str) -> None:
+        """Tell the clients (the protocol's ``status``, level error) and log it once."""
+        import foxglove
+
+        log.warning("foxglove: %s", message)
+        if self.server is not None:
+            self.server.publish_status(message[:1000], foxglove.StatusLevel.Error)
+
+    def on_subscribe(self, client: Any, channel: Any) -> None:
+        """Nothing to do: every port is subscribed already."""
+
+    def on_unsubscribe(self, client: Any, channel: Any) -> None:
+        """Nothing to do (the port's subscription serves the other clients too)."""
+
+    def on_client_advertise(self, client: Any, channel: Any) -> None:
+        """Clients may not publish (the capability is not offered)."""
+
+    def on_client_unadvertise(self, client: Any, client_channel_id: int) -> None:
+        """Clients may not publish."""
+
+    def on_message_data(self, client: Any, client_channel_id: int, data: bytes) -> None:
+        """Clients may not publish: ignored."""
+
+    def on_parameters_subscribe(self, param_names: list[str]) -> None:
+        """Parameter updates are not pushed: the app asks again."""
+
+    def on_parameters_unsubscribe(self, param_names: list[str]) -> None:
+        """Parameter updates are not pushed."""
+
+    def on_connection_graph_subscribe(self) -> None:
+        """No connection graph (the capability is not offered)."""
+
+    def on_connection_graph_unsubscribe(self) -> None:
+        """No connection graph."""
+
+    def on_playback_control_request(self, playback_control_request: Any) -> None:
+        """No playback (a live view)."""
 
     def close(self) -> None:
         for sub in self.subs:
@@ -226,49 +306,91 @@ class FoxgloveLive:
     """A Foxglove WebSocket server showing the data-flow ``system`` (a name-service client):
     channels, parameters and services as the module says, looked for again every
     ``refresh`` s on a thread of its own. ``start()`` then ``stop()``; ``url`` once started.
-    A routable ``host`` needs ``insecure_host``: the protocol has no authentication. With
-    ``owns_system``, ``stop()`` closes ``system`` too."""
+
+    ``control``: a system connected with the token writes act with (see
+    :func:`control_token`); None: read-only. A routable ``host`` needs ``insecure_host``
+    (the protocol has no authentication; logged as a warning) and is never writable.
+    ``stop()`` closes ``control``, and ``system`` too with ``owns_system``. Raises
+    ``ValueError`` for a routable host refused."""
 
     def __init__(self, system: Any, host: str = "127.0.0.1", port: int = 8765, refresh: float = 2.0,
-                 insecure_host: bool = False, owns_system: bool = False) -> None:
+                 insecure_host: bool = False, owns_system: bool = False, control: Any = None) -> None:
         from dataflow.remote.security import is_loopback
 
-        if not is_loopback(host) and not insecure_host:
-            raise ValueError(f"host {host} is routable and the Foxglove protocol has no authentication "
-                             "(allow it with --insecure-host; on scart run, --insecure)")
+        if not is_loopback(host):
+            if not insecure_host:
+                raise ValueError(f"host {host} is routable and the Foxglove protocol has no authentication "
+                                 "(allow it with --insecure; it is then read-only)")
+            if control is not None:
+                raise ValueError(f"host {host} is routable: a writable Foxglove server (--foxglove-control) is for "
+                                 "loopback only, the protocol carries no credentials")
+            log.warning("foxglove: serving on %s (--insecure): anyone who reaches it sees every port and property "
+                        "(the Foxglove protocol has no authentication)", host)
         self.host, self.port, self.refresh_period = host, port, refresh
-        self._system, self._owns_system = system, owns_system
+        self._system, self._owns_system, self._control = system, owns_system, control
         self._bridge: _Bridge | None = None
         self._server: Any = None
+        self._gate: Any = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
     @property
     def url(self) -> str:
-        return f"ws://{self.host}:{self._server.port}" if self._server is not None else ""
+        return f"ws://{self.host}:{self._gate.port}" if self._gate is not None else ""
 
     @property
     def channels(self) -> int:
         return len(self._bridge.channels) if self._bridge is not None else 0
+
+    @property
+    def writable(self) -> bool:
+        """True when parameters can be set and services called (``control`` given)."""
+        return self._control is not None
 
     def start(self) -> None:
         """Bridge what runs now (types unknown here wait up to 5 s for a first sample), listen,
         and keep looking for new tasks. Nothing is left running when it raises."""
         import foxglove
 
-        self._bridge = bridge = _Bridge(self._system, foxglove.Context())
+        from dataflow.cli._ws_gate import WebSocketGate
+
+        self._bridge = bridge = _Bridge(self._system, foxglove.Context(), self._control)
         try:
             services = bridge.refresh()
             bridge.wait_for_channels(5.0)
-            self._server = foxglove.start_server(
-                name="scart", host=self.host, port=self.port, context=bridge.context, server_listener=bridge,
-                capabilities=[foxglove.Capability.Parameters, foxglove.Capability.Services],
-                supported_encodings=["json"], services=services)
+            capabilities = [foxglove.Capability.Parameters]
+            if self._control is not None:
+                capabilities.append(foxglove.Capability.Services)
+            self._server, inner_host = self._inner_server(bridge, capabilities, services)
+            bridge.server = self._server
+            self._gate = WebSocketGate(self.host, self.port, (inner_host, self._server.port))
+            self._gate.start()
             self._thread = threading.Thread(target=self._refreshing, name="scart-foxglove-refresh", daemon=True)
             self._thread.start()
         except BaseException:
             self.stop()
             raise
+
+    @staticmethod
+    def _inner_server(bridge: _Bridge, capabilities: list[Any], services: list[Any]) -> tuple[Any, str]:
+        """The SDK's server, behind the gate, and its address: a random one of 127.0.0.0/8 (a
+        web page cannot guess it to go around the gate), else 127.0.0.1; a free port."""
+        import secrets
+
+        import foxglove
+
+        hosts = [f"127.{secrets.randbelow(254) + 1}.{secrets.randbelow(256)}.{secrets.randbelow(254) + 1}",
+                 "127.0.0.1"]
+        for host in hosts:
+            try:
+                return foxglove.start_server(
+                    name="scart", host=host, port=0, context=bridge.context, server_listener=bridge,
+                    capabilities=capabilities, supported_encodings=["json"], services=services), host
+            except Exception as exc:  # noqa: BLE001 - that address not routed to loopback here: the next one
+                if host == hosts[-1]:
+                    raise
+                log.debug("foxglove: cannot listen on %s (%s); 127.0.0.1 then", host, exc)
+        raise AssertionError("unreachable")
 
     def _refreshing(self) -> None:
         while not self._stop.wait(self.refresh_period):
@@ -281,30 +403,79 @@ class FoxgloveLive:
                 log.warning("foxglove: looking for new tasks failed: %s", exc)
 
     def stop(self) -> None:
-        """Stop looking, stop the server, end the subscriptions (idempotent)."""
+        """Stop looking, stop the gate and the server, end the subscriptions (idempotent)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=30)
             self._thread = None
+        if self._gate is not None:
+            self._gate.stop()
+            self._gate = None
         if self._server is not None:
             self._server.stop()
             self._server = None
         if self._bridge is not None:
             self._bridge.close()  # subscriptions end even when the server could not start
             self._bridge = None
+        if self._control is not None:
+            control, self._control = self._control, None
+            control.close()
         if self._owns_system:
             self._owns_system = False
             self._system.close()
 
 
-def cmd_foxglove(args: argparse.Namespace) -> int:
-    """``scart foxglove [--host H] [--port P]``: see the module docstring."""
-    from dataflow.cli.inspect import _err, _wait_until_stopped
+def control_token(token_file: str | None, security: Any, flag: str) -> str | None:
+    """The token a writable Foxglove server acts with: the first line of ``token_file``
+    (None without one). Where ``security`` names the auth file (the runtime checks tokens),
+    a token is needed and must be of the ``operate`` role; it may never be ``security``'s
+    own token (the runtime's, perhaps admin). Raises ``ValueError`` saying, with ``flag``,
+    what to give (never the token)."""
+    import hmac
 
-    live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host)
+    from dataflow.remote.security import Role, read_token_file
+
+    token = read_token_file(token_file) if token_file else None
+    table = security.auth_table() if security.auth_file else None
+    if table is not None:
+        if token is None:
+            raise ValueError(f"{flag} needs TOKEN_FILE, a file holding a token of the 'operate' role: the "
+                             "deployer checks tokens (--auth-file)")
+        role = table.role_of(token)
+        if role is None:
+            raise ValueError(f"{flag} {token_file}: that token is not in the auth file {security.auth_file}")
+        if role is not Role.OPERATE:
+            raise ValueError(f"{flag} {token_file}: that token has the '{role.label}' role; give one of the "
+                             "'operate' role made for Foxglove")
+    if token is not None and security.token and hmac.compare_digest(token.encode(), security.token.encode()):
+        raise ValueError(f"{flag} {token_file}: that is this process's own token; give one made for Foxglove "
+                         "(of the 'operate' role)")
+    return token
+
+
+def cmd_foxglove(args: argparse.Namespace) -> int:
+    """``scart foxglove [--host H] [--port P] [--control [TOKEN_FILE]]``: see the module docstring."""
+    import dataclasses
+
+    from dataflow.cli.inspect import _err, _wait_until_stopped, ns_address
+    from dataflow.remote import connect
+    from dataflow.remote.security import from_args
+
+    control = None
+    if args.control is not None:
+        security = from_args(args)
+        token = control_token(args.control or None, security, "--control")
+        control = connect(ns_address(args), timeout=args.timeout, security=dataclasses.replace(security, token=token))
+    try:
+        live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host, control=control)
+    except BaseException:
+        if control is not None:
+            control.close()
+        raise
     live.start()
     try:
-        print(f"scart: Foxglove at {live.url} ({live.channels} channel(s))", flush=True)
+        print(f"scart: Foxglove at {live.url} ({live.channels} channel(s), "
+              f"{'writable' if live.writable else 'read-only'})", flush=True)
         _err(f"foxglove: open {live.url} in the Foxglove app; Ctrl-C to stop")
         _wait_until_stopped(threading.Event(), args.duration)
     finally:

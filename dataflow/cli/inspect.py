@@ -121,7 +121,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0: a free one)")
     p.add_argument("--refresh", type=float, default=2.0, help="look for new tasks every this many seconds")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
-    p.add_argument("--insecure-host", action="store_true", help="allow a routable --host (no authentication!)")
+    p.add_argument("--insecure-host", "--insecure", dest="insecure_host", action="store_true",
+                   help="allow a routable --host (no authentication: warned, and read-only)")
+    p.add_argument("--control", "--foxglove-control", dest="control", nargs="?", const="", default=None,
+                   metavar="TOKEN_FILE", help="writable: parameters can be set and operations called, acting with "
+                                              "the 'operate' token in TOKEN_FILE (default: read-only)")
 
 
 # ---- shared plumbing -------------------------------------------------------------------

@@ -75,7 +75,8 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
         channel.close()
     if reply.outcome.WhichOneof("kind") == "fault":
         fault = reply.outcome.fault
-        raise DataflowError(f"{target} raised {fault.type}: {fault.message}")
+        ref = f" (reference {fault.reference} in the server's log)" if fault.reference else ""
+        raise DataflowError(f"{target} raised {fault.type}: {fault.message}{ref}")
     return registry.to_jsonable(codec.decode(reply.outcome.value))
 
 

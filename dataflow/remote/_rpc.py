@@ -15,7 +15,7 @@ from typing import Any
 import grpc
 
 from dataflow.remote import errors
-from dataflow.remote.security import CALLER, Role, Security, auth_interceptor, is_loopback
+from dataflow.remote.security import CALLER, Role, Security, auth_interceptor, is_loopback, tls_mismatch
 
 #: Name prefix of the servers' worker threads (``scart-rpc_0``, ...).
 THREAD_PREFIX = "scart-rpc"
@@ -84,7 +84,10 @@ def translate(exc: grpc.RpcError, address: str) -> errors.RemoteError:
     details = exc.details() if hasattr(exc, "details") else str(exc)
     cls = _MAP.get(code, errors.RemoteError)
     name = code.name if code is not None else "UNKNOWN"
-    if cls is errors.UnavailableError:
+    mismatch = tls_mismatch(address, details or "") if cls is errors.UnavailableError else None
+    if mismatch is not None:
+        cls, message = errors.TlsMismatchError, mismatch
+    elif cls is errors.UnavailableError:
         message = f"nothing answers at {address} ({details})"
     elif cls is errors.RemoteTimeoutError:
         message = f"{address} did not answer in time ({details})"

@@ -403,6 +403,9 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                     "INVALID_ARGUMENT",
                     f"{task.name}.{desc.signature or desc.name} takes {len(desc.params)} argument(s), got {len(given)}",
                 )
+            # the one check of every entry (types, bounds, finiteness) on the values as they came
+            task.check_arguments(desc.name, [self._raw_argument(task, desc, p, a, request.use_json)
+                                             for (p, _), a in zip(desc.params, given, strict=True)])
             args = []
             for (pname, tname), arg in zip(desc.params, given, strict=True):
                 py_type = registry.python_type(tname)
@@ -413,7 +416,6 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                     args.append(self._value_for(where, py_type, tname, arg, ""))
                 else:
                     args.append(codec.decode(arg))
-            args = task.check_arguments(desc.name, args)
             try:
                 result = task.call(desc.name, *args)
             except (NotFoundError, PortTypeError, Abort):
@@ -423,6 +425,14 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             return pb.CallOperationResponse(result=codec.encode(result))
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
+
+    @staticmethod
+    def _raw_argument(task: Any, desc: Any, param: str, arg: Any, use_json: bool) -> Any:
+        """An operation argument decoded, not converted (JSON text, or a ``Value``)."""
+        try:
+            return json.loads(arg) if use_json else codec.decode(arg)
+        except (ValueError, PortTypeError) as exc:
+            raise Abort("INVALID_ARGUMENT", f"{task.name}.{desc.name}({param}): not a value: {exc}") from None
 
     def _property(self, task: Any, name: str) -> Any:
         props = task.properties()

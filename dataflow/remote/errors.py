@@ -21,6 +21,7 @@ __all__ = [
     "ClosedError",
     "AuthenticationError",
     "PermissionDeniedError",
+    "TlsMismatchError",
 ]
 
 
@@ -62,6 +63,11 @@ class RemoteValueError(RemoteError, PropertyValueError):
 
 class AuthenticationError(RemoteError):
     """The server wants a valid token (``--token`` / ``SCART_TOKEN``) or certificate."""
+
+
+class TlsMismatchError(AuthenticationError):
+    """The two ends disagree about TLS (one speaks it, the other does not, or the server's
+    certificate is not trusted); the message names the flag that fixes it."""
 
 
 class PermissionDeniedError(RemoteError):

@@ -48,7 +48,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AuthTable", "Role", "Security", "SecurityError", "add_arguments", "auth_interceptor", "from_args", "is_loopback",
-    "roles_of_service",
+    "roles_of_service", "tls_mismatch",
 ]
 
 log = logging.getLogger(__name__)
@@ -100,8 +100,11 @@ class AuthTable:
             role_name, token = parts
             try:
                 role = Role[role_name.upper()]
-            except KeyError:
-                raise SecurityError(f"{where}: unknown role {role_name!r} (roles: read, operate, admin)") from None
+            except KeyError:  # never echoed: role and token may be swapped
+                known = Role.__members__.get(token.upper())
+                hint = "role and token swapped? " if known is not None else ""
+                raise SecurityError(f"{where}: the first word is not a role ({hint}expected 'ROLE TOKEN', roles: "
+                                    "read, operate, admin)") from None
             if len(token) < 8:
                 raise SecurityError(f"{where}: token too short (at least 8 characters; 32 random ones are better)")
             key = token.encode()
@@ -170,6 +173,7 @@ class Security:
             return None
         pair = (_read_bounded(self.key, MAX_PEM_BYTES, "TLS key").encode(),  # type: ignore[arg-type]
                 _read_bounded(self.cert, MAX_PEM_BYTES, "TLS certificate").encode())  # type: ignore[arg-type]
+        _check_key_pair(self.cert, self.key)  # type: ignore[arg-type]
         root = _read_bounded(self.ca, MAX_PEM_BYTES, "TLS CA").encode() if self.ca else None
         return grpc.ssl_server_credentials([pair], root_certificates=root, require_client_auth=root is not None)
 
@@ -263,6 +267,80 @@ def read_token_file(path: str | os.PathLike[str]) -> str:
         if line:
             return line
     raise SecurityError(f"token file {path}: no token in it")
+
+
+def _check_key_pair(cert: str, key: str) -> None:
+    """Raise :class:`SecurityError` naming the flag to fix when ``key`` is not the private
+    key of ``cert`` or either is not PEM (gRPC would only say "Failed to bind")."""
+    import ssl
+
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    try:
+        context.load_cert_chain(cert, key, password="")  # an encrypted key fails here, never prompts
+    except ssl.SSLError as exc:
+        if "KEY_VALUES_MISMATCH" in str(exc) or "key values mismatch" in str(exc):
+            raise SecurityError(f"--tls-key {key} is not the private key of --tls-cert {cert}: give the key made "
+                                "with that certificate") from None
+        raise SecurityError(f"--tls-cert {cert} / --tls-key {key}: not a PEM certificate and its unencrypted "
+                            f"private key ({exc.reason or exc})") from None
+    except OSError as exc:
+        raise SecurityError(f"--tls-cert {cert} / --tls-key {key}: cannot read: {exc.strerror or exc}") from None
+
+
+def tls_mismatch(address: str, details: str, timeout: float = 1.0) -> str | None:
+    """Why a connection to ``address`` that failed with gRPC's ``details`` failed, when
+    the two ends disagree about TLS: one line naming the flag that fixes it (None when
+    that is not the cause). A server that closes the connection at once ("Socket closed")
+    is asked with a TLS handshake of its own (at most ``timeout`` s) whether it speaks TLS
+    and wants a client certificate."""
+    if "WRONG_VERSION_NUMBER" in details or ("handshake" in details.lower() and "PROTOCOL" in details
+                                             and "CERTIFICATE" not in details):
+        return (f"{address} does not speak TLS: drop --tls-ca/--tls-cert (and $SCART_TLS_CA, $SCART_TLS_CERT) to "
+                "talk to it in plaintext, or give that server --tls-cert/--tls-key")
+    if "CERTIFICATE_VERIFY_FAILED" in details or "certificate verify failed" in details.lower():
+        return (f"{address} speaks TLS with a certificate that --tls-ca does not trust: give --tls-ca (or "
+                "$SCART_TLS_CA) the CA that signed it")
+    if "Socket closed" not in details and "Connection reset" not in details:
+        return None
+    speaks = _speaks_tls(address, timeout)
+    if speaks == "mtls":
+        return (f"{address} wants a client certificate (mTLS): give --tls-cert/--tls-key signed by the CA it "
+                "trusts, and --tls-ca (or $SCART_TLS_CERT, $SCART_TLS_KEY, $SCART_TLS_CA)")
+    if speaks == "tls":
+        return f"{address} speaks TLS and this client does not: give --tls-ca (or $SCART_TLS_CA) the server's CA"
+    return None
+
+
+def _speaks_tls(address: str, timeout: float) -> str | None:
+    """``"tls"`` when a TLS handshake with ``host:port`` succeeds, ``"mtls"`` when the
+    server then asks for a client certificate, None when it does not speak TLS."""
+    import socket
+    import ssl
+
+    host, _, port = address.rpartition(":")
+    if not port.isdigit() or not host:
+        return None
+    context = ssl.create_default_context()
+    context.check_hostname = False
+    context.verify_mode = ssl.CERT_NONE
+    context.set_alpn_protocols(["h2"])
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout) as raw:
+            with context.wrap_socket(raw) as tls:
+                # TLS 1.3: a server wanting a client certificate refuses after the handshake
+                # (it closes, or alerts), where another sends its HTTP/2 settings
+                try:
+                    return "tls" if tls.recv(1) else "mtls"
+                except ssl.SSLError as exc:
+                    return "mtls" if "CERTIFICATE" in str(exc).upper() else "tls"
+                except OSError:  # nothing within the timeout: it waits for us, as a TLS server does
+                    return "tls"
+    except ssl.SSLError as exc:  # an alert from a TLS server (TLS 1.2 asks for the certificate in the handshake)
+        if "WRONG_VERSION_NUMBER" in str(exc) or isinstance(exc, ssl.SSLEOFError):
+            return None
+        return "mtls" if "CERTIFICATE" in str(exc).upper() else "tls"
+    except OSError:
+        return None
 
 
 def is_loopback(host: str) -> bool:

@@ -23,6 +23,14 @@ composite (every problem listed on stderr as ``path:line: message [CODE]``, noth
 started), 1 a failure while starting or stopping. A second SIGINT/SIGTERM while ``run``
 stops exits at once with 128+signal (130/143) after a message on stderr. One-way calls
 still running ``--stop-timeout`` seconds into the stop are logged and left behind.
+
+Starting is bounded too: a component whose start (``@init``, ``configure_hook``,
+``start_hook``) has not returned ``--start-timeout`` seconds after the start began fails
+the start with one line naming the component and the hook, and a SIGINT/SIGTERM during
+the start is obeyed at once, saying where the start was; either way what started is
+stopped (the hook that hangs is left behind) and ``run`` exits with 1. Every stop is
+bounded: if it has not finished ``--stop-timeout`` + 30 s after it began, ``run`` says
+so and exits with 1.
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
@@ -51,6 +60,16 @@ if TYPE_CHECKING:
 
 TASK_KIND = "implementation.task"  # the data-flow extension's kind (the core does not import it)
 SERVICES_DEFAULT = "localhost:0"  # apart from any binding.grpc server of the composite (they share by address)
+START_TIMEOUT = 60.0  # s: the whole start (every @init and start_hook)
+STOP_MARGIN = 30.0  # s past --stop-timeout after which a stop that has not finished is given up
+
+
+def _seconds(text: str) -> float:
+    """A positive, finite number of seconds (argparse type)."""
+    value = float(text)
+    if not 0 < value < 1e6:
+        raise argparse.ArgumentTypeError(f"{text}: expected seconds, > 0")
+    return value
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
@@ -62,6 +81,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     run.add_argument("--stop-timeout", type=float, default=10.0, metavar="SECONDS",
                      help="on stop, how long one-way calls may still run before they are left behind "
                           "(logged by operation; default 10)")
+    run.add_argument("--start-timeout", type=_seconds, default=START_TIMEOUT, metavar="SECONDS",
+                     help="how long starting may take: then the start fails, naming the component and the hook "
+                          f"(@init, start_hook...) still running (default {START_TIMEOUT:g})")
     run.add_argument("--ns", default=None, metavar="HOST:PORT",
                      help="name service of data-flow tasks: where the embedded one listens, or the running one "
                           f"to join (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
@@ -71,7 +93,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
                           "port); 'off' to serve none")
     run.add_argument("--foxglove", default=None, metavar="[HOST:]PORT",
                      help="also serve the data-flow tasks live to the Foxglove app here (as `scart foxglove`: "
-                          "ports, properties, operations; 0: a free port; a routable HOST needs --insecure)")
+                          "ports, properties, operations; 0: a free port; a routable HOST needs --insecure); "
+                          "read-only unless --foxglove-control")
+    run.add_argument("--foxglove-control", nargs="?", const="", default=None, metavar="TOKEN_FILE",
+                     help="make --foxglove writable (set properties, call operations), acting with the 'operate' "
+                          "token in TOKEN_FILE (needed when the runtime checks tokens; never the runtime's own)")
     run.add_argument("--dry-run", action="store_true",
                      help="load and check the composite exactly as run would (settings, --set, --remap), print "
                           "what would run, and start nothing")
@@ -196,12 +222,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.
         announced = io.StringIO()
-        try:
-            with contextlib.redirect_stdout(announced):
-                runtime.start()
-        except ScartError as exc:
-            _stop_listening(runtime)
-            print(f"scart: start failed: {exc}", file=sys.stderr)
+        failure = _start(runtime, announced, stop, args.start_timeout)
+        if failure is not None:
+            print(f"scart: {failure}", file=sys.stderr, flush=True)
+            _stop_listening(runtime, limit=args.stop_timeout + STOP_MARGIN)
             return 1
         services: list[Any] = []
         foxglove: Any = None
@@ -213,7 +237,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 return 1
             if args.foxglove is not None:
                 try:
-                    foxglove = _serve_foxglove(runtime, args.foxglove, settings)
+                    foxglove = _serve_foxglove(runtime, args.foxglove, settings, args.foxglove_control)
                 except Exception as exc:  # noqa: BLE001 - bad address, port taken, no tasks: said, all stopped
                     print(f"scart: start failed: --foxglove {args.foxglove}: {exc}", file=sys.stderr)
                     return 1
@@ -222,7 +246,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             if services:
                 print(_services_line(services), flush=True)
             if foxglove is not None:
-                print(f"scart: Foxglove at {foxglove.url} ({foxglove.channels} channel(s))", flush=True)
+                print(f"scart: Foxglove at {foxglove.url} ({foxglove.channels} channel(s), "
+                      f"{'writable' if foxglove.writable else 'read-only'})", flush=True)
             for what, where in runtime.served().items():
                 print(f"scart: {what} at {where}", flush=True)
             print(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop", flush=True)
@@ -235,7 +260,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             # the services endpoint first, then SCA components (their one-way calls drain while
             # the tasks they use still run; then the components, task components included,
             # are destroyed in reverse start order), the data-flow server last (a stop hook).
-            _stop_listening(runtime, services)
+            _stop_listening(runtime, services, limit=args.stop_timeout + STOP_MARGIN)
         print("scart: stopped", flush=True)
         return 0
     finally:
@@ -278,10 +303,14 @@ def _serve_services(runtime: Runtime, address: str) -> list[Any]:
     return started
 
 
-def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings) -> Any:
+def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings, control: str | None = None) -> Any:
     """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service
-    ``runtime`` serves or joined (``scart foxglove``'s, on this process's credentials).
-    Raises when the composite serves no tasks or the server cannot start."""
+    ``runtime`` serves or joined: read-only (on this process's credentials), or with
+    ``control`` (``--foxglove-control [TOKEN_FILE]``) writable, acting with that file's
+    token (see :func:`dataflow.cli.foxglove.control_token`). Raises when the composite
+    serves no tasks, the control token is refused or the server cannot start."""
+    import dataclasses
+
     host, _, port = spec.rpartition(":")
     host = host.strip("[]") or "127.0.0.1"
     if not port.isdigit() or int(port) > 65535:
@@ -289,25 +318,65 @@ def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings) -> Any:
     where = runtime.served().get("name service")
     if where is None:
         raise ScartError("this composite serves no data-flow tasks to show")
-    from dataflow.cli.foxglove import FoxgloveLive
+    from dataflow.cli.foxglove import FoxgloveLive, control_token
     from dataflow.remote import connect
 
+    writer = None
+    if control is not None:
+        token = control_token(control or None, settings.security, "--foxglove-control")
+        writer = connect(where.split()[0], security=dataclasses.replace(settings.security, token=token))
     system = connect(where.split()[0], security=settings.security)
     try:
-        live = FoxgloveLive(system, host, int(port), insecure_host=settings.security.insecure, owns_system=True)
+        live = FoxgloveLive(system, host, int(port), insecure_host=settings.security.insecure, owns_system=True,
+                            control=writer)
     except BaseException:
         system.close()
+        if writer is not None:
+            writer.close()
         raise
-    live.start()  # its stop (also when start raises) closes the client
+    live.start()  # its stop (also when start raises) closes the clients
     return live
 
 
-def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None:
+def _start(runtime: Runtime, announced: io.StringIO, stop: threading.Event, timeout: float) -> str | None:
+    """Start ``runtime`` on a thread of its own while this (main) thread waits in short
+    slices (it must stay free to run the signal handlers) for the start to end, for
+    ``stop`` (a signal) or for ``timeout`` s. What components print meanwhile goes to
+    ``announced``. None when started; else what went wrong, in one line naming the
+    component and what its start was doing when it did not return."""
+    outcome: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            runtime.start()
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+            outcome.append(exc)
+
+    starter = threading.Thread(target=run, name="scart-start", daemon=True)  # a hung hook is left behind
+    deadline = time.monotonic() + timeout
+    with contextlib.redirect_stdout(announced):
+        starter.start()
+        while starter.is_alive() and not stop.is_set() and time.monotonic() < deadline:
+            starter.join(0.1)
+    if not starter.is_alive():
+        if not outcome:
+            return None
+        exc = outcome[0]
+        return f"start failed: {exc}" if isinstance(exc, ScartError) else f"start failed: {type(exc).__name__}: {exc}"
+    where = runtime.starting()
+    doing = f"component {where[0]} ({where[1]})" if where is not None else "the runtime"
+    if stop.is_set():
+        return f"stopping while starting: {doing} had not returned"
+    return f"start failed: {doing} did not return within {timeout:g} s (--start-timeout); stopping"
+
+
+def _stop_listening(runtime: Runtime, services: list[Any] | None = None, limit: float | None = None) -> None:
     """Stop the ``services`` endpoint, then ``runtime``, on a thread of their own while this
     (main) thread waits in short slices. Python runs signal handlers only on the main
     thread, and the kernel may deliver a signal to any thread: a main thread blocked in one
     long wait (a drain deadline of minutes) would not run the second Ctrl-C's handler until
-    that wait ended."""
+    that wait ended. A stop not done within ``limit`` s is given up: said, and the process
+    exits with 1 (what hangs cannot be ended otherwise)."""
     def stop() -> None:
         try:
             for binding in reversed(services or []):
@@ -317,7 +386,12 @@ def _stop_listening(runtime: Runtime, services: list[Any] | None = None) -> None
 
     stopper = threading.Thread(target=stop, name="scart-stop", daemon=True)
     stopper.start()
+    deadline = None if limit is None else time.monotonic() + limit
     while stopper.is_alive():
+        if deadline is not None and time.monotonic() > deadline:
+            os.write(2, f"scart: the stop has not finished within {limit:g} s; exiting (what hangs is left "
+                        "behind)\n".encode())
+            os._exit(1)
         stopper.join(0.2)
 
 

@@ -65,7 +65,7 @@ async def conversation(url: str) -> dict:
 def test_the_driver_live_in_the_foxglove_protocol() -> None:
     demo = start_serving("robot.composite")
     proc = subprocess.Popen([sys.executable, "-m", "scart", "foxglove", "--port", "0", "--ns", demo.ns,
-                             "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env(), bufsize=0)
+                             "--duration", "60", "--control"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env(), bufsize=0)
     try:
         url = re.search(r"ws://\S+", read_until(proc, "Foxglove at"))[0]  # type: ignore[index]
         seen = asyncio.run(conversation(url))
@@ -91,7 +91,7 @@ def test_the_driver_live_in_the_foxglove_protocol() -> None:
 def test_scart_run_serves_foxglove_beside_the_composite() -> None:
     """``scart run --foxglove 0``: the same live view, from the running composite itself
     (no second command), stopped with it."""
-    demo = start_serving("robot.composite", "--foxglove", "0")
+    demo = start_serving("robot.composite", "--foxglove", "0", "--foxglove-control")
     try:
         url = demo.wait_line(r"scart: Foxglove at (ws://\S+)")[1]
         seen = asyncio.run(conversation(url))

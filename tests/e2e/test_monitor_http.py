@@ -418,10 +418,13 @@ def test_sse_clients_are_capped_and_a_freed_slot_is_reused(backend: FakeBackend)
 
 
 def test_connections_beyond_the_cap_are_closed_at_once(backend: FakeBackend) -> None:
+    """When every connection is being answered (streams), one more is closed unanswered;
+    a connection still sending its request would have been dropped for it instead
+    (tests/security/test_monitor.py)."""
     server = MonitorServer(backend, max_connections=2)
     server.start()
     address = ("127.0.0.1", urllib.parse.urlsplit(server.url).port)
-    idle = [socket.create_connection(address, timeout=10) for _ in range(2)]  # each pins a handler thread
+    streams = [open_stream(server.url) for _ in range(2)]  # each pins a handler thread, answering
     try:
         with socket.create_connection(address, timeout=5) as extra:
             started = time.monotonic()
@@ -430,7 +433,7 @@ def test_connections_beyond_the_cap_are_closed_at_once(backend: FakeBackend) -> 
             except ConnectionResetError:
                 pass
             assert time.monotonic() - started < 3.0  # well before the handlers' 10 s read timeout
-        idle.pop().close()
+        streams.pop().close()
 
         def served() -> bool:
             try:
@@ -440,8 +443,8 @@ def test_connections_beyond_the_cap_are_closed_at_once(backend: FakeBackend) -> 
 
         wait_until(served, timeout=10.0, interval=0.05, message="no connection accepted after one closed")
     finally:
-        for sock in idle:
-            sock.close()
+        for stream in streams:
+            stream.close()
         server.stop()
 
 

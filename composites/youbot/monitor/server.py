@@ -40,9 +40,15 @@ trusted: web pages from other origins running in that user's browser. The checks
   ``X-Content-Type-Options: nosniff``, ``Referrer-Policy: no-referrer`` (the token never
   leaves in a Referer).
 - **Resources**: at most `MAX_SSE_CLIENTS` streams (more: 503 + ``Retry-After``), at most
-  `MAX_CONNECTIONS` open connections, i.e. handler threads (more: closed at once,
-  unanswered), a listen backlog of `LISTEN_BACKLOG`, `MAX_BODY` bytes per POST, and a
-  10 s read timeout per request.
+  `MAX_CONNECTIONS` open connections, i.e. handler threads, a listen backlog of
+  `LISTEN_BACKLOG`, `MAX_BODY` bytes per POST. A request (its head and body) must arrive
+  within `REQUEST_DEADLINE_S` in all, whatever its pace (a slowloris sending a byte now
+  and then is cut at that deadline, not kept by a per-read timeout), and one peer address
+  may have at most `MAX_PENDING_PER_PEER` connections still sending their request. A
+  connection beyond either bound takes the place of the oldest one still sending its
+  request (of that peer, or of anyone when the server is full), so a legitimate request
+  is answered at once while slow ones wait to be dropped; when every connection is being
+  answered (streams), one more is closed at once, unanswered.
 
 Threads: `start` creates one accept thread; each connection gets its own daemon handler
 thread (at most `MAX_CONNECTIONS`). `stop` signals (closes the hub, which ends SSE
@@ -69,6 +75,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from dataflow.remote.security import is_loopback
 
+from .connections import Connections
 from .hub import StatusHub
 
 log = logging.getLogger(__name__)
@@ -89,6 +96,12 @@ MAX_CONNECTIONS = 512
 """Default cap on concurrent connections (one handler thread each); one more is closed
 at once without an answer. Above `MAX_SSE_CLIENTS`, so a full set of streams still
 leaves room for the page's commands and snapshots."""
+
+MAX_PENDING_PER_PEER = 32
+"""Connections of one peer address still sending their request, at most (see Security)."""
+
+REQUEST_DEADLINE_S = 5.0
+"""A request's head and body must have arrived this long after its connection opened."""
 
 LISTEN_BACKLOG = 128
 """``listen()`` backlog: connections the kernel queues while the accept thread is busy."""
@@ -181,8 +194,9 @@ def _allowed_hosts(configured: str, bound: str, port: int) -> frozenset[str]:
 
 
 class _HTTPServer(ThreadingHTTPServer):
-    """ThreadingHTTPServer that remembers its connections so `close_connections` can end
-    them, caps them at ``max_connections`` and holds the ``/events`` slots."""
+    """ThreadingHTTPServer whose connections are kept in a :class:`Connections` (bounded,
+    each request under a deadline, ended by `close_connections`), holding the ``/events``
+    slots."""
 
     daemon_threads = True
     block_on_close = False
@@ -194,8 +208,7 @@ class _HTTPServer(ThreadingHTTPServer):
         self.address_family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
         self.max_connections = max_connections
         self.sse_slots = threading.BoundedSemaphore(max_sse_clients)
-        self._conn_lock = threading.Lock()
-        self._conns: dict[threading.Thread, socket.socket] = {}
+        self.connections = Connections(max_connections, MAX_PENDING_PER_PEER, REQUEST_DEADLINE_S)
         super().__init__(address, _Handler)
         self.port = int(self.server_address[1])
         self.allowed_hosts = _allowed_hosts(address[0], str(self.server_address[0]), self.port)
@@ -210,16 +223,16 @@ class _HTTPServer(ThreadingHTTPServer):
             name=f"scart-monitor-conn-{client_address[1]}",
             daemon=True,
         )
-        with self._conn_lock:
-            full = len(self._conns) >= self.max_connections
-            if not full:
-                self._conns[thread] = request
-        if full:  # a flood must not grow threads without bound: refuse, unanswered
-            log.debug("monitor: %d connections open, closing one more from %s", self.max_connections,
-                      client_address[0])
-            self.shutdown_request(request)
+        if not self.connections.admit(thread, request, str(client_address[0])):
+            log.debug("monitor: %d connections open and answering, closing one more from %s",
+                      self.max_connections, client_address[0])
+            self.shutdown_request(request)  # a flood must not grow threads without bound: refused, unanswered
             return
         thread.start()
+
+    def service_actions(self) -> None:
+        """Every loop of ``serve_forever``: end the requests past their deadline."""
+        self.connections.sweep()
 
     def _serve_connection(self, request: Any, client_address: Any) -> None:
         try:
@@ -230,28 +243,15 @@ class _HTTPServer(ThreadingHTTPServer):
             log.exception("monitor: request from %s failed", client_address)
         finally:
             self.shutdown_request(request)
-            with self._conn_lock:
-                self._conns.pop(threading.current_thread(), None)
+            self.connections.forget(threading.current_thread())
 
     def open_connections(self) -> int:
         """How many connections (handler threads) are open now. Thread-safe."""
-        with self._conn_lock:
-            return len(self._conns)
+        return self.connections.count()
 
     def close_connections(self, timeout: float) -> list[str]:
         """Shut every open connection and join its thread; returns names still alive."""
-        me = threading.current_thread()  # stop() called from a request (a backend) answers it
-        with self._conn_lock:
-            conns = [(t, s) for t, s in self._conns.items() if t is not me]
-        for _thread, sock in conns:
-            try:
-                sock.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-        deadline = time.monotonic() + timeout
-        for thread, _sock in conns:
-            thread.join(max(0.0, deadline - time.monotonic()))
-        return [t.name for t, _ in conns if t.is_alive()]
+        return self.connections.close_all(timeout)
 
 
 class _Handler(BaseHTTPRequestHandler):
@@ -264,6 +264,11 @@ class _Handler(BaseHTTPRequestHandler):
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib name
         if log.isEnabledFor(logging.DEBUG):  # request lines may carry ?token=: never logged
             log.debug("monitor: %s", _TOKEN_IN_TEXT.sub(r"\1***", format % args))
+
+    def send_response(self, code: int, message: str | None = None) -> None:
+        """Answering: the request has arrived (its deadline no longer applies)."""
+        self.server.connections.answering(threading.current_thread())
+        super().send_response(code, message)
 
     def end_headers(self) -> None:
         """Every answer (errors and refusals included) carries `SECURITY_HEADERS`."""

@@ -16,6 +16,13 @@ Key scheme (documented in the README, "Transports"):
 - ``scart-served/<ns>/<component>/<address>/<boot id>`` (a liveliness token per task, the
   address percent-encoded) says which deployer serves it over gRPC, the control plane:
   :class:`ZenohNames` answers lookups from these in place of a scart name service.
+- ``scart-proof/<ns>/<component>`` (a queryable per task of a deployer that checks tokens)
+  proves an announcement: asked with ``id=<token id>;nonce=<hex>``, it answers the
+  address and boot id it serves at and an HMAC of the nonce, namespace, component,
+  address and boot id under a key derived from that token (:func:`proof_of`). Only a
+  holder of the auth file knows the tokens, so only a real deployer of the fleet can
+  answer for a resolver's token; :class:`ZenohNames` holding a token uses only the
+  announcements proved this way (it would send that token there).
 
 ``<ns>`` is a namespace word (default ``default``), as ``__ns`` is for remapping.
 
@@ -54,15 +61,15 @@ from dataflow.transports.sinks import port_check
 from dataflow.transports.zenoh._keys import (
     DEFAULT_NS, ENCODING_PREFIX, MAX_PAYLOAD, ROOT, SERVED, check_topic, key_of, served_key,
 )
-from dataflow.transports.zenoh._names import ZenohNames, connect_zenoh, discover
+from dataflow.transports.zenoh._names import PROOF, Prover, ZenohNames, connect_zenoh, discover, proof_of, token_id
 from dataflow.transports.zenoh._session import check_endpoint, open_session, zenoh_credentials
 
 if TYPE_CHECKING:
-    pass
+    from dataflow.remote.security import AuthTable
 
 __all__ = ["DEFAULT_NS", "ROOT", "SERVED", "ZenohInput", "ZenohNames", "ZenohPublisher", "ZenohSubscription",
-           "ZenohTransport", "check_endpoint", "connect_zenoh", "discover", "key_of", "open_session", "served_key",
-           "use_session", "zenoh_credentials"]
+           "ZenohTransport", "check_endpoint", "connect_zenoh", "discover", "key_of", "open_session", "proof_of",
+           "served_key", "token_id", "use_session", "zenoh_credentials"]
 
 log = logging.getLogger(__name__)
 
@@ -153,9 +160,11 @@ class ZenohPublisher:
     and a liveliness token per task and port. :meth:`close` undeclares everything
     (idempotent, also after a failure half-way)."""
 
-    def __init__(self, deployer: Any, session: Any, ns: str = DEFAULT_NS, served: tuple[str, str] | None = None) -> None:
+    def __init__(self, deployer: Any, session: Any, ns: str = DEFAULT_NS, served: tuple[str, str] | None = None,
+                 auth: AuthTable | None = None) -> None:
         """``served``: ``(address, boot id)`` of the deployer's gRPC server, announced with
-        each task (:func:`served_key`) so that :class:`ZenohNames` finds it."""
+        each task (:func:`served_key`) so that :class:`ZenohNames` finds it; ``auth``: the
+        deployer's auth file, with which it proves those announcements (``scart-proof``)."""
         import secrets
 
         self.ns = ns
@@ -163,11 +172,15 @@ class ZenohPublisher:
         self._id = secrets.randbits(64).to_bytes(8, "little")  # this publisher: a subscriber tells restarts by it
         self._ends: list[tuple[WriterEnd, _Publisher]] = []
         self._tokens: list[Any] = []
+        keys = {token_id(t.decode()): t.decode() for t, _ in auth.entries} if auth is not None else {}
         try:
             for task in deployer.tasks():
                 self._tokens.append(session.liveliness().declare_token(key_of(ns, task.name)))
                 if served is not None:
                     self._tokens.append(session.liveliness().declare_token(served_key(ns, task.name, *served)))
+                    if keys:
+                        self._tokens.append(session.declare_queryable(
+                            f"{PROOF}/{ns}/{task.name}", Prover(ns, task.name, served, keys)))
                 for port in task.ports().values():
                     if not port.is_input:
                         self._publish(session, port, key_of(ns, task.name, port.name))

@@ -201,7 +201,8 @@ class _Link:
                 raise DataflowError(f"binding.dataflow {self.what}: closed")
             if self._zenoh is None:
                 self._zenoh = zenoh.open(self.runtime.settings.security)
-            return ZenohNames(self._zenoh, zenoh.ns, timeout=timeout, insecure=zenoh.insecure)
+            return ZenohNames(self._zenoh, zenoh.ns, timeout=timeout, insecure=zenoh.insecure,
+                              token=self.runtime.settings.security.token)
 
     def proxy(self) -> Any:
         """The component proxy (created on first success); raises ``DataflowError``."""

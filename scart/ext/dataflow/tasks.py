@@ -127,12 +127,16 @@ def _checked_type(prop: Any) -> Any:
 
 
 def task_interface(cls: type[TaskContext]) -> InterfaceInfo:
-    """The SCA service of a task class: one operation per ``@operation``."""
+    """The SCA service of a task class: one operation per ``@operation``. Its
+    ``python_type`` holds the operations' functions by operation name, so that a remote
+    binding checks their arguments as the data-flow path does (declared types and bounds)."""
     ops: dict[str, Operation] = {}
+    functions: dict[str, Any] = {}
     for name, attr in cls._operation_attrs.items():
-        ann = getattr(getattr(cls, attr), "__annotations__", {}).get("return")
+        functions[name] = getattr(cls, attr)
+        ann = getattr(functions[name], "__annotations__", {}).get("return")
         ops[name] = Operation(name, False, ann not in (None, "None", type(None)))
-    return InterfaceInfo(cls.__name__, ops, None, True, None)
+    return InterfaceInfo(cls.__name__, ops, None, True, type(cls.__name__, (), functions))
 
 
 class TaskImplementation(ImplementationProvider):
@@ -209,11 +213,15 @@ class TaskManager(ComponentManager):
                 task.set_property(name, value)
         dataflow_host.deployer.add(task)
         self.task = task
+        self.stage = "configure_hook"
         if not task.configure():
             raise ScartError(f"task {task.name}: configure refused (state {task.state.name})")
+        self.stage = "connecting its ports"
         connect_present(self.host, task.name)
+        self.stage = "start_hook"
         if not task.start():
             raise ScartError(f"task {task.name}: start refused (state {task.state.name})")
+        self.stage = "started"
         dataflow_host.refresh()
 
     def stop(self) -> None:

@@ -16,6 +16,7 @@ from typing import Any
 
 import grpc
 
+from dataflow.remote.security import tls_mismatch
 from scart.errors import InvocationError, ServiceUnavailableError
 from scart.ext.grpc._server import Exported, GrpcServer, ServerTable
 from scart.ext.grpc._wire import (
@@ -321,6 +322,9 @@ class GrpcReferenceBinding(ReferenceBinding):
                 f"binding.grpc: {self.where}: {name}: no answer within {self.timeout} s "
                 f"(the operation may have run) (DEADLINE_EXCEEDED)")
         if code == grpc.StatusCode.UNAVAILABLE:
+            mismatch = tls_mismatch(self.target_address, exc.details() or "") if isinstance(exc, grpc.Call) else None
+            if mismatch is not None:  # no use retrying: one side speaks TLS, the other does not
+                return InvocationError(f"binding.grpc: {self.where}: {name}: {mismatch}")
             return ServiceUnavailableError(f"binding.grpc: {self.where}: {name}: unreachable (UNAVAILABLE)")
         details = exc.details() if isinstance(exc, grpc.Call) else str(exc)
         return InvocationError(f"binding.grpc: {self.where}: {name}: {code.name if code else 'error'}: {details}")

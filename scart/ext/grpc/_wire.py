@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import functools
 import inspect
-import traceback
+import logging
+import secrets
 import typing
 from types import MappingProxyType
 from collections.abc import Callable
@@ -20,19 +21,20 @@ from typing import Any
 import pydantic
 
 from dataflow import codec
-from dataflow.bounds import from_outside
-from dataflow.errors import PortTypeError
+from dataflow.bounds import argument_adapter, check_argument
+from dataflow.errors import DataflowError, PortTypeError
 from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
 from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
 from dataflow.remote.security import Role, roles_of_service
 from dataflow.types import registry
-from scart.errors import InvocationError, RemoteError
+from scart.errors import InvocationError, RemoteError, RuntimeStateError, ServiceNotFoundError
 
 SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
 #: The role each method needs on a server with an auth file: listing needs ``read``, calling ``operate``.
 SCA_ROLES: MappingProxyType[str, Role] = MappingProxyType(roles_of_service(SCA_SERVICE.full_name, reads={"ListServices"}))
 PATHS: MappingProxyType[str, str] = MappingProxyType(
     {m.name: f"/{SCA_SERVICE.full_name}/{m.name}" for m in SCA_SERVICE.methods})
+log = logging.getLogger("scart.ext.grpc")
 NONE_TYPE = codec.NONE_TYPE
 JSON_TYPE = codec.JSON_TYPE
 
@@ -113,13 +115,16 @@ def reader(annotation: Any) -> Converter:
 
 
 class Signature:
-    """Per-operation readers (see :func:`reader`): parameters by position and by name
-    (checked as values from outside: declared bounds, numbers finite; see
-    :func:`dataflow.bounds.from_outside`), the result."""
+    """Per-operation readers: parameters by position and by name, each decoded and then
+    checked by the one check of operation arguments from outside that every entry uses
+    (:func:`dataflow.bounds.check_argument`: declared type, numbers strict, bounds,
+    finiteness; a refusal says ``LABEL.op(param): VALUE refused: REASON``), the result
+    (see :func:`reader`)."""
 
     __slots__ = ("positional", "named", "result")
 
-    def __init__(self, func: Callable[..., Any] | None) -> None:
+    def __init__(self, func: Callable[..., Any] | None, label: str = "") -> None:
+        """``label``: what refusals name the operation (default: the function's name)."""
         self.positional: list[Converter] = []
         self.named: dict[str, Converter] = {}
         self.result: Converter = decode
@@ -130,9 +135,9 @@ class Signature:
             params = [p for p in inspect.signature(func).parameters.values() if p.name != "self"]
         except Exception:  # unresolvable annotations: values pass as decoded
             return
-        for p in params:  # arguments come from outside: bounds, and numbers finite
-            hint = hints.get(p.name)
-            read = reader(from_outside(hint) if hint is not None else None)
+        op = label or func.__name__
+        for p in params:
+            read = _checked_reader(f"{op}({p.name})", hints.get(p.name))
             if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
                 self.positional.append(read)
             self.named[p.name] = read
@@ -150,9 +155,24 @@ class Signature:
         return {k: named.get(k, decode)(v) for k, v in values.items()}
 
 
-def signatures(iface_cls: type | None, names: typing.Iterable[str]) -> dict[str, Signature]:
-    """A :class:`Signature` per operation name, read from ``iface_cls`` (None: no coercion)."""
-    return {n: Signature(getattr(iface_cls, n, None) if iface_cls is not None else None) for n in names}
+def _checked_reader(where: str, hint: Any) -> Converter:
+    """``Value`` message -> the argument, decoded and checked (see :class:`Signature`)."""
+    if argument_adapter(hint) is None:
+        return decode
+
+    def read(v: Any) -> Any:
+        try:
+            return check_argument(where, hint, decode(v))
+        except DataflowError as exc:  # the same refusal, in this side's error tree
+            raise ArgumentRefused(str(exc)) from None
+    return read
+
+
+def signatures(iface_cls: type | None, names: typing.Iterable[str], label: str = "") -> dict[str, Signature]:
+    """A :class:`Signature` per operation name, read from ``iface_cls`` (None: no coercion);
+    ``label`` (e.g. the component) starts the refusals' ``where``."""
+    return {n: Signature(getattr(iface_cls, n, None) if iface_cls is not None else None, f"{label}.{n}" if label else n)
+            for n in names}
 
 
 def fill_invocation(msg: Any, args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
@@ -171,17 +191,38 @@ class UnknownSessionError(InvocationError):
     the client reopens its session and sends again, once."""
 
 
+class ArgumentRefused(InvocationError):
+    """An argument refused by the one check of operation arguments (a fault's INVALID_ARGUMENT)."""
+
+
+def fault_code(exc: BaseException) -> str:
+    """What a fault is, for programs (see ``Fault.code`` in ``sca.proto``)."""
+    if isinstance(exc, ArgumentRefused) or (isinstance(exc, InvocationError) and "malformed value" in str(exc)):
+        return "INVALID_ARGUMENT"
+    if isinstance(exc, (ServiceNotFoundError, UnknownSessionError)) or (
+            isinstance(exc, InvocationError) and " has no operation " in str(exc)):
+        return "NOT_FOUND"
+    if isinstance(exc, RuntimeStateError) or str(exc).startswith("server stopping"):
+        return "UNAVAILABLE"
+    return "FAILED"
+
+
 def fault(exc: BaseException) -> Any:
-    """A ``Fault`` message describing ``exc``."""
+    """A ``Fault`` message describing ``exc`` to the caller: its type, message, code and a
+    reference. The traceback (with this side's paths) never leaves: it is logged here
+    under that reference (a warning when the operation itself failed)."""
     kind = type(exc)
     name = kind.__qualname__ if kind.__module__ == "builtins" else f"{kind.__module__}.{kind.__qualname__}"
     message = exc.remote_message if isinstance(exc, RemoteError) else str(exc)
-    return pb.Fault(type=name, message=message, traceback="".join(traceback.format_exception(exc))[-4000:])
+    code, reference = fault_code(exc), secrets.token_hex(6)
+    log.log(logging.WARNING if code == "FAILED" else logging.INFO, "binding.grpc fault %s (%s): %s: %s",
+            reference, code, name, message, exc_info=exc)
+    return pb.Fault(type=name, message=message, code=code, reference=reference)
 
 
 def failure(where: str, f: Any) -> RemoteError:
     """The :class:`RemoteError` for a received ``Fault``."""
-    return RemoteError(where, f.type, f.message, f.traceback)
+    return RemoteError(where, f.type, f.message, code=f.code, reference=f.reference)
 
 
 def outcome_of(fn: Callable[[], Any]) -> Any:

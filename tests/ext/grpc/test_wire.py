@@ -50,7 +50,7 @@ def test_signature_coerces_by_annotation() -> None:
     args = sig.args([encode([{"x": 1, "theta": 2}]), encode(3)])
     assert args == ([Pose(x=1, theta=2)], 3.0) and type(args[1]) is float
     assert sig.kwargs({"tag": encode("t")}) == {"tag": "t"}
-    with pytest.raises(InvocationError, match="expected"):
+    with pytest.raises(InvocationError, match=r"op\(poses\): 'not poses' refused: Input should be a valid list"):
         sig.args([encode("not poses")])
 
 

@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from dataflow.proto.scart.dataflow.v1 import value_pb2 as scart_dot_dataflow_dot_v1_dot_value__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16scart/sca/v1/sca.proto\x12\x0cscart.sca.v1\x1a\x1dscart/dataflow/v1/value.proto\"\xfe\x01\n\nInvocation\x12\x0f\n\x07service\x18\x01 \x01(\t\x12\x11\n\toperation\x18\x02 \x01(\t\x12&\n\x04\x61rgs\x18\x03 \x03(\x0b\x32\x18.scart.dataflow.v1.Value\x12\x34\n\x06kwargs\x18\x04 \x03(\x0b\x32$.scart.sca.v1.Invocation.KwargsEntry\x12\x12\n\nsession_id\x18\x05 \x01(\t\x12\x11\n\ttarget_id\x18\x06 \x01(\x04\x1aG\n\x0bKwargsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\'\n\x05value\x18\x02 \x01(\x0b\x32\x18.scart.dataflow.v1.Value:\x02\x38\x01\"9\n\x05\x46\x61ult\x12\x0c\n\x04type\x18\x01 \x01(\t\x12\x0f\n\x07message\x18\x02 \x01(\t\x12\x11\n\ttraceback\x18\x03 \x01(\t\"b\n\x07Outcome\x12)\n\x05value\x18\x01 \x01(\x0b\x32\x18.scart.dataflow.v1.ValueH\x00\x12$\n\x05\x66\x61ult\x18\x02 \x01(\x0b\x32\x13.scart.sca.v1.FaultH\x00\x42\x06\n\x04kind\"\xf9\x01\n\x0c\x43\x61llbackCall\x12\n\n\x02id\x18\x01 \x01(\x04\x12\x11\n\toperation\x18\x02 \x01(\t\x12&\n\x04\x61rgs\x18\x03 \x03(\x0b\x32\x18.scart.dataflow.v1.Value\x12\x36\n\x06kwargs\x18\x04 \x03(\x0b\x32&.scart.sca.v1.CallbackCall.KwargsEntry\x12\x0e\n\x06oneway\x18\x05 \x01(\x08\x12\x11\n\ttarget_id\x18\x06 \x01(\x04\x1aG\n\x0bKwargsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\'\n\x05value\x18\x02 \x01(\x0b\x32\x18.scart.dataflow.v1.Value:\x02\x38\x01\"C\n\rCallbackReply\x12\n\n\x02id\x18\x01 \x01(\x04\x12&\n\x07outcome\x18\x02 \x01(\x0b\x32\x15.scart.sca.v1.Outcome\";\n\x0b\x43\x61llRequest\x12,\n\ninvocation\x18\x01 \x01(\x0b\x32\x18.scart.sca.v1.Invocation\"6\n\x0c\x43\x61llResponse\x12&\n\x07outcome\x18\x01 \x01(\x0b\x32\x15.scart.sca.v1.Outcome\";\n\x0bSendRequest\x12,\n\ninvocation\x18\x01 \x01(\x0b\x32\x18.scart.sca.v1.Invocation\"2\n\x0cSendResponse\x12\"\n\x05\x66\x61ult\x18\x01 \x01(\x0b\x32\x13.scart.sca.v1.Fault\"N\n\rInvokeRequest\x12,\n\ninvocation\x18\x01 \x01(\x0b\x32\x18.scart.sca.v1.Invocation\x12\x0f\n\x07\x63\x61ll_id\x18\x02 \x01(\t\"w\n\x0eInvokeResponse\x12\x33\n\rcallback_call\x18\x01 \x01(\x0b\x32\x1a.scart.sca.v1.CallbackCallH\x00\x12(\n\x07outcome\x18\x02 \x01(\x0b\x32\x15.scart.sca.v1.OutcomeH\x00\x42\x06\n\x04kind\"S\n\x14ReplyCallbackRequest\x12\x0f\n\x07\x63\x61ll_id\x18\x01 \x01(\t\x12*\n\x05reply\x18\x02 \x01(\x0b\x32\x1b.scart.sca.v1.CallbackReply\"*\n\x15ReplyCallbackResponse\x12\x11\n\tdelivered\x18\x01 \x01(\x08\"q\n\x1aOpenCallbackSessionRequest\x12\x14\n\nsession_id\x18\x01 \x01(\tH\x00\x12\x35\n\x0e\x63\x61llback_reply\x18\x02 \x01(\x0b\x32\x1b.scart.sca.v1.CallbackReplyH\x00\x42\x06\n\x04kind\"l\n\x1bOpenCallbackSessionResponse\x12\x10\n\x06opened\x18\x01 \x01(\x08H\x00\x12\x33\n\rcallback_call\x18\x02 \x01(\x0b\x32\x1a.scart.sca.v1.CallbackCallH\x00\x42\x06\n\x04kind\"\x15\n\x13ListServicesRequest\"D\n\rOperationInfo\x12\x0c\n\x04name\x18\x01 \x01(\t\x12\x0e\n\x06oneway\x18\x02 \x01(\x08\x12\x15\n\rreturns_value\x18\x03 \x01(\x08\"\xb6\x01\n\x0bServiceInfo\x12\r\n\x05names\x18\x01 \x03(\t\x12\x11\n\tinterface\x18\x02 \x01(\t\x12/\n\noperations\x18\x03 \x03(\x0b\x32\x1b.scart.sca.v1.OperationInfo\x12\x1a\n\x12\x63\x61llback_interface\x18\x04 \x01(\t\x12\x38\n\x13\x63\x61llback_operations\x18\x05 \x03(\x0b\x32\x1b.scart.sca.v1.OperationInfo\"C\n\x14ListServicesResponse\x12+\n\x08services\x18\x01 \x03(\x0b\x32\x19.scart.sca.v1.ServiceInfo2\xf2\x03\n\nScaService\x12=\n\x04\x43\x61ll\x12\x19.scart.sca.v1.CallRequest\x1a\x1a.scart.sca.v1.CallResponse\x12=\n\x04Send\x12\x19.scart.sca.v1.SendRequest\x1a\x1a.scart.sca.v1.SendResponse\x12\x45\n\x06Invoke\x12\x1b.scart.sca.v1.InvokeRequest\x1a\x1c.scart.sca.v1.InvokeResponse0\x01\x12X\n\rReplyCallback\x12\".scart.sca.v1.ReplyCallbackRequest\x1a#.scart.sca.v1.ReplyCallbackResponse\x12n\n\x13OpenCallbackSession\x12(.scart.sca.v1.OpenCallbackSessionRequest\x1a).scart.sca.v1.OpenCallbackSessionResponse(\x01\x30\x01\x12U\n\x0cListServices\x12!.scart.sca.v1.ListServicesRequest\x1a\".scart.sca.v1.ListServicesResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16scart/sca/v1/sca.proto\x12\x0cscart.sca.v1\x1a\x1dscart/dataflow/v1/value.proto\"\xfe\x01\n\nInvocation\x12\x0f\n\x07service\x18\x01 \x01(\t\x12\x11\n\toperation\x18\x02 \x01(\t\x12&\n\x04\x61rgs\x18\x03 \x03(\x0b\x32\x18.scart.dataflow.v1.Value\x12\x34\n\x06kwargs\x18\x04 \x03(\x0b\x32$.scart.sca.v1.Invocation.KwargsEntry\x12\x12\n\nsession_id\x18\x05 \x01(\t\x12\x11\n\ttarget_id\x18\x06 \x01(\x04\x1aG\n\x0bKwargsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\'\n\x05value\x18\x02 \x01(\x0b\x32\x18.scart.dataflow.v1.Value:\x02\x38\x01\"^\n\x05\x46\x61ult\x12\x0c\n\x04type\x18\x01 \x01(\t\x12\x0f\n\x07message\x18\x02 \x01(\t\x12\x15\n\ttraceback\x18\x03 \x01(\tB\x02\x18\x01\x12\x0c\n\x04\x63ode\x18\x04 \x01(\t\x12\x11\n\treference\x18\x05 \x01(\t\"b\n\x07Outcome\x12)\n\x05value\x18\x01 \x01(\x0b\x32\x18.scart.dataflow.v1.ValueH\x00\x12$\n\x05\x66\x61ult\x18\x02 \x01(\x0b\x32\x13.scart.sca.v1.FaultH\x00\x42\x06\n\x04kind\"\xf9\x01\n\x0c\x43\x61llbackCall\x12\n\n\x02id\x18\x01 \x01(\x04\x12\x11\n\toperation\x18\x02 \x01(\t\x12&\n\x04\x61rgs\x18\x03 \x03(\x0b\x32\x18.scart.dataflow.v1.Value\x12\x36\n\x06kwargs\x18\x04 \x03(\x0b\x32&.scart.sca.v1.CallbackCall.KwargsEntry\x12\x0e\n\x06oneway\x18\x05 \x01(\x08\x12\x11\n\ttarget_id\x18\x06 \x01(\x04\x1aG\n\x0bKwargsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\'\n\x05value\x18\x02 \x01(\x0b\x32\x18.scart.dataflow.v1.Value:\x02\x38\x01\"C\n\rCallbackReply\x12\n\n\x02id\x18\x01 \x01(\x04\x12&\n\x07outcome\x18\x02 \x01(\x0b\x32\x15.scart.sca.v1.Outcome\";\n\x0b\x43\x61llRequest\x12,\n\ninvocation\x18\x01 \x01(\x0b\x32\x18.scart.sca.v1.Invocation\"6\n\x0c\x43\x61llResponse\x12&\n\x07outcome\x18\x01 \x01(\x0b\x32\x15.scart.sca.v1.Outcome\";\n\x0bSendRequest\x12,\n\ninvocation\x18\x01 \x01(\x0b\x32\x18.scart.sca.v1.Invocation\"2\n\x0cSendResponse\x12\"\n\x05\x66\x61ult\x18\x01 \x01(\x0b\x32\x13.scart.sca.v1.Fault\"N\n\rInvokeRequest\x12,\n\ninvocation\x18\x01 \x01(\x0b\x32\x18.scart.sca.v1.Invocation\x12\x0f\n\x07\x63\x61ll_id\x18\x02 \x01(\t\"w\n\x0eInvokeResponse\x12\x33\n\rcallback_call\x18\x01 \x01(\x0b\x32\x1a.scart.sca.v1.CallbackCallH\x00\x12(\n\x07outcome\x18\x02 \x01(\x0b\x32\x15.scart.sca.v1.OutcomeH\x00\x42\x06\n\x04kind\"S\n\x14ReplyCallbackRequest\x12\x0f\n\x07\x63\x61ll_id\x18\x01 \x01(\t\x12*\n\x05reply\x18\x02 \x01(\x0b\x32\x1b.scart.sca.v1.CallbackReply\"*\n\x15ReplyCallbackResponse\x12\x11\n\tdelivered\x18\x01 \x01(\x08\"q\n\x1aOpenCallbackSessionRequest\x12\x14\n\nsession_id\x18\x01 \x01(\tH\x00\x12\x35\n\x0e\x63\x61llback_reply\x18\x02 \x01(\x0b\x32\x1b.scart.sca.v1.CallbackReplyH\x00\x42\x06\n\x04kind\"l\n\x1bOpenCallbackSessionResponse\x12\x10\n\x06opened\x18\x01 \x01(\x08H\x00\x12\x33\n\rcallback_call\x18\x02 \x01(\x0b\x32\x1a.scart.sca.v1.CallbackCallH\x00\x42\x06\n\x04kind\"\x15\n\x13ListServicesRequest\"D\n\rOperationInfo\x12\x0c\n\x04name\x18\x01 \x01(\t\x12\x0e\n\x06oneway\x18\x02 \x01(\x08\x12\x15\n\rreturns_value\x18\x03 \x01(\x08\"\xb6\x01\n\x0bServiceInfo\x12\r\n\x05names\x18\x01 \x03(\t\x12\x11\n\tinterface\x18\x02 \x01(\t\x12/\n\noperations\x18\x03 \x03(\x0b\x32\x1b.scart.sca.v1.OperationInfo\x12\x1a\n\x12\x63\x61llback_interface\x18\x04 \x01(\t\x12\x38\n\x13\x63\x61llback_operations\x18\x05 \x03(\x0b\x32\x1b.scart.sca.v1.OperationInfo\"C\n\x14ListServicesResponse\x12+\n\x08services\x18\x01 \x03(\x0b\x32\x19.scart.sca.v1.ServiceInfo2\xf2\x03\n\nScaService\x12=\n\x04\x43\x61ll\x12\x19.scart.sca.v1.CallRequest\x1a\x1a.scart.sca.v1.CallResponse\x12=\n\x04Send\x12\x19.scart.sca.v1.SendRequest\x1a\x1a.scart.sca.v1.SendResponse\x12\x45\n\x06Invoke\x12\x1b.scart.sca.v1.InvokeRequest\x1a\x1c.scart.sca.v1.InvokeResponse0\x01\x12X\n\rReplyCallback\x12\".scart.sca.v1.ReplyCallbackRequest\x1a#.scart.sca.v1.ReplyCallbackResponse\x12n\n\x13OpenCallbackSession\x12(.scart.sca.v1.OpenCallbackSessionRequest\x1a).scart.sca.v1.OpenCallbackSessionResponse(\x01\x30\x01\x12U\n\x0cListServices\x12!.scart.sca.v1.ListServicesRequest\x1a\".scart.sca.v1.ListServicesResponseb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -34,6 +34,8 @@ if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_INVOCATION_KWARGSENTRY']._loaded_options = None
   _globals['_INVOCATION_KWARGSENTRY']._serialized_options = b'8\001'
+  _globals['_FAULT'].fields_by_name['traceback']._loaded_options = None
+  _globals['_FAULT'].fields_by_name['traceback']._serialized_options = b'\030\001'
   _globals['_CALLBACKCALL_KWARGSENTRY']._loaded_options = None
   _globals['_CALLBACKCALL_KWARGSENTRY']._serialized_options = b'8\001'
   _globals['_INVOCATION']._serialized_start=72
@@ -41,43 +43,43 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_INVOCATION_KWARGSENTRY']._serialized_start=255
   _globals['_INVOCATION_KWARGSENTRY']._serialized_end=326
   _globals['_FAULT']._serialized_start=328
-  _globals['_FAULT']._serialized_end=385
-  _globals['_OUTCOME']._serialized_start=387
-  _globals['_OUTCOME']._serialized_end=485
-  _globals['_CALLBACKCALL']._serialized_start=488
-  _globals['_CALLBACKCALL']._serialized_end=737
+  _globals['_FAULT']._serialized_end=422
+  _globals['_OUTCOME']._serialized_start=424
+  _globals['_OUTCOME']._serialized_end=522
+  _globals['_CALLBACKCALL']._serialized_start=525
+  _globals['_CALLBACKCALL']._serialized_end=774
   _globals['_CALLBACKCALL_KWARGSENTRY']._serialized_start=255
   _globals['_CALLBACKCALL_KWARGSENTRY']._serialized_end=326
-  _globals['_CALLBACKREPLY']._serialized_start=739
-  _globals['_CALLBACKREPLY']._serialized_end=806
-  _globals['_CALLREQUEST']._serialized_start=808
-  _globals['_CALLREQUEST']._serialized_end=867
-  _globals['_CALLRESPONSE']._serialized_start=869
-  _globals['_CALLRESPONSE']._serialized_end=923
-  _globals['_SENDREQUEST']._serialized_start=925
-  _globals['_SENDREQUEST']._serialized_end=984
-  _globals['_SENDRESPONSE']._serialized_start=986
-  _globals['_SENDRESPONSE']._serialized_end=1036
-  _globals['_INVOKEREQUEST']._serialized_start=1038
-  _globals['_INVOKEREQUEST']._serialized_end=1116
-  _globals['_INVOKERESPONSE']._serialized_start=1118
-  _globals['_INVOKERESPONSE']._serialized_end=1237
-  _globals['_REPLYCALLBACKREQUEST']._serialized_start=1239
-  _globals['_REPLYCALLBACKREQUEST']._serialized_end=1322
-  _globals['_REPLYCALLBACKRESPONSE']._serialized_start=1324
-  _globals['_REPLYCALLBACKRESPONSE']._serialized_end=1366
-  _globals['_OPENCALLBACKSESSIONREQUEST']._serialized_start=1368
-  _globals['_OPENCALLBACKSESSIONREQUEST']._serialized_end=1481
-  _globals['_OPENCALLBACKSESSIONRESPONSE']._serialized_start=1483
-  _globals['_OPENCALLBACKSESSIONRESPONSE']._serialized_end=1591
-  _globals['_LISTSERVICESREQUEST']._serialized_start=1593
-  _globals['_LISTSERVICESREQUEST']._serialized_end=1614
-  _globals['_OPERATIONINFO']._serialized_start=1616
-  _globals['_OPERATIONINFO']._serialized_end=1684
-  _globals['_SERVICEINFO']._serialized_start=1687
-  _globals['_SERVICEINFO']._serialized_end=1869
-  _globals['_LISTSERVICESRESPONSE']._serialized_start=1871
-  _globals['_LISTSERVICESRESPONSE']._serialized_end=1938
-  _globals['_SCASERVICE']._serialized_start=1941
-  _globals['_SCASERVICE']._serialized_end=2439
+  _globals['_CALLBACKREPLY']._serialized_start=776
+  _globals['_CALLBACKREPLY']._serialized_end=843
+  _globals['_CALLREQUEST']._serialized_start=845
+  _globals['_CALLREQUEST']._serialized_end=904
+  _globals['_CALLRESPONSE']._serialized_start=906
+  _globals['_CALLRESPONSE']._serialized_end=960
+  _globals['_SENDREQUEST']._serialized_start=962
+  _globals['_SENDREQUEST']._serialized_end=1021
+  _globals['_SENDRESPONSE']._serialized_start=1023
+  _globals['_SENDRESPONSE']._serialized_end=1073
+  _globals['_INVOKEREQUEST']._serialized_start=1075
+  _globals['_INVOKEREQUEST']._serialized_end=1153
+  _globals['_INVOKERESPONSE']._serialized_start=1155
+  _globals['_INVOKERESPONSE']._serialized_end=1274
+  _globals['_REPLYCALLBACKREQUEST']._serialized_start=1276
+  _globals['_REPLYCALLBACKREQUEST']._serialized_end=1359
+  _globals['_REPLYCALLBACKRESPONSE']._serialized_start=1361
+  _globals['_REPLYCALLBACKRESPONSE']._serialized_end=1403
+  _globals['_OPENCALLBACKSESSIONREQUEST']._serialized_start=1405
+  _globals['_OPENCALLBACKSESSIONREQUEST']._serialized_end=1518
+  _globals['_OPENCALLBACKSESSIONRESPONSE']._serialized_start=1520
+  _globals['_OPENCALLBACKSESSIONRESPONSE']._serialized_end=1628
+  _globals['_LISTSERVICESREQUEST']._serialized_start=1630
+  _globals['_LISTSERVICESREQUEST']._serialized_end=1651
+  _globals['_OPERATIONINFO']._serialized_start=1653
+  _globals['_OPERATIONINFO']._serialized_end=1721
+  _globals['_SERVICEINFO']._serialized_start=1724
+  _globals['_SERVICEINFO']._serialized_end=1906
+  _globals['_LISTSERVICESRESPONSE']._serialized_start=1908
+  _globals['_LISTSERVICESRESPONSE']._serialized_end=1975
+  _globals['_SCASERVICE']._serialized_start=1978
+  _globals['_SCASERVICE']._serialized_end=2476
 # @@protoc_insertion_point(module_scope)

@@ -1,0 +1,78 @@
+"""A start that hangs is bounded and named, and the first SIGTERM or Ctrl-C always begins
+a bounded stop.
+
+The probe of the issue: with a ``start_hook`` or an ``@init`` that never returns,
+``scart run`` printed nothing, named no component, and ignored the first SIGTERM for more
+than 20 s."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+
+import pytest
+
+from support import ROOT
+from support.cli import finish, scart_cmd
+from support.youbot import ns_address
+
+DATA = ROOT / "tests" / "data" / "security"
+
+
+def run(composite: str, *extra: str) -> subprocess.Popen[bytes]:
+    return subprocess.Popen(scart_cmd("run", str(DATA / composite), "--ns", ns_address(), "--stop-timeout", "2",
+                                      *extra),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+
+
+def wait_for_stderr(proc: subprocess.Popen[bytes], needle: bytes, timeout: float = 30.0) -> bytes:
+    """Read stderr until ``needle`` (the hook said it began), within ``timeout`` s."""
+    import os
+    import selectors
+
+    assert proc.stderr is not None
+    seen = b""
+    deadline = time.monotonic() + timeout
+    with selectors.DefaultSelector() as sel:
+        sel.register(proc.stderr.fileno(), selectors.EVENT_READ)
+        while needle not in seen and time.monotonic() < deadline:
+            if sel.select(max(0.0, deadline - time.monotonic())):
+                chunk = os.read(proc.stderr.fileno(), 65536)
+                if not chunk:
+                    break
+                seen += chunk
+    assert needle in seen, seen.decode(errors="replace")
+    return seen
+
+
+def test_a_start_hook_that_hangs_fails_the_start_naming_the_component_and_hook() -> None:
+    started = time.monotonic()
+    proc = run("hang-task.composite", "--start-timeout", "2")
+    try:
+        proc.wait(timeout=30)
+    finally:
+        out, err = finish(proc)
+    took = time.monotonic() - started
+    assert proc.returncode == 1, err
+    assert "component slow (start_hook) did not return within 2 s (--start-timeout)" in err, err
+    assert "Traceback" not in err and "scart: started" not in out
+    assert took < 20.0
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_the_first_signal_during_a_hung_init_begins_a_bounded_stop(sig: signal.Signals) -> None:
+    proc = run("hang-init.composite")  # the default --start-timeout: the signal comes first
+    try:
+        seen = wait_for_stderr(proc, b"hangs: @init began")
+        signalled = time.monotonic()
+        proc.send_signal(sig)
+        proc.wait(timeout=20)
+        took = time.monotonic() - signalled
+    finally:
+        out, err = finish(proc)
+    err = seen.decode() + err
+    assert proc.returncode == 1, err
+    assert "stopping while starting: component Slow (@init open) had not returned" in err, err
+    assert took < 10.0, f"{took:.1f} s from the first signal to the exit"
+    assert "scart: started" not in out
