@@ -34,6 +34,7 @@ Thread-safe: a lock guards building and adding definitions; conversion is lock-f
 
 from __future__ import annotations
 
+import dataclasses
 import numbers
 import operator
 import threading
@@ -470,9 +471,9 @@ def _sequence_to(element: _Conv, base: str | None, size: int, fixed: bool, where
 
 def message_to_dict(message: Any) -> Any:
     """A rosbags message (or any value in one) as plain Python: dicts, lists, numbers, str."""
-    fields = getattr(message, "__dataclass_fields__", None)
-    if fields is not None:
-        return {f: message_to_dict(getattr(message, f)) for f in fields if f != "__msgtype__"}
+    if dataclasses.is_dataclass(message):  # not __msgtype__, nor constants (ROS names them in capitals)
+        return {f.name: message_to_dict(getattr(message, f.name)) for f in dataclasses.fields(message)
+                if f.name != "__msgtype__" and not f.name.isupper()}
     if isinstance(message, np.ndarray):
         return message.tolist()
     if isinstance(message, (list, tuple)):
