@@ -245,6 +245,10 @@ class MessageTypes:
         found = self._structs.get(name)
         if found is not None:
             return found
+        with self._lock:
+            return self._structs.get(name) or self._build_struct(name)
+
+    def _build_struct(self, name: str) -> _Struct:
         struct = _Struct(name)
         for field, desc in self._fields(name):
             where = f"{name}.{field}"
@@ -279,6 +283,11 @@ class MessageTypes:
     def to_fields(self, name: str, value: Any) -> dict[str, Any]:
         """The IDL member values of ``value`` by field name (see :meth:`to_idl`)."""
         struct = self._struct(name)
+        if getattr(value, "__msgtype__", None) == name or _is_idl_of(value, name):  # the hot path first
+            try:
+                return {f: conv(getattr(value, f)) for f, conv in struct.to_idl.items()}
+            except AttributeError as exc:
+                raise ConversionError(f"{name}: {exc}") from None
         if isinstance(value, Mapping):
             unknown = [k for k in value if k not in struct.to_idl]
             if unknown:
@@ -286,20 +295,15 @@ class MessageTypes:
             return {f: (conv(value[f]) if f in value else struct.zero[f]())
                     for f, conv in struct.to_idl.items()}
         msgtype = getattr(value, "__msgtype__", None)
-        if msgtype != name and not _is_idl_of(value, name):
-            raise ConversionError(
-                f"expected a {name} message or a mapping, got {msgtype or type(value).__name__}")
-        try:
-            return {f: conv(getattr(value, f)) for f, conv in struct.to_idl.items()}
-        except AttributeError as exc:
-            raise ConversionError(f"{name}: {exc}") from None
+        raise ConversionError(f"expected a {name} message or a mapping, got {msgtype or type(value).__name__}")
 
     def from_idl(self, name: str, obj: Any) -> Any:
         """The rosbags message of ``name`` holding the fields of IDL instance ``obj``.
         Raises :class:`ConversionError` if ``obj`` lacks a field."""
-        struct = self._struct(name)
+        struct = self._structs.get(name) or self._struct(name)
         try:
-            kwargs = {f: conv(getattr(obj, f)) for f, conv in struct.from_idl.items()}
+            kwargs = {f: getattr(obj, f) if conv is _identity else conv(getattr(obj, f))
+                      for f, conv in struct.from_idl.items()}
         except (AttributeError, TypeError, ValueError) as exc:
             raise ConversionError(f"{name}: {exc}") from None
         return self._store.types[name](**kwargs)
