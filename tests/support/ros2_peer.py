@@ -14,6 +14,8 @@ Modes (``python ros2_peer.py MODE DOMAIN [SECONDS]``):
   ``frame_id`` is not UTF-8, then one good sample, every 100 ms.
 * ``client``: calls ``/peer/add`` (example_interfaces/srv/AddTwoInts) with a=20, b=22
   once the service is matched, and prints the reply's header and sum.
+* ``server``: answers ``/peer/times`` (example_interfaces/srv/AddTwoInts) with a × b,
+  echoing each request's header as rmw_cyclonedds does, and prints each request.
 """
 
 # (no "from __future__ import annotations": cyclonedds reads the annotations as objects)
@@ -157,11 +159,28 @@ def client(dp: DomainParticipant, seconds: float) -> None:
         time.sleep(0.01)
 
 
+def server(dp: DomainParticipant, seconds: float) -> None:
+    user_data = Policy.Userdata(data=b"serviceid=02.2.3.4.5.6.7.8.9.a.b.c.d.e.f.10;")
+    lenient = Qos(*QOS, user_data, Policy.TypeConsistency.AllowTypeCoercion(ignore_member_names=True))
+    reader = DataReader(dp, Topic(dp, "rq/peer/timesRequest", AddTwoInts_Request_), qos=lenient)
+    writer = DataWriter(dp, Topic(dp, "rr/peer/timesReply", AddTwoInts_Response_), qos=Qos(*QOS, user_data))
+    waitset = WaitSet(dp)
+    waitset.attach(ReadCondition(reader, ANY))
+    say(event="ready")
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        waitset.wait(duration(milliseconds=200))
+        for request in reader.take(N=10):
+            if request.sample_info.valid_data:
+                say(event="request", guid=request.guid, seq=request.seq, a=request.a, b=request.b)
+                writer.write(AddTwoInts_Response_(guid=request.guid, seq=request.seq, sum=request.a * request.b))
+
+
 def main() -> None:
     mode, domain = sys.argv[1], int(sys.argv[2])
     seconds = float(sys.argv[3]) if len(sys.argv) > 3 else 30.0
     dp = DomainParticipant(domain)
-    {"relay": relay, "bad": bad, "client": client}[mode](dp, seconds)
+    {"relay": relay, "bad": bad, "client": client, "server": server}[mode](dp, seconds)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ participant and, when it was the last of this process on its domain, the domain.
 
 from __future__ import annotations
 
+import os
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -183,7 +184,5 @@ class Participant:
 
 def _new_id() -> str:
     """A client/service id written as rmw_cyclonedds writes its 16-byte ids."""
-    import os
-
     data = os.urandom(16)
     return f"{data[0]:02x}" + "".join(f".{b:x}" for b in data[1:])

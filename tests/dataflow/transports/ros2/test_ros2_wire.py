@@ -5,6 +5,7 @@ ROS 2 names and types; QoS observable; bad samples refused and counted."""
 from __future__ import annotations
 
 import subprocess
+import time
 
 import pytest
 
@@ -96,30 +97,64 @@ def _cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=timeout, env=loopback_env({"COLUMNS": "200"}))
 
 
-def test_the_cyclonedds_tool_lists_our_topic_and_prints_our_samples(domain: int, topic: str) -> None:
-    with Participant(domain) as ros:
-        pub = ros.publisher(topic, "std_msgs/msg/Float64", QoS.data())
-        listing = _cli("ls", "--id", str(domain), "--runtime", "2", "--topic", "rt" + topic)
-        assert "rt" + topic in listing.stdout and "std_msgs::msg::dds_::Float64_" in listing.stdout, listing
+def _cli_subscribe(domain: int, dds_topic: str, publish) -> tuple[str, str]:
+    """``cyclonedds subscribe`` of ``dds_topic`` while ``publish()`` runs; its output."""
+    proc = subprocess.Popen([cyclonedds_cli(), "subscribe", "--id", str(domain), "--runtime", "2",
+                             "--suppress-progress-bar", "--color", "none", dds_topic],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=loopback_env({"COLUMNS": "400"}))
+    try:
+        for _ in range(600):  # bounded (~30 s): the tool prints what arrives once it subscribed
+            if publish() or proc.poll() is not None:
+                break
+            try:
+                proc.wait(timeout=0.05)
+            except subprocess.TimeoutExpired:
+                pass
+        for _ in range(40):  # then 2 s more of samples
+            publish()
+            time.sleep(0.05)
+    finally:
+        proc.terminate()
+        out, err = proc.communicate(timeout=30)
+    return out, err
 
-        proc = subprocess.Popen([cyclonedds_cli(), "subscribe", "--id", str(domain), "--runtime", "2",
-                                 "--suppress-progress-bar", "--color", "none", "rt" + topic],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=loopback_env())
-        try:
-            wait_until(lambda: pub.matched() or proc.poll() is not None, timeout=30,
-                       message="cyclonedds subscribe never matched our publisher")
-            for i in range(40):  # bounded: the tool prints what arrives after it subscribed
-                pub.publish({"data": 41.5})
-                if proc.poll() is not None:
-                    break
-                try:
-                    proc.wait(timeout=0.05)
-                except subprocess.TimeoutExpired:
-                    pass
-        finally:
-            proc.terminate()
-            out, err = proc.communicate(timeout=30)
+
+def test_the_cyclonedds_tool_lists_our_topics_with_ros2_type_names(domain: int, topic: str) -> None:
+    with Participant(domain) as ros:
+        ros.publisher(topic, "std_msgs/msg/Float64")
+        ros.publisher(topic + "_js", "sensor_msgs/msg/JointState")
+        listing = _cli("ls", "--id", str(domain), "--runtime", "2", "--topic", "rt" + topic + ".*").stdout
+    assert "rt" + topic in listing and "std_msgs::msg::dds_::Float64_" in listing, listing
+    assert "rt" + topic + "_js" in listing and "sensor_msgs::msg::dds_::JointState_" in listing, listing
+
+
+def test_the_cyclonedds_tool_prints_our_samples(domain: int, topic: str) -> None:
+    with Participant(domain) as ros:
+        pub = ros.publisher(topic, "std_msgs/msg/Float64")
+        out, err = _cli_subscribe(domain, "rt" + topic, lambda: pub.publish({"data": 41.5}) and pub.matched())
     assert "Float64_(data=41.5)" in out, (out, err)
+
+
+def test_the_cyclonedds_tool_prints_a_joint_state_with_its_nested_types(domain: int, topic: str) -> None:
+    sample = {"header": {"stamp": {"sec": 7, "nanosec": 8}, "frame_id": "arm"}, "name": ["j1"], "position": [0.5]}
+    with Participant(domain) as ros:
+        pub = ros.publisher(topic, "sensor_msgs/msg/JointState")
+        out, err = _cli_subscribe(domain, "rt" + topic, lambda: pub.publish(sample) and pub.matched())
+    assert "header=Header_(stamp=Time_(sec=7, nanosec=8), frame_id='arm')" in out, (out, err)
+    assert "name=['j1'], position=[0.5]" in out, (out, err)
+
+
+def test_our_client_calls_an_independent_rmw_style_server(domain: int, peer) -> None:
+    server = peer("server")
+    with Participant(domain) as ros:
+        client = ros.client("/peer/times", "example_interfaces/srv/AddTwoInts")
+        assert client.wait_for_service(15)
+        assert client.call({"a": 6, "b": 7}, timeout=10).sum == 42
+        assert client.call({"a": 3, "b": 3}, timeout=10).sum == 9
+    first, second = server.next_event("request"), server.next_event("request")
+    assert (first["seq"], second["seq"]) == (1, 2) and first["guid"] == second["guid"] != 0
+    assert (first["a"], first["b"]) == (6, 7)
 
 
 def test_latching_hands_the_last_n_samples_to_a_late_joiner(domain: int, topic: str) -> None:
