@@ -92,3 +92,17 @@ def test_the_network_switch_opens_it_and_checks_what_it_is_given() -> None:
         Network.open('eth0"/><evil')
     with pytest.raises(DomainError, match="use Network.open"):
         Network(multicast=True)
+
+
+def test_the_public_api_is_exactly_this() -> None:
+    import dataflow.transports.ros2 as ros2
+
+    assert sorted(ros2.__all__) == sorted([
+        "Participant", "Publisher", "Subscription", "ServiceServer", "ServiceClient",
+        "PublisherStats", "SubscriptionStats", "QoS", "Reliability", "Durability", "Network",
+        "MessageTypes", "DISTROS", "message_to_dict", "resolve_domain_id",
+        "dds_topic", "ros_topic", "service_topics", "topic_name", "dds_type_name", "ros_type_name",
+        "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError"])
+    assert all(hasattr(ros2, name) for name in ros2.__all__)
+    assert all(issubclass(getattr(ros2, e), ros2.Ros2Error) for e in ("ConversionError", "DomainError",
+                                                                      "UnknownTypeError"))

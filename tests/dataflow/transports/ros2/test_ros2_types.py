@@ -148,3 +148,17 @@ def test_type_hashes_from_iron_on() -> None:
     assert MessageTypes("jazzy").type_hash("std_msgs/msg/String") == (
         "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18")  # rmw_zenoh's design doc
     assert MessageTypes("humble").type_hash("std_msgs/msg/String") is None
+
+
+def test_a_msg_file_names_itself_by_its_path(tmp_path) -> None:
+    folder = tmp_path / "my_robot" / "msg"
+    folder.mkdir(parents=True)
+    (folder / "Wheel.msg").write_text("float64 speed\nstring<=4 side\n", encoding="utf-8")
+    types = MessageTypes()
+    assert types.add_msg_file(folder / "Wheel.msg") == "my_robot/msg/Wheel"
+    assert types.idl_type("my_robot/msg/Wheel").__idl_typename__ == "my_robot::msg::dds_::Wheel_"
+    srv = tmp_path / "my_robot" / "srv" / "Stop.srv"
+    srv.parent.mkdir()
+    srv.write_text("bool now\n---\nbool stopped\n", encoding="utf-8")
+    assert types.add_srv_file(srv) == "my_robot/srv/Stop"
+    assert types.zero("my_robot/srv/Stop_Response").stopped is False
