@@ -114,3 +114,33 @@ def test_a_closed_subscription_stops_delivering(domain: int, topic: str) -> None
         pub.publish({"data": 5})
         wait_until(lambda: got, timeout=15)
         assert got == [-5] and other.stats().delivered == 1
+
+
+def test_close_while_threads_publish_and_a_callback_runs(domain: int, topic: str) -> None:
+    ros = Participant(domain)
+    pub = ros.publisher(topic, "std_msgs/msg/Int64", QoS.buffer(10))
+    got = threading.Event()
+    ros.subscribe(topic, "std_msgs/msg/Int64", lambda m: got.set(), QoS.buffer(10))
+    results: list[bool] = []
+    errors: list[BaseException] = []
+
+    def hammer() -> None:
+        try:
+            for i in range(200_000):  # bounded; ends at the first refusal after close
+                sent = pub.publish({"data": i})
+                results.append(sent)
+                if not sent and ros.closed:
+                    break
+        except BaseException as exc:  # noqa: BLE001  (the test is that nothing escapes)
+            errors.append(exc)
+
+    workers = [threading.Thread(target=hammer, name=f"hammer-{i}") for i in range(3)]
+    for worker in workers:
+        worker.start()
+    assert got.wait(15)
+    ros.close()
+    for worker in workers:
+        worker.join(30)
+    assert errors == [] and not any(w.is_alive() for w in workers)
+    assert True in results and results[-1] is False  # sent before close, refused quietly after
+    assert _ros2_threads() == []
