@@ -14,6 +14,8 @@ Modes (``python ros2_peer.py MODE DOMAIN [SECONDS]``):
   ``frame_id`` is not UTF-8, then one good sample, every 100 ms.
 * ``client``: calls ``/peer/add`` (example_interfaces/srv/AddTwoInts) with a=20, b=22
   once the service is matched, and prints the reply's header and sum.
+* ``graph``: reads ``ros_discovery_info`` (rmw_dds_common's ParticipantEntitiesInfo,
+  Jazzy's 16-byte Gid) and prints each participant's nodes with their GIDs in hex.
 * ``server``: answers ``/peer/times`` (example_interfaces/srv/AddTwoInts) with a × b,
   echoing each request's header as rmw_cyclonedds does, and prints each request.
 """
@@ -76,6 +78,25 @@ class AddTwoInts_Response_(IdlStruct, typename="example_interfaces::srv::dds_::A
     guid: t.uint64
     seq: t.int64
     sum: t.int64
+
+
+@dataclass
+class Gid_(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+    data: t.array[t.uint8, 16]
+
+
+@dataclass
+class NodeEntitiesInfo_(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+    node_namespace: t.bounded_str[256]
+    node_name: t.bounded_str[256]
+    reader_gid_seq: t.sequence[Gid_]
+    writer_gid_seq: t.sequence[Gid_]
+
+
+@dataclass
+class ParticipantEntitiesInfo_(IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+    gid: Gid_
+    node_entities_info_seq: t.sequence[NodeEntitiesInfo_]
 
 
 QOS = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(10),
@@ -176,11 +197,28 @@ def server(dp: DomainParticipant, seconds: float) -> None:
                 writer.write(AddTwoInts_Response_(guid=request.guid, seq=request.seq, sum=request.a * request.b))
 
 
+def graph(dp: DomainParticipant, seconds: float) -> None:
+    qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(10),
+              Policy.Durability.TransientLocal)
+    reader = DataReader(dp, Topic(dp, "ros_discovery_info", ParticipantEntitiesInfo_), qos=qos)
+    say(event="ready")
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        for info in reader.take(N=10):
+            if info.sample_info.valid_data:
+                say(event="participant", gid=bytes(info.gid.data).hex(), nodes=[
+                    {"namespace": n.node_namespace, "name": n.node_name,
+                     "readers": [bytes(g.data).hex() for g in n.reader_gid_seq],
+                     "writers": [bytes(g.data).hex() for g in n.writer_gid_seq]}
+                    for n in info.node_entities_info_seq])
+        time.sleep(0.02)
+
+
 def main() -> None:
     mode, domain = sys.argv[1], int(sys.argv[2])
     seconds = float(sys.argv[3]) if len(sys.argv) > 3 else 30.0
     dp = DomainParticipant(domain)
-    {"relay": relay, "bad": bad, "client": client, "server": server}[mode](dp, seconds)
+    {"relay": relay, "bad": bad, "client": client, "server": server, "graph": graph}[mode](dp, seconds)
 
 
 if __name__ == "__main__":

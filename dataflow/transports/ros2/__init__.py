@@ -6,7 +6,7 @@ serve and call services, and close it::
 
     from dataflow.transports.ros2 import Participant, QoS
 
-    with Participant() as ros:
+    with Participant(node="scart") as ros:
         pub = ros.publisher("/joint_states", "sensor_msgs/msg/JointState", QoS.buffer(10))
         sub = ros.subscribe("/cmd", "std_msgs/msg/Float64", on_cmd)   # on_cmd(msg) on ros's thread
         pub.publish({"name": ["j1"], "position": [0.5]})   # False if refused (counted)
@@ -37,9 +37,11 @@ network           :class:`Network`: loopback only (no multicast, peer 127.0.0.1)
 Services went the rmw_cyclonedds way in full: header, ``clientid=``/``serviceid=`` user
 data, the server waiting (≤ 100 ms) for the client's reply reader as rmw does. It is
 tested against an independent peer written from rmw_cyclonedds' sources, not against a
-ROS 2 install (none is on PyPI). Not done: the ROS 2 node graph (``ros_discovery_info``,
-which ``ros2 node list`` reads; ``ros2 topic list``/``echo`` need only DDS discovery),
-actions, content filters, deadline/lifespan/liveliness QoS, ``wstring``.
+ROS 2 install (none is on PyPI). ``Participant(node="name", namespace="/ns")`` also
+makes it a ROS 2 node: rmw_dds_common's ``ros_discovery_info`` names the node and its
+readers and writers, which ``ros2 node list``/``node info`` read (``ros2 topic list`` and
+``echo`` need only DDS discovery). Not done: actions, parameters, content filters,
+deadline/lifespan/liveliness QoS, ``wstring``.
 
 Robustness: a sample that cannot be converted (wrong shape, out of its type's range,
 malformed CDR, refused by an ``accept`` hook) is refused and counted

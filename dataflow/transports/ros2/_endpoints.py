@@ -70,6 +70,7 @@ class Publisher:
         self._published = self._refused = 0
         self._last_refusal: str | None = None
         self._closed = False
+        self.closed_hook: Callable[[], None] | None = None  # the participant's (node graph)
 
     def publish(self, message: Any) -> bool:
         """Convert ``message`` (rosbags message, mapping or IDL instance) and write it.
@@ -120,6 +121,8 @@ class Publisher:
             if self._closed:
                 return
             self._closed = True
+        if self.closed_hook is not None:
+            self.closed_hook()
         delete_entity(self._writer)
 
 
@@ -136,6 +139,7 @@ class Subscription:
         self._received = self._delivered = self._refused = self._errors = 0
         self._last_refusal: str | None = None
         self._closed = False
+        self.closed_hook: Callable[[], None] | None = None  # the participant's (node graph)
         dispatcher.add(self._condition, self._drain)
 
     def _drain(self) -> None:
@@ -199,6 +203,8 @@ class Subscription:
             return
         self._closed = True
         self._dispatcher.remove(self._condition)
+        if self.closed_hook is not None:
+            self.closed_hook()
         delete_entity(self._condition)
         delete_entity(self._reader)
 

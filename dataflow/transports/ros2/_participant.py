@@ -22,6 +22,7 @@ from cyclonedds.topic import Topic
 
 from ._endpoints import Accept, Dispatcher, Publisher, Subscription
 from ._errors import DomainError, Ros2Error
+from ._graph import NodeGraph
 from ._names import dds_topic, service_topics, topic_name
 from ._network import DOMAINS, Network, delete_entity, resolve_domain_id
 from ._qos import QoS
@@ -36,12 +37,15 @@ class Participant:
 
     ``network`` defaults to :meth:`Network.loopback`; ``insecure=True`` means
     :meth:`Network.open` (any host on the network may read and write). ``types`` gives
-    the message definitions (default: ``MessageTypes(distro)``). Raises
-    :class:`DomainError` when the domain cannot be joined. Thread-safe; a context manager.
+    the message definitions (default: ``MessageTypes(distro)``). With ``node``, the
+    participant is that ROS 2 node (in ``namespace``) for ``ros2 node list``/``info``
+    (see :mod:`._graph`). Raises :class:`DomainError` when the domain cannot be joined,
+    ``ValueError`` for a bad node name. Thread-safe; a context manager.
     """
 
     def __init__(self, domain_id: int | None = None, *, network: Network | None = None, insecure: bool = False,
-                 types: MessageTypes | None = None, distro: str = "jazzy") -> None:
+                 types: MessageTypes | None = None, distro: str = "jazzy", node: str | None = None,
+                 namespace: str = "/") -> None:
         self.domain_id = resolve_domain_id(domain_id)
         self.network = network if network is not None else (Network.open() if insecure else Network.loopback())
         self.types = types if types is not None else MessageTypes(distro)
@@ -56,6 +60,11 @@ class Participant:
         self._endpoints: list[Any] = []
         self._dispatcher = Dispatcher(self._dp, f"ros2-dispatch-d{self.domain_id}")
         self._closed = False
+        try:
+            self.node = NodeGraph(self._dp, self.types, node, namespace) if node is not None else None
+        except Exception:
+            self.close()
+            raise
 
     def __enter__(self) -> Participant:
         return self
@@ -85,6 +94,7 @@ class Participant:
             types = self.types
             endpoint = Publisher(writer, lambda m: types.to_idl(type_name, m), topic_name(topic), type_name, accept)
             self._endpoints.append(endpoint)
+        self._announce(endpoint, writers=(writer,))
         return endpoint
 
     def subscribe(self, topic: str, type_name: str, callback: Callable[[Any], Any], qos: QoS | None = None, *,
@@ -110,6 +120,7 @@ class Participant:
             endpoint = Subscription(reader, convert, callback, topic_name(topic), type_name, accept,
                                     self._dispatcher)
             self._endpoints.append(endpoint)
+        self._announce(endpoint, readers=(reader,))
         return endpoint
 
     # ------------------------------------------------------------------ services
@@ -123,6 +134,7 @@ class Participant:
             reader, writer = self._service_pair(request_topic, request, reply_topic, response, "serviceid")
             endpoint = ServiceServer(reader, writer, self.types, srv_type, handler, self._dispatcher)
             self._endpoints.append(endpoint)
+        self._announce(endpoint, (reader,), (writer,))
         return endpoint
 
     def client(self, name: str, srv_type: str) -> ServiceClient:
@@ -134,6 +146,7 @@ class Participant:
             reader, writer = self._service_pair(reply_topic, response, request_topic, request, "clientid")
             endpoint = ServiceClient(reader, writer, self.types, srv_type, self._dispatcher)
             self._endpoints.append(endpoint)
+        self._announce(endpoint, (reader,), (writer,))
         return endpoint
 
     def _service_pair(self, read_topic: str, read_type: str, write_topic: str, write_type: str,
@@ -147,6 +160,21 @@ class Participant:
         return reader, writer
 
     # ------------------------------------------------------------------ plumbing
+    def _announce(self, endpoint: Any, readers: tuple[Any, ...] = (), writers: tuple[Any, ...] = ()) -> None:
+        """Put the endpoint's readers and writers in the node graph, until it closes."""
+        graph = self.node
+        if graph is None:
+            return
+        for reader in readers:
+            graph.add(reader, reader=True)
+        for writer in writers:
+            graph.add(writer, reader=False)
+
+        def forget() -> None:
+            for entity in (*readers, *writers):
+                graph.remove(entity)
+        endpoint.closed_hook = forget
+
     def _topic(self, dds_name: str, idl: type) -> Topic:
         found = self._topics.get(dds_name)
         if found is None:
@@ -172,6 +200,8 @@ class Participant:
                 return
             self._closed = True
             endpoints, self._endpoints = self._endpoints, []
+        if getattr(self, "node", None) is not None:
+            self.node.close()  # the node leaves the graph before its endpoints do
         for endpoint in reversed(endpoints):
             endpoint.close()
         self._dispatcher.close()

@@ -22,6 +22,7 @@ import threading
 import time
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from cyclonedds.core import DDSException, InstanceState, ReadCondition, SampleState, ViewState
@@ -69,6 +70,7 @@ class _Endpoint:
         self._dispatcher = dispatcher
         self._condition = ReadCondition(reader, _ANY)
         self._closed = False
+        self.closed_hook: Callable[[], None] | None = None  # the participant's (node graph)
         self.refused = 0
         self.last_refusal: str | None = None
 
@@ -102,6 +104,8 @@ class _Endpoint:
             return
         self._closed = True
         self._dispatcher.remove(self._condition)
+        if self.closed_hook is not None:
+            self.closed_hook()
         for entity in (self._condition, self._reader, self._writer):
             delete_entity(entity)
 

@@ -144,3 +144,13 @@ def test_close_while_threads_publish_and_a_callback_runs(domain: int, topic: str
     assert errors == [] and not any(w.is_alive() for w in workers)
     assert True in results and results[-1] is False  # sent before close, refused quietly after
     assert _ros2_threads() == []
+
+
+def test_a_bad_node_name_is_refused_and_frees_the_domain(domain: int) -> None:
+    with pytest.raises(ValueError, match="ROS 2 node name '1arm'"):
+        Participant(domain, node="1arm")
+    with pytest.raises(ValueError, match="ROS 2 name"):
+        Participant(domain, node="arm", namespace="/a//b")
+    with Participant(domain, network=Network.loopback(max_participants=4), node="arm", distro="humble") as ros:
+        assert ros.node is not None and ros.node.namespace == "/"
+        assert len(ros.node._gid) == 24  # Humble's Gid: the 16-byte GUID, zero-padded

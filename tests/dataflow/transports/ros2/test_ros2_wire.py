@@ -215,3 +215,28 @@ def test_a_best_effort_writer_does_not_match_a_reliable_reader(domain: int, topi
         pub = ros.publisher(topic, "std_msgs/msg/Int64", QoS.data(best_effort=True))
         wait_until(lambda: best_effort_reader.matched(), timeout=15)
         assert pub.matched() == 1 and reliable_reader.matched() == 0
+
+
+def test_a_named_participant_is_a_node_in_the_ros2_graph(domain: int, peer, topic: str) -> None:
+    graph = peer("graph")
+    with Participant(domain, node="scart_arm", namespace="/robot") as ros:
+        pub = ros.publisher(topic, "std_msgs/msg/Int64")
+        sub = ros.subscribe(topic + "_in", "std_msgs/msg/Int64", lambda m: None)
+        writer, reader = pub._writer.guid.bytes.hex(), sub._reader.guid.bytes.hex()
+        participant = ros._dp.guid.bytes.hex()
+
+        def node_event() -> dict:
+            while True:
+                event = graph.next_event("participant")
+                if event["gid"] == participant:
+                    return event
+
+        while True:  # bounded by next_event's deadline: until both endpoints are announced
+            event = node_event()
+            if event["nodes"] and event["nodes"][0]["readers"]:
+                break
+        assert event["nodes"] == [{"namespace": "/robot", "name": "scart_arm", "readers": [reader],
+                                   "writers": [writer]}]
+        sub.close()
+        assert node_event()["nodes"][0]["readers"] == []
+    assert node_event()["nodes"] == []  # closing the participant takes the node out of the graph
