@@ -221,6 +221,7 @@ class Dispatcher:
         self._waitset = WaitSet(participant)
         self._guard = GuardCondition(participant)
         self._waitset.attach(self._guard)
+        self._guard_set = False  # whether the guard may be triggered (resetting it is a ctypes call)
         self._drains: dict[int, tuple[Any, Callable[[], None]]] = {}
         self._busy = threading.RLock()  # held while draining: remove() waits for a running drain
         self._lock = threading.Lock()
@@ -237,7 +238,7 @@ class Dispatcher:
             if self._thread is None:
                 self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
                 self._thread.start()
-        self._guard.set(True)  # look at the new reader now: it may already hold samples
+        self._wake()  # look at the new reader now: it may already hold samples
 
     def remove(self, condition: Any) -> None:
         """Stop calling the drain of ``condition``; waits for a drain in progress."""
@@ -245,13 +246,21 @@ class Dispatcher:
             if self._drains.pop(id(condition), None) is not None and not self._stop.is_set():
                 self._waitset.detach(condition)
 
+    def _wake(self) -> None:
+        # trigger, then flag: the loop resets only a guard it knows may be set, so a guard
+        # can never stay triggered unflagged (which would spin the wait)
+        self._guard.set(True)
+        self._guard_set = True
+
     def _run(self) -> None:
         while not self._stop.is_set():
             try:
                 self._waitset.wait(duration(seconds=1))
             except DDSException:
                 return
-            self._guard.set(False)
+            if self._guard_set:
+                self._guard_set = False
+                self._guard.set(False)
             with self._lock:
                 drains = list(self._drains.values())
             with self._busy:
@@ -267,7 +276,7 @@ class Dispatcher:
             if self._stop.is_set():
                 return
             self._stop.set()
-        self._guard.set(True)
+        self._wake()
         thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout)
