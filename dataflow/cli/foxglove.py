@@ -24,7 +24,7 @@ import logging
 import threading
 from typing import Any
 
-from dataflow.cli.record import _schema_of, message_of, type_schema
+from dataflow.cli._jsonschema import _schema_of, message_of, type_schema
 
 __all__ = ["FoxgloveLive", "cmd_foxglove"]
 
@@ -299,7 +299,7 @@ class FoxgloveLive:
 
 def cmd_foxglove(args: argparse.Namespace) -> int:
     """``scart foxglove [--host H] [--port P]``: see the module docstring."""
-    from dataflow.cli.inspect import _err, _wait_until_stopped
+    from dataflow.cli.output import err as _err, wait_until_stopped as _wait_until_stopped
 
     live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host)
     live.start()

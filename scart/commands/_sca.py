@@ -1,33 +1,46 @@
-"""SCA services from the command line: ``scart services --at ADDRESS`` and ``scart call
---at ADDRESS COMPONENT/SERVICE.operation ARGS...``.
+"""SCA services from the command line, the client side of ``scart services`` and
+``scart call``: list and call the services a ``binding.grpc`` server exports.
 
-``ADDRESS`` is a ``binding.grpc`` server: the one ``scart run`` serves every component
-service on (it prints it: ``scart: SCA services at ...``; ``--services`` chooses it), or
-any ``binding.grpc`` service of a composite. ``--at`` may also come from
-``SCART_SERVICES``. Arguments are JSON (a bare word is a string), converted by the server
-to the operation's parameter types; the result prints as JSON. The server's TLS and tokens
-apply (``--token``, ``--tls-*``): listing needs the ``read`` role, calling ``operate``.
-The wire is ``scart.sca.v1`` (``dataflow/proto/scart/sca/v1/sca.proto``), so this side
-needs nothing of ``scart``.
+A server is found by name (the ``sca:HOST:PORT`` entries ``scart run`` registers with
+its name service: ``--ns``, else ``SCART_NS``, else the default) or given with ``--at
+HOST:PORT`` (else ``SCART_SERVICES``), which overrides the name service: the endpoint
+``scart run`` serves every component service on (``--services`` chooses it), or any
+``binding.grpc`` service of a composite. Arguments are JSON or YAML (a bare word is a
+string), converted by the server to the operation's parameter types; the result prints as
+JSON. The server's TLS and tokens apply (``--token``, ``--tls-*``): listing needs the
+``read`` role, calling ``operate``. The wire is ``scart.sca.v1``
+(``dataflow/proto/scart/sca/v1/sca.proto``).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+from collections.abc import Callable
 from typing import Any
 
-__all__ = ["SERVICES_ENV", "call", "list_services"]
+__all__ = ["SERVICES_ENV", "at", "call", "endpoints", "find", "list_services", "with_services"]
 
 SERVICES_ENV = "SCART_SERVICES"
+MAX_ENDPOINTS = 64  # services endpoints one command lists or searches
 
 
 def at(args: argparse.Namespace) -> str | None:
-    """The services address of a verb that takes ``--at``: ``--at``, else ``$SCART_SERVICES``,
-    else None (always None for the other verbs: they use the name service)."""
-    if not hasattr(args, "at"):
-        return None
-    return args.at or os.environ.get(SERVICES_ENV) or None
+    """``--at``, else ``$SCART_SERVICES``, else None (then the name service is asked)."""
+    return getattr(args, "at", None) or os.environ.get(SERVICES_ENV) or None
+
+
+def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
+    """Run ``body``; a remote fault, a refusal or a malformed target becomes one stderr line
+    and exit 1."""
+    from dataflow import DataflowError
+    from dataflow.cli.output import err
+
+    try:
+        return body(args)
+    except (DataflowError, ValueError) as exc:
+        err(f"{args.command}: {exc}")
+        return 1
 
 
 def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
@@ -37,6 +50,26 @@ def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
 
     channel = from_args(args).channel(address, _rpc.channel_options())
     return channel, sca_pb2_grpc.ScaServiceStub(channel)
+
+
+def endpoints(args: argparse.Namespace) -> list[str]:
+    """The services endpoints registered with the name service (``--ns``, ``SCART_NS``, the
+    default); raises ``DataflowError`` naming it when it does not answer."""
+    from dataflow.cli.output import ns_address
+    from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
+    from dataflow.remote.naming import NameClient
+    from dataflow.remote.security import from_args
+
+    ns = ns_address(args)
+    names = NameClient(ns, timeout=args.timeout, security=from_args(args))
+    try:
+        entries = names.entries(sca=True)
+    except (UnavailableError, RemoteTimeoutError) as exc:
+        raise type(exc)(f"no name service answers at {ns} ({exc}): give --ns, or --at HOST:PORT "
+                        "(scart run prints it: 'SCA services at ...')") from None
+    finally:
+        names.close()
+    return sorted({e.address for e in entries})[:MAX_ENDPOINTS]
 
 
 def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]]:
@@ -49,9 +82,32 @@ def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]
         reply = _rpc.call(stub.ListServices, pb.ListServicesRequest(), args.timeout, address)
     finally:
         channel.close()
-    return [{"names": list(s.names), "interface": s.interface,
+    return [{"names": list(s.names), "interface": s.interface, "at": address,
              "operations": [{"name": o.name, "oneway": o.oneway, "returns_value": o.returns_value}
                             for o in s.operations]} for s in reply.services]
+
+
+def find(service: str, args: argparse.Namespace) -> str:
+    """The endpoint serving ``service`` (``COMPONENT/SERVICE``, a promoted service or a
+    single-service component's name) among those the name service knows; raises
+    ``NotFoundError`` listing what there is, ``DataflowError`` when it is ambiguous."""
+    from dataflow.errors import DataflowError, NotFoundError
+
+    found, known = [], []
+    for address in endpoints(args):
+        try:
+            listed = list_services(address, args)
+        except DataflowError:  # an endpoint going away: the others still count
+            continue
+        known += [s["names"][0] for s in listed]
+        if any(service in s["names"] for s in listed):
+            found.append(address)
+    if not found:
+        raise NotFoundError(f"no component or SCA service named {service!r}; SCA services: "
+                            f"{', '.join(sorted(known)[:20]) or 'none registered'}")
+    if len(found) > 1:
+        raise DataflowError(f"SCA service {service!r} is served at {', '.join(found)}: choose one with --at")
+    return found[0]
 
 
 def call(address: str, target: str, json_args: list[Any], args: argparse.Namespace) -> Any:
@@ -63,9 +119,7 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
     from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
     from dataflow.remote import _rpc
 
-    service, dot, operation = target.rpartition(".")
-    if not dot or not service or not operation:
-        raise ValueError(f"expected COMPONENT/SERVICE.operation, got {target!r}")
+    service, operation = split_target(target)
     request = pb.CallRequest(invocation=pb.Invocation(service=service, operation=operation,
                                                       args=[codec.encode(a) for a in json_args]))
     channel, stub = _stub(address, args)
@@ -79,20 +133,9 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
     return registry.to_jsonable(codec.decode(reply.outcome.value))
 
 
-def cmd_services(args: argparse.Namespace) -> int:
-    """``scart services --at ADDRESS``."""
-    from dataflow.cli.inspect import _dump, _out
-
-    address = at(args)
-    if address is None:
-        raise ValueError(f"give --at HOST:PORT (scart run prints it: 'SCA services at ...'), or set ${SERVICES_ENV}")
-    services = list_services(address, args)
-    if args.json:
-        _out(_dump(services))
-        return 0
-    for s in services:
-        ops = ", ".join(o["name"] + (" (one-way)" if o["oneway"] else "") for o in s["operations"])
-        _out(f"{s['names'][0]}  [{s['interface']}]  {ops}" + (f"  also: {', '.join(s['names'][1:])}"
-                                                               if len(s["names"]) > 1 else ""))
-    return 0
-
+def split_target(target: str) -> tuple[str, str]:
+    """``"Component/Service.op"`` → ``("Component/Service", "op")`` (``ValueError`` otherwise)."""
+    service, dot, operation = target.rpartition(".")
+    if not dot or not service or not operation:
+        raise ValueError(f"expected COMPONENT/SERVICE.operation, got {target!r}")
+    return service, operation

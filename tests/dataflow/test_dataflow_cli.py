@@ -88,7 +88,8 @@ def test_echo_json_lines_and_round_trip_into_write(system) -> None:
     scart(ns, "write", "pinger.input", "2.5")
     echoed = scart(ns, "echo", "pinger.output", "-n", "1", "--json").stdout.strip()
     assert json.loads(echoed) == 2.5
-    assert scart(ns, "write", "pinger.input", echoed, "--json").stdout.strip() == '{"status": "WRITE_SUCCESS"}'
+    assert json.loads(scart(ns, "write", "pinger.input", echoed, "--json").stdout) == \
+        {"status": "WRITE_SUCCESS", "port": "pinger.input", "accepted_by": "port"}
     text = scart(ns, "echo", "pinger.ticks", "-n", "2").stdout.splitlines()
     assert len(text) == 2 and text[0].startswith("[")
 
@@ -101,14 +102,14 @@ def test_echo_json_round_trip_of_float_list_and_model(system) -> None:
     """What ``echo --json`` prints for a float list and a pydantic model, ``write`` accepts."""
     ns, _ = system
     sent = [1.5, -2.25, 3e-05, 0.0]
-    assert scart(ns, "write", "echo.floats", json.dumps(sent)).stdout.strip() == "WRITE_SUCCESS"
+    assert scart(ns, "write", "echo.floats", json.dumps(sent)).stdout.startswith("WRITE_SUCCESS: the port took it")
     wait_until(lambda: _echo_json(ns, "echo.floats_out") == sent, timeout=30, interval=0.1)
     line = scart(ns, "echo", "echo.floats_out", "-n", "1", "--json").stdout.strip()
-    assert scart(ns, "write", "echo.floats", line).stdout.strip() == "WRITE_SUCCESS"  # echo → write
+    assert scart(ns, "write", "echo.floats", line).stdout.startswith("WRITE_SUCCESS")  # echo → write
     status_line = scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--json").stdout.strip()
     status = json.loads(status_line)
     assert len(status["joints"]) == 5
-    assert scart(ns, "write", "echo.status", status_line).stdout.strip() == "WRITE_SUCCESS"
+    assert scart(ns, "write", "echo.status", status_line).stdout.startswith("WRITE_SUCCESS")
     wait_until(lambda: _echo_json(ns, "echo.status_out") == status, timeout=30, interval=0.1)
     bad = scart(ns, "write", "echo.status", json.dumps({"joints": "many"}), check=False)
     assert bad.returncode == 1 and "echo.status expects YouBotStatus" in bad.stderr
@@ -125,7 +126,8 @@ def test_hz(system) -> None:
 
 def test_write_and_wrong_type(system) -> None:
     ns, _ = system
-    assert scart(ns, "write", "youBotDriver.commands", "[0.1, 0.2, 0.3, 0.4, 0.5]").stdout.strip() == "WRITE_SUCCESS"
+    assert scart(ns, "write", "youBotDriver.commands", "[0.1, 0.2, 0.3, 0.4, 0.5]").stdout.strip() == \
+        "WRITE_SUCCESS: youBotDriver checked it and accepted it (5 finite joint set-points)"
     bad = scart(ns, "write", "youBotDriver.commands", '"fast"', check=False)
     assert bad.returncode == 1 and bad.stdout == ""
     assert "youBotDriver.commands expects float64[]" in bad.stderr

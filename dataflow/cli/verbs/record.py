@@ -1,97 +1,101 @@
-"""Record and replay samples as MCAP files: ``scart record | play | info``.
+"""``scart record PORT... -o FILE.mcap``: record output ports to one MCAP file.
 
-* ``scart record PORT... -o run.mcap`` (or ``-a``: every output port the name service's
-  tasks have) subscribes to each output port (``BUFFER`` policy: nothing is lost while the
-  file is written) and writes every sample to an MCAP file: one channel per port (topic
-  ``task.port``), JSON messages with a JSON Schema of the port's type (what the Foxglove
-  app and ``mcap`` tools read), ``log_time`` when it arrived and ``publish_time`` when the
-  task stored it. It stops after ``--duration`` s, ``-n`` samples, or Ctrl-C/SIGTERM; the
-  file is always closed complete (summary and index).
-* ``scart play run.mcap`` writes the samples again, in order, to the *input* ports of the
-  same names (or ``--remap old.port=new.port``), at the recorded pace scaled by
-  ``--rate`` (absolute deadlines: no drift), or one by one on Enter with ``--step``.
-* ``scart info run.mcap`` lists the channels with their counts, rates and the duration.
+``-o`` names a *file* (``ros2 bag record -o`` names a folder; scart writes the one
+``.mcap`` file, which the Foxglove app and the ``mcap`` tools open). An existing file is
+kept unless ``--overwrite``; a folder, or a file in a folder that does not exist, is
+refused in one line before anything is subscribed.
 
-Files are read with a bound (:data:`MAX_MESSAGE_BYTES` per message, a message count bound
-in ``play``); a message that is not JSON is skipped and counted.
+Each output port (``-a``: every output port the name service's tasks have) is subscribed
+with a ``BUFFER`` policy (nothing is lost while the file is written) and becomes one
+channel (topic ``task.port``) of JSON messages with a JSON Schema of the port's type;
+``log_time`` is when a sample arrived, ``publish_time`` when the task stored it. It stops
+after ``--duration`` s, ``-n`` samples, or Ctrl-C/SIGTERM, and the file is closed complete
+(summary and index).
+
+Nothing is lost in a crash beyond the last :data:`FLUSH_SECONDS`: samples reach the disk in
+chunks written at least that often, so a ``kill -9`` leaves a file that ``scart info``
+reads (saying it is truncated) and ``scart record --recover FILE`` finishes into a
+complete copy, as ``mcap recover`` does. A full disk (or a file-size limit) stops the
+recording: the subscriptions end, the file is cut back to its last whole chunk and
+closed, one line says how much was kept, and the exit code is 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import os
 import queue
-import sys
+import signal
 import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
-__all__ = ["MAX_MESSAGE_BYTES", "register"]
+from dataflow.cli.output import add_common, err, out, stopped_by_signals, wait_until_stopped, with_system
 
-MAX_MESSAGE_BYTES = 4 << 20
+HELP = "record output ports to an MCAP file"
 MAX_RECORDED_PORTS = 256
+FLUSH_SECONDS = 0.5  #: samples reach the disk at least this often (a kill -9 loses at most this much)
 _STOP = object()
 
 
-def register(verb: Callable[[str, str, Callable[[argparse.Namespace], int]], argparse.ArgumentParser],
-             subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
-    """Add ``record`` and ``play`` (through the inspection verbs' ``verb``: they reach a
-    name service) and ``info`` (a file only)."""
-    p = verb("record", "record output ports to an MCAP file", cmd_record)
-    p.add_argument("ports", nargs="*", metavar="COMP.PORT")
-    p.add_argument("-a", "--all", action="store_true", help="every output port of every task the name service lists")
-    p.add_argument("-o", "--output", required=True, help="the .mcap file to write")
-    p.add_argument("-n", type=int, default=None, help="stop after N samples in all")
-    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
-    p = verb("play", "replay an MCAP file into input ports", cmd_play)
-    p.add_argument("file")
-    p.add_argument("--rate", type=float, default=1.0, help="pace: 2 = twice as fast (default 1)")
-    p.add_argument("--step", action="store_true", help="one sample per Enter on stdin")
-    p.add_argument("--remap", action="append", default=[], metavar="OLD.PORT=NEW.PORT",
-                   help="write OLD.PORT's samples to NEW.PORT (repeatable)")
-    info = subparsers.add_parser("info", help="channels, counts, rates and duration of an MCAP file")
-    info.add_argument("file")
-    info.add_argument("--json", action="store_true", help="JSON on stdout")
-    info.set_defaults(func=cmd_info)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ports, the file, when to stop, ``--recover`` and the common options."""
+    parser.add_argument("ports", nargs="*", metavar="COMP.PORT", help="output ports: COMP.PORT or /COMP/PORT")
+    parser.add_argument("-a", "--all", action="store_true", help="every output port of every task the name service lists")
+    parser.add_argument("-o", "--output", default=None, metavar="FILE.mcap",
+                        help="the MCAP file to write: a file, not a folder as ros2 bag's -o (with --recover: "
+                             "default FILE-recovered.mcap)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    parser.add_argument("-n", type=int, default=None, help="stop after N samples in all")
+    parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    parser.add_argument("--recover", default=None, metavar="FILE",
+                        help="write a complete copy of FILE, a recording cut short (killed, disk full), "
+                             "and record nothing (as mcap recover)")
+    add_common(parser)
 
 
-# ---- record ------------------------------------------------------------------------------
+def main(args: argparse.Namespace) -> int:
+    """Record (or ``--recover``); 1 on any failure, said in one line."""
+    if args.recover is not None:
+        from dataflow.cli.verbs._recover import recover
 
-def type_schema(type_name: str) -> dict[str, Any]:
-    """The JSON Schema of a registry type (pydantic's; ``{"title": name}``, any JSON, when
-    this process does not know the type or pydantic cannot describe it)."""
-    import pydantic
+        return recover(args)
+    if args.output is None:
+        err("record: give -o FILE.mcap, the file to write")
+        return 2
+    problem = output_problem(args.output, args.overwrite)
+    if problem is not None:
+        err(f"record: {problem}")
+        return 1
+    return with_system(args, _record)
 
-    from dataflow import registry
 
-    py_type = registry.python_type(type_name)
-    if py_type is None:
-        return {"title": type_name}
+def output_problem(path: str, overwrite: bool) -> str | None:
+    """Why ``path`` cannot be the file to write (a folder, a missing folder, an existing
+    file without ``overwrite``), or None."""
+    if path.endswith(os.sep) or os.path.isdir(path):
+        return (f"-o {path}: a folder; scart record writes one .mcap file (not a folder as ros2 bag): "
+                f"give -o {os.path.join(path, 'run.mcap')}")
+    parent = os.path.dirname(path) or "."
+    if not os.path.isdir(parent):
+        return f"-o {path}: the folder {parent} does not exist"
+    if os.path.exists(path) and not overwrite:
+        return f"-o {path}: the file exists; give --overwrite to replace it, or another name"
+    return None
+
+
+def open_output(path: str, overwrite: bool) -> int:
+    """The file descriptor of a new output file (exclusive unless ``overwrite``); raises
+    ``ValueError`` with one line when it cannot be made."""
+    flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
     try:
-        return pydantic.TypeAdapter(py_type).json_schema()
-    except Exception:  # noqa: BLE001 - a type pydantic cannot describe: any JSON
-        return {"title": type_name}
-
-
-def _schema_of(type_name: str) -> dict[str, Any]:
-    """A message's JSON Schema: the type's, a non-object wrapped as ``{"value": ...}``
-    (Foxglove wants objects); ``{"title": name}`` for a type unknown here."""
-    from dataflow import registry
-
-    schema = type_schema(type_name)
-    if registry.python_type(type_name) is not None and schema.get("type") != "object":
-        schema = {"title": type_name, "type": "object", "properties": {"value": schema}}
-    return schema
-
-
-def message_of(value: Any) -> dict[str, Any]:
-    """A sample as a JSON message: its JSON form, a non-object wrapped as ``{"value": ...}``
-    (the shape :func:`_schema_of` describes)."""
-    from dataflow import registry
-
-    data = registry.to_jsonable(value)
-    return data if isinstance(data, dict) else {"value": data}
+        return os.open(path, flags, 0o644)
+    except FileExistsError:
+        raise ValueError(f"-o {path}: the file exists; give --overwrite to replace it") from None
+    except OSError as exc:
+        raise ValueError(f"-o {path}: {exc.strerror}") from None
 
 
 def _ports_to_record(args: argparse.Namespace) -> list[tuple[str, str, str]]:
@@ -113,180 +117,198 @@ def _ports_to_record(args: argparse.Namespace) -> list[tuple[str, str, str]]:
         raise ValueError("name output ports (COMP.PORT ...) or give -a")
     if len(wanted) > MAX_RECORDED_PORTS:
         raise ValueError(f"{len(wanted)} ports: at most {MAX_RECORDED_PORTS}")
-    out = []
+    found = []
     for task, port in dict.fromkeys(wanted):
         ports = ports_of(task)
         info = ports.get(port)
         if info is None or info.direction != "out":
             raise ValueError(f"{task} has no output port {port!r}; outputs: "
                              f"{', '.join(n for n, p in ports.items() if p.direction == 'out') or 'none'}")
-        out.append((task, port, info.type_name))
-    return out
+        found.append((task, port, info.type_name))
+    return found
 
 
-def cmd_record(args: argparse.Namespace) -> int:
-    """``scart record PORT... -o FILE``: see the module docstring."""
-    from mcap.writer import Writer
-
+def _record(args: argparse.Namespace) -> int:
+    """Subscribe, write until told to stop, finish the file; see the module docstring."""
     from dataflow import ConnPolicy
-    from dataflow.cli.inspect import _err, _out, _stopped_by_signals, _wait_until_stopped
 
     ports = _ports_to_record(args)
-    samples: queue.SimpleQueue[Any] = queue.SimpleQueue()
-    done = threading.Event()
-    counts = {f"{t}.{p}": 0 for t, p, _ in ports}
-    with open(args.output, "wb") as fh:
-        writer = Writer(fh)
-        writer.start(profile="", library="scart")
-        channels = {}
+    fd = open_output(args.output, args.overwrite)
+    if hasattr(signal, "SIGXFSZ"):  # a file-size limit: an error to report, not a silent death
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    recording = Recording(fd, ports, args.n)
+    subs = []
+    try:
+        with stopped_by_signals(recording.done):  # before it says Ctrl-C stops it
+            for task, port, _ in ports:
+                subs.append(args.system.component(task).subscribe(port, recording.observe,
+                                                                  policy=ConnPolicy.buffer(10_000)))
+            err(f"record: {len(ports)} port(s) to {args.output}; Ctrl-C to stop")
+            wait_until_stopped(recording.done, args.duration, tick=0.2)
+    finally:
+        for sub in subs:
+            sub.close()
+        recording.close()
+    if recording.failure is not None:
+        err(f"record: {args.output}: {recording.failure}")
+        return 1
+    total = sum(recording.counts.values())
+    out(json.dumps({"file": args.output, "samples": total, "channels": recording.counts}) if args.json
+        else f"recorded {total} sample(s) to {args.output}: " + ", ".join(f"{k} {v}" for k, v in recording.counts.items()))
+    return 0
+
+
+class _Sink:
+    """What the MCAP writer writes to: the file descriptor, unbuffered, so that the bytes
+    on disk are exactly :attr:`pos` after each write (a failed write is cut back cleanly)."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.pos = 0
+
+    def write(self, data: bytes) -> int:
+        view = memoryview(data)
+        while view:
+            n = os.write(self.fd, view)
+            self.pos += n
+            view = view[n:]
+        return len(data)
+
+    def tell(self) -> int:
+        return self.pos
+
+    def flush(self) -> None:
+        """Nothing is held back: every write went to the file."""
+
+
+class Recording:
+    """One MCAP file being written by its own thread from the samples :meth:`observe` is
+    given (any thread). :attr:`done` is set when it stops by itself (``limit`` samples, or
+    a write failed: :attr:`failure` says why and how much was kept). :meth:`close` ends
+    the thread and finishes the file; idempotent."""
+
+    def __init__(self, fd: int, ports: list[tuple[str, str, str]], limit: int | None) -> None:
+        from mcap.writer import Writer
+
+        from dataflow.cli._jsonschema import _schema_of
+
+        self.done = threading.Event()
+        self.failure: str | None = None
+        self.counts = {f"{t}.{p}": 0 for t, p, _ in ports}
+        self._limit = limit
+        self._sink = _Sink(fd)
+        self._writer = Writer(self._sink)  # type: ignore[arg-type] - a stream: write, tell, flush
+        self._samples: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._total, self._first, self._last = 0, 0.0, 0.0
+        self._writer.start(profile="", library="scart")
+        self._channels = {}
         for task, port, type_name in ports:
-            schema_id = writer.register_schema(name=type_name, encoding="jsonschema",
-                                               data=json.dumps(_schema_of(type_name)).encode())
-            channels[f"{task}.{port}"] = writer.register_channel(
+            schema_id = self._writer.register_schema(name=type_name, encoding="jsonschema",
+                                                     data=json.dumps(_schema_of(type_name)).encode())
+            self._channels[f"{task}.{port}"] = self._writer.register_channel(
                 topic=f"{task}.{port}", message_encoding="json", schema_id=schema_id,
                 metadata={"type_name": type_name})
+        self._kept = (self._sink.pos, 0, 0.0, 0.0)  # (bytes, samples, first, last log time) on disk whole
+        self._thread = threading.Thread(target=self._run, name="scart-record-writer", daemon=True)
+        self._thread.start()
+        self._closed = False
 
-        def observer(event: Any) -> None:
-            samples.put((f"{event.component}.{event.port}", time.time_ns(), event.source_time, event.value))
+    def observe(self, event: Any) -> None:
+        """A subscription's observer: queue the sample (never blocks)."""
+        self._samples.put((f"{event.component}.{event.port}", time.time_ns(), event.source_time, event.value))
 
-        subs = []
-        drain = threading.Thread(target=_write_samples, name="scart-record-writer",
-                                 args=(writer, channels, samples, counts, args.n, done), daemon=True)
-        drain.start()
-        try:
-            with _stopped_by_signals(done):  # before it says Ctrl-C stops it
-                for task, port, _ in ports:
-                    subs.append(args.system.component(task).subscribe(port, observer,
-                                                                      policy=ConnPolicy.buffer(10_000)))
-                _err(f"record: {len(ports)} port(s) to {args.output}; Ctrl-C to stop")
-                _wait_until_stopped(done, args.duration)
-        finally:
-            for sub in subs:
-                sub.close()
-            samples.put(_STOP)
-            drain.join(30)
-            if drain.is_alive():  # never finish a file the writer thread is still writing
-                raise RuntimeError("record: the writer thread did not finish within 30 s; the file is incomplete")
-            writer.finish()
-    total = sum(counts.values())
-    _out(json.dumps({"file": args.output, "samples": total, "channels": counts}) if args.json
-         else f"recorded {total} sample(s) to {args.output}: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
-    return 0
-
-
-def _write_samples(writer: Any, channels: dict[str, int], samples: queue.SimpleQueue[Any], counts: dict[str, int],
-                   limit: int | None, done: threading.Event) -> None:
-    """The writer thread: every queued sample to the file until the stop mark (or ``limit``)."""
-    total = 0
-    for item in iter(samples.get, _STOP):  # ends at the stop mark
-        topic, log_ns, source_time, value = item
-        if limit is not None and total >= limit:
-            done.set()
-            continue
-        data = message_of(value)
-        counts[topic] += 1
-        total += 1
-        publish_ns = int(source_time * 1e9) if source_time else log_ns
-        writer.add_message(channel_id=channels[topic], log_time=log_ns, publish_time=publish_ns,
-                           sequence=counts[topic], data=json.dumps(data).encode())
-        if limit is not None and total >= limit:
-            done.set()
-
-
-# ---- read ----------------------------------------------------------------------------------
-
-def _messages(path: str) -> Any:
-    """``(topic, log_time ns, decoded JSON or None)`` of each message of ``path``, in log-time order."""
-    from mcap.reader import make_reader
-
-    with open(path, "rb") as fh:
-        reader = make_reader(fh)
-        for _schema, channel, message in reader.iter_messages(log_time_order=True):
-            data = None
-            if len(message.data) <= MAX_MESSAGE_BYTES:
-                try:
-                    data = json.loads(message.data)
-                except ValueError:
-                    data = None
-            yield channel.topic, message.log_time, data
-
-
-def cmd_info(args: argparse.Namespace) -> int:
-    """``scart info FILE``: channels, counts, rates, duration."""
-    from mcap.reader import make_reader
-
-    from dataflow.cli.inspect import _dump, _out
-
-    try:
-        with open(args.file, "rb") as fh:
-            summary = make_reader(fh).get_summary()
-    except (OSError, ValueError, Exception) as exc:  # noqa: BLE001 - any unreadable file: one line
-        print(f"scart info: {args.file}: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return 1
-    if summary is None or summary.statistics is None:
-        print(f"scart info: {args.file}: no summary (a file still being written, or cut short)", file=sys.stderr)
-        return 1
-    stats = summary.statistics
-    duration = max(0.0, (stats.message_end_time - stats.message_start_time) / 1e9)
-    channels = []
-    for cid, channel in sorted(summary.channels.items()):
-        count = stats.channel_message_counts.get(cid, 0)
-        schema = summary.schemas.get(channel.schema_id)
-        channels.append({"topic": channel.topic, "type": schema.name if schema else "", "count": count,
-                         "rate": round(count / duration, 2) if duration > 0 else 0.0})
-    doc = {"file": args.file, "duration": round(duration, 6), "messages": stats.message_count, "channels": channels}
-    if args.json:
-        _out(_dump(doc))
-        return 0
-    _out(f"{args.file}: {stats.message_count} message(s) over {duration:.3f} s")
-    for c in channels:
-        _out(f"  {c['topic']:<40} {c['type']:<20} {c['count']:>8} msgs {c['rate']:>9.1f} Hz")
-    return 0
-
-
-# ---- play -----------------------------------------------------------------------------------
-
-def cmd_play(args: argparse.Namespace) -> int:
-    """``scart play FILE``: see the module docstring."""
-    from dataflow.cli.inspect import _err, _out
-    from dataflow.remote.api import split_port
-
-    if not (0 < args.rate <= 1000):
-        raise ValueError(f"--rate {args.rate}: expected 0 < rate ≤ 1000")
-    remap: dict[str, str] = {}
-    for item in args.remap:
-        old, sep, new = item.partition("=")
-        split_port(old.strip()), split_port(new.strip())
-        if not sep:
-            raise ValueError(f"--remap {item!r}: expected OLD.PORT=NEW.PORT")
-        remap[old.strip()] = new.strip()
-    proxies: dict[str, Any] = {}
-    written = skipped = 0
-    start_wall = first_log = None
-    for topic, log_ns, data in _messages(args.file):
-        target = remap.get(topic, topic)
-        if data is None:
-            skipped += 1
-            continue
-        if args.step:
-            _err(f"{target} ← {json.dumps(data)[:100]}  (Enter: write, Ctrl-D: stop)")
-            if not sys.stdin.readline():
+    def _run(self) -> None:
+        """The writer thread: each queued sample to the file, a chunk on disk at least every
+        :data:`FLUSH_SECONDS`, until the stop mark."""
+        pending, flushed_at = 0, time.monotonic()
+        while True:
+            try:
+                item = self._samples.get(timeout=FLUSH_SECONDS / 2)
+            except queue.Empty:
+                item = None
+            if item is _STOP:
                 break
-        else:
-            if start_wall is None:
-                start_wall, first_log = time.monotonic(), log_ns
-            due = start_wall + (log_ns - first_log) / 1e9 / args.rate  # absolute deadline: no drift
-            delay = due - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-        task, port = split_port(target)
-        if task not in proxies:
-            proxies[task] = args.system.component(task)
-        value = data["value"] if set(data) == {"value"} else data
-        status = proxies[task].write_json(port, value)
-        if status.name != "WRITE_SUCCESS":
-            _err(f"play: {target}: {status.name}")
-        written += 1
-    _out(json.dumps({"file": args.file, "written": written, "skipped": skipped}) if args.json
-         else f"played {written} sample(s) from {args.file}" + (f" ({skipped} unreadable, skipped)" if skipped else ""))
-    return 0
+            if item is not None and self.failure is None and (self._limit is None or self._total < self._limit):
+                try:
+                    self._add(item)
+                except OSError as exc:
+                    self._fail(exc)
+                    continue
+                pending += 1
+                if self._limit is not None and self._total >= self._limit:
+                    self.done.set()
+            if pending and self.failure is None and time.monotonic() - flushed_at >= FLUSH_SECONDS:
+                if self._flush():
+                    pending, flushed_at = 0, time.monotonic()
+
+    def _flush(self) -> bool:
+        """The chunk so far, whole, to the file; True when it is there (else failed)."""
+        try:
+            self._writer.flush()
+        except OSError as exc:
+            self._fail(exc)
+            return False
+        self._kept = (self._sink.pos, self._total, self._first, self._last)
+        return True
+
+    def _add(self, item: tuple[str, int, float, Any]) -> None:
+        from dataflow.cli._jsonschema import message_of
+
+        topic, log_ns, source_time, value = item
+        self.counts[topic] += 1
+        self._total += 1
+        self._first, self._last = self._first or log_ns / 1e9, log_ns / 1e9
+        publish_ns = int(source_time * 1e9) if source_time else log_ns
+        self._writer.add_message(channel_id=self._channels[topic], log_time=log_ns, publish_time=publish_ns,
+                                 sequence=self.counts[topic], data=json.dumps(message_of(value)).encode())
+
+    def _fail(self, exc: OSError) -> None:
+        """A write failed: stop recording, cut the file back to its last whole chunk."""
+        _, kept, first, last = self._kept
+        what = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is full",
+                errno.EFBIG: "the file-size limit is reached"}.get(exc.errno or 0, f"writing failed ({exc.strerror})")
+        self.failure = (f"{what}: recording stopped; kept {kept} sample(s) ({max(0.0, last - first):.1f} s), "
+                        f"the rest is lost")
+        self._cut_back()
+        self.done.set()
+
+    def _cut_back(self) -> None:
+        """Cut the file to its last whole chunk and end it there (an MCAP data end and footer
+        without a summary: every reader reads it); when even that does not fit, the cut file
+        is left, which ``scart info`` reads and ``--recover`` finishes."""
+        from mcap.data_stream import RecordBuilder
+        from mcap.records import DataEnd, Footer
+
+        good = self._kept[0]
+        builder = RecordBuilder()
+        DataEnd(data_section_crc=0).write(builder)
+        Footer(summary_start=0, summary_offset_start=0, summary_crc=0).write(builder)
+        tail = builder.end() + b"\x89MCAP0\r\n"
+        try:
+            os.ftruncate(self._sink.fd, good)
+            os.pwrite(self._sink.fd, tail, good)
+        except OSError:
+            try:
+                os.ftruncate(self._sink.fd, good)
+            except OSError:
+                pass
+            if self.failure is not None:
+                self.failure += " (the file ends without its index: scart record --recover finishes it)"
+
+    def close(self) -> None:
+        """Stop the writer thread (bounded), finish the file, close it. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._samples.put(_STOP)
+        self._thread.join(30)
+        try:
+            if self._thread.is_alive():  # never finish a file the writer thread is still writing
+                self.failure = self.failure or "the writer thread did not finish within 30 s; the file is incomplete"
+            elif self.failure is None and self._flush():
+                try:
+                    self._writer.finish()
+                except OSError as exc:
+                    self._fail(exc)
+        finally:
+            os.close(self._sink.fd)
