@@ -93,14 +93,15 @@ class McapScan:
                 yield channel.topic, record.log_time, decode_json(record.data)
 
     def _open(self) -> io.BufferedReader:
+        """The file, opened without blocking on a FIFO or a device (those are refused)."""
         try:
-            fh = open(self.path, "rb")  # noqa: SIM115 - closed by the caller's with
+            fd = os.open(self.path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
         except OSError as exc:
             raise McapError(exc.strerror or str(exc)) from None
-        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-            fh.close()
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
             raise McapError("not a regular file")
-        return fh
+        return open(fd, "rb")  # noqa: SIM115 - closed by the caller's with
 
     def _parse(self, opcode: int, body: bytes, pos: int) -> Iterator[Any]:
         """The records one top-level record holds (a chunk's, decompressed with bounds)."""

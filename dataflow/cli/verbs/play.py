@@ -171,6 +171,8 @@ def _write(args: argparse.Namespace, proxies: dict[str, Any], topic: str, data: 
 def _report(args: argparse.Namespace, tally: dict[str, int], seen: set[str], scan: Any, pace: _Pace,
             problem: str) -> int:
     """The closing line (stdout), what went wrong (stderr); the exit code."""
+    from dataflow.cli._mcap import MAX_JSON_DEPTH, MAX_MESSAGE_BYTES
+
     missing = sorted((args.topic_set or set()) - seen)
     if missing:
         err(f"play: {args.file} has no channel {', '.join(missing)}; it has {', '.join(sorted(seen)) or 'none'}")
@@ -178,6 +180,9 @@ def _report(args: argparse.Namespace, tally: dict[str, int], seen: set[str], sca
         err(f"play: {args.file}: {problem}")
     elif scan.truncated_at is not None:
         err(f"play: {args.file}: truncated at byte {scan.truncated_at}: played what comes before")
+    if tally["skipped"]:
+        err(f"play: {args.file}: {tally['skipped']} message(s) unreadable (over {MAX_MESSAGE_BYTES >> 20} MiB, not a "
+            f"JSON object, or nested deeper than {MAX_JSON_DEPTH} levels), skipped")
     if pace.shortened > 1:
         err(f"play: {pace.shortened} pauses shortened to {args.max_gap:g} s (--max-gap)")
     notes = [f"{tally[k]} {word}" for k, word in (("skipped", "unreadable, skipped"), ("refused", "refused"),
