@@ -3,7 +3,8 @@ through the ``scart.verbs`` entry points and imported only when it runs, as ros2
 finds ``ros2topic.verb`` modules.
 
 A verb module has ``HELP`` (one line), ``add_arguments(parser)`` (its options) and
-``main(args) -> int`` (the exit code); ``ALIASES`` (a tuple of other names) is optional.
+``main(args) -> int`` (the exit code); ``ALIASES`` (a tuple of other names) and
+``DESCRIPTION`` (its ``--help`` text, default ``HELP``) are optional.
 ``scart VERB ...`` imports that verb's module alone; ``scart --help``, an alias or an
 unknown word imports every verb module, which import nothing heavy until ``main`` runs:
 ``scart --help`` and ``scart validate`` import no gRPC. The SCA verbs (``run``,
@@ -66,7 +67,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         module = _load(name, module_name)
         if module is None:
             continue
-        sub = subparsers.add_parser(name, help=module.HELP, description=module.HELP,
+        sub = subparsers.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP),
                                     aliases=list(getattr(module, "ALIASES", ())))
         module.add_arguments(sub)
         sub.set_defaults(func=module.main, command=name)

@@ -13,6 +13,8 @@ from scart.model import Binding, Composite
 from scart.settings import Remap
 
 HELP = "print a composite as Graphviz DOT (draw it with Graphviz: | dot -Tsvg > x.svg)"
+DESCRIPTION = ("Print a composite as Graphviz DOT. Drawing it needs Graphviz's dot (apt-get install graphviz): "
+               "scart graph X.composite | dot -Tsvg > x.svg")
 
 
 def add_arguments(graph: argparse.ArgumentParser) -> None:
