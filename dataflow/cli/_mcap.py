@@ -1,5 +1,5 @@
-"""Reading MCAP files someone handed you, with bounds: what ``scart play``, ``info`` and
-``record --recover`` share.
+"""MCAP files: reading those someone handed you, with bounds (what ``scart play``, ``info``
+and ``record --recover`` share), and the output file ``record`` writes.
 
 :class:`McapScan` reads a file record by record on its own (not through the ``mcap``
 package's readers), so that nothing in the file decides how much is read, allocated or
@@ -28,7 +28,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "McapError", "McapScan", "decode_json"]
+__all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "McapError", "McapScan", "Sink", "decode_json",
+           "open_output", "output_problem"]
 
 MAGIC = b"\x89MCAP0\r\n"
 MAX_MESSAGE_BYTES = 4 << 20
@@ -236,3 +237,54 @@ def _records() -> Any:
     from mcap import records
 
     return records
+
+
+# ---- the file record writes -----------------------------------------------------------------
+
+def output_problem(path: str, overwrite: bool) -> str | None:
+    """Why ``path`` cannot be the file to write (a folder, a missing folder, an existing
+    file without ``overwrite``), or None."""
+    if path.endswith(os.sep) or os.path.isdir(path):
+        return (f"-o {path}: a folder; scart record writes one .mcap file (not a folder as ros2 bag): "
+                f"give -o {os.path.join(path, 'run.mcap')}")
+    parent = os.path.dirname(path) or "."
+    if not os.path.isdir(parent):
+        return f"-o {path}: the folder {parent} does not exist"
+    if os.path.exists(path) and not overwrite:
+        return f"-o {path}: the file exists; give --overwrite to replace it, or another name"
+    return None
+
+
+def open_output(path: str, overwrite: bool) -> int:
+    """The file descriptor of a new output file (exclusive unless ``overwrite``); raises
+    ``ValueError`` with one line when it cannot be made."""
+    flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
+    try:
+        return os.open(path, flags, 0o644)
+    except FileExistsError:
+        raise ValueError(f"-o {path}: the file exists; give --overwrite to replace it") from None
+    except OSError as exc:
+        raise ValueError(f"-o {path}: {exc.strerror}") from None
+
+
+class Sink:
+    """What the MCAP writer writes to: the file descriptor, unbuffered, so that the bytes
+    on disk are exactly :attr:`pos` after each write (a failed write is cut back cleanly)."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.pos = 0
+
+    def write(self, data: bytes) -> int:
+        view = memoryview(data)
+        while view:
+            n = os.write(self.fd, view)
+            self.pos += n
+            view = view[n:]
+        return len(data)
+
+    def tell(self) -> int:
+        return self.pos
+
+    def flush(self) -> None:
+        """Nothing is held back: every write went to the file."""

@@ -17,46 +17,63 @@ __all__ = ["recover"]
 def recover(args: argparse.Namespace) -> int:
     """Copy ``args.recover`` to ``args.output`` (default ``FILE-recovered.mcap``); 0 when
     a copy was written, 1 (one line) when the source cannot be read at all."""
-    from mcap.writer import Writer
-
     from dataflow.cli._mcap import McapError, McapScan
-    from dataflow.cli.verbs.record import _Sink, open_output, output_problem
 
     source = args.recover
-    stem, ext = os.path.splitext(source)
-    target = args.output or f"{stem}-recovered{ext or '.mcap'}"
-    problem = output_problem(target, args.overwrite)
-    if problem is None and os.path.abspath(target) == os.path.abspath(source):
-        problem = f"-o {target}: the file to recover; give another name"
-    if problem is not None:
-        err(f"record --recover: {problem}")
+    target = _target(args)
+    if target is None:
         return 1
     scan = McapScan(source)
     records = scan.records()
     try:
-        first = next(records, None)
+        first = next(records, None)  # a file that is no MCAP at all: said before anything is written
     except McapError as exc:
         err(f"record --recover: {source}: {exc}")
         return 1
     try:
-        fd = open_output(target, args.overwrite)
+        copied, stopped = _write_copy(target, args.overwrite, [first] if first is not None else [], records)
     except ValueError as exc:
         err(f"record --recover: {exc}")
         return 1
-    sink = _Sink(fd)
-    try:
-        writer = Writer(sink)  # type: ignore[arg-type] - a stream: write, tell, flush
-        writer.start(profile="", library="scart")
-        copied, stopped = _copy(writer, [first] if first is not None else [], records)
-        writer.finish()
-    finally:
-        os.close(fd)
     state = (f"truncated at byte {scan.truncated_at}" if scan.truncated_at is not None
              else "complete" if scan.complete else "cut short")
     doc = {"file": source, "output": target, "messages": copied, "source": state, "stopped_at": stopped}
     out(dump(doc) if args.json else
         f"recovered {copied} message(s) from {source} ({state}) into {target}" + (f"; stopped at {stopped}" if stopped else ""))
     return 0
+
+
+def _target(args: argparse.Namespace) -> str | None:
+    """Where the copy goes (``-o``, else ``FILE-recovered.mcap``), or None after saying why not."""
+    from dataflow.cli._mcap import output_problem
+
+    stem, ext = os.path.splitext(args.recover)
+    target = args.output or f"{stem}-recovered{ext or '.mcap'}"
+    problem = output_problem(target, args.overwrite)
+    if problem is None and os.path.abspath(target) == os.path.abspath(args.recover):
+        problem = f"-o {target}: the file to recover; give another name"
+    if problem is not None:
+        err(f"record --recover: {problem}")
+        return None
+    return target
+
+
+def _write_copy(target: str, overwrite: bool, head: list[Any], records: Any) -> tuple[int, str]:
+    """A complete MCAP file at ``target`` of ``head`` then ``records``: see :func:`_copy`.
+    Raises ``ValueError`` when the file cannot be made."""
+    from mcap.writer import Writer
+
+    from dataflow.cli._mcap import Sink, open_output
+
+    fd = open_output(target, overwrite)
+    try:
+        writer = Writer(Sink(fd))  # type: ignore[arg-type] - a stream: write, tell, flush
+        writer.start(profile="", library="scart")
+        copied, stopped = _copy(writer, head, records)
+        writer.finish()
+    finally:
+        os.close(fd)
+    return copied, stopped
 
 
 def _copy(writer: Any, head: list[Any], records: Any) -> tuple[int, str]:

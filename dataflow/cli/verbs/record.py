@@ -32,6 +32,7 @@ import threading
 import time
 from typing import Any
 
+from dataflow.cli._mcap import Sink, open_output, output_problem
 from dataflow.cli.output import add_common, err, out, stopped_by_signals, wait_until_stopped, with_system
 
 HELP = "record output ports to an MCAP file"
@@ -70,32 +71,6 @@ def main(args: argparse.Namespace) -> int:
         err(f"record: {problem}")
         return 1
     return with_system(args, _record)
-
-
-def output_problem(path: str, overwrite: bool) -> str | None:
-    """Why ``path`` cannot be the file to write (a folder, a missing folder, an existing
-    file without ``overwrite``), or None."""
-    if path.endswith(os.sep) or os.path.isdir(path):
-        return (f"-o {path}: a folder; scart record writes one .mcap file (not a folder as ros2 bag): "
-                f"give -o {os.path.join(path, 'run.mcap')}")
-    parent = os.path.dirname(path) or "."
-    if not os.path.isdir(parent):
-        return f"-o {path}: the folder {parent} does not exist"
-    if os.path.exists(path) and not overwrite:
-        return f"-o {path}: the file exists; give --overwrite to replace it, or another name"
-    return None
-
-
-def open_output(path: str, overwrite: bool) -> int:
-    """The file descriptor of a new output file (exclusive unless ``overwrite``); raises
-    ``ValueError`` with one line when it cannot be made."""
-    flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
-    try:
-        return os.open(path, flags, 0o644)
-    except FileExistsError:
-        raise ValueError(f"-o {path}: the file exists; give --overwrite to replace it") from None
-    except OSError as exc:
-        raise ValueError(f"-o {path}: {exc.strerror}") from None
 
 
 def _ports_to_record(args: argparse.Namespace) -> list[tuple[str, str, str]]:
@@ -158,29 +133,6 @@ def _record(args: argparse.Namespace) -> int:
     return 0
 
 
-class _Sink:
-    """What the MCAP writer writes to: the file descriptor, unbuffered, so that the bytes
-    on disk are exactly :attr:`pos` after each write (a failed write is cut back cleanly)."""
-
-    def __init__(self, fd: int) -> None:
-        self.fd = fd
-        self.pos = 0
-
-    def write(self, data: bytes) -> int:
-        view = memoryview(data)
-        while view:
-            n = os.write(self.fd, view)
-            self.pos += n
-            view = view[n:]
-        return len(data)
-
-    def tell(self) -> int:
-        return self.pos
-
-    def flush(self) -> None:
-        """Nothing is held back: every write went to the file."""
-
-
 class Recording:
     """One MCAP file being written by its own thread from the samples :meth:`observe` is
     given (any thread). :attr:`done` is set when it stops by itself (``limit`` samples, or
@@ -196,7 +148,7 @@ class Recording:
         self.failure: str | None = None
         self.counts = {f"{t}.{p}": 0 for t, p, _ in ports}
         self._limit = limit
-        self._sink = _Sink(fd)
+        self._sink = Sink(fd)
         self._writer = Writer(self._sink)  # type: ignore[arg-type] - a stream: write, tell, flush
         self._samples: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._total, self._first, self._last = 0, 0.0, 0.0
