@@ -136,10 +136,10 @@ def test_play_plays_the_topics_asked_for_into_remapped_ports(tmp_path: Path) -> 
         schema = writer.register_schema("YouBotStatus", "jsonschema", b"{}")
         wanted = writer.register_channel("youBotDriver.jointStatus", "json", schema)
         other = writer.register_channel("nobody.else", "json", schema)
-        for i in range(5):
+        for i in range(5):  # 0.1 s apart: the sink's default writer keeps the last value (DATA)
             status = {"joints": [], "timestamp": float(i), "sequence": i}
-            writer.add_message(wanted, i * 10_000_000, json.dumps(status).encode(), i * 10_000_000)
-            writer.add_message(other, i * 10_000_000 + 1, b'{"value": 1}', i * 10_000_000 + 1)
+            writer.add_message(wanted, i * 100_000_000, json.dumps(status).encode(), i * 100_000_000)
+            writer.add_message(other, i * 100_000_000 + 1, b'{"value": 1}', i * 100_000_000 + 1)
         writer.finish()
     fresh = Deployer()
     receiver = fresh.add(Receiver("stand_in"))

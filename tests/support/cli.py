@@ -27,11 +27,12 @@ def read_until(proc: subprocess.Popen[bytes], needle: str, timeout: float = 30.0
     """Read the process's stdout and stderr until together they contain ``needle``
     (deadline; never sleeps): what scart itself says goes to stderr, what its components
     print to stdout. Returns what was read, both streams in arrival order."""
-    assert proc.stdout is not None and proc.stderr is not None
+    streams = [s for s in (proc.stdout, proc.stderr) if s is not None]  # stderr may be merged into stdout
+    assert streams, "the process has no pipe to read"
     seen = b""
     deadline = time.monotonic() + timeout
     with selectors.DefaultSelector() as sel:
-        for stream in (proc.stdout, proc.stderr):
+        for stream in streams:
             sel.register(stream.fileno(), selectors.EVENT_READ)
         while time.monotonic() < deadline and sel.get_map():
             for key, _ in sel.select(timeout=max(0.0, deadline - time.monotonic())):

@@ -111,7 +111,11 @@ def _record(args: argparse.Namespace) -> int:
     fd = open_output(args.output, args.overwrite)
     if hasattr(signal, "SIGXFSZ"):  # a file-size limit: an error to report, not a silent death
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    recording = Recording(fd, ports, args.n)
+    try:
+        recording = Recording(fd, ports, args.n)
+    except OSError as exc:  # not even the file's start fits (a full disk)
+        os.close(fd)
+        raise ValueError(f"-o {args.output}: {exc.strerror or exc}") from None
     subs = []
     try:
         with stopped_by_signals(recording.done):  # before it says Ctrl-C stops it
