@@ -11,7 +11,9 @@ __all__ = ["LinkDescription", "SubscriptionDescription", "TaskDescription", "Por
 
 class PortDescription(BaseModel):
     """A port: direction, registry type name, doc, number of connections, event port or not,
-    and (input ports) the bounds of what may be written to it from outside."""
+    (input ports) the bounds of what may be written to it from outside and what the task
+    itself checks of it (``check``: empty when it declares no check), (output ports) the
+    writes so far."""
 
     model_config = ConfigDict(frozen=True)
     name: str
@@ -21,6 +23,8 @@ class PortDescription(BaseModel):
     connections: int = 0
     event: bool = False
     bounds: str = ""
+    check: str = ""
+    writes: int = 0
 
 
 class PropertyDescription(BaseModel):
@@ -56,6 +60,7 @@ class TaskDescription(BaseModel):
     period: float = 0.0
     cycles: int = 0
     overruns: int = 0
+    last_cycle: float = 0.0  #: when cycle ``cycles`` began (monotonic s of the task's process; 0: none)
     ports: list[PortDescription] = []
     properties: list[PropertyDescription] = []
     operations: list[OperationDescription] = []

@@ -43,7 +43,7 @@ import logging
 import threading
 from typing import Any
 
-from dataflow.cli.record import _schema_of, message_of, type_schema
+from dataflow.cli._jsonschema import _schema_of, message_of, type_schema
 
 __all__ = ["FoxgloveLive", "cmd_foxglove"]
 
@@ -457,7 +457,7 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
     """``scart foxglove [--host H] [--port P] [--control [TOKEN_FILE]]``: see the module docstring."""
     import dataclasses
 
-    from dataflow.cli.inspect import _err, _wait_until_stopped, ns_address
+    from dataflow.cli.output import err as _err, ns_address, wait_until_stopped as _wait_until_stopped
     from dataflow.remote import connect
     from dataflow.remote.security import from_args
 
