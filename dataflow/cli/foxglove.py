@@ -43,6 +43,7 @@ import logging
 import threading
 from typing import Any
 
+from dataflow.threads import OwnedThread
 from dataflow.cli._jsonschema import _schema_of, message_of, type_schema
 
 __all__ = ["FoxgloveLive", "cmd_foxglove"]
@@ -331,8 +332,7 @@ class FoxgloveLive:
         self._bridge: _Bridge | None = None
         self._server: Any = None
         self._gate: Any = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._thread = OwnedThread(self._refreshing, "scart-foxglove-refresh")
 
     @property
     def url(self) -> str:
@@ -365,7 +365,6 @@ class FoxgloveLive:
             bridge.server = self._server
             self._gate = WebSocketGate(self.host, self.port, (inner_host, self._server.port))
             self._gate.start()
-            self._thread = threading.Thread(target=self._refreshing, name="scart-foxglove-refresh", daemon=True)
             self._thread.start()
         except BaseException:
             self.stop()
@@ -392,8 +391,8 @@ class FoxgloveLive:
                 log.debug("foxglove: cannot listen on %s (%s); 127.0.0.1 then", host, exc)
         raise AssertionError("unreachable")
 
-    def _refreshing(self) -> None:
-        while not self._stop.wait(self.refresh_period):
+    def _refreshing(self, stopping: threading.Event) -> None:
+        while not stopping.wait(self.refresh_period):
             try:
                 assert self._bridge is not None
                 services = self._bridge.refresh()
@@ -404,10 +403,7 @@ class FoxgloveLive:
 
     def stop(self) -> None:
         """Stop looking, stop the gate and the server, end the subscriptions (idempotent)."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=30)
-            self._thread = None
+        self._thread.stop(timeout=30)
         if self._gate is not None:
             self._gate.stop()
             self._gate = None
