@@ -90,7 +90,7 @@ class ChannelRpcs:
                                  context.peer() or "", "grpc")
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
-        carrier = ServedCarrier()
+        carrier = ServedCarrier(served.end)
         context.add_callback(carrier.wake.set)  # a cancelled stream wakes at once
         try:
             yield from serve_subscription(served.end, carrier, self.owner.boot_id,

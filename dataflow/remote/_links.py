@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import grpc
 
-from dataflow.errors import NotFoundError
+from dataflow.errors import DeploymentError, NotFoundError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy
 from dataflow.remote import _rpc, errors
@@ -112,7 +112,9 @@ class RemoteLink:
                 backoff = 1.0
             except PEER_FAILURES as exc:
                 limit = isinstance(exc, grpc.RpcError) and exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED  # type: ignore[attr-defined]
-                self._failed("refused" if limit else "waiting", _reason(exc), exc if limit else None)
+                refusal = DeploymentError(f"link {self.name}: {exc.details()} (a limit of the sink's deployer, "  # type: ignore[union-attr]
+                                          f"{self.sink_task}'s)") if limit else None
+                self._failed("refused" if limit else "waiting", _reason(exc), refusal)
             except Exception as exc:  # noqa: BLE001 - the link's thread must not die: log, back off, retry
                 if not stopping.is_set():
                     log.exception("link %s failed; retrying", self.name)

@@ -40,13 +40,17 @@ class OutSample:
     the epoch), the value and the port's type. Each encoding of it is made once, however
     many ends send it (:meth:`encoded`)."""
 
-    __slots__ = ("n", "t_ns", "value", "type", "_key", "_bytes")
+    __slots__ = ("n", "t_ns", "value", "type", "inline", "_key", "_bytes")
 
     def __init__(self, n: int, t_ns: int, value: Any, py_type: Any) -> None:
         self.n = n
         self.t_ns = t_ns
         self.value = value
         self.type = py_type
+        #: How many carriers sent it from the writer's own thread so far (a transport sends
+        #: to the first few there and hands the rest to its own thread: the writer's cost
+        #: then does not grow with its readers).
+        self.inline = 0
         self._key: Any = None
         self._bytes: Any = None
 

@@ -18,13 +18,16 @@ from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 __all__ = ["feed", "heartbeat", "report_of", "sample_frame"]
 
+_Frame = pb.SubscribeResponse
+
 
 def sample_frame(sample: OutSample) -> bytes:
     """``sample`` as an encoded frame (see the module docstring); raises ``TypeError``
     (a :class:`~dataflow.PortTypeError`) when the value cannot be encoded."""
-    value = codec.encode(sample.value, sample.type)
-    return pb.SubscribeResponse(samples=[pb.Sample(value=value, sequence=sample.n,
-                                                   source_time_ns=sample.t_ns)]).SerializeToString()
+    frame = _Frame()  # built in place: half the time of nested constructors (the hot path of every write)
+    frame.samples.add(sequence=sample.n, source_time_ns=sample.t_ns).value.CopyFrom(
+        codec.encode(sample.value, sample.type))
+    return frame.SerializeToString()
 
 
 def heartbeat(boot_id: str = "", dropped: int = 0) -> bytes:

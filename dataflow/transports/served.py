@@ -49,7 +49,9 @@ class Served:
 
 
 class ServedSet:
-    """The subscriptions one deployer serves, numbered; bounded (``limit``)."""
+    """The subscriptions one deployer serves, numbered. Those carried by gRPC streams (a
+    server worker each) are at most ``limit``; the ipc ones are bounded by the ipc
+    server's own connection limit."""
 
     def __init__(self, limit: int) -> None:
         self.limit = limit
@@ -60,8 +62,9 @@ class ServedSet:
     def open(self, port: OutputPort, policy: ConnPolicy, subscriber: str, transport: str) -> Served:
         """A new subscription of ``port``; ``OverflowError`` naming the limit past it."""
         with self._lock:
-            if len(self._served) >= self.limit:
-                raise OverflowError(f"this deployer serves at most {self.limit} subscriptions")
+            streams = sum(1 for s in self._served.values() if s.transport == "grpc")
+            if transport == "grpc" and streams >= self.limit:
+                raise OverflowError(f"this deployer serves at most {self.limit} subscriptions over gRPC streams")
             served = Served(port, policy, next(self._serials), subscriber, transport)
             self._served[served.serial] = served
             return served

@@ -126,7 +126,7 @@ def _open(ask: Callable[[], Any], transport: str, peer: Peer) -> tuple[socket.so
             if exc.code().name not in REFUSED:  # type: ignore[attr-defined]
                 raise
             raise IpcUnavailable(exc.details() or exc.code().name) from None  # type: ignore[attr-defined]
-        return connect(reply.ticket.socket, reply.ticket.secret, peer.timeout)
+        return connect(reply.ticket.socket, reply.ticket.secret, peer.timeout, peer.cancelled)
     except IpcUnavailable as exc:
         if transport == "ipc":
             raise TransportError(f"transport ipc to {peer.where}: {exc}") from None
@@ -143,8 +143,8 @@ class _LinkOut(Conn):
         self.end = end
         self.final = threading.Event()
 
-    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread
-        return self.put(data)
+    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread (or the io thread's flush)
+        return self.send_sample(sample, data)
 
     def drained(self) -> None:
         self.end.flush()

@@ -22,6 +22,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import Any
 
 from dataflow.threads import OwnedThread
 from dataflow.transports.ipc._wire import CHUNK, WHOLE, Reassembler, frames_of, shutdown_quietly
@@ -32,6 +33,7 @@ log = logging.getLogger(__name__)
 
 TICK_S = 0.05  #: how often each connection's periodic work runs (heartbeats, reports)
 READS_PER_WAKE = 256  #: datagrams one connection may read per wake-up before the others' turn
+INLINE_SENDS = 2  #: connections a sample is sent to from the writer's own thread; the io thread sends to the rest
 
 
 class Hub:
@@ -48,6 +50,8 @@ class Hub:
         self._selector.register(self._wake_r, selectors.EVENT_READ, None)
         self._calls: deque[Callable[[], None]] = deque()
         self._conns: set[Conn] = set()
+        self._to_flush: set[Conn] = set()  # connections whose writer end has samples for this thread to send
+        self._flush_lock = threading.Lock()
         self._users = 0
         self._thread = OwnedThread(self._run, "scart-ipc", wake=self.wake)
 
@@ -97,6 +101,25 @@ class Hub:
         if self._thread.in_thread():
             fn()
             return
+        self._calls.append(fn)
+        self.wake()
+
+    def flush_soon(self, conn: Conn) -> None:
+        """Have the io thread send what ``conn``'s writer end holds (:meth:`Conn.drained`),
+        soon: many connections asking at once cost one wake-up (any thread; never blocks)."""
+        with self._flush_lock:
+            first = not self._to_flush
+            self._to_flush.add(conn)
+        if first:
+            self.wake()
+
+    def in_thread(self) -> bool:
+        """Whether the caller is the io thread."""
+        return self._thread.in_thread()
+
+    def call_later(self, fn: Callable[[], None]) -> None:
+        """Run ``fn`` in the io thread after what it does now (also when called from it:
+        never inside the caller, which may hold locks ``fn`` needs)."""
         self._calls.append(fn)
         self.wake()
 
@@ -154,6 +177,7 @@ class Hub:
                     if mask & selectors.EVENT_WRITE and not conn.ended.is_set():
                         conn.writable()
                 self._run_calls()
+                self._run_flushes()
                 now = time.monotonic()
                 if now >= next_tick:
                     next_tick = now + TICK_S
@@ -172,6 +196,13 @@ class Hub:
                 pass
         except OSError:
             pass
+
+    def _run_flushes(self) -> None:
+        with self._flush_lock:
+            conns, self._to_flush = self._to_flush, set()
+        for conn in conns:
+            if not conn.ended.is_set():
+                conn.drained()
 
     def _run_calls(self) -> None:
         for _ in range(len(self._calls)):
@@ -231,6 +262,19 @@ class Conn:
         finally:
             self._lock.release()
 
+    def send_sample(self, sample: Any, data: bytes) -> bool:
+        """A carrier's ``send``: from the writer's thread for the first :data:`INLINE_SENDS`
+        connections a sample goes to (one reader, one link: no thread hand-over at all),
+        else left to the io thread (False: the writer end keeps the sample, as its policy
+        says, and the io thread sends it with :meth:`drained`). A writer's cost thus does
+        not grow with its readers; the io thread sends to the rest."""
+        if sample.inline < INLINE_SENDS or self.hub.in_thread():
+            if not self.hub.in_thread():
+                sample.inline += 1
+            return self.put(data)
+        self.hub.flush_soon(self)
+        return False
+
     def _out(self, parts: list[bytes]) -> bool:
         try:
             self.sock.sendmsg(parts, (), socket.MSG_DONTWAIT)
@@ -241,7 +285,7 @@ class Conn:
             if exc.errno == errno.ENOBUFS:  # the kernel is short of memory: wait for room
                 self._block()
                 return False
-            self.hub.call_soon(self.close)  # the peer is gone
+            self.hub.call_later(self.close)  # the peer is gone (closed after this send's caller let go)
             return False
         self.sent_at = time.monotonic()
         return True

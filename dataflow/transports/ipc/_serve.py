@@ -325,8 +325,8 @@ class _ReaderOut(Conn):
         end = self.served.end  # "connected", first: from now on every write comes
         end.connected("ipc", self, new_peer=True, first=lambda: self.put(frames.connected(end, self.server.boot_id)))
 
-    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread
-        return self.put(data)
+    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread (or the io thread's flush)
+        return self.send_sample(sample, data)
 
     def drained(self) -> None:
         self.served.end.flush()

@@ -10,8 +10,11 @@ killed one: the other side then sees the end of its stream and reconnects.
 
 from __future__ import annotations
 
+import selectors
 import socket
 import sys
+import threading
+import time
 from collections.abc import Iterator
 
 __all__ = ["CHUNK", "MAX_MESSAGE", "Reassembler", "available", "close_quietly", "connect", "frames_of", "host_id",
@@ -104,10 +107,12 @@ def messages_in(sock: socket.socket, timeout: float | None, assembler: Reassembl
             yield message
 
 
-def connect(name: str, ticket: bytes, timeout: float = 2.0) -> tuple[socket.socket, bytes]:
+def connect(name: str, ticket: bytes, timeout: float = 2.0,
+            cancelled: threading.Event | None = None) -> tuple[socket.socket, bytes]:
     """Connect to a deployer's socket ``name``, present ``ticket`` and wait for its first
-    message; the connected socket (non-blocking) and that message. Raises
-    :class:`IpcUnavailable` when it cannot be reached from here or the deployer refuses."""
+    message (at most ``timeout`` s, or until ``cancelled`` is set); the connected socket
+    (non-blocking) and that message. Raises :class:`IpcUnavailable` when it cannot be
+    reached from here or the deployer refuses (``TimeoutError`` when it says nothing)."""
     if not available() or not name:
         raise IpcUnavailable("no ipc on this platform")
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
@@ -115,6 +120,7 @@ def connect(name: str, ticket: bytes, timeout: float = 2.0) -> tuple[socket.sock
         sock.settimeout(timeout)
         sock.connect("\0" + name)
         sock.send(ticket)
+        _await_readable(sock, timeout, cancelled)
         first = next(messages_in(sock, timeout), None)
         if first is None:
             raise IpcUnavailable("the deployer closed the connection (out of room, or the ticket expired)")
@@ -125,6 +131,19 @@ def connect(name: str, ticket: bytes, timeout: float = 2.0) -> tuple[socket.sock
         if isinstance(exc, IpcUnavailable):
             raise
         raise IpcUnavailable(f"cannot reach the deployer's socket: {exc}") from None
+
+
+def _await_readable(sock: socket.socket, timeout: float, cancelled: threading.Event | None) -> None:
+    """Wait until ``sock`` has something to read, in short slices so that ``cancelled``
+    ends the wait (an owner closing a subscription while it connects); bounded by ``timeout``."""
+    deadline = time.monotonic() + timeout
+    with selectors.DefaultSelector() as selector:
+        selector.register(sock, selectors.EVENT_READ)
+        while not selector.select(min(0.1, max(0.0, deadline - time.monotonic()))):
+            if cancelled is not None and cancelled.is_set():
+                raise IpcUnavailable("cancelled while connecting")
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f"the deployer said nothing within {timeout:g} s")
 
 
 def shutdown_quietly(sock: socket.socket) -> None:
