@@ -38,7 +38,13 @@ next), True once a connection it carried has ended, and raises what interrupted 
 * :meth:`Transport.subscribe` — carry a peer's output port to a subscription's reader end;
 * :meth:`Transport.stream` — join a writer or reader end to a topic (transports with
   :attr:`Transport.topics`; a transport that converts types, such as ROS, says so with
-  :attr:`Transport.converts` and is given the port's type to map).
+  :attr:`Transport.converts` and maps the type of the end's port: ``end.port``).
+
+A transport with topics may check a stream before anything is made
+(:meth:`Transport.check_stream`: the port's type against the topic's message type and
+converter, its options), for ``<scart:stream>`` at load time as for ``stream()``; one whose
+peers no one authenticates (ROS) says so with :attr:`Transport.authenticated`, and the
+streams on it are listed as unauthenticated.
 
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
@@ -60,7 +66,8 @@ import logging
 import re
 import threading
 from abc import ABC
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from types import MappingProxyType
 from typing import Any
@@ -68,8 +75,8 @@ from typing import Any
 from dataflow.errors import DataflowError
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 
-__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "Transport", "TransportError", "TransportRegistry",
-           "candidates", "carry", "default", "load", "names"]
+__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError",
+           "TransportRegistry", "candidates", "carry", "default", "load", "names"]
 
 log = logging.getLogger(__name__)
 
@@ -80,7 +87,8 @@ NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
 #: scart's own transports, used also when its entry points are not installed (a source tree).
 BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
                             "grpc": "dataflow.transports.grpc:GrpcTransport",
-                            "zenoh": "dataflow.transports.zenoh:ZenohTransport"})
+                            "zenoh": "dataflow.transports.zenoh:ZenohTransport",
+                            "ros2": "dataflow.transports.ros2:Ros2Transport"})
 
 
 class TransportError(DataflowError):
@@ -171,8 +179,27 @@ class Stream(ABC):
 
     topic: str = ""
 
+    def status(self) -> str:
+        """What the transport adds to the stream's listing (``scart links --json``'s
+        ``detail``, ``scart describe``): e.g. samples it could not convert, and why.
+        Thread-safe; default nothing."""
+        return ""
+
     def close(self) -> None:
         """Leave the topic (idempotent)."""
+
+
+@dataclass(frozen=True)
+class StreamProblem:
+    """Why a stream cannot be made (or, a ``warning``, what is not checked): its ``code``
+    (:mod:`dataflow.errors`: a composite reports the same one, at the element's line)."""
+
+    code: str
+    message: str
+    warning: bool = False
+
+    def __str__(self) -> str:
+        return f"{self.message} [{self.code}]"
 
 
 class Transport(ABC):
@@ -186,6 +213,9 @@ class Transport(ABC):
     topics: bool = False
     #: It carries its own message types (a port's type is mapped onto them: ROS).
     converts: bool = False
+    #: Its peers are authenticated (scart's own: tokens on the control plane); False for
+    #: one anyone who reaches it may write to (ROS): its streams are listed so.
+    authenticated: bool = True
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         """Carry ``end``'s samples to the input port ``peer.where`` until the connection
@@ -203,6 +233,15 @@ class Transport(ABC):
         :class:`TransportError` for a transport without topics or a bad topic."""
         raise TransportError(f"transport {self.name!r} carries links and subscriptions, not topics; "
                              f"streams need one of: {', '.join(n for n in names() if _has_topics(n)) or 'none'}")
+
+    def check_stream(self, port: Any, topic: str, options: Mapping[str, str],
+                     importer: Callable[[str], object] | None = None) -> list[StreamProblem]:
+        """What keeps ``port`` (an input or output port, or a task class's port template:
+        ``type``, ``is_input``, ``type_name``) from being joined to ``topic`` with
+        ``options``, found without touching the network (``importer``: how a
+        ``module:attr`` the options name is imported; default ``importlib``). Called at
+        load time for ``<scart:stream>``; :meth:`stream` checks the same. Default: nothing."""
+        return []
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r}>"

@@ -421,8 +421,11 @@ class ReaderEnd:
     """
 
     def __init__(self, label: str, check: Callable[[Any], Any], store: Callable[[int, int, Any], bool],
-                 buffer_dropped: Callable[[], int], after: int | None = None, init: bool = False) -> None:
+                 buffer_dropped: Callable[[], int], after: int | None = None, init: bool = False,
+                 port: Any = None, policy: ConnPolicy | None = None) -> None:
         self.label = label
+        self.port = port  #: the input port it feeds, if any (a converting transport maps its type)
+        self.policy = policy  #: its channel's policy, when a transport needs it (a stream's QoS)
         self.init = init  #: its policy hands a new connection the last value written
         self.seen = time.monotonic()  #: when its transport last heard from the writer (any byte)
         self._check = check

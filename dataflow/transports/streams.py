@@ -43,7 +43,7 @@ class PortStream:
         if port.is_input:
             self._connection = conn = port.open_channel(policy, peer=f"{policy.transport}:{policy.topic}")
             self.reader = ReaderEnd(label, port_check(port), lambda _n, _t, value: conn.write(value),
-                                    lambda: conn.dropped)
+                                    lambda: conn.dropped, port=port, policy=policy)
             end: Any = self.reader
         else:
             self.writer = end = WriterEnd(port, policy, label)
@@ -62,7 +62,11 @@ class PortStream:
         else:
             assert self.reader is not None
             dropped, samples, transport = self.reader.lost, self.reader.received, self.reader.transport
-        detail = " ".join(f"{k}={v}" for k, v in sorted(self.options.items()))
+        words = [f"{k}={v}" for k, v in sorted(self.options.items())]
+        if not self.transport.authenticated and self.reader is not None:
+            words.append("unauthenticated")  # anyone who reaches the topic writes into the port
+        status = self._stream.status()
+        detail = " ".join(words + ([status] if status else []))
         return LinkDescription(name=self.name, source=source, sink=sink, policy=str(self.policy),
                                transport=transport or f"{self.policy.transport}?", samples=samples, dropped=dropped,
                                kind="stream", state="connected" if transport else "waiting", detail=detail)

@@ -88,6 +88,11 @@ them on the library path it is reachable; from PyPI alone it is not. Not built h
 
 from __future__ import annotations
 
+try:
+    import cyclonedds  # noqa: F401
+except ImportError as _exc:  # the transport's registry names this when a policy asks for ros2
+    raise ImportError("ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'") from _exc
+
 from ._endpoints import Publisher, PublisherStats, Subscription, SubscriptionStats
 from ._errors import ConversionError, DomainError, Ros2Error, UnknownTypeError
 from ._names import dds_topic, dds_type_name, ros_topic, ros_type_name, service_topics, topic_name
@@ -95,6 +100,7 @@ from ._network import Network, resolve_domain_id
 from ._participant import Participant
 from ._qos import Durability, QoS, Reliability
 from ._services import ServiceClient, ServiceServer
+from ._transport import Ros2Transport, participant, qos_of, release, use_network
 from ._types import DISTROS, MessageTypes, message_to_dict
 
 __all__ = [
@@ -103,4 +109,5 @@ __all__ = [
     "MessageTypes", "DISTROS", "message_to_dict", "resolve_domain_id",
     "dds_topic", "ros_topic", "service_topics", "topic_name", "dds_type_name", "ros_type_name",
     "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError",
+    "Ros2Transport", "use_network", "participant", "release", "qos_of",
 ]

@@ -20,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from dataflow import ConnPolicy, DataflowError
-from dataflow.transports import TransportError, load, names
+from dataflow.transports import StreamProblem, TransportError, load, names
 from scart.ext.dataflow._host import TASK_KIND, class_ports, host_of
 from scart.ext.dataflow._plan import parse_policy
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
@@ -82,15 +82,20 @@ class StreamElement(ElementProvider):
             def add(msg: str, _el: Element = el) -> None:
                 out.append(Problem(STREAM_CODE, msg, _el.loc.path, _el.loc.line))
 
+            def found(problem: StreamProblem, _el: Element = el) -> None:
+                out.append(Problem(problem.code, problem.message, _el.loc.path, _el.loc.line,
+                                   "warning" if problem.warning else "error"))
+
             stream, problems = _parse(prefix, el)
             for msg in problems:
                 add(msg)
             if stream is not None:
-                self._check_stream(stream, assembly, add)
+                self._check_stream(stream, assembly, add, found, context)
         return out
 
     @staticmethod
-    def _check_stream(stream: Stream, assembly: AssemblyView, report: Callable[[str], None]) -> None:
+    def _check_stream(stream: Stream, assembly: AssemblyView, report: Callable[[str], None],
+                      found: Callable[[StreamProblem], None], context: CheckContext) -> None:
         node = assembly.nodes.get(stream.task)
         if node is None or node.kind != TASK_KIND:
             tasks = [p for p, n in assembly.nodes.items() if n.kind == TASK_KIND]
@@ -108,6 +113,15 @@ class StreamElement(ElementProvider):
             return
         if not transport.topics:
             report(f"<scart:stream> transport {transport.name!r} carries links and subscriptions, not topics")
+            return
+        template = next((p for p in getattr(node.ctype.cls, "_port_templates", {}).values()
+                         if p.name == stream.port), None)
+        if template is not None:  # the transport's own checks: a message type, a converter, options
+            for problem in transport.check_stream(template, stream.policy.topic, dict(stream.options),
+                                                  context.import_object):
+                found(StreamProblem(problem.code, f"<scart:stream port=\"{stream.task}.{stream.port}\"> "
+                                                  f"{transport.name}:{stream.policy.topic}: {problem.message}",
+                                    problem.warning))
 
     def activate(self, host: Host) -> StreamParticipant:
         streams = [s for prefix, el in host.assembly.elements_of(self.name) if (s := _parse(prefix, el)[0])]
