@@ -10,8 +10,6 @@ from __future__ import annotations
 __all__ = [
     "CONNECT_DIRECTION",
     "CONNECT_TYPE",
-    "CONVERT_TYPE",
-    "STREAM",
     "DataflowError",
     "PortTypeError",
     "NotFoundError",
@@ -26,11 +24,6 @@ __all__ = [
 #: (or an input as a source).
 CONNECT_TYPE = "SCART-T003"
 CONNECT_DIRECTION = "SCART-T002"
-#: A stream that cannot be made (port, transport, topic, options), the same for ``scart
-#: stream`` and ``<scart:stream>``; and a conversion whose types do not agree (a
-#: converter, a message type against a port's type), the bridge's code.
-STREAM = "SCART-T005"
-CONVERT_TYPE = "SCART-B002"
 
 
 class DataflowError(Exception):

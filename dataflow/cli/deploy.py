@@ -53,10 +53,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     deploy.add_argument("--policy", default="data", help="policy of --connect: data | buffer:N | circular:N")
     zenoh_args.add_arguments(deploy, "also publish every output port on Zenoh (scart/NS/TASK/PORT) and announce "
                                      "the tasks with liveliness tokens")
-    deploy.add_argument("--ros2-network", nargs="?", const="", default=None, metavar="INTERFACE",
-                        help="open this process's ROS 2 streams to the network (multicast discovery on INTERFACE, "
-                             "default the one Cyclone DDS picks): anyone there may then read and write them; "
-                             "default loopback only")
     add_arguments(deploy, server=True)
     deploy.set_defaults(func=cmd_deploy)
 
@@ -163,8 +159,8 @@ def cmd_deploy(args: argparse.Namespace) -> int:
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
                 _err(f"scart deploy: --zenoh: {exc}")
                 return 1
-        if args.ros2_network is not None and not _open_ros2(args.ros2_network):
-            return 1
+        if args.insecure:
+            _open_ros2()
         try:
             for task in _make_tasks(args):
                 deployer.add(task)
@@ -217,18 +213,18 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     return 0
 
 
-def _open_ros2(interface: str) -> bool:
-    """``--ros2-network``: ROS 2 streams of this process on the network (said on stderr)."""
-    try:
-        from dataflow.transports.ros2 import Network, use_network
+def _open_ros2() -> None:
+    """``--insecure``: this process's ROS 2 streams on the network, not loopback only (a
+    process without Cyclone DDS has none: nothing to open)."""
+    from dataflow.transports import TransportError, load
 
-        use_network(Network.open(interface or None))
-    except Exception as exc:  # noqa: BLE001 - cyclonedds missing, a bad interface name
-        _err(f"scart deploy: --ros2-network: {exc}")
-        return False
-    _err(f"scart deploy: ROS 2 streams are open to the network{' on ' + interface if interface else ''}: "
-         "DDS authenticates no one")
-    return True
+    try:
+        configure = getattr(load("ros2"), "configure", None)
+    except TransportError:
+        return
+    if configure is not None:
+        configure(insecure=True)
+        _err("scart deploy: --insecure: ROS 2 streams are open to the network (DDS authenticates no one)")
 
 
 def _connect_at_start(server: Any, args: argparse.Namespace) -> None:

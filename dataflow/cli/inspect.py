@@ -309,13 +309,11 @@ def cmd_describe(args: argparse.Namespace) -> int:
     """``scart describe COMP``."""
     proxy = args.system.component(args.component)
     desc, last = proxy.describe_with_values()
-    streams = _streams_of(args.system, desc.name)
     if args.json:
         doc = desc.model_dump(mode="json")
         for port in doc["ports"]:
             if port["name"] in last:
                 port["last_value"] = _jsonable(last[port["name"]])
-        doc["streams"] = [s.model_dump(mode="json") for s in streams]
         _out(_dump(doc))
         return 0
     period = f", period {desc.period:g} s" if desc.period else ""
@@ -335,25 +333,21 @@ def cmd_describe(args: argparse.Namespace) -> int:
             text = _dump(_jsonable(last[p.name]))
             line += f", last = {text if len(text) <= 120 else text[:117] + '...'}"
         _out(line + (f"  # {p.doc}" if p.doc else ""))
-    if streams:
-        _out("streams:")
-    for s in streams:
-        into = s.sink.startswith(desc.name + ".")
-        port, where = (s.sink, s.source) if into else (s.source, s.sink)
-        _out(f"  {'in ' if into else 'out'} {port.partition('.')[2]} {'<-' if into else '->'} {where} ({s.policy}, "
-             f"{s.state}): {s.samples} samples, {s.dropped} dropped" + (f"; {s.detail}" if s.detail else ""))
+        for s in p.streams:
+            _out("      " + _stream_line(s))
     return 0
 
 
-def _streams_of(system: Any, task: str) -> list[Any]:
-    """The streams joining ``task``'s ports to topics (with what their transports say of
-    them: unauthenticated, refused samples); none when the deployers cannot list them."""
-    try:
-        links = system.links()
-    except Exception:  # noqa: BLE001 - describe still answers without the streams
-        return []
-    mine = (task + ".")
-    return [lk for lk in links if lk.kind == "stream" and (lk.source.startswith(mine) or lk.sink.startswith(mine))]
+def _stream_line(s: Any) -> str:
+    """A stream under its port: ``stream NAME: transport:topic (type), state[, UNAUTHENTICATED]``
+    and, when samples were refused, how many and why the last one was."""
+    kind = f" ({s.type_name})" if s.type_name else ""
+    line = f"stream {s.name}: {s.topic}{kind}, {s.state}"
+    if s.unauthenticated:
+        line += ", UNAUTHENTICATED (anyone who reaches it may publish)"
+    if s.refused or s.refusal:
+        line += f"; {s.refused} refused" + (f", last: {s.refusal}" if s.refusal else "")
+    return line
 
 
 def _policy(text: str) -> Any:

@@ -38,18 +38,17 @@ next), True once a connection it carried has ended, and raises what interrupted 
 * :meth:`Transport.subscribe` — carry a peer's output port to a subscription's reader end;
 * :meth:`Transport.stream` — join a writer or reader end to a topic (transports with
   :attr:`Transport.topics`; a transport that converts types, such as ROS, says so with
-  :attr:`Transport.converts` and maps the type of the end's port: ``end.port``).
-
-A transport with topics may check a stream before anything is made
-(:meth:`Transport.check_stream`: the port's type against the topic's message type and
-converter, its options), for ``<scart:stream>`` at load time as for ``stream()``; one whose
-peers no one authenticates (ROS) says so with :attr:`Transport.authenticated`, and the
-streams on it are listed as unauthenticated.
+  :attr:`Transport.converts` and maps the port's type: the writer end's ``port``, the
+  reader end's ``port``; it hands the reader end Python values, checked there as any
+  outside input, and counts what it cannot convert with :meth:`ReaderEnd.refuse
+  <dataflow.transports.ends.ReaderEnd.refuse>` or its :attr:`Stream.refused`).
+  :meth:`Transport.check_stream` says, without joining anything, what would keep a port
+  from a topic (a composite's load-time check).
 
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
 Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
-``grpc``, ``zenoh``) are registered exactly as a third party's would be::
+``grpc``, ``zenoh``, ``ros2``) are registered exactly as a third party's would be::
 
     [project.entry-points."scart.transports"]
     mine = "my_package.transport:MyTransport"
@@ -66,7 +65,7 @@ import logging
 import re
 import threading
 from abc import ABC
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from types import MappingProxyType
@@ -75,8 +74,8 @@ from typing import Any
 from dataflow.errors import DataflowError
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 
-__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError",
-           "TransportRegistry", "candidates", "carry", "default", "load", "names"]
+__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
+           "candidates", "carry", "default", "load", "names"]
 
 log = logging.getLogger(__name__)
 
@@ -175,14 +174,31 @@ class Peer:
 
 
 class Stream(ABC):
-    """A writer or reader end joined to a topic (what :meth:`Transport.stream` returns)."""
+    """A writer or reader end joined to a topic (what :meth:`Transport.stream` returns).
+
+    What it says of itself (``scart links``, ``scart describe``) beyond its ends' counts
+    has defaults for a transport with nothing more to say."""
 
     topic: str = ""
+    #: The topic's own type when the transport converts (a ROS message type), else "".
+    type_name: str = ""
+    #: Whether whoever publishes on the topic is authenticated (False: ROS); None: not said.
+    authenticated: bool | None = None
 
-    def status(self) -> str:
-        """What the transport adds to the stream's listing (``scart links --json``'s
-        ``detail``, ``scart describe``): e.g. samples it could not convert, and why.
-        Thread-safe; default nothing."""
+    @property
+    def waiting(self) -> str:
+        """What the stream waits for before it is joined (a master, a broker), "" when joined."""
+        return ""
+
+    @property
+    def refused(self) -> int:
+        """Samples the transport itself refused (a value it could not convert), not
+        counted by the ends."""
+        return 0
+
+    @property
+    def refusal(self) -> str:
+        """Why the last of :attr:`refused` was refused ("" before any)."""
         return ""
 
     def close(self) -> None:
@@ -191,15 +207,13 @@ class Stream(ABC):
 
 @dataclass(frozen=True)
 class StreamProblem:
-    """Why a stream cannot be made (or, a ``warning``, what is not checked): its ``code``
-    (:mod:`dataflow.errors`: a composite reports the same one, at the element's line)."""
+    """Why a stream cannot be made as asked (:meth:`Transport.check_stream`); a
+    ``warning`` does not keep it from being made; ``types``: it is about the port's type
+    and the topic's (a converting transport's), not the options."""
 
-    code: str
     message: str
     warning: bool = False
-
-    def __str__(self) -> str:
-        return f"{self.message} [{self.code}]"
+    types: bool = False
 
 
 class Transport(ABC):
@@ -213,9 +227,6 @@ class Transport(ABC):
     topics: bool = False
     #: It carries its own message types (a port's type is mapped onto them: ROS).
     converts: bool = False
-    #: Its peers are authenticated (scart's own: tokens on the control plane); False for
-    #: one anyone who reaches it may write to (ROS): its streams are listed so.
-    authenticated: bool = True
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         """Carry ``end``'s samples to the input port ``peer.where`` until the connection
@@ -234,13 +245,13 @@ class Transport(ABC):
         raise TransportError(f"transport {self.name!r} carries links and subscriptions, not topics; "
                              f"streams need one of: {', '.join(n for n in names() if _has_topics(n)) or 'none'}")
 
-    def check_stream(self, port: Any, topic: str, options: Mapping[str, str],
-                     importer: Callable[[str], object] | None = None) -> list[StreamProblem]:
-        """What keeps ``port`` (an input or output port, or a task class's port template:
-        ``type``, ``is_input``, ``type_name``) from being joined to ``topic`` with
-        ``options``, found without touching the network (``importer``: how a
-        ``module:attr`` the options name is imported; default ``importlib``). Called at
-        load time for ``<scart:stream>``; :meth:`stream` checks the same. Default: nothing."""
+    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+        """What keeps ``port`` (an input or output port, a task's or its class's template)
+        from being joined to ``topic`` with ``options``, found without joining anything:
+        a composite's load-time check asks it. Default: nothing for a transport with
+        topics; for a converting one, whether the port's type maps onto the topic's."""
+        if not self.topics:
+            return [StreamProblem(f"transport {self.name!r} carries links and subscriptions, not topics")]
         return []
 
     def __repr__(self) -> str:

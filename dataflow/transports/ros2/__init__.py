@@ -100,7 +100,7 @@ from ._network import Network, resolve_domain_id
 from ._participant import Participant
 from ._qos import Durability, QoS, Reliability
 from ._services import ServiceClient, ServiceServer
-from ._transport import Ros2Transport, participant, qos_of, release, use_network
+from ._transport import Ros2Transport, qos_of
 from ._types import DISTROS, MessageTypes, message_to_dict
 
 __all__ = [
@@ -109,5 +109,5 @@ __all__ = [
     "MessageTypes", "DISTROS", "message_to_dict", "resolve_domain_id",
     "dds_topic", "ros_topic", "service_topics", "topic_name", "dds_type_name", "ros_type_name",
     "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError",
-    "Ros2Transport", "use_network", "participant", "release", "qos_of",
+    "Ros2Transport", "qos_of",
 ]

@@ -1,39 +1,40 @@
-"""The ``ros2`` transport: a scart port joined to a ROS 2 topic (a **stream**,
-``ConnPolicy(transport="ros2", topic="/joint_states")``; ``scart stream COMP.PORT
-ros2:/topic``; ``<scart:stream transport="ros2">``).
+"""ROS 2 as a scart transport: the ``scart.transports`` entry point ``ros2``
+(:class:`Ros2Transport`). A **stream** joins a port to a ROS 2 topic —
+``Deployer.stream("task.port", ConnPolicy.data().with_(transport="ros2", topic="/joint_states"),
+{"type": "sensor_msgs/msg/JointState", "converter": "mod:fn"})``, ``scart stream COMP.PORT
+ros2:/topic --type T``, ``<scart:stream transport="ros2" .../>`` — an output port
+publishing on ``rt/<topic>`` (CDR, DDS type ``pkg::msg::dds_::Type_``), an input port fed
+from it. Not part of ``auto``: DDS carries no links.
 
-An output port's writer end publishes each sample on ``rt/<topic>`` as the ROS 2 message
-its :class:`~._convert.Conversion` makes (CDR, type ``pkg::msg::dds_::Type_``); an input
-port's reader end is fed from that topic, each message converted and then checked as any
-value from outside (type, finiteness, the port's bounds). A message that cannot be
-converted either way is refused and counted, and the stream's status says why
-(``scart links --json``, ``scart describe``).
+**One participant per process and domain** (a ROS 2 node named ``scart_<pid>``), made
+when the first stream (or service) needs it and closed when the last one goes. The
+domain is the ``domain`` option, else ``ROS_DOMAIN_ID``, else 0. The network is loopback
+only (the ``lo`` interface, no multicast, the explicit peer 127.0.0.1) unless the stream
+says ``insecure=true`` (with ``interface``, ``peers``) or the process does
+(:meth:`Ros2Transport.configure`: ``scart deploy --insecure``); a later stream that asks
+for another network on an open domain is refused.
 
-Options (``--option K=V``, or attributes of ``<scart:stream>``):
+**Options** (:data:`OPTIONS`): ``type`` (``pkg/msg/Type``; a plain port's default is its
+``std_msgs`` type), ``converter`` (``module:function``), ``frame_id`` (a header stamped on
+a model without one), ``latch`` (``true``: transient-local; for a writer, also the
+policy's ``init``), ``best_effort`` (``true``), ``msgs`` (``.msg`` files named
+``.../pkg/msg/Type.msg``, comma-separated), and ``domain``, ``insecure``, ``interface``,
+``peers``. Conversion is planned and type-checked when the stream is made
+(:mod:`._convert`); a message that does not convert is refused and counted (the reader
+end's ``refuse``, or :attr:`~dataflow.transports.Stream.refused` for a value scart
+publishes), as is a value that fails the port's type or bounds (NaN, out of range):
+``scart describe`` names the last one under the port.
 
-=================  ==============================================================
-``type``           the ROS 2 message type, ``pkg/msg/Type`` (plain ports have a default)
-``converter``      ``module:function`` converting the port's values to messages (an
-                   output port) or messages to the port's values (an input port)
-``best_effort``    ``true``: best-effort reliability (default reliable)
-``latching``       ``true``: transient-local durability (a late joiner gets the last
-                   ``depth`` samples)
-``domain``         the DDS domain id (default ``ROS_DOMAIN_ID``, else 0)
-``insecure``       ``true``: open to the network (multicast discovery on the interface
-                   Cyclone picks); default loopback only
-``interface``      with ``insecure``: the network interface (name or address)
-``peers``          with ``insecure``: unicast peers, comma-separated
-=================  ==============================================================
+**QoS** from the stream's policy, as rmw maps ROS 2's: DATA → keep-last 1; BUFFER(n) and
+CIRCULAR_BUFFER(n) → keep-last n (at most 10,000); reliable unless ``best_effort``;
+transient-local with ``latch``. The policy-shaped buffer stays the input port's: DDS's
+history is the transit's only. A message carries no scart write number, so a reader
+counts what it refused and what its buffer dropped, not what DDS lost on the way (a
+reliable keep-last reader overwrites what it has not taken).
 
-QoS comes from the stream's policy as rmw maps ROS 2 QoS: DATA → keep-last 1, BUFFER(n)
-and CIRCULAR_BUFFER(n) → keep-last n (at most 10,000), reliable unless ``best_effort``.
-The policy-shaped buffer stays the input port's: DDS's history is only the transit's.
-
-One participant per process and domain (a ROS 2 node named ``scart_<pid>``), made with the
-first stream and closed with the last; loopback only unless ``insecure`` or
-:func:`use_network` (``scart deploy --ros2-network``). Messages carry no scart write
-number, so a reader counts what it refused and what its buffer dropped, not what DDS
-lost on the way (a reliable keep-last reader overwrites what it has not taken).
+**Security.** DDS without DDS Security authenticates no one: a stream's
+:attr:`~dataflow.transports.Stream.authenticated` is False, and ``scart describe`` marks
+its input port so.
 """
 
 from __future__ import annotations
@@ -42,11 +43,11 @@ import logging
 import os
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
-from dataflow.errors import STREAM
 from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
@@ -59,333 +60,296 @@ from ._participant import Participant
 from ._qos import QoS
 from ._types import MessageTypes
 
-__all__ = ["OPTIONS", "Ros2Transport", "participant", "qos_of", "release", "use_network"]
+__all__ = ["OPTIONS", "Ros2Transport", "qos_of"]
 
-log = logging.getLogger("dataflow.transports.ros2")
+log = logging.getLogger(__name__)
 
-OPTIONS = ("type", "converter", "best_effort", "latching", "domain", "insecure", "interface", "peers")
-_MAX_DEPTH = 10_000
-_REASON = 160  # characters of a refusal's reason kept for the listing
-
-
-# ---- the process's participants ---------------------------------------------------------
-class _Participants:
-    """One participant per domain, shared by the streams of this process, made with the
-    first and closed with the last (thread-safe)."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._default: Network | None = None
-        self._types: MessageTypes | None = None
-        self._open: dict[int, list[Any]] = {}  # domain -> [Participant, Network, users]
-
-    def types(self) -> MessageTypes:
-        with self._lock:
-            if self._types is None:
-                self._types = MessageTypes()
-            return self._types
-
-    def use_network(self, network: Network | None) -> None:
-        with self._lock:
-            self._default = network
-
-    def network(self) -> Network:
-        with self._lock:
-            return self._default or Network.loopback()
-
-    def acquire(self, domain: int, network: Network) -> Participant:
-        types = self.types()
-        with self._lock:
-            entry = self._open.get(domain)
-            if entry is not None:
-                if entry[1] != network:
-                    raise TransportError(f"ros2: domain {domain} is open in this process on another network "
-                                         f"({_shown(entry[1])}); a stream asked for {_shown(network)}")
-                entry[2] += 1
-                return entry[0]
-            try:
-                made = Participant(domain, network=network, types=types, node=f"scart_{os.getpid()}")
-            except Ros2Error as exc:
-                raise TransportError(f"ros2: {exc}") from None
-            self._open[domain] = [made, network, 1]
-            return made
-
-    def release(self, domain: int) -> None:
-        with self._lock:
-            entry = self._open.get(domain)
-            if entry is None:
-                return
-            entry[2] -= 1
-            if entry[2] > 0:
-                return
-            del self._open[domain]
-        entry[0].close()
+NETWORK_OPTIONS = frozenset({"domain", "insecure", "interface", "peers"})
+#: Every option a ros2 stream takes (another is refused: a typo would otherwise be ignored).
+OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs"}) | NETWORK_OPTIONS
+MAX_DEPTH = 10_000  #: keep-last depth, at most (the library's bound)
+_TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
 
 
-def _participants() -> _Participants:
-    """The participants of the process's ``ros2`` transport (the registry's one instance)."""
-    from dataflow.transports import load
-
-    transport = load("ros2")
-    if not isinstance(transport, Ros2Transport):
-        raise TransportError(f"transport 'ros2' is a {type(transport).__qualname__}, not scart's")
-    return transport.participants
-
-
-def use_network(network: Network | None) -> None:
-    """Make ``network`` the one this process's ROS 2 streams without network options use
-    from now on (``scart deploy --ros2-network``); None: loopback only again. A domain
-    already open keeps its network until its last stream closes."""
-    _participants().use_network(network)
+def _flag(options: Mapping[str, str], key: str) -> bool:
+    value = options.get(key, "").strip().lower()
+    if value in _TRUE:
+        return True
+    if value in _FALSE:
+        return False
+    raise ValueError(f"option {key}={options[key]!r}: expected true or false")
 
 
-def participant(domain: int | None = None, network: Network | None = None) -> Participant:
-    """The process's participant on ``domain`` (default ``ROS_DOMAIN_ID``), the one its
-    streams use, made if needed; give it back with :func:`release`. For services and
-    calls beside the streams. Raises :class:`TransportError` as a stream would."""
-    found = _participants()
-    return found.acquire(resolve_domain_id(domain), network or found.network())
+def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False) -> QoS:
+    """The ROS 2 QoS of a stream with ``policy`` (see the module docstring)."""
+    depth = 1 if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
+    return QoS.buffer(depth, best_effort=best_effort, latching=latch)
 
 
-def release(p: Participant) -> None:
-    """Give back a participant from :func:`participant` (closed with its last user)."""
-    _participants().release(p.domain_id)
-
-
-def _shown(network: Network) -> str:
-    return "loopback only" if network.loopback_only else "open (insecure)"
-
-
-# ---- what a stream asks for -------------------------------------------------------------
 @dataclass(frozen=True)
-class _Setup:
-    topic: str
-    conversion: Conversion
-    best_effort: bool
-    latching: bool
+class _Where:
+    """The domain and network a stream asks for."""
+
     domain: int
     network: Network
 
 
-def qos_of(policy: ConnPolicy | None, best_effort: bool = False, latching: bool = False) -> QoS:
-    """The ROS 2 QoS of a stream with ``policy``: DATA → keep-last 1, BUFFER(n) and
-    CIRCULAR_BUFFER(n) → keep-last n (at most 10,000); reliable unless ``best_effort``;
-    transient-local if ``latching``."""
-    depth = 1 if policy is None or policy.type is ConnType.DATA else min(policy.size, _MAX_DEPTH)
-    return QoS.buffer(depth, best_effort=best_effort, latching=latching)
-
-
-def _flag(options: Mapping[str, str], key: str, problems: list[StreamProblem]) -> bool:
-    text = options.get(key, "false").strip().lower()
-    if text not in ("true", "false", "1", "0", "yes", "no"):
-        problems.append(StreamProblem(STREAM, f"option {key}={options[key]!r}: expected true or false"))
-    return text in ("true", "1", "yes")
-
-
-def _network(participants: _Participants, options: Mapping[str, str], problems: list[StreamProblem]) -> Network:
-    insecure = _flag(options, "insecure", problems)
-    interface, peers = options.get("interface") or None, tuple(p for p in options.get("peers", "").split(",") if p)
-    if not insecure:
-        if interface or peers:
-            problems.append(StreamProblem(STREAM, "options interface and peers open ROS 2 to a network: "
-                                                  "give insecure=true too (anyone there may then write)"))
-        return participants.network()
-    try:
-        return Network.open(interface, peers)
-    except DomainError as exc:
-        problems.append(StreamProblem(STREAM, str(exc)))
-        return Network.loopback()
-
-
-def setup(participants: _Participants, port: Any, topic: str, options: Mapping[str, str],
-          importer: Callable[[str], object] | None = None) -> tuple[_Setup | None, list[StreamProblem]]:
-    """What a stream of ``port`` on ``topic`` with ``options`` asks for, and the problems."""
-    problems = [StreamProblem(STREAM, f"ros2 has no option {key!r}; options: {', '.join(OPTIONS)}")
-                for key in options if key not in OPTIONS]
-    try:
-        full = topic_name(topic)
-    except ValueError as exc:
-        problems.append(StreamProblem(STREAM, str(exc)))
-        full = ""
-    best_effort, latching = _flag(options, "best_effort", problems), _flag(options, "latching", problems)
-    domain = 0
-    try:
-        domain = resolve_domain_id(_domain(options.get("domain")))
-    except (DomainError, ValueError) as exc:
-        problems.append(StreamProblem(STREAM, str(exc)))
-    network = _network(participants, options, problems)
-    conversion, found = plan(port.type, port.is_input, participants.types(), options.get("type") or None,
-                             options.get("converter") or None, importer)
-    problems += found
-    if conversion is None or any(not p.warning for p in problems):
-        return None, problems
-    return _Setup(full, conversion, best_effort, latching, domain, network), problems
-
-
-def _domain(text: str | None) -> int | None:
-    if text is None or not text.strip():
-        return None
-    try:
-        return int(text)
-    except ValueError:
-        raise ValueError(f"option domain={text!r}: expected an integer 0..232") from None
-
-
-# ---- the ends on ROS 2 ------------------------------------------------------------------
-class _Writer:
-    """The carrier of a writer end on a ROS 2 topic: each sample converted (once,
-    :attr:`encode`) and written, from the writer's thread. A sample that cannot be
-    converted is refused (the end counts it) and remembered for the listing."""
-
-    def __init__(self, publisher: Any, conversion: Conversion) -> None:
-        self._publisher = publisher
-        self.unconvertible = 0
-        self.last_refusal = ""
-        to_idl = conversion.to_idl
-
-        def encode(sample: OutSample) -> Any:
-            try:
-                return to_idl(sample.value)
-            except Exception as exc:
-                self.unconvertible += 1
-                self.last_refusal = str(exc)[:_REASON]
-                raise
-        self.encode = encode
-
-    def send(self, sample: OutSample, data: Any) -> bool:
-        self._publisher.publish(data)  # DDS keeps the newest of its history: never "no room"
-        return True
-
-    def status(self) -> str:
-        refused = self.unconvertible + self._publisher.stats().refused
-        if not refused:
-            return ""
-        return f"refused={refused} (cannot be converted: {self.last_refusal or self._publisher.stats().last_refusal})"
-
-
-class _Feed:
-    """A reader end fed from a ROS 2 topic (the participant's thread, one message at a
-    time): each message converted, then handed to the end, which checks and keeps it."""
-
-    def __init__(self, ros: Participant, setup: _Setup, qos: QoS, end: ReaderEnd) -> None:
-        self.end = end
-        self._from_idl = setup.conversion.from_idl
-        self._n = 0
-        self.unconvertible = 0
-        self.malformed = 0
-        self.last_refusal = ""
-        self._sub = ros.subscribe(setup.topic, setup.conversion.ros_type, self._on_message, qos, raw=True)
-        self._sub.refused_hook = self._on_malformed
-
-    def _on_message(self, obj: Any) -> None:
-        self._n += 1
-        try:
-            value = self._from_idl(obj)
-        except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
-            self._refuse(exc)
-            return
-        self.end.receive(self._n, time.time_ns(), value)
-
-    def _refuse(self, exc: BaseException) -> None:
-        end = self.end
-        end.loss.sample(self._n)
-        end.received += 1
-        end.refused += 1
-        self.unconvertible += 1
-        self.last_refusal = str(exc)[:_REASON]
-        if self.unconvertible == 1:
-            log.warning("%s: a message that cannot be converted refused: %s", end.label, exc)
-
-    def _on_malformed(self, why: str) -> None:
-        self._n += 1
-        self.end.loss.sample(self._n)
-        self.end.received += 1
-        self.end.refused += 1
-        self.malformed += 1
-        self.last_refusal = why[:_REASON]
-
-    def status(self) -> str:
-        checked = self.end.refused - self.unconvertible - self.malformed
-        parts = [f"{n} {what}" for n, what in ((self.unconvertible, "cannot be converted"),
-                                              (self.malformed, "malformed"),
-                                              (checked, "refused by the port's check")) if n > 0]
-        if not parts:
-            return ""
-        last = f": {self.last_refusal}" if self.last_refusal and (self.unconvertible or self.malformed) else ""
-        return f"refused={self.end.refused} ({', '.join(parts)}{last})"
-
-    def close(self) -> None:
-        self._sub.close()
-
-
-class _TopicStream(Stream):
-    """A writer or reader end joined to a ROS 2 topic (what :meth:`Ros2Transport.stream` makes)."""
-
-    def __init__(self, participants: _Participants, end: WriterEnd | ReaderEnd, setup: _Setup) -> None:
-        self.topic = setup.topic
-        self._domain = setup.domain
-        self._participants = participants
-        self._ros = participants.acquire(setup.domain, setup.network)
-        self._writer: _Writer | None = None
-        self._feed: _Feed | None = None
-        self._closed = False
-        try:
-            qos = qos_of(end.policy, setup.best_effort, setup.latching)
-            if isinstance(end, WriterEnd):
-                publisher = self._ros.publisher(setup.topic, setup.conversion.ros_type, qos)
-                self._writer = _Writer(publisher, setup.conversion)
-                end.connected("ros2", self._writer, new_peer=True)
-            else:
-                end.transport = "ros2"
-                self._feed = _Feed(self._ros, setup, qos, end)
-        except BaseException:
-            self.close()
-            raise
-
-    def status(self) -> str:
-        part = self._writer or self._feed
-        return part.status() if part is not None else ""
-
-    def close(self) -> None:
-        if self._closed:
-            return
-        self._closed = True
-        if self._feed is not None:
-            self._feed.close()
-        if self._writer is not None:
-            self._writer._publisher.close()
-        self._participants.release(self._domain)
-
-
 class Ros2Transport(Transport):
-    """Streams on ROS 2 topics over Cyclone DDS (see the module docstring); not part of ``auto``."""
+    """Streams on ROS 2 topics through this process's participants (see the module
+    docstring). Thread-safe; a participant is made on first use and closed with its last
+    user."""
 
     name = "ros2"
     rank = None
     topics = True
     converts = True
-    authenticated = False  # DDS without DDS Security authenticates no one
 
     def __init__(self) -> None:
-        #: The participants its streams use, one per domain (the registry loads one
-        #: transport per process: so one participant per process and domain).
-        self.participants = _Participants()
+        self._lock = threading.Lock()
+        self._network = Network.loopback()
+        self._types: MessageTypes | None = None
+        self._open: dict[int, list[Any]] = {}  # domain -> [Participant, Network, users]
 
-    def check_stream(self, port: Any, topic: str, options: Mapping[str, str],
-                     importer: Callable[[str], object] | None = None) -> list[StreamProblem]:
-        return setup(self.participants, port, topic, options, importer)[1]
+    # ---- the process's participants ----------------------------------------------------
+    def configure(self, *, insecure: bool | None = None, interface: str | None = None,
+                  peers: tuple[str, ...] = ()) -> None:
+        """Set this process's default network for ROS 2 (``scart deploy --insecure``):
+        ``insecure`` opens it (multicast discovery on ``interface``, else the one Cyclone
+        picks, and unicast ``peers``); False: loopback only. A domain already open keeps its
+        network until its last user goes. Raises ``ValueError`` for a bad interface or peer."""
+        try:
+            network = Network.open(interface, tuple(peers)) if insecure else Network.loopback()
+        except DomainError as exc:
+            raise ValueError(str(exc)) from None
+        with self._lock:
+            self._network = network
+
+    @property
+    def types(self) -> MessageTypes:
+        """The message types of this process (rosbags' Jazzy store and the ``msgs`` given)."""
+        with self._lock:
+            if self._types is None:
+                self._types = MessageTypes()
+            return self._types
+
+    def where(self, options: Mapping[str, str]) -> _Where:
+        """The domain and network ``options`` ask for (with the process's defaults);
+        raises ``ValueError``."""
+        text = options.get("domain", "").strip()
+        if text and not text.isdigit():
+            raise ValueError(f"option domain={text!r}: an integer 0..232")
+        try:
+            domain = resolve_domain_id(int(text) if text else None)
+        except DomainError as exc:
+            raise ValueError(str(exc)) from None
+        interface = options.get("interface") or None
+        peers = tuple(p.strip() for p in options.get("peers", "").split(",") if p.strip())
+        if "insecure" not in options:
+            if interface or peers:
+                raise ValueError("options interface and peers open ROS 2 to a network: give insecure=true too "
+                                 "(anyone there may then read and write)")
+            with self._lock:
+                return _Where(domain, self._network)
+        try:
+            return _Where(domain, Network.open(interface, peers) if _flag(options, "insecure") else Network.loopback())
+        except DomainError as exc:
+            raise ValueError(str(exc)) from None
+
+    def acquire(self, where: _Where) -> Participant:
+        """This process's participant on ``where.domain`` (made now if there is none), for
+        one more user; pair each with :meth:`release`. Raises :class:`TransportError` when
+        it is open on another network, or cannot be made."""
+        types = self.types
+        with self._lock:
+            entry = self._open.get(where.domain)
+            if entry is not None and not entry[0].closed:
+                if entry[1] != where.network:
+                    raise TransportError(f"ros2: DDS domain {where.domain} is open in this process "
+                                         f"{_shown(entry[1])}; this asks for it {_shown(where.network)}")
+                entry[2] += 1
+                return entry[0]
+            try:
+                made = Participant(where.domain, network=where.network, types=types, node=f"scart_{os.getpid()}")
+            except Ros2Error as exc:
+                raise TransportError(f"ros2: {exc}") from None
+            self._open[where.domain] = [made, where.network, 1]
+        log.info("ROS 2 participant on domain %d, %s", where.domain, _shown(where.network))
+        return made
+
+    def release(self, participant: Participant) -> None:
+        """One user less of ``participant``; the last one closes it."""
+        with self._lock:
+            entry = self._open.get(participant.domain_id)
+            if entry is None or entry[0] is not participant:
+                return
+            entry[2] -= 1
+            if entry[2] > 0:
+                return
+            del self._open[participant.domain_id]
+        participant.close()
+
+    # ---- streams -----------------------------------------------------------------------
+    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+        problems = [StreamProblem(p) for p in self._check_options(topic, options)]
+        if problems:
+            return problems
+        return self.conversion(port, options)[1]
+
+    def _check_options(self, topic: str, options: Mapping[str, str]) -> list[str]:
+        unknown = sorted(set(options) - OPTIONS)
+        out = [f"ros2: unknown option(s) {', '.join(unknown)}; options: {', '.join(sorted(OPTIONS))}"] if unknown else []
+        try:
+            topic_name(topic)
+            self.where(options)
+            for key in ("latch", "best_effort"):
+                if key in options:
+                    _flag(options, key)
+            self._add_msgs(options)
+        except ValueError as exc:
+            out.append(f"ros2: {exc}")
+        return out
+
+    def _add_msgs(self, options: Mapping[str, str]) -> None:
+        types = self.types
+        for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
+            file = Path(path)
+            name = f"{file.parent.parent.name}/{file.parent.name}/{file.stem}"
+            if file.suffix != ".msg" or file.parent.name != "msg":
+                raise ValueError(f"msgs: {path}: a message file is named .../PACKAGE/msg/TYPE.msg")
+            if types.has(name):
+                continue  # added by another stream already
+            try:
+                types.add_msg_file(file, name)
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"msgs: {path}: {exc}") from None
+
+    def conversion(self, port: Any, options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
+        """How ``port``'s values cross to the topic's type, and the problems found."""
+        conv, problems = plan(self.types, port.type, options.get("type") or None, outgoing=not port.is_input,
+                              converter=options.get("converter", ""), frame_id=options.get("frame_id", ""))
+        where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
+        return conv, [StreamProblem(f"ros2 {where}: {p.message}", p.warning, types=True) for p in problems]
 
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
         port = end.port
         if port is None:
-            raise TransportError("ros2: a stream needs the end's port (its type is mapped onto a ROS 2 message)")
-        found, problems = setup(self.participants, port, topic, options)
-        errors = [p for p in problems if not p.warning]
-        if found is None or errors:
-            raise TransportError("; ".join(str(p) for p in errors) or "ros2: the stream cannot be made")
-        for problem in problems:
-            log.warning("stream %s ros2:%s: %s", port.qualname, topic, problem)
+            raise TransportError("ros2 converts a port's values: a reader end without its port cannot be streamed")
+        errors = self._check_options(topic, options)
+        if errors:
+            raise TransportError("; ".join(errors))
+        conv, problems = self.conversion(port, options)
+        for p in problems:
+            if p.warning:
+                log.warning("%s", p.message)
+        if conv is None:
+            raise TransportError("; ".join(p.message for p in problems if not p.warning))
+        participant = self.acquire(self.where(options))
         try:
-            return _TopicStream(self.participants, end, found)
+            return _TopicStream(self, participant, end, topic_name(topic), conv, options)
         except (Ros2Error, ValueError) as exc:
+            self.release(participant)
             raise TransportError(f"ros2: {exc}") from None
+        except BaseException:
+            self.release(participant)
+            raise
+
+
+def _shown(network: Network) -> str:
+    return "loopback only" if network.loopback_only else "open to the network (insecure)"
+
+
+class _Carrier:
+    """A writer end's carrier onto a ROS 2 publisher: each sample converted (its header
+    stamped with the sample's time) and written, from the writer's thread, never blocking
+    (keep-last history). A value that does not convert is refused and counted here."""
+
+    @staticmethod
+    def encode(sample: OutSample) -> OutSample:
+        return sample  # converted in send(): the conversion is this stream's own
+
+    def __init__(self, publisher: Any, conv: Conversion, label: str) -> None:
+        assert conv.to_idl is not None
+        self._to_idl = conv.to_idl
+        self._publisher = publisher
+        self._label = label
+        self.refused = 0
+        self.refusal = ""
+
+    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+        try:
+            message = self._to_idl(sample.value, sample.t_ns)
+        except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
+            self._refuse(f"sample {sample.n}: {type(exc).__name__}: {exc}")
+            return True
+        if not self._publisher.publish(message):
+            self._refuse(f"sample {sample.n}: {self._publisher.stats().last_refusal}")
+        return True  # DDS keeps the newest of its history: never "no room"
+
+    def _refuse(self, why: str) -> None:
+        self.refused += 1
+        self.refusal = why[:300]
+        if self.refused == 1:
+            log.warning("%s: a sample refused: %s", self._label, self.refusal)
+
+
+class _TopicStream(Stream):
+    """A writer end publishing a ROS 2 topic, or a reader end fed from one."""
+
+    authenticated = False
+
+    def __init__(self, transport: Ros2Transport, participant: Participant, end: WriterEnd | ReaderEnd, topic: str,
+                 conv: Conversion, options: Mapping[str, str]) -> None:
+        self._transport, self._participant = transport, participant
+        self.topic = topic
+        self.type_name = conv.ros_type
+        self._pub: Any = None
+        self._sub: Any = None
+        self._carrier: _Carrier | None = None
+        self._closed = False
+        best_effort = _flag(options, "best_effort")
+        if isinstance(end, WriterEnd):
+            latch = _flag(options, "latch") if "latch" in options else end.policy.init
+            self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch))
+        else:
+            self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=_flag(options, "latch")))
+
+    def _publish(self, end: WriterEnd, conv: Conversion, qos: QoS) -> None:
+        self._pub = self._participant.publisher(self.topic, conv.ros_type, qos)
+        self._carrier = _Carrier(self._pub, conv, end.label)
+        end.connected("ros2", self._carrier, new_peer=True)
+
+    def _subscribe(self, end: ReaderEnd, conv: Conversion, qos: QoS) -> None:
+        from_idl, label = conv.from_idl, conv.ros_type
+        assert from_idl is not None
+        count = [0]
+
+        def on_message(obj: Any) -> None:  # the participant's thread, one message at a time
+            try:
+                value = from_idl(obj)
+            except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
+                end.refuse(f"a {label} that does not convert: {type(exc).__name__}: {exc}")
+                return
+            count[0] += 1
+            end.receive(count[0], time.time_ns(), value)
+
+        end.transport = "ros2"
+        self._sub = self._participant.subscribe(self.topic, conv.ros_type, on_message, qos, raw=True)
+        self._sub.refused_hook = lambda why: end.refuse(f"a malformed {label}: {why}")
+
+    # ---- what it says ------------------------------------------------------------------
+    @property
+    def refused(self) -> int:
+        return self._carrier.refused if self._carrier is not None else 0
+
+    @property
+    def refusal(self) -> str:
+        return self._carrier.refusal if self._carrier is not None else ""
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        for part in (self._pub, self._sub):
+            if part is not None:
+                part.close()
+        self._transport.release(self._participant)
