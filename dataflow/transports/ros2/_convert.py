@@ -356,8 +356,9 @@ class _Planner:
               or (base in INTS and (py_type is int or (not self.outgoing and py_type is float)))
               or (base == "bool" and py_type is bool) or (base == "string" and py_type is str))
         if not ok:
+            narrows = (py_type is float and base in INTS) if self.outgoing else (py_type is int and base in FLOATS)
             raise _Mismatch(f"{type_label(py_type)} and {base}" + (" (a float never narrows to an integer)"
-                                                                   if py_type is float and base in INTS else ""))
+                                                                   if narrows else ""))
         return float if not self.outgoing and py_type is float and base in INTS else _same
 
     def message(self, py_type: Any, ros_type: str, depth: int) -> Callable[[Any], Any]:

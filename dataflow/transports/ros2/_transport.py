@@ -55,7 +55,7 @@ from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 from ._convert import Conversion, plan
 from ._errors import DomainError, Ros2Error
 from ._names import topic_name
-from ._network import Network, resolve_domain_id
+from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
 from ._participant import Participant
 from ._qos import QoS
 from ._types import MessageTypes
@@ -136,11 +136,11 @@ class Ros2Transport(Transport):
         """The domain and network ``options`` ask for (with the process's defaults);
         raises ``ValueError``."""
         text = options.get("domain", "").strip()
-        if text and not text.isdigit():
-            raise ValueError(f"option domain={text!r}: an integer 0..232")
+        if text and not (text.isdigit() and int(text) <= MAX_DOMAIN_ID):
+            raise ValueError(f"option domain={text!r}: an integer 0..{MAX_DOMAIN_ID}")
         try:
             domain = resolve_domain_id(int(text) if text else None)
-        except DomainError as exc:
+        except DomainError as exc:  # ROS_DOMAIN_ID
             raise ValueError(str(exc)) from None
         interface = options.get("interface") or None
         peers = tuple(p.strip() for p in options.get("peers", "").split(",") if p.strip())
@@ -187,6 +187,11 @@ class Ros2Transport(Transport):
                 return
             del self._open[participant.domain_id]
         participant.close()
+
+    def participants(self) -> dict[int, Participant]:
+        """The participants open now, by domain (a snapshot)."""
+        with self._lock:
+            return {domain: entry[0] for domain, entry in self._open.items()}
 
     # ---- streams -----------------------------------------------------------------------
     def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
