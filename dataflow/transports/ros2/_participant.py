@@ -129,15 +129,17 @@ class Participant:
         return endpoint
 
     # ------------------------------------------------------------------ services
-    def service(self, name: str, srv_type: str, handler: Callable[[Any], Any]) -> ServiceServer:
+    def service(self, name: str, srv_type: str, handler: Callable[[Any], Any], *, raw: bool = False) -> ServiceServer:
         """Answer ROS 2 service ``name`` of ``srv_type`` (``pkg/srv/Name``) with
-        ``handler(request) -> response`` on this participant's thread."""
+        ``handler(request) -> response`` on this participant's thread: the request a
+        rosbags message, or the IDL instance as Cyclone made it if ``raw`` (its fields,
+        and rmw's header as ``guid_``/``seq_``)."""
         request_topic, reply_topic = service_topics(name)
         request, response = self.types.service(srv_type)
         with self._lock:
             self._check_open()
             reader, writer = self._service_pair(request_topic, request, reply_topic, response, "serviceid")
-            endpoint = ServiceServer(reader, writer, self.types, srv_type, handler, self._dispatcher)
+            endpoint = ServiceServer(reader, writer, self.types, srv_type, handler, self._dispatcher, raw)
             self._endpoints.append(endpoint)
         self._announce(endpoint, (reader,), (writer,))
         return endpoint

@@ -343,6 +343,12 @@ class _TopicStream(Stream):
 
     # ---- what it says ------------------------------------------------------------------
     @property
+    def matched(self) -> int:
+        """DDS readers (of a writer end) or writers (of a reader end) matched now."""
+        part = self._pub if self._pub is not None else self._sub
+        return part.matched() if part is not None else 0
+
+    @property
     def refused(self) -> int:
         return self._carrier.refused if self._carrier is not None else 0
 
