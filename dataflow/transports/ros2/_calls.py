@@ -114,7 +114,8 @@ def _response_plan(types: MessageTypes, response: str, returns: Any
         if _is_model(returns):
             return planner.model(returns, response, 0), convention, []
         if len(fields) == 1:
-            (key, desc), conv = fields[0], planner.field(_unwrap(returns), fields[0][1], 0)
+            key, desc = fields[0]
+            conv = planner.field(_unwrap(returns), desc, 0)
             return (lambda r: {key: conv(r)}), convention, []
     except _Mismatch as exc:
         return _nothing, convention, [f"the return type {type_label(returns)} vs {response}: {exc}"]
@@ -144,11 +145,11 @@ def _dynamic_response(fields: list[tuple[str, Any]], convention: bool) -> Callab
     return to_response
 
 
-def check_service(types: MessageTypes, srv_type: str, params: list[Param], returns: Any) -> list[str]:
-    """What keeps a callable with ``params`` and ``returns`` from answering ``srv_type``
+def check_service(types: MessageTypes, type_name: str, params: list[Param], returns: Any) -> list[str]:
+    """What keeps a callable with ``params`` and ``returns`` from answering ``type_name``
     (``pkg/srv/Srv``) requests."""
     try:
-        request, response = types.service(srv_type)
+        request, response = types.service(type_name)
     except (UnknownTypeError, ValueError) as exc:
         return [str(exc)]
     return _request_plan(types, request, params)[1] + _response_plan(types, response, returns)[2]
@@ -160,20 +161,20 @@ class ServedService:
     withdraws it and lets the process's participant go (idempotent). ``calls`` and
     ``failures`` count what it answered."""
 
-    def __init__(self, service: str, srv_type: str, call: Callable[..., Any], params: list[Param], returns: Any,
+    def __init__(self, service: str, type_name: str, call: Callable[..., Any], params: list[Param], returns: Any,
                  *, options: Mapping[str, str] | None = None, label: str = "") -> None:
         self._transport = _transport()
         types: MessageTypes = self._transport.types
         self.label = label or getattr(call, "__qualname__", "a callable")
-        problems = check_service(types, srv_type, params, returns)
+        problems = check_service(types, type_name, params, returns)
         try:
             self.name = topic_name(service)
             where = self._transport.where(options or {})
         except ValueError as exc:
             problems.append(str(exc))
         if problems:
-            raise TransportError(f"ROS 2 service {service} ({srv_type}) by {self.label}: " + "; ".join(problems))
-        request, response = types.service(srv_type)
+            raise TransportError(f"ROS 2 service {service} ({type_name}) by {self.label}: " + "; ".join(problems))
+        request, response = types.service(type_name)
         args_of = _request_plan(types, request, params)[0]
         response_of, convention = _response_plan(types, response, returns)[:2]
         self._answer = _answering(call, args_of, response_of, convention)
@@ -181,7 +182,7 @@ class ServedService:
         self._closed = False
         self._participant = self._transport.acquire(where)
         try:
-            self._server = self._participant.service(self.name, srv_type, self._handle, raw=True)
+            self._server = self._participant.service(self.name, type_name, self._handle, raw=True)
         except BaseException:
             self._transport.release(self._participant)
             raise
@@ -243,13 +244,13 @@ def signature_of(call: Callable[..., Any]) -> tuple[list[Param], Any]:
     return params, type(None) if returns is None else returns
 
 
-def serve(call: Callable[..., Any], service: str, srv_type: str, *,
+def serve(call: Callable[..., Any], service: str, type_name: str, *,
           options: Mapping[str, str] | None = None) -> ServedService:
     """Answer the ROS 2 service ``service`` (``pkg/srv/Srv``) with ``call``, whose
     parameters and return annotation say how requests and responses map. Raises
     :class:`TransportError` (types that do not map, a bad name, no participant)."""
     params, returns = signature_of(call)
-    return ServedService(service, srv_type, call, params, returns, options=options)
+    return ServedService(service, type_name, call, params, returns, options=options)
 
 
 def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
@@ -267,7 +268,7 @@ def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
     return [Param(n, of(t)) for n, t in desc.params], of(desc.returns)
 
 
-def serve_operation(task: Any, operation: str, service: str, srv_type: str, *,
+def serve_operation(task: Any, operation: str, service: str, type_name: str, *,
                     options: Mapping[str, str] | None = None, timeout: float = 5.0) -> ServedService:
     """Answer the ROS 2 service ``service`` with ``task``'s operation ``operation`` (its
     arguments checked as outside input; an answer within ``timeout`` s, else no reply)."""
@@ -277,7 +278,7 @@ def serve_operation(task: Any, operation: str, service: str, srv_type: str, *,
         checked = task.check_arguments(operation, list(args))
         return task.send(operation, *checked).result(timeout)
 
-    return ServedService(service, srv_type, call, params, returns, options=options,
+    return ServedService(service, type_name, call, params, returns, options=options,
                          label=f"{task.name}.{operation}")
 
 
@@ -290,14 +291,14 @@ class ServiceProxy:
     answer: ROS 2 has no error reply), :class:`~._errors.ConversionError` for fields the
     request does not have. Thread-safe; :meth:`close` lets the participant go."""
 
-    def __init__(self, service: str, srv_type: str, *, returns: type | None = None,
+    def __init__(self, service: str, type_name: str, *, returns: type | None = None,
                  options: Mapping[str, str] | None = None, timeout: float = 5.0) -> None:
         self._transport = _transport()
-        self._transport.types.service(srv_type)  # an unknown type: said now
-        self.service, self.srv_type, self.returns, self.timeout = topic_name(service), srv_type, returns, timeout
+        self._transport.types.service(type_name)  # an unknown type: said now
+        self.service, self.type_name, self.returns, self.timeout = topic_name(service), type_name, returns, timeout
         self._participant = self._transport.acquire(self._transport.where(options or {}))
         try:
-            self._client = self._participant.client(self.service, srv_type)
+            self._client = self._participant.client(self.service, type_name)
         except BaseException:
             self._transport.release(self._participant)
             raise
@@ -310,7 +311,7 @@ class ServiceProxy:
             request = request.model_dump()
         given = {**(request or {}), **fields}
         if not self._client.wait_for_service(self.timeout):
-            raise TimeoutError(f"ROS 2 service {self.service} ({self.srv_type}) is not there "
+            raise TimeoutError(f"ROS 2 service {self.service} ({self.type_name}) is not there "
                                f"within {self.timeout} s")
         plain = message_to_dict(self._client.call(given, self.timeout))
         plain.pop(_EMPTY, None)
@@ -333,9 +334,9 @@ class ServiceProxy:
         self.close()
 
 
-def call_service(service: str, srv_type: str, request: Any = None, *, timeout: float = 5.0,
+def call_service(service: str, request: Any = None, *, type_name: str, timeout: float = 5.0,
                  options: Mapping[str, str] | None = None) -> Any:
-    """One call of the ROS 2 service ``service`` (see :class:`ServiceProxy`); its response
-    as plain data."""
-    with ServiceProxy(service, srv_type, options=options, timeout=timeout) as proxy:
+    """One call of the ROS 2 service ``service`` of ``type_name`` (``pkg/srv/Srv``; see
+    :class:`ServiceProxy`); its response as plain data."""
+    with ServiceProxy(service, type_name, options=options, timeout=timeout) as proxy:
         return proxy(request)

@@ -74,12 +74,13 @@ def test_std_srvs_trigger_follows_the_success_message_convention(domain: int, to
     with serve_operation(calculator, "reset", topic + "/reset", "std_srvs/srv/Trigger", options=options), \
             serve_operation(calculator, "jam", topic + "/jam", "std_srvs/srv/Trigger", options=options), \
             serve(lambda flag: "on" if flag else "off", topic + "/set", "std_srvs/srv/SetBool", options=options):
-        assert call_service(topic + "/reset", "std_srvs/srv/Trigger", timeout=10, options=options) == \
+        assert call_service(topic + "/reset", type_name="std_srvs/srv/Trigger", timeout=10, options=options) == \
             {"success": True, "message": ""}
         assert calculator.resets == 1
-        assert call_service(topic + "/jam", "std_srvs/srv/Trigger", timeout=10, options=options) == \
+        assert call_service(topic + "/jam", type_name="std_srvs/srv/Trigger", timeout=10, options=options) == \
             {"success": False, "message": "RuntimeError: the arm is jammed"}
-        assert call_service(topic + "/set", "std_srvs/srv/SetBool", {"data": True}, timeout=10, options=options) == \
+        assert call_service(topic + "/set", {"data": True}, type_name="std_srvs/srv/SetBool", timeout=10,
+                            options=options) == \
             {"success": True, "message": "on"}
 
 
@@ -106,4 +107,4 @@ def test_types_that_do_not_map_are_refused_before_serving(domain: int, calculato
 
 def test_a_call_nobody_answers_times_out(domain: int, topic: str) -> None:
     with pytest.raises(TimeoutError, match="is not there within 0.3 s"):
-        call_service(topic, "std_srvs/srv/Trigger", timeout=0.3, options={"domain": str(domain)})
+        call_service(topic, type_name="std_srvs/srv/Trigger", timeout=0.3, options={"domain": str(domain)})
