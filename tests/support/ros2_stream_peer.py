@@ -12,7 +12,8 @@ prints each sample of ``rt<TOPIC>`` (``{"event": "sample", ...fields}``).
 
 ``python ros2_stream_peer.py write DOMAIN TOPIC TYPE JSON [--seconds S]`` waits for a
 reader, writes each value of the JSON list (a number for Float64/Int64, an object of
-fields for JointState, a list for Float64MultiArray), 20 ms apart, prints ``wrote``, then
+fields for JointState, a list for Float64MultiArray; ``{"$repeat": [item, n]}`` stands for
+``n`` items), 20 ms apart, prints ``wrote``, then
 waits for the readers to acknowledge them. ``TYPE``: ``Float64``, ``Int64``,
 ``JointState``, ``Float64MultiArray``.
 """
@@ -120,7 +121,18 @@ def read(dp: DomainParticipant, topic: Topic, args: argparse.Namespace) -> None:
                 say(event="sample", **fields(sample))
 
 
+def expand(value: object) -> object:
+    """``{"$repeat": [item, n]}`` as ``[item] * n`` (large samples without a long argv)."""
+    if isinstance(value, dict):
+        if set(value) == {"$repeat"}:
+            item, count = value["$repeat"]
+            return [item] * count
+        return {k: expand(v) for k, v in value.items()}
+    return value
+
+
 def make(cls: type, value: object) -> object:
+    value = expand(value)
     if cls is JointState_:
         v = dict(value)
         header = Header_(stamp=Time_(sec=v.pop("sec", 0), nanosec=v.pop("nanosec", 0)), frame_id=v.pop("frame_id", ""))

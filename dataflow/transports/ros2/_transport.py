@@ -68,6 +68,7 @@ NETWORK_OPTIONS = frozenset({"domain", "insecure", "interface", "peers"})
 #: Every option a ros2 stream takes (another is refused: a typo would otherwise be ignored).
 OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs"}) | NETWORK_OPTIONS
 MAX_DEPTH = 10_000  #: keep-last depth, at most (the library's bound)
+MAX_DEFINITION_BYTES = 1 << 20  #: a .msg file larger than this is refused (as ros1's)
 _TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
 
 
@@ -224,6 +225,8 @@ class Ros2Transport(Transport):
             if types.has(name):
                 continue  # added by another stream already
             try:
+                if file.stat().st_size > MAX_DEFINITION_BYTES:
+                    raise ValueError(f"larger than {MAX_DEFINITION_BYTES} bytes")
                 types.add_msg_file(file, name)
             except (OSError, ValueError) as exc:
                 raise ValueError(f"msgs: {path}: {exc}") from None

@@ -105,14 +105,14 @@ def peer(domain: int) -> Iterator:
 @pytest.fixture
 def stream_peer(domain: int) -> Iterator:
     """Start the independent peer of streams (``support/ros2_stream_peer.py``):
-    ``stream_peer(mode, topic, type, values=None, latched=False, depth=10)`` returns a
+    ``stream_peer(mode, topic, type, values=None, latched=False, depth=10, on=DOMAIN)`` returns a
     :class:`Peer` once ready (``read``: it prints each sample; ``write``: it writes
     ``values`` once a reader matched)."""
     started: list[subprocess.Popen[bytes]] = []
 
     def start(mode: str, topic: str, type_name: str, values: list | None = None, *, latched: bool = False,
-              depth: int = 10, seconds: float = 60.0) -> Peer:
-        args = [sys.executable, str(STREAM_PEER), mode, str(domain), topic, type_name, json.dumps(values or []),
+              depth: int = 10, seconds: float = 60.0, on: int | None = None) -> Peer:
+        args = [sys.executable, str(STREAM_PEER), mode, str(on or domain), topic, type_name, json.dumps(values or []),
                 "--depth", str(depth), "--seconds", str(seconds)] + (["--latched"] if latched else [])
         proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0, env=loopback_env())
         started.append(proc)

@@ -18,7 +18,7 @@ from pydantic import BaseModel  # noqa: E402
 
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.transports import TransportError, load  # noqa: E402
-from dataflow.transports.ros2 import Participant, QoS  # noqa: E402
+from dataflow.transports.ros2 import Network, Participant, QoS  # noqa: E402
 from support import wait_until  # noqa: E402
 
 pytestmark = pytest.mark.integration
@@ -216,3 +216,14 @@ def test_a_stream_is_refused_before_anything_is_made_with_both_types(domain: int
     with pytest.raises(TransportError, match="give insecure=true"):
         d.stream("src.out", _ros2(topic), {"domain": str(domain), "interface": "eth0"})
     assert d.links() == [] and load("ros2").participants() == {}  # nothing joined, no participant made
+
+
+def test_a_sample_larger_than_the_bound_never_reaches_the_process(domain: int, stream_peer) -> None:
+    other = domain % 232 + 1  # a domain of its own: Cyclone configures a domain once per process
+    got: list[int] = []
+    with Participant(other, network=Network.loopback(max_sample_bytes=64 * 1024)) as ros:
+        ros.subscribe("/big", "sensor_msgs/msg/JointState", lambda m: got.append(len(m.name)), QoS.buffer(10))
+        big = {"name": {"$repeat": ["j" * 100, 2000]}}  # about 220 kB of CDR
+        stream_peer("write", "/big", "JointState", [big, {"name": ["small"]}], on=other).next_event("wrote")
+        wait_until(lambda: got, timeout=15, message="the small sample never came")
+    assert got == [1]
