@@ -315,11 +315,15 @@ class _TopicStream(Stream):
         self._carrier: _Carrier | None = None
         self._closed = False
         best_effort = _flag(options, "best_effort")
-        if isinstance(end, WriterEnd):
-            latch = _flag(options, "latch") if "latch" in options else end.policy.init
-            self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch))
-        else:
-            self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=_flag(options, "latch")))
+        try:
+            if isinstance(end, WriterEnd):
+                latch = _flag(options, "latch") if "latch" in options else end.policy.init
+                self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch))
+            else:
+                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=_flag(options, "latch")))
+        except BaseException:
+            self._close_parts()  # the participant is the caller's to release
+            raise
 
     def _publish(self, end: WriterEnd, conv: Conversion, qos: QoS) -> None:
         self._pub = self._participant.publisher(self.topic, conv.ros_type, qos)
@@ -359,11 +363,14 @@ class _TopicStream(Stream):
     def refusal(self) -> str:
         return self._carrier.refusal if self._carrier is not None else ""
 
+    def _close_parts(self) -> None:
+        for part in (self._pub, self._sub):
+            if part is not None:
+                part.close()
+
     def close(self) -> None:
         if self._closed:
             return
         self._closed = True
-        for part in (self._pub, self._sub):
-            if part is not None:
-                part.close()
+        self._close_parts()
         self._transport.release(self._participant)
