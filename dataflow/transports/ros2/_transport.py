@@ -116,8 +116,11 @@ class Ros2Transport(Transport):
                   peers: tuple[str, ...] = ()) -> None:
         """Set this process's default network for ROS 2 (``scart deploy --insecure``):
         ``insecure`` opens it (multicast discovery on ``interface``, else the one Cyclone
-        picks, and unicast ``peers``); False: loopback only. A domain already open keeps its
-        network until its last user goes. Raises ``ValueError`` for a bad interface or peer."""
+        picks, and unicast ``peers``); False: loopback only; None: as it is. A domain already
+        open keeps its network until its last user goes. Raises ``ValueError`` for a bad
+        interface or peer."""
+        if insecure is None:
+            return
         try:
             network = Network.open(interface, tuple(peers)) if insecure else Network.loopback()
         except DomainError as exc:

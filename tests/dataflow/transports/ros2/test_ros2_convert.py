@@ -185,3 +185,21 @@ def test_a_users_msg_file_gives_a_type(tmp_path) -> None:
     assert ROS2.check_stream(out(Point), "/t", options) == []
     message = convert(out(Point), options).to_idl(Point(x=1, y=2, z=3), 0)
     assert type(message).__idl_typename__.replace(".", "::") == "lab_msgs::msg::dds_::Reading_"
+
+
+def test_the_network_is_loopback_unless_a_stream_or_the_process_opens_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    transport = Ros2Transport()  # a process's defaults, without touching the registry's
+    monkeypatch.setenv("ROS_DOMAIN_ID", "42")
+    where = transport.where({})
+    assert (where.domain, where.network.loopback_only) == (42, True)
+    assert transport.where({"domain": "7"}).domain == 7
+    opened = transport.where({"insecure": "true", "peers": "10.0.0.2"}).network
+    assert not opened.loopback_only and opened.peers == ("10.0.0.2",)
+    transport.configure(insecure=True)  # scart deploy --insecure
+    assert not transport.where({}).network.loopback_only
+    assert transport.where({"insecure": "false"}).network.loopback_only
+    transport.configure(insecure=None)  # unchanged
+    assert not transport.where({}).network.loopback_only
+    transport.configure(insecure=False)
+    assert transport.where({}).network.loopback_only
+    assert transport.participants() == {}  # nothing joined
