@@ -50,6 +50,9 @@ class Activity:
     def __init__(self) -> None:
         self.task: TaskContext | None = None
         self.cycles = 0
+        #: ``(cycles, when)``: the number of the latest cycle and the monotonic time it began
+        #: (one tuple: a reader on another thread sees a matching pair).
+        self.stamp: tuple[int, float] = (0, 0.0)
         self.overruns = 0
         self._active = False
 
@@ -93,6 +96,7 @@ class Activity:
         task = self.task
         if task is not None:
             self.cycles += 1
+            self.stamp = (self.cycles, time.monotonic())
             task._cycle()
 
 

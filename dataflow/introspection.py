@@ -28,7 +28,9 @@ class PortStreamDescription(BaseModel):
 
 class PortDescription(BaseModel):
     """A port: direction, registry type name, doc, number of connections, event port or not,
-    (input ports) the bounds of what may be written to it from outside, and its streams."""
+    (input ports) the bounds of what may be written to it from outside and what the task
+    itself checks of it (``check``: empty when it declares no check), (output ports) the
+    writes so far, and its streams."""
 
     model_config = ConfigDict(frozen=True)
     name: str
@@ -38,6 +40,8 @@ class PortDescription(BaseModel):
     connections: int = 0
     event: bool = False
     bounds: str = ""
+    check: str = ""
+    writes: int = 0
     streams: list[PortStreamDescription] = []
 
 
@@ -74,6 +78,7 @@ class TaskDescription(BaseModel):
     period: float = 0.0
     cycles: int = 0
     overruns: int = 0
+    last_cycle: float = 0.0  #: when cycle ``cycles`` began (monotonic s of the task's process; 0: none)
     ports: list[PortDescription] = []
     properties: list[PropertyDescription] = []
     operations: list[OperationDescription] = []

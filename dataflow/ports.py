@@ -426,8 +426,10 @@ class InputPort(Port[T]):
     ``event=True`` makes the port an event port: new data triggers the owning task's
     event-driven activity (via a data callback). ``ge``/``gt``/``le``/``lt``/``finite``
     bound what may be written to it from outside (remote writes; see
-    :mod:`dataflow.bounds`: numbers must be finite unless ``finite=False``); a task's own
-    connections are not checked.
+    :mod:`dataflow.bounds`: numbers must be finite unless ``finite=False``), and
+    ``check(value)``, raising ``ValueError`` with the reason, is the task's own verdict on
+    such a value (as a Property's ``check``; its docstring's first line describes it to
+    ``scart describe`` and ``scart write``); a task's own connections are not checked.
     """
 
     is_input = True
@@ -435,11 +437,14 @@ class InputPort(Port[T]):
     def __init__(
         self, type: Any, name: str | None = None, doc: str = "", event: bool = False, *,
         ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None,
-        finite: bool | None = None,
+        finite: bool | None = None, check: Callable[[T], None] | None = None,
     ) -> None:
         super().__init__(type, name, doc)
         self.event = event
         self.bounds: Bounds | None = Bounds.of(type, ge, gt, le, lt, finite)
+        self.check = check
+        #: What ``check`` checks, in words (its docstring's first line; "" without a check).
+        self.check_text = _described(check)
         self._sources: tuple[Storage, ...] = ()
         self._current = 0
         self._callbacks: tuple[DataCallback, ...] = ()
@@ -447,7 +452,7 @@ class InputPort(Port[T]):
         self._shared: Storage | None = None  # SHARED
 
     def _clone(self) -> InputPort[T]:
-        port: InputPort[T] = InputPort(self.type, self.name, self.doc, self.event)
+        port: InputPort[T] = InputPort(self.type, self.name, self.doc, self.event, check=self.check)
         port.bounds = self.bounds
         port.attr = self.attr
         return port
@@ -475,8 +480,18 @@ class InputPort(Port[T]):
         conn.storage.clear()  # unread samples: counted as dropped by the storage
 
     def admit(self, value: Any) -> Any:
-        """``value`` checked against the port's bounds (a value written from outside);
-        raises :class:`~dataflow.errors.PortValueError` naming the port, its bounds and the value."""
+        """``value`` checked against the port's bounds and ``check`` (a value written from
+        outside); raises :class:`~dataflow.errors.PortValueError` naming the port, the
+        value and why (its bounds, or the task's reason)."""
+        value = self._within_bounds(value)
+        if self.check is not None:
+            try:
+                self.check(value)
+            except ValueError as exc:
+                raise PortValueError(f"{self.qualname}: rejected {value!r:.80}: {exc}") from None
+        return value
+
+    def _within_bounds(self, value: Any) -> Any:
         bounds = self.bounds
         if bounds is None:
             return value
@@ -604,3 +619,11 @@ def _rebuild_readers(storage: Storage, extra: InputPort[Any] | None = None) -> N
     if extra is not None and storage in extra._sources and extra not in readers:
         readers.append(extra)
     storage.readers = tuple(readers)
+
+
+def _described(check: Callable[..., Any] | None) -> str:
+    """A check in words: its docstring's first line, else its name; "" for no check."""
+    if check is None:
+        return ""
+    doc = (getattr(check, "__doc__", None) or "").strip()
+    return doc.splitlines()[0].strip() if doc else f"checked by {getattr(check, '__name__', 'a function')}"

@@ -508,10 +508,13 @@ class TaskContext:
                 connections=p.connection_count(),
                 event=bool(getattr(p, "event", False)),
                 bounds=p.bounds.text if getattr(p, "bounds", None) is not None else "",
+                check=getattr(p, "check_text", ""),
+                writes=0 if p.is_input else p.last_sample()[0],
                 streams=[s.note() for s in p.streams],
             )
             for n, p in self._tc_ports.items()
         ]
+        cycles, last_cycle = act.stamp if act.stamp[1] else (act.cycles, 0.0)
         props = [
             PropertyDescription(
                 name=n, type_name=p.type_name, value=registry.to_jsonable(p.value), doc=p.doc,
@@ -524,8 +527,9 @@ class TaskContext:
             state=self._tc_state.name,
             activity=act.kind,
             period=act.period,
-            cycles=act.cycles,
+            cycles=cycles,
             overruns=act.overruns,
+            last_cycle=last_cycle,
             ports=ports,
             properties=props,
             operations=list(self.operations().values()),

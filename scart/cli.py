@@ -1,55 +1,86 @@
-"""The ``scart`` command line: one dispatcher; the verbs come in groups found through the
-``scart.commands`` entry points, as ros2cli finds its verbs.
+"""The ``scart`` command line: one dispatcher; each verb is a module of its own, found
+through the ``scart.verbs`` entry points and imported only when it runs, as ros2cli
+finds ``ros2topic.verb`` modules.
 
-Each entry point names a ``register(subparsers)`` function that adds its verbs and sets
-``func`` (returning the exit code) on each sub-parser: ``sca`` (``run``, ``validate``,
-``graph``: :mod:`scart.commands.run`) first, then the others by name (``dataflow``: the
-inspection and deployment verbs of :mod:`dataflow.cli`). A group imports only what its
-verbs need, when they run: ``scart --help`` and ``scart validate`` import no gRPC.
+A verb module has ``HELP`` (one line), ``add_arguments(parser)`` (its options) and
+``main(args) -> int`` (the exit code); ``ALIASES`` (a tuple of other names) and
+``DESCRIPTION`` (its ``--help`` text, default ``HELP``) are optional.
+``scart VERB ...`` imports that verb's module alone; ``scart --help``, an alias or an
+unknown word imports every verb module, which import nothing heavy until ``main`` runs:
+``scart --help`` and ``scart validate`` import no gRPC. The SCA verbs (``run``,
+``validate``, ``graph``, ``services``, ``call``) live in :mod:`scart.commands`, the
+data-flow ones in :mod:`dataflow.cli.verbs`; a plug-in adds a verb with one entry point.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from collections.abc import Sequence
-from importlib.metadata import EntryPoint, entry_points
+from importlib.metadata import entry_points
+from types import MappingProxyType, ModuleType
 
-COMMANDS_GROUP = "scart.commands"
-CORE_GROUP = "sca"
+VERBS_GROUP = "scart.verbs"
+#: The verbs that work without the entry points (scart imported from a bare checkout).
+CORE_VERBS = MappingProxyType({"run": "scart.commands.run", "validate": "scart.commands.validate",
+                               "graph": "scart.commands.graph"})
+_FIRST = tuple(CORE_VERBS)  # listed first in --help, the others alphabetically
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Build the full argument parser (every group's verbs). A group that fails to load is
-    reported on stderr and left out: the other verbs still work."""
-    parser = argparse.ArgumentParser(
-        prog="scart",
-        description="SCA runtime with an Orocos-style data-flow bridge.",
-    )
+def verb_modules() -> dict[str, str]:
+    """``{verb: module name}`` from the ``scart.verbs`` entry points (the core verbs when
+    none are installed, after saying so on stderr). Imports no verb."""
+    found: dict[str, str] = {}
+    for ep in entry_points(group=VERBS_GROUP):
+        found.setdefault(ep.name, ep.value.partition(":")[0])  # the same distribution seen twice on sys.path
+    if not found:
+        print("scart: the scart.verbs entry points are not installed: only run, validate and graph are "
+              "available; install scart (pip install -e .)", file=sys.stderr)
+        found = dict(CORE_VERBS)
+    return dict(sorted(found.items(), key=lambda kv: (kv[0] not in _FIRST, _FIRST.index(kv[0])
+                                                      if kv[0] in _FIRST else 0, kv[0])))
+
+
+def _load(name: str, module: str) -> ModuleType | None:
+    """A verb's module, or None (said on stderr) when it cannot be imported: the others still work."""
+    try:
+        loaded = importlib.import_module(module)
+        for attr in ("HELP", "add_arguments", "main"):
+            if not hasattr(loaded, attr):
+                raise AttributeError(f"has no {attr}")
+        return loaded
+    except Exception as exc:  # noqa: BLE001 - a broken plug-in must not break the other verbs
+        print(f"scart: verb {name!r} ({module}) not loaded: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return None
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser: every verb (importing each verb module), or with ``only`` that
+    verb alone (its module alone imported)."""
+    parser = argparse.ArgumentParser(prog="scart", description="SCA runtime with an Orocos-style data-flow bridge.")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    groups = sorted(entry_points(group=COMMANDS_GROUP), key=lambda ep: (ep.name != CORE_GROUP, ep.name))
-    if not any(ep.name == CORE_GROUP for ep in groups):  # not installed: the core verbs still work
-        print("scart: the scart.commands entry points are not installed: only run, validate and graph "
-              "are available; install scart (pip install -e .)", file=sys.stderr)
-        groups.insert(0, EntryPoint(CORE_GROUP, "scart.commands.run:register", COMMANDS_GROUP))
-    seen: set[str] = set()
-    for ep in groups:
-        if ep.name in seen:  # the same distribution seen twice on sys.path
+    modules = verb_modules()
+    if only is not None and only in modules:
+        modules = {only: modules[only]}
+    for name, module_name in modules.items():
+        module = _load(name, module_name)
+        if module is None:
             continue
-        seen.add(ep.name)
-        try:
-            ep.load()(subparsers)
-        except Exception as exc:  # noqa: BLE001 - a broken plug-in must not break the others
-            print(f"scart: command group {ep.name!r} ({ep.value}) not loaded: {type(exc).__name__}: {exc}",
-                  file=sys.stderr)
+        sub = subparsers.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP),
+                                    aliases=list(getattr(module, "ALIASES", ())))
+        module.add_arguments(sub)
+        sub.set_defaults(func=module.main, command=name)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``scart`` console script; returns the process exit code."""
-    parser = build_parser()
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    word = args_list[0] if args_list and not args_list[0].startswith("-") else None
+    parser = build_parser(only=word)
     try:
-        args = parser.parse_args(argv)  # --help prints too
+        args = parser.parse_args(args_list)  # --help prints too
         func = getattr(args, "func", None)
         if func is None:
             parser.print_help(sys.stderr)

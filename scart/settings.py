@@ -74,6 +74,9 @@ class Remap(BaseModel):
                 raise ValueError(f"--remap {item!r}: expected FROM=TO (names of letters, digits, _ . / -)")
             if old == "__ns" and "." in new:
                 raise ValueError(f"--remap {item!r}: a namespace has no '.'")
+            if "." in new:  # a port would keep only what follows the dot; a task name would read as COMP.PORT
+                raise ValueError(f"--remap {item!r}: a new name has no '.' (a port's new name is its name alone: "
+                                 f"{old}={new.rpartition('.')[2]}; a task's cannot be read apart from its ports)")
             rules.append((old, new))
         return cls(rules=tuple(rules))
 
@@ -96,7 +99,7 @@ class Remap(BaseModel):
         new = self._rule(f"{component}.{port}")
         if new is None:
             new = self._rule(port)
-        return new.rpartition(".")[2] if new is not None else port
+        return new if new is not None else port
 
     def endpoint(self, component: str, port: str) -> tuple[str, str]:
         """``(task, port)`` as they run (both remapped)."""

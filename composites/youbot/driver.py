@@ -19,7 +19,9 @@ a plausible one:
 [``MIN_PERIOD``, ``MAX_PERIOD``] = [0.001, 1] s is accepted, anything else is refused;
 ``accepted_period`` and ``period_status`` (read-only properties: an outside set is refused)
 say what was accepted, or why not. A malformed command (not 5 finite numbers) is refused
-with a warning and ``command_status`` says why. Settings are sanitised where they are
+with a warning and ``command_status`` says why. Both ports also check a value written
+from another process as it arrives (``InputPort(check=...)``), so ``scart write`` gets the
+driver's verdict at once: a refused value never reaches the task. Settings are sanitised where they are
 used: a negative ``max_velocity`` counts as 0, positions never leave ``JOINT_LIMITS``. The random source is seeded with the ``seed``
 property at configure time and by ``reset()``: with a :class:`SlaveActivity` the whole
 simulation is deterministic (the time step is the nominal period, never wall time).
@@ -73,11 +75,25 @@ def _read_only(value: object) -> None:
     raise ValueError("read-only: set by the driver itself")
 
 
+def _valid_period(seconds: float) -> None:
+    """a period in [0.001, 1] s"""
+    if not MIN_PERIOD <= seconds <= MAX_PERIOD:
+        raise ValueError(f"the period must be in [{MIN_PERIOD:g}, {MAX_PERIOD:g}] s")
+
+
+def _valid_command(values: list[float]) -> None:
+    """5 finite joint set-points"""
+    problem = command_problem(values)
+    if problem is not None:
+        raise ValueError(problem)
+
+
 class YouBotDriver(TaskContext):
     """Dummy KUKA youBot arm driver (5 joints), periodic (default 10 ms)."""
 
-    commands = InputPort(list[float], doc="joint position set-points [rad], 5 values", ge=-2 * math.pi, le=2 * math.pi)
-    new_period = InputPort(float, name="period",
+    commands = InputPort(list[float], doc="joint position set-points [rad], 5 values", ge=-2 * math.pi, le=2 * math.pi,
+                         check=_valid_command)
+    new_period = InputPort(float, name="period", check=_valid_period,
                            doc=f"new period of the driver [s], in [{MIN_PERIOD:g}, {MAX_PERIOD:g}]")
     status = OutputPort(YouBotStatus, name="jointStatus", doc="joint status, every period")
 

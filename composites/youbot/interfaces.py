@@ -103,3 +103,8 @@ class Moving(Protocol):
     def outcome(self) -> str:
         """The newest move's report ("target X reached" / "target X not reached: why"; "" before any)."""
         ...
+
+    def last_move(self) -> dict:
+        """The newest move, whoever asked for it: {"number": moves so far, "target": its
+        name ("" before any), "busy": still moving}. Never blocks."""
+        ...

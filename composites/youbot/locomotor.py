@@ -52,6 +52,7 @@ class Locomotor:
         self._busy = False
         self._target: list[float] | None = None
         self._target_name = ""
+        self._moves = 0
         self.reports: deque[str] = deque(maxlen=100)
         self.refreshes = 0
         self._table = {str(k): [float(x) for x in v] for k, v in dict(self.poses_table or POSES).items()}
@@ -97,6 +98,7 @@ class Locomotor:
     def _move(self, target: list[float], name: str) -> str:
         with self._lock:
             self._target, self._target_name, self._busy = list(target), name, True
+            self._moves += 1
         self._publish_busy()
         self.driver.set_joints_positions(list(target))  # one-way: returns at once
         log.info("moving to %s", name)
@@ -142,6 +144,12 @@ class Locomotor:
     def outcome(self) -> str:
         """The newest report (``Moving.outcome``)."""
         return self.last_report
+
+    def last_move(self) -> dict:
+        """``Moving.last_move``: the newest move, from any caller (the monitor's page, ``scart
+        call``, another component)."""
+        with self._lock:
+            return {"number": self._moves, "target": self._target_name, "busy": self._busy}
 
     @property
     def last_report(self) -> str:

@@ -5,7 +5,9 @@ and is its backend: period requests go to ``period: SettingPeriod``, poses to
 ``locomotor: Moving``. It registers with the driver proxy for ``refresh`` callbacks by
 calling ``status.get_joints_status()`` at init; on each ``notify("refresh")`` it fetches
 the newest sample and publishes it; ``busy``/``idle`` and connection events are shown
-in the page's event log. A small owned thread (~2 Hz) keeps the driver info (state,
+in the page's event log. Moves are followed whoever ordered them (the page, ``scart
+call Locomotor.move_to_pose``, another component): each new one the Locomotor reports
+(``last_move``) shows ``busy``, then ``idle`` and ``reached`` (or why not). A small owned thread (~2 Hz) keeps the driver info (state,
 period, connection) up to date. Where its ``bridge`` reference is wired (``youbot.composite``:
 a ``binding.dataflow`` to the ``armSummary`` bridge), each refresh also reads the newest
 ``ArmSummary`` and shows it.
@@ -74,6 +76,8 @@ class YouBotMonitor:
         self.refreshes = 0
         self._last_sequence: int | None = None
         self._moving = ""
+        self._move_seen = 0
+        self._watching = threading.Lock()  # one thread at a time follows the moves: events in order
         self._first_sequence: int | None = None
         self._latencies: deque[float] = deque(maxlen=20_000)
         self._events: deque[tuple[str, str]] = deque(maxlen=200)
@@ -86,6 +90,7 @@ class YouBotMonitor:
         self._thread = threading.Thread(target=self._info_loop, name="scart-youbot-monitor-info", daemon=True)
         try:
             self._publish_newest(self.status.get_joints_status())  # registers us for refresh
+            self._move_seen = int(self.locomotor.last_move()["number"])  # moves before this page: not its news
             if not self.locomotor.is_busy():
                 self._show("idle", "arm ready")
             self._thread.start()
@@ -134,11 +139,7 @@ class YouBotMonitor:
                 message = self.locomotor.move_to([float(v) for v in pose])
         except ValueError as exc:
             return False, str(exc)
-        with self._lock:
-            previous, self._moving = self._moving, message
-        if previous:  # the page's previous move never finished: say so
-            self._show("idle", f"{previous.removeprefix('moving to ')} superseded")
-        self._show("busy", message)
+        self._watch_moves()  # busy, as for a move ordered by anyone
         return True, message
 
     def poses(self) -> list[str]:
@@ -154,8 +155,7 @@ class YouBotMonitor:
             self._read_summary()
             self._publish_newest(self.status.get_joints_status())
             self.server.publish_event("refresh")
-            if self._moving:
-                self._check_move()
+            self._watch_moves()
             return
         if event in ("connected", "disconnected"):  # the page logs changes of the driver info itself
             self._events.append((event, detail))
@@ -169,9 +169,29 @@ class YouBotMonitor:
         self._events.append((event, detail))
         self.server.publish_event(event, detail)
 
+    def _watch_moves(self) -> None:
+        """Show ``busy`` for each move the Locomotor started since the last look (whoever
+        ordered it; a move it replaced unfinished: ``idle ... superseded``), then follow the
+        one in progress (:meth:`_check_move`). Thread-safe; never blocks for long."""
+        with self._watching:
+            try:
+                move = self.locomotor.last_move()
+            except Exception as exc:  # noqa: BLE001 - the Locomotor stopping: the next look
+                log.debug("last move: %s", exc)
+                return
+            number = int(move.get("number", 0))
+            if number != self._move_seen:
+                with self._lock:
+                    previous, self._moving, self._move_seen = self._moving, f"moving to {move.get('target')}", number
+                if previous:  # the previous move never finished: say so
+                    self._show("idle", f"{previous.removeprefix('moving to ')} superseded")
+                self._show("busy", self._moving)
+            if self._moving:
+                self._check_move()
+
     def _check_move(self, offline: bool = False) -> None:
-        """While a move sent from the page runs: show ``idle`` (and ``reached``) when the
-        Locomotor is no longer busy (or the driver went offline), with why it ended."""
+        """While a move runs: show ``idle`` (and ``reached``) when the Locomotor is no longer
+        busy (or the driver went offline), with why it ended."""
         if not offline and self.locomotor.is_busy():
             return
         with self._lock:
@@ -256,7 +276,6 @@ class YouBotMonitor:
     def _info_loop(self) -> None:
         for _ in range(100_000_000):  # bounded; ends when @destroy sets the stop event
             self._refresh_info()
-            if self._moving:
-                self._check_move()
+            self._watch_moves()
             if self._stop.wait(self.info_interval):
                 return

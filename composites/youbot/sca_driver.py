@@ -162,6 +162,8 @@ class SCAYouBotDriver(DriverProxyCore):
                     return self._refused(f"no answer from {self._task} within {PERIOD_ANSWER_TIMEOUT:g} s "
                                          f"(state {proxy.state}); last status: {status}")
             period = float(proxy.get_property("accepted_period"))  # type: ignore[arg-type]
+        except ValueError as exc:  # the driver's port refused it (its check): the driver's own words
+            return self._refused(f"{refused_prefix}: {str(exc).split(': ', 2)[-1]}")
         except Exception as exc:  # noqa: BLE001 - reported, not raised
             log.debug("set_period(%r): %s", seconds, exc)
             if isinstance(exc, _OFFLINE_ERRORS):

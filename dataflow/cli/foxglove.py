@@ -43,7 +43,8 @@ import logging
 import threading
 from typing import Any
 
-from dataflow.cli.record import _schema_of, message_of, type_schema
+from dataflow.threads import OwnedThread
+from dataflow.cli._jsonschema import _schema_of, message_of, type_schema
 
 __all__ = ["FoxgloveLive", "cmd_foxglove"]
 
@@ -331,8 +332,7 @@ class FoxgloveLive:
         self._bridge: _Bridge | None = None
         self._server: Any = None
         self._gate: Any = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._thread = OwnedThread(self._refreshing, "scart-foxglove-refresh")
 
     @property
     def url(self) -> str:
@@ -365,7 +365,6 @@ class FoxgloveLive:
             bridge.server = self._server
             self._gate = WebSocketGate(self.host, self.port, (inner_host, self._server.port))
             self._gate.start()
-            self._thread = threading.Thread(target=self._refreshing, name="scart-foxglove-refresh", daemon=True)
             self._thread.start()
         except BaseException:
             self.stop()
@@ -392,8 +391,8 @@ class FoxgloveLive:
                 log.debug("foxglove: cannot listen on %s (%s); 127.0.0.1 then", host, exc)
         raise AssertionError("unreachable")
 
-    def _refreshing(self) -> None:
-        while not self._stop.wait(self.refresh_period):
+    def _refreshing(self, stopping: threading.Event) -> None:
+        while not stopping.wait(self.refresh_period):
             try:
                 assert self._bridge is not None
                 services = self._bridge.refresh()
@@ -404,10 +403,7 @@ class FoxgloveLive:
 
     def stop(self) -> None:
         """Stop looking, stop the gate and the server, end the subscriptions (idempotent)."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=30)
-            self._thread = None
+        self._thread.stop(timeout=30)
         if self._gate is not None:
             self._gate.stop()
             self._gate = None
@@ -457,7 +453,7 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
     """``scart foxglove [--host H] [--port P] [--control [TOKEN_FILE]]``: see the module docstring."""
     import dataclasses
 
-    from dataflow.cli.inspect import _err, _wait_until_stopped, ns_address
+    from dataflow.cli.output import err as _err, ns_address, wait_until_stopped as _wait_until_stopped
     from dataflow.remote import connect
     from dataflow.remote.security import from_args
 

@@ -238,13 +238,17 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
     @staticmethod
     def _summary(task: Any) -> Any:
         act = task.activity
+        cycles, last_cycle = getattr(act, "stamp", (0, 0.0))
+        if not last_cycle:
+            cycles = getattr(act, "cycles", 0)
         return pb.TaskSummary(
             name=task.name,
             state=task.state.name,
             activity=getattr(act, "kind", "") if act is not None else "",
             period=float(getattr(act, "period", 0.0) or 0.0),
-            cycles=int(getattr(act, "cycles", 0) or 0),
+            cycles=int(cycles or 0),
             overruns=int(getattr(act, "overruns", 0) or 0),
+            last_cycle=float(last_cycle),
         )
 
     def ListTasks(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
@@ -262,6 +266,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                 info = pb.PortInfo(
                     name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
                     connections=max(0, p.connections - hidden), event=p.event, bounds=p.bounds,
+                    writes=p.writes, check=p.check,
                     streams=[pb.PortStreamInfo(**s.model_dump()) for s in p.streams],
                 )
                 if p.direction == "out":

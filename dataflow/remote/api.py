@@ -88,6 +88,8 @@ class ComponentInfo:
     cycles: int
     overruns: int
     address: str
+    #: When cycle ``cycles`` began (the deployer's monotonic clock, s; 0.0: none yet).
+    last_cycle: float = 0.0
 
 
 Observer = Callable[[SampleEvent], None]
@@ -336,11 +338,18 @@ class System(ABC):
 
 
 def split_port(text: str, what: str = "PORT") -> tuple[str, str]:
-    """``"task.port"`` → ``("task", "port")``; raises ``ValueError`` for anything else.
+    """``"task.port"``, or ROS's ``"/task/port"`` and ``"task/port"``, → ``("task",
+    "port")``; raises ``ValueError`` for anything else. A task name may hold ``/``
+    (``left/driver.status`` and ``/left/driver/status`` are the same port).
 
     ``what`` names the second part in the error ("PORT", "OPERATION").
     """
-    task, dot, port = text.rpartition(".")
-    if not dot or not task or not port:
-        raise ValueError(f"expected COMPONENT.{what}, got {text!r}")
+    name = text[1:] if text.startswith("/") else text
+    head, slash, tail = name.rpartition("/")
+    if slash and "." not in tail:  # the ROS form: the last part is the port
+        task, sep, port = head, slash, tail
+    else:
+        task, sep, port = name.rpartition(".")
+    if not sep or not task or not port:
+        raise ValueError(f"expected COMPONENT.{what} (or /COMPONENT/{what}), got {text!r}")
     return task, port

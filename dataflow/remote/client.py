@@ -163,7 +163,8 @@ class GrpcSystem(System):
                 continue
             for t in reply.tasks:
                 if t.name in names:
-                    out.append(ComponentInfo(t.name, t.state, t.activity, t.period, t.cycles, t.overruns, address))
+                    out.append(ComponentInfo(t.name, t.state, t.activity, t.period, t.cycles, t.overruns, address,
+                                             t.last_cycle))
         return sorted(out, key=lambda c: c.name)
 
     def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),
@@ -271,7 +272,7 @@ def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
     ports = [
         PortDescription(
             name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
-            connections=p.connections, event=p.event, bounds=p.bounds,
+            connections=p.connections, event=p.event, bounds=p.bounds, check=p.check, writes=p.writes,
             streams=[PortStreamDescription(name=s.name, topic=s.topic, type_name=s.type_name, state=s.state or "connected",
                                            refused=s.refused, refusal=s.refusal, unauthenticated=s.unauthenticated)
                      for s in p.streams],
@@ -292,7 +293,7 @@ def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
     ]
     desc = TaskDescription(
         name=s.name, state=s.state, activity=s.activity, period=s.period, cycles=s.cycles,
-        overruns=s.overruns, ports=ports, properties=props, operations=ops,
+        overruns=s.overruns, last_cycle=s.last_cycle, ports=ports, properties=props, operations=ops,
     )
     last = {p.name: codec.decode(p.last_value) for p in info.ports if p.has_last_value}
     return desc, last

@@ -254,7 +254,8 @@ class LocalSystem(System):
         out = []
         for t in self.deployer.tasks():
             a = t.activity
-            out.append(ComponentInfo(t.name, t.state.name, a.kind, a.period, a.cycles, a.overruns, "in-process"))
+            cycles, last_cycle = a.stamp if a.stamp[1] else (a.cycles, 0.0)
+            out.append(ComponentInfo(t.name, t.state.name, a.kind, a.period, cycles, a.overruns, "in-process", last_cycle))
         return sorted(out, key=lambda c: c.name)
 
     def connect_ports(self, source: str, sink: str, policy: ConnPolicy = ConnPolicy.data(),

@@ -44,10 +44,15 @@ __all__ = [
     "NameServer",
     "NameClient",
     "Registration",
+    "SCA_PREFIX",
     "serve_nameserver",
 ]
 
 log = logging.getLogger(__name__)
+
+#: Names of SCA services endpoints (``sca:HOST:PORT``, registered by ``scart run``): listed
+#: apart from the data-flow components (:meth:`NameClient.entries`).
+SCA_PREFIX = "sca:"
 
 
 
@@ -179,9 +184,13 @@ class NameClient:
         reply = self._call("Resolve", pb.ResolveRequest(component=component), timeout)
         return _entry_from_msg(reply.entry)
 
-    def entries(self, timeout: float | None = None, max_pages: int = 1_000) -> list[NameEntry]:
-        """Every live registration, page after page (at most ``max_pages``, each with the
-        call's deadline)."""
+    def entries(self, timeout: float | None = None, max_pages: int = 1_000, sca: bool = False) -> list[NameEntry]:
+        """Every live registration of a data-flow component (or with ``sca``, of an SCA
+        services endpoint: the names starting with :data:`SCA_PREFIX`), page after page (at
+        most ``max_pages``, each with the call's deadline)."""
+        return [e for e in self._entries(timeout, max_pages) if e.component.startswith(SCA_PREFIX) == sca]
+
+    def _entries(self, timeout: float | None, max_pages: int) -> list[NameEntry]:
         out: list[NameEntry] = []
         token = ""
         for _ in range(max_pages):

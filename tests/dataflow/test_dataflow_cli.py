@@ -7,6 +7,7 @@ import json
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -88,7 +89,8 @@ def test_echo_json_lines_and_round_trip_into_write(system) -> None:
     scart(ns, "write", "pinger.input", "2.5")
     echoed = scart(ns, "echo", "pinger.output", "-n", "1", "--json").stdout.strip()
     assert json.loads(echoed) == 2.5
-    assert scart(ns, "write", "pinger.input", echoed, "--json").stdout.strip() == '{"status": "WRITE_SUCCESS"}'
+    assert json.loads(scart(ns, "write", "pinger.input", echoed, "--json").stdout) == \
+        {"status": "WRITE_SUCCESS", "port": "pinger.input", "accepted_by": "port"}
     text = scart(ns, "echo", "pinger.ticks", "-n", "2").stdout.splitlines()
     assert len(text) == 2 and text[0].startswith("[")
 
@@ -101,14 +103,14 @@ def test_echo_json_round_trip_of_float_list_and_model(system) -> None:
     """What ``echo --json`` prints for a float list and a pydantic model, ``write`` accepts."""
     ns, _ = system
     sent = [1.5, -2.25, 3e-05, 0.0]
-    assert scart(ns, "write", "echo.floats", json.dumps(sent)).stdout.strip() == "WRITE_SUCCESS"
+    assert scart(ns, "write", "echo.floats", json.dumps(sent)).stdout.startswith("WRITE_SUCCESS: the port took it")
     wait_until(lambda: _echo_json(ns, "echo.floats_out") == sent, timeout=30, interval=0.1)
     line = scart(ns, "echo", "echo.floats_out", "-n", "1", "--json").stdout.strip()
-    assert scart(ns, "write", "echo.floats", line).stdout.strip() == "WRITE_SUCCESS"  # echo → write
+    assert scart(ns, "write", "echo.floats", line).stdout.startswith("WRITE_SUCCESS")  # echo → write
     status_line = scart(ns, "echo", "youBotDriver.jointStatus", "-n", "1", "--json").stdout.strip()
     status = json.loads(status_line)
     assert len(status["joints"]) == 5
-    assert scart(ns, "write", "echo.status", status_line).stdout.strip() == "WRITE_SUCCESS"
+    assert scart(ns, "write", "echo.status", status_line).stdout.startswith("WRITE_SUCCESS")
     wait_until(lambda: _echo_json(ns, "echo.status_out") == status, timeout=30, interval=0.1)
     bad = scart(ns, "write", "echo.status", json.dumps({"joints": "many"}), check=False)
     assert bad.returncode == 1 and "echo.status expects YouBotStatus" in bad.stderr
@@ -125,7 +127,8 @@ def test_hz(system) -> None:
 
 def test_write_and_wrong_type(system) -> None:
     ns, _ = system
-    assert scart(ns, "write", "youBotDriver.commands", "[0.1, 0.2, 0.3, 0.4, 0.5]").stdout.strip() == "WRITE_SUCCESS"
+    assert scart(ns, "write", "youBotDriver.commands", "[0.1, 0.2, 0.3, 0.4, 0.5]").stdout.strip() == \
+        "WRITE_SUCCESS: youBotDriver checked it and accepted it (5 finite joint set-points)"
     bad = scart(ns, "write", "youBotDriver.commands", '"fast"', check=False)
     assert bad.returncode == 1 and bad.stdout == ""
     assert "youBotDriver.commands expects float64[]" in bad.stderr
@@ -305,3 +308,117 @@ def test_deploy_advertises_what_it_is_told_and_refuses_a_malformed_address() -> 
         assert stop_process(proc) == 0
     bad = scart(None, "deploy", "support.remote:Pinger", "--advertise", "robot:0", check=False)
     assert bad.returncode == 1 and "advertise 'robot:0'" in bad.stderr and "1 to 65535" in bad.stderr
+
+
+# ---- issue 25: nothing that reports success for a failure; what ROS hands know ----------
+
+def test_write_reports_the_tasks_verdict_and_exits_1_when_refused(system) -> None:
+    """The driver refuses a period of 5 s and a command of three joints: the writer hears it
+    (exit 1, the driver's reason), nothing is printed as a success."""
+    ns, _ = system
+    for port, value, why in (("youBotDriver.period", "5", "the period must be in [0.001, 1] s"),
+                             ("youBotDriver.commands", "[1,2,3]", "expected 5 finite values, got 3")):
+        out = scart(ns, "write", port, value, check=False)
+        assert out.returncode == 1 and out.stdout == "", out
+        assert why in out.stderr and len(out.stderr.strip().splitlines()) == 1 and "Traceback" not in out.stderr
+    accepted = scart(ns, "write", "youBotDriver.period", "0.01").stdout
+    assert accepted.strip() == "WRITE_SUCCESS: youBotDriver checked it and accepted it (a period in [0.001, 1] s)"
+    plain = scart(ns, "write", "pinger.input", "1.5").stdout
+    assert plain.startswith("WRITE_SUCCESS: the port took it within its bounds (finite); pinger declares no check")
+    missing = scart(ns, "write", "pinger.ticks", "1", check=False)
+    assert missing.returncode == 1 and "pinger has no input port 'ticks'; inputs: input, samples" in missing.stderr
+
+
+def test_write_takes_yaml_like_ros2_topic_pub_and_repeats_at_a_rate(system) -> None:
+    ns, _ = system
+    scart(ns, "write", "echo.status", "joints: []\ntimestamp: 1.5\nsequence: 77")  # block YAML
+    wait_until(lambda: _echo_json(ns, "echo.status_out")["sequence"] == 77, timeout=30, interval=0.1)
+    scart(ns, "write", "echo.floats", "[1, 2.5, -3]")
+    wait_until(lambda: _echo_json(ns, "echo.floats_out") == [1.0, 2.5, -3.0], timeout=30, interval=0.1)
+
+    def writes() -> int:
+        doc = json.loads(scart(ns, "describe", "pinger", "--json").stdout)
+        return next(p["writes"] for p in doc["ports"] if p["name"] == "output")
+
+    before = writes()
+    repeated = scart(ns, "write", "pinger.input", "2.0", "-r", "50", "-t", "5")
+    assert repeated.stdout.splitlines()[-1] == "wrote 5 sample(s) to pinger.input"
+    wait_until(lambda: writes() - before == 5, timeout=30, interval=0.1, message="5 writes did not all arrive")
+    usage = scart(ns, "write", "pinger.input", "2.0", "-t", "5", check=False)
+    assert usage.returncode == 2 and "give -r RATE" in usage.stderr
+
+
+def test_ros_names_and_echo_once_and_hz_window(system) -> None:
+    ns, _ = system
+    for name in ("/youBotDriver/jointStatus", "youBotDriver/jointStatus"):
+        lines = scart(ns, "echo", name, "--once", "--json").stdout.splitlines()
+        assert len(lines) == 1 and len(json.loads(lines[0])["joints"]) == 5
+    stats = [json.loads(line) for line in scart(ns, "hz", "/pinger/ticks", "-w", "5", "--duration", "2.5",
+                                                 "--json").stdout.splitlines()]
+    assert stats and all(s["window"] <= 5 for s in stats) and stats[-1]["window"] == 5
+    assert 50 < stats[-1]["rate"] < 200
+
+
+def test_topics_lists_every_port_with_type_direction_rate_and_connections(system) -> None:
+    ns, _ = system
+    rows = {r["name"]: r for r in json.loads(scart(ns, "topics", "--json").stdout)}
+    status = rows["youBotDriver.jointStatus"]
+    assert (status["type"], status["direction"], status["component"]) == ("YouBotStatus", "out", "youBotDriver")
+    assert 80 < status["rate"] < 120 and isinstance(status["connections"], int)  # a 100 Hz task
+    assert rows["youBotDriver.commands"]["direction"] == "in" and rows["youBotDriver.commands"]["rate"] is None
+    assert "far.ticks" in rows  # every deployer's
+    listed = scart(ns, "ports", "-t").stdout.splitlines()  # the alias, and ros2 topic list -t's form
+    assert "youBotDriver.jointStatus [YouBotStatus]" in listed and "pinger.input [float64]" in listed
+    table = scart(ns, "topics").stdout.splitlines()
+    assert table[0].split() == ["NAME", "TYPE", "DIR", "RATE(Hz)", "CONNECTIONS"]
+
+
+def test_ls_and_topics_measure_a_10_hz_task_as_hz_does() -> None:
+    """A 10 Hz task: counting its cycles in a 0.25 s window says 8 or 12; timing them by the
+    task's own cycle stamps (hz's estimator) says 10."""
+    ns = f"127.0.0.1:{free_port()}"
+    proc, _ = start_scart(["deploy", "support.remote:Pinger@slow", "--period", "0.1", "--listen", ns])
+    try:
+        rates = [json.loads(scart(ns, "ls", "--json").stdout)[0]["rate"] for _ in range(6)]
+        assert all(9.0 <= r <= 11.0 for r in rates), rates
+        ticks = [r for r in json.loads(scart(ns, "topics", "--json").stdout) if r["name"] == "slow.ticks"]
+        assert 9.0 <= ticks[0]["rate"] <= 11.0, ticks
+    finally:
+        assert stop_process(proc) == 0
+
+
+def test_deploy_imports_from_the_current_folder(tmp_path) -> None:
+    """``scart deploy mytasks:Source`` in the module's own folder, through the console script
+    (whose sys.path has the script's folder, not the current one)."""
+    import shutil
+
+    (tmp_path / "mytasks.py").write_text(
+        "from dataflow import OutputPort, TaskContext\n\n"
+        "class Source(TaskContext):\n    out = OutputPort(int)\n\n    def update_hook(self) -> None:\n"
+        "        self.out.write(1)\n", encoding="utf-8")
+    script = shutil.which("scart", path=str(Path(sys.executable).parent))
+    assert script, "the scart console script is not installed next to this interpreter"
+    ns = f"127.0.0.1:{free_port()}"
+    env = subprocess_env()
+    env.pop("PYTHONPATH", None)
+    proc = subprocess.Popen([script, "deploy", "mytasks:Source", "--listen", ns], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_until(lambda: proc.poll() is not None or "Source" in scart(ns, "ls", "--timeout", "1",
+                                                                          check=False).stdout,
+                   timeout=30, interval=0.2)
+        assert proc.poll() is None, proc.communicate(timeout=10)
+    finally:
+        assert stop_process(proc) == 0
+
+
+def test_a_zenoh_error_carries_no_rust_source_path() -> None:
+    """Zenoh's own error text names the Rust file and line it came from; the user gets the
+    words without it."""
+    out = scart(None, "echo", "a.b", "--zenoh", "--zenoh-connect", "tcp/[::1:3", "--timeout", "1", check=False)
+    assert out.returncode == 1 and "Unable to connect" in out.stderr, out.stderr
+    assert ".rs:" not in out.stderr and ".cargo" not in out.stderr and len(out.stderr.strip().splitlines()) == 1
+    from dataflow.cli._zenoh import plain_error
+
+    assert plain_error("Bad thing! at /x/y/src/net/z.rs:447.") == "Bad thing!"
+    assert plain_error("[zenoh/src/a.rs:12]: refused") == "refused"

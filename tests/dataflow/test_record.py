@@ -98,3 +98,61 @@ def test_record_describe_and_replay_into_a_driverless_deployer(tmp_path: Path) -
     middle = statistics.median(offsets)
     drift = sorted(abs(offset - middle) for offset in offsets)
     assert abs(middle) < 0.05 and drift[int(0.95 * len(drift))] < 0.010, (middle, drift[-5:])
+
+
+def run_scart(*args: str, ns: str | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "scart", *args], capture_output=True, text=True, timeout=60,
+                          env=subprocess_env(ns))
+
+
+def test_record_refuses_an_existing_file_a_folder_and_a_missing_folder(tmp_path: Path) -> None:
+    """Said in one line before anything is subscribed (no name service is even asked)."""
+    existing = tmp_path / "old.mcap"
+    existing.write_bytes(b"keep me")
+    nowhere = "127.0.0.1:1"
+    cases = {
+        str(existing): "the file exists; give --overwrite to replace it",
+        str(tmp_path) + "/": "a folder; scart record writes one .mcap file (not a folder as ros2 bag)",
+        str(tmp_path): "a folder; scart record writes one .mcap file",
+        str(tmp_path / "missing" / "parent" / "x.mcap"): f"the folder {tmp_path / 'missing' / 'parent'} does not exist",
+    }
+    for output, why in cases.items():
+        done = run_scart("record", "a.b", "-o", output, "--ns", nowhere)
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 1 and len(lines) == 1 and why in lines[0] and "Traceback" not in done.stderr, done
+    assert existing.read_bytes() == b"keep me"
+    assert "a file, not a folder as ros2 bag's -o" in " ".join(run_scart("record", "--help").stdout.split())
+
+
+def test_play_plays_the_topics_asked_for_into_remapped_ports(tmp_path: Path) -> None:
+    """``--topics`` leaves the other channels out (no remap needed for them); ``--remap``
+    takes ROS's ``:=`` and ``/comp/port`` names."""
+    from mcap.writer import Writer
+
+    path = tmp_path / "two.mcap"
+    with open(path, "wb") as fh:
+        writer = Writer(fh)
+        writer.start()
+        schema = writer.register_schema("YouBotStatus", "jsonschema", b"{}")
+        wanted = writer.register_channel("youBotDriver.jointStatus", "json", schema)
+        other = writer.register_channel("nobody.else", "json", schema)
+        for i in range(5):  # 0.1 s apart: the sink's default writer keeps the last value (DATA)
+            status = {"joints": [], "timestamp": float(i), "sequence": i}
+            writer.add_message(wanted, i * 100_000_000, json.dumps(status).encode(), i * 100_000_000)
+            writer.add_message(other, i * 100_000_000 + 1, b'{"value": 1}', i * 100_000_000 + 1)
+        writer.finish()
+    fresh = Deployer()
+    receiver = fresh.add(Receiver("stand_in"))
+    fresh.configure_all()
+    fresh.start_all()
+    server = fresh.serve("127.0.0.1:0")
+    try:
+        done = run_scart("play", str(path), "--topics", "/youBotDriver/jointStatus", "--remap",
+                         "/youBotDriver/jointStatus:=stand_in/status", "--ns", server.address)
+        assert done.returncode == 0, done.stderr
+        assert done.stdout.strip() == f"played 5 sample(s) from {path} (5 left out by --topics)"
+        wait_until(lambda: [seq for _, seq in receiver.seen()] == [0, 1, 2, 3, 4], timeout=10)
+    finally:
+        server.stop()
+        fresh.stop_all()
+        fresh.cleanup_all()

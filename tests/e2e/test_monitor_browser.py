@@ -212,6 +212,20 @@ def test_token_mode_page_sends_the_token_and_cannot_be_framed(monitor: Monitor) 
         server.stop()
 
 
+def test_long_event_text_wraps_instead_of_being_cut(monitor: Monitor) -> None:
+    """``joint 2: UNDER_VOLTAGE set`` and ``... cleared`` must both read to the end: the
+    event text wraps within the log, it is never cut with an ellipsis."""
+    page = monitor.page
+    detail = "joint 2: UNDER_VOLTAGE " + "and a long explanation of what happened " * 6 + "cleared"
+    monitor.server.publish_event("error", detail)
+    row = page.locator("#event-log li[data-name='error'] .d", has_text="cleared").first
+    expect(row).to_be_visible()
+    fits = row.evaluate("el => el.scrollWidth <= el.clientWidth + 1 && getComputedStyle(el).textOverflow !== 'ellipsis'")
+    lines = row.evaluate("el => Math.round(el.getBoundingClientRect().height / parseFloat(getComputedStyle(el).lineHeight || 16))")
+    assert fits and lines >= 2, lines
+    assert monitor.errors == []
+
+
 def test_connection_indicator_follows_data_driver_and_server(monitor: Monitor) -> None:
     """Runs last: it stops the feeder and the server."""
     page = monitor.page
@@ -227,3 +241,4 @@ def test_connection_indicator_follows_data_driver_and_server(monitor: Monitor) -
     monitor.server.stop()
     expect(page.locator("#conn-indicator")).to_have_attribute("data-state", "server-lost")
     expect(page.locator("#conn-text")).to_have_text("monitor unreachable")
+

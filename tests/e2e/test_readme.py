@@ -77,3 +77,13 @@ def test_an_xml_block_is_well_formed(body: str, line: int) -> None:
         etree.fromstring(wrapped.encode())
     except etree.XMLSyntaxError as exc:
         pytest.fail(f"README.md:{line}: {exc}")
+
+
+def test_graph_says_that_drawing_needs_graphviz() -> None:
+    """``scart graph ... | dot`` needs Graphviz: every README line piping into dot names it,
+    and so does ``scart graph --help``."""
+    piped = [line for line in README.splitlines() if "scart graph" in line and "| dot" in line]
+    assert piped and all("Graphviz" in line for line in piped), piped
+    helped = subprocess.run([sys.executable, "-m", "scart", "graph", "--help"], capture_output=True, text=True,
+                            timeout=60)
+    assert "Graphviz" in helped.stdout and "apt-get install graphviz" in " ".join(helped.stdout.split())

@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from support import wait_until
+from support import free_port, wait_until
 from support.youbot import ROOT, YOUBOT, Demo, env, monitor_state, post_json, start_serving
 
 from locomotor import POSES
@@ -190,3 +190,40 @@ def test_the_arm_summary_bridge_merges_status_and_busy_flag() -> None:
         assert abs(done["positions"][1] - 1.1) < 0.05  # candle's second joint
     finally:
         assert demo.stop() == 0, demo.output()
+
+
+def test_a_move_ordered_by_scart_call_shows_in_the_monitor() -> None:
+    """``scart call Locomotor.move_to_pose folded`` (found by name, no ``--at``): the monitor
+    shows busy, idle and reached as for a move from its own page."""
+    demo = start_serving("youbot.composite")
+    try:
+        url = demo.monitor_url()
+        wait_until(lambda: _running(url), 20, 0.05, "monitor never showed a running driver")
+        assert json.loads(_scart(demo.ns, "call", "Locomotor.move_to_pose", "folded")) == "moving to folded"
+
+        def moves() -> list[tuple[str, str]]:
+            return [(e["name"], e["detail"]) for e in monitor_state(url)["events"]
+                    if e["name"] in ("busy", "idle", "reached") and e["detail"] != "arm ready"]
+
+        seen = wait_until(lambda: (m := moves()) and m[-1][0] == "reached" and m, 20, 0.05,
+                          f"the monitor did not follow the move: {moves()}")
+        assert seen == [("busy", "moving to folded"), ("idle", "at folded"), ("reached", "folded")]
+    finally:
+        assert demo.stop(signal.SIGINT) == 0, demo.output()
+
+
+def test_a_taken_monitor_port_is_named() -> None:
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        demo = Demo("youbot.composite", f"127.0.0.1:{free_port()}", "--set", f"YouBotMonitor.port={port}")
+        try:
+            wait_until(lambda: demo.proc.poll() is not None, 30, 0.05, "scart run did not stop")
+        finally:
+            code = demo.stop()
+    assert code == 1
+    assert f"the monitor cannot listen on 127.0.0.1:{port}: Address already in use" in demo.output()
+    assert "Traceback" not in demo.output()

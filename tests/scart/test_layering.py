@@ -134,3 +134,66 @@ def test_no_module_level_mutable_state(package: object) -> None:
             if isinstance(value, MUTABLE):
                 found.append(f"{name}.{attr} ({type(value).__name__})")
     assert found == []
+
+
+CLI_PACKAGES = ("scart/commands", "dataflow/cli")
+
+
+def _cli_imports() -> dict[str, set[str]]:
+    """``{module: CLI modules it imports}`` over scart.cli, scart.commands and dataflow.cli
+    (``from pkg import sub`` counts as importing ``pkg.sub``; lazy imports count too)."""
+    paths = [ROOT / "scart" / "cli.py"] + [p for pkg in CLI_PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))]
+    names = {".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__"): p for p in paths}
+    graph: dict[str, set[str]] = {}
+    for name, path in names.items():
+        found: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                found |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                found.add(node.module)
+                found |= {f"{node.module}.{a.name}" for a in node.names}
+        graph[name] = {m for m in found if m in names and m != name}
+    return graph
+
+
+def test_the_cli_modules_import_each_other_in_no_circle() -> None:
+    graph = _cli_imports()
+    cycles: list[list[str]] = []
+
+    def visit(node: str, path: list[str]) -> None:
+        for nxt in sorted(graph[node]):
+            if nxt in path:
+                cycles.append(path[path.index(nxt):] + [nxt])
+            elif len(path) < 20:
+                visit(nxt, path + [nxt])
+
+    for start in graph:
+        visit(start, [start])
+    assert cycles == []
+
+
+def test_shared_cli_helpers_import_no_verb() -> None:
+    """What verbs share (output, Zenoh options, MCAP files, JSON Schemas, the Foxglove
+    server, the composite and SCA helpers) imports no verb module."""
+    graph = _cli_imports()
+    verbs = {m for m in graph if m.startswith("dataflow.cli.verbs.") or
+             (m.startswith("scart.commands.") and not m.rpartition(".")[2].startswith("_"))}
+    shared = [m for m in graph if m not in verbs and m not in ("scart.cli", "dataflow.cli.verbs")]
+    assert {m: sorted(graph[m] & verbs) for m in shared if graph[m] & verbs} == {}
+    assert "dataflow.cli.output" in shared and "scart.commands._composite" in shared
+
+
+def test_a_verb_loads_its_own_module_only() -> None:
+    """``scart describe --help`` imports the describe verb, not the others (ros2cli's shape)."""
+    code = ("from scart.cli import main\nimport contextlib, io\nwith contextlib.redirect_stdout(io.StringIO()):\n"
+            "    try:\n        main(['describe', '--help'])\n    except SystemExit:\n        pass")
+    loaded = {m for m in _loaded_modules(code) if m.startswith(("dataflow.cli.verbs.", "scart.commands."))}
+    assert loaded == {"dataflow.cli.verbs.describe"}
+
+
+def _loaded_modules(code: str) -> set[str]:
+    probe = f"{code}\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    return set(json.loads(out.stdout.strip().splitlines()[-1]))

@@ -281,4 +281,4 @@ def test_run_exits_within_stop_timeout_when_a_destroy_hangs(tmp_path: Path) -> N
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0 and time.monotonic() - began < 10.0, err
-    assert "destroying H did not finish" in err and "scart: stopped" in out
+    assert "destroying H did not finish" in err and "scart: stopped" in err

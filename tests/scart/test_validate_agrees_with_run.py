@@ -29,7 +29,7 @@ def test_validate_and_run_dry_run_agree(path: Path) -> None:
     dry = run("run", "--dry-run", str(path))
     assert checked.returncode == dry.returncode == 0, checked.stderr + dry.stderr
     assert said(checked.stderr) == said(dry.stderr)
-    assert "nothing started" in dry.stdout and "scart: started" not in dry.stdout
+    assert "nothing started" in dry.stderr and "scart: started" not in dry.stderr  # scart's own lines: stderr
 
 
 def test_a_dry_run_refuses_what_validate_refuses(tmp_path: Path) -> None:

@@ -22,7 +22,7 @@ import pytest
 import websockets
 
 import scart
-from dataflow.cli.services import call as services_call
+from scart.commands._sca import call as services_call
 from dataflow.remote import connect
 from support import ROOT
 from support.sca import composite

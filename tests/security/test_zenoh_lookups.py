@@ -25,7 +25,7 @@ from dataflow.remote.security import AuthTable, Security
 from support import wait_until
 from support.remote import Pinger
 
-zenoh_transport = pytest.importorskip("dataflow.remote.zenoh_transport")
+zenoh_transport = pytest.importorskip("dataflow.transports.zenoh")
 pytest.importorskip("zenoh")
 
 

@@ -24,22 +24,25 @@ def start(*args: str) -> subprocess.Popen[bytes]:
 
 
 def read_until(proc: subprocess.Popen[bytes], needle: str, timeout: float = 30.0) -> str:
-    """Read the process's stdout until it contains ``needle`` (deadline; never sleeps)."""
-    assert proc.stdout is not None
-    fd = proc.stdout.fileno()
+    """Read the process's stdout and stderr until together they contain ``needle``
+    (deadline; never sleeps): what scart itself says goes to stderr, what its components
+    print to stdout. Returns what was read, both streams in arrival order."""
+    streams = [s for s in (proc.stdout, proc.stderr) if s is not None]  # stderr may be merged into stdout
+    assert streams, "the process has no pipe to read"
     seen = b""
     deadline = time.monotonic() + timeout
     with selectors.DefaultSelector() as sel:
-        sel.register(fd, selectors.EVENT_READ)
-        while time.monotonic() < deadline:
-            if not sel.select(timeout=max(0.0, deadline - time.monotonic())):
-                continue
-            chunk = os.read(fd, 65536)
-            if not chunk:
-                break
-            seen += chunk
-            if needle.encode() in seen:
-                return seen.decode()
+        for stream in streams:
+            sel.register(stream.fileno(), selectors.EVENT_READ)
+        while time.monotonic() < deadline and sel.get_map():
+            for key, _ in sel.select(timeout=max(0.0, deadline - time.monotonic())):
+                chunk = os.read(key.fd, 65536)
+                if not chunk:
+                    sel.unregister(key.fd)
+                    continue
+                seen += chunk
+                if needle.encode() in seen:
+                    return seen.decode()
     raise AssertionError(f"{needle!r} not printed within {timeout} s; got: {seen.decode(errors='replace')}")
 
 

@@ -528,12 +528,17 @@ class MonitorServer:
     # -- lifecycle --------------------------------------------------------------------
 
     def start(self) -> None:
-        """Bind the address and start serving. Raises `OSError` if it cannot bind and
-        `RuntimeError` if already started or stopped (a server is started once)."""
+        """Bind the address and start serving. Raises `OSError` naming the address if it
+        cannot bind and `RuntimeError` if already started or stopped (a server is started once)."""
         with self._lock:
             if self._httpd is not None or self._stopping.is_set():
                 raise RuntimeError("MonitorServer.start: already started (or stopped)")
-            self._httpd = _HTTPServer(self._address, self, *self._limits)
+            try:
+                self._httpd = _HTTPServer(self._address, self, *self._limits)
+            except OSError as exc:
+                host, port = self._address[0], self._address[1]
+                raise OSError(exc.errno, f"the monitor cannot listen on {host}:{port}: "
+                                         f"{exc.strerror or exc}") from None
             self._thread = threading.Thread(
                 target=self._httpd.serve_forever,
                 kwargs={"poll_interval": 0.05},

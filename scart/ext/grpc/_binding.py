@@ -17,6 +17,7 @@ from typing import Any
 import grpc
 
 from dataflow.remote.security import tls_mismatch
+from dataflow.threads import OwnedThread
 from scart.errors import InvocationError, ServiceUnavailableError
 from scart.ext.grpc._server import Exported, GrpcServer, ServerTable
 from scart.ext.grpc._wire import (
@@ -360,7 +361,7 @@ class _ClientSession:
         self.closed = threading.Event()
         self._call: Any = None
         self.error: str = ""
-        self._thread = threading.Thread(target=self._read, name=f"scart-grpc-callbacks-{self.id[:8]}", daemon=True)
+        self._thread = OwnedThread(self._read, f"scart-grpc-callbacks-{self.id[:8]}")
 
     def open(self, timeout: float) -> None:
         """Open the stream and wait (at most ``timeout``) for the server to register it."""
@@ -374,7 +375,7 @@ class _ClientSession:
             raise ServiceUnavailableError(f"binding.grpc: {self._binding.where}: cannot open a callback session "
                                           f"within {timeout} s")
 
-    def _read(self) -> None:
+    def _read(self, _stopping: threading.Event) -> None:
         try:
             for resp in self._call:  # ends with the stream (closed by us, or the provider went away)
                 if resp.HasField("opened"):
@@ -399,8 +400,7 @@ class _ClientSession:
         self._outbox.put(None)
         if self._call is not None:
             self._call.cancel()
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join(5.0)
+        self._thread.stop()
 
 
 __all__ = ["GrpcReferenceBinding", "GrpcServiceBinding"]

@@ -29,6 +29,7 @@ import grpc
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
 from dataflow.remote._rpc import StreamBudget, server_options
 from dataflow.remote.security import Security, SecurityError, auth_interceptor
+from dataflow.threads import OwnedThread
 from scart.ext.grpc._wire import (
     SCA_ROLES,
     Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, pb_grpc, signatures,
@@ -210,9 +211,9 @@ class _Session:
         self._pending: dict[int, list[Any]] = {}  # id -> [Event, outcome]
         self._lock = threading.Lock()
         self.closed = False
-        self.reader = threading.Thread(target=self._read, name=f"scart-grpc-session-{session_id[:8]}", daemon=True)
+        self.reader = OwnedThread(self._read, f"scart-grpc-session-{session_id[:8]}")
 
-    def _read(self) -> None:
+    def _read(self, _stopping: threading.Event) -> None:
         try:
             for msg in self._requests:  # ends with the stream
                 if msg.HasField("callback_reply"):
@@ -334,8 +335,7 @@ class GrpcServer:
             log.warning("binding.grpc at %s: stop: %d call(s) still running after %.1f s abandoned: %s",
                         self.address, len(abandoned), self.drain_timeout, ", ".join(abandoned))
         for s in sessions:
-            if s.reader.is_alive():
-                s.reader.join(max(0.0, deadline - time.monotonic()))
+            s.reader.join(max(0.0, deadline - time.monotonic()))
         if self._invoke_pool is not None:
             self._invoke_pool.shutdown(wait=not abandoned, cancel_futures=True)
         if self._server_pool is not None:

@@ -87,7 +87,7 @@ def test_run_serves_tasks_with_embedded_name_service(robot: Robot) -> None:
         proxy = system.component("thermostat")
         assert proxy.get_property("gain") == 0.5
     out, err = robot.stop()
-    assert "scart: stopped" in out, err
+    assert "scart: stopped" in err, err  # scart's own lines: stderr
 
 
 def test_binding_writes_receives_and_survives_restart(robot: Robot, caplog: pytest.LogCaptureFixture) -> None:
@@ -357,7 +357,7 @@ def test_second_scart_run_joins_the_name_service_and_clashes_are_refused(robot: 
             assert system.component_names() == ["thermo2", "thermostat"]
             assert system.component("thermo2").describe().period == 0.02
         out, err = second.stop()  # SIGINT: clean stop, names unregistered
-        assert "scart: stopped" in out, err
+        assert "scart: stopped" in err, err
         with connect(robot.ns) as system:
             wait_until(lambda: system.component_names() == ["thermostat"])
     finally:

@@ -85,6 +85,10 @@ def test_rules_parse_and_apply() -> None:
     for bad in ["nothing", "a=", "=b", "a b=c", "a=b/", "__ns=a.b", "a=b c"]:
         with pytest.raises(ValueError, match="--remap"):
             scart.Remap.parse([bad])
+    # a target it would cut (the port would silently become 'states') is refused, saying so
+    for cut in ["jointStatus=joint.states", "youBotDriver.jointStatus=youBotDriver.joint_states", "a=b.c"]:
+        with pytest.raises(ValueError, match=r"a new name has no '\.'"):
+            scart.Remap.parse([cut])
 
 
 def test_tasks_ports_links_bridges_and_bindings_follow_the_remap(tmp_path: Path) -> None:

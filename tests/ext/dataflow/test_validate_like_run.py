@@ -98,7 +98,7 @@ def test_a_connect_end_that_names_no_task_is_a_warning_with_did_you_mean(tmp_pat
     path, text = first(tmp_path, "tikcer.ticks")
     checked = run("validate", str(path))
     dry = run("run", "--dry-run", str(path))
-    assert checked.returncode == 0 and dry.returncode == 0 and "nothing started" in dry.stdout
+    assert checked.returncode == 0 and dry.returncode == 0 and "nothing started" in dry.stderr
     assert problems(checked.stderr) == problems(dry.stderr) == [
         f"{path}:{line_of(text, 'tikcer')}: warning: <scart:connect> from: 'tikcer' is no task of this composite "
         "(did you mean 'ticker'?); it is looked up in the name service when the composite runs (scart validate "
@@ -135,8 +135,15 @@ def test_online_a_connect_end_no_name_service_knows_is_an_error(tmp_path: Path, 
 
 # ---- names after --remap ------------------------------------------------------------------------
 
+def test_a_dotted_name_after_remap_is_refused_by_validate_as_by_run(tmp_path: Path) -> None:
+    path, _ = first(tmp_path, "ticker.ticks")
+    checked, ran = (run(verb, str(path), "--remap", "ticker=a.b") for verb in ("validate", "run"))
+    assert checked.returncode == ran.returncode == 2
+    assert "--remap 'ticker=a.b': a new name has no '.'" in checked.stderr
+    assert checked.stderr.strip() == ran.stderr.strip()
+
+
 @pytest.mark.parametrize("remap, said", [
-    ("ticker=a.b", "8: --remap: task 'ticker' would run as 'a.b': a task name has no '.'"),
     ("ticker=summer", "12: --remap: 'ticker' and task 'summer' would both run as 'summer'"),
 ])
 def test_names_after_remap_are_refused_by_validate_as_by_run(tmp_path: Path, remap: str, said: str) -> None:

@@ -50,7 +50,7 @@ def _stop(proc: subprocess.Popen[bytes]) -> str:
     proc.send_signal(signal.SIGINT)
     out, err = finish(proc)
     assert proc.returncode == 0, f"exit {proc.returncode}\n{out}\n{err}"
-    return out
+    return out + err  # scart's own lines are on stderr
 
 
 def _with_port(src: Path, dest: Path, port: int) -> Path:

@@ -183,23 +183,25 @@ class ConnPolicy(_message.Message):
     def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ..., transport: _Optional[str] = ..., topic: _Optional[str] = ...) -> None: ...
 
 class TaskSummary(_message.Message):
-    __slots__ = ("name", "state", "activity", "period", "cycles", "overruns")
+    __slots__ = ("name", "state", "activity", "period", "cycles", "overruns", "last_cycle")
     NAME_FIELD_NUMBER: _ClassVar[int]
     STATE_FIELD_NUMBER: _ClassVar[int]
     ACTIVITY_FIELD_NUMBER: _ClassVar[int]
     PERIOD_FIELD_NUMBER: _ClassVar[int]
     CYCLES_FIELD_NUMBER: _ClassVar[int]
     OVERRUNS_FIELD_NUMBER: _ClassVar[int]
+    LAST_CYCLE_FIELD_NUMBER: _ClassVar[int]
     name: str
     state: str
     activity: str
     period: float
     cycles: int
     overruns: int
-    def __init__(self, name: _Optional[str] = ..., state: _Optional[str] = ..., activity: _Optional[str] = ..., period: _Optional[float] = ..., cycles: _Optional[int] = ..., overruns: _Optional[int] = ...) -> None: ...
+    last_cycle: float
+    def __init__(self, name: _Optional[str] = ..., state: _Optional[str] = ..., activity: _Optional[str] = ..., period: _Optional[float] = ..., cycles: _Optional[int] = ..., overruns: _Optional[int] = ..., last_cycle: _Optional[float] = ...) -> None: ...
 
 class PortInfo(_message.Message):
-    __slots__ = ("name", "direction", "type_name", "doc", "connections", "event", "last_value", "has_last_value", "bounds", "streams")
+    __slots__ = ("name", "direction", "type_name", "doc", "connections", "event", "last_value", "has_last_value", "bounds", "writes", "check", "streams")
     NAME_FIELD_NUMBER: _ClassVar[int]
     DIRECTION_FIELD_NUMBER: _ClassVar[int]
     TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
@@ -209,6 +211,8 @@ class PortInfo(_message.Message):
     LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
     HAS_LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
     BOUNDS_FIELD_NUMBER: _ClassVar[int]
+    WRITES_FIELD_NUMBER: _ClassVar[int]
+    CHECK_FIELD_NUMBER: _ClassVar[int]
     STREAMS_FIELD_NUMBER: _ClassVar[int]
     name: str
     direction: str
@@ -219,8 +223,10 @@ class PortInfo(_message.Message):
     last_value: _value_pb2.Value
     has_last_value: bool
     bounds: str
+    writes: int
+    check: str
     streams: _containers.RepeatedCompositeFieldContainer[PortStreamInfo]
-    def __init__(self, name: _Optional[str] = ..., direction: _Optional[str] = ..., type_name: _Optional[str] = ..., doc: _Optional[str] = ..., connections: _Optional[int] = ..., event: _Optional[bool] = ..., last_value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., has_last_value: _Optional[bool] = ..., bounds: _Optional[str] = ..., streams: _Optional[_Iterable[_Union[PortStreamInfo, _Mapping]]] = ...) -> None: ...
+    def __init__(self, name: _Optional[str] = ..., direction: _Optional[str] = ..., type_name: _Optional[str] = ..., doc: _Optional[str] = ..., connections: _Optional[int] = ..., event: _Optional[bool] = ..., last_value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., has_last_value: _Optional[bool] = ..., bounds: _Optional[str] = ..., writes: _Optional[int] = ..., check: _Optional[str] = ..., streams: _Optional[_Iterable[_Union[PortStreamInfo, _Mapping]]] = ...) -> None: ...
 
 class PortStreamInfo(_message.Message):
     __slots__ = ("name", "topic", "type_name", "state", "refused", "refusal", "unauthenticated")

@@ -1,5 +1,5 @@
-"""The verbs ``scart deploy`` (host data-flow tasks in a served Deployer) and
-``scart nameserver`` (a standalone name service).
+"""``scart deploy``: host data-flow tasks in a served Deployer (``scart nameserver`` is
+its standalone name service).
 
 ``scart deploy pkg.mod:Class [pkg.mod:Other@name ...] --name X --period 0.01`` imports
 each class, creates the task (``Class(name)``; without a name, the class's own default
@@ -28,13 +28,17 @@ from typing import Any
 
 from dataflow.cli import _zenoh as zenoh_args
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
-from dataflow.remote.security import add_arguments, from_args
+from dataflow.remote.security import add_arguments as add_arguments_security
+from dataflow.remote.security import from_args
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
-    """Add ``deploy`` and ``nameserver``."""
-    deploy = subparsers.add_parser("deploy", help="host data-flow tasks in a served Deployer until Ctrl-C")
-    deploy.add_argument("classes", nargs="+", metavar="pkg.mod:Class[@name]", help="TaskContext classes to host")
+HELP = "host data-flow tasks in a served Deployer until Ctrl-C"
+
+
+def add_arguments(deploy: argparse.ArgumentParser) -> None:
+    """The classes to host and how to serve them."""
+    deploy.add_argument("classes", nargs="+", metavar="pkg.mod:Class[@name]",
+                        help="TaskContext classes to host (the current folder is on the import path, as for python -m)")
     deploy.add_argument("--name", default=None, help="task name (one class only; default: the class's own)")
     deploy.add_argument("--period", type=float, default=None, help="run each task periodically (s)")
     deploy.add_argument("--listen", default=None, help="HOST:PORT to serve on (default: see above)")
@@ -53,14 +57,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     deploy.add_argument("--policy", default="data", help="policy of --connect: data | buffer:N | circular:N")
     zenoh_args.add_arguments(deploy, "also publish every output port on Zenoh (scart/NS/TASK/PORT) and announce "
                                      "the tasks with liveliness tokens")
-    add_arguments(deploy, server=True)
-    deploy.set_defaults(func=cmd_deploy)
+    add_arguments_security(deploy, server=True)
 
-    names = subparsers.add_parser("nameserver", help="run a standalone name service until Ctrl-C")
-    names.add_argument("--listen", default=DEFAULT_NS_ADDRESS, help=f"HOST:PORT (default {DEFAULT_NS_ADDRESS})")
-    names.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="default lease (s)")
-    add_arguments(names, server=True, client=False)
-    names.set_defaults(func=cmd_nameserver)
+
+def main(args: argparse.Namespace) -> int:
+    """Run ``scart deploy``; returns the exit code."""
+    return cmd_deploy(args)
 
 
 def _err(message: str) -> None:
@@ -85,6 +87,9 @@ def _load(spec: str) -> tuple[type, str | None]:
     module_name, colon, attr = target.partition(":")
     if not colon or not module_name or not attr:
         raise ValueError(f"expected pkg.mod:Class[@name], got {spec!r}")
+    here = os.getcwd()
+    if here not in sys.path and "" not in sys.path:  # the current folder first, as `python -m` puts it
+        sys.path.insert(0, here)
     module = importlib.import_module(module_name)
     try:
         cls = getattr(module, attr)
@@ -126,91 +131,135 @@ def _has_default_name(cls: type) -> bool:
     return positional[0].default is not inspect.Parameter.empty
 
 
+class _Failed(Exception):
+    """A step of ``scart deploy`` failed: the message is its one stderr line."""
+
+
 def cmd_deploy(args: argparse.Namespace) -> int:
     """Run ``scart deploy``; returns the exit code."""
-    from dataflow import DataflowError, Deployer
-    from dataflow.remote.naming import name_service_answers
+    from dataflow import DataflowError
 
     try:
         security = from_args(args)
+        ns, listen = _where(args, security)
     except DataflowError as exc:
         _err(f"scart deploy: {exc}")
         return 1
-    ns = args.ns or os.environ.get(NS_ENV) or None
-    if ns is not None and not name_service_answers(ns, security=security):
-        # Nothing answers at --ns/SCART_NS: embed the name service there, as `scart run` does.
-        if args.listen and args.listen != ns:
-            _err(f"scart deploy: no name service answers at {ns}; start one with "
-                 f"`scart nameserver --listen {ns}`, or drop --listen to embed it there")
-            return 1
-        args.listen, ns = ns, None
-    listen = args.listen or ("127.0.0.1:0" if ns else DEFAULT_NS_ADDRESS)
+    except _Failed as exc:
+        _err(f"scart deploy: {exc}")
+        return 1
     stop = _stop_event()
-    deployer = Deployer()
-    server = None
-    serving = False
-    zenoh_session: Any = None
-    zenoh_listen: list[str] = []
-    publisher: Any = None
+    hosted = _Hosted(args, security)
     try:
-        if args.zenoh:  # before any task starts: a bad endpoint or a missing package stops nothing running
-            try:
-                zenoh_session, zenoh_listen = zenoh_args.session_of(args, serve=True, security=security)
-            except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
-                _err(f"scart deploy: --zenoh: {exc}")
-                return 1
-        if args.insecure:
-            _open_ros2()
         try:
-            for task in _make_tasks(args):
-                deployer.add(task)
-            deployer.configure_all()
-            if not args.no_start:
-                deployer.start_all()
-            server = deployer.serve(listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms,
-                                    security=security, advertise=args.advertise)
-        except (ImportError, ValueError, DataflowError) as exc:
+            hosted.start(listen, ns)
+        except _Failed as exc:
             _err(f"scart deploy: {exc}")
             return 1
-        try:
-            _connect_at_start(server, args)
-        except (ValueError, DataflowError) as exc:
-            _err(f"scart deploy: --connect: {exc}")
-            return 1
-        if zenoh_session is not None:
-            try:
-                from dataflow.transports.zenoh import ZenohPublisher
-
-                publisher = ZenohPublisher(deployer, zenoh_session, args.zenoh_ns,
-                                           served=(server.advertised, server.boot_id), auth=security.auth_table())
-            except Exception as exc:  # noqa: BLE001 - Zenoh's own errors say what is wrong
-                _err(f"scart deploy: --zenoh: {exc}")
-                return 1
-        where = "embedded" if ns is None else "joined"
-        on_zenoh = "" if publisher is None else (
-            f"; Zenoh: {len(publisher.keys)} port(s) under scart/{args.zenoh_ns}/, listening on "
-            f"{' '.join(zenoh_listen)}")  # the same line: scripts wait for one
-        reach = "" if server.advertised == server.listen_address else f", reached as {server.advertised}"
-        _err(f"scart deploy: serving {', '.join(deployer.names())} on {server.listen_address} "
-             f"(name service {server.ns_address}, {where}{reach}){on_zenoh}")
-        serving = True
+        _err(hosted.readiness(ns))
         while not stop.wait(1.0):
             pass
+        _err("scart deploy: stopping")
     finally:
-        if serving:
-            _err("scart deploy: stopping")
+        hosted.close()
+    return 0
+
+
+def _where(args: argparse.Namespace, security: Any) -> tuple[str | None, str]:
+    """``(name service to join or None to embed one, address to listen on)``: nothing
+    answering at ``--ns``/``SCART_NS`` means embedding the name service there, as ``scart
+    run`` does. Raises :class:`_Failed` when ``--listen`` says otherwise."""
+    from dataflow.remote.naming import name_service_answers
+
+    ns = args.ns or os.environ.get(NS_ENV) or None
+    listen = args.listen
+    if ns is not None and not name_service_answers(ns, security=security):
+        if listen and listen != ns:
+            raise _Failed(f"no name service answers at {ns}; start one with `scart nameserver --listen {ns}`, "
+                          "or drop --listen to embed it there")
+        listen, ns = ns, None
+    return ns, listen or ("127.0.0.1:0" if ns else DEFAULT_NS_ADDRESS)
+
+
+class _Hosted:
+    """What ``scart deploy`` runs: the deployer and its tasks, its server, and the Zenoh
+    session and publisher of ``--zenoh``. :meth:`close` undoes whatever was started."""
+
+    def __init__(self, args: argparse.Namespace, security: Any) -> None:
+        from dataflow import Deployer
+
+        self.args, self.security = args, security
+        self.deployer = Deployer()
+        self.server: Any = None
+        self.zenoh_session: Any = None
+        self.zenoh_listen: list[str] = []
+        self.publisher: Any = None
+
+    def start(self, listen: str, ns: str | None) -> None:
+        """Open Zenoh (before any task starts: a bad endpoint stops nothing running), host,
+        start and serve the tasks, make the ``--connect`` links, publish on Zenoh. Raises
+        :class:`_Failed` with what went wrong."""
+        from dataflow import DataflowError
+
+        args = self.args
+        if args.insecure:
+            _open_ros2()
+        if args.zenoh:
+            try:
+                self.zenoh_session, self.zenoh_listen = zenoh_args.session_of(args, serve=True, security=self.security)
+            except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
+                raise _Failed(f"--zenoh: {zenoh_args.plain_error(str(exc))}") from None
         try:
-            if publisher is not None:
-                publisher.close()
-            if zenoh_session is not None:
-                zenoh_session.close()
+            for task in _make_tasks(args):
+                self.deployer.add(task)
+            self.deployer.configure_all()
+            if not args.no_start:
+                self.deployer.start_all()
+            self.server = self.deployer.serve(listen, ns=ns, lease_seconds=args.lease, heartbeat_ms=args.heartbeat_ms,
+                                              security=self.security, advertise=args.advertise)
+        except (ImportError, ValueError, DataflowError) as exc:
+            raise _Failed(str(exc)) from None
+        try:
+            _connect_at_start(self.server, args)
+        except (ValueError, DataflowError) as exc:
+            raise _Failed(f"--connect: {exc}") from None
+        if self.zenoh_session is not None:
+            self._publish()
+
+    def _publish(self) -> None:
+        try:
+            from dataflow.transports.zenoh import ZenohPublisher
+
+            self.publisher = ZenohPublisher(self.deployer, self.zenoh_session, self.args.zenoh_ns,
+                                            served=(self.server.advertised, self.server.boot_id),
+                                            auth=self.security.auth_table())
+        except Exception as exc:  # noqa: BLE001 - Zenoh's own errors say what is wrong
+            raise _Failed(f"--zenoh: {zenoh_args.plain_error(str(exc))}") from None
+
+    def readiness(self, ns: str | None) -> str:
+        """The one line scripts wait for: what is served where."""
+        server, publisher = self.server, self.publisher
+        where = "embedded" if ns is None else "joined"
+        on_zenoh = "" if publisher is None else (
+            f"; Zenoh: {len(publisher.keys)} port(s) under scart/{self.args.zenoh_ns}/, listening on "
+            f"{' '.join(self.zenoh_listen)}")  # the same line: scripts wait for one
+        reach = "" if server.advertised == server.listen_address else f", reached as {server.advertised}"
+        return (f"scart deploy: serving {', '.join(self.deployer.names())} on {server.listen_address} "
+                f"(name service {server.ns_address}, {where}{reach}){on_zenoh}")
+
+    def close(self) -> None:
+        """Stop publishing, close Zenoh, stop serving, stop and clean up the tasks (reverse order)."""
+        try:
+            if self.publisher is not None:
+                self.publisher.close()
+            if self.zenoh_session is not None:
+                self.zenoh_session.close()
         except Exception as exc:  # noqa: BLE001 - Zenoh failing to close never keeps the tasks running
             _err(f"scart deploy: closing Zenoh: {exc}")
-        if server is not None:
-            server.stop()
-        deployer.stop_all()
-        deployer.cleanup_all()
-    return 0
+        if self.server is not None:
+            self.server.stop()
+        self.deployer.stop_all()
+        self.deployer.cleanup_all()
 
 
 def _open_ros2() -> None:
@@ -236,23 +285,3 @@ def _connect_at_start(server: Any, args: argparse.Namespace) -> None:
     for source, sink in args.connect:
         (st, sp), (kt, kp) = split_port(source), split_port(sink)
         server.connect_ports(st, sp, kt, kp, policy, defer=True)
-
-
-def cmd_nameserver(args: argparse.Namespace) -> int:
-    """Run ``scart nameserver``; returns the exit code."""
-    from dataflow import DataflowError
-    from dataflow.remote.naming import serve_nameserver
-
-    stop = _stop_event()
-    try:
-        server = serve_nameserver(args.listen, default_lease=args.lease, security=from_args(args))
-    except DataflowError as exc:
-        _err(f"scart nameserver: {exc}")
-        return 1
-    _err(f"scart nameserver: serving on {server.listen_address}")
-    try:
-        while not stop.wait(1.0):
-            pass
-    finally:
-        server.stop()
-    return 0

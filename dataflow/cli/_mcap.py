@@ -1,0 +1,290 @@
+"""MCAP files: reading those someone handed you, with bounds (what ``scart play``, ``info``
+and ``record --recover`` share), and the output file ``record`` writes.
+
+:class:`McapScan` reads a file record by record on its own (not through the ``mcap``
+package's readers), so that nothing in the file decides how much is read, allocated or
+decompressed:
+
+* a record longer than what is left of the file ends the scan as *truncated* at its
+  offset (a recording cut short by a crash or a full disk): what came before is read;
+* a chunk declaring more than :data:`MAX_CHUNK_BYTES` uncompressed is refused before
+  anything is decompressed, and decompression stops at the declared size (a chunk that
+  holds more than it declares is refused too);
+* a message longer than :data:`MAX_MESSAGE_BYTES`, not JSON, or nested deeper than
+  :data:`MAX_JSON_DEPTH` is skipped and counted, never decoded further.
+
+Anything else malformed raises :class:`McapError`, whose text says what is wrong and
+where (the caller names the file): one line for the user, never a traceback.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import stat
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "McapError", "McapScan", "Sink", "decode_json",
+           "open_output", "output_problem"]
+
+MAGIC = b"\x89MCAP0\r\n"
+MAX_MESSAGE_BYTES = 4 << 20
+MAX_CHUNK_BYTES = 64 << 20  #: a chunk's uncompressed size, at most
+MAX_RECORD_BYTES = MAX_CHUNK_BYTES + (1 << 20)  #: a record of the file (a chunk and its header), at most
+MAX_JSON_DEPTH = 64
+_HEAD = struct.Struct("<BQ")  # opcode, length
+
+
+class McapError(ValueError):
+    """A file scart will not read further: what is wrong, and where (byte offset)."""
+
+
+@dataclass
+class McapScan:
+    """One pass over an MCAP file (see the module docstring). Iterate :meth:`records` (or
+    :meth:`messages`); afterwards :attr:`truncated_at` is the offset where a file cut
+    short ends (None for a complete one) and :attr:`complete` says a footer was read."""
+
+    path: str
+    truncated_at: int | None = None
+    complete: bool = False
+    schemas: dict[int, Any] = field(default_factory=dict)
+    channels: dict[int, Any] = field(default_factory=dict)
+
+    def records(self) -> Iterator[Any]:
+        """The file's Schema, Channel and Message records in file order (a chunk's messages
+        in log-time order). Blocks on file reads only; raises :class:`McapError`."""
+        with self._open() as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if fh.read(len(MAGIC)) != MAGIC:
+                raise McapError("not an MCAP file (it does not start with the MCAP magic)")
+            pos = len(MAGIC)
+            while True:
+                head = fh.read(_HEAD.size)
+                if len(head) < _HEAD.size:
+                    self.truncated_at = pos
+                    return
+                opcode, length = _HEAD.unpack(head)
+                if length > size - pos - _HEAD.size:
+                    self.truncated_at = pos
+                    return
+                if length > MAX_RECORD_BYTES:
+                    raise McapError(f"a record of {length} bytes at byte {pos}: more than scart reads "
+                                    f"({MAX_RECORD_BYTES} bytes)")
+                body = fh.read(length)
+                if opcode == _opcodes().FOOTER:
+                    self.complete = True
+                    return
+                yield from self._parse(opcode, body, pos)
+                pos += _HEAD.size + length
+
+    def messages(self) -> Iterator[tuple[str, int, dict[str, Any] | None]]:
+        """``(topic, log_time ns, JSON data or None)`` of each message (None: skipped, see
+        :func:`decode_json`); a message of an unknown channel raises :class:`McapError`."""
+        records = _records()
+        for record in self.records():
+            if isinstance(record, records.Message):
+                channel = self.channels.get(record.channel_id)
+                if channel is None:
+                    raise McapError(f"a message of channel {record.channel_id}, which the file never declares")
+                yield channel.topic, record.log_time, decode_json(record.data)
+
+    def _open(self) -> io.BufferedReader:
+        """The file, opened without blocking on a FIFO or a device (those are refused)."""
+        try:
+            fd = os.open(self.path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        except OSError as exc:
+            raise McapError(exc.strerror or str(exc)) from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise McapError("not a regular file")
+        return open(fd, "rb")  # noqa: SIM115 - closed by the caller's with
+
+    def _parse(self, opcode: int, body: bytes, pos: int) -> Iterator[Any]:
+        """The records one top-level record holds (a chunk's, decompressed with bounds)."""
+        ops, records = _opcodes(), _records()
+        if opcode == ops.CHUNK:
+            chunk = _read(records.Chunk, body, pos)
+            inner = _parse_chunk(chunk, pos)
+            messages = sorted((r for r in inner if isinstance(r, records.Message)), key=lambda m: m.log_time)
+            for record in inner:
+                if not isinstance(record, records.Message):
+                    self._learn(record)
+                    yield record
+            yield from messages
+        elif opcode in (ops.SCHEMA, ops.CHANNEL, ops.MESSAGE):
+            kind = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel, ops.MESSAGE: records.Message}[opcode]
+            record = _read(kind, body, pos)
+            self._learn(record)
+            yield record
+
+    def _learn(self, record: Any) -> None:
+        records = _records()
+        if isinstance(record, records.Schema):
+            self.schemas[record.id] = record
+        elif isinstance(record, records.Channel):
+            self.channels[record.id] = record
+
+
+def decode_json(data: bytes) -> dict[str, Any] | None:
+    """A message's JSON object, or None when it is over :data:`MAX_MESSAGE_BYTES`, not JSON,
+    not an object, or nested deeper than :data:`MAX_JSON_DEPTH`."""
+    from dataflow.cli.output import depth
+
+    if len(data) > MAX_MESSAGE_BYTES:
+        return None
+    try:
+        value = json.loads(data)
+    except (ValueError, RecursionError):
+        return None
+    try:
+        if not isinstance(value, dict) or depth(value, MAX_JSON_DEPTH, MAX_MESSAGE_BYTES) > MAX_JSON_DEPTH:
+            return None
+    except ValueError:
+        return None
+    return value
+
+
+def _parse_chunk(chunk: Any, pos: int) -> list[Any]:
+    """The Schema, Channel and Message records of a chunk (other kinds skipped)."""
+    ops, records = _opcodes(), _records()
+    data = _decompress(chunk, pos)
+    kinds = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel, ops.MESSAGE: records.Message}
+    out: list[Any] = []
+    offset = 0
+    while offset < len(data):
+        if len(data) - offset < _HEAD.size:
+            raise McapError(f"the chunk at byte {pos} ends inside a record")
+        opcode, length = _HEAD.unpack_from(data, offset)
+        offset += _HEAD.size
+        if length > len(data) - offset:
+            raise McapError(f"the chunk at byte {pos} holds a record longer than itself")
+        kind = kinds.get(opcode)
+        if kind is not None:
+            out.append(_read(kind, data[offset:offset + length], pos))
+        offset += length
+    return out
+
+
+def _decompress(chunk: Any, pos: int) -> bytes:
+    """A chunk's data, decompressing at most its declared size (see the module docstring)."""
+    declared = chunk.uncompressed_size
+    if declared > MAX_CHUNK_BYTES:
+        raise McapError(f"the chunk at byte {pos} declares {declared} bytes uncompressed: more than scart reads "
+                        f"({MAX_CHUNK_BYTES} bytes)")
+    try:
+        if chunk.compression == "":
+            data = bytes(chunk.data)
+        elif chunk.compression == "zstd":
+            data = _unzstd(chunk.data, declared)
+        elif chunk.compression == "lz4":
+            import lz4.frame
+
+            data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=declared + 1)
+        else:
+            raise McapError(f"the chunk at byte {pos} uses compression {chunk.compression[:40]!r}, which scart "
+                            "does not read (zstd, lz4 or none)")
+    except McapError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the decompressors' own errors: a corrupt chunk
+        raise McapError(f"the chunk at byte {pos} does not decompress: {exc}") from None
+    if len(data) != declared:
+        raise McapError(f"the chunk at byte {pos} holds {'more' if len(data) > declared else 'less'} than the "
+                        f"{declared} bytes it declares")
+    return data
+
+
+def _unzstd(data: bytes, declared: int) -> bytes:
+    """zstd data, at most ``declared`` + 1 bytes of it (more is refused by the caller)."""
+    import zstandard
+
+    parts: list[bytes] = []
+    got = 0
+    with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data)) as reader:
+        while got <= declared:
+            part = reader.read(min(1 << 20, declared + 1 - got))
+            if not part:
+                break
+            parts.append(part)
+            got += len(part)
+    return b"".join(parts)
+
+
+def _read(kind: Any, body: bytes, pos: int) -> Any:
+    """One record of ``kind`` parsed from ``body`` (:class:`McapError` when malformed)."""
+    from mcap.data_stream import ReadDataStream
+
+    try:
+        stream = ReadDataStream(io.BytesIO(body))
+        if kind.__name__ == "Message":
+            return kind.read(stream, len(body))
+        return kind.read(stream)
+    except Exception:  # noqa: BLE001 - struct, decoding and end-of-data errors alike: a malformed record
+        raise McapError(f"a malformed {kind.__name__} record at byte {pos}") from None
+
+
+def _opcodes() -> Any:
+    from mcap.opcode import Opcode
+
+    return Opcode
+
+
+def _records() -> Any:
+    from mcap import records
+
+    return records
+
+
+# ---- the file record writes -----------------------------------------------------------------
+
+def output_problem(path: str, overwrite: bool) -> str | None:
+    """Why ``path`` cannot be the file to write (a folder, a missing folder, an existing
+    file without ``overwrite``), or None."""
+    if path.endswith(os.sep) or os.path.isdir(path):
+        return (f"-o {path}: a folder; scart record writes one .mcap file (not a folder as ros2 bag): "
+                f"give -o {os.path.join(path, 'run.mcap')}")
+    parent = os.path.dirname(path) or "."
+    if not os.path.isdir(parent):
+        return f"-o {path}: the folder {parent} does not exist"
+    if os.path.exists(path) and not overwrite:
+        return f"-o {path}: the file exists; give --overwrite to replace it, or another name"
+    return None
+
+
+def open_output(path: str, overwrite: bool) -> int:
+    """The file descriptor of a new output file (exclusive unless ``overwrite``); raises
+    ``ValueError`` with one line when it cannot be made."""
+    flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
+    try:
+        return os.open(path, flags, 0o644)
+    except FileExistsError:
+        raise ValueError(f"-o {path}: the file exists; give --overwrite to replace it") from None
+    except OSError as exc:
+        raise ValueError(f"-o {path}: {exc.strerror}") from None
+
+
+class Sink:
+    """What the MCAP writer writes to: the file descriptor, unbuffered, so that the bytes
+    on disk are exactly :attr:`pos` after each write (a failed write is cut back cleanly)."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.pos = 0
+
+    def write(self, data: bytes) -> int:
+        view = memoryview(data)
+        while view:
+            n = os.write(self.fd, view)
+            self.pos += n
+            view = view[n:]
+        return len(data)
+
+    def tell(self) -> int:
+        return self.pos
+
+    def flush(self) -> None:
+        """Nothing is held back: every write went to the file."""

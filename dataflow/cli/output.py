@@ -1,0 +1,211 @@
+"""What the data-flow verbs share: their common options, printing, errors, the values a
+user types, and reaching the name service. It imports no verb (each verb module imports
+it), and nothing heavy until a verb runs.
+
+Every verb that reads a running system finds it through a name service: ``--ns
+HOST:PORT``, else the ``SCART_NS`` environment variable, else ``127.0.0.1:7850``. Data
+goes to stdout (with ``--json``: JSON, one document, or one line per sample for
+streams), diagnostics to stderr, one line each, never a traceback. ``--timeout`` is the
+deadline of each remote call. Exit codes: 0 success, 1 a failure (nothing answers,
+unknown name, wrong type, refused value or transition), 2 usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+
+__all__ = ["add_common", "dump", "err", "jsonable", "ns_address", "out", "parse_value", "policy_of", "rate_of",
+           "stopped_by_signals", "wait_until_stopped", "with_rates", "with_system"]
+
+#: A value typed on the command line (JSON or YAML), at most this long.
+MAX_VALUE_CHARS = 1 << 20
+#: ... and nested at most this deep.
+MAX_VALUE_DEPTH = 64
+
+
+def add_common(parser: argparse.ArgumentParser) -> None:
+    """``--ns``, ``--json``, ``--timeout`` and the client's security options."""
+    from dataflow.remote.security import add_arguments
+
+    parser.add_argument("--ns", default=None, help=f"name service HOST:PORT (default ${NS_ENV} or {DEFAULT_NS_ADDRESS})")
+    parser.add_argument("--json", action="store_true", help="JSON on stdout")
+    parser.add_argument("--timeout", type=float, default=3.0, help="deadline of each remote call (s)")
+    add_arguments(parser, server=False)
+
+
+def ns_address(args: argparse.Namespace) -> str:
+    """The name service to use: ``--ns``, else ``$SCART_NS``, else the default."""
+    return args.ns or os.environ.get(NS_ENV) or DEFAULT_NS_ADDRESS
+
+
+def err(message: str) -> None:
+    """One diagnostic line on stderr, ``scart `` first."""
+    print(f"scart {message}", file=sys.stderr, flush=True)
+
+
+def out(text: str) -> None:
+    """A line of data on stdout, flushed (pipes see each sample at once)."""
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def dump(obj: Any) -> str:
+    """``obj`` as one line of JSON."""
+    return json.dumps(obj, ensure_ascii=False)
+
+
+def jsonable(value: Any) -> Any:
+    """A sample or result as JSON-able data (the type registry's form)."""
+    from dataflow import registry
+
+    return registry.to_jsonable(value)
+
+
+def parse_value(text: str) -> Any:
+    """A value typed on the command line: JSON, else YAML as ``ros2 topic pub`` takes it
+    (``"{x: 1, y: [2, 3]}"``, ``"data: hi"``), else the text itself (a bare word is a
+    string). Raises ``ValueError`` for text over :data:`MAX_VALUE_CHARS` or nested deeper
+    than :data:`MAX_VALUE_DEPTH`."""
+    if len(text) > MAX_VALUE_CHARS:
+        raise ValueError(f"a value of {len(text)} characters: at most {MAX_VALUE_CHARS}")
+    try:
+        value = json.loads(text)
+    except (ValueError, RecursionError):
+        value = _yaml(text)
+    if depth(value) > MAX_VALUE_DEPTH:
+        raise ValueError(f"a value nested deeper than {MAX_VALUE_DEPTH} levels")
+    return value
+
+
+def _yaml(text: str) -> Any:
+    import yaml
+
+    try:
+        value = yaml.safe_load(text)
+    except (yaml.YAMLError, RecursionError):
+        return text
+    if value is None and text.strip() not in ("null", "~", ""):
+        return text  # a comment or a document marker: the text is what was meant
+    return value
+
+
+def depth(value: Any, limit: int = MAX_VALUE_DEPTH, max_items: int = MAX_VALUE_CHARS) -> int:
+    """How deeply lists and mappings nest in ``value`` (iterative, so any depth is safe to
+    measure; stops past ``limit`` + 1 levels). Raises ``ValueError`` past ``max_items``
+    items (YAML aliases can make a short text a huge or cyclic value)."""
+    deepest = 0
+    seen = 0
+    stack: list[tuple[Any, int]] = [(value, 0)]
+    while stack:
+        item, level = stack.pop()
+        seen += 1
+        if seen > max_items:
+            raise ValueError(f"a value of more than {max_items} items")
+        if isinstance(item, dict):
+            item = list(item.values())
+        if isinstance(item, list):
+            level += 1
+            deepest = max(deepest, level)
+            if level <= limit:
+                stack.extend((child, level) for child in item)
+    return deepest
+
+
+def policy_of(text: str) -> Any:
+    """``--policy`` text as a :class:`~dataflow.ConnPolicy` (``ValueError`` naming it)."""
+    from dataflow import ConnPolicy
+
+    return ConnPolicy.parse(text)
+
+
+def with_system(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
+    """Run a verb's ``body`` with ``args.system`` connected to the name service; every
+    error it can meet becomes one stderr line and exit code 1."""
+    from dataflow import DataflowError
+    from dataflow.remote import connect
+    from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
+    from dataflow.remote.security import from_args
+
+    address = ns_address(args)
+    source = "--ns" if args.ns else (f"${NS_ENV}" if os.environ.get(NS_ENV) else "the default")
+    try:
+        system = connect(address, timeout=args.timeout, security=from_args(args))
+    except (UnavailableError, RemoteTimeoutError) as exc:
+        err(f"{args.command}: no name service answers at {address} (from {source}): {exc}\n"
+            f"  start one with `scart nameserver --listen {address}`, or host tasks with "
+            f"`scart deploy pkg.mod:Class` (embeds one on {DEFAULT_NS_ADDRESS}),\n"
+            f"  or point --ns / {NS_ENV} at a running name service or deployer.")
+        return 1
+    except DataflowError as exc:  # credentials refused, unusable security files
+        err(f"{args.command}: {exc}")
+        return 1
+    try:
+        args.system = system
+        return body(args)
+    except (DataflowError, ValueError) as exc:
+        err(f"{args.command}: {exc}")
+        return 1
+    finally:
+        system.close()
+
+
+@contextlib.contextmanager
+def stopped_by_signals(done: threading.Event) -> Iterator[None]:
+    """SIGINT and SIGTERM set ``done`` inside the block (then the former handlers again):
+    set before a subscription starts printing, so a Ctrl-C after its first line stops it."""
+    def handler(signum: int, frame: Any) -> None:
+        done.set()
+
+    old = [signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)]
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old[0])
+        signal.signal(signal.SIGTERM, old[1])
+
+
+def wait_until_stopped(done: threading.Event, duration: float | None, tick: float = 1.0,
+                       on_tick: Callable[[], None] | None = None) -> None:
+    """Block until ``done``, SIGINT/SIGTERM, or ``duration`` s; call ``on_tick`` every ``tick`` s."""
+    with stopped_by_signals(done):
+        deadline = None if duration is None else time.monotonic() + duration
+        while not done.is_set():
+            wait = tick if deadline is None else min(tick, max(0.0, deadline - time.monotonic()))
+            if done.wait(wait):
+                break
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+            if on_tick is not None:
+                on_tick()
+
+
+def rate_of(periods: int, span: float) -> float:
+    """The rate ``hz`` reports, from ``periods`` intervals between events that together
+    span ``span`` seconds: one over their mean (0.0 when nothing was measured). ``ls`` and
+    ``topics`` give their rates with it too, from the events' own times."""
+    return periods / span if periods > 0 and span > 0 else 0.0
+
+
+def with_rates(listing: Callable[[], list[Any]], count: Callable[[Any], int], sample: float) -> list[tuple[Any, float]]:
+    """Each item of ``listing()`` with its rate (count per second) measured over ``sample`` s:
+    listed twice, ``sample`` s apart; an item that appeared in between has rate 0."""
+    first = {item.name: (count(item), time.monotonic()) for item in listing()}
+    if sample > 0:
+        threading.Event().wait(sample)
+    rows = []
+    for item in listing():
+        count0, t0 = first.get(item.name, (count(item), time.monotonic()))
+        dt = time.monotonic() - t0
+        rows.append((item, round((count(item) - count0) / dt, 2) if dt > 0 else 0.0))
+    return rows

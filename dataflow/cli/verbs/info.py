@@ -1,0 +1,69 @@
+"""``scart info FILE.mcap``: the channels of an MCAP file (topic, type, messages, rate)
+and its duration, read with the bounds of :mod:`dataflow.cli._mcap`. A file cut short
+(a recording killed, a full disk) is read as far as it goes, and said to be truncated
+(``scart record --recover`` finishes it); a file that is not a readable MCAP file gets
+one line saying what is wrong, and exit 1."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from dataflow.cli.output import dump, err, out
+
+HELP = "channels, counts, rates and duration of an MCAP file"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The file and ``--json``."""
+    parser.add_argument("file")
+    parser.add_argument("--json", action="store_true", help="JSON on stdout")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Describe the file; 1 (one line) when it cannot be read."""
+    from dataflow.cli._mcap import McapError
+
+    try:
+        doc = describe(args.file)
+    except McapError as exc:
+        err(f"info: {args.file}: {exc}")
+        return 1
+    if doc["truncated"]:
+        err(f"info: {args.file}: truncated at byte {doc['truncated_at']} (a recording cut short): what comes before "
+            f"is listed; `scart record --recover {args.file}` writes a complete copy")
+    if args.json:
+        out(dump(doc))
+        return 0
+    out(f"{args.file}: {doc['messages']} message(s) over {doc['duration']:.3f} s"
+        + (" (truncated)" if doc["truncated"] else ""))
+    for c in doc["channels"]:
+        out(f"  {c['topic']:<40} {c['type']:<20} {c['count']:>8} msgs {c['rate']:>9.1f} Hz")
+    return 0
+
+
+def describe(path: str) -> dict[str, Any]:
+    """What ``scart info --json`` prints: ``file``, ``duration`` (s), ``messages``,
+    ``channels`` (``topic``, ``type``, ``count``, ``rate``), ``truncated`` and
+    ``truncated_at``. Raises :class:`~dataflow.cli._mcap.McapError`."""
+    from mcap import records as kinds
+
+    from dataflow.cli._mcap import McapScan
+
+    scan = McapScan(path)
+    counts: dict[int, int] = {}
+    start = end = None
+    for record in scan.records():
+        if isinstance(record, kinds.Message):
+            counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
+            start = record.log_time if start is None else min(start, record.log_time)
+            end = record.log_time if end is None else max(end, record.log_time)
+    duration = max(0.0, ((end or 0) - (start or 0)) / 1e9)
+    channels = []
+    for cid, channel in sorted(scan.channels.items()):
+        schema = scan.schemas.get(channel.schema_id)
+        count = counts.get(cid, 0)
+        channels.append({"topic": channel.topic, "type": schema.name if schema else "", "count": count,
+                         "rate": round(count / duration, 2) if duration > 0 else 0.0})
+    return {"file": path, "duration": round(duration, 6), "messages": sum(counts.values()), "channels": channels,
+            "truncated": scan.truncated_at is not None, "truncated_at": scan.truncated_at}

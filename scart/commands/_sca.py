@@ -1,0 +1,142 @@
+"""SCA services from the command line, the client side of ``scart services`` and
+``scart call``: list and call the services a ``binding.grpc`` server exports.
+
+A server is found by name (the ``sca:HOST:PORT`` entries ``scart run`` registers with
+its name service: ``--ns``, else ``SCART_NS``, else the default) or given with ``--at
+HOST:PORT`` (else ``SCART_SERVICES``), which overrides the name service: the endpoint
+``scart run`` serves every component service on (``--services`` chooses it), or any
+``binding.grpc`` service of a composite. Arguments are JSON or YAML (a bare word is a
+string), converted by the server to the operation's parameter types; the result prints as
+JSON. The server's TLS and tokens apply (``--token``, ``--tls-*``): listing needs the
+``read`` role, calling ``operate``. The wire is ``scart.sca.v1``
+(``dataflow/proto/scart/sca/v1/sca.proto``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["SERVICES_ENV", "at", "call", "endpoints", "find", "list_services", "with_services"]
+
+SERVICES_ENV = "SCART_SERVICES"
+MAX_ENDPOINTS = 64  # services endpoints one command lists or searches
+
+
+def at(args: argparse.Namespace) -> str | None:
+    """``--at``, else ``$SCART_SERVICES``, else None (then the name service is asked)."""
+    return getattr(args, "at", None) or os.environ.get(SERVICES_ENV) or None
+
+
+def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
+    """Run ``body``; a remote fault, a refusal or a malformed target becomes one stderr line
+    and exit 1."""
+    from dataflow import DataflowError
+    from dataflow.cli.output import err
+
+    try:
+        return body(args)
+    except (DataflowError, ValueError) as exc:
+        err(f"{args.command}: {exc}")
+        return 1
+
+
+def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
+    from dataflow.proto.scart.sca.v1 import sca_pb2_grpc
+    from dataflow.remote import _rpc
+    from dataflow.remote.security import from_args
+
+    channel = from_args(args).channel(address, _rpc.channel_options())
+    return channel, sca_pb2_grpc.ScaServiceStub(channel)
+
+
+def endpoints(args: argparse.Namespace) -> list[str]:
+    """The services endpoints registered with the name service (``--ns``, ``SCART_NS``, the
+    default); raises ``DataflowError`` naming it when it does not answer."""
+    from dataflow.cli.output import ns_address
+    from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
+    from dataflow.remote.naming import NameClient
+    from dataflow.remote.security import from_args
+
+    ns = ns_address(args)
+    names = NameClient(ns, timeout=args.timeout, security=from_args(args))
+    try:
+        entries = names.entries(sca=True)
+    except (UnavailableError, RemoteTimeoutError) as exc:
+        raise type(exc)(f"no name service answers at {ns} ({exc}): give --ns, or --at HOST:PORT "
+                        "(scart run prints it: 'SCA services at ...')") from None
+    finally:
+        names.close()
+    return sorted({e.address for e in entries})[:MAX_ENDPOINTS]
+
+
+def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Every service the server at ``address`` exports: names, interface, operations."""
+    from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
+    from dataflow.remote import _rpc
+
+    channel, stub = _stub(address, args)
+    try:
+        reply = _rpc.call(stub.ListServices, pb.ListServicesRequest(), args.timeout, address)
+    finally:
+        channel.close()
+    return [{"names": list(s.names), "interface": s.interface, "at": address,
+             "operations": [{"name": o.name, "oneway": o.oneway, "returns_value": o.returns_value}
+                            for o in s.operations]} for s in reply.services]
+
+
+def find(service: str, args: argparse.Namespace) -> str:
+    """The endpoint serving ``service`` (``COMPONENT/SERVICE``, a promoted service or a
+    single-service component's name) among those the name service knows; raises
+    ``NotFoundError`` listing what there is, ``DataflowError`` when it is ambiguous."""
+    from dataflow.errors import DataflowError, NotFoundError
+
+    found, known = [], []
+    for address in endpoints(args):
+        try:
+            listed = list_services(address, args)
+        except DataflowError:  # an endpoint going away: the others still count
+            continue
+        known += [s["names"][0] for s in listed]
+        if any(service in s["names"] for s in listed):
+            found.append(address)
+    if not found:
+        raise NotFoundError(f"no component or SCA service named {service!r}; SCA services: "
+                            f"{', '.join(sorted(known)[:20]) or 'none registered'}")
+    if len(found) > 1:
+        raise DataflowError(f"SCA service {service!r} is served at {', '.join(found)}: choose one with --at")
+    return found[0]
+
+
+def call(address: str, target: str, json_args: list[Any], args: argparse.Namespace) -> Any:
+    """Call ``COMPONENT/SERVICE.operation`` (or ``SERVICE.operation`` for a promoted or
+    single service) at ``address`` with JSON arguments; the result as JSON-able data.
+    Raises ``ValueError`` for a malformed target, ``DataflowError`` for a remote fault."""
+    from dataflow import codec, registry
+    from dataflow.errors import DataflowError
+    from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
+    from dataflow.remote import _rpc
+
+    service, operation = split_target(target)
+    request = pb.CallRequest(invocation=pb.Invocation(service=service, operation=operation,
+                                                      args=[codec.encode(a) for a in json_args]))
+    channel, stub = _stub(address, args)
+    try:
+        reply = _rpc.call(stub.Call, request, args.timeout, address)
+    finally:
+        channel.close()
+    if reply.outcome.WhichOneof("kind") == "fault":
+        fault = reply.outcome.fault
+        ref = f" (reference {fault.reference} in the server's log)" if fault.reference else ""
+        raise DataflowError(f"{target} raised {fault.type}: {fault.message}{ref}")
+    return registry.to_jsonable(codec.decode(reply.outcome.value))
+
+
+def split_target(target: str) -> tuple[str, str]:
+    """``"Component/Service.op"`` → ``("Component/Service", "op")`` (``ValueError`` otherwise)."""
+    service, dot, operation = target.rpartition(".")
+    if not dot or not service or not operation:
+        raise ValueError(f"expected COMPONENT/SERVICE.operation, got {target!r}")
+    return service, operation
