@@ -1,20 +1,29 @@
-"""Benchmark of the ROS 2 library against bare cyclonedds pub/sub of the same message,
+"""Benchmark of ROS 2 in scart against bare cyclonedds pub/sub of the same message,
 measured in the same run, alternating.
 
 Usage: ``python benchmarks/bench_ros2.py [--quick | --smoke]`` (needs ``scart[ros2]``).
 The same-host hop: a publisher process sends ``std_msgs/msg/Int64`` holding
 ``time.monotonic_ns()`` at 1 kHz on absolute deadlines; this process's subscriber records
-arrival − stamp (CLOCK_MONOTONIC is one clock for every process of the host). Two
-variants, each publisher and subscriber of the same kind:
+arrival − stamp (CLOCK_MONOTONIC is one clock for every process of the host). Variants:
 
-* **bare**: cyclonedds-python alone: an ``IdlStruct`` named ``std_msgs::msg::dds_::Int64_``,
-  a ``DataWriter``, and a ``DataReader`` drained by a waitset thread (``take``);
-* **ros2**: :mod:`dataflow.transports.ros2`: ``Participant.publisher`` of a rosbags
-  message, ``Participant.subscribe`` delivering a rosbags message to a callback.
+* **bare**: cyclonedds-python alone, both ends: an ``IdlStruct`` named
+  ``std_msgs::msg::dds_::Int64_``, a ``DataWriter``, and a ``DataReader`` drained by a
+  waitset thread (``take``);
+* **ros2**: the library :mod:`dataflow.transports.ros2`, both ends:
+  ``Participant.publisher`` of a rosbags message, ``Participant.subscribe`` delivering a
+  rosbags message to a callback;
+* **stream out**: a scart port → a ``ros2`` stream → the bare reader: a task's
+  ``OutputPort(int)`` written in the publisher process, joined to the topic by
+  ``Deployer.stream`` (``ConnPolicy.data(init=False)``);
+* **stream in**: the bare writer → a ``ros2`` stream → a scart port: a task's
+  ``InputPort(int)`` in this process fed by ``Deployer.stream``, timed when the sample
+  is in the port (its data callback, on the transport's thread, reads it), so after the
+  conversion and the port's check.
 
-Both reliable keep-last 1 volatile (``QoS.data()``), loopback only, on two random domains;
-the first second of each round is dropped. Rounds alternate bare/ros2, then their order
-swaps. Prints one markdown table. Not a test (``.ci/run`` does not run it).
+All reliable keep-last 1 volatile (``QoS.data()``), loopback only, each variant on its own
+random domain; the first second of each round is dropped. Rounds run the variants in
+turn, the order rotating each round. Prints one markdown table, with each p50 over bare's
+of the same round. Not a test (``.ci/run`` does not run it).
 """
 
 from __future__ import annotations
@@ -32,10 +41,27 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from _common import paced, pct, wait_until  # noqa: E402
 
+from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.transports.ros2 import Network, Participant, QoS  # noqa: E402
 
 TOPIC = "/scart_bench/hop"
 RATE = 1000.0
+VARIANTS = ("bare", "ros2", "stream out", "stream in")
+PUBLISHER = {"bare": "bare", "ros2": "ros2", "stream out": "stream", "stream in": "bare"}
+
+
+class Stamps(TaskContext):
+    """The benchmark's task: ``out`` in the publisher process, ``inp`` in this one."""
+
+    out = OutputPort(int)
+    inp = InputPort(int)
+
+
+def _stream(deployer: Deployer, port: str, domain: int) -> object:
+    """``port`` joined to the benchmark's topic on ``domain``; the transport's stream."""
+    made = deployer.stream(f"bench.{port}", ConnPolicy.data(init=False).with_(transport="ros2", topic=TOPIC),
+                           {"domain": str(domain)})
+    return deployer.streams()[made.name]._stream
 
 
 def bare_types() -> tuple[Any, Any]:
@@ -67,6 +93,18 @@ def publish(variant: str, domain: int, seconds: float) -> None:
         if not wait_until(lambda: writer.get_matched_subscriptions(), timeout=20):
             raise SystemExit("bare: no subscriber matched")
         paced(count, RATE, lambda k: writer.write(int64_type(data=time.monotonic_ns())))
+        return
+    if variant == "stream":
+        deployer = Deployer()
+        task = deployer.add(Stamps("bench"))
+        stream = _stream(deployer, "out", domain)
+        try:
+            if not wait_until(lambda: stream.matched, timeout=20):
+                raise SystemExit("stream: no subscriber matched")
+            paced(count, RATE, lambda k: task.out.write(time.monotonic_ns()))
+        finally:
+            for name in list(deployer.streams()):
+                deployer.unstream(name)
         return
     with Participant(domain) as ros:
         pub = ros.publisher(TOPIC, "std_msgs/msg/Int64", QoS.data())
@@ -125,10 +163,32 @@ class OurSubscriber:
         self._ros.close()
 
 
+class StreamSubscriber:
+    """A scart input port fed by a ``ros2`` stream, timed by the port's data callback."""
+
+    def __init__(self, domain: int) -> None:
+        self.latencies: list[float] = []
+        self._deployer = Deployer()
+        task = self._deployer.add(Stamps("bench"))
+        port = task.inp
+
+        def arrived(_port: Any) -> None:  # the transport's thread, once the sample is in the port
+            _flow, stamp = port.read()
+            self.latencies.append((time.monotonic_ns() - stamp) / 1e3)
+
+        port.add_data_callback(arrived)
+        _stream(self._deployer, "inp", domain)
+
+    def close(self) -> None:
+        for name in list(self._deployer.streams()):
+            self._deployer.unstream(name)
+
+
 def run_round(variant: str, domain: int, subscriber: Any, seconds: float, warmup: float) -> list[float]:
     """One publisher process of ``variant``; the latencies after ``warmup`` s (µs)."""
     subscriber.latencies.clear()
-    proc = subprocess.run([sys.executable, __file__, "--role", "pub", "--variant", variant, "--domain", str(domain),
+    proc = subprocess.run([sys.executable, __file__, "--role", "pub", "--variant", PUBLISHER[variant],
+                           "--domain", str(domain),
                            "--seconds", str(seconds)], capture_output=True, text=True, timeout=seconds + 60)
     if proc.returncode != 0:
         raise SystemExit(f"{variant} publisher failed: {proc.stderr or proc.stdout}")
@@ -149,13 +209,18 @@ def main() -> int:
         publish(args.variant, args.domain, args.seconds)
         return 0
     rounds, seconds, warmup = (1, 1.0, 0.2) if args.smoke else (2, 4.0, 1.0) if args.quick else (3, 10.0, 1.0)
-    first = random.SystemRandom().randint(1, 115)
-    domains = {"bare": first, "ros2": first + 116}
-    subscribers = {"bare": BareSubscriber(domains["bare"]), "ros2": OurSubscriber(domains["ros2"])}
-    results: dict[str, list[list[float]]] = {"bare": [], "ros2": []}
+    first = random.SystemRandom().randint(1, 58)
+    domains = {v: first + 58 * i for i, v in enumerate(VARIANTS)}
+    makers = {"bare": BareSubscriber, "ros2": OurSubscriber, "stream out": BareSubscriber,
+              "stream in": StreamSubscriber}
+    subscribers: dict[str, Any] = {}
+    results: dict[str, list[list[float]]] = {v: [] for v in VARIANTS}
     try:
+        for v in VARIANTS:
+            subscribers[v] = makers[v](domains[v])
         for r in range(rounds):
-            for variant in (("bare", "ros2") if r % 2 == 0 else ("ros2", "bare")):
+            order = VARIANTS[r % len(VARIANTS):] + VARIANTS[:r % len(VARIANTS)]
+            for variant in order:
                 results[variant].append(run_round(variant, domains[variant], subscribers[variant], seconds, warmup))
     finally:
         for subscriber in subscribers.values():
@@ -171,18 +236,18 @@ def print_table(results: dict[str, list[list[float]]], seconds: float, warmup: f
     print("|---|---|---|---|---|---|")
     for r in range(len(results["bare"])):
         bare_p50 = pct(results["bare"][r], 0.5)
-        for variant in ("bare", "ros2"):
+        for variant in VARIANTS:
             values = results[variant][r]
             p50 = pct(values, 0.5)
             print(f"| {variant} | {r + 1} | {len(values)} | {p50:.0f} | {pct(values, 0.99):.0f} | "
                   f"{p50 / bare_p50:.2f}× |")
     pooled = {v: [x for run in runs for x in run] for v, runs in results.items()}
     bare_p50 = pct(pooled["bare"], 0.5)
-    for variant in ("bare", "ros2"):
+    for variant in VARIANTS:
         p50 = pct(pooled[variant], 0.5)
         print(f"| **{variant}** | all | {len(pooled[variant])} | **{p50:.0f}** | **{pct(pooled[variant], 0.99):.0f}** | "
               f"**{p50 / bare_p50:.2f}×** |")
-    print("\ngoal (issue 22): the ros2 stream p50 ≤ 1.3× bare cyclonedds")
+    print("\ngoal (issue 22): a DDS stream's p50 (stream out, stream in) ≤ 1.3× bare cyclonedds")
 
 
 if __name__ == "__main__":

@@ -510,6 +510,7 @@ class TaskContext:
                 bounds=p.bounds.text if getattr(p, "bounds", None) is not None else "",
                 check=getattr(p, "check_text", ""),
                 writes=0 if p.is_input else p.last_sample()[0],
+                streams=[s.note() for s in p.streams],
             )
             for n, p in self._tc_ports.items()
         ]

@@ -202,6 +202,8 @@ class _Hosted:
         from dataflow import DataflowError
 
         args = self.args
+        if args.insecure:
+            _open_ros2()
         if args.zenoh:
             try:
                 self.zenoh_session, self.zenoh_listen = zenoh_args.session_of(args, serve=True, security=self.security)
@@ -258,6 +260,20 @@ class _Hosted:
             self.server.stop()
         self.deployer.stop_all()
         self.deployer.cleanup_all()
+
+
+def _open_ros2() -> None:
+    """``--insecure``: this process's ROS 2 streams on the network, not loopback only (a
+    process without Cyclone DDS has none: nothing to open)."""
+    from dataflow.transports import TransportError, load
+
+    try:
+        configure = getattr(load("ros2"), "configure", None)
+    except TransportError:
+        return
+    if configure is not None:
+        configure(insecure=True)
+        _err("scart deploy: --insecure: ROS 2 streams are open to the network (DDS authenticates no one)")
 
 
 def _connect_at_start(server: Any, args: argparse.Namespace) -> None:

@@ -1,9 +1,11 @@
 """``scart describe COMP``: a component's properties (with values and bounds), operations
-(with signatures) and ports (direction, type, bounds, connections, last value)."""
+(with signatures) and ports (direction, type, bounds, connections, last value; under each,
+its streams: topic, type, state, whether unauthenticated, samples refused and why)."""
 
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from dataflow.cli.output import add_common, dump, jsonable, out, with_system
 
@@ -48,4 +50,18 @@ def _describe(args: argparse.Namespace) -> int:
             text = dump(jsonable(last[p.name]))
             line += f", last = {text if len(text) <= 120 else text[:117] + '...'}"
         out(line + (f"  # {p.doc}" if p.doc else ""))
+        for st in p.streams:
+            out("      " + _stream_line(st))
     return 0
+
+
+def _stream_line(s: Any) -> str:
+    """A stream under its port: ``stream NAME: transport:topic (type), state[, UNAUTHENTICATED]``
+    and, when samples were refused, how many and why the last one was."""
+    kind = f" ({s.type_name})" if s.type_name else ""
+    line = f"stream {s.name}: {s.topic}{kind}, {s.state}"
+    if s.unauthenticated:
+        line += ", UNAUTHENTICATED (anyone who reaches it may publish)"
+    if s.refused or s.refusal:
+        line += f"; {s.refused} refused" + (f", last: {s.refusal}" if s.refusal else "")
+    return line

@@ -12,8 +12,13 @@ serve and call services, and close it::
         pub.publish({"name": ["j1"], "position": [0.5]})   # False if refused (counted)
         ros.client("/add", "example_interfaces/srv/AddTwoInts").call({"a": 1, "b": 2})
 
-It knows nothing of scart's ports: messages are rosbags message objects or plain dicts at
-its edges, and QoS is its own small value (:class:`QoS`). A scart transport wraps it.
+That library knows nothing of scart's ports: messages are rosbags message objects or plain
+dicts at its edges, and QoS is its own small value (:class:`QoS`). On top of it, scart's
+side: :class:`Ros2Transport` (the ``scart.transports`` entry point ``ros2``: a port joined
+to a ROS 2 topic by a stream, its type mapped onto a ROS 2 message, see
+:mod:`._transport` and :mod:`._convert`), and services both ways (:func:`serve_operation`,
+:func:`serve`, :class:`ServiceProxy`, :func:`call_service`; :mod:`._calls`), on the
+process's one participant per domain.
 
 What it puts on the wire (what ``ros2 topic echo`` over rmw_cyclonedds reads):
 
@@ -88,6 +93,12 @@ them on the library path it is reachable; from PyPI alone it is not. Not built h
 
 from __future__ import annotations
 
+try:
+    import cyclonedds  # noqa: F401
+except ImportError as _exc:  # the transport's registry names this when a policy asks for ros2
+    raise ImportError("ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'") from _exc
+
+from ._calls import ServedService, ServiceProxy, call_service, serve, serve_operation
 from ._endpoints import Publisher, PublisherStats, Subscription, SubscriptionStats
 from ._errors import ConversionError, DomainError, Ros2Error, UnknownTypeError
 from ._names import dds_topic, dds_type_name, ros_topic, ros_type_name, service_topics, topic_name
@@ -95,6 +106,7 @@ from ._network import Network, resolve_domain_id
 from ._participant import Participant
 from ._qos import Durability, QoS, Reliability
 from ._services import ServiceClient, ServiceServer
+from ._transport import Ros2Transport, qos_of
 from ._types import DISTROS, MessageTypes, message_to_dict
 
 __all__ = [
@@ -103,4 +115,5 @@ __all__ = [
     "MessageTypes", "DISTROS", "message_to_dict", "resolve_domain_id",
     "dds_topic", "ros_topic", "service_topics", "topic_name", "dds_type_name", "ros_type_name",
     "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError",
+    "Ros2Transport", "qos_of", "serve", "serve_operation", "ServedService", "ServiceProxy", "call_service",
 ]

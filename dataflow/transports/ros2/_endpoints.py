@@ -140,6 +140,8 @@ class Subscription:
         self._last_refusal: str | None = None
         self._closed = False
         self.closed_hook: Callable[[], None] | None = None  # the participant's (node graph)
+        #: Called with the reason each time a sample is refused (on the dispatcher thread).
+        self.refused_hook: Callable[[str], None] | None = None
         dispatcher.add(self._condition, self._drain)
 
     def _drain(self) -> None:
@@ -180,6 +182,8 @@ class Subscription:
     def _refuse(self, why: str) -> None:
         self._refused += 1
         self._last_refusal = why
+        if self.refused_hook is not None:
+            self.refused_hook(why)
 
     def matched(self) -> int:
         """How many writers this subscription is matched with now (0 once closed)."""

@@ -14,6 +14,10 @@ configuration made by :class:`Network`:
   on that network can then read and write the topics: DDS without DDS Security
   authenticates no one.
 
+Either way a sample larger than ``max_sample_bytes`` (64 MiB, ROS 1's bound too) is
+dropped by Cyclone in both directions, with a warning on its log: an outside peer cannot
+make this process hold a larger one.
+
 Cyclone DDS configures a domain once per process: every participant of this library on
 one domain id shares it, and must ask for the same network (else :class:`DomainError`).
 The last one closed deletes the domain (Cyclone's threads and sockets with it).
@@ -31,9 +35,10 @@ from cyclonedds.domain import Domain
 
 from ._errors import DomainError
 
-__all__ = ["Network", "resolve_domain_id", "MAX_DOMAIN_ID"]
+__all__ = ["Network", "resolve_domain_id", "MAX_DOMAIN_ID", "MAX_SAMPLE_BYTES"]
 
 MAX_DOMAIN_ID = 232
+MAX_SAMPLE_BYTES = 64 << 20  #: serialised bytes of one sample, at most, either way
 _ADDRESS = re.compile(r"[A-Za-z0-9_.:\-\[\]%]{1,255}\Z")  # host names, IPv4/IPv6 literals, interface names
 
 
@@ -46,6 +51,7 @@ class Network:
     peers: tuple[str, ...] = ()
     multicast: bool = False
     max_participants: int = 32
+    max_sample_bytes: int = MAX_SAMPLE_BYTES
 
     def __post_init__(self) -> None:
         for word in (self.interface, *self.peers):
@@ -53,13 +59,15 @@ class Network:
                 raise DomainError(f"{word!r} is not an interface name, host or address")
         if not 1 <= self.max_participants <= 120:
             raise DomainError(f"max_participants must be 1..120, got {self.max_participants}")
+        if not 1024 <= self.max_sample_bytes <= MAX_SAMPLE_BYTES:
+            raise DomainError(f"max_sample_bytes must be 1024..{MAX_SAMPLE_BYTES}, got {self.max_sample_bytes}")
         if self.loopback_only and (self.multicast or self.interface or self.peers):
             raise DomainError("a loopback network has no interface, peers or multicast: use Network.open()")
 
     @classmethod
-    def loopback(cls, max_participants: int = 32) -> Network:
+    def loopback(cls, max_participants: int = 32, max_sample_bytes: int = MAX_SAMPLE_BYTES) -> Network:
         """Loopback only, no multicast, the explicit peer 127.0.0.1 (the default)."""
-        return cls(max_participants=max_participants)
+        return cls(max_participants=max_participants, max_sample_bytes=max_sample_bytes)
 
     @classmethod
     def open(cls, interface: str | None = None, peers: tuple[str, ...] = (), *,
@@ -83,6 +91,7 @@ class Network:
             '<CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any"><General>'
             f"<Interfaces>{interface}</Interfaces>"
             f"<AllowMulticast>{'true' if multicast else 'false'}</AllowMulticast></General>"
+            f"<Internal><MaxSampleSize>{self.max_sample_bytes}B</MaxSampleSize></Internal>"
             "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
             f"<MaxAutoParticipantIndex>{self.max_participants - 1}</MaxAutoParticipantIndex>"
             + (f"<Peers>{peer_xml}</Peers>" if peer_xml else "")

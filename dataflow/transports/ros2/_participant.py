@@ -98,16 +98,21 @@ class Participant:
         return endpoint
 
     def subscribe(self, topic: str, type_name: str, callback: Callable[[Any], Any], qos: QoS | None = None, *,
-                  accept: Accept | None = None, as_dict: bool = False) -> Subscription:
+                  accept: Accept | None = None, as_dict: bool = False, raw: bool = False) -> Subscription:
         """Call ``callback(message)`` on this participant's thread for every message of
-        ``type_name`` on ``topic``: a rosbags message, or a plain dict if ``as_dict``.
+        ``type_name`` on ``topic``: a rosbags message, a plain dict if ``as_dict``, or the
+        instance of the IDL type (:meth:`MessageTypes.idl_type`) as Cyclone made it if
+        ``raw`` (no conversion at all: the fastest).
 
         ``accept(message) -> bool`` may refuse one (counted). Raises as :meth:`publisher`.
         """
         qos = qos or QoS.data()
         dds_name, idl = dds_topic(topic), self.types.idl_type(type_name)
         types = self.types
-        if as_dict:
+        if raw:
+            def convert(sample: Any) -> Any:
+                return sample
+        elif as_dict:
             def convert(sample: Any) -> Any:
                 return message_to_dict(types.from_idl(type_name, sample))
         else:
@@ -124,15 +129,17 @@ class Participant:
         return endpoint
 
     # ------------------------------------------------------------------ services
-    def service(self, name: str, srv_type: str, handler: Callable[[Any], Any]) -> ServiceServer:
+    def service(self, name: str, srv_type: str, handler: Callable[[Any], Any], *, raw: bool = False) -> ServiceServer:
         """Answer ROS 2 service ``name`` of ``srv_type`` (``pkg/srv/Name``) with
-        ``handler(request) -> response`` on this participant's thread."""
+        ``handler(request) -> response`` on this participant's thread: the request a
+        rosbags message, or the IDL instance as Cyclone made it if ``raw`` (its fields,
+        and rmw's header as ``guid_``/``seq_``)."""
         request_topic, reply_topic = service_topics(name)
         request, response = self.types.service(srv_type)
         with self._lock:
             self._check_open()
             reader, writer = self._service_pair(request_topic, request, reply_topic, response, "serviceid")
-            endpoint = ServiceServer(reader, writer, self.types, srv_type, handler, self._dispatcher)
+            endpoint = ServiceServer(reader, writer, self.types, srv_type, handler, self._dispatcher, raw)
             self._endpoints.append(endpoint)
         self._announce(endpoint, (reader,), (writer,))
         return endpoint

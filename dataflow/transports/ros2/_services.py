@@ -117,9 +117,10 @@ class ServiceServer(_Endpoint):
     error reply) and is counted in ``refused``."""
 
     def __init__(self, reader: DataReader, writer: DataWriter, types: MessageTypes, srv_type: str,
-                 handler: Any, dispatcher: Dispatcher) -> None:
+                 handler: Any, dispatcher: Dispatcher, raw: bool = False) -> None:
         super().__init__(reader, writer, types, srv_type, dispatcher)
         self._handler = handler
+        self._raw = raw
         self._reply_type = types.service_idl_type(self.response_type)
         self.answered = 0
         dispatcher.add(self._condition, self._drain)
@@ -129,7 +130,7 @@ class ServiceServer(_Endpoint):
             if self._closed:
                 return
             try:
-                response = self._handler(self._body(sample, self.request_type))
+                response = self._handler(sample if self._raw else self._body(sample, self.request_type))
                 fields = self._types.to_fields(self.response_type, response)
             except Exception as exc:  # the handler's or the conversion's: no reply
                 self._refuse(f"{self.srv_type}: {exc}")

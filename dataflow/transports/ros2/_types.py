@@ -176,6 +176,11 @@ class MessageTypes:
         """Whether message type ``name`` is known."""
         return name in self._store.fielddefs
 
+    def fields(self, name: str) -> list[tuple[str, Any]]:
+        """The fields of message ``name`` in order: ``(field, rosbags field description)``;
+        raises :class:`UnknownTypeError`."""
+        return self._fields(name)
+
     def message_class(self, name: str) -> type:
         """The rosbags message class of ``name``; raises :class:`UnknownTypeError`."""
         self._fields(name)

@@ -11,7 +11,7 @@ import selectors
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -19,6 +19,7 @@ import pytest
 from support import TESTS
 
 PEER = TESTS / "support" / "ros2_peer.py"
+STREAM_PEER = TESTS / "support" / "ros2_stream_peer.py"
 _DOMAIN = random.SystemRandom().randint(1, 232)  # concurrent runs on one host stay apart
 _NAMES = itertools.count()
 
@@ -99,6 +100,60 @@ def peer(domain: int) -> Iterator:
     for proc in started:
         proc.kill()
         proc.communicate(timeout=30)
+
+
+@pytest.fixture
+def stream_peer(domain: int) -> Iterator:
+    """Start the independent peer of streams (``support/ros2_stream_peer.py``):
+    ``stream_peer(mode, topic, type, values=None, latched=False, depth=10, on=DOMAIN)`` returns a
+    :class:`Peer` once ready (``read``: it prints each sample; ``write``: it writes
+    ``values`` once a reader matched)."""
+    started: list[subprocess.Popen[bytes]] = []
+
+    def start(mode: str, topic: str, type_name: str, values: list | None = None, *, latched: bool = False,
+              depth: int = 10, seconds: float = 60.0, on: int | None = None) -> Peer:
+        args = [sys.executable, str(STREAM_PEER), mode, str(on or domain), topic, type_name, json.dumps(values or []),
+                "--depth", str(depth), "--seconds", str(seconds)] + (["--latched"] if latched else [])
+        proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0, env=loopback_env())
+        started.append(proc)
+        found = Peer(proc)
+        found.next_event("ready", timeout=30.0)
+        return found
+
+    yield start
+    for proc in started:
+        proc.kill()
+        proc.communicate(timeout=30)
+
+
+def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    """The ``cyclonedds`` command (``ls``, ...) on the loopback network, plain output."""
+    return subprocess.run([cyclonedds_cli(), *args, "--suppress-progress-bar", "--color", "none"],
+                          capture_output=True, text=True, timeout=timeout, env=loopback_env({"COLUMNS": "200"}))
+
+
+def cli_subscribe(domain: int, dds_topic: str, publish: Callable[[], object]) -> tuple[str, str]:
+    """``cyclonedds subscribe`` of ``dds_topic`` while ``publish()`` runs (until it returns
+    something true: matched), then 2 s more; the tool's output."""
+    proc = subprocess.Popen([cyclonedds_cli(), "subscribe", "--id", str(domain), "--runtime", "2",
+                             "--suppress-progress-bar", "--color", "none", dds_topic],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=loopback_env({"COLUMNS": "400"}))
+    try:
+        for _ in range(600):  # bounded (~30 s): the tool prints what arrives once it subscribed
+            if publish() or proc.poll() is not None:
+                break
+            try:
+                proc.wait(timeout=0.05)
+            except subprocess.TimeoutExpired:
+                pass
+        for _ in range(40):  # then 2 s more of samples
+            publish()
+            time.sleep(0.05)
+    finally:
+        proc.terminate()
+        out, err = proc.communicate(timeout=30)
+    return out, err
 
 
 def cyclonedds_cli() -> str:

@@ -102,7 +102,8 @@ def test_the_public_api_is_exactly_this() -> None:
         "PublisherStats", "SubscriptionStats", "QoS", "Reliability", "Durability", "Network",
         "MessageTypes", "DISTROS", "message_to_dict", "resolve_domain_id",
         "dds_topic", "ros_topic", "service_topics", "topic_name", "dds_type_name", "ros_type_name",
-        "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError"])
+        "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError",
+        "Ros2Transport", "qos_of", "serve", "serve_operation", "ServedService", "ServiceProxy", "call_service"])
     assert all(hasattr(ros2, name) for name in ros2.__all__)
     assert all(issubclass(getattr(ros2, e), ros2.Ros2Error) for e in ("ConversionError", "DomainError",
                                                                       "UnknownTypeError"))

@@ -4,14 +4,12 @@ ROS 2 names and types; QoS observable; bad samples refused and counted."""
 
 from __future__ import annotations
 
-import subprocess
-import time
-
 import pytest
 
 pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pip install 'scart[ros2]')")
 
-from conftest import cyclonedds_cli, loopback_env  # noqa: E402
+from conftest import cli as _cli  # noqa: E402
+from conftest import cli_subscribe as _cli_subscribe  # noqa: E402
 
 from dataflow.transports.ros2 import Participant, QoS  # noqa: E402
 from support import wait_until  # noqa: E402
@@ -90,34 +88,6 @@ def test_a_service_call_between_two_participants(domain: int) -> None:
         with pytest.raises(TimeoutError):
             broken.call({}, timeout=0.5)
         assert bad.refused == 1 and "division" in (bad.last_refusal or "")
-
-
-def _cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([cyclonedds_cli(), *args, "--suppress-progress-bar", "--color", "none"],
-                          capture_output=True, text=True, timeout=timeout, env=loopback_env({"COLUMNS": "200"}))
-
-
-def _cli_subscribe(domain: int, dds_topic: str, publish) -> tuple[str, str]:
-    """``cyclonedds subscribe`` of ``dds_topic`` while ``publish()`` runs; its output."""
-    proc = subprocess.Popen([cyclonedds_cli(), "subscribe", "--id", str(domain), "--runtime", "2",
-                             "--suppress-progress-bar", "--color", "none", dds_topic],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=loopback_env({"COLUMNS": "400"}))
-    try:
-        for _ in range(600):  # bounded (~30 s): the tool prints what arrives once it subscribed
-            if publish() or proc.poll() is not None:
-                break
-            try:
-                proc.wait(timeout=0.05)
-            except subprocess.TimeoutExpired:
-                pass
-        for _ in range(40):  # then 2 s more of samples
-            publish()
-            time.sleep(0.05)
-    finally:
-        proc.terminate()
-        out, err = proc.communicate(timeout=30)
-    return out, err
 
 
 def test_the_cyclonedds_tool_lists_our_topics_with_ros2_type_names(domain: int, topic: str) -> None:

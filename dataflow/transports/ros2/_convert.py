@@ -1,0 +1,408 @@
+"""Between a scart port's type and a ROS 2 message type: how a port's values become
+messages of a topic and back (a :class:`Conversion`), planned and type-checked once, when a
+stream is made or a composite is loaded (:func:`plan`), never per sample. The same rules
+as the ``ros1`` transport's (:mod:`dataflow.transports.ros1.convert`), on ROS 2's types.
+
+Three ways, tried in this order:
+
+* **a converter** the user names (``converter="module:function"``): for a topic scart
+  publishes, ``function(value)`` returns the message (a rosbags message of the type, or a
+  mapping of its fields, nested mappings and lists allowed); for a topic scart reads,
+  ``function(msg)`` is given the rosbags message and returns the port's value (checked by
+  the port as any outside input). Its annotations, where given, are checked against the
+  port's type and the message type. The module must be imported in this process already:
+  a stream, which may be asked for over the network, never makes a process import code
+  (a composite's converters are imported at load).
+* **a plain type** (``float``, ``int``, ``bool``, ``str``, ``list[float]``, ``list[int]``,
+  ``bytes``) onto the ``data`` field (or the only field) of a message: by default
+  ``std_msgs/msg/Float64``, ``Int64``, ``Bool``, ``String``, ``Float64MultiArray``,
+  ``Int64MultiArray``, ``UInt8MultiArray`` (:data:`PLAIN`); ``std_msgs/msg/Float32``,
+  ``Int32``... work too.
+* **a pydantic model** onto a message **by field names**, recursively (nested models in
+  nested messages, lists in sequences). Publishing, every field of the model needs a
+  field of that name in the message (the message's others are ROS's zero, and a
+  ``header`` the model lacks is stamped with the sample's time and the ``frame_id``
+  option); reading, every field the model requires needs one in the message (the
+  message's others are ignored). ``builtin_interfaces/msg/Time`` and ``Duration`` are
+  float seconds.
+
+Numbers widen (an ``int`` into a ``float64`` field, an ``int32`` into a ``float`` port)
+but never narrow (a ``float64`` into an ``int`` port is refused at plan time); a value a
+field cannot hold (300 into ``uint8``, a list longer than a bound, a fixed array of
+another length) refuses that sample, counted. A :class:`Conversion` is immutable and
+thread-safe.
+"""
+
+from __future__ import annotations
+
+import inspect
+import sys
+import types as pytypes
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any
+
+import pydantic
+from rosbags.typesys.base import Nodetype
+
+from ._errors import UnknownTypeError
+from ._names import split_type_name
+from ._types import MessageTypes
+
+__all__ = ["PLAIN", "Conversion", "ConversionProblem", "plan", "resolve_converter"]
+
+#: The ROS 2 message a port of a plain type maps onto when the stream names none.
+PLAIN: Mapping[Any, str] = MappingProxyType({
+    float: "std_msgs/msg/Float64", int: "std_msgs/msg/Int64", bool: "std_msgs/msg/Bool", str: "std_msgs/msg/String",
+    list[float]: "std_msgs/msg/Float64MultiArray", list[int]: "std_msgs/msg/Int64MultiArray",
+    bytes: "std_msgs/msg/UInt8MultiArray"})
+INTS = frozenset({"byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"})
+FLOATS = frozenset({"float32", "float64"})
+OCTETS = frozenset({"byte", "char", "uint8"})
+TIMES = frozenset({"builtin_interfaces/msg/Time", "builtin_interfaces/msg/Duration"})
+HEADER = "std_msgs/msg/Header"
+MAX_DEPTH = 16  #: nesting of models/messages followed, at most
+
+
+@dataclass(frozen=True)
+class ConversionProblem:
+    """Why a port's type and a ROS 2 type do not convert (``warning``: it may, unchecked)."""
+
+    message: str
+    warning: bool = False
+
+
+@dataclass(frozen=True)
+class Conversion:
+    """How values of one port type become messages of ``ros_type`` — ``to_idl(value,
+    t_ns)``, publishing: the IDL instance to write — or come from them — ``from_idl(obj)``,
+    reading: a value (or a mapping of a model's fields) the port's check then validates.
+    ``via``: ``data field``, ``field names`` or ``converter module:function``. Each function
+    raises (:class:`~._errors.ConversionError`, ``ValueError``...) for a sample that
+    cannot be converted."""
+
+    ros_type: str
+    via: str
+    to_idl: Callable[[Any, int], Any] | None = None
+    from_idl: Callable[[Any], Any] | None = None
+
+
+class _Mismatch(Exception):
+    """A planning problem (collected as a :class:`ConversionProblem`)."""
+
+
+def type_label(py_type: Any) -> str:
+    """A short name of a port type for messages (``float``, ``list[float]``, ``YouBotStatus``)."""
+    return getattr(py_type, "__name__", None) if isinstance(py_type, type) else str(py_type).replace("typing.", "")
+
+
+def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool, converter: str = "",
+         frame_id: str = "") -> tuple[Conversion | None, list[ConversionProblem]]:
+    """How values of ``py_type`` cross to ``ros_type`` (``outgoing``: scart publishes) —
+    ``ros_type`` None: the default of a plain type — and the problems found (a Conversion
+    only when there is no error). ``converter``: ``module:function``; ``frame_id``: the
+    ``header.frame_id`` stamped on models without a header."""
+    name = ros_type or (PLAIN.get(py_type) if _hashable(py_type) else None)
+    if not name:
+        return None, [ConversionProblem(f"a port of type {type_label(py_type)} has no default ROS 2 type: give the "
+                                        "topic's type (e.g. type=\"sensor_msgs/msg/JointState\") and, unless its "
+                                        "fields match the model's, a converter")]
+    try:
+        if split_type_name(name)[1] != "msg":
+            raise ValueError(f"{name!r} is a service type; a topic carries a message type (pkg/msg/Type)")
+        types.fields(name)
+    except (ValueError, UnknownTypeError) as exc:
+        return None, [ConversionProblem(str(exc))]
+    if converter:
+        return _with_converter(types, py_type, name, outgoing, converter)
+    planner = _Planner(types, outgoing)
+    try:
+        if _is_model(py_type):
+            fn, via = planner.model(py_type, name, 0), "field names"
+        else:
+            fn, via = planner.plain(_unwrap(py_type), name), "data field"
+    except _Mismatch as exc:
+        return None, [ConversionProblem(str(exc))]
+    if not outgoing:
+        return Conversion(name, via, from_idl=fn), []
+    return Conversion(name, via, to_idl=_stamped(types, name, fn, frame_id, _is_model(py_type))), []
+
+
+def _stamped(types: MessageTypes, name: str, fields_of: Callable[[Any], dict[str, Any]], frame_id: str,
+             model: bool) -> Callable[[Any, int], Any]:
+    """Publishing: the message's fields made, a ``header`` the model lacks stamped with the
+    sample's time and ``frame_id``, and the IDL instance built (the library checks every
+    value against its field: ranges, bounds, lengths)."""
+    stamp = model and dict(types.fields(name)).get("header") == (Nodetype.NAME, HEADER)
+
+    def to_idl(value: Any, t_ns: int) -> Any:
+        fields = fields_of(value)
+        if stamp and "header" not in fields:
+            fields["header"] = {"stamp": {"sec": t_ns // 1_000_000_000, "nanosec": t_ns % 1_000_000_000},
+                                "frame_id": frame_id}
+        return types.to_idl(name, fields)
+
+    return to_idl
+
+
+# ---- converters -----------------------------------------------------------------------
+def resolve_converter(ref: str) -> Callable[..., Any]:
+    """The function ``module:qualified.name`` of a module this process has imported
+    already; raises ``ValueError`` saying what is wrong (never imports anything)."""
+    module_name, colon, attr = ref.partition(":")
+    if not colon or not module_name or not attr:
+        raise ValueError(f"converter {ref!r}: expected module:function")
+    module = sys.modules.get(module_name)
+    if module is None:
+        raise ValueError(f"converter {ref!r}: module {module_name!r} is not imported in this process (a stream "
+                         "never imports code: import it first; a composite imports its converters at load)")
+    obj: Any = module
+    for part in attr.split("."):
+        obj = getattr(obj, part, None)
+        if obj is None:
+            raise ValueError(f"converter {ref!r}: module {module_name} has no {attr!r}")
+    if not callable(obj):
+        raise ValueError(f"converter {ref!r} is a {type(obj).__name__}, not a function")
+    return obj
+
+
+def _with_converter(types: MessageTypes, py_type: Any, name: str, outgoing: bool,
+                    ref: str) -> tuple[Conversion | None, list[ConversionProblem]]:
+    try:
+        fn = resolve_converter(ref)
+    except ValueError as exc:
+        return None, [ConversionProblem(str(exc))]
+    problems = _check_converter(fn, ref, py_type, name, outgoing, types)
+    if any(not p.warning for p in problems):
+        return None, problems
+    via = f"converter {ref}"
+    if not outgoing:
+        def from_idl(obj: Any) -> Any:
+            return fn(types.from_idl(name, obj))
+        return Conversion(name, via, from_idl=from_idl), problems
+
+    def to_idl(value: Any, _t_ns: int) -> Any:
+        return types.to_idl(name, fn(value))  # a rosbags message, a mapping or an IDL instance
+    return Conversion(name, via, to_idl=to_idl), problems
+
+
+def _check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: str, outgoing: bool,
+                     types: MessageTypes) -> list[ConversionProblem]:
+    """The converter takes one argument; its annotations, where given, fit the port and
+    the message type."""
+    try:
+        sig = inspect.signature(fn)
+        sig.bind(None)
+    except (TypeError, ValueError):
+        return [ConversionProblem(f"converter {ref} cannot be called with one argument (the "
+                                  f"{'value' if outgoing else 'message'})")]
+    try:
+        hints = typing.get_type_hints(fn)
+    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
+        hints = {}
+    first = next(iter(sig.parameters.values()))
+    given, returned = hints.get(first.name), hints.get("return")
+    port, cls = type_label(py_type), types.message_class(ros_type)
+    if outgoing:
+        if given is not None and not _accepts(given, py_type):
+            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the port gives {port}")]
+        if returned is not None and not (_is_open(returned) or _is_mapping(returned) or _is_msg(returned, ros_type)):
+            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; a {ros_type} (or a mapping "
+                                      "of its fields) is needed")]
+    else:
+        if given is not None and not (_is_open(given) or given is cls or _is_msg(given, ros_type)):
+            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the topic gives {ros_type} messages")]
+        if returned is not None and not (_is_open(returned) or (_is_mapping(returned) and _is_model(py_type))
+                                         or _accepts(py_type, returned)):
+            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; the port takes {port}")]
+    if given is None and returned is None:
+        return [ConversionProblem(f"converter {ref} has no type annotations: its types are checked only per "
+                                  "sample", warning=True)]
+    return []
+
+
+def _is_msg(annotation: Any, ros_type: str) -> bool:
+    return getattr(annotation, "__msgtype__", None) == ros_type
+
+
+def _is_open(annotation: Any) -> bool:
+    return annotation is Any or annotation is object
+
+
+def _is_mapping(annotation: Any) -> bool:
+    origin = typing.get_origin(annotation) or annotation
+    return isinstance(origin, type) and issubclass(origin, Mapping)
+
+
+def _accepts(wanted: Any, given: Any) -> bool:
+    """A parameter annotated ``wanted`` takes a value of type ``given``."""
+    if _is_open(wanted) or wanted == given:
+        return True
+    if wanted is float and given is int:
+        return True
+    return isinstance(wanted, type) and isinstance(given, type) and issubclass(given, wanted)
+
+
+# ---- plain types and models -----------------------------------------------------------
+def _hashable(py_type: Any) -> bool:
+    try:
+        hash(py_type)
+    except TypeError:
+        return False
+    return True
+
+
+def _is_model(py_type: Any) -> bool:
+    return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
+
+
+def _unwrap(py_type: Any) -> Any:
+    """``X`` for ``Optional[X]`` / ``X | None`` and ``Annotated[X, ...]``."""
+    origin = typing.get_origin(py_type)
+    if origin is typing.Annotated:
+        return _unwrap(typing.get_args(py_type)[0])
+    if origin in (typing.Union, pytypes.UnionType):
+        rest = [a for a in typing.get_args(py_type) if a is not type(None)]
+        if len(rest) == 1:
+            return _unwrap(rest[0])
+    return py_type
+
+
+def _item_type(py_type: Any) -> Any | None:
+    """The item type of ``list[X]`` / ``tuple[X, ...]`` / ``Sequence[X]``, else None."""
+    origin, args = typing.get_origin(py_type), typing.get_args(py_type)
+    if origin in (list, tuple) or (isinstance(origin, type) and origin.__name__ == "Sequence"):
+        if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
+            return None
+        return args[0] if args else Any
+    return None
+
+
+def _names(fields: Any) -> str:
+    return ", ".join(name for name, _ in fields) or "none"
+
+
+class _Planner:
+    """Builds the conversion functions of one stream, recursively; raises :class:`_Mismatch`.
+    Publishing, each function gives what the library's ``to_idl`` takes for that field (a
+    mapping for a message); reading, it takes what the IDL instance holds."""
+
+    def __init__(self, types: MessageTypes, outgoing: bool) -> None:
+        self.types = types
+        self.outgoing = outgoing
+
+    def plain(self, py_type: Any, ros_type: str) -> Callable[[Any], Any]:
+        fields = self.types.fields(ros_type)
+        target = next((f for f in fields if f[0] == "data"), fields[0] if len(fields) == 1 else None)
+        if target is None:
+            raise _Mismatch(f"a port of type {type_label(py_type)} maps onto a message with a 'data' field "
+                            f"(std_msgs/msg/...), not {ros_type} (fields: {_names(fields)}): give a converter")
+        key, desc = target
+        try:
+            conv = self.field(py_type, desc, 0)
+        except _Mismatch as exc:
+            raise _Mismatch(f"port type {type_label(py_type)} vs {ros_type}.{key}: {exc}") from None
+        if self.outgoing:
+            return lambda value: {key: conv(value)}
+        return lambda obj: conv(getattr(obj, key))
+
+    def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[[Any], Any]:
+        if depth > MAX_DEPTH:
+            raise _Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
+        fields = dict(self.types.fields(ros_type))
+        convs: dict[str, Callable[[Any], Any]] = {}
+        problems, missing = [], []
+        for name, info in model.model_fields.items():
+            desc = fields.get(name)
+            if desc is None:
+                if self.outgoing or info.is_required():
+                    missing.append(name)
+                continue
+            try:
+                convs[name] = self.field(_unwrap(info.annotation), desc, depth)
+            except _Mismatch as exc:
+                problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
+        if missing:
+            problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
+                               f"no field in {ros_type} (its fields: {_names(fields.items())})")
+        if problems:
+            raise _Mismatch("; ".join(problems) + "; give a converter")
+        pairs = tuple(convs.items())
+        if self.outgoing:
+            def to_fields(value: Any) -> dict[str, Any]:
+                if not isinstance(value, model):
+                    raise TypeError(f"expected a {model.__name__}, got {type(value).__name__}")
+                return {name: conv(getattr(value, name)) for name, conv in pairs}
+            return to_fields
+        return lambda obj: {name: conv(getattr(obj, name)) for name, conv in pairs}
+
+    # -- one field ------------------------------------------------------------------------
+    def field(self, py_type: Any, desc: Any, depth: int) -> Callable[[Any], Any]:
+        kind, detail = desc
+        if _is_open(py_type):
+            if self.outgoing:
+                raise _Mismatch("a field of any type cannot be published: give it a type")
+            return _same
+        if kind == Nodetype.BASE:
+            return self.scalar(py_type, detail[0])
+        if kind == Nodetype.NAME:
+            return self.message(py_type, detail, depth)
+        return self.array(py_type, detail[0], detail[1] if kind == Nodetype.ARRAY else 0, depth)
+
+    def scalar(self, py_type: Any, base: str) -> Callable[[Any], Any]:
+        ok = ((base in FLOATS and (py_type is float or (self.outgoing and py_type is int)))
+              or (base in INTS and (py_type is int or (not self.outgoing and py_type is float)))
+              or (base == "bool" and py_type is bool) or (base == "string" and py_type is str))
+        if not ok:
+            narrows = (py_type is float and base in INTS) if self.outgoing else (py_type is int and base in FLOATS)
+            raise _Mismatch(f"{type_label(py_type)} and {base}" + (" (a float never narrows to an integer)"
+                                                                   if narrows else ""))
+        return float if not self.outgoing and py_type is float and base in INTS else _same
+
+    def message(self, py_type: Any, ros_type: str, depth: int) -> Callable[[Any], Any]:
+        if ros_type in TIMES:
+            if py_type is float or (self.outgoing and py_type is int):
+                return _to_time if self.outgoing else _seconds
+            raise _Mismatch(f"{type_label(py_type)} and {ros_type} (seconds as a float are needed)")
+        if _is_model(py_type):
+            return self.model(py_type, ros_type, depth + 1)
+        if py_type is dict or _is_mapping(py_type):
+            return _same if self.outgoing else _fields_of
+        raise _Mismatch(f"{type_label(py_type)} and the message {ros_type} (a model with its fields is needed)")
+
+    def array(self, py_type: Any, inner: Any, count: int, depth: int) -> Callable[[Any], Any]:
+        kind, detail = inner
+        label = f"{detail if kind == Nodetype.NAME else detail[0]}[{count or ''}]"
+        if py_type is bytes and kind == Nodetype.BASE and detail[0] in OCTETS:
+            return _same if self.outgoing else bytes
+        item = _item_type(py_type)
+        if item is None:
+            raise _Mismatch(f"{type_label(py_type)} and {label} (a list is needed)")
+        conv = self.field(_unwrap(item), inner, depth)
+        if conv is _same:
+            return _same if self.outgoing else list  # octets arrive as bytes, other sequences as lists
+        return lambda values: [conv(v) for v in values]
+
+
+def _same(value: Any) -> Any:
+    return value
+
+
+def _to_time(seconds: float) -> dict[str, int]:
+    ns = round(seconds * 1e9)
+    return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+
+
+def _seconds(stamp: Any) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _fields_of(obj: Any) -> dict[str, Any]:
+    """An IDL instance as plain data (a field typed ``dict`` in a model)."""
+    out = {}
+    for name in getattr(obj, "__annotations__", {}):
+        value = getattr(obj, name)
+        out[name] = _fields_of(value) if hasattr(value, "__idl_typename__") else value
+    return out

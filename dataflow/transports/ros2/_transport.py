@@ -1,0 +1,379 @@
+"""ROS 2 as a scart transport: the ``scart.transports`` entry point ``ros2``
+(:class:`Ros2Transport`). A **stream** joins a port to a ROS 2 topic —
+``Deployer.stream("task.port", ConnPolicy.data().with_(transport="ros2", topic="/joint_states"),
+{"type": "sensor_msgs/msg/JointState", "converter": "mod:fn"})``, ``scart stream COMP.PORT
+ros2:/topic --type T``, ``<scart:stream transport="ros2" .../>`` — an output port
+publishing on ``rt/<topic>`` (CDR, DDS type ``pkg::msg::dds_::Type_``), an input port fed
+from it. Not part of ``auto``: DDS carries no links.
+
+**One participant per process and domain** (a ROS 2 node named ``scart_<pid>``), made
+when the first stream (or service) needs it and closed when the last one goes. The
+domain is the ``domain`` option, else ``ROS_DOMAIN_ID``, else 0. The network is loopback
+only (the ``lo`` interface, no multicast, the explicit peer 127.0.0.1) unless the stream
+says ``insecure=true`` (with ``interface``, ``peers``) or the process does
+(:meth:`Ros2Transport.configure`: ``scart deploy --insecure``); a later stream that asks
+for another network on an open domain is refused.
+
+**Options** (:data:`OPTIONS`): ``type`` (``pkg/msg/Type``; a plain port's default is its
+``std_msgs`` type), ``converter`` (``module:function``), ``frame_id`` (a header stamped on
+a model without one), ``latch`` (``true``: transient-local; for a writer, also the
+policy's ``init``), ``best_effort`` (``true``), ``msgs`` (``.msg`` files named
+``.../pkg/msg/Type.msg``, comma-separated), and ``domain``, ``insecure``, ``interface``,
+``peers``. Conversion is planned and type-checked when the stream is made
+(:mod:`._convert`); a message that does not convert is refused and counted (the reader
+end's ``refuse``, or :attr:`~dataflow.transports.Stream.refused` for a value scart
+publishes), as is a value that fails the port's type or bounds (NaN, out of range):
+``scart describe`` names the last one under the port.
+
+**QoS** from the stream's policy, as rmw maps ROS 2's: DATA → keep-last 1; BUFFER(n) and
+CIRCULAR_BUFFER(n) → keep-last n (at most 10,000); reliable unless ``best_effort``;
+transient-local with ``latch``. The policy-shaped buffer stays the input port's: DDS's
+history is the transit's only. A message carries no scart write number, so a reader
+counts what it refused and what its buffer dropped, not what DDS lost on the way (a
+reliable keep-last reader overwrites what it has not taken).
+
+**Security.** DDS without DDS Security authenticates no one: a stream's
+:attr:`~dataflow.transports.Stream.authenticated` is False, and ``scart describe`` marks
+its input port so.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dataflow.policy import ConnPolicy, ConnType
+from dataflow.transports import Stream, StreamProblem, Transport, TransportError
+from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
+
+from ._convert import Conversion, plan
+from ._errors import DomainError, Ros2Error
+from ._names import topic_name
+from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
+from ._participant import Participant
+from ._qos import QoS
+from ._types import MessageTypes
+
+__all__ = ["OPTIONS", "Ros2Transport", "qos_of"]
+
+log = logging.getLogger(__name__)
+
+NETWORK_OPTIONS = frozenset({"domain", "insecure", "interface", "peers"})
+#: Every option a ros2 stream takes (another is refused: a typo would otherwise be ignored).
+OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs"}) | NETWORK_OPTIONS
+MAX_DEPTH = 10_000  #: keep-last depth, at most (the library's bound)
+MAX_DEFINITION_BYTES = 1 << 20  #: a .msg file larger than this is refused (as ros1's)
+_TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
+
+
+def _flag(options: Mapping[str, str], key: str) -> bool:
+    value = options.get(key, "").strip().lower()
+    if value in _TRUE:
+        return True
+    if value in _FALSE:
+        return False
+    raise ValueError(f"option {key}={options[key]!r}: expected true or false")
+
+
+def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False) -> QoS:
+    """The ROS 2 QoS of a stream with ``policy`` (see the module docstring)."""
+    depth = 1 if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
+    return QoS.buffer(depth, best_effort=best_effort, latching=latch)
+
+
+@dataclass(frozen=True)
+class _Where:
+    """The domain and network a stream asks for."""
+
+    domain: int
+    network: Network
+
+
+class Ros2Transport(Transport):
+    """Streams on ROS 2 topics through this process's participants (see the module
+    docstring). Thread-safe; a participant is made on first use and closed with its last
+    user."""
+
+    name = "ros2"
+    rank = None
+    topics = True
+    converts = True
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._network = Network.loopback()
+        self._types: MessageTypes | None = None
+        self._open: dict[int, list[Any]] = {}  # domain -> [Participant, Network, users]
+
+    # ---- the process's participants ----------------------------------------------------
+    def configure(self, *, insecure: bool | None = None, interface: str | None = None,
+                  peers: tuple[str, ...] = ()) -> None:
+        """Set this process's default network for ROS 2 (``scart deploy --insecure``):
+        ``insecure`` opens it (multicast discovery on ``interface``, else the one Cyclone
+        picks, and unicast ``peers``); False: loopback only; None: as it is. A domain already
+        open keeps its network until its last user goes. Raises ``ValueError`` for a bad
+        interface or peer."""
+        if insecure is None:
+            return
+        try:
+            network = Network.open(interface, tuple(peers)) if insecure else Network.loopback()
+        except DomainError as exc:
+            raise ValueError(str(exc)) from None
+        with self._lock:
+            self._network = network
+
+    @property
+    def types(self) -> MessageTypes:
+        """The message types of this process (rosbags' Jazzy store and the ``msgs`` given)."""
+        with self._lock:
+            if self._types is None:
+                self._types = MessageTypes()
+            return self._types
+
+    def where(self, options: Mapping[str, str]) -> _Where:
+        """The domain and network ``options`` ask for (with the process's defaults);
+        raises ``ValueError``."""
+        text = options.get("domain", "").strip()
+        if text and not (text.isdigit() and int(text) <= MAX_DOMAIN_ID):
+            raise ValueError(f"option domain={text!r}: an integer 0..{MAX_DOMAIN_ID}")
+        try:
+            domain = resolve_domain_id(int(text) if text else None)
+        except DomainError as exc:  # ROS_DOMAIN_ID
+            raise ValueError(str(exc)) from None
+        interface = options.get("interface") or None
+        peers = tuple(p.strip() for p in options.get("peers", "").split(",") if p.strip())
+        if "insecure" not in options:
+            if interface or peers:
+                raise ValueError("options interface and peers open ROS 2 to a network: give insecure=true too "
+                                 "(anyone there may then read and write)")
+            with self._lock:
+                return _Where(domain, self._network)
+        try:
+            return _Where(domain, Network.open(interface, peers) if _flag(options, "insecure") else Network.loopback())
+        except DomainError as exc:
+            raise ValueError(str(exc)) from None
+
+    def acquire(self, where: _Where) -> Participant:
+        """This process's participant on ``where.domain`` (made now if there is none), for
+        one more user; pair each with :meth:`release`. Raises :class:`TransportError` when
+        it is open on another network, or cannot be made."""
+        types = self.types
+        with self._lock:
+            entry = self._open.get(where.domain)
+            if entry is not None and not entry[0].closed:
+                if entry[1] != where.network:
+                    raise TransportError(f"ros2: DDS domain {where.domain} is open in this process "
+                                         f"{_shown(entry[1])}; this asks for it {_shown(where.network)}")
+                entry[2] += 1
+                return entry[0]
+            try:
+                made = Participant(where.domain, network=where.network, types=types, node=f"scart_{os.getpid()}")
+            except Ros2Error as exc:
+                raise TransportError(f"ros2: {exc}") from None
+            self._open[where.domain] = [made, where.network, 1]
+        log.info("ROS 2 participant on domain %d, %s", where.domain, _shown(where.network))
+        return made
+
+    def release(self, participant: Participant) -> None:
+        """One user less of ``participant``; the last one closes it."""
+        with self._lock:
+            entry = self._open.get(participant.domain_id)
+            if entry is None or entry[0] is not participant:
+                return
+            entry[2] -= 1
+            if entry[2] > 0:
+                return
+            del self._open[participant.domain_id]
+        participant.close()
+
+    def participants(self) -> dict[int, Participant]:
+        """The participants open now, by domain (a snapshot)."""
+        with self._lock:
+            return {domain: entry[0] for domain, entry in self._open.items()}
+
+    # ---- streams -----------------------------------------------------------------------
+    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+        problems = [StreamProblem(p) for p in self._check_options(topic, options)]
+        if problems:
+            return problems
+        return self.conversion(port, options)[1]
+
+    def _check_options(self, topic: str, options: Mapping[str, str]) -> list[str]:
+        unknown = sorted(set(options) - OPTIONS)
+        out = [f"ros2: unknown option(s) {', '.join(unknown)}; options: {', '.join(sorted(OPTIONS))}"] if unknown else []
+        try:
+            topic_name(topic)
+            self.where(options)
+            for key in ("latch", "best_effort"):
+                if key in options:
+                    _flag(options, key)
+            self._add_msgs(options)
+        except ValueError as exc:
+            out.append(f"ros2: {exc}")
+        return out
+
+    def _add_msgs(self, options: Mapping[str, str]) -> None:
+        types = self.types
+        for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
+            file = Path(path)
+            name = f"{file.parent.parent.name}/{file.parent.name}/{file.stem}"
+            if file.suffix != ".msg" or file.parent.name != "msg":
+                raise ValueError(f"msgs: {path}: a message file is named .../PACKAGE/msg/TYPE.msg")
+            if types.has(name):
+                continue  # added by another stream already
+            try:
+                if file.stat().st_size > MAX_DEFINITION_BYTES:
+                    raise ValueError(f"larger than {MAX_DEFINITION_BYTES} bytes")
+                types.add_msg_file(file, name)
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"msgs: {path}: {exc}") from None
+
+    def conversion(self, port: Any, options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
+        """How ``port``'s values cross to the topic's type, and the problems found."""
+        conv, problems = plan(self.types, port.type, options.get("type") or None, outgoing=not port.is_input,
+                              converter=options.get("converter", ""), frame_id=options.get("frame_id", ""))
+        where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
+        return conv, [StreamProblem(f"ros2 {where}: {p.message}", p.warning, types=True) for p in problems]
+
+    def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
+        port = end.port
+        if port is None:
+            raise TransportError("ros2 converts a port's values: a reader end without its port cannot be streamed")
+        errors = self._check_options(topic, options)
+        if errors:
+            raise TransportError("; ".join(errors))
+        conv, problems = self.conversion(port, options)
+        for p in problems:
+            if p.warning:
+                log.warning("%s", p.message)
+        if conv is None:
+            raise TransportError("; ".join(p.message for p in problems if not p.warning))
+        participant = self.acquire(self.where(options))
+        try:
+            return _TopicStream(self, participant, end, topic_name(topic), conv, options)
+        except (Ros2Error, ValueError) as exc:
+            self.release(participant)
+            raise TransportError(f"ros2: {exc}") from None
+        except BaseException:
+            self.release(participant)
+            raise
+
+
+def _shown(network: Network) -> str:
+    return "loopback only" if network.loopback_only else "open to the network (insecure)"
+
+
+class _Carrier:
+    """A writer end's carrier onto a ROS 2 publisher: each sample converted (its header
+    stamped with the sample's time) and written, from the writer's thread, never blocking
+    (keep-last history). A value that does not convert is refused and counted here."""
+
+    @staticmethod
+    def encode(sample: OutSample) -> OutSample:
+        return sample  # converted in send(): the conversion is this stream's own
+
+    def __init__(self, publisher: Any, conv: Conversion, label: str) -> None:
+        assert conv.to_idl is not None
+        self._to_idl = conv.to_idl
+        self._publisher = publisher
+        self._label = label
+        self.refused = 0
+        self.refusal = ""
+
+    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+        try:
+            message = self._to_idl(sample.value, sample.t_ns)
+        except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
+            self._refuse(f"sample {sample.n}: {type(exc).__name__}: {exc}")
+            return True
+        if not self._publisher.publish(message):
+            self._refuse(f"sample {sample.n}: {self._publisher.stats().last_refusal}")
+        return True  # DDS keeps the newest of its history: never "no room"
+
+    def _refuse(self, why: str) -> None:
+        self.refused += 1
+        self.refusal = why[:300]
+        if self.refused == 1:
+            log.warning("%s: a sample refused: %s", self._label, self.refusal)
+
+
+class _TopicStream(Stream):
+    """A writer end publishing a ROS 2 topic, or a reader end fed from one."""
+
+    authenticated = False
+
+    def __init__(self, transport: Ros2Transport, participant: Participant, end: WriterEnd | ReaderEnd, topic: str,
+                 conv: Conversion, options: Mapping[str, str]) -> None:
+        self._transport, self._participant = transport, participant
+        self.topic = topic
+        self.type_name = conv.ros_type
+        self._pub: Any = None
+        self._sub: Any = None
+        self._carrier: _Carrier | None = None
+        self._closed = False
+        best_effort = _flag(options, "best_effort")
+        try:
+            if isinstance(end, WriterEnd):
+                latch = _flag(options, "latch") if "latch" in options else end.policy.init
+                self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch))
+            else:
+                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=_flag(options, "latch")))
+        except BaseException:
+            self._close_parts()  # the participant is the caller's to release
+            raise
+
+    def _publish(self, end: WriterEnd, conv: Conversion, qos: QoS) -> None:
+        self._pub = self._participant.publisher(self.topic, conv.ros_type, qos)
+        self._carrier = _Carrier(self._pub, conv, end.label)
+        end.connected("ros2", self._carrier, new_peer=True)
+
+    def _subscribe(self, end: ReaderEnd, conv: Conversion, qos: QoS) -> None:
+        from_idl, label = conv.from_idl, conv.ros_type
+        assert from_idl is not None
+        count = [0]
+
+        def on_message(obj: Any) -> None:  # the participant's thread, one message at a time
+            try:
+                value = from_idl(obj)
+            except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
+                end.refuse(f"a {label} that does not convert: {type(exc).__name__}: {exc}")
+                return
+            count[0] += 1
+            end.receive(count[0], time.time_ns(), value)
+
+        end.transport = "ros2"
+        self._sub = self._participant.subscribe(self.topic, conv.ros_type, on_message, qos, raw=True)
+        self._sub.refused_hook = lambda why: end.refuse(f"a malformed {label}: {why}")
+
+    # ---- what it says ------------------------------------------------------------------
+    @property
+    def matched(self) -> int:
+        """DDS readers (of a writer end) or writers (of a reader end) matched now."""
+        part = self._pub if self._pub is not None else self._sub
+        return part.matched() if part is not None else 0
+
+    @property
+    def refused(self) -> int:
+        return self._carrier.refused if self._carrier is not None else 0
+
+    @property
+    def refusal(self) -> str:
+        return self._carrier.refusal if self._carrier is not None else ""
+
+    def _close_parts(self) -> None:
+        for part in (self._pub, self._sub):
+            if part is not None:
+                part.close()
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._close_parts()
+        self._transport.release(self._participant)

@@ -1,0 +1,183 @@
+"""An independent ROS 2-speaking Cyclone DDS peer of scart's ``ros2`` streams, run as a
+subprocess by their tests.
+
+Written from the ROS 2 conventions alone (no scart import): its own IDL types declaring
+the ROS 2 DDS type names (``std_msgs::msg::dds_::Float64_``...), ``rt/`` topics, rmw's
+default QoS (reliable, volatile, keep-last). It joins the domain given with the
+``CYCLONEDDS_URI`` configuration the tests give it (loopback only) and prints one JSON
+line per event, ``ready`` first.
+
+``python ros2_stream_peer.py read DOMAIN TOPIC TYPE [--latched] [--depth N] [--seconds S]``
+prints each sample of ``rt<TOPIC>`` (``{"event": "sample", ...fields}``).
+
+``python ros2_stream_peer.py write DOMAIN TOPIC TYPE JSON [--seconds S]`` waits for a
+reader, writes each value of the JSON list (a number for Float64/Int64, an object of
+fields for JointState, a list for Float64MultiArray; ``{"$repeat": [item, n]}`` stands for
+``n`` items), 20 ms apart, prints ``wrote``, then
+waits for the readers to acknowledge them. ``TYPE``: ``Float64``, ``Int64``,
+``JointState``, ``Float64MultiArray``.
+"""
+
+# (no "from __future__ import annotations": cyclonedds reads the annotations as objects)
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import dataclass
+
+from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl import types as t
+from cyclonedds.pub import DataWriter
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+
+@dataclass
+class Float64_(IdlStruct, typename="std_msgs::msg::dds_::Float64_"):
+    data: t.float64
+
+
+@dataclass
+class Int64_(IdlStruct, typename="std_msgs::msg::dds_::Int64_"):
+    data: t.int64
+
+
+@dataclass
+class Time_(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: t.int32
+    nanosec: t.uint32
+
+
+@dataclass
+class Header_(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time_
+    frame_id: str
+
+
+@dataclass
+class JointState_(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
+    header: Header_
+    name: t.sequence[str]
+    position: t.sequence[t.float64]
+    velocity: t.sequence[t.float64]
+    effort: t.sequence[t.float64]
+
+
+@dataclass
+class MultiArrayDimension_(IdlStruct, typename="std_msgs::msg::dds_::MultiArrayDimension_"):
+    label: str
+    size: t.uint32
+    stride: t.uint32
+
+
+@dataclass
+class MultiArrayLayout_(IdlStruct, typename="std_msgs::msg::dds_::MultiArrayLayout_"):
+    dim: t.sequence[MultiArrayDimension_]
+    data_offset: t.uint32
+
+
+@dataclass
+class Float64MultiArray_(IdlStruct, typename="std_msgs::msg::dds_::Float64MultiArray_"):
+    layout: MultiArrayLayout_
+    data: t.sequence[t.float64]
+
+
+TYPES = {"Float64": Float64_, "Int64": Int64_, "JointState": JointState_, "Float64MultiArray": Float64MultiArray_}
+ANY = SampleState.Any | ViewState.Any | InstanceState.Any
+
+
+def say(**event: object) -> None:
+    print(json.dumps(event), flush=True)
+
+
+def qos(depth: int, latched: bool) -> Qos:
+    return Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(depth),
+               Policy.Durability.TransientLocal if latched else Policy.Durability.Volatile)
+
+
+def fields(sample: object) -> dict:
+    if isinstance(sample, JointState_):
+        return {"sec": sample.header.stamp.sec, "nanosec": sample.header.stamp.nanosec,
+                "frame_id": sample.header.frame_id, "name": list(sample.name), "position": list(sample.position),
+                "velocity": list(sample.velocity), "effort": list(sample.effort)}
+    return {"data": list(sample.data) if isinstance(sample, Float64MultiArray_) else sample.data}
+
+
+def read(dp: DomainParticipant, topic: Topic, args: argparse.Namespace) -> None:
+    reader = DataReader(dp, topic, qos=qos(args.depth, args.latched))
+    waitset = WaitSet(dp)
+    waitset.attach(ReadCondition(reader, ANY))
+    say(event="ready")
+    deadline = time.monotonic() + args.seconds
+    while time.monotonic() < deadline:
+        waitset.wait(duration(milliseconds=100))
+        for sample in reader.take(N=100):
+            if sample.sample_info.valid_data:
+                say(event="sample", **fields(sample))
+
+
+def expand(value: object) -> object:
+    """``{"$repeat": [item, n]}`` as ``[item] * n`` (large samples without a long argv)."""
+    if isinstance(value, dict):
+        if set(value) == {"$repeat"}:
+            item, count = value["$repeat"]
+            return [item] * count
+        return {k: expand(v) for k, v in value.items()}
+    return value
+
+
+def make(cls: type, value: object) -> object:
+    value = expand(value)
+    if cls is JointState_:
+        v = dict(value)
+        header = Header_(stamp=Time_(sec=v.pop("sec", 0), nanosec=v.pop("nanosec", 0)), frame_id=v.pop("frame_id", ""))
+        return JointState_(header=header, **{k: v.get(k, []) for k in ("name", "position", "velocity", "effort")})
+    if cls is Float64MultiArray_:
+        return Float64MultiArray_(layout=MultiArrayLayout_(dim=[], data_offset=0), data=list(value))
+    return cls(data=value)
+
+
+def write(dp: DomainParticipant, topic: Topic, cls: type, args: argparse.Namespace) -> None:
+    writer = DataWriter(dp, topic, qos=qos(args.depth, args.latched))
+    say(event="ready")
+    deadline = time.monotonic() + args.seconds
+    while not writer.get_matched_subscriptions():
+        if time.monotonic() > deadline:
+            say(event="unmatched")
+            return
+        time.sleep(0.01)
+    for value in json.loads(args.json):
+        writer.write(make(cls, value))
+        time.sleep(0.02)
+    say(event="wrote")
+    writer.wait_for_acks(duration(seconds=10))
+    say(event="acked")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("mode", choices=("read", "write"))
+    parser.add_argument("domain", type=int)
+    parser.add_argument("topic")
+    parser.add_argument("type", choices=sorted(TYPES))
+    parser.add_argument("json", nargs="?", default="[]")
+    parser.add_argument("--latched", action="store_true")
+    parser.add_argument("--depth", type=int, default=10)
+    parser.add_argument("--seconds", type=float, default=60.0)
+    args = parser.parse_args()
+    dp = DomainParticipant(args.domain)
+    cls = TYPES[args.type]
+    topic = Topic(dp, "rt" + args.topic, cls)
+    if args.mode == "read":
+        read(dp, topic, args)
+    else:
+        write(dp, topic, cls, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
