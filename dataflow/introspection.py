@@ -6,12 +6,29 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict
 
-__all__ = ["LinkDescription", "SubscriptionDescription", "TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription"]
+__all__ = ["LinkDescription", "SubscriptionDescription", "TaskDescription", "PortDescription", "PortStreamDescription", "PropertyDescription", "OperationDescription"]
+
+
+class PortStreamDescription(BaseModel):
+    """A stream on a port, as ``scart describe`` shows it under the port: its name, its
+    ``transport:topic``, the topic's own type when the transport converts (a ROS message
+    type: ``type_name``), ``connected`` or ``waiting``, the samples refused (could not be
+    converted, or failed the port's type or bounds) and why the last one was, and whether
+    its publishers are unauthenticated (ROS: anyone who reaches the master may publish)."""
+
+    model_config = ConfigDict(frozen=True)
+    name: str
+    topic: str
+    type_name: str = ""
+    state: Literal["connected", "waiting"] = "connected"
+    refused: int = 0
+    refusal: str = ""
+    unauthenticated: bool = False
 
 
 class PortDescription(BaseModel):
     """A port: direction, registry type name, doc, number of connections, event port or not,
-    and (input ports) the bounds of what may be written to it from outside."""
+    (input ports) the bounds of what may be written to it from outside, and its streams."""
 
     model_config = ConfigDict(frozen=True)
     name: str
@@ -21,6 +38,7 @@ class PortDescription(BaseModel):
     connections: int = 0
     event: bool = False
     bounds: str = ""
+    streams: list[PortStreamDescription] = []
 
 
 class PropertyDescription(BaseModel):

@@ -159,6 +159,9 @@ class Port(Generic[T]):
     """
 
     is_input: bool = False
+    #: The streams joining this port to topics (:class:`~dataflow.transports.streams.PortStream`;
+    #: each adds and removes itself), for ``describe``.
+    streams: tuple[Any, ...] = ()
 
     def __init__(self, type: Any, name: str | None = None, doc: str = "") -> None:
         self.type = type

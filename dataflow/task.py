@@ -510,6 +510,7 @@ class TaskContext:
                 connections=p.connection_count(),
                 event=bool(getattr(p, "event", False)),
                 bounds=p.bounds.text if getattr(p, "bounds", None) is not None else "",
+                streams=[s.note() for s in p.streams],
             )
             for n, p in self._tc_ports.items()
         ]

@@ -26,6 +26,7 @@ import sys
 import threading
 from typing import Any
 
+from dataflow.cli import _ros as ros_args
 from dataflow.cli import _zenoh as zenoh_args
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from dataflow.remote.security import add_arguments, from_args
@@ -53,6 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     deploy.add_argument("--policy", default="data", help="policy of --connect: data | buffer:N | circular:N")
     zenoh_args.add_arguments(deploy, "also publish every output port on Zenoh (scart/NS/TASK/PORT) and announce "
                                      "the tasks with liveliness tokens")
+    ros_args.add_arguments(deploy)
     add_arguments(deploy, server=True)
     deploy.set_defaults(func=cmd_deploy)
 
@@ -133,7 +135,8 @@ def cmd_deploy(args: argparse.Namespace) -> int:
 
     try:
         security = from_args(args)
-    except DataflowError as exc:
+        ros_args.apply(args)
+    except (DataflowError, ValueError) as exc:
         _err(f"scart deploy: {exc}")
         return 1
     ns = args.ns or os.environ.get(NS_ENV) or None

@@ -329,7 +329,21 @@ def cmd_describe(args: argparse.Namespace) -> int:
             text = _dump(_jsonable(last[p.name]))
             line += f", last = {text if len(text) <= 120 else text[:117] + '...'}"
         _out(line + (f"  # {p.doc}" if p.doc else ""))
+        for s in p.streams:
+            _out("      " + _stream_line(s))
     return 0
+
+
+def _stream_line(s: Any) -> str:
+    """A stream under its port: ``stream NAME: transport:topic (type), state[, UNAUTHENTICATED]``
+    and, when samples were refused, how many and why the last one was."""
+    kind = f" ({s.type_name})" if s.type_name else ""
+    line = f"stream {s.name}: {s.topic}{kind}, {s.state}"
+    if s.unauthenticated:
+        line += ", UNAUTHENTICATED (anyone who reaches it may publish)"
+    if s.refused or s.refusal:
+        line += f"; {s.refused} refused" + (f", last: {s.refusal}" if s.refusal else "")
+    return line
 
 
 def _policy(text: str) -> Any:

@@ -262,6 +262,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                 info = pb.PortInfo(
                     name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
                     connections=max(0, p.connections - hidden), event=p.event, bounds=p.bounds,
+                    streams=[pb.PortStreamInfo(**s.model_dump()) for s in p.streams],
                 )
                 if p.direction == "out":
                     port = task.port(p.name)

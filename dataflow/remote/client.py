@@ -26,8 +26,8 @@ import grpc
 from dataflow import codec
 from dataflow.errors import DataflowError, NotFoundError
 from dataflow.introspection import (
-    LinkDescription, OperationDescription, PortDescription, PropertyDescription, SubscriptionDescription,
-    TaskDescription,
+    LinkDescription, OperationDescription, PortDescription, PortStreamDescription, PropertyDescription,
+    SubscriptionDescription, TaskDescription,
 )
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.remote import _convert as cv
@@ -272,6 +272,9 @@ def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
         PortDescription(
             name=p.name, direction=p.direction, type_name=p.type_name, doc=p.doc,
             connections=p.connections, event=p.event, bounds=p.bounds,
+            streams=[PortStreamDescription(name=s.name, topic=s.topic, type_name=s.type_name, state=s.state or "connected",
+                                           refused=s.refused, refusal=s.refusal, unauthenticated=s.unauthenticated)
+                     for s in p.streams],
         )
         for p in info.ports
     ]

@@ -38,12 +38,17 @@ next), True once a connection it carried has ended, and raises what interrupted 
 * :meth:`Transport.subscribe` — carry a peer's output port to a subscription's reader end;
 * :meth:`Transport.stream` — join a writer or reader end to a topic (transports with
   :attr:`Transport.topics`; a transport that converts types, such as ROS, says so with
-  :attr:`Transport.converts` and is given the port's type to map).
+  :attr:`Transport.converts` and maps the port's type: the writer end's ``port``, the
+  reader end's ``port``; it hands the reader end Python values, checked there as any
+  outside input, and counts what it cannot convert with :meth:`ReaderEnd.refuse
+  <dataflow.transports.ends.ReaderEnd.refuse>` or its :attr:`Stream.refused`).
+  :meth:`Transport.check_stream` says, without joining anything, what would keep a port
+  from a topic (a composite's load-time check).
 
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
 Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
-``grpc``, ``zenoh``) are registered exactly as a third party's would be::
+``grpc``, ``zenoh``, ``ros1``) are registered exactly as a third party's would be::
 
     [project.entry-points."scart.transports"]
     mine = "my_package.transport:MyTransport"
@@ -61,6 +66,7 @@ import re
 import threading
 from abc import ABC
 from collections.abc import Callable
+from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from types import MappingProxyType
 from typing import Any
@@ -68,7 +74,7 @@ from typing import Any
 from dataflow.errors import DataflowError
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 
-__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "Transport", "TransportError", "TransportRegistry",
+__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
            "candidates", "carry", "default", "load", "names"]
 
 log = logging.getLogger(__name__)
@@ -80,7 +86,8 @@ NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
 #: scart's own transports, used also when its entry points are not installed (a source tree).
 BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
                             "grpc": "dataflow.transports.grpc:GrpcTransport",
-                            "zenoh": "dataflow.transports.zenoh:ZenohTransport"})
+                            "zenoh": "dataflow.transports.zenoh:ZenohTransport",
+                            "ros1": "dataflow.transports.ros1.transport:Ros1Transport"})
 
 
 class TransportError(DataflowError):
@@ -167,12 +174,46 @@ class Peer:
 
 
 class Stream(ABC):
-    """A writer or reader end joined to a topic (what :meth:`Transport.stream` returns)."""
+    """A writer or reader end joined to a topic (what :meth:`Transport.stream` returns).
+
+    What it says of itself (``scart links``, ``scart describe``) beyond its ends' counts
+    has defaults for a transport with nothing more to say."""
 
     topic: str = ""
+    #: The topic's own type when the transport converts (a ROS message type), else "".
+    type_name: str = ""
+    #: Whether whoever publishes on the topic is authenticated (False: ROS); None: not said.
+    authenticated: bool | None = None
+
+    @property
+    def waiting(self) -> str:
+        """What the stream waits for before it is joined (a master, a broker), "" when joined."""
+        return ""
+
+    @property
+    def refused(self) -> int:
+        """Samples the transport itself refused (a value it could not convert), not
+        counted by the ends."""
+        return 0
+
+    @property
+    def refusal(self) -> str:
+        """Why the last of :attr:`refused` was refused ("" before any)."""
+        return ""
 
     def close(self) -> None:
         """Leave the topic (idempotent)."""
+
+
+@dataclass(frozen=True)
+class StreamProblem:
+    """Why a stream cannot be made as asked (:meth:`Transport.check_stream`); a
+    ``warning`` does not keep it from being made; ``types``: it is about the port's type
+    and the topic's (a converting transport's), not the options."""
+
+    message: str
+    warning: bool = False
+    types: bool = False
 
 
 class Transport(ABC):
@@ -203,6 +244,15 @@ class Transport(ABC):
         :class:`TransportError` for a transport without topics or a bad topic."""
         raise TransportError(f"transport {self.name!r} carries links and subscriptions, not topics; "
                              f"streams need one of: {', '.join(n for n in names() if _has_topics(n)) or 'none'}")
+
+    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+        """What keeps ``port`` (an input or output port, a task's or its class's template)
+        from being joined to ``topic`` with ``options``, found without joining anything:
+        a composite's load-time check asks it. Default: nothing for a transport with
+        topics; for a converting one, whether the port's type maps onto the topic's."""
+        if not self.topics:
+            return [StreamProblem(f"transport {self.name!r} carries links and subscriptions, not topics")]
+        return []
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r}>"

@@ -421,8 +421,11 @@ class ReaderEnd:
     """
 
     def __init__(self, label: str, check: Callable[[Any], Any], store: Callable[[int, int, Any], bool],
-                 buffer_dropped: Callable[[], int], after: int | None = None, init: bool = False) -> None:
+                 buffer_dropped: Callable[[], int], after: int | None = None, init: bool = False,
+                 port: Any = None) -> None:
         self.label = label
+        #: The input port it feeds, when there is one (a converting transport maps its type).
+        self.port = port
         self.init = init  #: its policy hands a new connection the last value written
         self.seen = time.monotonic()  #: when its transport last heard from the writer (any byte)
         self._check = check
@@ -432,6 +435,7 @@ class ReaderEnd:
         self.boot_id = ""
         self.received = 0
         self.refused = 0
+        self.refusal = ""  #: why the last refused sample was refused
         self.transport = ""
         self._warned = False
         #: Called with each frame a scart transport hands over, before its samples (a
@@ -455,12 +459,23 @@ class ReaderEnd:
         try:
             value = self._check(payload)
         except Exception as exc:  # noqa: BLE001 - a bad sample never ends the channel
-            self.refused += 1
-            if not self._warned:
-                self._warned = True
-                log.warning("%s: a sample refused: %s", self.label, exc)
+            self._refused(str(exc))
             return False
         return self._store(n, t_ns, value)
+
+    def refuse(self, reason: str) -> None:
+        """A sample its transport received and could not hand over (a message that does
+        not convert to the port's type): counted as received and refused, like one that
+        fails the check (the first one logged). Never raises."""
+        self.received += 1
+        self._refused(reason)
+
+    def _refused(self, reason: str) -> None:
+        self.refused += 1
+        self.refusal = reason[:300]
+        if not self._warned:
+            self._warned = True
+            log.warning("%s: a sample refused: %s", self.label, reason)
 
     @property
     def lost(self) -> int:

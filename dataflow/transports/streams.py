@@ -5,9 +5,10 @@ and the deployer's ``stream()``), kept by the :class:`~dataflow.Deployer` with i
 from __future__ import annotations
 
 import re
+import threading
 from typing import Any
 
-from dataflow.introspection import LinkDescription
+from dataflow.introspection import LinkDescription, PortStreamDescription
 from dataflow.policy import ConnPolicy
 from dataflow.transports import load
 from dataflow.transports.ends import ReaderEnd, WriterEnd, attach, detach
@@ -17,6 +18,7 @@ __all__ = ["PortStream", "STREAM_NAME", "default_name"]
 
 #: What a stream's name may be (its default, ``task.port~transport:topic``, included).
 STREAM_NAME = re.compile(r"[A-Za-z0-9_./:~>-]{1,300}")
+_ports_lock = threading.Lock()  # a port's streams tuple is replaced, never changed in place
 
 
 def default_name(port: str, policy: ConnPolicy) -> str:
@@ -43,7 +45,7 @@ class PortStream:
         if port.is_input:
             self._connection = conn = port.open_channel(policy, peer=f"{policy.transport}:{policy.topic}")
             self.reader = ReaderEnd(label, port_check(port), lambda _n, _t, value: conn.write(value),
-                                    lambda: conn.dropped)
+                                    lambda: conn.dropped, port=port)
             end: Any = self.reader
         else:
             self.writer = end = WriterEnd(port, policy, label)
@@ -53,21 +55,50 @@ class PortStream:
         except BaseException:
             self._undo()
             raise
+        with _ports_lock:
+            port.streams = (*port.streams, self)
+
+    @property
+    def where(self) -> str:
+        """``transport:topic``."""
+        return f"{self.policy.transport}:{self.topic}"
+
+    def _state(self) -> tuple[str, str]:
+        """``(transport now, or "" while waiting; what it waits for)``."""
+        end: Any = self.writer if self.writer is not None else self.reader
+        waiting = self._stream.waiting
+        return ("" if waiting else end.transport), waiting
 
     def describe(self) -> LinkDescription:
-        where = f"{self.policy.transport}:{self.topic}"
-        source, sink = (where, self.port.qualname) if self.port.is_input else (self.port.qualname, where)
+        source, sink = (self.where, self.port.qualname) if self.port.is_input else (self.port.qualname, self.where)
+        refused = self._stream.refused
         if self.writer is not None:
-            dropped, samples, transport = self.writer.dropped, self.port.last_sample()[0], self.writer.transport
+            dropped, samples = self.writer.dropped + refused, self.port.last_sample()[0]
         else:
             assert self.reader is not None
-            dropped, samples, transport = self.reader.lost, self.reader.received, self.reader.transport
-        detail = " ".join(f"{k}={v}" for k, v in sorted(self.options.items()))
+            dropped, samples = self.reader.lost + refused, self.reader.received
+        transport, waiting = self._state()
+        detail = " ".join([f"{k}={v}" for k, v in sorted(self.options.items())] +
+                          ([f"(waiting for {waiting})"] if waiting else []))
         return LinkDescription(name=self.name, source=source, sink=sink, policy=str(self.policy),
                                transport=transport or f"{self.policy.transport}?", samples=samples, dropped=dropped,
                                kind="stream", state="connected" if transport else "waiting", detail=detail)
 
+    def note(self) -> PortStreamDescription:
+        """What ``scart describe`` shows of it under its port."""
+        stream = self._stream
+        refused, refusal = stream.refused, stream.refusal
+        if self.reader is not None:
+            refused += self.reader.refused
+            refusal = self.reader.refusal or refusal
+        return PortStreamDescription(name=self.name, topic=self.where, type_name=stream.type_name,
+                                     state="connected" if self._state()[0] else "waiting", refused=refused,
+                                     refusal=refusal,
+                                     unauthenticated=self.reader is not None and stream.authenticated is False)
+
     def _undo(self) -> None:
+        with _ports_lock:
+            self.port.streams = tuple(s for s in self.port.streams if s is not self)
         if self.writer is not None:
             detach(self.port, self.writer)
             self.writer.disconnected()

@@ -38,6 +38,7 @@ from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from dataflow import DataflowError
+from dataflow.cli import _ros as ros_args
 from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 from dataflow.remote.security import add_arguments, from_args
 from scart.assembly import assemble
@@ -76,6 +77,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
                      help="load and check the composite exactly as run would (settings, --set, --remap), print "
                           "what would run, and start nothing")
     add_arguments(run, server=True)
+    ros_args.add_arguments(run)
     run.set_defaults(func=cmd_run)
 
     validate = subparsers.add_parser("validate", help="check composites without running them (offline)")
@@ -192,6 +194,11 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(summary(assembly, {}, settings.remap), flush=True)
             print(f"scart: dry run: {len(assembly.nodes)} component(s) would start; nothing started", flush=True)
             return 0
+        try:
+            ros_args.apply(args)
+        except (DataflowError, ValueError) as exc:
+            print(f"scart: start failed: {exc}", file=sys.stderr)
+            return 1
         runtime = Runtime(assembly, settings=settings, max_workers=args.workers, drain_timeout=args.stop_timeout)
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.

@@ -24,6 +24,7 @@ import hashlib
 import struct
 import threading
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -31,7 +32,7 @@ from typing import Any
 import numpy
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 
-__all__ = ["MessageTypes", "MsgType", "SrvType", "TypeDefinitionError", "UnknownTypeError"]
+__all__ = ["FieldDef", "MessageTypes", "MsgType", "SrvType", "TypeDefinitionError", "UnknownTypeError"]
 
 MAX_DEFINITION_BYTES = 1 << 20  #: a .msg/.srv text or file larger than this is refused
 SEPARATOR = "=" * 80
@@ -48,6 +49,22 @@ STD_SRVS = MappingProxyType({
     "bool success   # indicate successful run of triggered service\n"
     "string message # informational, e.g. for error messages\n",
 })
+
+
+@dataclass(frozen=True)
+class FieldDef:
+    """One field of a message type, in ROS 1's words: ``type`` is a base type (``float64``,
+    ``string``, ``time``, ``duration``...) or a message type (``std_msgs/Header``);
+    ``array`` is None for one value, 0 for a variable-length array, N for N values."""
+
+    name: str
+    type: str
+    array: int | None = None
+
+    @property
+    def is_message(self) -> bool:
+        """Whether the field (or each item of it) is a message."""
+        return "/" in self.type
 
 
 class UnknownTypeError(LookupError):
@@ -252,6 +269,22 @@ class MessageTypes:
         with self._lock:
             return sorted(_ros1_name(n) for n in self._defs if "/msg/" in n)
 
+    def fields(self, name: str) -> tuple[FieldDef, ...]:
+        """The fields of message type ``name`` (``pkg/Type``), in order; raises
+        :class:`UnknownTypeError` (what a converter maps a scart type onto)."""
+        store_name = _store_name(name)
+        with self._lock:
+            self._check_known(store_name, name)
+            entries = self._defs[store_name][1]
+        return tuple(_field_def(n, desc) for n, desc in entries if n != "structure_needs_at_least_one_member")
+
+    def time_class(self, word: str = "time") -> type:
+        """The class of ROS 1's ``time`` or ``duration`` (fields ``sec``, ``nanosec``)."""
+        for store_name, ros1 in _ROS1_BUILTIN.items():
+            if ros1 == word:
+                return self._store.types[store_name]
+        raise UnknownTypeError(f"{word!r} is not a ROS 1 built-in type (time, duration)")
+
     def msg(self, name: str) -> MsgType:
         """The message type ``name`` (``pkg/Type``); raises :class:`UnknownTypeError`."""
         store_name = _store_name(name)
@@ -354,6 +387,20 @@ class MessageTypes:
             if dep not in order:
                 order.append(dep)
                 self._all_deps(dep, order)
+
+
+def _field_def(name: str, desc: tuple) -> FieldDef:
+    kind, arg = desc
+    if kind in (_BASE, _NAME):
+        return FieldDef(name, _type_word(kind, arg))
+    (subkind, subarg), count = arg
+    return FieldDef(name, _type_word(subkind, subarg), count if kind == _ARRAY else 0)
+
+
+def _type_word(kind: int, arg: Any) -> str:
+    if kind == _BASE:
+        return str(arg[0])
+    return _ROS1_BUILTIN.get(arg) or _ros1_name(arg)
 
 
 def _fielddefs(store: Any) -> dict:

@@ -199,7 +199,7 @@ class TaskSummary(_message.Message):
     def __init__(self, name: _Optional[str] = ..., state: _Optional[str] = ..., activity: _Optional[str] = ..., period: _Optional[float] = ..., cycles: _Optional[int] = ..., overruns: _Optional[int] = ...) -> None: ...
 
 class PortInfo(_message.Message):
-    __slots__ = ("name", "direction", "type_name", "doc", "connections", "event", "last_value", "has_last_value", "bounds")
+    __slots__ = ("name", "direction", "type_name", "doc", "connections", "event", "last_value", "has_last_value", "bounds", "streams")
     NAME_FIELD_NUMBER: _ClassVar[int]
     DIRECTION_FIELD_NUMBER: _ClassVar[int]
     TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
@@ -209,6 +209,7 @@ class PortInfo(_message.Message):
     LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
     HAS_LAST_VALUE_FIELD_NUMBER: _ClassVar[int]
     BOUNDS_FIELD_NUMBER: _ClassVar[int]
+    STREAMS_FIELD_NUMBER: _ClassVar[int]
     name: str
     direction: str
     type_name: str
@@ -218,7 +219,26 @@ class PortInfo(_message.Message):
     last_value: _value_pb2.Value
     has_last_value: bool
     bounds: str
-    def __init__(self, name: _Optional[str] = ..., direction: _Optional[str] = ..., type_name: _Optional[str] = ..., doc: _Optional[str] = ..., connections: _Optional[int] = ..., event: _Optional[bool] = ..., last_value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., has_last_value: _Optional[bool] = ..., bounds: _Optional[str] = ...) -> None: ...
+    streams: _containers.RepeatedCompositeFieldContainer[PortStreamInfo]
+    def __init__(self, name: _Optional[str] = ..., direction: _Optional[str] = ..., type_name: _Optional[str] = ..., doc: _Optional[str] = ..., connections: _Optional[int] = ..., event: _Optional[bool] = ..., last_value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., has_last_value: _Optional[bool] = ..., bounds: _Optional[str] = ..., streams: _Optional[_Iterable[_Union[PortStreamInfo, _Mapping]]] = ...) -> None: ...
+
+class PortStreamInfo(_message.Message):
+    __slots__ = ("name", "topic", "type_name", "state", "refused", "refusal", "unauthenticated")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    TOPIC_FIELD_NUMBER: _ClassVar[int]
+    TYPE_NAME_FIELD_NUMBER: _ClassVar[int]
+    STATE_FIELD_NUMBER: _ClassVar[int]
+    REFUSED_FIELD_NUMBER: _ClassVar[int]
+    REFUSAL_FIELD_NUMBER: _ClassVar[int]
+    UNAUTHENTICATED_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    topic: str
+    type_name: str
+    state: str
+    refused: int
+    refusal: str
+    unauthenticated: bool
+    def __init__(self, name: _Optional[str] = ..., topic: _Optional[str] = ..., type_name: _Optional[str] = ..., state: _Optional[str] = ..., refused: _Optional[int] = ..., refusal: _Optional[str] = ..., unauthenticated: _Optional[bool] = ...) -> None: ...
 
 class PropertyInfo(_message.Message):
     __slots__ = ("name", "type_name", "json_value", "doc", "bounds")
