@@ -65,12 +65,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # noqa: SLF001
     p = verb("write", "write one value (JSON) to an input port", cmd_write)
     p.add_argument("port", metavar="COMP.PORT")
     p.add_argument("value", help="JSON value (a bare word is taken as a string)")
-    p = verb("call", "call a task's operation, or with --at an SCA service's, with JSON arguments", cmd_call)
-    p.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op")
-    p.add_argument("args", nargs="*", help="JSON arguments")
+    p = verb("call", "call a task's operation, with --at an SCA service's, or a ROS service (ros1:/name), with "
+                     "JSON arguments", cmd_call)
+    p.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op|ros1:/service")
+    p.add_argument("args", nargs="*", help="JSON arguments (a ROS service: one object of its request's fields)")
     p.add_argument("--at", default=None, metavar="HOST:PORT",
                    help="call an SCA service served there (scart run prints it: 'SCA services at ...'; "
                         "or $SCART_SERVICES)")
+    p.add_argument("--type", default=None, metavar="pkg/Srv",
+                   help="a ROS service's type (default: asked of the service, as rosservice does)")
+    from dataflow.cli import _ros as ros_args
+
+    ros_args.add_arguments(p)
     from dataflow.cli.services import cmd_services
 
     p = verb("services", "list the SCA services a scart run serves (--at HOST:PORT)", cmd_services)
@@ -192,7 +198,7 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
             return 1
         finally:
             args.zenoh_session.close()
-    if at(args) is not None:  # SCA services: no name service involved
+    if at(args) is not None or _ros_call(args):  # SCA services, ROS services: no name service involved
         try:
             return func(args)
         except (DataflowError, ValueError) as exc:
@@ -221,6 +227,11 @@ def _guard(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) 
         return 1
     finally:
         system.close()
+
+
+def _ros_call(args: argparse.Namespace) -> bool:
+    """``scart call ros1:/service ...``: a ROS service, found through the ROS master."""
+    return args.command == "call" and str(getattr(args, "operation", "")).startswith("ros1:")
 
 
 def _split(text: str, what: str = "PORT") -> tuple[str, str]:
@@ -484,6 +495,8 @@ def cmd_call(args: argparse.Namespace) -> int:
     service's: prints the result."""
     from dataflow.cli.services import at, call
 
+    if _ros_call(args):
+        return _call_ros1(args)
     address = at(args)
     if address is not None:
         _out(_dump(call(address, args.operation, [_parse_json(a) for a in args.args], args)))
@@ -491,6 +504,27 @@ def cmd_call(args: argparse.Namespace) -> int:
     component, op = _split(args.operation, "OPERATION")
     result = args.system.component(component).call_json(op, [_parse_json(a) for a in args.args], timeout=args.timeout)
     _out(_dump(_jsonable(result)))
+    return 0
+
+
+def _call_ros1(args: argparse.Namespace) -> int:
+    """``scart call ros1:/service ['{"field": value}'] [--type pkg/Srv]``: the response as JSON."""
+    from dataflow.cli import _ros as ros_args
+    from dataflow.transports.ros1.calls import call_service
+    from dataflow.transports.ros1.services import ServiceError
+
+    service = args.operation.partition(":")[2]
+    if len(args.args) > 1:
+        raise ValueError("a ROS service takes one JSON object of request fields, e.g. '{\"data\": true}'")
+    request = _parse_json(args.args[0]) if args.args else {}
+    if not isinstance(request, dict):
+        raise ValueError(f"the request is a JSON object of its fields, not {args.args[0]!r}")
+    ros_args.apply(args)
+    try:
+        reply = call_service(service, request, type_name=args.type, timeout=args.timeout)
+    except (ServiceError, TypeError, LookupError) as exc:
+        raise ValueError(str(exc)) from None
+    _out(_dump(reply))
     return 0
 
 

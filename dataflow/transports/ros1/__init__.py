@@ -1,8 +1,13 @@
 """A native ROS 1 node, without rospy: the Master API, the Slave API, TCPROS topics and services.
 
-It depends on the standard library, ``rosbags`` (message types and the ROS 1 wire format)
-and numpy (rosbags' arrays) only, and knows nothing of scart's ports: its edges are bytes
-and rosbags message objects, so a scart transport can wrap it.
+The node library depends on the standard library, ``rosbags`` (message types and the ROS 1
+wire format) and numpy (rosbags' arrays) only, and knows nothing of scart's ports: its
+edges are bytes and rosbags message objects. Three modules make it scart's ``ros1``
+transport: :mod:`.transport` (:class:`~.transport.Ros1Transport`: streams joining ports to
+topics through one node per process), :mod:`.convert` (a port's type onto a message type:
+std_msgs wrappers, field names, converters; checked when planned) and :mod:`.calls`
+(services both ways: task or SCA operations answering ROS services, ROS services called
+from scart). They are imported only when used.
 
 The story — make a node, offer and use topics and services, close it::
 
@@ -48,7 +53,7 @@ and survived.
 default); an explicit other host opens it to that network.
 """
 
-from .msgs import MessageTypes, MsgType, SrvType, TypeDefinitionError, UnknownTypeError
+from .msgs import FieldDef, MessageTypes, MsgType, SrvType, TypeDefinitionError, UnknownTypeError
 from .master import Master, MasterError, MasterUnreachable
 from .names import NodeNames, RosNameError
 from .node import NODE_COUNTERS, Node
@@ -58,6 +63,7 @@ from .topics import Publisher, Subscriber
 
 __all__ = [
     "NODE_COUNTERS",
+    "FieldDef",
     "HeaderError",
     "Limits",
     "Master",

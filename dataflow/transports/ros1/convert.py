@@ -45,7 +45,8 @@ import pydantic
 
 from .msgs import FieldDef, MessageTypes, UnknownTypeError
 
-__all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "plan", "resolve_converter"]
+__all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "field_conversion", "plan", "resolve_converter",
+           "type_label"]
 
 #: The std_msgs type a port of a plain type maps onto when the stream names none.
 PLAIN = MappingProxyType({float: "std_msgs/Float64", int: "std_msgs/Int64", bool: "std_msgs/Bool",
@@ -126,6 +127,15 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
     return (Conversion(name, via, to_ros=fn) if outgoing else Conversion(name, via, from_ros=fn)), []
 
 
+def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoing: bool) -> Callable[[Any], Any]:
+    """How a value of ``py_type`` becomes the field ``fdef`` (``outgoing``) or comes from
+    it, as a stream's fields do; raises ``ValueError`` saying why they do not fit."""
+    try:
+        return _Planner(types_, outgoing, "").field(_unwrap(py_type), fdef, 0)
+    except _Mismatch as exc:
+        raise ValueError(str(exc)) from None
+
+
 # ---- converters -----------------------------------------------------------------------
 def resolve_converter(ref: str) -> Callable[..., Any]:
     """The function ``module:qualified.name`` of a module this process has imported
@@ -195,8 +205,13 @@ def _check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: s
         if returned is not None and not (_is_open(returned) or _is_mapping(returned) or returned is types_.msg(ros_type).cls):
             return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; a {ros_type} (or a mapping "
                                       "of its fields) is needed")]
-    elif returned is not None and not (_is_open(returned) or _is_mapping(returned) or _accepts(py_type, returned)):
-        return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; the port takes {port}")]
+    else:
+        cls = types_.msg(ros_type).cls
+        if given is not None and not (_is_open(given) or given is cls):
+            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the topic gives {ros_type} messages")]
+        if returned is not None and not (_is_open(returned) or (_is_mapping(returned) and _is_model(py_type))
+                                         or _accepts(py_type, returned)):
+            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; the port takes {port}")]
     if given is None and returned is None:
         return [ConversionProblem(f"converter {ref} has no type annotations: its types are checked only per "
                                   "sample", warning=True)]
@@ -289,17 +304,20 @@ class _Planner:
         fields = {f.name: f for f in self.types.fields(ros_type)}
         ours = model.model_fields
         convs: dict[str, Callable[[Any], Any]] = {}
-        problems = []
+        problems, missing = [], []
         for name, info in ours.items():
             fdef = fields.get(name)
             if fdef is None:
                 if self.outgoing or info.is_required():
-                    problems.append(f"{model.__name__}.{name} has no field in {ros_type} (fields: {_names(fields.values())})")
+                    missing.append(name)
                 continue
             try:
                 convs[name] = self.field(_unwrap(info.annotation), fdef, depth)
             except _Mismatch as exc:
                 problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
+        if missing:
+            problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
+                               f"no field in {ros_type} (its fields: {_names(fields.values())})")
         if problems:
             raise _Mismatch("; ".join(problems) + "; give a converter")
         if not self.outgoing:

@@ -9,7 +9,8 @@ the response's md5 texts, as genmsg) and the two message types ``pkg/SrvRequest`
 ``pkg/SrvResponse``.
 
 Types come from rosbags' ROS 1 Noetic store, from std_srvs' ``Empty``, ``Trigger`` and
-``SetBool`` (rosbags has no services), and from text or files the user adds
+``SetBool`` and roscpp's ``Empty`` (rosbags has no services), and from text or files the
+user adds
 (:meth:`MessageTypes.add_msg`, :meth:`~MessageTypes.add_srv`, :meth:`~MessageTypes.add_file`).
 A user type keeps its own text (comments too) in its definition; a store type's text is
 written from its fields. Numeric arrays are numpy arrays (rosbags' form);
@@ -43,6 +44,7 @@ _LEN = struct.Struct("<I")
 
 STD_SRVS = MappingProxyType({
     "std_srvs/Empty": "---\n",
+    "roscpp/Empty": "---\n",  # the same, in a package every ROS 1 installation has (rosservice knows it)
     "std_srvs/Trigger": "---\nbool success   # indicate successful run of triggered service\n"
     "string message # informational, e.g. for error messages\n",
     "std_srvs/SetBool": "bool data # e.g. for hardware enabling / disabling\n---\n"

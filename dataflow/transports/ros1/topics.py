@@ -316,7 +316,7 @@ class Subscriber:
         sock.sendall(encode_header(ours))
         header = read_header(sock, time.monotonic() + self._node.limits.connect_timeout, self._node.limits.max_header)
         if "error" in header:
-            raise _Refused(f"publisher refused: {header['error']}")
+            raise _Refused(f"publisher refused: {header['error']} (we asked for {self._type_name}/{self._md5})")
         theirs = (header.get("type", "?"), header.get("md5sum", "?"))
         if self._md5 != "*" and theirs[1] != self._md5:
             self._counters["md5_mismatches"] += 1
