@@ -57,6 +57,7 @@ FLOATS = frozenset({"float32", "float64"})
 INTS = frozenset({"int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "byte", "char"})
 TIMES = frozenset({"time", "duration"})
 _DTYPE = MappingProxyType({"byte": "int8", "char": "uint8", "bool": "bool_"})
+_NOT_FIELDS = frozenset({"__msgtype__", "structure_needs_at_least_one_member"})  # rosbags' own, not ROS's
 MAX_DEPTH = 16  #: nesting of models/messages followed, at most
 
 
@@ -447,7 +448,7 @@ def _plain_value(value: Any) -> Any:
         return [_plain_value(v) for v in value]
     fields = getattr(value, "__dataclass_fields__", None)
     if fields is not None:
-        return {name: _plain_value(getattr(value, name)) for name in fields if name != "__msgtype__"}
+        return {name: _plain_value(getattr(value, name)) for name in fields if name not in _NOT_FIELDS}
     return value
 
 

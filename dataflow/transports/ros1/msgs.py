@@ -9,8 +9,8 @@ the response's md5 texts, as genmsg) and the two message types ``pkg/SrvRequest`
 ``pkg/SrvResponse``.
 
 Types come from rosbags' ROS 1 Noetic store, from std_srvs' ``Empty``, ``Trigger`` and
-``SetBool`` and roscpp's ``Empty`` (rosbags has no services), and from text or files the
-user adds
+``SetBool``, roscpp's ``Empty``, ``GetLoggers`` and ``SetLoggerLevel`` (rosbags has no
+services), and from text or files the user adds
 (:meth:`MessageTypes.add_msg`, :meth:`~MessageTypes.add_srv`, :meth:`~MessageTypes.add_file`).
 A user type keeps its own text (comments too) in its definition; a store type's text is
 written from its fields. Numeric arrays are numpy arrays (rosbags' form);
@@ -42,9 +42,12 @@ _ROS1_BUILTIN = MappingProxyType({"builtin_interfaces/msg/Time": "time", "builti
 _DTYPES = MappingProxyType({"bool": "bool_", "char": "uint8"})  # numpy's names where ROS's differ (as rosbags)
 _LEN = struct.Struct("<I")
 
-STD_SRVS = MappingProxyType({
+BUILTIN_SRVS = MappingProxyType({
     "std_srvs/Empty": "---\n",
-    "roscpp/Empty": "---\n",  # the same, in a package every ROS 1 installation has (rosservice knows it)
+    # roscpp's: in every ROS 1 installation (rosservice knows them); every node serves the last two
+    "roscpp/Empty": "---\n",
+    "roscpp/GetLoggers": "---\nLogger[] loggers\n",
+    "roscpp/SetLoggerLevel": "string logger\nstring level\n---\n",
     "std_srvs/Trigger": "---\nbool success   # indicate successful run of triggered service\n"
     "string message # informational, e.g. for error messages\n",
     "std_srvs/SetBool": "bool data # e.g. for hardware enabling / disabling\n---\n"
@@ -198,7 +201,8 @@ class MessageTypes:
         self._srvs: dict[str, tuple[str, str]] = {}  # ros1 name → (request store name, response store name)
         self._msg_cache: dict[str, MsgType] = {}
         self._srv_cache: dict[str, SrvType] = {}
-        for name, text in STD_SRVS.items():
+        self.add_msg("roscpp/Logger", "string name\nstring level\n")
+        for name, text in BUILTIN_SRVS.items():
             self.add_srv(name, text)
         for path in files:
             self.add_file(path)
