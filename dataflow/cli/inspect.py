@@ -496,7 +496,10 @@ def cmd_call(args: argparse.Namespace) -> int:
     from dataflow.cli.services import at, call
 
     if _ros_call(args):
-        return _call_ros1(args)
+        from dataflow.cli import _ros as ros_args
+
+        _out(_dump(ros_args.call(args, [_parse_json(a) for a in args.args])))
+        return 0
     address = at(args)
     if address is not None:
         _out(_dump(call(address, args.operation, [_parse_json(a) for a in args.args], args)))
@@ -504,27 +507,6 @@ def cmd_call(args: argparse.Namespace) -> int:
     component, op = _split(args.operation, "OPERATION")
     result = args.system.component(component).call_json(op, [_parse_json(a) for a in args.args], timeout=args.timeout)
     _out(_dump(_jsonable(result)))
-    return 0
-
-
-def _call_ros1(args: argparse.Namespace) -> int:
-    """``scart call ros1:/service ['{"field": value}'] [--type pkg/Srv]``: the response as JSON."""
-    from dataflow.cli import _ros as ros_args
-    from dataflow.transports.ros1.calls import call_service
-    from dataflow.transports.ros1.services import ServiceError
-
-    service = args.operation.partition(":")[2]
-    if len(args.args) > 1:
-        raise ValueError("a ROS service takes one JSON object of request fields, e.g. '{\"data\": true}'")
-    request = _parse_json(args.args[0]) if args.args else {}
-    if not isinstance(request, dict):
-        raise ValueError(f"the request is a JSON object of its fields, not {args.args[0]!r}")
-    ros_args.apply(args)
-    try:
-        reply = call_service(service, request, type_name=args.type, timeout=args.timeout)
-    except (ServiceError, TypeError, LookupError) as exc:
-        raise ValueError(str(exc)) from None
-    _out(_dump(reply))
     return 0
 
 

@@ -32,6 +32,7 @@ thread-safe.
 from __future__ import annotations
 
 import inspect
+import struct
 import sys
 import types
 import typing
@@ -80,6 +81,11 @@ class Conversion:
     via: str
     to_ros: Callable[[Any, int, int], object] | None = None
     from_ros: Callable[[object], Any] | None = None
+    #: The same, straight from and to ROS 1 bytes where the message is one fixed field or a
+    #: string (``std_msgs/Float64``...): no message object is made (``to_frame`` gives the
+    #: whole TCPROS frame, its length first).
+    from_bytes: Callable[[bytes], Any] | None = None
+    to_frame: Callable[[Any, int, int], bytes] | None = None
 
 
 class _Mismatch(Exception):
@@ -125,7 +131,10 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
             via = "data field"
     except _Mismatch as exc:
         return None, [ConversionProblem(str(exc))]
-    return (Conversion(name, via, to_ros=fn) if outgoing else Conversion(name, via, from_ros=fn)), []
+    fast = _wire_fast(types_, _unwrap(py_type), name, outgoing) if via == "data field" else None
+    if outgoing:
+        return Conversion(name, via, to_ros=fn, to_frame=fast), []
+    return Conversion(name, via, from_ros=fn, from_bytes=fast), []
 
 
 def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoing: bool) -> Callable[[Any], Any]:
@@ -135,6 +144,47 @@ def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoin
         return _Planner(types_, outgoing, "").field(_unwrap(py_type), fdef, 0)
     except _Mismatch as exc:
         raise ValueError(str(exc)) from None
+
+
+# ---- ROS 1 bytes straight -------------------------------------------------------------
+_STRUCT = MappingProxyType({"float64": "d", "float32": "f", "int8": "b", "uint8": "B", "int16": "h",
+                            "uint16": "H", "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q",
+                            "bool": "?", "byte": "b", "char": "B"})
+
+
+def _wire_fast(types_: MessageTypes, py_type: Any, ros_type: str, outgoing: bool) -> Callable[..., Any] | None:
+    """For a message that is one fixed-size field (or one string), the value straight from
+    its bytes (reading) or to its frame (publishing); None for any other message. Bytes of
+    another length, or a value the field cannot hold, raise (``struct.error``, ``ValueError``)."""
+    fields = types_.fields(ros_type)
+    if len(fields) != 1 or fields[0].array is not None or py_type not in (float, int, bool, str):
+        return None
+    t = fields[0].type
+    if t == "string" and py_type is str:
+        return _string_frame if outgoing else _string_value
+    code = _STRUCT.get(t)
+    if code is None:
+        return None
+    if outgoing:
+        frame = struct.Struct("<I" + code)
+        size = frame.size - 4
+        return lambda value, _n, _t: frame.pack(size, value)
+    unpack = struct.Struct("<" + code).unpack
+    if py_type is float and t not in FLOATS:
+        return lambda data: float(unpack(data)[0])
+    return lambda data: unpack(data)[0]
+
+
+def _string_frame(value: str, _n: int, _t: int) -> bytes:
+    data = value.encode("utf-8")
+    return struct.pack("<II", len(data) + 4, len(data)) + data
+
+
+def _string_value(data: bytes) -> str:
+    (size,) = struct.unpack_from("<I", data)
+    if size != len(data) - 4:
+        raise ValueError(f"a string of {size} bytes in a {len(data) - 4}-byte message")
+    return data[4:].decode("utf-8")
 
 
 # ---- converters -----------------------------------------------------------------------

@@ -275,13 +275,16 @@ class _Carrier:
     encode = staticmethod(_identity)  # converted in send(), only when someone listens
 
     def __init__(self, pub: Any, conv: Conversion, label: str) -> None:
-        to_ros, frame = conv.to_ros, pub.type.frame
+        to_ros, to_frame, frame = conv.to_ros, conv.to_frame, pub.type.frame
         assert to_ros is not None
         self._pub = pub
         self._label = label
         self.refused = 0
         self.refusal = ""
-        self._frame = lambda sample: frame(to_ros(sample.value, sample.n, sample.t_ns))
+        if to_frame is not None:  # one fixed field: straight to bytes
+            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, sample.t_ns)
+        else:
+            self._frame = lambda sample: frame(to_ros(sample.value, sample.n, sample.t_ns))
 
     def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
         pub = self._pub
@@ -332,7 +335,8 @@ class _TopicStream(Stream):
                 self._carrier.send(OutSample(n, time.time_ns(), value, end.port.type), None)
 
     def _subscribe(self, end: ReaderEnd, conv: Conversion) -> None:
-        from_ros, label = conv.from_ros, conv.ros_type
+        raw = conv.from_bytes is not None  # one fixed field: straight from the bytes, no message object
+        from_ros, label = conv.from_bytes if raw else conv.from_ros, conv.ros_type
         assert from_ros is not None
         count = [0]
 
@@ -346,7 +350,7 @@ class _TopicStream(Stream):
             end.receive(count[0], time.time_ns(), value)
 
         end.transport = "ros1"
-        self._sub = self._node.subscribe(self.topic, conv.ros_type, on_message, tcp_nodelay=True)
+        self._sub = self._node.subscribe(self.topic, conv.ros_type, on_message, raw=raw, tcp_nodelay=True)
 
     # ---- what it says ------------------------------------------------------------------
     @property
