@@ -53,13 +53,38 @@ and survived.
 default); an explicit other host opens it to that network.
 """
 
-from .msgs import FieldDef, MessageTypes, MsgType, SrvType, TypeDefinitionError, UnknownTypeError
-from .master import Master, MasterError, MasterUnreachable
-from .names import NodeNames, RosNameError
-from .node import NODE_COUNTERS, Node
-from .services import ServiceError, ServiceServer
-from .tcpros import HeaderError, Limits
-from .topics import Publisher, Subscriber
+from __future__ import annotations
+
+import importlib
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .master import Master, MasterError, MasterUnreachable
+    from .msgs import FieldDef, MessageTypes, MsgType, SrvType, TypeDefinitionError, UnknownTypeError
+    from .names import NodeNames, RosNameError
+    from .node import NODE_COUNTERS, Node
+    from .services import ServiceError, ServiceServer
+    from .tcpros import HeaderError, Limits
+    from .topics import Publisher, Subscriber
+
+#: Where each public name lives: imported when first asked for, so that loading the ``ros1``
+#: transport (``auto`` reads every transport's rank) costs no rosbags or numpy import.
+_WHERE = MappingProxyType({
+    "FieldDef": "msgs", "MessageTypes": "msgs", "MsgType": "msgs", "SrvType": "msgs", "TypeDefinitionError": "msgs",
+    "UnknownTypeError": "msgs", "Master": "master", "MasterError": "master", "MasterUnreachable": "master",
+    "NodeNames": "names", "RosNameError": "names", "NODE_COUNTERS": "node", "Node": "node",
+    "ServiceError": "services", "ServiceServer": "services", "HeaderError": "tcpros", "Limits": "tcpros",
+    "Publisher": "topics", "Subscriber": "topics",
+})
+
+
+def __getattr__(name: str) -> Any:
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
+
 
 __all__ = [
     "NODE_COUNTERS",

@@ -39,14 +39,18 @@ import time
 from dataclasses import dataclass, replace
 from typing import Any
 
+from typing import TYPE_CHECKING
+
 from dataflow.policy import ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
-from .convert import Conversion, plan
-from .msgs import MessageTypes, TypeDefinitionError
 from .names import RosNameError, check_name, master_uri_from
-from .node import Node
+
+if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
+    from .convert import Conversion
+    from .msgs import MessageTypes
+    from .node import Node
 
 __all__ = ["NodeSettings", "OPTIONS", "Ros1Transport"]
 
@@ -132,6 +136,8 @@ class Ros1Transport(Transport):
     @property
     def types(self) -> MessageTypes:
         """The message types of this process (rosbags' Noetic store and the ``msgs`` given)."""
+        from .msgs import MessageTypes
+
         with self._lock:
             if self._types is None:
                 self._types = MessageTypes()
@@ -163,6 +169,8 @@ class Ros1Transport(Transport):
             wanted = self.node_settings(options)
         except ValueError as exc:
             raise TransportError(f"ros1: {exc}") from None
+        from .node import Node
+
         types = self.types
         with self._lock:
             node = self._node
@@ -228,6 +236,8 @@ class Ros1Transport(Transport):
         return out
 
     def _add_msgs(self, options: dict[str, str]) -> None:
+        from .msgs import TypeDefinitionError
+
         for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
             try:
                 self.types.add_file(path)
@@ -236,6 +246,8 @@ class Ros1Transport(Transport):
 
     def conversion(self, port: Any, options: dict[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
         """How ``port``'s values cross to the topic's type, and the problems found."""
+        from .convert import plan
+
         conv, problems = plan(self.types, port.type, options.get("type") or None, outgoing=not port.is_input,
                               converter=options.get("converter", ""), frame_id=options.get("frame_id", ""))
         where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
