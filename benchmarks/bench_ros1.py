@@ -1,17 +1,29 @@
-"""Benchmark of our ROS 1 node (dataflow.transports.ros1) against rospy, hop by hop, one run.
+"""Benchmark of scart on ROS 1 against rospy, hop by hop, one run.
 
-Usage: ``python benchmarks/bench_ros1.py [--quick | --smoke]`` (needs Debian's ``ros-core``
-and, for the rospy rows, ``python3-rospy`` for ``/usr/bin/python3``; says so and measures
-what it can when they are missing). Not a test; CI does not run it.
+Usage: ``python benchmarks/bench_ros1.py [--quick | --smoke] [--hops a>b,...]`` (needs
+Debian's ``ros-core`` and, for the rospy rows, ``python3-rospy`` for ``/usr/bin/python3``;
+says so and measures what it can when they are missing). Not a test; CI does not run it.
 
-A ``rosmaster --core`` on a free port; then, alternating in each round, four same-host
-hops, each a publisher process and a subscriber process: rospy → rospy, ours → rospy,
-rospy → ours, ours → ours. The publisher sends ``std_msgs/Int64(time.monotonic_ns())`` on
-absolute deadlines at 1 kHz and at 100 Hz (rospy with ``queue_size=1`` and
-``tcp_nodelay=True``, the subscriber with ``tcp_nodelay=True``); the subscriber's callback
-records arrival − stamp. The first second is discarded. Prints one markdown table: p50
-and p99 per hop and rate, samples pooled over the rounds, and each hop's p50 against
-rospy → rospy's in the same run (the goal of issue 22: ≤ 1.2×).
+A ``rosmaster --core`` on a free port; then, alternating in each round, same-host hops,
+each a publisher process and a subscriber process, three kinds of side:
+
+* ``rospy``: Debian's rospy;
+* ``ours``: the bare node library (``dataflow.transports.ros1.Node``), its callback;
+* ``scart``: the whole scart path, as a user has it — an output port of a task streamed
+  with ``Deployer.stream(..., ConnPolicy(transport="ros1", topic=...))`` (the value
+  written with ``port.write``), or an event input port fed by such a stream, the sample
+  timed in the task's ``update_hook`` (reader end, the port's check, the buffer, and the
+  task's wake-up: one hand-over to the task's thread);
+* ``scart-port``: the same input port, the sample timed when it is in the port (a data
+  callback, in the node's io thread, right after the reader end stored it): the stream's
+  own cost, without the task's wake-up.
+
+The publisher sends ``std_msgs/Int64(time.monotonic_ns())`` on absolute deadlines at 1 kHz
+and at 100 Hz (rospy with ``queue_size=1`` and ``tcp_nodelay=True``, the subscriber with
+``tcp_nodelay=True``); the subscriber records arrival − stamp. The first second is
+discarded. Prints one markdown table: p50 and p99 per hop and rate, samples pooled over
+the rounds, and each hop's p50 against rospy → rospy's in the same run (the goal of issue
+22: scart → rospy and rospy → scart ≤ 1.2×).
 """
 
 from __future__ import annotations
@@ -34,6 +46,9 @@ from _common import paced, pct, wait_until  # noqa: E402
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 TOPIC = "/bench_hop"
+#: publisher > subscriber, in the order measured (alternating within each round)
+HOPS = (("rospy", "rospy"), ("scart", "rospy"), ("rospy", "scart-port"), ("rospy", "scart"), ("ours", "rospy"),
+        ("rospy", "ours"), ("scart", "scart"))
 
 # The rospy side: run by the system Python (Debian's rospy), as publisher or subscriber.
 ROSPY_PEER = r'''
@@ -93,6 +108,63 @@ def ours(role: str, rate: float, count: int, warmup: float, topic: str) -> None:
     print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
 
 
+def scart_side(role: str, rate: float, count: int, warmup: float, topic: str) -> None:
+    """The ``--child-scart`` side: a task's port streamed on ROS 1 (same protocol as ROSPY_PEER)."""
+    from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext
+
+    class Stamper(TaskContext):
+        stamp = OutputPort(int)
+
+    class Receiver(TaskContext):
+        stamp = InputPort(int, event=True)
+
+        def __init__(self, name: str) -> None:
+            super().__init__(name)
+            self.got: list[tuple[int, int]] = []
+            if role == "sub-port":  # timed in the port: the update_hook only drains
+                self.stamp.add_data_callback(lambda port: self.got.append((time.monotonic_ns(), port_value(port))))
+
+        def drain(self) -> None:
+            for _ in range(1000):
+                if self.stamp.read()[0] is not FlowStatus.NEW_DATA:
+                    return
+
+        def update_hook(self) -> None:
+            if role == "sub-port":
+                return self.drain()
+            for _ in range(1000):
+                flow, value = self.stamp.read()
+                if flow is not FlowStatus.NEW_DATA:
+                    return
+                self.got.append((time.monotonic_ns(), value))
+
+    def port_value(port: InputPort) -> int:
+        return port.read_newest()[1]  # the sample just stored (the callback runs in the writer's thread)
+
+    policy = ConnPolicy.data().with_(transport="ros1", topic=topic)
+    options = {"node": f"scart_{role.replace('-', '_')}_{os.getpid()}"}
+    with Deployer() as dep:
+        task = dep.add(Stamper("stamper") if role == "pub" else Receiver("receiver"))
+        dep.configure_all()
+        dep.start_all()
+        made = dep.stream(f"{task.name}.stamp", policy, options)
+        if role == "pub":
+            stream = dep.streams()[made.name]._stream  # the benchmark peeks: wait for the rospy subscriber
+            stream._pub.wait_for_connections(1, timeout=30)
+            paced(count, rate, lambda k: task.stamp.write(time.monotonic_ns()))
+            time.sleep(0.5)
+        else:
+            wait_until(lambda: next(lk for lk in dep.links() if lk.name == made.name).state == "connected", 30)
+            print("ready", flush=True)
+            _wait_for(task.got, count, rate)
+        dep.unstream(made.name)
+        dep.stop_all()
+    if role != "pub":
+        got = list(task.got)
+        first = got[0][1] if got else 0
+        print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
+
+
 def _wait_for(got: list, count: int, rate: float) -> None:
     """Until ``count`` samples, or 2 s without a new one, or a deadline."""
     deadline, last, seen = time.monotonic() + count / rate + 60, -1, time.monotonic()
@@ -130,6 +202,9 @@ class Bench:
         args = [role, str(rate), str(count), str(warmup), TOPIC]
         if side == "rospy":
             return [SYSTEM_PYTHON, str(self.rospy_script), *args]
+        if side.startswith("scart"):
+            role = role + ("-port" if side == "scart-port" else "")
+            return [sys.executable, __file__, "--child-scart", role, *args[1:]]
         return [sys.executable, __file__, "--child", *args]
 
     def hop(self, pub: str, sub: str, rate: float, seconds: float, warmup: float) -> list[float]:
@@ -178,20 +253,25 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one round of 3 s hops")
     parser.add_argument("--smoke", action="store_true", help="one short round (proves every path works)")
+    parser.add_argument("--hops", default=",".join(f"{p}>{s}" for p, s in HOPS),
+                        help="the hops to measure, publisher>subscriber (default: all)")
     parser.add_argument("--child", nargs=5, metavar=("ROLE", "RATE", "COUNT", "WARMUP", "TOPIC"), help=argparse.SUPPRESS)
+    parser.add_argument("--child-scart", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.child:
-        role, rate, count, warmup, topic = args.child
-        ours(role, float(rate), int(count), float(warmup), topic)
-        return 0
+    for child, side in ((args.child, ours), (args.child_scart, scart_side)):
+        if child:
+            role, rate, count, warmup, topic = child
+            side(role, float(rate), int(count), float(warmup), topic)
+            return 0
     if shutil.which("rosmaster") is None:
         print("rosmaster is missing (Debian: apt-get install ros-core python3-rospy): nothing to measure")
         return 0
     rounds, seconds, warmup = (1, 0.5, 0.2) if args.smoke else (1, 2.0, 1.0) if args.quick else (3, 5.0, 1.0)
-    sides = ["rospy", "ours"] if _has_rospy() else ["ours"]
-    if sides == ["ours"]:
-        print(f"rospy is missing for {SYSTEM_PYTHON} (Debian: apt-get install python3-rospy): only ours → ours measured")
-    hops = [(p, s) for p in sides for s in sides]
+    hops = [tuple(h.split(">", 1)) for h in args.hops.split(",") if ">" in h]
+    if not _has_rospy():
+        print(f"rospy is missing for {SYSTEM_PYTHON} (Debian: apt-get install python3-rospy): the rospy hops are "
+              "not measured")
+        hops = [h for h in hops if "rospy" not in h]
     samples: dict[tuple[float, str, str], list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / "rospy_peer.py"

@@ -48,7 +48,7 @@ next), True once a connection it carried has ended, and raises what interrupted 
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
 Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
-``grpc``, ``zenoh``, ``ros2``) are registered exactly as a third party's would be::
+``grpc``, ``zenoh``, ``ros1``, ``ros2``) are registered exactly as a third party's would be::
 
     [project.entry-points."scart.transports"]
     mine = "my_package.transport:MyTransport"
@@ -87,6 +87,7 @@ NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
 BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
                             "grpc": "dataflow.transports.grpc:GrpcTransport",
                             "zenoh": "dataflow.transports.zenoh:ZenohTransport",
+                            "ros1": "dataflow.transports.ros1.transport:Ros1Transport",
                             "ros2": "dataflow.transports.ros2:Ros2Transport"})
 
 

@@ -4,7 +4,9 @@
 run`` registered with the name service: ``Component/Service``, a promoted service, or a
 single-service component's name (``scart call Locomotor.poses``). ``--at HOST:PORT`` (or
 ``SCART_SERVICES``) calls the SCA service served there, without the name service.
-Arguments are JSON or YAML (a bare word is a string)."""
+``ros1:/service`` and ``ros2:/service`` call a ROS service (one object of its request's
+fields; ``--type`` its type, which ROS 1 can also tell itself). Arguments are JSON or YAML
+(a bare word is a string)."""
 
 from __future__ import annotations
 
@@ -18,16 +20,24 @@ HELP = "call a task's operation or an SCA service's, with JSON or YAML arguments
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The target, its arguments, ``--at`` and the common options."""
-    parser.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op")
-    parser.add_argument("args", nargs="*", help="arguments: JSON or YAML each")
+    parser.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op|ros1:/service|ros2:/service")
+    parser.add_argument("args", nargs="*", help="arguments: JSON or YAML each (a ROS service: one object of "
+                                                "its request's fields)")
     parser.add_argument("--at", default=None, metavar="HOST:PORT",
                         help="call the SCA service served there, without the name service (scart run prints it: "
                              f"'SCA services at ...'; or ${SERVICES_ENV})")
+    parser.add_argument("--type", default=None, metavar="pkg/Srv",
+                        help="a ROS service's type (ROS 1: default, asked of the service as rosservice does)")
+    from dataflow.cli import _ros as ros_args
+
+    ros_args.add_arguments(parser)
     add_common(parser)
 
 
 def main(args: argparse.Namespace) -> int:
     """Call; 1 when the target is unknown, refuses or raises."""
+    if args.operation.startswith(("ros1:", "ros2:")):  # a ROS service: found through ROS, no name service
+        return with_services(args, lambda a: _print(a, _ros_call(a)))
     address = at(args)
     if address is not None:
         return with_services(args, lambda a: _print(a, call(address, a.operation, _arguments(a), a)))
@@ -50,3 +60,20 @@ def _call(args: argparse.Namespace) -> int:
         result = args.system.component(name).call_json(operation, _arguments(args), timeout=args.timeout)
         return _print(args, jsonable(result))
     return _print(args, call(find(name, args), args.operation, _arguments(args), args))
+
+
+def _ros_call(args: argparse.Namespace) -> object:
+    """``ros1:/service`` or ``ros2:/service``: the response as plain data."""
+    values = _arguments(args)
+    if len(values) > 1 or (values and not isinstance(values[0], dict)):
+        raise ValueError("a ROS service takes one object of its request's fields, e.g. '{data: true}'")
+    if args.operation.startswith("ros1:"):
+        from dataflow.cli import _ros as ros_args
+
+        return ros_args.call(args, values)
+    from dataflow.transports.ros2 import call_service
+
+    if not args.type:
+        raise ValueError("a ROS 2 service needs --type pkg/srv/Type (ROS 2 cannot be asked it)")
+    service = args.operation.partition(":")[2]
+    return jsonable(call_service(service, values[0] if values else {}, type_name=args.type, timeout=args.timeout))

@@ -47,6 +47,7 @@ import time
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
+from dataflow import DataflowError
 from scart.commands._composite import TASK_KIND, add_launch_options, assemble_or_say, endpoint_text, settings_of
 from scart.errors import ScartError
 from scart.graph import Assembly
@@ -102,6 +103,9 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
                      help="load and check the composite exactly as run would (settings, --set, --remap), print "
                           "what would run, and start nothing")
     add_security(run, server=True)
+    from dataflow.cli import _ros as ros_args
+
+    ros_args.add_arguments(run)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -132,6 +136,13 @@ def cmd_run(args: argparse.Namespace) -> int:
             say(summary(assembly, {}, settings.remap))
             say(f"scart: dry run: {len(assembly.nodes)} component(s) would start; nothing started")
             return 0
+        from dataflow.cli import _ros as ros_args
+
+        try:
+            ros_args.apply(args)
+        except (DataflowError, ValueError) as exc:
+            say(f"scart: start failed: {exc}")
+            return 1
         runtime = Runtime(assembly, settings=settings, max_workers=args.workers, drain_timeout=args.stop_timeout)
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.

@@ -26,6 +26,7 @@ import sys
 import threading
 from typing import Any
 
+from dataflow.cli import _ros as ros_args
 from dataflow.cli import _zenoh as zenoh_args
 from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from dataflow.remote.security import add_arguments as add_arguments_security
@@ -57,6 +58,7 @@ def add_arguments(deploy: argparse.ArgumentParser) -> None:
     deploy.add_argument("--policy", default="data", help="policy of --connect: data | buffer:N | circular:N")
     zenoh_args.add_arguments(deploy, "also publish every output port on Zenoh (scart/NS/TASK/PORT) and announce "
                                      "the tasks with liveliness tokens")
+    ros_args.add_arguments(deploy)
     add_arguments_security(deploy, server=True)
 
 
@@ -141,8 +143,9 @@ def cmd_deploy(args: argparse.Namespace) -> int:
 
     try:
         security = from_args(args)
+        ros_args.apply(args)
         ns, listen = _where(args, security)
-    except DataflowError as exc:
+    except (DataflowError, ValueError) as exc:
         _err(f"scart deploy: {exc}")
         return 1
     except _Failed as exc:

@@ -1,8 +1,13 @@
 """A native ROS 1 node, without rospy: the Master API, the Slave API, TCPROS topics and services.
 
-It depends on the standard library, ``rosbags`` (message types and the ROS 1 wire format)
-and numpy (rosbags' arrays) only, and knows nothing of scart's ports: its edges are bytes
-and rosbags message objects, so a scart transport can wrap it.
+The node library depends on the standard library, ``rosbags`` (message types and the ROS 1
+wire format) and numpy (rosbags' arrays) only, and knows nothing of scart's ports: its
+edges are bytes and rosbags message objects. Three modules make it scart's ``ros1``
+transport: :mod:`.transport` (:class:`~.transport.Ros1Transport`: streams joining ports to
+topics through one node per process), :mod:`.convert` (a port's type onto a message type:
+std_msgs wrappers, field names, converters; checked when planned) and :mod:`.calls`
+(services both ways: task or SCA operations answering ROS services, ROS services called
+from scart). They are imported only when used.
 
 The story — make a node, offer and use topics and services, close it::
 
@@ -48,16 +53,42 @@ and survived.
 default); an explicit other host opens it to that network.
 """
 
-from .msgs import MessageTypes, MsgType, SrvType, TypeDefinitionError, UnknownTypeError
-from .master import Master, MasterError, MasterUnreachable
-from .names import NodeNames, RosNameError
-from .node import NODE_COUNTERS, Node
-from .services import ServiceError, ServiceServer
-from .tcpros import HeaderError, Limits
-from .topics import Publisher, Subscriber
+from __future__ import annotations
+
+import importlib
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .master import Master, MasterError, MasterUnreachable
+    from .msgs import FieldDef, MessageTypes, MsgType, SrvType, TypeDefinitionError, UnknownTypeError
+    from .names import NodeNames, RosNameError
+    from .node import NODE_COUNTERS, Node
+    from .services import ServiceError, ServiceServer
+    from .tcpros import HeaderError, Limits
+    from .topics import Publisher, Subscriber
+
+#: Where each public name lives: imported when first asked for, so that loading the ``ros1``
+#: transport (``auto`` reads every transport's rank) costs no rosbags or numpy import.
+_WHERE = MappingProxyType({
+    "FieldDef": "msgs", "MessageTypes": "msgs", "MsgType": "msgs", "SrvType": "msgs", "TypeDefinitionError": "msgs",
+    "UnknownTypeError": "msgs", "Master": "master", "MasterError": "master", "MasterUnreachable": "master",
+    "NodeNames": "names", "RosNameError": "names", "NODE_COUNTERS": "node", "Node": "node",
+    "ServiceError": "services", "ServiceServer": "services", "HeaderError": "tcpros", "Limits": "tcpros",
+    "Publisher": "topics", "Subscriber": "topics",
+})
+
+
+def __getattr__(name: str) -> Any:
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
+
 
 __all__ = [
     "NODE_COUNTERS",
+    "FieldDef",
     "HeaderError",
     "Limits",
     "Master",

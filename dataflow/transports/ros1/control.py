@@ -147,6 +147,10 @@ class Registrar:
         with self._cond:
             return self._cond.wait_for(lambda: self._complete(), timeout)
 
+    def is_registered(self, key: Key) -> bool:
+        with self._cond:
+            return key in self._registered
+
     def _complete(self) -> bool:
         return set(self._desired) <= self._registered | self._failed
 

@@ -9,7 +9,8 @@ the response's md5 texts, as genmsg) and the two message types ``pkg/SrvRequest`
 ``pkg/SrvResponse``.
 
 Types come from rosbags' ROS 1 Noetic store, from std_srvs' ``Empty``, ``Trigger`` and
-``SetBool`` (rosbags has no services), and from text or files the user adds
+``SetBool``, roscpp's ``Empty``, ``GetLoggers`` and ``SetLoggerLevel`` (rosbags has no
+services), and from text or files the user adds
 (:meth:`MessageTypes.add_msg`, :meth:`~MessageTypes.add_srv`, :meth:`~MessageTypes.add_file`).
 A user type keeps its own text (comments too) in its definition; a store type's text is
 written from its fields. Numeric arrays are numpy arrays (rosbags' form);
@@ -24,6 +25,7 @@ import hashlib
 import struct
 import threading
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -31,7 +33,7 @@ from typing import Any
 import numpy
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 
-__all__ = ["MessageTypes", "MsgType", "SrvType", "TypeDefinitionError", "UnknownTypeError"]
+__all__ = ["FieldDef", "MessageTypes", "MsgType", "SrvType", "TypeDefinitionError", "UnknownTypeError"]
 
 MAX_DEFINITION_BYTES = 1 << 20  #: a .msg/.srv text or file larger than this is refused
 SEPARATOR = "=" * 80
@@ -40,14 +42,34 @@ _ROS1_BUILTIN = MappingProxyType({"builtin_interfaces/msg/Time": "time", "builti
 _DTYPES = MappingProxyType({"bool": "bool_", "char": "uint8"})  # numpy's names where ROS's differ (as rosbags)
 _LEN = struct.Struct("<I")
 
-STD_SRVS = MappingProxyType({
+BUILTIN_SRVS = MappingProxyType({
     "std_srvs/Empty": "---\n",
+    # roscpp's: in every ROS 1 installation (rosservice knows them); every node serves the last two
+    "roscpp/Empty": "---\n",
+    "roscpp/GetLoggers": "---\nLogger[] loggers\n",
+    "roscpp/SetLoggerLevel": "string logger\nstring level\n---\n",
     "std_srvs/Trigger": "---\nbool success   # indicate successful run of triggered service\n"
     "string message # informational, e.g. for error messages\n",
     "std_srvs/SetBool": "bool data # e.g. for hardware enabling / disabling\n---\n"
     "bool success   # indicate successful run of triggered service\n"
     "string message # informational, e.g. for error messages\n",
 })
+
+
+@dataclass(frozen=True)
+class FieldDef:
+    """One field of a message type, in ROS 1's words: ``type`` is a base type (``float64``,
+    ``string``, ``time``, ``duration``...) or a message type (``std_msgs/Header``);
+    ``array`` is None for one value, 0 for a variable-length array, N for N values."""
+
+    name: str
+    type: str
+    array: int | None = None
+
+    @property
+    def is_message(self) -> bool:
+        """Whether the field (or each item of it) is a message."""
+        return "/" in self.type
 
 
 class UnknownTypeError(LookupError):
@@ -179,7 +201,8 @@ class MessageTypes:
         self._srvs: dict[str, tuple[str, str]] = {}  # ros1 name → (request store name, response store name)
         self._msg_cache: dict[str, MsgType] = {}
         self._srv_cache: dict[str, SrvType] = {}
-        for name, text in STD_SRVS.items():
+        self.add_msg("roscpp/Logger", "string name\nstring level\n")
+        for name, text in BUILTIN_SRVS.items():
             self.add_srv(name, text)
         for path in files:
             self.add_file(path)
@@ -251,6 +274,22 @@ class MessageTypes:
         """Every message type name known, in ROS 1 form, sorted."""
         with self._lock:
             return sorted(_ros1_name(n) for n in self._defs if "/msg/" in n)
+
+    def fields(self, name: str) -> tuple[FieldDef, ...]:
+        """The fields of message type ``name`` (``pkg/Type``), in order; raises
+        :class:`UnknownTypeError` (what a converter maps a scart type onto)."""
+        store_name = _store_name(name)
+        with self._lock:
+            self._check_known(store_name, name)
+            entries = self._defs[store_name][1]
+        return tuple(_field_def(n, desc) for n, desc in entries if n != "structure_needs_at_least_one_member")
+
+    def time_class(self, word: str = "time") -> type:
+        """The class of ROS 1's ``time`` or ``duration`` (fields ``sec``, ``nanosec``)."""
+        for store_name, ros1 in _ROS1_BUILTIN.items():
+            if ros1 == word:
+                return self._store.types[store_name]
+        raise UnknownTypeError(f"{word!r} is not a ROS 1 built-in type (time, duration)")
 
     def msg(self, name: str) -> MsgType:
         """The message type ``name`` (``pkg/Type``); raises :class:`UnknownTypeError`."""
@@ -354,6 +393,20 @@ class MessageTypes:
             if dep not in order:
                 order.append(dep)
                 self._all_deps(dep, order)
+
+
+def _field_def(name: str, desc: tuple) -> FieldDef:
+    kind, arg = desc
+    if kind in (_BASE, _NAME):
+        return FieldDef(name, _type_word(kind, arg))
+    (subkind, subarg), count = arg
+    return FieldDef(name, _type_word(subkind, subarg), count if kind == _ARRAY else 0)
+
+
+def _type_word(kind: int, arg: Any) -> str:
+    if kind == _BASE:
+        return str(arg[0])
+    return _ROS1_BUILTIN.get(arg) or _ros1_name(arg)
 
 
 def _fielddefs(store: Any) -> dict:

@@ -190,6 +190,10 @@ class Node:
         """Block until the master knows everything this node offers and wants (True), or timeout."""
         return self._registrar.wait_registered(timeout)
 
+    def is_registered(self, kind: str, name: str) -> bool:
+        """Whether the master knows this node's ``kind`` (``pub``, ``sub``, ``srv``) ``name`` now."""
+        return self._registrar.is_registered((kind, self.resolve(name)))
+
     @property
     def master_reachable(self) -> bool:
         """False while the node waits for a master that does not answer."""

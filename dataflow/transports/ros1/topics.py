@@ -61,6 +61,7 @@ class Publisher:
         self._counters = Counters("published", "md5_mismatches", "subscribers_gone")
         self._gone_stats = Counters("messages_sent", "bytes_sent", "dropped")
         self.closed = False
+        self.last_refusal = ""  #: the last subscriber refused (another md5sum), in ROS's words
 
     def __repr__(self) -> str:
         return f"Publisher({self.topic!r}, {self.type.name!r}, connections={len(self._conns)})"
@@ -81,6 +82,16 @@ class Publisher:
     def publish_raw(self, data: bytes | bytearray | memoryview) -> int:
         """Send ``data``, already ROS 1 bytes of this type (not checked); as :meth:`publish`."""
         return self._send(LEN.pack(len(data)) + bytes(data))
+
+    def publish_frame(self, frame: bytes | bytearray) -> int:
+        """Send ``frame``, one message of this type as :meth:`MsgType.frame` makes it (not
+        checked, not copied: never change it afterwards); as :meth:`publish`."""
+        return self._send(frame)
+
+    @property
+    def wanted(self) -> bool:
+        """Whether a message published now goes anywhere (a subscriber, or the latch)."""
+        return bool(self._conns) or self.latch
 
     def _send(self, frame: bytes | bytearray) -> int:
         with self._cond:
@@ -146,6 +157,7 @@ class Publisher:
             self._cond.notify_all()
 
     def _refuse(self, conn: InboundConn, error: str) -> None:
+        self.last_refusal = error
         self._counters["md5_mismatches"] += 1
         self._node.counters["md5_mismatches"] += 1
         log.warning("ROS 1 publisher %s: %s", self.topic, error)
@@ -210,6 +222,7 @@ class Subscriber:
         self._counters = Counters("received", "bad_messages", "callback_errors", "oversized", "connect_failures",
                                   "md5_mismatches", "publishers_gone")
         self.closed = False
+        self.last_refusal = ""  #: the last publisher refused (another md5sum, or it refused us), in ROS's words
 
     def __repr__(self) -> str:
         return f"Subscriber({self.topic!r}, {self._type_name!r}, connections={len(self._conns)})"
@@ -266,6 +279,8 @@ class Subscriber:
         self._node.loop.call_soon(self._node.loop.register, sock, conn)
 
     def _failed(self, uri: str, exc: Exception) -> None:
+        if isinstance(exc, _Refused):
+            self.last_refusal = f"{uri}: {exc}"
         self._counters["connect_failures"] += 1
         self._node.counters["connect_failures"] += 1
         delay = self._retry.get(uri, RETRY_FIRST)
@@ -301,7 +316,7 @@ class Subscriber:
         sock.sendall(encode_header(ours))
         header = read_header(sock, time.monotonic() + self._node.limits.connect_timeout, self._node.limits.max_header)
         if "error" in header:
-            raise _Refused(f"publisher refused: {header['error']}")
+            raise _Refused(f"publisher refused: {header['error']} (we asked for {self._type_name}/{self._md5})")
         theirs = (header.get("type", "?"), header.get("md5sum", "?"))
         if self._md5 != "*" and theirs[1] != self._md5:
             self._counters["md5_mismatches"] += 1

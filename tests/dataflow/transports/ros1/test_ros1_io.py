@@ -90,7 +90,7 @@ def test_closing_the_loop_closes_what_it_owns_and_ends_its_thread() -> None:
 
 def test_the_public_api_is_what_the_package_docstring_tells() -> None:
     assert sorted(ros1.__all__) == sorted([
-        "HeaderError", "Limits", "Master", "MasterError", "MasterUnreachable", "MessageTypes", "MsgType",
+        "FieldDef", "HeaderError", "Limits", "Master", "MasterError", "MasterUnreachable", "MessageTypes", "MsgType",
         "NODE_COUNTERS", "Node", "NodeNames", "Publisher", "RosNameError", "ServiceError", "ServiceServer",
         "SrvType", "Subscriber", "TypeDefinitionError", "UnknownTypeError",
     ])

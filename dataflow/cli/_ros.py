@@ -1,0 +1,54 @@
+"""The ROS options of the verbs that start a process holding ports (``scart deploy``,
+``scart run``): shorthands setting this process's defaults for its one ROS 1 node (see
+:mod:`dataflow.transports.ros1.transport`), which its ``ros1`` streams then use; and
+``scart call ros1:/service`` (:func:`call`)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+__all__ = ["add_arguments", "apply", "call"]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--ros-master URI`` and ``--ros-name NAME`` (with ``--insecure``, the security
+    options' flag, the node listens on every interface instead of loopback)."""
+    group = parser.add_argument_group("ROS 1 (streams with transport ros1)")
+    group.add_argument("--ros-master", default=None, metavar="URI",
+                       help="the ROS master of this process's node (default $ROS_MASTER_URI, else "
+                            "http://localhost:11311/)")
+    group.add_argument("--ros-name", default=None, metavar="NAME",
+                       help="this process's ROS node name (default scart_PID)")
+
+
+def apply(args: argparse.Namespace) -> None:
+    """Set the process's ROS defaults from ``args`` (nothing is loaded unless one is given).
+    Raises ``ValueError`` for a bad URI or name."""
+    master, name = getattr(args, "ros_master", None), getattr(args, "ros_name", None)
+    insecure = bool(getattr(args, "insecure", False))
+    if master is None and name is None and not insecure:
+        return
+    from dataflow.transports import load
+
+    transport = load("ros1")
+    configure = getattr(transport, "configure", None)
+    if configure is not None:
+        configure(master=master, name=name, insecure=insecure or None)
+
+
+def call(args: argparse.Namespace, json_args: list[Any]) -> Any:
+    """``scart call ros1:/service ['{"field": value}'] [--type pkg/Srv]``: the response as
+    plain data. Raises ``ValueError`` saying what went wrong (no such service, its error,
+    a request that is not one object of its fields)."""
+    from dataflow.transports.ros1.calls import call_service
+    from dataflow.transports.ros1.services import ServiceError
+
+    service = args.operation.partition(":")[2]
+    if len(json_args) > 1 or (json_args and not isinstance(json_args[0], dict)):
+        raise ValueError("a ROS service takes one JSON object of its request's fields, e.g. '{\"data\": true}'")
+    apply(args)
+    try:
+        return call_service(service, json_args[0] if json_args else {}, type_name=args.type, timeout=args.timeout)
+    except (ServiceError, TypeError, LookupError) as exc:
+        raise ValueError(str(exc)) from None

@@ -1,0 +1,506 @@
+"""Between a scart port's type and a ROS 1 message type: how a port's values become
+messages of a topic and back (a :class:`Conversion`), planned and type-checked once, when a
+stream is made or a composite is loaded (:func:`plan`), never per sample.
+
+Three ways, tried in this order:
+
+* **a converter** the user names (``converter="module:function"``): for a topic scart
+  publishes, ``function(value)`` returns the message (a message object of the type, or a
+  mapping of its fields, nested mappings and lists allowed); for a topic scart reads,
+  ``function(msg)`` returns the port's value (checked by the port as any outside input).
+  Its annotations, where given, are checked against the port's type. The module must be
+  imported in this process already: a stream, which may be asked for over the network,
+  never makes a process import code (a composite's converters are imported at load).
+* **a plain type** (``float``, ``int``, ``bool``, ``str``, ``list[float]``, ``list[int]``)
+  onto the ``data`` field of a ``std_msgs`` wrapper: by default ``std_msgs/Float64``,
+  ``Int64``, ``Bool``, ``String``, ``Float64MultiArray``, ``Int64MultiArray``
+  (:data:`PLAIN`); another message with a ``data`` field of a fitting type works too
+  (``std_msgs/Float32``, ``std_msgs/Int32``...).
+* **a pydantic model** onto a message **by field names**, recursively. Publishing, every
+  field of the model needs a field of that name in the message (the message's others
+  keep ROS's defaults, and a ``header`` the model lacks is stamped with the sample's write
+  number and time); reading, every field the model requires needs one in the message
+  (the message's others are ignored). ROS's ``time`` and ``duration`` are float seconds.
+
+Numbers widen (an ``int`` into a ``float64`` field, an ``int32`` into a ``float`` port)
+but never narrow (a ``float64`` into an ``int`` port is refused at plan time); a value a
+field cannot hold (300 into ``uint8``, a fixed array of another length) refuses that
+sample, counted. Everything here is pure; a :class:`Conversion` is immutable and
+thread-safe.
+"""
+
+from __future__ import annotations
+
+import inspect
+import struct
+import sys
+import types
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any
+
+import numpy
+import pydantic
+
+from .msgs import FieldDef, MessageTypes, UnknownTypeError
+
+__all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "field_conversion", "plan", "resolve_converter",
+           "type_label"]
+
+#: The std_msgs type a port of a plain type maps onto when the stream names none.
+PLAIN = MappingProxyType({float: "std_msgs/Float64", int: "std_msgs/Int64", bool: "std_msgs/Bool",
+                          str: "std_msgs/String", list[float]: "std_msgs/Float64MultiArray",
+                          list[int]: "std_msgs/Int64MultiArray"})
+
+FLOATS = frozenset({"float32", "float64"})
+INTS = frozenset({"int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "byte", "char"})
+TIMES = frozenset({"time", "duration"})
+_DTYPE = MappingProxyType({"byte": "int8", "char": "uint8", "bool": "bool_"})
+_NOT_FIELDS = frozenset({"__msgtype__", "structure_needs_at_least_one_member"})  # rosbags' own, not ROS's
+MAX_DEPTH = 16  #: nesting of models/messages followed, at most
+
+
+@dataclass(frozen=True)
+class ConversionProblem:
+    """Why a port's type and a ROS type do not convert (``warning``: it may, unchecked)."""
+
+    message: str
+    warning: bool = False
+
+
+@dataclass(frozen=True)
+class Conversion:
+    """How values of one port type become messages of ``ros_type`` (``to_ros(value, n,
+    t_ns)``, publishing) or come from them (``from_ros(msg)``, reading). ``via`` says how:
+    ``data field``, ``field names`` or ``converter module:function``. Each function raises
+    (``ValueError``, ``TypeError``...) for a sample that cannot be converted."""
+
+    ros_type: str
+    via: str
+    to_ros: Callable[[Any, int, int], object] | None = None
+    from_ros: Callable[[object], Any] | None = None
+    #: The same, straight from and to ROS 1 bytes where the message is one fixed field or a
+    #: string (``std_msgs/Float64``...): no message object is made (``to_frame`` gives the
+    #: whole TCPROS frame, its length first).
+    from_bytes: Callable[[bytes], Any] | None = None
+    to_frame: Callable[[Any, int, int], bytes] | None = None
+
+
+class _Mismatch(Exception):
+    """A planning problem (collected as a :class:`ConversionProblem`)."""
+
+
+def default_type(py_type: Any) -> str | None:
+    """The std_msgs type a port of ``py_type`` maps onto without being told, or None."""
+    try:
+        return PLAIN.get(py_type)
+    except TypeError:  # an unhashable annotation
+        return None
+
+
+def type_label(py_type: Any) -> str:
+    """A short name of a port type for messages (``float``, ``list[float]``, ``YouBotStatus``)."""
+    return getattr(py_type, "__name__", None) if isinstance(py_type, type) else str(py_type).replace("typing.", "")
+
+
+def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool, converter: str = "",
+         frame_id: str = "") -> tuple[Conversion | None, list[ConversionProblem]]:
+    """How values of ``py_type`` cross to ``ros_type`` (``outgoing``: scart publishes) —
+    ``ros_type`` None: the default of a plain type — and the problems found (a Conversion
+    only when there is no error). ``converter``: ``module:function``; ``frame_id``: the
+    ``header.frame_id`` stamped on models without a header."""
+    name = ros_type or default_type(py_type)
+    if not name:
+        return None, [ConversionProblem(f"a port of type {type_label(py_type)} has no default ROS type: give the "
+                                        "topic's type (e.g. type=\"sensor_msgs/JointState\") and, unless its "
+                                        "fields match the model's, a converter")]
+    try:
+        types_.msg(name)
+    except UnknownTypeError as exc:
+        return None, [ConversionProblem(str(exc))]
+    if converter:
+        return _with_converter(types_, py_type, name, outgoing, converter)
+    try:
+        if _is_model(py_type):
+            fn = _Planner(types_, outgoing, frame_id).top_model(py_type, name)
+            via = "field names"
+        else:
+            fn = _Planner(types_, outgoing, frame_id).top_plain(py_type, name)
+            via = "data field"
+    except _Mismatch as exc:
+        return None, [ConversionProblem(str(exc))]
+    fast = _wire_fast(types_, _unwrap(py_type), name, outgoing) if via == "data field" else None
+    if outgoing:
+        return Conversion(name, via, to_ros=fn, to_frame=fast), []
+    return Conversion(name, via, from_ros=fn, from_bytes=fast), []
+
+
+def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoing: bool) -> Callable[[Any], Any]:
+    """How a value of ``py_type`` becomes the field ``fdef`` (``outgoing``) or comes from
+    it, as a stream's fields do; raises ``ValueError`` saying why they do not fit."""
+    try:
+        return _Planner(types_, outgoing, "").field(_unwrap(py_type), fdef, 0)
+    except _Mismatch as exc:
+        raise ValueError(str(exc)) from None
+
+
+# ---- ROS 1 bytes straight -------------------------------------------------------------
+_STRUCT = MappingProxyType({"float64": "d", "float32": "f", "int8": "b", "uint8": "B", "int16": "h",
+                            "uint16": "H", "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q",
+                            "bool": "?", "byte": "b", "char": "B"})
+
+
+def _wire_fast(types_: MessageTypes, py_type: Any, ros_type: str, outgoing: bool) -> Callable[..., Any] | None:
+    """For a message that is one fixed-size field (or one string), the value straight from
+    its bytes (reading) or to its frame (publishing); None for any other message. Bytes of
+    another length, or a value the field cannot hold, raise (``struct.error``, ``ValueError``)."""
+    fields = types_.fields(ros_type)
+    if len(fields) != 1 or fields[0].array is not None or py_type not in (float, int, bool, str):
+        return None
+    t = fields[0].type
+    if t == "string" and py_type is str:
+        return _string_frame if outgoing else _string_value
+    code = _STRUCT.get(t)
+    if code is None:
+        return None
+    if outgoing:
+        frame = struct.Struct("<I" + code)
+        size = frame.size - 4
+        return lambda value, _n, _t: frame.pack(size, value)
+    unpack = struct.Struct("<" + code).unpack
+    if py_type is float and t not in FLOATS:
+        return lambda data: float(unpack(data)[0])
+    return lambda data: unpack(data)[0]
+
+
+def _string_frame(value: str, _n: int, _t: int) -> bytes:
+    data = value.encode("utf-8")
+    return struct.pack("<II", len(data) + 4, len(data)) + data
+
+
+def _string_value(data: bytes) -> str:
+    (size,) = struct.unpack_from("<I", data)
+    if size != len(data) - 4:
+        raise ValueError(f"a string of {size} bytes in a {len(data) - 4}-byte message")
+    return data[4:].decode("utf-8")
+
+
+# ---- converters -----------------------------------------------------------------------
+def resolve_converter(ref: str) -> Callable[..., Any]:
+    """The function ``module:qualified.name`` of a module this process has imported
+    already; raises ``ValueError`` saying what is wrong (never imports anything)."""
+    module_name, colon, attr = ref.partition(":")
+    if not colon or not module_name or not attr:
+        raise ValueError(f"converter {ref!r}: expected module:function")
+    module = sys.modules.get(module_name)
+    if module is None:
+        raise ValueError(f"converter {ref!r}: module {module_name!r} is not imported in this process (a stream "
+                         "never imports code: import it first; a composite imports its converters at load)")
+    obj: Any = module
+    for part in attr.split("."):
+        obj = getattr(obj, part, None)
+        if obj is None:
+            raise ValueError(f"converter {ref!r}: module {module_name} has no {attr!r}")
+    if not callable(obj):
+        raise ValueError(f"converter {ref!r} is a {type(obj).__name__}, not a function")
+    return obj
+
+
+def _with_converter(types_: MessageTypes, py_type: Any, name: str, outgoing: bool,
+                    ref: str) -> tuple[Conversion | None, list[ConversionProblem]]:
+    try:
+        fn = resolve_converter(ref)
+    except ValueError as exc:
+        return None, [ConversionProblem(str(exc))]
+    problems = _check_converter(fn, ref, py_type, name, outgoing, types_)
+    if any(not p.warning for p in problems):
+        return None, problems
+    via = f"converter {ref}"
+    if not outgoing:
+        return Conversion(name, via, from_ros=fn), problems
+    msgtype = types_.msg(name)
+    cls, new = msgtype.cls, msgtype.new
+
+    def to_ros(value: Any, _n: int, _t_ns: int) -> object:
+        msg = fn(value)
+        if type(msg) is cls:
+            return msg
+        if isinstance(msg, Mapping):
+            return new(**msg)
+        raise TypeError(f"converter {ref} returned a {type(msg).__name__}, not a {name} or a mapping of its fields")
+
+    return Conversion(name, via, to_ros=to_ros), problems
+
+
+def _check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: str, outgoing: bool,
+                     types_: MessageTypes) -> list[ConversionProblem]:
+    """The converter takes one argument; its annotations, where given, fit the port."""
+    try:
+        sig = inspect.signature(fn)
+        sig.bind(None)
+    except (TypeError, ValueError):
+        return [ConversionProblem(f"converter {ref} cannot be called with one argument (the "
+                                  f"{'value' if outgoing else 'message'})")]
+    try:
+        hints = typing.get_type_hints(fn)
+    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
+        hints = {}
+    first = next(iter(sig.parameters.values()))
+    given, returned = hints.get(first.name), hints.get("return")
+    port = type_label(py_type)
+    if outgoing:
+        if given is not None and not _accepts(given, py_type):
+            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the port gives {port}")]
+        if returned is not None and not (_is_open(returned) or _is_mapping(returned) or returned is types_.msg(ros_type).cls):
+            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; a {ros_type} (or a mapping "
+                                      "of its fields) is needed")]
+    else:
+        cls = types_.msg(ros_type).cls
+        if given is not None and not (_is_open(given) or given is cls):
+            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the topic gives {ros_type} messages")]
+        if returned is not None and not (_is_open(returned) or (_is_mapping(returned) and _is_model(py_type))
+                                         or _accepts(py_type, returned)):
+            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; the port takes {port}")]
+    if given is None and returned is None:
+        return [ConversionProblem(f"converter {ref} has no type annotations: its types are checked only per "
+                                  "sample", warning=True)]
+    return []
+
+
+def _is_open(annotation: Any) -> bool:
+    return annotation is Any or annotation is object
+
+
+def _is_mapping(annotation: Any) -> bool:
+    origin = typing.get_origin(annotation) or annotation
+    return isinstance(origin, type) and issubclass(origin, Mapping)
+
+
+def _accepts(wanted: Any, given: Any) -> bool:
+    """A parameter annotated ``wanted`` takes a value of type ``given``."""
+    if _is_open(wanted) or wanted == given:
+        return True
+    if wanted is float and given is int:
+        return True
+    return isinstance(wanted, type) and isinstance(given, type) and issubclass(given, wanted)
+
+
+# ---- by field names -------------------------------------------------------------------
+def _is_model(py_type: Any) -> bool:
+    return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
+
+
+def _unwrap(py_type: Any) -> Any:
+    """``X`` for ``Optional[X]`` / ``X | None`` and ``Annotated[X, ...]``."""
+    origin = typing.get_origin(py_type)
+    if origin is typing.Annotated:
+        return _unwrap(typing.get_args(py_type)[0])
+    if origin in (typing.Union, types.UnionType):
+        rest = [a for a in typing.get_args(py_type) if a is not type(None)]
+        if len(rest) == 1:
+            return _unwrap(rest[0])
+    return py_type
+
+
+def _item_type(py_type: Any) -> Any | None:
+    """The item type of ``list[X]`` / ``tuple[X, ...]`` / ``Sequence[X]``, else None."""
+    origin, args = typing.get_origin(py_type), typing.get_args(py_type)
+    if origin in (list, tuple) or (isinstance(origin, type) and origin.__name__ == "Sequence"):
+        if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
+            return None
+        return args[0] if args else Any
+    return None
+
+
+class _Planner:
+    """Builds the conversion functions of one stream, recursively; raises :class:`_Mismatch`."""
+
+    def __init__(self, types_: MessageTypes, outgoing: bool, frame_id: str) -> None:
+        self.types = types_
+        self.outgoing = outgoing
+        self.frame_id = frame_id
+        self.time_cls = types_.time_class("time")
+
+    def top_plain(self, py_type: Any, ros_type: str) -> Callable[..., Any]:
+        fields = self.types.fields(ros_type)
+        target = next((f for f in fields if f.name == "data"), fields[0] if len(fields) == 1 else None)
+        if target is None:
+            raise _Mismatch(f"a port of type {type_label(py_type)} maps onto a message with a 'data' field "
+                            f"(std_msgs/...), not {ros_type} (fields: {_names(fields)}): give a converter")
+        try:
+            conv = self.field(_unwrap(py_type), target, 0)
+        except _Mismatch as exc:
+            raise _Mismatch(f"port type {type_label(py_type)} vs {ros_type}.{target.name}: {exc}") from None
+        msgtype = self.types.msg(ros_type)
+        if not self.outgoing:
+            name = target.name
+            return lambda msg: conv(getattr(msg, name))
+        cls, key = msgtype.cls, target.name
+        rest = {f.name: v for f, v in self._defaults(ros_type).items() if f.name != key}
+        if not rest:
+            return lambda value, _n, _t: cls(**{key: conv(value)})
+        return lambda value, _n, _t: cls(**rest, **{key: conv(value)})
+
+    def top_model(self, model: type[pydantic.BaseModel], ros_type: str) -> Callable[..., Any]:
+        build = self.model(model, ros_type, 0)
+        if not self.outgoing:
+            return lambda msg: build(msg)
+        return build
+
+    def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[..., Any]:
+        if depth > MAX_DEPTH:
+            raise _Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
+        fields = {f.name: f for f in self.types.fields(ros_type)}
+        ours = model.model_fields
+        convs: dict[str, Callable[[Any], Any]] = {}
+        problems, missing = [], []
+        for name, info in ours.items():
+            fdef = fields.get(name)
+            if fdef is None:
+                if self.outgoing or info.is_required():
+                    missing.append(name)
+                continue
+            try:
+                convs[name] = self.field(_unwrap(info.annotation), fdef, depth)
+            except _Mismatch as exc:
+                problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
+        if missing:
+            problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
+                               f"no field in {ros_type} (its fields: {_names(fields.values())})")
+        if problems:
+            raise _Mismatch("; ".join(problems) + "; give a converter")
+        if not self.outgoing:
+            pairs = tuple(convs.items())
+            return lambda msg: {name: conv(getattr(msg, name)) for name, conv in pairs}
+        return self._to_msg(ros_type, convs, fields, stamped=depth == 0)
+
+    def _to_msg(self, ros_type: str, convs: dict[str, Callable[[Any], Any]], fields: dict[str, FieldDef],
+                stamped: bool) -> Callable[..., Any]:
+        """A message from a model; a ``header`` the model lacks is stamped (the top level
+        only) with the sample's write number, its time and the stream's frame id."""
+        cls = self.types.msg(ros_type).cls
+        defaults = {f.name: v for f, v in self._defaults(ros_type).items() if f.name not in convs}
+        stamp = stamped and "header" in defaults and fields["header"].type == "std_msgs/Header"
+        if stamp:
+            del defaults["header"]
+        pairs = tuple(convs.items())
+        header_cls = self.types.msg("std_msgs/Header").cls if stamp else None
+        time_cls, frame_id = self.time_cls, self.frame_id
+
+        def build(value: Any, n: int = 0, t_ns: int = 0) -> object:
+            kwargs = {name: conv(getattr(value, name)) for name, conv in pairs}
+            if header_cls is not None:
+                kwargs["header"] = header_cls(seq=n & 0xFFFFFFFF, stamp=time_cls(sec=t_ns // 1_000_000_000,
+                                              nanosec=t_ns % 1_000_000_000), frame_id=frame_id)
+            return cls(**defaults, **kwargs)
+
+        return build
+
+    def _defaults(self, ros_type: str) -> dict[FieldDef, Any]:
+        """ROS's default of each field of ``ros_type`` (shared: only ever serialised)."""
+        msg = self.types.msg(ros_type).new()
+        return {f: getattr(msg, f.name) for f in self.types.fields(ros_type)}
+
+    # -- one field ------------------------------------------------------------------------
+    def field(self, py_type: Any, fdef: FieldDef, depth: int) -> Callable[[Any], Any]:
+        if _is_open(py_type):
+            if self.outgoing:
+                raise _Mismatch("a field of any type cannot be published: give it a type")
+            return _plain_value
+        if fdef.array is None:
+            return self.scalar(py_type, fdef, depth)
+        return self.array(py_type, fdef, depth)
+
+    def scalar(self, py_type: Any, fdef: FieldDef, depth: int) -> Callable[[Any], Any]:
+        t = fdef.type
+        if fdef.is_message:
+            if _is_model(py_type):
+                return self.model(py_type, t, depth + 1)
+            if py_type is dict or _is_mapping(py_type):
+                new = self.types.msg(t).new
+                return (lambda v: new(**v)) if self.outgoing else _plain_value
+            raise _Mismatch(f"{type_label(py_type)} and the message {t} (a model with its fields is needed)")
+        if t in TIMES:
+            if py_type is float or (self.outgoing and py_type is int):
+                return self._time_out(t) if self.outgoing else _seconds
+            raise _Mismatch(f"{type_label(py_type)} and {t} (seconds as a float are needed)")
+        ok = ((t in FLOATS and (py_type is float or (self.outgoing and py_type is int)))
+              or (t in INTS and (py_type is int or (not self.outgoing and py_type is float)))
+              or (t == "bool" and py_type is bool) or (t == "string" and py_type is str))
+        if not ok:
+            raise _Mismatch(f"{type_label(py_type)} and {t}" + (" (a float never narrows to an integer)"
+                                                                 if py_type is int and t in FLOATS else ""))
+        if not self.outgoing:
+            return float if py_type is float and t in INTS else _same
+        return _same
+
+    def array(self, py_type: Any, fdef: FieldDef, depth: int) -> Callable[[Any], Any]:
+        t, count = fdef.type, fdef.array or 0
+        if py_type is bytes and t in ("uint8", "char", "byte"):
+            if self.outgoing:
+                return _sized(lambda v: numpy.frombuffer(v, dtype=numpy.uint8), count, t)
+            return lambda v: bytes(numpy.asarray(v, dtype=numpy.uint8))
+        item = _item_type(py_type)
+        if item is None:
+            raise _Mismatch(f"{type_label(py_type)} and {t}[{count or ''}] (a list is needed)")
+        item = _unwrap(item)
+        if fdef.is_message or t in TIMES or t == "string":
+            conv = self.field(item, FieldDef(fdef.name, t), depth)
+            if conv is _same:
+                return _sized(list, count, t) if self.outgoing else list
+            return _sized(lambda v: [conv(x) for x in v], count, t) if self.outgoing else (lambda v: [conv(x) for x in v])
+        self.scalar(item, FieldDef(fdef.name, t), depth)  # the item types fit (raises if not)
+        if self.outgoing:
+            dtype = numpy.dtype(_DTYPE.get(t, t))
+            return _sized(lambda v: numpy.asarray(v, dtype=dtype), count, t)
+        if item is float:
+            return lambda v: numpy.asarray(v, dtype=numpy.float64).tolist()
+        return lambda v: numpy.asarray(v).tolist()
+
+    def _time_out(self, word: str) -> Callable[[Any], Any]:
+        cls = self.types.time_class(word)
+
+        def to_time(seconds: float) -> object:
+            ns = round(seconds * 1e9)
+            return cls(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+        return to_time
+
+
+def _same(value: Any) -> Any:
+    return value
+
+
+def _seconds(stamp: Any) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _sized(conv: Callable[[Any], Any], count: int, t: str) -> Callable[[Any], Any]:
+    """``conv``, refusing a value that is not ``count`` long when the array is fixed."""
+    if not count:
+        return conv
+
+    def fixed(value: Any) -> Any:
+        if len(value) != count:
+            raise ValueError(f"{len(value)} values for a {t}[{count}]")
+        return conv(value)
+
+    return fixed
+
+
+def _plain_value(value: Any) -> Any:
+    """A message (or part of one) as plain data: mappings, lists, numbers, strings."""
+    if isinstance(value, numpy.ndarray):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_plain_value(v) for v in value]
+    fields = getattr(value, "__dataclass_fields__", None)
+    if fields is not None:
+        return {name: _plain_value(getattr(value, name)) for name in fields if name not in _NOT_FIELDS}
+    return value
+
+
+def _names(fields: Any) -> str:
+    return ", ".join(f.name for f in fields) or "none"

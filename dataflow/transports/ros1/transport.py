@@ -1,0 +1,395 @@
+"""ROS 1 as a scart transport: the ``scart.transports`` entry point ``ros1``
+(:class:`Ros1Transport`). A **stream** joins a port to a ROS topic —
+``Deployer.stream("task.port", ConnPolicy.data().with_(transport="ros1", topic="/joint_states"),
+{"type": "sensor_msgs/JointState", "converter": "mod:fn"})``, ``scart stream COMP.PORT
+ros1:/topic --type T``, ``<scart:stream transport="ros1" .../>`` — an output port
+publishing, an input port fed from it. Not part of ``auto``: ROS carries no links.
+
+**One node per process**, made when the first stream (or service) needs it and closed
+when the last one goes. Its settings come from the process's defaults
+(:meth:`Ros1Transport.configure`: ``scart deploy``/``scart run`` ``--ros-master``,
+``--ros-name``, ``--insecure``) and the first user's options; a later stream that asks for
+another master or name is refused, naming the node there is. The master is ``master``,
+else ``ROS_MASTER_URI``, else ROS's default; while it is down the node waits and retries
+(logging that it waits) and its streams show as ``waiting`` in ``scart links``.
+
+**Options** (:data:`OPTIONS`): ``type`` (``pkg/Type``; a plain port's default is its
+``std_msgs`` type), ``converter`` (``module:function``), ``frame_id`` (a header stamped
+on a model without one), ``latch`` (``true``; also the policy's ``init``), ``queue_size``
+(per subscriber; default the policy's size, 1 for DATA), ``msgs`` (``.msg``/``.srv``
+files, comma-separated), and for the node: ``master``, ``node`` (or ``__name``),
+``__ns``, ``host``, ``insecure``. Conversion is planned and type-checked when the stream
+is made (:mod:`.convert`); a message that does not convert is refused and counted (the
+reader end's ``refuse``), as is a value that fails the port's type or bounds (NaN, out of
+range): ``scart describe`` names the last one under the port.
+
+**Security.** ROS 1 authenticates no one: the node listens on loopback unless told
+``insecure`` (then on every interface, or ``host``); a stream's :attr:`~Stream.authenticated`
+is False, and ``scart describe`` marks its input port so.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import logging
+import os
+import re
+import threading
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+from typing import TYPE_CHECKING
+
+from dataflow.policy import ConnType
+from dataflow.transports import Stream, StreamProblem, Transport, TransportError
+from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
+
+from .names import RosNameError, check_name, master_uri_from
+
+if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
+    from .convert import Conversion
+    from .msgs import MessageTypes
+    from .node import Node
+
+__all__ = ["NodeSettings", "OPTIONS", "Ros1Transport"]
+
+log = logging.getLogger(__name__)
+
+NODE_OPTIONS = frozenset({"master", "node", "__name", "__ns", "host", "insecure"})
+#: Every option a ros1 stream takes (another is refused: a typo would otherwise be ignored).
+OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "queue_size", "msgs"}) | NODE_OPTIONS
+MAX_QUEUE = 10_000  #: messages waiting for one slow subscriber, at most
+_BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,127}")
+_TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """How this process's ROS node is made: ``master`` (None: ``ROS_MASTER_URI``, else
+    ROS's default), ``name`` ("": ``scart_<pid>``), ``namespace`` (None: ``ROS_NAMESPACE``),
+    ``host`` it listens on (loopback unless ``insecure``)."""
+
+    master: str | None = None
+    name: str = ""
+    namespace: str | None = None
+    host: str = "127.0.0.1"
+    insecure: bool = False
+
+    @property
+    def node_name(self) -> str:
+        return self.name or f"scart_{os.getpid()}"
+
+
+def _flag(options: dict[str, str], key: str) -> bool:
+    value = options.get(key, "").strip().lower()
+    if value in _TRUE:
+        return True
+    if value in _FALSE:
+        return False
+    raise ValueError(f"option {key}={options[key]!r}: expected true or false")
+
+
+def _loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class Ros1Transport(Transport):
+    """Streams on ROS 1 topics through this process's one ROS node (see the module
+    docstring). Thread-safe; the node is made on first use and closed with its last user."""
+
+    name = "ros1"
+    rank = None
+    topics = True
+    converts = True
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._defaults = NodeSettings()
+        self._types: MessageTypes | None = None
+        self._node: Node | None = None
+        self._settings: NodeSettings | None = None
+        self._users = 0
+
+    # ---- the process's node ------------------------------------------------------------
+    def configure(self, *, master: str | None = None, name: str | None = None, namespace: str | None = None,
+                  insecure: bool | None = None) -> None:
+        """Set this process's defaults for its ROS node (``--ros-master``, ``--ros-name``,
+        ``--insecure``); a node already made keeps its own. Raises ``ValueError`` for a
+        bad master URI or name."""
+        if master is not None:
+            master_uri_from(master)
+        if name and not _BASE_NAME.fullmatch(name):
+            raise ValueError(f"node name {name!r}: a base name (letters, digits and '_', starting with a letter)")
+        with self._lock:
+            changes: dict[str, Any] = {k: v for k, v in (("master", master), ("name", name), ("namespace", namespace))
+                                       if v is not None}
+            if insecure is not None:
+                changes.update(insecure=insecure, host="0.0.0.0" if insecure else "127.0.0.1")
+            self._defaults = replace(self._defaults, **changes)
+
+    @property
+    def types(self) -> MessageTypes:
+        """The message types of this process (rosbags' Noetic store and the ``msgs`` given)."""
+        from .msgs import MessageTypes
+
+        with self._lock:
+            if self._types is None:
+                self._types = MessageTypes()
+            return self._types
+
+    def node_settings(self, options: dict[str, str]) -> NodeSettings:
+        """The process's defaults with what ``options`` say; raises ``ValueError``."""
+        with self._lock:
+            settings = self._defaults
+        insecure = _flag(options, "insecure") if "insecure" in options else settings.insecure
+        host = options.get("host") or ("0.0.0.0" if insecure else "127.0.0.1")
+        if not insecure and not _loopback(host):
+            raise ValueError(f"host={host}: ROS 1 authenticates no one; a node listens on loopback unless told "
+                             "insecure=true (or scart's --insecure)")
+        name = options.get("node") or options.get("__name") or settings.name
+        if name and not _BASE_NAME.fullmatch(name):
+            raise ValueError(f"node name {name!r}: a base name (letters, digits and '_', starting with a letter)")
+        master = options.get("master") or settings.master
+        if master is not None:
+            master_uri_from(master)
+        return NodeSettings(master=master, name=name,
+                            namespace=options.get("__ns", settings.namespace), host=host, insecure=insecure)
+
+    def acquire(self, options: dict[str, str]) -> Node:
+        """This process's node (made now if there is none), for one more user; each
+        :meth:`acquire` is paired with a :meth:`release`. Raises :class:`TransportError`
+        when ``options`` ask for another node than the one there is, or it cannot be made."""
+        try:
+            wanted = self.node_settings(options)
+        except ValueError as exc:
+            raise TransportError(f"ros1: {exc}") from None
+        from .node import Node
+
+        types = self.types
+        with self._lock:
+            node = self._node
+            if node is not None and not node.closed:
+                self._same_node(node, wanted, options)
+                self._users += 1
+                return node
+            try:
+                node = Node(wanted.node_name, master_uri=wanted.master, host=wanted.host, namespace=wanted.namespace,
+                            types=types)
+            except (OSError, ValueError) as exc:
+                raise TransportError(f"ros1: cannot make the ROS node {wanted.node_name}: {exc}") from None
+            self._node, self._settings, self._users = node, wanted, 1
+        log.info("ROS 1 node %s: master %s, listening on %s", node.caller_id, node.master_uri, wanted.host)
+        return node
+
+    def _same_node(self, node: Node, wanted: NodeSettings, options: dict[str, str]) -> None:
+        have = self._settings
+        assert have is not None
+        asked = [k for k in ("master", "node", "__name", "__ns", "host", "insecure") if k in options]
+        if not asked:
+            return
+        if (wanted.node_name, wanted.master, wanted.namespace, wanted.host) != \
+                (have.node_name, have.master, have.namespace, have.host):
+            raise TransportError(f"ros1: this process's ROS node is {node.caller_id} (master {node.master_uri}, "
+                                 f"listening on {have.host}); {', '.join(f'{k}={options[k]}' for k in asked)} asks "
+                                 "for another: one node per process")
+
+    def release(self, node: Node) -> None:
+        """One user less of ``node``; the last one closes it (blocks ≤ ~1 s to unregister)."""
+        with self._lock:
+            if node is not self._node:
+                return
+            self._users -= 1
+            if self._users > 0:
+                return
+            self._node, self._settings = None, None
+        node.close()
+
+    # ---- streams -----------------------------------------------------------------------
+    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+        problems = [StreamProblem(p) for p in self._check_options(topic, options)]
+        if problems:
+            return problems
+        _, found = self.conversion(port, options)
+        return found
+
+    def _check_options(self, topic: str, options: dict[str, str]) -> list[str]:
+        unknown = sorted(set(options) - OPTIONS)
+        out = [f"ros1: unknown option(s) {', '.join(unknown)}; options: {', '.join(sorted(OPTIONS))}"] if unknown else []
+        try:
+            check_name(topic, "topic name")
+            self.node_settings(options)
+            for key in ("latch",):
+                if key in options:
+                    _flag(options, key)
+            if "queue_size" in options and not (options["queue_size"].isdigit()
+                                                and 1 <= int(options["queue_size"]) <= MAX_QUEUE):
+                out.append(f"ros1: queue_size={options['queue_size']!r}: a whole number 1..{MAX_QUEUE}")
+            self._add_msgs(options)
+        except (ValueError, RosNameError) as exc:
+            out.append(f"ros1: {exc}")
+        return out
+
+    def _add_msgs(self, options: dict[str, str]) -> None:
+        from .msgs import TypeDefinitionError
+
+        for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
+            try:
+                self.types.add_file(path)
+            except TypeDefinitionError as exc:
+                raise ValueError(str(exc)) from None
+
+    def conversion(self, port: Any, options: dict[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
+        """How ``port``'s values cross to the topic's type, and the problems found."""
+        from .convert import plan
+
+        conv, problems = plan(self.types, port.type, options.get("type") or None, outgoing=not port.is_input,
+                              converter=options.get("converter", ""), frame_id=options.get("frame_id", ""))
+        where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
+        return conv, [StreamProblem(f"ros1 {where}: {p.message}", p.warning, types=True) for p in problems]
+
+    def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
+        port = end.port
+        if port is None:
+            raise TransportError("ros1 converts a port's values: a reader end without its port cannot be streamed")
+        errors = self._check_options(topic, options)
+        if errors:
+            raise TransportError("; ".join(errors))
+        conv, problems = self.conversion(port, options)
+        for p in problems:
+            if p.warning:
+                log.warning("%s", p.message)
+        if conv is None:
+            raise TransportError("; ".join(p.message for p in problems if not p.warning))
+        node = self.acquire(options)
+        try:
+            return _TopicStream(self, node, end, topic, conv, options)
+        except BaseException:
+            self.release(node)
+            raise
+
+
+def _identity(sample: OutSample) -> OutSample:
+    return sample
+
+
+class _Carrier:
+    """A writer end's carrier onto a ROS publisher: each sample converted and serialised
+    once (only while someone subscribes, or the topic latches) and handed to every
+    subscriber's connection, never blocking (a slow subscriber's queue drops its oldest).
+    A value that does not convert is refused and counted here."""
+
+    encode = staticmethod(_identity)  # converted in send(), only when someone listens
+
+    def __init__(self, pub: Any, conv: Conversion, label: str) -> None:
+        to_ros, to_frame, frame = conv.to_ros, conv.to_frame, pub.type.frame
+        assert to_ros is not None
+        self._pub = pub
+        self._label = label
+        self.refused = 0
+        self.refusal = ""
+        if to_frame is not None:  # one fixed field: straight to bytes
+            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, sample.t_ns)
+        else:
+            self._frame = lambda sample: frame(to_ros(sample.value, sample.n, sample.t_ns))
+
+    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+        pub = self._pub
+        if not pub.wanted:
+            return True
+        try:
+            frame = sample.encoded(self._frame)
+        except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
+            self.refused += 1
+            self.refusal = f"sample {sample.n}: {type(exc).__name__}: {exc}"[:300]
+            if self.refused == 1:
+                log.warning("%s: a sample refused: %s", self._label, self.refusal)
+            return True
+        pub.publish_frame(frame)
+        return True
+
+
+class _TopicStream(Stream):
+    """A writer end publishing a ROS topic, or a reader end fed from one."""
+
+    authenticated = False
+
+    def __init__(self, transport: Ros1Transport, node: Node, end: WriterEnd | ReaderEnd, topic: str,
+                 conv: Conversion, options: dict[str, str]) -> None:
+        self._transport, self._node = transport, node
+        self.topic = node.resolve(topic)
+        self.type_name = conv.ros_type
+        self._pub: Any = None
+        self._sub: Any = None
+        self._carrier: _Carrier | None = None
+        self._closed = False
+        if isinstance(end, WriterEnd):
+            self._publish(end, conv, options)
+        else:
+            self._subscribe(end, conv)
+
+    def _publish(self, end: WriterEnd, conv: Conversion, options: dict[str, str]) -> None:
+        policy = end.policy
+        latch = _flag(options, "latch") if "latch" in options else policy.init
+        size = int(options["queue_size"]) if "queue_size" in options else (
+            1 if policy.type is ConnType.DATA else max(1, min(policy.size, MAX_QUEUE)))
+        self._pub = self._node.advertise(self.topic, conv.ros_type, latch=latch, queue_size=size)
+        self._carrier = _Carrier(self._pub, conv, end.label)
+        end.connected("ros1", self._carrier, new_peer=True)
+        if latch and not policy.init:  # the last value written is what a late subscriber gets first (init: the end's)
+            n, value = end.port.last_sample()
+            if n:
+                self._carrier.send(OutSample(n, time.time_ns(), value, end.port.type), None)
+
+    def _subscribe(self, end: ReaderEnd, conv: Conversion) -> None:
+        raw = conv.from_bytes is not None  # one fixed field: straight from the bytes, no message object
+        from_ros, label = conv.from_bytes if raw else conv.from_ros, conv.ros_type
+        assert from_ros is not None
+        count = [0]
+
+        def on_message(msg: Any) -> None:  # the node's io thread, one message at a time
+            try:
+                value = from_ros(msg)
+            except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
+                end.refuse(f"a {label} that does not convert: {type(exc).__name__}: {exc}")
+                return
+            count[0] += 1
+            end.receive(count[0], time.time_ns(), value)
+
+        end.transport = "ros1"
+        self._sub = self._node.subscribe(self.topic, conv.ros_type, on_message, raw=raw, tcp_nodelay=True)
+
+    # ---- what it says ------------------------------------------------------------------
+    @property
+    def waiting(self) -> str:
+        node = self._node
+        if not node.master_reachable:
+            return f"the ROS master {node.master_uri}"
+        if not node.is_registered("pub" if self._pub is not None else "sub", self.topic):
+            return f"the ROS master {node.master_uri} to register {self.topic}"
+        return ""
+
+    @property
+    def refused(self) -> int:
+        return self._carrier.refused if self._carrier is not None else 0
+
+    @property
+    def refusal(self) -> str:
+        if self._carrier is not None and self._carrier.refusal:
+            return self._carrier.refusal
+        part = self._pub if self._pub is not None else self._sub
+        return f"a peer refused: {part.last_refusal}" if part is not None and part.last_refusal else ""
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        for part in (self._pub, self._sub):
+            if part is not None:
+                part.close()
+        self._transport.release(self._node)
