@@ -23,7 +23,7 @@ import grpc
 
 from dataflow import codec
 from dataflow.errors import NotFoundError, PortTypeError, PortValueError
-from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
+from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote import _convert as cv
 from dataflow.remote._channel_rpcs import ChannelRpcs

@@ -22,7 +22,6 @@ import logging
 import secrets
 import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
 import grpc
@@ -43,7 +42,6 @@ from dataflow.remote._proto import (
     df_grpc,
     ns_grpc,
 )
-from dataflow.remote._proto import df as pb
 from dataflow.remote._servicer import DeployerServicer
 from dataflow.remote.naming import (
     DEFAULT_LEASE,
