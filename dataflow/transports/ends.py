@@ -92,8 +92,12 @@ class Fanout:
     def push(self, n: int, value: Any) -> bool:
         """Offer sample ``n`` to every end; False when a mandatory end refused it."""
         sample = OutSample(n, _time_ns(), value, self.port.type)
+        ends = self.ends
+        if len(ends) == 1:  # the common case: one channel
+            end = ends[0]
+            return end.offer(sample) or not end.policy.mandatory
         ok = True
-        for end in self.ends:
+        for end in ends:
             if not end.offer(sample) and end.policy.mandatory:
                 ok = False
         return ok
@@ -212,20 +216,25 @@ class WriterEnd:
         if carrier is None:
             self._miss(sample.n)
             return False
-        if not self._lock.acquire(blocking=False):
+        lock = self._lock
+        if not lock.acquire(blocking=False):
             self._more = True
             return self._keep(sample)  # flush() is running: it sends what is queued, in order
         try:
             if not self._queue:
-                data = self._encoded(sample, carrier)
+                encode = carrier.encode
+                data = sample._bytes if sample._key is encode else self._encoded(sample, carrier)  # once per transport
                 if data is None:
                     return False
                 if carrier.send(sample, data):
-                    self._sent(sample.n)
+                    self.sent += 1
+                    self.last_sent = sample.n
+                    if not self.reports and self._unsent_total:
+                        self._unsent.trim(sample.n)
                     return True
             return self._keep(sample)
         finally:
-            self._lock.release()
+            lock.release()
 
     def _encoded(self, sample: OutSample, carrier: Carrier) -> Any:
         """``sample`` encoded for ``carrier`` (once per transport); None, counted and
@@ -459,7 +468,12 @@ class ReaderEnd:
         """One sample: counted by its write number (False for one had already), checked,
         stored. Never raises: a sample that fails its check is refused and counted (the
         first refusal logged)."""
-        if not self.loss.sample(n):
+        loss = self.loss
+        last = loss.last
+        if last is not None and n == last + 1:  # the hot case: the next write, inline (LossCount.sample's)
+            loss.last = n
+            loss.tail = 0
+        elif not loss.sample(n):
             return False
         self.received += 1
         try:

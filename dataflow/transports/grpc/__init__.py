@@ -90,10 +90,9 @@ class GrpcTransport(Transport):
 class _LinkCarrier:
     """A gRPC link's carrier: frames wait in a bounded queue for the stream's thread."""
 
-    encode = staticmethod(frames.sample_frame)
-
     def __init__(self, end: WriterEnd) -> None:
         self.end = end
+        self.encode = frames.encoder(end.port.type)
         self.final = threading.Event()
         self._queue: deque[bytes] = deque()
         self._size = [0]  # bytes in the queue
@@ -170,9 +169,8 @@ class ServedCarrier:
     (none for a lone subscriber): 40 subscribers of a 1 kHz port then cost the process a
     few thousand wake-ups a second, not 40 000, at the price of that much latency."""
 
-    encode = staticmethod(frames.sample_frame)
-
     def __init__(self, end: WriterEnd | None = None) -> None:
+        self.encode = frames.encoder(end.port.type) if end is not None else frames.sample_frame
         self.queue: deque[bytes] = deque()
         self.size = [0]  # bytes in the queue
         self.wake = threading.Event()

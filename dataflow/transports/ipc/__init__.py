@@ -30,7 +30,7 @@ from typing import Any
 
 from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import Peer, Transport, TransportError, frames
-from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
+from dataflow.transports.ends import ReaderEnd, WriterEnd
 from dataflow.transports.ipc._hub import Conn, Hub
 from dataflow.transports.ipc._wire import IpcUnavailable, available, connect, host_id
 
@@ -136,15 +136,13 @@ def _open(ask: Callable[[], Any], transport: str, peer: Peer) -> tuple[socket.so
 class _LinkOut(Conn):
     """A link going out: the carrier of its writer end; reports come back."""
 
-    encode = staticmethod(frames.sample_frame)
-
     def __init__(self, hub: Hub, sock: socket.socket, end: WriterEnd) -> None:
         super().__init__(hub, sock, end.label)
+        self.encode = frames.encoder(end.port.type)
         self.end = end
         self.final = threading.Event()
 
-    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread (or the io thread's flush)
-        return self.send_sample(sample, data)
+    send = Conn.send_sample  # the carrier's send: the writer's thread (or the io thread's flush)
 
     def drained(self) -> None:
         self.end.flush()

@@ -18,6 +18,7 @@ import errno
 import logging
 import selectors
 import socket
+import sys
 import threading
 import time
 from collections import deque
@@ -30,6 +31,9 @@ from dataflow.transports.ipc._wire import CHUNK, WHOLE, Reassembler, frames_of, 
 __all__ = ["Conn", "Hub", "TICK_S"]
 
 log = logging.getLogger(__name__)
+
+_get_ident = threading.get_ident
+_monotonic = time.monotonic
 
 TICK_S = 0.05  #: how often each connection's periodic work runs (heartbeats, reports)
 READS_PER_WAKE = 256  #: datagrams one connection may read per wake-up before the others' turn
@@ -53,6 +57,7 @@ class Hub:
         self._to_flush: set[Conn] = set()  # connections whose writer end has samples for this thread to send
         self._flush_lock = threading.Lock()
         self._users = 0
+        self._ident = -1  # the io thread's, once it runs
         self._thread = OwnedThread(self._run, "scart-ipc", wake=self.wake)
 
     # ---- one per process ----------------------------------------------------------------
@@ -115,7 +120,7 @@ class Hub:
 
     def in_thread(self) -> bool:
         """Whether the caller is the io thread."""
-        return self._thread.in_thread()
+        return threading.get_ident() == self._ident
 
     def call_later(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the io thread after what it does now (also when called from it:
@@ -163,6 +168,7 @@ class Hub:
 
     # ---- the io thread ------------------------------------------------------------------
     def _run(self, stopping: threading.Event) -> None:
+        self._ident = threading.get_ident()
         next_tick = time.monotonic() + TICK_S
         while not stopping.is_set():
             try:
@@ -237,6 +243,7 @@ class Conn:
         self._held: deque[bytes] = deque()  # the rest of a chunked message, waiting for room
         self._lock = threading.Lock()
         self._blocked = False
+        self._closed = False  # ended, as a plain flag for the hot path
         self._closing = threading.Lock()
 
     def start(self) -> None:
@@ -249,7 +256,7 @@ class Conn:
         if not self._lock.acquire(blocking=False):
             return False
         try:
-            if self._held or self.ended.is_set():
+            if self._held or self._closed:
                 return False
             if len(message) <= CHUNK:
                 return self._out([WHOLE, message])
@@ -268,27 +275,42 @@ class Conn:
         else left to the io thread (False: the writer end keeps the sample, as its policy
         says, and the io thread sends it with :meth:`drained`). A writer's cost thus does
         not grow with its readers; the io thread sends to the rest."""
-        if sample.inline < INLINE_SENDS or self.hub.in_thread():
-            if not self.hub.in_thread():
-                sample.inline += 1
+        if _get_ident() != self.hub._ident:  # the writer's thread
+            if sample.inline >= INLINE_SENDS:
+                self.hub.flush_soon(self)
+                return False
+            sample.inline += 1
+        if len(data) > CHUNK or not self._lock.acquire(blocking=False):
             return self.put(data)
-        self.hub.flush_soon(self)
-        return False
+        try:  # put(), inlined for the hot case: one small message, nothing held
+            if self._held or self._closed:
+                return False
+            try:
+                self.sock.sendmsg((WHOLE, data), (), socket.MSG_DONTWAIT)
+            except OSError:
+                return self._failed_send()
+            self.sent_at = _monotonic()
+            return True
+        finally:
+            self._lock.release()
 
     def _out(self, parts: list[bytes]) -> bool:
         try:
             self.sock.sendmsg(parts, (), socket.MSG_DONTWAIT)
-        except (BlockingIOError, InterruptedError):
-            self._block()
-            return False
-        except OSError as exc:
-            if exc.errno == errno.ENOBUFS:  # the kernel is short of memory: wait for room
-                self._block()
-                return False
-            self.hub.call_later(self.close)  # the peer is gone (closed after this send's caller let go)
-            return False
-        self.sent_at = time.monotonic()
+        except OSError:
+            return self._failed_send()
+        self.sent_at = _monotonic()
         return True
+
+    def _failed_send(self) -> bool:
+        """A send that raised (called in its ``except``): no room (wait for it), or the peer
+        is gone (closed after this send's caller let go of its locks). False."""
+        exc = sys.exc_info()[1]
+        if isinstance(exc, (BlockingIOError, InterruptedError)) or getattr(exc, "errno", None) == errno.ENOBUFS:
+            self._block()  # the reader is behind, or the kernel is short of memory: wait for room
+            return False
+        self.hub.call_later(self.close)
+        return False
 
     def _block(self) -> None:
         if not self._blocked:
@@ -355,6 +377,7 @@ class Conn:
         with self._closing:
             if self.ended.is_set():
                 return
+            self._closed = True
             self.ended.set()
         shutdown_quietly(self.sock)
 

@@ -25,7 +25,6 @@ from typing import Any
 from dataflow.policy import ConnPolicy
 from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import frames
-from dataflow.transports.ends import OutSample
 from dataflow.transports.ipc._hub import Conn, Hub
 from dataflow.transports.sinks import LINGER_S, IncomingLink, Refused, Sinks
 from dataflow.transports.served import Served
@@ -312,10 +311,9 @@ class _LinkIn(Conn):
 class _ReaderOut(Conn):
     """A subscription going out: the carrier of its writer end."""
 
-    encode = staticmethod(frames.sample_frame)
-
     def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> None:
         super().__init__(hub, sock, served.end.label)
+        self.encode = frames.encoder(served.port.type)
         self.server = server
         self.served = served
         self.heartbeat = heartbeat
@@ -325,8 +323,7 @@ class _ReaderOut(Conn):
         end = self.served.end  # "connected", first: from now on every write comes
         end.connected("ipc", self, new_peer=True, first=lambda: self.put(frames.connected(end, self.server.boot_id)))
 
-    def send(self, sample: OutSample, data: bytes) -> bool:  # the writer's thread (or the io thread's flush)
-        return self.send_sample(sample, data)
+    send = Conn.send_sample  # the carrier's send: the writer's thread (or the io thread's flush)
 
     def drained(self) -> None:
         self.served.end.flush()
