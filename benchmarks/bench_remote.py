@@ -43,7 +43,7 @@ import grpc
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "youbot"))  # a contribution, imported by plain names
 
 from youbot_model import JointStatus, YouBotStatus
-from dataflow import codec
+from scart_wire import codec
 from dataflow import (
     ConnPolicy, Deployer, EventActivity, InputPort, OutputPort, PeriodicActivity, TaskContext, registry,
 )

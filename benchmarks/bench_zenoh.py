@@ -28,7 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "
 from _common import paced, pct, wait_until  # noqa: E402
 from youbot_model import JointStatus, YouBotStatus  # noqa: E402
 
-from dataflow import Deployer, OutputPort, TaskContext, codec  # noqa: E402
+from dataflow import Deployer, OutputPort, TaskContext  # noqa: E402
+from scart_wire import codec  # noqa: E402
 from dataflow.transports.zenoh import (  # noqa: E402
     ZenohPublisher,
     ZenohSubscription,

@@ -27,7 +27,7 @@ from .ports import Connection, InputPort, OutputPort
 from .task import TaskContext, TaskState
 
 if TYPE_CHECKING:  # the remote layer is imported only when serving
-    from .remote.security import Security
+    from scart_wire.security import Security
     from .remote.server import DeployerServer
 
 __all__ = ["Deployer", "LINK_NAME"]
@@ -326,16 +326,16 @@ class Deployer:
 
         ``ns=None`` embeds a name service in the server; otherwise the tasks are registered
         with the name service at ``ns`` under a lease of ``lease_seconds`` (default
-        ``dataflow.remote.defaults.DEFAULT_LEASE``; renewed by heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
+        ``scart_wire.defaults.DEFAULT_LEASE``; renewed by heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
         heartbeats; ``max_workers``: concurrent RPCs; ``security``: TLS and tokens, for this
         server and for its calls to the name service and other deployers (see
-        :mod:`dataflow.remote.security`; default: plaintext, no tokens, loopback only);
+        :mod:`scart_wire.security`; default: plaintext, no tokens, loopback only);
         ``advertise``: the ``HOST[:PORT]`` registered in the name service (default: the bound
         address, or this host's name when listening on every interface). Raises
         :class:`dataflow.remote.AlreadyRegisteredError` for a name held by another live
         deployer, :class:`dataflow.remote.UnavailableError` when nothing answers at ``ns``
         or ``address`` cannot be bound. See :mod:`dataflow.remote.server`."""
-        from dataflow.remote.defaults import DEFAULT_LEASE
+        from scart_wire.defaults import DEFAULT_LEASE
         from dataflow.remote.server import DeployerServer
 
         return DeployerServer(self, address, ns=ns, lease_seconds=lease_seconds or DEFAULT_LEASE,

@@ -69,11 +69,11 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import pydantic
 
-from .bounds import Bounds, bounded_adapter
+from scart_wire.bounds import Bounds, bounded_adapter
 from .buffers import _NONE, DataObject, Storage, make_storage
 from .errors import DataflowError, PortTypeError, PortValueError
 from .policy import BufferPolicy, ConnPolicy, FlowStatus, WriteStatus
-from .types import registry
+from scart_wire.types import registry
 
 if TYPE_CHECKING:
     from .task import TaskContext
@@ -423,7 +423,7 @@ class InputPort(Port[T]):
     ``event=True`` makes the port an event port: new data triggers the owning task's
     event-driven activity (via a data callback). ``ge``/``gt``/``le``/``lt``/``finite``
     bound what may be written to it from outside (remote writes; see
-    :mod:`dataflow.bounds`: numbers must be finite unless ``finite=False``), and
+    :mod:`scart_wire.bounds`: numbers must be finite unless ``finite=False``), and
     ``check(value)``, raising ``ValueError`` with the reason, is the task's own verdict on
     such a value (as a Property's ``check``; its docstring's first line describes it to
     ``scart describe`` and ``scart write``); a task's own connections are not checked.

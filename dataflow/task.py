@@ -63,7 +63,7 @@ from .introspection import (
 from .operations import describe_operation, spec_of
 from .ports import InputPort, Port
 from .properties import BoundProperty, Property
-from .types import registry
+from scart_wire.types import registry
 
 __all__ = ["TaskContext", "TaskState"]
 
@@ -434,14 +434,14 @@ class TaskContext:
 
     def check_arguments(self, name: str, args: list[Any]) -> list[Any]:
         """``args`` of operation ``name`` checked as values from outside, by the one check
-        every remote entry uses (:func:`dataflow.bounds.check_argument`): each against its
+        every remote entry uses (:func:`scart_wire.bounds.check_argument`): each against its
         parameter's declared type (numbers strict: no string, no bool), bounds
         (``Annotated[float, Field(ge=...)]``) and finiteness. Returns them converted.
         Raises ``NotFoundError`` for an unknown operation, :class:`~dataflow.errors.PortTypeError`
         or :class:`~dataflow.errors.PortValueError` naming ``task.operation(parameter)``."""
         import typing
 
-        from .bounds import check_argument
+        from scart_wire.bounds import check_argument
 
         attr = self._operation_attrs.get(name)
         if attr is None:

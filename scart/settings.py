@@ -33,8 +33,8 @@ from collections.abc import Mapping, Sequence
 
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
-from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
-from dataflow.remote.security import Security
+from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from scart_wire.security import Security
 from scart.errors import ScartError
 
 __all__ = ["Remap", "Settings"]

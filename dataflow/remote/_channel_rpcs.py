@@ -22,7 +22,7 @@ import grpc
 from dataflow.policy import ConnPolicy
 from dataflow.remote import _convert as cv
 from dataflow.remote._proto import df as pb
-from dataflow.remote._rpc import Abort, abort, peer_key
+from scart_wire.rpc import Abort, abort, peer_key
 from dataflow.transports import frames
 from dataflow.transports.grpc import ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire

@@ -102,6 +102,6 @@ def write_from_msg(number: int) -> WriteStatus:
 
 def to_json_text(value: Any) -> str:
     """What ``echo --json`` prints for a value."""
-    from dataflow.types import registry
+    from scart_wire.types import registry
 
     return json.dumps(registry.to_jsonable(value))

@@ -24,7 +24,8 @@ import grpc
 from dataflow.errors import NotFoundError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy
-from dataflow.remote import _rpc, errors
+from dataflow.remote import errors
+from scart_wire import rpc
 from dataflow.remote._convert import policy_to_msg
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
@@ -125,7 +126,7 @@ class RemoteLink:
     def _connect(self, stopping: threading.Event) -> None:
         server = self.server
         address = server.resolve(self.sink_task)
-        with server.security.channel(address, _rpc.channel_options()) as channel:
+        with server.security.channel(address, rpc.channel_options()) as channel:
             peer = Peer(address, self.sink_task, self.sink_port, df_grpc.DeployerServiceStub(channel),
                         server.ns_timeout, channel_of=channel, channel=self.channel, name=self.name,
                         boot_id=server.boot_id, source_ns=server.ns_address)
@@ -202,7 +203,7 @@ class LinkKeeper:
         request = pb.ConnectPortsRequest(
             source_task=task, source_port=link.source.rpartition(".")[2], sink_task=link.port.task.name,
             sink_port=link.port.name, policy=policy_to_msg(link.policy), name=link.name, resume=True)
-        with self.server.security.channel(entry.address, _rpc.channel_options()) as channel:
+        with self.server.security.channel(entry.address, rpc.channel_options()) as channel:
             df_grpc.DeployerServiceStub(channel).ConnectPorts(request, timeout=self.server.ns_timeout)
         log.info("link %s: its source restarted; made again", link.name)
         self.sinks.finish(link)

@@ -18,14 +18,14 @@ from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as df
 from dataflow.proto.scart.dataflow.v1 import dataflow_pb2_grpc as df_grpc
 from dataflow.proto.scart.naming.v1 import naming_pb2 as ns
 from dataflow.proto.scart.naming.v1 import naming_pb2_grpc as ns_grpc
-from dataflow.remote.security import Role, roles_of_service
+from scart_wire.security import Role, roles_of_service
 
 DEPLOYER_SERVICE: ServiceDescriptor = df.DESCRIPTOR.services_by_name["DeployerService"]
 NAMING_SERVICE: ServiceDescriptor = ns.DESCRIPTOR.services_by_name["NamingService"]
 DEPLOYER_SERVICE_NAME = DEPLOYER_SERVICE.full_name
 NAMING_SERVICE_NAME = NAMING_SERVICE.full_name
 
-#: The role each method needs (see :mod:`dataflow.remote.security`): reading and
+#: The role each method needs (see :mod:`scart_wire.security`): reading and
 #: subscribing need ``read``; the rest of the DeployerService ``operate``; registering
 #: names with a name service ``admin``.
 DEPLOYER_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import grpc
 
-from dataflow import codec
+from scart_wire import codec
 from dataflow.errors import NotFoundError, PortTypeError, PortValueError
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.ports import InputPort, OutputPort
@@ -29,7 +29,7 @@ from dataflow.remote import _convert as cv
 from dataflow.remote._channel_rpcs import ChannelRpcs
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
-from dataflow.remote._rpc import Abort, abort, peer_key
+from scart_wire.rpc import Abort, abort, peer_key
 from dataflow.threads import OwnedThread
 from dataflow.transports.sinks import LINGER_S
 
@@ -202,7 +202,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         return p
 
     def _value_for(self, where: str, py_type: Any, type_name: str, msg: Any, json_text: str) -> Any:
-        from dataflow.types import registry
+        from scart_wire.types import registry
 
         if json_text:
             try:
@@ -392,7 +392,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
 
     # ---- operations and properties -----------------------------------------------------
     def CallOperation(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        from dataflow.types import registry
+        from scart_wire.types import registry
 
         try:
             task = self._task(request.task)

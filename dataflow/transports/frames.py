@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from dataflow import codec
+from scart_wire import codec
 from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 

@@ -34,7 +34,7 @@ class Announcement:
     @property
     def ns_option(self) -> str:
         """``" --ns HOST:PORT"`` when a client needs it to find this name service, else ``""``."""
-        from dataflow.remote.defaults import DEFAULT_NS_ADDRESS
+        from scart_wire.defaults import DEFAULT_NS_ADDRESS
 
         return "" if self.ns == DEFAULT_NS_ADDRESS else f" --ns {self.ns}"
 

@@ -8,7 +8,7 @@ import argparse
 import sys
 
 from dataflow import DataflowError
-from dataflow.remote.security import from_args
+from scart_wire.security import from_args
 from scart.assembly import assemble
 from scart.errors import Problem, ScartError, ScdlError
 from scart.graph import Assembly, Bound, Target

@@ -45,10 +45,10 @@ def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace],
 
 def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
     from dataflow.proto.scart.sca.v1 import sca_pb2_grpc
-    from dataflow.remote import _rpc
-    from dataflow.remote.security import from_args
+    from scart_wire import rpc
+    from scart_wire.security import from_args
 
-    channel = from_args(args).channel(address, _rpc.channel_options())
+    channel = from_args(args).channel(address, rpc.channel_options())
     return channel, sca_pb2_grpc.ScaServiceStub(channel)
 
 
@@ -58,7 +58,7 @@ def endpoints(args: argparse.Namespace) -> list[str]:
     from dataflow.cli.output import ns_address
     from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
     from dataflow.remote.naming import NameClient
-    from dataflow.remote.security import from_args
+    from scart_wire.security import from_args
 
     ns = ns_address(args)
     names = NameClient(ns, timeout=args.timeout, security=from_args(args))
@@ -75,11 +75,11 @@ def endpoints(args: argparse.Namespace) -> list[str]:
 def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     """Every service the server at ``address`` exports: names, interface, operations."""
     from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
-    from dataflow.remote import _rpc
+    from scart_wire import rpc
 
     channel, stub = _stub(address, args)
     try:
-        reply = _rpc.call(stub.ListServices, pb.ListServicesRequest(), args.timeout, address)
+        reply = rpc.call(stub.ListServices, pb.ListServicesRequest(), args.timeout, address)
     finally:
         channel.close()
     return [{"names": list(s.names), "interface": s.interface, "at": address,
@@ -114,17 +114,18 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
     """Call ``COMPONENT/SERVICE.operation`` (or ``SERVICE.operation`` for a promoted or
     single service) at ``address`` with JSON arguments; the result as JSON-able data.
     Raises ``ValueError`` for a malformed target, ``DataflowError`` for a remote fault."""
-    from dataflow import codec, registry
+    from scart_wire import codec
+    from scart_wire.types import registry
     from dataflow.errors import DataflowError
     from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
-    from dataflow.remote import _rpc
+    from scart_wire import rpc
 
     service, operation = split_target(target)
     request = pb.CallRequest(invocation=pb.Invocation(service=service, operation=operation,
                                                       args=[codec.encode(a) for a in json_args]))
     channel, stub = _stub(address, args)
     try:
-        reply = _rpc.call(stub.Call, request, args.timeout, address)
+        reply = rpc.call(stub.Call, request, args.timeout, address)
     finally:
         channel.close()
     if reply.outcome.WhichOneof("kind") == "fault":

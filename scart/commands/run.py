@@ -72,8 +72,8 @@ def _seconds(text: str) -> float:
 
 def add_arguments(run: argparse.ArgumentParser) -> None:
     """The composite, the launch options, where to serve, and the server's security options."""
-    from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
-    from dataflow.remote.security import add_arguments as add_security
+    from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+    from scart_wire.security import add_arguments as add_security
 
     run.add_argument("file", help="the .composite file (or a contribution folder with one deployable)")
     add_launch_options(run)

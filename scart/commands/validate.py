@@ -14,8 +14,8 @@ HELP = "check composites without running them (offline)"
 
 def add_arguments(validate: argparse.ArgumentParser) -> None:
     """The files, the launch options, ``--online`` with its name service and credentials."""
-    from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
-    from dataflow.remote.security import add_arguments as add_security
+    from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+    from scart_wire.security import add_arguments as add_security
 
     validate.add_argument("files", nargs="+", help=".composite files (or contribution folders)")
     add_launch_options(validate)

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from pydantic import BaseModel
 
 from dataflow import PortTypeError, UnknownValue, register_type
-from dataflow.codec import FLOAT_LIST, JSON_TYPE, NONE_TYPE, Value, decode, encode
+from scart_wire.codec import FLOAT_LIST, JSON_TYPE, NONE_TYPE, Value, decode, encode
 
 
 class Pose(BaseModel):

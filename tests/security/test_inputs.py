@@ -144,7 +144,7 @@ def test_numbers_are_finite_wherever_they_sit_in_a_value(bad: float) -> None:
 
 
 def test_binding_grpc_arguments_are_checked_as_values_from_outside() -> None:
-    from dataflow import codec
+    from scart_wire import codec
     from scart.errors import InvocationError
     from scart.ext.grpc._wire import Signature
 

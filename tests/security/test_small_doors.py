@@ -17,7 +17,7 @@ import pytest
 import scart
 from dataflow import Deployer
 from dataflow.remote import connect, errors
-from dataflow.remote.security import AuthTable, Security, SecurityError
+from scart_wire.security import AuthTable, Security, SecurityError
 from support import ROOT
 from support.certs import Authority
 from support.grpc_binding import gpy, grpc_reference, grpc_service, instance, provider_and_client

@@ -27,9 +27,9 @@ import threading
 from typing import Any
 
 from dataflow.cli import _zenoh as zenoh_args
-from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
-from dataflow.remote.security import add_arguments as add_arguments_security
-from dataflow.remote.security import from_args
+from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
+from scart_wire.security import add_arguments as add_arguments_security
+from scart_wire.security import from_args
 
 
 HELP = "host data-flow tasks in a served Deployer until Ctrl-C"

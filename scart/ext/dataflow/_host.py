@@ -29,7 +29,7 @@ from dataflow.threads import OwnedThread
 from scart.spi import Host, Participant
 
 if TYPE_CHECKING:
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
     from dataflow.remote.server import DeployerServer
 
 log = logging.getLogger("scart.dataflow")

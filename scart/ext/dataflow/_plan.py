@@ -21,7 +21,7 @@ from scart.ext.dataflow._host import PortInfo, class_ports, remote_ports, type_n
 from scart.spi import SCART_NS, Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
 
 if TYPE_CHECKING:
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
 #: Problem codes.
 DF_ATTRIBUTE = "SCART-D001"  # missing/invalid attribute or mapping

@@ -16,7 +16,7 @@ from typing import Any
 
 import grpc
 
-from dataflow.remote.security import tls_mismatch
+from scart_wire.security import tls_mismatch
 from dataflow.threads import OwnedThread
 from scart.errors import InvocationError, ServiceUnavailableError
 from scart.ext.grpc._server import Exported, GrpcServer, ServerTable

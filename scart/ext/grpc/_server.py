@@ -4,7 +4,7 @@ the service bindings of a runtime that name that address, and the callback proxi
 Threads: gRPC's server pool (``MAX_WORKERS``; each open ``Invoke`` call and callback
 session holds one of its threads for its life, so at most ``MAX_STREAMS`` of them are open
 at once, ``MAX_STREAMS_PER_PEER`` from one peer, and a session must say its id within
-the first-message deadline of :class:`dataflow.remote._rpc.StreamBudget`; beyond that RESOURCE_EXHAUSTED, and the rest of the pool stays free
+the first-message deadline of :class:`scart_wire.rpc.StreamBudget`; beyond that RESOURCE_EXHAUSTED, and the rest of the pool stays free
 for unary calls), a small pool running ``Invoke`` calls (the stream handler must stay free to send
 callback requests while the operation runs; a queued call whose RPC already ended is
 skipped, "cancelled before start"), and one reader thread per callback session (matches
@@ -27,8 +27,8 @@ from typing import Any
 import grpc
 
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
-from dataflow.remote._rpc import StreamBudget, server_options
-from dataflow.remote.security import Security, SecurityError, auth_interceptor
+from scart_wire.rpc import StreamBudget, server_options
+from scart_wire.security import Security, SecurityError, auth_interceptor
 from dataflow.threads import OwnedThread
 from scart.ext.grpc._wire import (
     SCA_ROLES,

@@ -20,13 +20,13 @@ from typing import Any
 
 import pydantic
 
-from dataflow import codec
-from dataflow.bounds import argument_adapter, check_argument
+from scart_wire import codec
+from scart_wire.bounds import argument_adapter, check_argument
 from dataflow.errors import DataflowError, PortTypeError
 from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
 from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
-from dataflow.remote.security import Role, roles_of_service
-from dataflow.types import registry
+from scart_wire.security import Role, roles_of_service
+from scart_wire.types import registry
 from scart.errors import InvocationError, RemoteError, RuntimeStateError, ServiceNotFoundError
 
 SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
@@ -117,7 +117,7 @@ def reader(annotation: Any) -> Converter:
 class Signature:
     """Per-operation readers: parameters by position and by name, each decoded and then
     checked by the one check of operation arguments from outside that every entry uses
-    (:func:`dataflow.bounds.check_argument`: declared type, numbers strict, bounds,
+    (:func:`scart_wire.bounds.check_argument`: declared type, numbers strict, bounds,
     finiteness; a refusal says ``LABEL.op(param): VALUE refused: REASON``), the result
     (see :func:`reader`)."""
 

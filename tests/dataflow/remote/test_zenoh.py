@@ -171,7 +171,7 @@ def test_with_tokens_a_zenoh_session_admits_only_peers_presenting_an_operate_tok
     token (it reads the samples), and neither a peer without one nor one with a ``read``
     token (a Zenoh link both reads and writes): those reach no peer and get nothing. The
     command line says why nothing was reached."""
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
     auth = tmp_path / "auth"
     auth.write_text(f"operate {OPERATOR}\nread {READER}\n")

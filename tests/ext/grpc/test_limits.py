@@ -12,7 +12,7 @@ import grpc
 import pytest
 
 from scart.ext.grpc import _server as _grpc_server
-from dataflow.codec import Value
+from scart_wire.codec import Value
 from scart.ext.grpc._wire import PATHS, pb
 from scart.errors import InvocationError
 from support.grpc_binding import gpy, grpc_bindings, grpc_reference, grpc_service, provider_and_client
@@ -89,8 +89,8 @@ def test_open_streams_beyond_the_caps_are_refused_and_unary_calls_still_answer(t
 
 
 def test_a_session_that_never_says_its_id_is_cancelled(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from dataflow.remote import _rpc
-    monkeypatch.setattr(_rpc, "FIRST_MESSAGE_S", 0.5)
+    from scart_wire import rpc
+    monkeypatch.setattr(rpc, "FIRST_MESSAGE_S", 0.5)
     with provider_and_client(tmp_path, DESK + GEOMETRY, asker) as (provider, client):
         address = grpc_bindings(provider)[0].address
         with grpc.insecure_channel(address) as channel:

@@ -28,7 +28,7 @@ def test_proto_is_buf_style() -> None:
 
 def test_the_binding_uses_the_one_codec() -> None:
     """Values go through dataflow.codec: the same bytes as the remote layer's."""
-    from dataflow import codec
+    from scart_wire import codec
 
     for value in (None, 2.5, [1.0, 2.0], {"k": 1}, Pose(x=1.0, theta=0.5)):
         assert encode(value) == codec.encode(value)

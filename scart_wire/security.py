@@ -41,7 +41,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
-from dataflow.errors import DataflowError
+from scart_wire.errors import DataflowError
 
 if TYPE_CHECKING:
     import grpc

@@ -14,8 +14,8 @@ from typing import Any
 
 import grpc
 
-from dataflow.remote import errors
-from dataflow.remote.security import CALLER, Role, Security, auth_interceptor, is_loopback, tls_mismatch
+from scart_wire import errors
+from scart_wire.security import CALLER, Role, Security, auth_interceptor, is_loopback, tls_mismatch
 
 #: Name prefix of the servers' worker threads (``scart-rpc_0``, ...).
 THREAD_PREFIX = "scart-rpc"
@@ -114,7 +114,7 @@ class Abort(Exception):
 
 def abort(context: grpc.ServicerContext, exc: BaseException) -> None:
     """Abort the RPC with the status matching ``exc`` (never returns)."""
-    from dataflow.errors import DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
+    from scart_wire.errors import DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 
     if isinstance(exc, Abort):
         context.abort(grpc.StatusCode[exc.code], str(exc))
@@ -147,7 +147,7 @@ def make_server(
     ``security`` gives TLS and the auth file (tokens checked against ``roles``, the role
     each method needs); without it, plaintext and no tokens. A non-loopback ``address``
     without TLS and tokens is refused unless ``security.insecure`` (see
-    :mod:`dataflow.remote.security`); :class:`SecurityError` then, or for unusable files.
+    :mod:`scart_wire.security`); :class:`SecurityError` then, or for unusable files.
 
     Returns ``(server, bound_port, health_servicer, executor)``; the caller owns the
     executor and ends it with :func:`stop_server` (grpc does not shut it down).

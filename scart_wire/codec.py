@@ -9,10 +9,10 @@ type name         what it holds
 ``""``            ``None``
 registered name   a value of a registered type, encoded by :data:`dataflow.registry`
                   (``float64``, ``float64[]``, pydantic models...; see
-                  :mod:`dataflow.types`)
+                  :mod:`scart_wire.types`)
 ``scart.json``    JSON text, for a value the registry has no name for (a dict, a
                   mixed list, a list of models, an int beyond int64)
-anything else     decodes to :class:`~dataflow.types.UnknownValue`, a mapping that
+anything else     decodes to :class:`~scart_wire.types.UnknownValue`, a mapping that
                   keeps its type name: never an error
 ================  ===========================================================
 
@@ -32,9 +32,9 @@ from typing import Any
 import pydantic
 import pydantic_core
 
-from dataflow.errors import PortTypeError
+from scart_wire.errors import PortTypeError
 from dataflow.proto.scart.dataflow.v1.value_pb2 import Value
-from dataflow.types import UnknownValue, model_json, registry
+from scart_wire.types import UnknownValue, model_json, registry
 
 __all__ = ["FLOAT_LIST", "JSON_TYPE", "NONE_TYPE", "Value", "decode", "encode"]
 
