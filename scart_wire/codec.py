@@ -33,7 +33,7 @@ import pydantic
 import pydantic_core
 
 from scart_wire.errors import PortTypeError
-from dataflow.proto.scart.dataflow.v1.value_pb2 import Value
+from scart_wire.proto.scart.dataflow.v1.value_pb2 import Value
 from scart_wire.types import UnknownValue, model_json, registry
 
 __all__ = ["FLOAT_LIST", "JSON_TYPE", "NONE_TYPE", "Value", "decode", "encode"]

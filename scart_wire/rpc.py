@@ -1,6 +1,6 @@
 """gRPC plumbing shared by the server and the client (private; the only place that maps
 gRPC statuses to scart errors). Servicers and stubs are the generated ones of
-:mod:`dataflow.proto`, so registered names always equal the proto's.
+:mod:`scart_wire.proto`, so registered names always equal the proto's.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from scart_wire import codec
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 __all__ = ["feed", "heartbeat", "report_of", "sample_frame"]

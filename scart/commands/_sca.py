@@ -44,7 +44,7 @@ def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace],
 
 
 def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
-    from dataflow.proto.scart.sca.v1 import sca_pb2_grpc
+    from scart_wire.proto.scart.sca.v1 import sca_pb2_grpc
     from scart_wire import rpc
     from scart_wire.security import from_args
 
@@ -74,7 +74,7 @@ def endpoints(args: argparse.Namespace) -> list[str]:
 
 def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     """Every service the server at ``address`` exports: names, interface, operations."""
-    from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
+    from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
     from scart_wire import rpc
 
     channel, stub = _stub(address, args)
@@ -117,7 +117,7 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
     from scart_wire import codec
     from scart_wire.types import registry
     from dataflow.errors import DataflowError
-    from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
+    from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
     from scart_wire import rpc
 
     service, operation = split_target(target)

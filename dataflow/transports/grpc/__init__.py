@@ -20,7 +20,7 @@ from collections import deque
 from collections.abc import Iterator
 from typing import Any
 
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import Peer, Transport, frames
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 from dataflow.transports.ipc import LinkRefused, link_hello

@@ -28,7 +28,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import Peer, Transport, TransportError, frames
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 from dataflow.transports.ipc._hub import Conn, Hub

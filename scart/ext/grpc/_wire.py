@@ -1,6 +1,6 @@
 """The wire side of ``binding.grpc`` (private): its messages, values, faults.
 
-Messages are the code protoc made of ``scart/sca/v1/sca.proto`` (:mod:`dataflow.proto`).
+Messages are the code protoc made of ``scart/sca/v1/sca.proto`` (:mod:`scart_wire.proto`).
 Values go through the one codec, :mod:`dataflow.codec` (the type registry, plus ``""``
 for None and ``"scart.json"`` for values the registry has no name for). On the
 receiving side, values are coerced to the parameter / return annotations of the
@@ -23,8 +23,8 @@ import pydantic
 from scart_wire import codec
 from scart_wire.bounds import argument_adapter, check_argument
 from dataflow.errors import DataflowError, PortTypeError
-from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
-from dataflow.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
+from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
+from scart_wire.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
 from scart_wire.security import Role, roles_of_service
 from scart_wire.types import registry
 from scart.errors import InvocationError, RemoteError, RuntimeStateError, ServiceNotFoundError

@@ -1,4 +1,4 @@
-from dataflow.proto.scart.dataflow.v1 import value_pb2 as _value_pb2
+from scart_wire.proto.scart.dataflow.v1 import value_pb2 as _value_pb2
 from google.protobuf.internal import containers as _containers
 from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
 from google.protobuf import descriptor as _descriptor

@@ -3,7 +3,7 @@
 import grpc
 import warnings
 
-from dataflow.proto.scart.naming.v1 import naming_pb2 as scart_dot_naming_dot_v1_dot_naming__pb2
+from scart_wire.proto.scart.naming.v1 import naming_pb2 as scart_dot_naming_dot_v1_dot_naming__pb2
 
 GRPC_GENERATED_VERSION = '1.85.1'
 GRPC_VERSION = grpc.__version__

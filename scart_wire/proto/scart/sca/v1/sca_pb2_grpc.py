@@ -3,7 +3,7 @@
 import grpc
 import warnings
 
-from dataflow.proto.scart.sca.v1 import sca_pb2 as scart_dot_sca_dot_v1_dot_sca__pb2
+from scart_wire.proto.scart.sca.v1 import sca_pb2 as scart_dot_sca_dot_v1_dot_sca__pb2
 
 GRPC_GENERATED_VERSION = '1.85.1'
 GRPC_VERSION = grpc.__version__

@@ -3,7 +3,7 @@
 import grpc
 import warnings
 
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as scart_dot_dataflow_dot_v1_dot_dataflow__pb2
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as scart_dot_dataflow_dot_v1_dot_dataflow__pb2
 
 GRPC_GENERATED_VERSION = '1.85.1'
 GRPC_VERSION = grpc.__version__
