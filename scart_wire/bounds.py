@@ -268,8 +268,8 @@ def check_argument(where: str, hint: Any, value: Any) -> Any:
     """The one check of an operation argument from outside, used by every entry (the
     data-flow path and its CLI, Foxglove, binding.grpc, the services endpoint): ``value``
     validated as :func:`argument_adapter` says, returned as converted. Raises
-    :class:`~dataflow.errors.PortTypeError` (not of the declared type) or
-    :class:`~dataflow.errors.PortValueError` (out of bounds, not finite), each saying
+    :class:`~scart_wire.errors.PortTypeError` (not of the declared type) or
+    :class:`~scart_wire.errors.PortValueError` (out of bounds, not finite), each saying
     ``WHERE: VALUE refused: REASON`` (``where`` is e.g. ``task.operation(parameter)``)."""
     adapter = argument_adapter(hint)
     if adapter is None:

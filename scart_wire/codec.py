@@ -7,7 +7,7 @@ results, binding.grpc calls) goes through :func:`encode` and :func:`decode`:
 type name         what it holds
 ================  ===========================================================
 ``""``            ``None``
-registered name   a value of a registered type, encoded by :data:`dataflow.registry`
+registered name   a value of a registered type, encoded by :data:`scart_wire.types.registry`
                   (``float64``, ``float64[]``, pydantic models...; see
                   :mod:`scart_wire.types`)
 ``scart.json``    JSON text, for a value the registry has no name for (a dict, a
@@ -53,7 +53,7 @@ _UNPACK = MappingProxyType({registry.type_name(float): struct.Struct("<d").unpac
 def encode(value: Any, py_type: Any = None) -> Value:
     """``value`` as a ``Value`` message (as ``py_type`` when given, see the module docstring).
 
-    Raises :class:`~dataflow.PortTypeError` naming the type when the value cannot be sent."""
+    Raises :class:`~scart_wire.errors.PortTypeError` naming the type when the value cannot be sent."""
     if value is None:
         return Value(type_name=NONE_TYPE)
     try:
@@ -111,7 +111,7 @@ def _list_type(value: list[Any] | tuple[Any, ...]) -> Any:
 def decode(msg: Value) -> Any:
     """The Python value of a ``Value`` message (see the module docstring).
 
-    Raises :class:`~dataflow.PortTypeError` when the bytes do not fit their type name."""
+    Raises :class:`~scart_wire.errors.PortTypeError` when the bytes do not fit their type name."""
     name = msg.type_name
     unpack = _UNPACK.get(name)
     if unpack is not None:  # a number, without the registry's lookups (the hot case)

@@ -1,6 +1,6 @@
 """Conversions between the core's policies and statuses and their proto messages (private).
 
-Values have their own public codec, :mod:`dataflow.codec`."""
+Values have their own public codec, :mod:`scart_wire.codec`."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 Runs grpcio-tools' protoc over every ``.proto`` under :data:`SOURCE` (the checkout's
 top-level ``proto/`` folder, the include root, so a file is named by its buf-style path
-such as ``scart/dataflow/v1/scart_wire.proto``) and writes under :data:`ROOT` (this
+such as ``scart/dataflow/v1/dataflow.proto``) and writes under :data:`ROOT` (this
 package), at the same relative path, its ``_pb2.py``, ``_pb2.pyi`` and ``_pb2_grpc.py``,
 plus the ``__init__.py`` of every folder between.
 

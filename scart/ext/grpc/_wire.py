@@ -1,7 +1,7 @@
 """The wire side of ``binding.grpc`` (private): its messages, values, faults.
 
 Messages are the code protoc made of ``scart/sca/v1/sca.proto`` (:mod:`scart_wire.proto`).
-Values go through the one codec, :mod:`dataflow.codec` (the type registry, plus ``""``
+Values go through the one codec, :mod:`scart_wire.codec` (the type registry, plus ``""``
 for None and ``"scart.json"`` for values the registry has no name for). On the
 receiving side, values are coerced to the parameter / return annotations of the
 interface (pydantic, lax), so an unregistered pydantic model arrives as that model.

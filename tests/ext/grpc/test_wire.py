@@ -1,5 +1,5 @@
 """binding.grpc's wire format: the proto (buf style), values through the one codec
-(:mod:`dataflow.codec`, tested on its own), coercion to annotations, faults."""
+(:mod:`scart_wire.codec`, tested on its own), coercion to annotations, faults."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ def test_proto_is_buf_style() -> None:
 
 
 def test_the_binding_uses_the_one_codec() -> None:
-    """Values go through dataflow.codec: the same bytes as the remote layer's."""
+    """Values go through scart_wire.codec: the same bytes as the remote layer's."""
     from scart_wire import codec
 
     for value in (None, 2.5, [1.0, 2.0], {"k": 1}, Pose(x=1.0, theta=0.5)):
