@@ -30,7 +30,7 @@ import grpc  # noqa: E402
 
 import scart  # noqa: E402
 from dataflow import registry  # noqa: E402
-from scart.ext.grpc._wire import pb  # noqa: E402
+from scart.bindings.grpc._wire import pb  # noqa: E402
 
 from _common import pct  # noqa: E402
 

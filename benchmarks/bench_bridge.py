@@ -22,7 +22,7 @@ from _common import pct
 
 import scart
 from dataflow import ConnPolicy, InputPort
-from scart.ext.dataflow import deployer_of
+from scart.bindings.dataflow import deployer_of
 
 MODS = '''
 from __future__ import annotations

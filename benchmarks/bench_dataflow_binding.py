@@ -204,7 +204,7 @@ def run(quick: bool = False) -> list[Row]:
 
 
 def _wait_subscribed(rt: object) -> None:
-    from scart.ext.dataflow import DataflowServiceBinding, bindings_of
+    from scart.bindings.dataflow import DataflowServiceBinding, bindings_of
 
     if not wait_until(lambda: all(b.connected for b in bindings_of(rt) if isinstance(b, DataflowServiceBinding)),
                       timeout=10.0, interval=0.01):

@@ -3,7 +3,7 @@
 Providers are found through the ``scart.extensions`` entry points, by the local name of
 their element; scart's own are registered the same way (``implementation.python``,
 ``binding.sca`` in the core; ``binding.grpc``, ``binding.dataflow``,
-``implementation.task`` and ``connect`` in :mod:`scart.ext`). A third-party package adds
+``implementation.task`` and ``connect`` in :mod:`scart.bindings`). A third-party package adds
 a kind with one line in its ``pyproject.toml``, and no change to scart::
 
     [project.entry-points."scart.extensions"]

@@ -149,7 +149,7 @@ class Host(Protocol):
 
     def shared(self, key: str, factory: Callable[[], T]) -> T:
         """A per-runtime resource, created by ``factory`` on first use (once, even when
-        called from several threads). Keys are namespaced by convention: ``"scart.ext.grpc.servers"``."""
+        called from several threads). Keys are namespaced by convention: ``"scart.bindings.grpc.servers"``."""
 
     def add_stop_hook(self, hook: Callable[[], None]) -> None:
         """Run ``hook`` at the very end of stop (after every @destroy), hooks in reverse order."""

@@ -144,7 +144,7 @@ def test_every_servicer_answers_every_method_of_its_service() -> None:
     from scart_wire.proto.scart.sca.v1 import sca_pb2, sca_pb2_grpc
     from dataflow.remote._servicer import DeployerServicer
     from dataflow.remote.naming import NamingServicer
-    from scart.ext.grpc._server import _Servicer
+    from scart.bindings.grpc._server import _Servicer
 
     cases = [(DeployerServicer, _proto.df_grpc.DeployerServiceServicer, _proto.DEPLOYER_SERVICE),
              (NamingServicer, _proto.ns_grpc.NamingServiceServicer, _proto.NAMING_SERVICE)]

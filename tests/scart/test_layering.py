@@ -91,15 +91,15 @@ def _sources(package: str) -> list[Path]:
 
 
 def test_the_core_imports_no_extension() -> None:
-    core = [p for p in _sources("scart") if "scart/ext/" not in p.as_posix()]
-    offenders = {str(p.relative_to(ROOT)): m for p in core for m in _imports(p) if m == "scart.ext" or m.startswith("scart.ext.")}
+    core = [p for p in _sources("scart") if "scart/bindings/" not in p.as_posix()]
+    offenders = {str(p.relative_to(ROOT)): m for p in core for m in _imports(p) if m == "scart.bindings" or m.startswith("scart.bindings.")}
     assert offenders == {}
 
 
 def test_extensions_reach_scart_only_through_the_spi() -> None:
-    allowed = ("scart.spi", "scart.errors", "scart.ext")
-    offenders = {f"{p.relative_to(ROOT)}: {m}" for p in _sources("scart.ext") for m in _imports(p)
-                 if (m == "scart" or m.startswith("scart.")) and not (m in allowed or m.startswith("scart.ext."))}
+    allowed = ("scart.spi", "scart.errors", "scart.bindings")
+    offenders = {f"{p.relative_to(ROOT)}: {m}" for p in _sources("scart.bindings") for m in _imports(p)
+                 if (m == "scart" or m.startswith("scart.")) and not (m in allowed or m.startswith("scart.bindings."))}
     assert offenders == set()
 
 

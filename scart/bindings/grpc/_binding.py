@@ -1,4 +1,4 @@
-"""The two sides of ``binding.grpc`` (private; see :mod:`scart.ext.grpc` for the XML and the
+"""The two sides of ``binding.grpc`` (private; see :mod:`scart.bindings.grpc` for the XML and the
 call protocol): :class:`GrpcServiceBinding` exports a component service on a shared
 server (:mod:`._server`), :class:`GrpcReferenceBinding` calls one, with callbacks on the
 calls' own streams."""
@@ -19,13 +19,13 @@ import grpc
 from scart_wire.security import tls_mismatch
 from dataflow.threads import OwnedThread
 from scart.errors import InvocationError, ServiceUnavailableError
-from scart.ext.grpc._server import Exported, GrpcServer, ServerTable
-from scart.ext.grpc._wire import (
+from scart.bindings.grpc._server import Exported, GrpcServer, ServerTable
+from scart.bindings.grpc._wire import (
     UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
 from scart.spi import Binding, Host, InterfaceInfo, Operation, ReferenceBinding, ServiceBinding, ServiceEndpoint
 
-log = logging.getLogger("scart.ext.grpc")
+log = logging.getLogger("scart.bindings.grpc")
 
 DEFAULT_SERVICE_ADDRESS = "127.0.0.1:0"
 DEFAULT_CALL_TIMEOUT_S = 5.0
@@ -88,7 +88,7 @@ class GrpcServiceBinding(ServiceBinding):
         """Listen (or join this runtime's server on the same address)."""
         drain = self.host.drain_timeout
         security = self.host.settings.security
-        self._table = self.host.shared("scart.ext.grpc.servers", lambda: ServerTable(drain, security))
+        self._table = self.host.shared("scart.bindings.grpc.servers", lambda: ServerTable(drain, security))
         self._server = self._table.acquire(self.configured_address, self._exported)
 
     def stop(self) -> None:

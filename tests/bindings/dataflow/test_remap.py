@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import scart
-from scart.ext.dataflow import deployer_of
+from scart.bindings.dataflow import deployer_of
 from support import wait_until
 from support.sca import composite, write
 

@@ -253,7 +253,7 @@ def test_a_port_in_use_is_a_start_error_naming_the_address(tmp_path: Path) -> No
 def test_services_listed_by_the_server(tmp_path: Path) -> None:
     import grpc
 
-    from scart.ext.grpc._wire import PATHS, pb
+    from scart.bindings.grpc._wire import PATHS, pb
     with provider_and_client(tmp_path, GEOMETRY + DESK, geo_client) as (provider, _):
         with grpc.insecure_channel(grpc_bindings(provider)[0].address) as channel:
             stub = channel.unary_unary(PATHS["ListServices"], request_serializer=pb.ListServicesRequest.SerializeToString,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from pydantic import BaseModel
 
-from scart.ext.grpc._wire import SCA_SERVICE, Signature, converter, decode, encode, fault
+from scart.bindings.grpc._wire import SCA_SERVICE, Signature, converter, decode, encode, fault
 from scart.errors import InvocationError
 
 

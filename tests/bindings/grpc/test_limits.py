@@ -11,9 +11,9 @@ from pathlib import Path
 import grpc
 import pytest
 
-from scart.ext.grpc import _server as _grpc_server
+from scart.bindings.grpc import _server as _grpc_server
 from scart_wire.codec import Value
-from scart.ext.grpc._wire import PATHS, pb
+from scart.bindings.grpc._wire import PATHS, pb
 from scart.errors import InvocationError
 from support.grpc_binding import gpy, grpc_bindings, grpc_reference, grpc_service, provider_and_client
 
@@ -116,7 +116,7 @@ def test_a_call_that_timed_out_while_queued_never_runs(tmp_path: Path, monkeypat
     from support import wait_until
     from support.grpc_binding import instance
     monkeypatch.setattr(_grpc_server, "INVOKE_WORKERS", 1)
-    caplog.set_level(logging.WARNING, logger="scart.ext.grpc")
+    caplog.set_level(logging.WARNING, logger="scart.bindings.grpc")
 
     def client(addr: str) -> str:
         ref = grpc_reference(addr, "D/Desk", timeout=0.5)
@@ -128,7 +128,7 @@ def test_a_call_that_timed_out_while_queued_never_runs(tmp_path: Path, monkeypat
                                         response_deserializer=pb.InvokeResponse.FromString)
             req = pb.InvokeRequest(call_id="blocker")
             req.invocation.service, req.invocation.operation = "D/Desk", "decide"
-            from scart.ext.grpc._wire import fill_invocation
+            from scart.bindings.grpc._wire import fill_invocation
             fill_invocation(req.invocation, ("hold",), {})
             blocker = stub(req, timeout=20)
             assert next(blocker).HasField("callback_call")  # the only Invoke worker is busy now
@@ -190,7 +190,7 @@ def test_provider_stop_is_bounded_by_the_drain_deadline(tmp_path: Path, caplog: 
 
     import scart
     from support.grpc_binding import composite, gwrite
-    caplog.set_level(logging.WARNING, logger="scart.ext.grpc")
+    caplog.set_level(logging.WARNING, logger="scart.bindings.grpc")
     (tmp_path / "rv5hold.py").write_text(HOLD)
     body = ('<component name="H"><scart:implementation.python class="rv5hold:HoldImpl"/>'
             f'<service name="Hold">{grpc_service()}</service></component>')
@@ -225,7 +225,7 @@ def test_a_result_the_client_cannot_convert_names_service_and_operation(tmp_path
     from concurrent.futures import ThreadPoolExecutor
 
     import scart
-    from scart.ext.grpc._wire import decode
+    from scart.bindings.grpc._wire import decode
     from support.grpc_binding import composite, gwrite, instance
 
     with pytest.raises(InvocationError, match="malformed value: cannot decode float64"):

@@ -30,13 +30,13 @@ from scart.errors import InvocationError, ScartError, ServiceNotFoundError
 from scart_wire.rpc import StreamBudget, server_options
 from scart_wire.security import Security, SecurityError, auth_interceptor
 from dataflow.threads import OwnedThread
-from scart.ext.grpc._wire import (
+from scart.bindings.grpc._wire import (
     SCA_ROLES,
     Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
 from scart.spi import CURRENT_CALLBACK, Host, InterfaceInfo, ServiceEndpoint
 
-log = logging.getLogger("scart.ext.grpc")
+log = logging.getLogger("scart.bindings.grpc")
 
 MAX_WORKERS = 64
 MAX_STREAMS = 48  # Invoke calls + callback sessions open at once: the rest of the pool stays for unary calls

@@ -69,10 +69,10 @@ from dataflow import (
 from dataflow.fields import apply_path, parse_path
 from dataflow.introspection import PropertyDescription, TaskDescription
 from scart.errors import ScartError
-from scart.ext.dataflow._checks import remap_problems, remote_end
-from scart.ext.dataflow._host import TASK_KIND, Watcher, host_of, remote_ports
-from scart.ext.dataflow._plan import MIN_PERIOD_S
-from scart.ext.dataflow.tasks import ConnectParticipant, Link, connect_present, retire
+from scart.bindings.dataflow._checks import remap_problems, remote_end
+from scart.bindings.dataflow._host import TASK_KIND, Watcher, host_of, remote_ports
+from scart.bindings.dataflow._plan import MIN_PERIOD_S
+from scart.bindings.dataflow.tasks import ConnectParticipant, Link, connect_present, retire
 from scart.spi import (
     AssemblyView, CheckContext, Element, ElementProvider, Host, Location, Participant, Problem, Remap, Settings,
 )

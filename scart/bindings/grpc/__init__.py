@@ -9,14 +9,14 @@ XML (namespace ``urn:scart:1.0``)::
       <scart:binding.grpc address="127.0.0.1:50051" service="CalculatorComponent/Calculator" timeout="5"/>
     </reference>
 
-* **Service side** (:class:`~scart.ext.grpc._binding.GrpcServiceBinding`): exports a component service (or a
+* **Service side** (:class:`~scart.bindings.grpc._binding.GrpcServiceBinding`): exports a component service (or a
   promoted composite service) on ``address``; services of one runtime naming the same
   address share one server (all default ``127.0.0.1:0`` services share one port).
   ``.address`` is the real "host:port". A service answers to "Component/Service",
   "Component" (when it is the component's only service) and its promoted names; a
   server exporting a single service also answers to an empty name. ``timeout`` (s,
   default 30) bounds each wait for a caller's reply to a synchronous callback.
-* **Reference side** (:class:`~scart.ext.grpc._binding.GrpcReferenceBinding`): ``address`` (required),
+* **Reference side** (:class:`~scart.bindings.grpc._binding.GrpcReferenceBinding`): ``address`` (required),
   ``service`` (optional when the server exports one service), ``timeout`` (s, default
   5): the per-call deadline. Calls use ``wait_for_ready``: a provider that is down when
   called is waited for until the deadline, then :class:`scart.ServiceUnavailableError` names
@@ -45,7 +45,7 @@ Callbacks — the client never listens on a port; the calls' own streams carry t
   ``Invoke`` calls name the session too, so a callback made after a synchronous call
   returned still arrives when a session is open.
 * One-way failures on the provider are logged and counted: the runtime's
-  ``oneway_failures`` and :attr:`~scart.ext.grpc._binding.GrpcServiceBinding.oneway_failures`; a one-way call
+  ``oneway_failures`` and :attr:`~scart.bindings.grpc._binding.GrpcServiceBinding.oneway_failures`; a one-way call
   the provider refuses (unknown operation, undecodable argument) or cannot be reached
   raises at the caller.
 """
@@ -81,14 +81,14 @@ class GrpcBinding(BindingProvider):
         return "address" in model.attributes or "service" in model.attributes
 
     def service(self, model: Binding, endpoint: ServiceEndpoint, host: Host) -> ServiceBinding:
-        """A :class:`~scart.ext.grpc._binding.GrpcServiceBinding` (listens at start)."""
-        from scart.ext.grpc._binding import GrpcServiceBinding
+        """A :class:`~scart.bindings.grpc._binding.GrpcServiceBinding` (listens at start)."""
+        from scart.bindings.grpc._binding import GrpcServiceBinding
 
         return GrpcServiceBinding(model, endpoint, host)
 
     def reference(self, model: Binding, interface: InterfaceInfo, host: Host) -> ReferenceBinding:
-        """A :class:`~scart.ext.grpc._binding.GrpcReferenceBinding` (connects lazily)."""
-        from scart.ext.grpc._binding import GrpcReferenceBinding
+        """A :class:`~scart.bindings.grpc._binding.GrpcReferenceBinding` (connects lazily)."""
+        from scart.bindings.grpc._binding import GrpcReferenceBinding
 
         return GrpcReferenceBinding(model, interface, host)
 

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 from dataflow import ConnPolicy, DataflowError
 from dataflow.transports import TransportError, load, names
-from scart.ext.dataflow._host import TASK_KIND, class_ports, host_of
-from scart.ext.dataflow._plan import parse_policy
+from scart.bindings.dataflow._host import TASK_KIND, class_ports, host_of
+from scart.bindings.dataflow._plan import parse_policy
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
 
 __all__ = ["StreamElement", "StreamParticipant"]

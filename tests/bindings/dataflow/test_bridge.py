@@ -18,8 +18,8 @@ import scart
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort
 from dataflow.fields import apply_path, parse_path
 from dataflow.remote import connect
-from scart.ext.dataflow import deployer_of
-from scart.ext.dataflow.bridge import path_type, same_type
+from scart.bindings.dataflow import deployer_of
+from scart.bindings.dataflow.bridge import path_type, same_type
 
 MODS = '''
 from __future__ import annotations

@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator
 
 from dataflow import DataflowError
 from scart.errors import ASM_PROPERTY_VALUE
-from scart.ext.dataflow._host import TASK_KIND, PortInfo, class_ports
+from scart.bindings.dataflow._host import TASK_KIND, PortInfo, class_ports
 from scart.spi import DEFAULT, AssemblyView, CheckContext, Node, Problem, Remap, did_you_mean
 
 __all__ = ["TASK_REMAP", "property_problems", "remap_problems", "remote_end"]

@@ -1,15 +1,15 @@
 """The data-flow extension: Orocos-style tasks inside a composite, and SCA meeting ports.
 
-Three kinds, one runtime-wide :class:`~scart.ext.dataflow._host.DataflowHost` (the
+Three kinds, one runtime-wide :class:`~scart.bindings.dataflow._host.DataflowHost` (the
 runtime's :class:`dataflow.Deployer`, its gRPC server and name service):
 
 * ``<scart:implementation.task class="pkg.mod:Task" period="0.01"/>`` —
-  :class:`TaskImplementation` (:mod:`scart.ext.dataflow.tasks`);
+  :class:`TaskImplementation` (:mod:`scart.bindings.dataflow.tasks`);
 * ``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` — :class:`ConnectElement`;
 * ``<scart:binding.dataflow component="task"/>`` on a reference or a service —
-  :class:`DataflowBinding` (:mod:`scart.ext.dataflow.binding`);
+  :class:`DataflowBinding` (:mod:`scart.bindings.dataflow.binding`);
 * ``<scart:bridge name="b">`` with ``<scart:input>`` s and one ``<scart:output>`` — many
-  ports, converted, built into one typed output (:mod:`scart.ext.dataflow.bridge`).
+  ports, converted, built into one typed output (:mod:`scart.bindings.dataflow.bridge`).
 
 With ``Settings(serve=True)`` (``scart run`` sets it) the runtime serves its tasks over
 gRPC after every component started, with a name service embedded at the settings'
@@ -21,10 +21,10 @@ address, or joined there when one answers. For programs and tests:
 from __future__ import annotations
 
 from dataflow import Deployer
-from scart.ext.dataflow._host import DataflowHost, host_of
-from scart.ext.dataflow.bridge import BridgeElement, BridgeTask
-from scart.ext.dataflow.binding import DataflowBinding, DataflowReferenceBinding, DataflowServiceBinding, bindings_of
-from scart.ext.dataflow.tasks import ConnectElement, ConnectParticipant, Link, TaskImplementation, TaskManager, task_interface
+from scart.bindings.dataflow._host import DataflowHost, host_of
+from scart.bindings.dataflow.bridge import BridgeElement, BridgeTask
+from scart.bindings.dataflow.binding import DataflowBinding, DataflowReferenceBinding, DataflowServiceBinding, bindings_of
+from scart.bindings.dataflow.tasks import ConnectElement, ConnectParticipant, Link, TaskImplementation, TaskManager, task_interface
 from scart.spi import Host
 
 __all__ = [

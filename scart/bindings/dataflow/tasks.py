@@ -2,7 +2,7 @@
 
 ``<scart:implementation.task class="pkg.mod:Driver" period="0.01"/>`` hosts a
 :class:`dataflow.TaskContext` in the runtime's :class:`dataflow.Deployer` (one per
-runtime, :func:`~scart.ext.dataflow.deployer_of`):
+runtime, :func:`~scart.bindings.dataflow.deployer_of`):
 
 * the task is created with the component's name (its path "Outer/Inner" when nested);
   ``period`` (seconds, > 0) gives it a ``PeriodicActivity``; without it the task keeps
@@ -11,7 +11,7 @@ runtime, :func:`~scart.ext.dataflow.deployer_of`):
   name; values are parsed and validated at load time against the Property's type,
   bounds and ``check`` (a read-only property refuses any value), problems reported as
   ``file:line`` (``scart validate`` says what ``scart run`` would: see
-  :mod:`~scart.ext.dataflow._checks`), as are names ``--remap`` would give that a task
+  :mod:`~scart.bindings.dataflow._checks`), as are names ``--remap`` would give that a task
   could not run under;
 * lifecycle: at the component's start the task is added to the deployer, its
   properties set, configured, connected to the tasks already added (see below) and
@@ -28,7 +28,7 @@ optional ``ns`` = name service; optional ``name``: the link's name for ``scart l
 ``reroute`` and ``disconnect``, default ``a.out->b.in``) connects an output port to an input port. Both ends in
 this composite: connected in-process when the second task is added. One end not in this
 composite: it is a task of another deployer, resolved through the name service (``ns``,
-else the runtime's, see :class:`~scart.ext.dataflow._host.DataflowHost`) at start or
+else the runtime's, see :class:`~scart.bindings.dataflow._host.DataflowHost`) at start or
 whenever it appears; the connection is re-made when that deployer restarts (a new
 registration). Cross-deployer connections need this runtime's tasks served (the
 settings' ``serve``, as ``scart run`` does). Static errors (``file:line``): malformed
@@ -55,9 +55,9 @@ from pydantic_core import core_schema
 
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
 from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError
-from scart.ext.dataflow._checks import property_problems, remap_problems, remote_end
-from scart.ext.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of
-from scart.ext.dataflow._plan import MIN_PERIOD_S, ZenohEnd, parse_policy, parse_zenoh
+from scart.bindings.dataflow._checks import property_problems, remap_problems, remote_end
+from scart.bindings.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of
+from scart.bindings.dataflow._plan import MIN_PERIOD_S, ZenohEnd, parse_policy, parse_zenoh
 from scart.spi import (
     DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Element, ElementProvider, Host, Implementation,
     ImplementationProblem, ImplementationProvider, InterfaceInfo, Node, Operation, Participant, Problem, PropSpec,

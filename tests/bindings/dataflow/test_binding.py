@@ -10,8 +10,8 @@ from support import wait_until
 from support.sca import composite, line_of, write
 
 import scart
-from scart.ext.dataflow import host_of
-from scart.ext.dataflow import DataflowServiceBinding, bindings_of
+from scart.bindings.dataflow import host_of
+from scart.bindings.dataflow import DataflowServiceBinding, bindings_of
 
 
 TASKS = '''

@@ -11,7 +11,7 @@ from support.sca import composite, line_of, write
 
 import scart
 from dataflow import PeriodicActivity, TaskState
-from scart.ext.dataflow import host_of
+from scart.bindings.dataflow import host_of
 
 
 TASKS = '''
@@ -246,7 +246,7 @@ def test_an_explicit_name_service_that_cannot_be_bound_fails_the_start(tmp_path:
 def test_checked_property_type_built_once_per_declaration() -> None:
     """The checked type of a Property is memoised: the TypeAdapter cache is not defeated."""
     from dataflow import Property
-    from scart.ext.dataflow.tasks import _checked_type
+    from scart.bindings.dataflow.tasks import _checked_type
 
     def positive(value: float) -> None:
         if value <= 0:

@@ -34,7 +34,7 @@ SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
 SCA_ROLES: MappingProxyType[str, Role] = MappingProxyType(roles_of_service(SCA_SERVICE.full_name, reads={"ListServices"}))
 PATHS: MappingProxyType[str, str] = MappingProxyType(
     {m.name: f"/{SCA_SERVICE.full_name}/{m.name}" for m in SCA_SERVICE.methods})
-log = logging.getLogger("scart.ext.grpc")
+log = logging.getLogger("scart.bindings.grpc")
 NONE_TYPE = codec.NONE_TYPE
 JSON_TYPE = codec.JSON_TYPE
 

@@ -1,6 +1,6 @@
 """How ``binding.dataflow`` maps interface operations to ports, and its static checks.
 
-Private to :mod:`scart.ext.dataflow.binding` (whose docstring documents the XML forms).
+Private to :mod:`scart.bindings.dataflow.binding` (whose docstring documents the XML forms).
 A *plan* maps each operation to ``(kind, port, type_name)``: ``kind`` is ``"write"``
 (reference, one argument → input port), ``"read"`` (reference, no argument and a return
 value → output port) or ``"deliver"`` (service, one argument ← output port).
@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 from dataflow import ConnPolicy
 from dataflow.policy import one_of, transport_names
-from scart.ext.dataflow._host import PortInfo, class_ports, remote_ports, type_name_of
+from scart.bindings.dataflow._host import PortInfo, class_ports, remote_ports, type_name_of
 from scart.spi import SCART_NS, Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
 
 if TYPE_CHECKING:

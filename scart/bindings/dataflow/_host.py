@@ -217,4 +217,4 @@ def host_of(host: Host) -> DataflowHost:
         host.add_stop_hook(dataflow_host.close)
         return dataflow_host
 
-    return host.shared("scart.ext.dataflow.host", make)
+    return host.shared("scart.bindings.dataflow.host", make)

@@ -16,7 +16,7 @@ import pytest
 import scart
 from dataflow import Deployer
 from dataflow.remote import serve_nameserver
-from scart.ext.dataflow import deployer_of
+from scart.bindings.dataflow import deployer_of
 from support import ROOT, wait_until
 from support.cli import run
 from support.sca import composite, line_of, write

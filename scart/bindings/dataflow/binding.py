@@ -59,8 +59,8 @@ from typing import Any
 from dataflow import DataflowError, FlowStatus
 from dataflow.remote import local_system
 from scart.errors import InvocationError
-from scart.ext.dataflow._host import TASK_KIND, PortInfo, Watcher, host_of
-from scart.ext.dataflow._plan import DF_ATTRIBUTE, Attributes, Step, attributes, check_ports, plan, static_ports
+from scart.bindings.dataflow._host import TASK_KIND, PortInfo, Watcher, host_of
+from scart.bindings.dataflow._plan import DF_ATTRIBUTE, Attributes, Step, attributes, check_ports, plan, static_ports
 from scart.spi import (
     Binding, BindingProvider, CheckContext, Host, InterfaceInfo, Operation, Problem, ReferenceBinding, ServiceBinding,
     ServiceEndpoint, Side,
@@ -73,7 +73,7 @@ log = logging.getLogger("scart.dataflow")
 
 def bindings_of(runtime: Host) -> list[DataflowReferenceBinding | DataflowServiceBinding]:
     """The ``binding.dataflow`` instances of ``runtime`` (references and services)."""
-    return runtime.shared("scart.ext.dataflow.bindings", list)
+    return runtime.shared("scart.bindings.dataflow.bindings", list)
 
 
 class DataflowBinding(BindingProvider):
