@@ -148,7 +148,7 @@ class Runtime:
     def __init__(self, assembly: Assembly, *, settings: Settings | None = None, max_workers: int = 8,
                  max_pending: int = 10_000, drain_timeout: float = 10.0) -> None:
         self.assembly = assembly
-        self._settings = settings if settings is not None else Settings.from_env()
+        self._settings = settings if settings is not None else assembly.registry.settings_from_env()
         self.max_workers = max_workers
         self.max_pending = max_pending
         self.drain_timeout = drain_timeout
@@ -184,10 +184,12 @@ class Runtime:
         ``META-INF/sca-contribution.xml`` lists one deployable composite; ``contributions``
         are more contribution folders it is resolved in (see :mod:`scart.contribution`).
         ``overrides`` maps "Component.property" to a raw value (like ``--set``);
-        ``settings`` configure the runtime and its extensions (default:
-        ``Settings.from_env()``); ``extensions`` is the registry of kinds (default: the
-        installed entry points). Warnings of the composite (``assembly.warnings``) are logged."""
-        settings = settings if settings is not None else Settings.from_env()
+        ``settings`` configure the runtime and its extensions (default: from the
+        environment, :meth:`ExtensionRegistry.settings_from_env`); ``extensions`` is the
+        registry of kinds (default: the installed entry points). Warnings of the composite
+        (``assembly.warnings``) are logged."""
+        extensions = extensions if extensions is not None else ExtensionRegistry()
+        settings = settings if settings is not None else extensions.settings_from_env()
         assembly = assemble(str(path), overrides, extensions=extensions, settings=settings,
                             contributions=contributions)
         for warning in assembly.warnings:

@@ -20,7 +20,8 @@ from collections.abc import Callable, Iterator
 from dataflow import DataflowError
 from scart.errors import ASM_PROPERTY_VALUE
 from scart.bindings.dataflow._host import TASK_KIND, PortInfo, class_ports
-from scart.spi import DEFAULT, AssemblyView, CheckContext, Node, Problem, Remap, did_you_mean
+from scart.bindings.dataflow.settings import DataflowSettings, Remap
+from scart.spi import DEFAULT, AssemblyView, CheckContext, Node, Problem, did_you_mean
 
 __all__ = ["TASK_REMAP", "property_problems", "remap_problems", "remote_end"]
 
@@ -116,8 +117,8 @@ def remote_end(comp: str, what: str, ns: str | None, assembly: AssemblyView, con
             add(f"{what}: {comp!r} is no task of this composite{near}; it is looked up in the name service "
                 "when the composite runs (scart validate --online asks it now)", "warning")
         return None
-    address = ns or settings.ns_address
-    runs_as = settings.remap.component(comp)
+    address = ns or DataflowSettings.of(settings).ns_address
+    runs_as = DataflowSettings.of(settings).remap.component(comp)
     names, ports = _lookup(address, runs_as, settings)
     if names is None:
         add(f"{what}: {comp!r} is no task of this composite, and the name service at {address} does not answer "

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from dataflow import DataflowError, Deployer, OutputPort, TaskContext, registry
 from dataflow.threads import OwnedThread
+from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import Host, Participant
 
 if TYPE_CHECKING:
@@ -143,7 +144,7 @@ class DataflowHost(Participant):
     def ns_address(self) -> str:
         """The name service for non-local components: the one this runtime serves or
         joined (:meth:`serve`), else the settings' (``ns``, else the default address)."""
-        return self._ns or self.host.settings.ns_address
+        return self._ns or DataflowSettings.of(self.host.settings).ns_address
 
     def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> DeployerServer:
         """Serve the deployer over gRPC (``ns=None``: embedded name service at ``address``;
@@ -163,7 +164,8 @@ class DataflowHost(Participant):
         port when no address was given and that one cannot be bound). Raises
         ``DataflowError`` when serving fails."""
         settings = self.host.settings
-        if self.server is not None or not settings.serve:
+        own = DataflowSettings.of(settings)
+        if self.server is not None or not own.serve:
             return  # served already (by a program calling serve()), or not asked to
         if not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()) and not \
                 self.host.assembly.elements_of("bridge"):
@@ -171,7 +173,7 @@ class DataflowHost(Participant):
         from dataflow.remote.errors import UnavailableError
         from dataflow.remote.naming import name_service_answers
 
-        ns = settings.ns_address
+        ns = own.ns_address
         joined = name_service_answers(ns, security=settings.security)
         if joined:
             server = self.serve("127.0.0.1:0", ns=ns)
@@ -179,7 +181,7 @@ class DataflowHost(Participant):
             try:
                 server = self.serve(ns)
             except UnavailableError:
-                if settings.ns is not None:  # given explicitly: no other address will do
+                if own.ns is not None:  # given explicitly: no other address will do
                     raise
                 server = self.serve("127.0.0.1:0")
         self._served = {"dataflow server": f"{server.listen_address} ({len(self.deployer.names())} task(s))",

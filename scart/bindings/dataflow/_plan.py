@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 from dataflow import ConnPolicy
 from dataflow.policy import one_of, transport_names
 from scart.bindings.dataflow._host import PortInfo, class_ports, remote_ports, type_name_of
+from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import SCART_NS, Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
 
 if TYPE_CHECKING:
@@ -261,8 +262,8 @@ def static_ports(s: Attributes, context: CheckContext) -> tuple[dict[str, PortIn
             return class_ports(cls), "local"
     if not context.settings.online or s.zenoh is not None:  # a Zenoh lookup is made when the binding starts
         return None, ""
-    ns = s.ns or context.settings.ns_address
-    remap = context.settings.remap  # the task runs under its remapped name, its ports too
+    ns = s.ns or DataflowSettings.of(context.settings).ns_address
+    remap = DataflowSettings.of(context.settings).remap  # the task runs under its remapped name, its ports too
     ports = remote_ports(ns, remap.component(s.component), timeout=0.5, security=context.settings.security)
     if ports is not None and remap:
         back = {remap.port(s.component, name): name for name in ports}  # ports by the names the composite uses

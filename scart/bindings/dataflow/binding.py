@@ -61,6 +61,7 @@ from dataflow.remote import local_system
 from scart.errors import InvocationError
 from scart.bindings.dataflow._host import TASK_KIND, PortInfo, Watcher, host_of
 from scart.bindings.dataflow._plan import DF_ATTRIBUTE, Attributes, Step, attributes, check_ports, plan, static_ports
+from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import (
     Binding, BindingProvider, CheckContext, Host, InterfaceInfo, Operation, Problem, ReferenceBinding, ServiceBinding,
     ServiceEndpoint, Side,
@@ -144,7 +145,7 @@ def resolve_component(runtime: Host, model: Binding, s: Attributes) -> Attribute
 
 def remapped(steps: list[Step], runtime: Host, s: Attributes) -> list[Step]:
     """``steps`` with their ports named as they run (the settings' remap)."""
-    remap = runtime.settings.remap
+    remap = DataflowSettings.of(runtime.settings).remap
     return [dataclasses.replace(st, port=remap.port(s.component, st.port)) for st in steps] if remap else steps
 
 
@@ -164,7 +165,7 @@ class _Link:
         bridges = {prefix + el.attributes.get("name", "") for prefix, el in runtime.assembly.elements_of("bridge")}
         self.local = s.ns is None and s.zenoh is None and (
             (node is not None and node.kind == TASK_KIND) or s.component in bridges)
-        self.task = runtime.settings.remap.component(s.component)  # the name it runs under
+        self.task = DataflowSettings.of(runtime.settings).remap.component(s.component)  # the name it runs under
         self._system: Any = None
         self._proxy: Any = None
         self._lock = threading.Lock()

@@ -73,8 +73,9 @@ from scart.bindings.dataflow._checks import remap_problems, remote_end
 from scart.bindings.dataflow._host import TASK_KIND, Watcher, host_of, remote_ports
 from scart.bindings.dataflow._plan import MIN_PERIOD_S
 from scart.bindings.dataflow.tasks import ConnectParticipant, Link, connect_present, retire
+from scart.bindings.dataflow.settings import DataflowSettings, Remap
 from scart.spi import (
-    AssemblyView, CheckContext, Element, ElementProvider, Host, Location, Participant, Problem, Remap, Settings,
+    AssemblyView, CheckContext, Element, ElementProvider, Host, Location, Participant, Problem, Settings,
 )
 
 log = logging.getLogger("scart.dataflow")
@@ -407,11 +408,12 @@ class Resolver:
             return (resolved.output_type if resolved is not None else _UNKNOWN), True
         if not online:
             return _UNKNOWN, False
-        ns = inp.ns or self.settings.ns_address
-        remote = remote_ports(ns, self.settings.remap.component(comp), timeout=0.5, security=self.settings.security)
+        own = DataflowSettings.of(self.settings)
+        ns = inp.ns or own.ns_address
+        remote = remote_ports(ns, own.remap.component(comp), timeout=0.5, security=self.settings.security)
         if remote is None:
             return _UNKNOWN, False
-        info = remote.get(self.settings.remap.port(comp, port))
+        info = remote.get(own.remap.port(comp, port))
         if info is None or info.direction != "out":
             self.problem(BRIDGE, f"{where}: task {comp!r} (name service {ns}) has no output port {port!r}; "
                          f"outputs: {', '.join(p.name for p in remote.values() if p.direction == 'out') or 'none'}")
@@ -711,7 +713,7 @@ class BridgeElement(ElementProvider):
             out += [Problem(code, msg, (at or el.loc).path, (at or el.loc).line, severity)  # type: ignore[arg-type]
                     for code, msg, at, severity in resolver.problems[before:]]
         if not any(n.kind == TASK_KIND for n in assembly.nodes.values()):  # else the tasks' check says it
-            out += remap_problems([], assembly, context.settings.remap)
+            out += remap_problems([], assembly, DataflowSettings.of(context.settings).remap)
         return out
 
     def activate(self, host: Host) -> BridgeParticipant:
@@ -791,7 +793,7 @@ class BridgeParticipant(Participant):
     def _add(self, resolved: Resolved) -> list[Link]:
         """Add, configure, connect (in-process inputs) and start one bridge's task; its
         inputs from other deployers, to connect. Raises ``ScartError`` naming the bridge."""
-        spec, remap = resolved.spec, self.host.settings.remap
+        spec, remap = resolved.spec, DataflowSettings.of(self.host.settings).remap
         deployer = host_of(self.host).deployer
         task = BridgeTask(resolved, remap)
         deployer.add(task)

@@ -23,6 +23,7 @@ from dataflow import ConnPolicy, DataflowError
 from dataflow.transports import TransportError, load, names
 from scart.bindings.dataflow._host import TASK_KIND, class_ports, host_of
 from scart.bindings.dataflow._plan import parse_policy
+from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
 
 __all__ = ["StreamElement", "StreamParticipant"]
@@ -124,7 +125,7 @@ class StreamParticipant(Participant):
 
     def start(self) -> None:
         deployer = host_of(self.host).deployer
-        remap = self.host.settings.remap
+        remap = DataflowSettings.of(self.host.settings).remap
         for stream in self.streams:
             task, port = remap.endpoint(stream.task, stream.port) if remap else (stream.task, stream.port)
             try:

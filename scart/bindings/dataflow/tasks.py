@@ -58,10 +58,10 @@ from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError
 from scart.bindings.dataflow._checks import property_problems, remap_problems, remote_end
 from scart.bindings.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of
 from scart.bindings.dataflow._plan import MIN_PERIOD_S, ZenohEnd, parse_policy, parse_zenoh
+from scart.bindings.dataflow.settings import DataflowSettings, Remap
 from scart.spi import (
     DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Element, ElementProvider, Host, Implementation,
     ImplementationProblem, ImplementationProvider, InterfaceInfo, Node, Operation, Participant, Problem, PropSpec,
-    Remap,
 )
 
 log = logging.getLogger("scart.dataflow")
@@ -162,7 +162,7 @@ class TaskImplementation(ImplementationProvider):
 
     def check(self, nodes: list[Node], assembly: AssemblyView, context: CheckContext) -> list[Problem]:
         """What starting the tasks would refuse: property values, names after ``--remap``."""
-        return property_problems(nodes) + remap_problems(nodes, assembly, context.settings.remap)
+        return property_problems(nodes) + remap_problems(nodes, assembly, DataflowSettings.of(context.settings).remap)
 
     def manager(self, node: Node, host: Host) -> ComponentManager:
         """A :class:`TaskManager`."""
@@ -198,7 +198,7 @@ class TaskManager(ComponentManager):
         impl = self.node.model.implementation
         assert impl is not None
         dataflow_host = host_of(self.host)
-        remap = self.host.settings.remap
+        remap = DataflowSettings.of(self.host.settings).remap
         task = self.node.ctype.cls(remap.component(self.node.path))
         try:
             for name in list(task.ports()):
@@ -341,7 +341,8 @@ class ConnectElement(ElementProvider):
                 ends.append(None)
                 continue
             if node is None:
-                remap = context.settings.remap  # a task of another deployer runs under its remapped name
+                # a task of another deployer runs under its remapped name
+                remap = DataflowSettings.of(context.settings).remap
                 ports = remote_end(comp, f"<scart:connect> {role}", link.ns, assembly, context,
                                    lambda msg, severity: add(TASK_CONNECT, msg, severity=severity))
                 ends.append(_port_or_problem(ports, comp, remap.port(comp, port), want, role, add)
@@ -363,7 +364,8 @@ class ConnectElement(ElementProvider):
 
     def activate(self, host: Host) -> ConnectParticipant:
         """Makes the links at start (cross-deployer ones in the background)."""
-        return ConnectParticipant(links_of(host.assembly.elements_of(self.name), host.settings.remap), host)
+        remap = DataflowSettings.of(host.settings).remap
+        return ConnectParticipant(links_of(host.assembly.elements_of(self.name), remap), host)
 
 
 def _port_or_problem(
@@ -402,7 +404,7 @@ def connect_present(runtime: Host, task_name: str) -> None:
 
 def runtime_links(runtime: Host) -> list[Link]:
     """Every link declared in ``runtime``'s assembly."""
-    return links_of(runtime.assembly.elements_of(ConnectElement.name), runtime.settings.remap)
+    return links_of(runtime.assembly.elements_of(ConnectElement.name), DataflowSettings.of(runtime.settings).remap)
 
 
 class ConnectParticipant(Participant):
@@ -412,7 +414,7 @@ class ConnectParticipant(Participant):
     def __init__(self, links: list[Link], runtime: Host, local: Callable[[str], bool] | None = None) -> None:
         self.runtime = runtime
         self.links = links
-        remap = runtime.settings.remap
+        remap = DataflowSettings.of(runtime.settings).remap
         tasks = {remap.component(n) for n in runtime.assembly.nodes} | {remap.component(b) for b in bridge_ends(runtime.assembly)}
         self._local = local or (lambda name: name in tasks)  # is this task (as it runs) in this runtime?
         self._remote = [lk for lk in links if not self._is_local(lk) and lk.zenoh is None]

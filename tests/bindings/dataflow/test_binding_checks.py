@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from scart.bindings.dataflow import DataflowSettings
 from scart.errors import InvocationError
 
 RV5TASKS = '''
@@ -112,7 +113,7 @@ def test_connect_to_a_missing_task_says_so_once_and_links_are_undone_at_stop(
     d2.mkdir()
     (d1 / "rv5tasks.py").write_text(RV5TASKS)
     (d2 / "rv5tasks.py").write_text(RV5TASKS)
-    served = scart.Settings(ns=ns, serve=True)  # as scart run --ns does
+    served = DataflowSettings(ns=ns, serve=True).apply()  # as scart run --ns does
     rt1 = scart.Runtime.from_file(str(gwrite(d1, {"one.composite": one})), settings=served)
     rt2 = scart.Runtime.from_file(str(gwrite(d2, {"two.composite": two})), settings=served)
     with rt1:

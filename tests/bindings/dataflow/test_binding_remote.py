@@ -20,7 +20,7 @@ from support.sca import composite, line_of, write
 
 import scart
 from dataflow.remote import connect
-from scart.bindings.dataflow import DataflowServiceBinding, bindings_of
+from scart.bindings.dataflow import DataflowServiceBinding, DataflowSettings, bindings_of
 
 
 BRIDGE = ROOT / "composites" / "bridge"
@@ -305,7 +305,7 @@ def test_composite_mixing_wire_binding_dataflow_task_connect_and_grpc(robot: Rob
     """)
     path = write(tmp_path, {"m.composite": text, "mixed.py": MIXED_TASKS}, with_components=False)
     # as scart run --ns does: joins the robot's name service
-    rt = scart.Runtime.from_file(path, settings=scart.Settings(ns=robot.ns, serve=True))
+    rt = scart.Runtime.from_file(path, settings=DataflowSettings(ns=robot.ns, serve=True).apply())
     from scart.bindings.dataflow import host_of
 
     with rt:

@@ -18,7 +18,7 @@ import scart
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort
 from dataflow.fields import apply_path, parse_path
 from dataflow.remote import connect
-from scart.bindings.dataflow import deployer_of
+from scart.bindings.dataflow import DataflowSettings, deployer_of
 from scart.bindings.dataflow.bridge import path_type, same_type
 
 MODS = '''
@@ -198,7 +198,7 @@ def test_three_inputs_local_and_of_another_deployer(tmp_path: Path) -> None:
         </scart:bridge>
     """)
     with remote_count(tmp_path) as (other, address):
-        settings = scart.Settings(ns=address, serve=True)
+        settings = DataflowSettings(ns=address, serve=True).apply()
         with scart.Runtime.from_file(str(path), settings=settings) as rt:
             probe = Probe(rt, "statusBridge", "summary")
             bridge = deployer_of(rt).task("statusBridge")
@@ -232,12 +232,12 @@ def test_a_remote_source_of_the_wrong_type_fails_the_start_or_the_online_load(tm
         </scart:bridge>
     """)
     with remote_count(tmp_path, start=False) as (_other, address):
-        rt = scart.Runtime.from_file(str(path), settings=scart.Settings(ns=address))  # offline: loads
+        rt = scart.Runtime.from_file(str(path), settings=DataflowSettings(ns=address).apply())  # offline: loads
         with pytest.raises(scart.ScartError) as info:
             rt.start()
         assert "converter bridgemods:wrong takes str, but remoteCount.count is int" in str(info.value)
         with pytest.raises(scart.ScdlError) as load:
-            scart.Runtime.from_file(str(path), settings=scart.Settings(ns=address, online=True))
+            scart.Runtime.from_file(str(path), settings=DataflowSettings(ns=address).apply(scart.Settings(online=True)))
         assert load.value.codes == ["SCART-B002"] and load.value.errors[0].line == line_of(text, "<!--HERE-->")
 
 
@@ -538,7 +538,7 @@ def test_a_composite_with_only_a_bridge_is_served(tmp_path: Path) -> None:
     """)
     (tmp_path / "bridgemods.py").write_text(MODS + "\n\ndef same(n: int) -> int:\n    return n\n")
     with remote_count(tmp_path, start=False) as (_other, address):
-        with scart.Runtime.from_file(str(path), settings=scart.Settings(ns=address, serve=True)) as rt:
+        with scart.Runtime.from_file(str(path), settings=DataflowSettings(ns=address, serve=True).apply()) as rt:
             assert rt.served(), "the bridge's runtime serves nothing"
             bridge = deployer_of(rt).task("lonely")
             wait_until(lambda: bridge.port("n").connection_count() == 1, timeout=15,

@@ -1,4 +1,4 @@
-"""Remapping at launch (``--remap FROM=TO``, ``Settings(remap=...)``): task and port names
+"""Remapping at launch (``--remap FROM=TO``, ``DataflowSettings(remap=...)``): task and port names
 change wherever the composite names them — the task itself, ``scart:connect``, bridge
 inputs, ``binding.dataflow`` — with no edit to the composite; ``scart graph`` shows them."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import scart
-from scart.bindings.dataflow import deployer_of
+from scart.bindings.dataflow import DataflowSettings, Remap, deployer_of
 from support import wait_until
 from support.sca import composite, write
 
@@ -75,26 +75,26 @@ BODY = """
 
 
 def test_rules_parse_and_apply() -> None:
-    remap = scart.Remap.parse(["youBotDriver=left/youBotDriver", "jointStatus:=joint_states",
+    remap = Remap.parse(["youBotDriver=left/youBotDriver", "jointStatus:=joint_states",
                                "arm.out=position", "__ns=robot1"])
     assert remap.component("youBotDriver") == "left/youBotDriver"
     assert remap.component("arm") == "robot1/arm"  # the namespace, for names not renamed otherwise
     assert remap.port("youBotDriver", "jointStatus") == "joint_states"
     assert remap.port("arm", "out") == "position" and remap.port("other", "out") == "out"
-    assert not scart.Remap() and remap
+    assert not Remap() and remap
     for bad in ["nothing", "a=", "=b", "a b=c", "a=b/", "__ns=a.b", "a=b c"]:
         with pytest.raises(ValueError, match="--remap"):
-            scart.Remap.parse([bad])
+            Remap.parse([bad])
     # a target it would cut (the port would silently become 'states') is refused, saying so
     for cut in ["jointStatus=joint.states", "youBotDriver.jointStatus=youBotDriver.joint_states", "a=b.c"]:
         with pytest.raises(ValueError, match=r"a new name has no '\.'"):
-            scart.Remap.parse([cut])
+            Remap.parse([cut])
 
 
 def test_tasks_ports_links_bridges_and_bindings_follow_the_remap(tmp_path: Path) -> None:
     path = write(tmp_path, {"t.composite": composite(BODY), "tasks.py": TASKS})
-    remap = scart.Remap.parse(["src=left/src", "sink=left/sink", "out=value_out", "inp=value_in", "__ns=left"])
-    with scart.Runtime.from_file(str(path), settings=scart.Settings(remap=remap)) as rt:
+    remap = Remap.parse(["src=left/src", "sink=left/sink", "out=value_out", "inp=value_in", "__ns=left"])
+    with scart.Runtime.from_file(str(path), settings=DataflowSettings(remap=remap).apply()) as rt:
         deployer = deployer_of(rt)
         assert set(deployer.names()) == {"left/src", "left/sink", "left/sink2", "left/doubler"}
         src, sink, sink2 = (deployer.task(n) for n in ("left/src", "left/sink", "left/sink2"))

@@ -11,7 +11,7 @@ from support.sca import composite, line_of, write
 
 import scart
 from dataflow import PeriodicActivity, TaskState
-from scart.bindings.dataflow import host_of
+from scart.bindings.dataflow import DataflowSettings, host_of
 
 
 TASKS = '''
@@ -212,15 +212,15 @@ def test_default_name_service_port_taken_falls_back_and_says_where(tmp_path: Pat
     the runtime says where it really is (extensions resolve tasks through that one)."""
     import socket
 
-    import scart.settings
+    import scart.bindings.dataflow.settings
 
     busy = socket.socket()
     busy.bind(("127.0.0.1", 0))
     busy.listen()  # something that is not a name service holds the "default" port
     taken = f"127.0.0.1:{busy.getsockname()[1]}"
-    monkeypatch.setattr(scart.settings, "DEFAULT_NS_ADDRESS", taken)
+    monkeypatch.setattr(scart.bindings.dataflow.settings, "DEFAULT_NS_ADDRESS", taken)
     try:
-        with scart.Runtime.from_file(make(tmp_path, TWO), settings=scart.Settings(serve=True)) as rt:
+        with scart.Runtime.from_file(make(tmp_path, TWO), settings=DataflowSettings(serve=True).apply()) as rt:
             real = host_of(rt).ns_address
             assert real != taken and rt.served()["name service"] == f"{real} (embedded)"
     finally:
@@ -235,7 +235,7 @@ def test_an_explicit_name_service_that_cannot_be_bound_fails_the_start(tmp_path:
     busy.listen()
     taken = f"127.0.0.1:{busy.getsockname()[1]}"
     try:
-        rt = scart.Runtime.from_file(make(tmp_path, TWO), settings=scart.Settings(serve=True, ns=taken))
+        rt = scart.Runtime.from_file(make(tmp_path, TWO), settings=DataflowSettings(serve=True, ns=taken).apply())
         with pytest.raises(scart.ScartError, match=f"starting implementation.task failed.*{taken}"):
             rt.start()
         assert rt.state is scart.RuntimeState.STOPPED

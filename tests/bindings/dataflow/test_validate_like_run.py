@@ -16,7 +16,7 @@ import pytest
 import scart
 from dataflow import Deployer
 from dataflow.remote import serve_nameserver
-from scart.bindings.dataflow import deployer_of
+from scart.bindings.dataflow import DataflowSettings, deployer_of
 from support import ROOT, wait_until
 from support.cli import run
 from support.sca import composite, line_of, write
@@ -235,7 +235,7 @@ def test_a_bridge_whose_remote_source_is_absent_waits_for_it(tmp_path: Path) -> 
     other = Deployer()
     servers = []
     try:
-        with scart.Runtime.from_file(str(path), settings=scart.Settings(ns=ns.address, serve=True)) as rt:
+        with scart.Runtime.from_file(str(path), settings=DataflowSettings(ns=ns.address, serve=True).apply()) as rt:
             deployer = deployer_of(rt)
             assert "b" not in deployer.names()  # started: the bridge waits, the rest runs
             import mods  # the contribution's module, imported by the runtime
@@ -269,7 +269,7 @@ def test_a_remote_source_that_appears_with_the_wrong_type_is_logged_and_the_run_
     other = Deployer()
     servers = []
     try:
-        with scart.Runtime.from_file(str(path), settings=scart.Settings(ns=ns.address, serve=True)) as rt:
+        with scart.Runtime.from_file(str(path), settings=DataflowSettings(ns=ns.address, serve=True).apply()) as rt:
             import mods
 
             other.add(mods.Source("farSrc"))  # a float port; the converter takes str

@@ -17,6 +17,7 @@ from support.remote import start_scart, stop_process, subprocess_env
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
 from dataflow.remote import errors
+from scart.bindings.dataflow import DataflowSettings
 
 zenoh_transport = pytest.importorskip("dataflow.transports.zenoh")
 pytest.importorskip("zenoh")
@@ -360,7 +361,7 @@ def test_binding_dataflow_finds_its_task_on_zenoh_without_a_name_service(tmp_pat
               <reference name="pinger"><scart:binding.dataflow component="zp" zenoh="{endpoint}"/></reference>
               <reference name="logger" target="logger"/>
             </component>"""), "zprobe.py": PROBE}, with_components=False)
-        settings = scart.Settings(ns="127.0.0.1:1")  # nothing answers there: only Zenoh can find zp
+        settings = DataflowSettings(ns="127.0.0.1:1").apply()  # nothing answers there: only Zenoh can find zp
         with scart.Runtime.from_file(path, settings=settings) as rt:
             probe = rt.service("probe/Probe")
             wait_until(lambda: _echo(probe, 2.5) == 2.5, timeout=20, message="zp never answered through Zenoh")

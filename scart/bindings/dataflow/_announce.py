@@ -12,19 +12,22 @@ said in one line, and ``--at`` still works.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
-from scart.settings import Settings
+from scart.bindings.dataflow.settings import DataflowSettings
+from scart.spi import Settings
 
 __all__ = ["Announcement"]
 
 
 class Announcement:
-    """The services endpoint at ``address`` registered with a name service. :meth:`start`
-    never raises (:attr:`note` says what went wrong); :meth:`stop` is idempotent."""
+    """The services endpoint at ``address`` registered with a name service (``served``:
+    what the runtime serves, its name service among them). :meth:`start` never raises
+    (:attr:`note` says what went wrong); :meth:`stop` is idempotent."""
 
-    def __init__(self, runtime: Any, settings: Settings, address: str) -> None:
-        self.runtime, self.settings, self.address = runtime, settings, address
+    def __init__(self, served: Mapping[str, str], settings: Settings, address: str) -> None:
+        self.served, self.settings, self.address = served, settings, address
         self.ns = ""
         self.registered = False
         self.note = ""
@@ -64,10 +67,10 @@ class Announcement:
         at the settings' address (raises ``DataflowError`` when none can be had)."""
         from dataflow.remote.naming import name_service_answers, serve_nameserver
 
-        served = self.runtime.served().get("name service")
+        served = self.served.get("name service")
         if served:
             return served.split()[0]
-        ns = self.settings.ns_address
+        ns = DataflowSettings.of(self.settings).ns_address
         if name_service_answers(ns, security=self.settings.security):
             return ns
         self._nameserver = serve_nameserver(ns, security=self.settings.security)
