@@ -2,7 +2,7 @@
 
 :func:`assemble` loads a composite and its contribution, introspects every
 implementation, checks every SCA assembly rule (and each extension's own checks), and
-returns an :class:`~scart.graph.Assembly` — or raises one
+returns an :class:`~scart.assembled.Assembly` — or raises one
 :class:`~scart.errors.ScdlError` listing every problem. Nothing is started, and
 nothing touches the network unless the settings say ``online``.
 
@@ -35,7 +35,8 @@ from scart.component_types import SideFile, composite_reference_defaults
 from scart.contribution import METADATA, Contribution, deployable_of, import_object
 from scart.errors import Problem, ScdlError
 from scart.extensions import ExtensionError, ExtensionRegistry
-from scart.graph import DEFAULT, Assembly, Bound, Endpoint, Node, Target
+from scart.assembled import Assembly
+from scart.graph import DEFAULT, Bound, Endpoint, Node, Target
 from scart.model import (
     Binding, Component, ComponentReference, Composite, CompositeReference, CompositeService, Element,
     Interface, Location, PropertyValue,

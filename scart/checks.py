@@ -10,7 +10,8 @@ from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, interface_info
 from scart.errors import Problem
 from scart.extensions import ExtensionError, ExtensionRegistry
-from scart.graph import Assembly, Bound, Endpoint, Node, Target
+from scart.assembled import Assembly
+from scart.graph import Bound, Endpoint, Node, Target
 from scart.model import Binding, Component, Element, Location
 from scart.spi import BindingProvider, CheckContext, Side
 

@@ -55,7 +55,8 @@ from scart.api import ComponentContext, InterfaceInfo, interface_info
 from scart.assembly import assemble
 from scart.errors import InvocationError, RuntimeStateError, ScartError, ServiceNotFoundError
 from scart.extensions import ExtensionRegistry
-from scart.graph import DEFAULT, Assembly, Bound, Node, Target
+from scart.assembled import Assembly
+from scart.graph import DEFAULT, Bound, Node, Target
 from scart.local import LocalReferenceBinding, wrap_operation
 from scart.pool import WORKER_PREFIX, OnewayPool
 from scart.model import Binding

@@ -14,7 +14,8 @@ from pydantic import BaseModel
 from scart.assembly import assemble
 from scart.errors import Problem, ScartError, ScdlError
 from scart.extensions import ExtensionRegistry
-from scart.graph import Assembly, Bound, Target
+from scart.assembled import Assembly
+from scart.graph import Bound, Target
 from scart.settings import Settings
 from scart.spi import Verb
 from scart_wire.security import SecurityError, from_args

@@ -33,7 +33,7 @@ def at(args: argparse.Namespace) -> str | None:
 def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
     """Run ``body``; a remote fault, a refusal or a malformed target becomes one stderr line
     and exit 1."""
-    from dataflow import DataflowError
+    from scart_wire.errors import DataflowError
     from dataflow.cli.output import err
 
     try:
@@ -56,7 +56,7 @@ def endpoints(args: argparse.Namespace) -> list[str]:
     """The services endpoints registered with the name service (``--ns``, ``SCART_NS``, the
     default); raises ``DataflowError`` naming it when it does not answer."""
     from dataflow.cli.output import ns_address
-    from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
+    from scart_wire.errors import RemoteTimeoutError, UnavailableError
     from dataflow.remote.naming import NameClient
     from scart_wire.security import from_args
 
@@ -91,7 +91,7 @@ def find(service: str, args: argparse.Namespace) -> str:
     """The endpoint serving ``service`` (``COMPONENT/SERVICE``, a promoted service or a
     single-service component's name) among those the name service knows; raises
     ``NotFoundError`` listing what there is, ``DataflowError`` when it is ambiguous."""
-    from dataflow.errors import DataflowError, NotFoundError
+    from scart_wire.errors import DataflowError, NotFoundError
 
     found, known = [], []
     for address in endpoints(args):
@@ -116,7 +116,7 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
     Raises ``ValueError`` for a malformed target, ``DataflowError`` for a remote fault."""
     from scart_wire import codec
     from scart_wire.types import registry
-    from dataflow.errors import DataflowError
+    from scart_wire.errors import DataflowError
     from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
     from scart_wire import rpc
 

@@ -10,7 +10,8 @@ import argparse
 from collections.abc import Iterable, Mapping
 
 from scart.commands._composite import add_launch_options, assemble_or_say, endpoint_text, run_names, settings_of
-from scart.graph import Assembly, Target
+from scart.assembled import Assembly
+from scart.graph import Target
 from scart.model import Composite
 from scart.settings import Settings
 from scart.spi import GraphEdge, GraphNode

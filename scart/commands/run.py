@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Any
 
 from scart.commands._composite import add_launch_options, assemble_or_say, endpoint_text, run_names, settings_of
 from scart.errors import ScartError
-from scart.graph import Assembly
+from scart.assembled import Assembly
 from scart.model import SCART_NS, Binding, Location
 from scart.settings import Settings
 from scart.spi import LaunchContext, Launched
