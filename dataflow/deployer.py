@@ -283,7 +283,7 @@ class Deployer:
                 written = port.last_sample()[0]
                 for conn in port.connections():
                     sink_task = getattr(conn.input, "task", None)
-                    if sink_task is None or self._tasks.get(sink_task.name) is not sink_task:
+                    if not isinstance(sink_task, TaskContext) or self._tasks.get(sink_task.name) is not sink_task:
                         continue  # an observer's port (subscription, remote link), not a link
                     source, sink = f"{task.name}.{port.name}", f"{sink_task.name}.{conn.input.name}"
                     out.append(LinkDescription(name=self.link_name(source, sink), source=source, sink=sink,

@@ -96,7 +96,7 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
     assembler = _Assembler(contribution, registry, context, dict(overrides or {}), strict_overrides)
     if root is None:
         _refuse([contribution.display_problem(p) for p in contribution.problems], set(overrides or {}))
-    result = assembler.run(root)  # type: ignore[arg-type]
+    result = assembler.run(root)
     # a composite used by several components is checked once per use: report each problem once
     # causes first, their knock-ons after: the contributions' metadata, then what was read
     # wrong, then the rest; within each, the root file first, by line
@@ -329,8 +329,8 @@ class _Assembler(Checks):
         for s in comp.services:  # the outer component's bindings on a promoted service
             if s.name in targets:
                 self.bind_promoted(targets[s.name], f"{path}/{s.name}", s.bindings)
-        refs = {cr.name: (RefSpec(_required(cr.multiplicity), _multiple(cr.multiplicity)), None)
-                for cr in inner.references}
+        refs: dict[str, tuple[RefSpec, type | None]] = {
+            cr.name: (RefSpec(_required(cr.multiplicity), _multiple(cr.multiplicity)), None) for cr in inner.references}
         child.ctype = ComponentType(object, services, refs, fake.properties, (), (), (), (), "composite", True)
         self.check_component_names(comp, child.ctype, check_properties=False)
         return child

@@ -135,15 +135,18 @@ class ExtensionRegistry:
 
     def binding(self, name: str) -> BindingProvider | None:
         """The provider of ``binding.NAME`` elements, or None."""
-        return self._typed(name, BindingProvider)
+        provider = self._typed(name, BindingProvider)
+        return provider if isinstance(provider, BindingProvider) else None
 
     def implementation(self, name: str) -> ImplementationProvider | None:
         """The provider of ``implementation.NAME`` elements, or None."""
-        return self._typed(name, ImplementationProvider)
+        provider = self._typed(name, ImplementationProvider)
+        return provider if isinstance(provider, ImplementationProvider) else None
 
     def element(self, name: str) -> ElementProvider | None:
         """The provider of ``<scart:NAME>`` composite children, or None."""
-        return self._typed(name, ElementProvider)
+        provider = self._typed(name, ElementProvider)
+        return provider if isinstance(provider, ElementProvider) else None
 
     def known(self, kind: type[Extension]) -> list[str]:
         """The names of ``kind`` this registry knows (by prefix; nothing is loaded), sorted."""
@@ -178,7 +181,7 @@ class ExtensionRegistry:
             fields["extensions"] = tuple(found)
         return Settings.from_env(env, **fields)
 
-    def _typed(self, name: str, kind: type[P]) -> P | None:
+    def _typed(self, name: str, kind: type[Extension]) -> Extension | None:
         if _kind_of(name) is not kind:
             return None
         provider = self.get(name)
@@ -191,7 +194,7 @@ class ExtensionRegistry:
             raise ExtensionError(f"extension {name!r} ({where}) is a {type(provider).__qualname__}, "
                                  f"not a scart.spi.{kind.__name__}")
         if getattr(provider, "name", None) != name:
-            raise ExtensionError(f"extension {name!r} ({where}) says its name is {provider.name!r}")  # type: ignore[attr-defined]
+            raise ExtensionError(f"extension {name!r} ({where}) says its name is {provider.name!r}")
 
 
 def _discover() -> dict[str, EntryPoint]:

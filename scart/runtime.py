@@ -423,7 +423,7 @@ class Runtime:
         with self._shared_lock:  # re-entrant: a factory may use another shared resource
             if key not in self._shared:
                 self._shared[key] = factory()
-            return self._shared[key]  # type: ignore[no-any-return]
+            return self._shared[key]
 
     def add_stop_hook(self, hook: Callable[[], None]) -> None:
         """Run ``hook`` at the very end of ``stop()`` (after every @destroy and binding stop),

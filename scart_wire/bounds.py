@@ -94,7 +94,8 @@ def _may_hold_floats(hint: Any, depth: int = 0) -> bool:
             or not typing.get_args(hint)
     if isinstance(hint, type):
         if issubclass(hint, pydantic.BaseModel):
-            return any(_may_hold_floats(f.annotation, depth + 1) for f in hint.model_fields.values())
+            annotations: list[Any] = [f.annotation for f in hint.model_fields.values()]  # any type form
+            return any(_may_hold_floats(a, depth + 1) for a in annotations)
         if dataclasses.is_dataclass(hint):
             try:
                 hints = typing.get_type_hints(hint)
@@ -191,7 +192,7 @@ def bounded_adapter(py_type: Any, bounds: Bounds) -> pydantic.TypeAdapter[Any]:
         return pydantic.TypeAdapter(Annotated[py_type, FINITE] if bounds.finite else py_type)
     field = pydantic.Field(ge=bounds.ge, gt=bounds.gt, le=bounds.le, lt=bounds.lt,
                            allow_inf_nan=not bounds.finite if item is float else None)
-    checked: Any = Annotated[item, field]  # type: ignore[valid-type]
+    checked: Any = Annotated[item, field]
     return pydantic.TypeAdapter(list[checked] if item is not py_type else checked)
 
 
@@ -250,7 +251,7 @@ def _strict_numbers(hint: Any, depth: int = 0) -> Any:
     if origin is None or not args or depth > 8:
         return hint
     if origin is Annotated:
-        return Annotated[(_strict_numbers(args[0], depth + 1), *hint.__metadata__)]  # type: ignore[attr-defined]
+        return Annotated[(_strict_numbers(args[0], depth + 1), *hint.__metadata__)]
     new = tuple(a if a is Ellipsis else _strict_numbers(a, depth + 1) for a in args)
     if new == args:
         return hint

@@ -10,7 +10,7 @@ import socket
 import threading
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
-from typing import Any
+from typing import Any, NoReturn
 
 import grpc
 
@@ -112,7 +112,7 @@ class Abort(Exception):
         self.code = code
 
 
-def abort(context: grpc.ServicerContext, exc: BaseException) -> None:
+def abort(context: grpc.ServicerContext, exc: BaseException) -> NoReturn:
     """Abort the RPC with the status matching ``exc`` (never returns)."""
     from scart_wire.errors import DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 
@@ -270,7 +270,7 @@ def health_state(address: str, timeout: float = 0.5, security: Security | None =
 
     with (security or Security()).channel(address, channel_options()) as channel:
         try:
-            reply = health_pb2_grpc.HealthStub(channel).Check(
+            reply = health_pb2_grpc.HealthStub(channel).Check(  # type: ignore[attr-defined]  # its stub lists no method
                 health_pb2.HealthCheckRequest(service=service), timeout=timeout
             )
         except grpc.RpcError as exc:
@@ -351,6 +351,7 @@ class StreamBudget:
                               f"{budget.label}: {refused}" if budget.label else refused)
             return peer
 
+        wrapped: Callable[[Any, grpc.ServicerContext], Any]
         if handler.response_streaming:
             def streaming(request: Any, context: grpc.ServicerContext) -> Any:
                 peer = admitted(request, context)

@@ -28,6 +28,7 @@ Environment (read by :meth:`Security.from_env`, used by the command line and by
 from __future__ import annotations
 
 import contextvars
+import dataclasses
 import enum
 import functools
 import hashlib
@@ -145,9 +146,9 @@ class Security:
         """Security from the ``SCART_TLS_*``, ``SCART_TOKEN`` and ``SCART_AUTH_FILE``
         variables; values in ``given`` that are not None win."""
         env = os.environ if environ is None else environ
-        fields = {name: (env.get(var) or None) for name, var in ENV.items()}
-        fields.update({k: v for k, v in given.items() if v is not None})
-        return cls(**fields)
+        read = {name: (env.get(var) or None) for name, var in ENV.items()}  # every ENV field is a str | None
+        base = cls(cert=read["cert"], key=read["key"], ca=read["ca"], token=read["token"], auth_file=read["auth_file"])
+        return dataclasses.replace(base, **{k: v for k, v in given.items() if v is not None})
 
     @property
     def tls(self) -> bool:
@@ -169,11 +170,12 @@ class Security:
         import grpc
 
         self.check()
-        if not self.tls:
+        cert, key = self.cert, self.key
+        if not self.tls or cert is None or key is None:
             return None
-        pair = (_read_bounded(self.key, MAX_PEM_BYTES, "TLS key").encode(),  # type: ignore[arg-type]
-                _read_bounded(self.cert, MAX_PEM_BYTES, "TLS certificate").encode())  # type: ignore[arg-type]
-        _check_key_pair(self.cert, self.key)  # type: ignore[arg-type]
+        pair = (_read_bounded(key, MAX_PEM_BYTES, "TLS key").encode(),
+                _read_bounded(cert, MAX_PEM_BYTES, "TLS certificate").encode())
+        _check_key_pair(cert, key)
         root = _read_bounded(self.ca, MAX_PEM_BYTES, "TLS CA").encode() if self.ca else None
         return grpc.ssl_server_credentials([pair], root_certificates=root, require_client_auth=root is not None)
 

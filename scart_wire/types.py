@@ -51,7 +51,7 @@ class Encoded:
     data: bytes
 
 
-class UnknownValue(dict):  # type: ignore[type-arg]
+class UnknownValue(dict[str, Any]):
     """A decoded value whose type name this process does not know: a plain mapping."""
 
     def __init__(self, type_name: str, *args: Any, **kwargs: Any) -> None:

@@ -112,7 +112,7 @@ class RemoteLink:
                 self._failed("refused", str(exc), exc)
                 backoff = 1.0
             except PEER_FAILURES as exc:
-                limit = isinstance(exc, grpc.RpcError) and exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED  # type: ignore[attr-defined]
+                limit = isinstance(exc, grpc.RpcError) and exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED
                 self._failed("refused" if limit else "waiting", _reason(exc), exc if limit else None)
             except Exception as exc:  # noqa: BLE001 - the link's thread must not die: log, back off, retry
                 if not stopping.is_set():
@@ -167,7 +167,7 @@ class RemoteLink:
 
 def _reason(exc: BaseException) -> str:
     if isinstance(exc, grpc.RpcError) and hasattr(exc, "code"):
-        return f"{exc.code().name}: {exc.details()}"  # type: ignore[attr-defined]
+        return f"{exc.code().name}: {exc.details()}"
     return f"{type(exc).__name__}: {exc}"
 
 
@@ -198,10 +198,11 @@ class LinkKeeper:
     def _revive(self, link: IncomingLink) -> None:
         task = link.source.rpartition(".")[0]
         entry = self.server.resolve_entry(task, link.source_ns)
-        if not entry.boot_id or entry.boot_id == link.boot_id:
-            return  # the same process (reconnecting by itself), or one that cannot say
+        sink = link.port.task
+        if not entry.boot_id or entry.boot_id == link.boot_id or sink is None:
+            return  # the same process (reconnecting by itself), one that cannot say, or a port gone from its task
         request = pb.ConnectPortsRequest(
-            source_task=task, source_port=link.source.rpartition(".")[2], sink_task=link.port.task.name,
+            source_task=task, source_port=link.source.rpartition(".")[2], sink_task=sink.name,
             sink_port=link.port.name, policy=policy_to_msg(link.policy), name=link.name, resume=True)
         with self.server.security.channel(entry.address, rpc.channel_options()) as channel:
             df_grpc.DeployerServiceStub(channel).ConnectPorts(request, timeout=self.server.ns_timeout)

@@ -127,7 +127,7 @@ class GrpcSubscription(Subscription):
     # ---- observer side -----------------------------------------------------------------
     def _deliver(self, event: object) -> None:
         self.delivered += 1
-        self._observer(event)  # type: ignore[arg-type]
+        self._observer(event)  # type: ignore[arg-type]  # its delivery queue holds this subscription's events only
 
     def _watchdog(self) -> None:
         """Dispatcher idle: cancel a stream whose peer stopped sending heartbeats."""

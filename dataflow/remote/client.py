@@ -326,7 +326,7 @@ class GrpcComponentProxy(ComponentProxy):
     def change_state(self, transition: str) -> bool:
         if transition not in TRANSITIONS:
             raise ValueError(f"unknown transition {transition!r}; expected one of {', '.join(TRANSITIONS)}")
-        req = pb.ChangeStateRequest(task=self.name, transition=pb.Transition.Value(f"TRANSITION_{transition.upper()}"))
+        req = pb.ChangeStateRequest(task=self.name, transition=f"TRANSITION_{transition.upper()}")
         return bool(self._invoke("ChangeState", req).accepted)
 
     def connect_input(self, port: str, policy: ConnPolicy = ConnPolicy.data()) -> GrpcPortWriter:
@@ -346,7 +346,7 @@ class GrpcComponentProxy(ComponentProxy):
     def read_sample(self, port: str, timeout: float | None = None) -> tuple[FlowStatus, object | None, int, int]:
         """``(flow, value, sequence, source_time_ns)``; NEW_DATA when written since this
         proxy's last read; ``sequence`` is the port's write number."""
-        return self.read_sample_of(port, timeout)[:4]  # type: ignore[return-value]
+        return self.read_sample_of(port, timeout)[:4]
 
     def read_sample_of(self, port: str, timeout: float | None = None) -> tuple[FlowStatus, object | None, int, int, str]:
         """:meth:`read_sample` plus the deployer's boot id (write numbers restart with a new one)."""

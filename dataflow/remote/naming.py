@@ -68,7 +68,7 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
     def __init__(self, registry: NameRegistry) -> None:
         self.registry = registry
 
-    def Register(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802 - gRPC method names
+    def Register(self, request: pb.RegisterRequest, context: grpc.ServicerContext) -> pb.RegisterResponse:  # noqa: N802 - gRPC method names
         try:
             lease_id, seconds = self.registry.register(
                 request.address, list(request.components), request.lease_seconds, boot_id=request.boot_id,
@@ -83,7 +83,7 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
             context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
         return pb.RegisterResponse(lease_id=lease_id, lease_seconds=seconds)
 
-    def Heartbeat(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Heartbeat(self, request: pb.HeartbeatRequest, context: grpc.ServicerContext) -> pb.HeartbeatResponse:  # noqa: N802
         try:
             seconds = self.registry.heartbeat(request.lease_id, list(request.components) or None)
         except NotFoundError as exc:
@@ -94,18 +94,18 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
             context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
         return pb.HeartbeatResponse(lease_seconds=seconds)
 
-    def Unregister(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Unregister(self, request: pb.UnregisterRequest, context: grpc.ServicerContext) -> pb.UnregisterResponse:  # noqa: N802
         self.registry.unregister(request.lease_id)
         return pb.UnregisterResponse()
 
-    def Resolve(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Resolve(self, request: pb.ResolveRequest, context: grpc.ServicerContext) -> pb.ResolveResponse:  # noqa: N802
         try:
             entry = self.registry.resolve(request.component)
         except NotFoundError as exc:
             context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
         return pb.ResolveResponse(entry=_entry_msg(entry))
 
-    def ListEntries(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ListEntries(self, request: pb.ListEntriesRequest, context: grpc.ServicerContext) -> pb.ListEntriesResponse:  # noqa: N802
         page = self.registry.entries(after=request.page_token, limit=request.page_size or None)
         size = min(request.page_size or self.registry.limits.page, self.registry.limits.page)
         more = len(page) == size and bool(self.registry.entries(after=page[-1].component, limit=1))

@@ -42,6 +42,7 @@ from dataflow.remote._proto import (
     NAMING_ROLES,
     NAMING_SERVICE_NAME,
     df_grpc,
+    ns,
     ns_grpc,
 )
 from dataflow.remote._proto import df as pb
@@ -91,15 +92,15 @@ class _EmbeddedNaming(NamingServicer):
     """The embedded name service: publishes tasks added to the deployer after it started
     serving before answering a lookup."""
 
-    def __init__(self, owner: DeployerServer) -> None:
-        super().__init__(owner.registry)
+    def __init__(self, owner: DeployerServer, registry: NameRegistry) -> None:
+        super().__init__(registry)
         self._owner = owner
 
-    def Resolve(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Resolve(self, request: ns.ResolveRequest, context: grpc.ServicerContext) -> ns.ResolveResponse:  # noqa: N802
         self._owner.refresh_names()
         return super().Resolve(request, context)
 
-    def ListEntries(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ListEntries(self, request: ns.ListEntriesRequest, context: grpc.ServicerContext) -> ns.ListEntriesResponse:  # noqa: N802
         self._owner.refresh_names()
         return super().ListEntries(request, context)
 
@@ -136,7 +137,7 @@ class DeployerServer:
         names = [DEPLOYER_SERVICE_NAME]
         roles = dict(DEPLOYER_ROLES)
         if self.registry is not None:
-            servicers.append((ns_grpc.add_NamingServiceServicer_to_server, _EmbeddedNaming(self)))
+            servicers.append((ns_grpc.add_NamingServiceServicer_to_server, _EmbeddedNaming(self, self.registry)))
             names.append(NAMING_SERVICE_NAME)
             roles.update(NAMING_ROLES)
         self._server, port, health, self._executor = rpc.make_server(

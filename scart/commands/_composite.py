@@ -62,7 +62,7 @@ def settings_of(args: argparse.Namespace, verb: Verb, registry: ExtensionRegistr
                     extensions.append(value)
         except (SecurityError, ValueError) as exc:
             raise ScartError(str(exc)) from None
-        return Settings.from_env(extensions=tuple(extensions), **fields)
+        return Settings.from_env(None, extensions=tuple(extensions), **fields)
     except ScartError as exc:
         print(f"scart: {exc}", file=sys.stderr)
         return None

@@ -444,3 +444,13 @@ def _loaded_modules(code: str) -> set[str]:
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     return set(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def test_every_type_ignore_names_its_code_and_says_why() -> None:
+    """mypy runs in CI (``.ci/run``); where it is told to look away, the line says which
+    error and why: ``# type: ignore[code]  # reason``."""
+    bare = re.compile(r"#\s*type:\s*ignore(?!\[[\w-]+(?:,\s*[\w-]+)*\]  # \S)")
+    offenders = [f"{p.relative_to(ROOT)}:{n}" for package in ("scart", "dataflow", "scart_wire")
+                 for p in _sources(package)
+                 for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if bare.search(line)]
+    assert offenders == []

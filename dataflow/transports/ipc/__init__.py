@@ -124,9 +124,9 @@ def _open(ask: Callable[[], Any], transport: str, peer: Peer) -> tuple[socket.so
         try:
             reply = ask()
         except grpc.RpcError as exc:
-            if exc.code().name not in REFUSED:  # type: ignore[attr-defined]
+            if exc.code().name not in REFUSED:
                 raise
-            raise IpcUnavailable(exc.details() or exc.code().name) from None  # type: ignore[attr-defined]
+            raise IpcUnavailable(exc.details() or exc.code().name) from None
         return connect(reply.ticket.socket, reply.ticket.secret, peer.timeout)
     except IpcUnavailable as exc:
         if transport == "ipc":

@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 
 from dataflow import DataflowError
-from scart.errors import ASM_PROPERTY_VALUE
+from scart.errors import ASM_PROPERTY_VALUE, Severity
 from scart.bindings.dataflow._host import TASK_KIND, PortInfo, class_ports
 from scart.bindings.dataflow.settings import DataflowSettings, Remap
 from scart.spi import DEFAULT, AssemblyView, CheckContext, Node, Problem, did_you_mean
@@ -30,7 +30,7 @@ TASK_REMAP = "SCART-T004"  # --remap gives a task a dotted name, two tasks one n
 LOOKUP_TIMEOUT_S = 0.5
 
 #: ``add(message, severity)``: report a problem where the element being checked stands.
-Add = Callable[[str, str], None]
+Add = Callable[[str, Severity], None]
 
 
 def property_problems(nodes: list[Node]) -> list[Problem]:

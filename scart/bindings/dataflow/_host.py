@@ -25,13 +25,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from dataflow import DataflowError, Deployer, OutputPort, TaskContext, registry
+from dataflow.deployer import Server
 from dataflow.threads import OwnedThread
 from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import Host, Participant
 
 if TYPE_CHECKING:
     from scart_wire.security import Security
-    from dataflow.remote.server import DeployerServer
 
 log = logging.getLogger("scart.dataflow")
 
@@ -134,7 +134,7 @@ class DataflowHost(Participant):
     def __init__(self, host: Host) -> None:
         self.host = host
         self.deployer = Deployer()
-        self.server: DeployerServer | None = None
+        self.server: Server | None = None
         self._ns: str | None = None
         self._lock = threading.Lock()
         self._closed = False
@@ -146,7 +146,7 @@ class DataflowHost(Participant):
         joined (:meth:`serve`), else the settings' (``ns``, else the default address)."""
         return self._ns or DataflowSettings.of(self.host.settings).ns_address
 
-    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> DeployerServer:
+    def serve(self, address: str = "127.0.0.1:0", ns: str | None = None) -> Server:
         """Serve the deployer over gRPC (``ns=None``: embedded name service at ``address``;
         else register with the name service at ``ns``). Raises what ``Deployer.serve``
         raises, and ``DataflowError`` when already serving or closed (one server per runtime)."""

@@ -246,7 +246,7 @@ def local_task_class(context: CheckContext, component: str) -> type | None:
             impl = el.find(f"{{{SCART_NS}}}implementation.task")
             if impl is not None:
                 try:
-                    return context.import_object(impl.get("class", ""))  # type: ignore[return-value]
+                    return context.import_object(impl.get("class", ""))  # type: ignore[return-value]  # checked by its user
                 except Exception:  # noqa: BLE001 - implementation.task reports it
                     return None
     return None

@@ -68,7 +68,7 @@ from dataflow import (
 )
 from dataflow.fields import apply_path, parse_path
 from dataflow.introspection import PropertyDescription, TaskDescription
-from scart.errors import ScartError
+from scart.errors import ScartError, Severity
 from scart.bindings.dataflow._checks import remap_problems, remote_end
 from scart.bindings.dataflow._host import TASK_KIND, Watcher, host_of, remote_ports
 from scart.bindings.dataflow._plan import MIN_PERIOD_S
@@ -309,11 +309,11 @@ def path_type(tp: Any, path: tuple[str | int, ...]) -> tuple[Any, str | None]:
         else:
             if typing.get_origin(tp) not in (list, tuple):
                 return _UNKNOWN, f"{shown(tp)} is not a list: [{'*' if step < 0 else step}] cannot apply"
-            args = [t for t in typing.get_args(tp) if t is not Ellipsis]
-            tp = args[0] if len(set(args)) == 1 else _UNKNOWN
+            items = [t for t in typing.get_args(tp) if t is not Ellipsis]
+            tp = items[0] if len(set(items)) == 1 else _UNKNOWN
             mapped += step < 0
     for _ in range(mapped):
-        tp = list[tp] if tp is not _UNKNOWN else _UNKNOWN  # type: ignore[valid-type]
+        tp = list[tp] if tp is not _UNKNOWN else _UNKNOWN
     return tp, None
 
 
@@ -353,11 +353,11 @@ class Resolver:
         self.settings = settings
         self.importer = importer
         self.bridges = bridges
-        self.problems: list[tuple[str, str, Location | None, str]] = []
+        self.problems: list[tuple[str, str, Location | None, Severity]] = []
         self._resolved: dict[str, Resolved | None] = {}
         self._at: Location | None = None  # the input being resolved
 
-    def problem(self, code: str, message: str, severity: str = "error") -> None:
+    def problem(self, code: str, message: str, severity: Severity = "error") -> None:
         self.problems.append((code, message, self._at, severity))
 
     def errors(self) -> int:
@@ -586,10 +586,10 @@ class BridgeTask(TaskContext):
         self._inputs: dict[str, _Input] = {}
         for inp in spec.inputs:
             tp = resolved.sources[inp.name]
-            port = self.add_port(InputPort(tp if tp is not None else object, remap.port(spec.name, inp.name),
-                                           f"from {'.'.join(remap.endpoint(*inp.source))}", event=event))
-            self._inputs[inp.name] = _Input(port)  # type: ignore[arg-type]
-        self.output: OutputPort[Any] = self.add_port(  # type: ignore[assignment]
+            port: InputPort[Any] = InputPort(tp if tp is not None else object, remap.port(spec.name, inp.name),
+                                             f"from {'.'.join(remap.endpoint(*inp.source))}", event=event)
+            self._inputs[inp.name] = _Input(self.add_port(port))
+        self.output: OutputPort[Any] = self.add_port(
             OutputPort(resolved.output_type, remap.port(spec.name, spec.output), f"built by bridge {self.name}"))
         self.outputs = 0
         self.errors = 0  # samples a converter or the builder refused (logged, then skipped)
@@ -710,7 +710,7 @@ class BridgeElement(ElementProvider):
             out += _remote_inputs(spec, assembly, context, specs)
             before = len(resolver.problems)
             resolver.resolve(spec)
-            out += [Problem(code, msg, (at or el.loc).path, (at or el.loc).line, severity)  # type: ignore[arg-type]
+            out += [Problem(code, msg, (at or el.loc).path, (at or el.loc).line, severity)
                     for code, msg, at, severity in resolver.problems[before:]]
         if not any(n.kind == TASK_KIND for n in assembly.nodes.values()):  # else the tasks' check says it
             out += remap_problems([], assembly, DataflowSettings.of(context.settings).remap)
@@ -732,8 +732,8 @@ def _remote_inputs(spec: BridgeSpec, assembly: AssemblyView, context: CheckConte
             continue
         loc = inp.loc
 
-        def add(message: str, severity: str, _loc: Location = loc) -> None:
-            out.append(Problem(BRIDGE, message, _loc.path, _loc.line, severity))  # type: ignore[arg-type]
+        def add(message: str, severity: Severity, _loc: Location = loc) -> None:
+            out.append(Problem(BRIDGE, message, _loc.path, _loc.line, severity))
 
         remote_end(comp, f"bridge {spec.name!r} input {inp.name!r}", inp.ns, assembly, context, add)
     return out

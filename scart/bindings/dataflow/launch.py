@@ -122,7 +122,9 @@ def _binding_edges(assembly: AssemblyView) -> list[GraphNode | GraphEdge]:
     for path, node in assembly.nodes.items():
         for ref, eps in node.references.items():
             for ep in eps:
-                task = _task_of(assembly, path, ep.binding) if isinstance(ep, Bound) else None
+                if not isinstance(ep, Bound):
+                    continue
+                task = _task_of(assembly, path, ep.binding)
                 if task is not None:
                     out.append(GraphEdge(f"{path}.{ref}:{ep.binding.kind}", task, "ports", style="dotted"))
         for service, models in node.service_bindings.items():

@@ -54,7 +54,7 @@ import pydantic
 from pydantic_core import core_schema
 
 from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
-from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError
+from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError, Severity
 from scart.bindings.dataflow._checks import property_problems, remap_problems, remote_end
 from scart.bindings.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of
 from scart.bindings.dataflow._plan import MIN_PERIOD_S, ZenohEnd, parse_policy, parse_zenoh
@@ -307,8 +307,8 @@ class ConnectElement(ElementProvider):
         """Static problems of every connect element."""
         out: list[Problem] = []
         for prefix, el in elements:
-            def add(code: str, msg: str, _el: Element = el, severity: str = "error") -> None:
-                out.append(Problem(code, msg, _el.loc.path, _el.loc.line, severity))  # type: ignore[arg-type]
+            def add(code: str, msg: str, _el: Element = el, severity: Severity = "error") -> None:
+                out.append(Problem(code, msg, _el.loc.path, _el.loc.line, severity))
 
             link, problems = _parse_link(prefix, el)
             for msg in problems:

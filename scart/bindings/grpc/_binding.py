@@ -271,8 +271,8 @@ class GrpcReferenceBinding(ReferenceBinding):
         sig = self.callback_sigs.get(cc.operation)
 
         def run() -> Any:
-            fn = getattr(target, cc.operation, None) if sig is not None else None
-            if fn is None:
+            fn = getattr(target, cc.operation, None)
+            if sig is None or fn is None:
                 raise InvocationError(f"no callback operation {cc.operation!r} here (or its target is gone)")
             return fn(*sig.args(cc.args), **sig.kwargs(cc.kwargs))
         outcome = outcome_of(run)

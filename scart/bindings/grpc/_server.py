@@ -514,12 +514,11 @@ class _Servicer(pb_grpc.ScaServiceServicer):
     """The generated servicer interface, answered by a :class:`GrpcServer`."""
 
     def __init__(self, server: GrpcServer) -> None:
-        self.Call = server._call
-        self.Send = server._send
-        self.Invoke = server._invoke
-        self.ReplyCallback = server._reply
-        self.OpenCallbackSession = server._open_session
-        self.ListServices = server._list
+        handlers = {"Call": server._call, "Send": server._send, "Invoke": server._invoke,
+                    "ReplyCallback": server._reply, "OpenCallbackSession": server._open_session,
+                    "ListServices": server._list}
+        for method, handler in handlers.items():  # the generated base's methods, answered by the server's
+            setattr(self, method, handler)
 
 
 class ServerTable:
