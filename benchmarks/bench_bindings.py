@@ -1,7 +1,8 @@
 """Binding benchmark: binding.grpc against bare grpcio, one-way rate, callback round trip;
 then the binding.dataflow rows of ``benchmarks/bench_dataflow_binding.py`` when present.
 
-Run: ``python benchmarks/bench_bindings.py [--quick]`` (prints one table; no assertions).
+Run: ``python benchmarks/bench_bindings.py [--quick | --smoke]`` (prints one table; no
+assertions; ``--smoke``: a few seconds, that every path runs).
 Everything runs in this process over real gRPC on 127.0.0.1: a provider runtime and a
 client runtime, and a bare grpcio server/channel pair carrying the same payload as a
 protobuf message (no scart at all). Goal: a binding.grpc call within 1.3x of the bare
@@ -30,7 +31,7 @@ import grpc  # noqa: E402
 
 import scart  # noqa: E402
 from dataflow import registry  # noqa: E402
-from scart.ext.grpc._wire import pb  # noqa: E402
+from scart_wire.codec import Value  # noqa: E402
 
 from _common import pct  # noqa: E402
 
@@ -141,18 +142,18 @@ class BareEcho:
     def __init__(self) -> None:
         self.server = grpc.server(ThreadPoolExecutor(8))
         handler = grpc.unary_unary_rpc_method_handler(
-            lambda req, ctx: pb.Value(type_name=req.type_name, data=req.data),
-            pb.Value.FromString, pb.Value.SerializeToString)
+            lambda req, ctx: Value(type_name=req.type_name, data=req.data),
+            Value.FromString, Value.SerializeToString)
         self.server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler("bench.Bare", {"Echo": handler}),))
         port = self.server.add_insecure_port("127.0.0.1:0")
         self.server.start()
         self.channel = grpc.insecure_channel(f"127.0.0.1:{port}")
-        self.stub = self.channel.unary_unary("/bench.Bare/Echo", request_serializer=pb.Value.SerializeToString,
-                                             response_deserializer=pb.Value.FromString)
+        self.stub = self.channel.unary_unary("/bench.Bare/Echo", request_serializer=Value.SerializeToString,
+                                             response_deserializer=Value.FromString)
 
     def call(self, values: list[float]) -> list[float]:
         enc = registry.encode(values, list[float])
-        resp = self.stub(pb.Value(type_name=enc.type_name, data=enc.data), timeout=5.0, wait_for_ready=True)
+        resp = self.stub(Value(type_name=enc.type_name, data=enc.data), timeout=5.0, wait_for_ready=True)
         return registry.decode(resp.type_name, resp.data)
 
     def close(self) -> None:
@@ -160,9 +161,8 @@ class BareEcho:
         self.server.stop(None).wait(5)
 
 
-def bench_grpc(quick: bool) -> list[Row]:
-    n = 300 if quick else 2000
-    blocks = 4 if quick else 8
+def bench_grpc(mode: str) -> list[Row]:
+    n, blocks = {"smoke": (40, 2), "quick": (300, 4)}.get(mode, (2000, 8))
     rows: list[Row] = []
     with tempfile.TemporaryDirectory(prefix="scart-bench-") as tmp:
         folder = Path(tmp)
@@ -226,8 +226,8 @@ def _oneway(client_obj: Any, mod: Any, n: int) -> list[Row]:
              f"{total} calls queued and run on the provider's pool")]
 
 
-def bench_dataflow(quick: bool) -> list[Row]:
-    """Rows of ``bench_dataflow_binding.run(quick)`` (TASK-BRIDGE), if that module exists."""
+def bench_dataflow(mode: str) -> list[Row]:
+    """Rows of ``bench_dataflow_binding.run(mode)`` (TASK-BRIDGE), if that module exists."""
     path = Path(__file__).with_name("bench_dataflow_binding.py")
     if not path.exists():
         return [("binding.dataflow", "n/a", "benchmarks/bench_dataflow_binding.py not present")]
@@ -237,7 +237,7 @@ def bench_dataflow(quick: bool) -> list[Row]:
     sys.modules[spec.name] = mod
     try:
         spec.loader.exec_module(mod)
-        return [tuple(str(c) for c in row) for row in mod.run(quick)]  # type: ignore[misc]
+        return [(str(a), str(b), str(c)) for a, b, c in mod.run(mode)]
     except Exception as exc:  # a failing sibling benchmark must not hide ours
         return [("binding.dataflow", "error", f"{type(exc).__name__}: {exc}")]
 
@@ -253,8 +253,10 @@ def table(rows: list[Row]) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="shorter runs")
+    ap.add_argument("--smoke", action="store_true", help="a few seconds: that every path runs")
     args = ap.parse_args()
-    rows = bench_grpc(args.quick) + bench_dataflow(args.quick)
+    mode = "smoke" if args.smoke else "quick" if args.quick else "full"
+    rows = bench_grpc(mode) + bench_dataflow(mode)
     print(table(rows))
     leftover = [t.name for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon]
     if leftover:

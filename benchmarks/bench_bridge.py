@@ -6,12 +6,14 @@ builds a ``Summary`` model and writes it; a probe port's data callback stamps th
 One sample at a time (the next after the previous arrived), so the figure is latency, not
 throughput. The goal: the bridge within 1.2× of the hand-written task.
 
-    python benchmarks/bench_bridge.py [N]
+    python benchmarks/bench_bridge.py [--quick | --smoke] [N]
+
+(N samples, 3000 by default; ``--quick`` 600, ``--smoke`` 60: that it runs.)
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 import tempfile
 import textwrap
 import threading
@@ -22,7 +24,7 @@ from _common import pct
 
 import scart
 from dataflow import ConnPolicy, InputPort
-from scart.ext.dataflow import deployer_of
+from scart.bindings.dataflow import deployer_of
 
 MODS = '''
 from __future__ import annotations
@@ -118,7 +120,12 @@ def measure(rt: scart.Runtime, task: str, n: int) -> list[float]:
 
 
 def main() -> None:
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 3000
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("n", nargs="?", type=int, default=None, help="samples (default 3000)")
+    parser.add_argument("--quick", action="store_true", help="600 samples")
+    parser.add_argument("--smoke", action="store_true", help="60 samples: that it runs")
+    args = parser.parse_args()
+    n = args.n or (60 if args.smoke else 600 if args.quick else 3000)
     with tempfile.TemporaryDirectory() as folder:
         Path(folder, "mods.py").write_text(textwrap.dedent(MODS))
         Path(folder, "bench.composite").write_text(COMPOSITE)

@@ -1,7 +1,8 @@
 """Benchmark of ``binding.dataflow`` against the remote data-flow layer's own figures.
 
-Usage: ``python benchmarks/bench_dataflow_binding.py [--quick]`` (prints a markdown table);
-``run(quick) -> list[(measure, value, vs-baseline)]`` is what ``bench_bindings.py`` prints.
+Usage: ``python benchmarks/bench_dataflow_binding.py [--quick | --smoke]`` (prints a markdown
+table; ``--smoke``: a few samples, that every path runs); ``run(mode) -> list[(measure,
+value, vs-baseline)]`` (mode ``full``, ``quick`` or ``smoke``) is what ``bench_bindings.py`` prints.
 
 Everything runs in one process on 127.0.0.1: a Deployer with a probe task served over gRPC
 (embedded name service), an SCA runtime whose component reaches the task through
@@ -158,11 +159,11 @@ def _rows(label: str, got: list[float], base: list[float]) -> list[Row]:
     return rows
 
 
-def run(quick: bool = False) -> list[Row]:
+def run(mode: str = "full") -> list[Row]:
     """Measure (see the module docstring); returns (measure, value, vs-baseline) rows."""
     import scart
 
-    n = 200 if quick else 2000
+    n = {"smoke": 20, "quick": 200}.get(mode, 2000)
     deployer = Deployer()
     probe = deployer.add(Probe("probe"))
     probe.configure()
@@ -204,7 +205,7 @@ def run(quick: bool = False) -> list[Row]:
 
 
 def _wait_subscribed(rt: object) -> None:
-    from scart.ext.dataflow import DataflowServiceBinding, bindings_of
+    from scart.bindings.dataflow import DataflowServiceBinding, bindings_of
 
     if not wait_until(lambda: all(b.connected for b in bindings_of(rt) if isinstance(b, DataflowServiceBinding)),
                       timeout=10.0, interval=0.01):
@@ -214,8 +215,9 @@ def _wait_subscribed(rt: object) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer samples")
+    parser.add_argument("--smoke", action="store_true", help="a few samples: that every path runs")
     args = parser.parse_args()
-    rows = run(args.quick)
+    rows = run("smoke" if args.smoke else "quick" if args.quick else "full")
     print("| measure | value | vs baseline |")
     print("|---|---|---|")
     for r in rows:

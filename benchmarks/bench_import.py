@@ -1,8 +1,8 @@
 """Start-up cost: ``python -m scart --help``, ``import scart``, ``scart validate`` of the
 calculator, against a bare ``python -c pass`` measured in the same run.
 
-Run: ``python benchmarks/bench_import.py [--tree PATH] [--runs N]`` (prints a table; no
-assertions). ``--tree`` points at another checkout (for example an older commit made with
+Run: ``python benchmarks/bench_import.py [--quick | --smoke] [--tree PATH] [--runs N]``
+(prints a table; no assertions; ``--quick``: 5 runs, ``--smoke``: 1, that it runs). ``--tree`` points at another checkout (for example an older commit made with
 ``git worktree add``) to compare before and after with the same interpreter: its folder
 goes first on ``PYTHONPATH``. Each figure is the median wall time of ``--runs`` fresh
 processes, and the number of modules the command leaves in ``sys.modules``.
@@ -40,8 +40,11 @@ def measure(tree: Path, code: str, runs: int) -> tuple[float, int]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tree", type=Path, default=ROOT, help="checkout to measure (default: this one)")
-    parser.add_argument("--runs", type=int, default=15)
+    parser.add_argument("--runs", type=int, default=None, help="fresh processes per command (default 15)")
+    parser.add_argument("--quick", action="store_true", help="5 runs each")
+    parser.add_argument("--smoke", action="store_true", help="1 run each: that it runs")
     args = parser.parse_args()
+    args.runs = args.runs or (1 if args.smoke else 5 if args.quick else 15)
     tree = args.tree.resolve()
     calc = str(tree / "composites" / "calculator" / "calculator.composite")
     cases = {

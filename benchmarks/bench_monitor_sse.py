@@ -1,6 +1,7 @@
 """Benchmark of the youBot Monitor under many SSE clients: does ``GET /api/state`` stay fast?
 
-Usage: ``python benchmarks/bench_monitor_sse.py [--clients 200] [--requests 200]``.
+Usage: ``python benchmarks/bench_monitor_sse.py [--quick | --smoke] [--clients 200] [--requests 200]``
+(``--quick``: 100 clients, 100 requests; ``--smoke``: 10 and 20, that it runs).
 Not a test: numbers depend on the machine. Prints one markdown table.
 
 A `MonitorServer` is fed by the demo's `SyntheticArm` (a status every 10 ms, so every
@@ -132,9 +133,13 @@ def open_streams(streams: Streams, port: int, count: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--clients", type=int, default=200)
-    parser.add_argument("--requests", type=int, default=200)
+    parser.add_argument("--clients", type=int, default=None, help="streams open in phase 2 (default 200)")
+    parser.add_argument("--requests", type=int, default=None, help="requests per phase (default 200)")
+    parser.add_argument("--quick", action="store_true", help="100 clients, 100 requests")
+    parser.add_argument("--smoke", action="store_true", help="10 clients, 20 requests: that it runs")
     args = parser.parse_args(argv)
+    clients, requests = (10, 20) if args.smoke else (100, 100) if args.quick else (200, 200)
+    args.clients, args.requests = args.clients or clients, args.requests or requests
     arm = SyntheticArm(period=0.01)
     server = MonitorServer(arm)
     streams: Streams | None = None

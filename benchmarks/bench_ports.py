@@ -1,7 +1,7 @@
 """Benchmark of the data-flow core: port cost, cross-thread latency, periodic jitter, fan-out.
 
-Usage: ``python benchmarks/bench_ports.py [--quick]`` (``--quick``: 1 s per periodic run
-instead of 5 s, fewer iterations). Prints one table. Not a test: numbers depend on the
+Usage: ``python benchmarks/bench_ports.py [--quick | --smoke]`` (``--quick``: 1 s per
+periodic run instead of 5 s, fewer iterations; ``--smoke``: a few seconds, that it runs). Prints one table. Not a test: numbers depend on the
 machine; report what you get.
 """
 
@@ -167,15 +167,15 @@ def bench_fanout(n: int) -> list[Row]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short runs (about 10 s in all)")
+    parser.add_argument("--smoke", action="store_true", help="a few seconds: that every path runs")
     args = parser.parse_args(argv)
-    n = 50_000 if args.quick else 300_000
-    duration = 1.0 if args.quick else 5.0
-    rows = bench_costs(n) + bench_latency(300 if args.quick else 2000)
+    n, duration, samples = (5_000, 0.2, 50) if args.smoke else (50_000, 1.0, 300) if args.quick else (300_000, 5.0, 2000)
+    rows = bench_costs(n) + bench_latency(samples)
     rows += bench_periodic(duration) + bench_fanout(n // 5)
     w0 = max(len(r[0]) for r in rows)
     w1 = max(len(r[1]) for r in rows)
     print(f"Python {sys.version.split()[0]}, switch interval {sys.getswitchinterval() * 1e3:.0f} ms"
-          f"{' (quick)' if args.quick else ''}")
+          f"{' (smoke)' if args.smoke else ' (quick)' if args.quick else ''}")
     print(f"| {'measure'.ljust(w0)} | {'result'.ljust(w1)} | note")
     print(f"|{'-' * (w0 + 2)}|{'-' * (w1 + 2)}|------")
     for a, b, c in rows:

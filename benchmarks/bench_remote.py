@@ -1,6 +1,7 @@
 """Benchmark of remote data-flow access against bare grpcio baselines measured in the same run.
 
-Usage: ``python benchmarks/bench_remote.py [--quick]``. Everything runs in one process on
+Usage: ``python benchmarks/bench_remote.py [--quick | --smoke]`` (``--smoke``: a few
+seconds, that every path runs). Everything runs in one process on
 127.0.0.1 (server, task and client share the interpreter, as do the baselines), with the
 youBot 5-joint status sample as payload (its registry encoding; the baselines send the
 same bytes). Prints one markdown table. Not a test: numbers depend on the machine.
@@ -43,7 +44,7 @@ import grpc
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "youbot"))  # a contribution, imported by plain names
 
 from youbot_model import JointStatus, YouBotStatus
-from dataflow import codec
+from scart_wire import codec
 from dataflow import (
     ConnPolicy, Deployer, EventActivity, InputPort, OutputPort, PeriodicActivity, TaskContext, registry,
 )
@@ -334,9 +335,10 @@ def scart_fanout(seconds: float, subscribers: int, stuck: bool) -> tuple[float, 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="shorter runs")
+    ap.add_argument("--smoke", action="store_true", help="a few seconds: that every path runs")
     args = ap.parse_args()
-    secs = 1.5 if args.quick else 4.0
-    n = 300 if args.quick else 1500
+    secs, n = (0.2, 30) if args.smoke else (1.5, 300) if args.quick else (4.0, 1500)
+    offers = (2000,) if args.smoke else (2000, 5000, 10000, 20000)
     rows: list[Row] = []
 
     b, s = bare_unary(n), scart_write(n)
@@ -356,7 +358,7 @@ def main() -> None:
                          f"{pct(s, 0.99) / pct(b, 0.99):.2f}×"))
     bm = bare_max_rate(secs)
     for transport in ("grpc", "ipc"):
-        for offered in (2000, 5000, 10000, 20000):
+        for offered in offers:
             rate, got, dropped = scart_max_rate(secs, offered, transport)
             rows.append((f"one subscription ({transport}), task writing {offered:,}/s",
                          f"{rate:,.0f} /s delivered ({dropped} dropped)",

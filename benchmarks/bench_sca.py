@@ -1,12 +1,14 @@
 """SCA runtime benchmark: wired-call cost vs a direct call, one-way cost, load+start time.
 
-Run: ``python benchmarks/bench_sca.py`` (prints a table; no assertions). Goals: a local
+Run: ``python benchmarks/bench_sca.py [--quick | --smoke]`` (prints a table; no assertions;
+``--quick``: fewer rounds, ``--smoke``: a few seconds, that every path runs). Goals: a local
 wired call costs at most 2x a direct method call; a 1000-component composite validates
 and starts in under 2 s.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 import textwrap
@@ -101,17 +103,17 @@ def _write(folder: Path, body: str, name: str) -> Path:
     return path
 
 
-def _per_call(stmts: list[str], env: dict[str, object], rounds: int = 7) -> list[float]:
+def _per_call(stmts: list[str], env: dict[str, object], rounds: int = 7, number: int = N) -> list[float]:
     """ns per call of each statement: rounds interleaved, best round kept (robust to noise)."""
     timers = [timeit.Timer(stmt, globals=env) for stmt in stmts]
     best = [float("inf")] * len(stmts)
     for _ in range(rounds):
         for i, timer in enumerate(timers):
-            best[i] = min(best[i], timer.timeit(number=N) / N * 1e9)
+            best[i] = min(best[i], timer.timeit(number=number) / number * 1e9)
     return best
 
 
-def bench_calls(folder: Path) -> list[tuple[str, str, str]]:
+def bench_calls(folder: Path, rounds: int = 7, number: int = N) -> list[tuple[str, str, str]]:
     path = _write(folder, """
       <component name="A"><scart:implementation.python class="benchcomps:AdderImpl"/></component>
       <component name="Bi"><scart:implementation.python class="benchcomps:BiAdderImpl"/></component>
@@ -132,11 +134,11 @@ def bench_calls(folder: Path) -> list[tuple[str, str, str]]:
             ("wired call, bidirectional interface (callback routed)", "caller.bi.add(1, 2)"),
             ("wired call, remotable interface (pass-by-value)", "caller.remote.add(1, 2)"),
         ]
-        times = _per_call([stmt for _, stmt in labels], env)
+        times = _per_call([stmt for _, stmt in labels], env, rounds, number)
         d = times[0]
         rows += [(label, f"{t:.0f} ns", f"{t / d:.2f}x") for (label, _), t in zip(labels, times)]
-        n, best = 5_000, float("inf")
-        for _ in range(5):
+        n, best = min(5_000, number), float("inf")
+        for _ in range(min(5, rounds)):
             t0 = time.perf_counter()
             for _ in range(n):
                 caller.adder.fire(1)
@@ -163,10 +165,16 @@ def bench_load(folder: Path, count: int) -> tuple[str, str, str]:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer rounds")
+    parser.add_argument("--smoke", action="store_true", help="a few seconds: that every path runs")
+    args = parser.parse_args()
+    rounds, number, sizes = (1, 2_000, (1, 10)) if args.smoke else (3, N, (1, 100, 1000)) if args.quick else \
+        (7, N, (1, 100, 1000))
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        rows = bench_calls(folder)
-        rows += [bench_load(folder, n) for n in (1, 100, 1000)]
+        rows = bench_calls(folder, rounds, number)
+        rows += [bench_load(folder, n) for n in sizes]
     width = max(len(r[0]) for r in rows)
     print(f"| {'measure'.ljust(width)} | {'value':>22} | {'vs direct / total':>18} |")
     print(f"|{'-' * (width + 2)}|{'-' * 24}|{'-' * 20}|")

@@ -3,8 +3,9 @@ name registrations, 2000 remote writers, and 200 SSE clients of a youBot Monitor
 same process; and how long 2000 writers take to come and go, and a server holding 3000
 to stop.
 
-Run: ``python benchmarks/bench_security.py [--checks 300]`` (prints a table; no
-assertions). Latencies are p50 / p99 of ``--checks`` health checks on one channel, as
+Run: ``python benchmarks/bench_security.py [--quick | --smoke] [--checks 300]`` (prints a
+table; no assertions; ``--quick``: a quarter of every load, ``--smoke``: a fiftieth, that
+every path runs). Latencies are p50 / p99 of ``--checks`` health checks on one channel, as
 ratios against the idle server of the same run (goal: under 50 ms at p99).
 """
 
@@ -77,8 +78,17 @@ def close_writers(stub: df_grpc.DeployerServiceStub, ids: list[str]) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--checks", type=int, default=300)
+    parser.add_argument("--checks", type=int, default=None, help="health checks per row (default 300)")
+    parser.add_argument("--quick", action="store_true", help="a quarter of every load")
+    parser.add_argument("--smoke", action="store_true", help="a fiftieth of every load: that every path runs")
     args = parser.parse_args()
+    scale = 0.02 if args.smoke else 0.25 if args.quick else 1.0
+
+    def sized(n: int) -> int:
+        return max(1, int(n * scale))
+
+    args.checks = args.checks or sized(300) + (20 if args.smoke else 0)
+    names_n, writers_n, held_n = sized(10_000), sized(2000), sized(1500)
     rows: list[tuple[str, float, float, str]] = []
     deployer = Deployer()
     deployer.add(Pinger("p"))
@@ -92,21 +102,21 @@ def main() -> None:
 
         names = NameClient(server.address, timeout=10)
         start = time.perf_counter()
-        for i in range(0, 10_000, 100):  # 10 000 names, 100 per registration
+        for i in range(0, names_n, 100):  # 10 000 names (full), 100 per registration
             names.register(f"127.0.0.1:{20000 + i}", [f"n{i + k}" for k in range(100)])
         took = time.perf_counter() - start
-        rows.append(("+ 10 000 names registered", *health(server.address, args.checks),
+        rows.append((f"+ {names_n:,} names registered", *health(server.address, args.checks),
                      f"registered in {took:.2f} s; {len(names.entries())} listed"))
         names.close()
 
-        bare = bare_calls(server.address, 4000)
-        ids, opened = open_writers(stub, 2000)
-        rows.append(("+ 2000 remote writers open", *health(server.address, args.checks),
-                     f"2000 opened in {opened:.2f} s"))
+        bare = bare_calls(server.address, 2 * writers_n)
+        ids, opened = open_writers(stub, writers_n)
+        rows.append((f"+ {writers_n} remote writers open", *health(server.address, args.checks),
+                     f"{writers_n} opened in {opened:.2f} s"))
         closed = close_writers(stub, ids)
-        rows.append(("  2000 writers closed", *health(server.address, args.checks),
-                     f"closed in {closed:.2f} s; open+close {(opened + closed) / bare:.2f}x 4000 bare health "
-                     f"calls ({bare:.2f} s, same concurrency)"))
+        rows.append((f"  {writers_n} writers closed", *health(server.address, args.checks),
+                     f"closed in {closed:.2f} s; open+close {(opened + closed) / bare:.2f}x {2 * writers_n} bare "
+                     f"health calls ({bare:.2f} s, same concurrency)"))
 
         arm = SyntheticArm()
         monitor = MonitorServer(arm)
@@ -114,8 +124,8 @@ def main() -> None:
         arm.start(monitor)
         streams = Streams()
         port = int(monitor.url.rsplit(":", 1)[1].strip("/"))
-        open_streams(streams, port, 200)
-        rows.append(("+ 200 SSE clients of a monitor", *health(server.address, args.checks),
+        open_streams(streams, port, sized(200))
+        rows.append((f"+ {sized(200)} SSE clients of a monitor", *health(server.address, args.checks),
                      f"{len(streams.socks)} streams"))
     finally:
         if streams is not None:
@@ -133,8 +143,8 @@ def main() -> None:
     own = [("grpc.use_local_subchannel_pool", 1)]  # two clients: 2048 writers at most per port and per peer
     with grpc.insecure_channel(server2.address, options=own) as one, \
             grpc.insecure_channel(server2.address, options=own) as two:
-        open_writers(df_grpc.DeployerServiceStub(one), 1500, "input")
-        open_writers(df_grpc.DeployerServiceStub(two), 1500, "samples")
+        open_writers(df_grpc.DeployerServiceStub(one), held_n, "input")
+        open_writers(df_grpc.DeployerServiceStub(two), held_n, "samples")
     start = time.perf_counter()
     server2.stop()
     stop_took = time.perf_counter() - start
@@ -143,7 +153,7 @@ def main() -> None:
     print(f"{'load':<34} {'health p50':>11} {'p99':>9} {'p50 ratio':>10} {'p99 ratio':>10}  note")
     for name, p50, p99, note in rows:
         print(f"{name:<34} {p50:8.2f} ms {p99:6.2f} ms {p50 / p50_0:9.2f}x {p99 / p99_0:9.2f}x  {note}")
-    print(f"a deployer holding 3000 writers stops in {stop_took:.2f} s")
+    print(f"a deployer holding {2 * held_n} writers stops in {stop_took:.2f} s")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """Benchmark of the data-flow transports between two processes on one host, against a raw
 Unix-socket baseline measured in the same run.
 
-Usage: ``python benchmarks/bench_transports.py [--quick]``. This process hosts the name
+Usage: ``python benchmarks/bench_transports.py [--quick | --smoke]`` (``--smoke``: a few
+seconds, that every path runs). This process hosts the name
 service and the tasks ``src`` (an output port) and ``sink`` (an input port); a child
 process (this script with ``--child NS``) hosts ``mirror``, whose input port's data
 callback writes each value straight to its output port. The links ``src.out →
@@ -164,11 +165,12 @@ def throughput(system: object, src: Source, transport: str, n: int) -> tuple[flo
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer samples")
+    parser.add_argument("--smoke", action="store_true", help="a few samples: that every path runs")
     parser.add_argument("--child", metavar="NS", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         return child(args.child)
-    n100, n1k, nflat = (200, 1000, 5000) if args.quick else (500, 3000, 20000)
+    n100, n1k, nflat = (20, 100, 500) if args.smoke else (200, 1000, 5000) if args.quick else (500, 3000, 20000)
 
     deployer = Deployer()
     src = deployer.add(Source("src"))
@@ -193,7 +195,7 @@ def main() -> int:
                                 == {transport}, 10)
                 if not ok:
                     raise SystemExit(f"the links did not come up over {transport}: {system.links()}")
-                round_trips(src, sink, 200.0, 100)  # warm-up
+                round_trips(src, sink, 200.0, min(100, n100))  # warm-up
                 for rate, n in ((100.0, n100), (1000.0, n1k)):
                     one_way, in_time = round_trips(src, sink, rate, n)
                     p50, p99 = pct(one_way, 0.5), pct(one_way, 0.99)

@@ -1,6 +1,7 @@
 """Benchmark of the youBot demo at driver periods 10 ms, 2 ms and 1 ms.
 
-Usage: ``python benchmarks/bench_youbot.py [--quick]`` (``--quick``: 2 s windows instead of 5 s).
+Usage: ``python benchmarks/bench_youbot.py [--quick | --smoke]`` (``--quick``: 2 s windows
+instead of 5 s; ``--smoke``: 0.5 s, that every path runs). Needs the ``bench`` extra (psutil).
 Not a test: numbers depend on the machine. Prints markdown tables.
 
 Two-process way (the paper's experiment): ``scart run robot.composite`` is a subprocess
@@ -133,7 +134,8 @@ def used_transport(proxy: Any) -> str:
     return (sub.transport or "?") + kind
 
 
-def two_process(window: float, transport: str = "auto", poll: bool = False) -> list[list[str]]:
+def two_process(window: float, transport: str = "auto", poll: bool = False,
+                periods: tuple[float, ...] = PERIODS) -> list[list[str]]:
     """The robot subprocess + the workstation in this process, per period, the proxy's
     subscription on ``transport``; ``poll``: the proxy polls (JOrocos-style) at half the
     driver period instead of the push subscription."""
@@ -152,10 +154,10 @@ def two_process(window: float, transport: str = "auto", poll: bool = False) -> l
             setter = rt.service("SCAYouBotDriver/SettingPeriod")
             wait(lambda: proxy.received > 10, 20, "samples at the proxy")
             me = psutil.Process()
-            for period in PERIODS:
+            for period in periods:
                 answer = setter.set_period(period)
                 assert answer["accepted"], answer
-                time.sleep(1.0)  # warm-up at the new period
+                time.sleep(min(1.0, window))  # warm-up at the new period
                 cycles0, over0 = driver_counters(system)
                 recv0, pub0 = proxy.received, monitor.published
                 lat0 = len(monitor._latencies)
@@ -192,7 +194,8 @@ def proxy_transport(services: str) -> str:
     return f"{info.get('transport') or '?'} (asked {info.get('transport_policy', '?')})"
 
 
-def one_process(composite: str, window: float, transport: str | None = None) -> list[list[str]]:
+def one_process(composite: str, window: float, transport: str | None = None,
+                periods: tuple[float, ...] = PERIODS) -> list[list[str]]:
     """``scart run COMPOSITE`` alone; the period set through the monitor's HTTP API;
     ``transport``: ``--set SCAYouBotDriver.transport=`` (the hand-written proxy), else the
     proxy is ``binding.dataflow`` on the task in place (``local``)."""
@@ -211,13 +214,13 @@ def one_process(composite: str, window: float, transport: str | None = None) -> 
 
         wait(lambda: state().get("samples", 0) > 10, 20, "samples at the monitor")
         with connect(ns) as system:
-            for period in PERIODS:
+            for period in periods:
                 body = json.dumps({"seconds": period}).encode()
                 req = urllib.request.Request(url + "api/period", body, {  # same-origin, as the page
                     "Content-Type": "application/json", "Origin": url.rstrip("/")})
                 with urllib.request.urlopen(req, timeout=10) as reply:
                     assert json.load(reply)["ok"]
-                time.sleep(1.0)
+                time.sleep(min(1.0, window))
                 cycles0, over0 = driver_counters(system)
                 s0 = state()["samples"]
                 demo.ps.cpu_percent(None)
@@ -246,22 +249,25 @@ def table(header: list[str], rows: list[list[str]]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="2 s windows")
+    parser.add_argument("--smoke", action="store_true", help="0.5 s windows: that every path runs")
     args = parser.parse_args(argv)
-    window = 2.0 if args.quick else 5.0
+    window = 0.5 if args.smoke else 2.0 if args.quick else 5.0
+    periods = PERIODS[:1] if args.smoke else PERIODS  # smoke: every path once, one period
     print(f"youBot demo, {window:g} s windows, {os.cpu_count()} CPU(s), Python {sys.version.split()[0]}\n")
     header = ["transport", "period", "produced/s", "proxy/s", "monitor/s", "latency p50 ms", "latency p99 ms",
               "CPU robot %", "CPU workstation %", "overruns"]
     print("Two processes (robot.composite subprocess; workstation in the benchmark process), push, once per "
           "transport (auto = ipc on one host, not run again):\n")
-    rows = [row for transport in ("ipc", "grpc") for row in two_process(window, transport)]
+    rows = [row for transport in ("ipc", "grpc") for row in two_process(window, transport, periods=periods)]
     print(table(header, rows))
     print("\nTwo processes, the proxy polling at half the driver period (JOrocos-style):\n")
-    print(table(header, two_process(window, poll=True)))
+    print(table(header, two_process(window, poll=True, periods=periods)))
     one_header = ["transport", "period", "produced/s", "monitor/s", "CPU %", "overruns"]
     print("\nOne process (scart run youbot.composite --set SCAYouBotDriver.transport=T), once per transport:\n")
-    print(table(one_header, [row for t in ("ipc", "grpc") for row in one_process("youbot.composite", window, t)]))
+    print(table(one_header, [row for t in ("ipc", "grpc")
+                             for row in one_process("youbot.composite", window, t, periods)]))
     print("\nOne process (scart run youbot-binding.composite):\n")
-    print(table(one_header, one_process("youbot-binding.composite", window)))
+    print(table(one_header, one_process("youbot-binding.composite", window, periods=periods)))
     return 0
 
 

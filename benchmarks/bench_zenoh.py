@@ -1,7 +1,7 @@
 """Benchmark of the Zenoh transport against bare zenoh-python pub/sub, same payload,
 measured in the same run.
 
-Usage: ``python benchmarks/bench_zenoh.py [--quick]`` (needs ``scart[zenoh]``). Two peer
+Usage: ``python benchmarks/bench_zenoh.py [--quick | --smoke]`` (needs ``scart[zenoh]``). Two peer
 sessions in this process, connected over a Unix socket: a scart output port published
 with :class:`ZenohPublisher` and read with :class:`ZenohSubscription`, against a bare
 ``declare_publisher``/``declare_subscriber`` pair sending the same bytes (the encoded
@@ -28,7 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "composites" / "
 from _common import paced, pct, wait_until  # noqa: E402
 from youbot_model import JointStatus, YouBotStatus  # noqa: E402
 
-from dataflow import Deployer, OutputPort, TaskContext, codec  # noqa: E402
+from dataflow import Deployer, OutputPort, TaskContext  # noqa: E402
+from scart_wire import codec  # noqa: E402
 from dataflow.transports.zenoh import (  # noqa: E402
     ZenohPublisher,
     ZenohSubscription,
@@ -73,9 +74,10 @@ def bare_pair(a: Any, b: Any, key: str, lock: threading.Lock, with_codec: bool,
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--quick", action="store_true", help="fewer samples")
+    parser.add_argument("--smoke", action="store_true", help="a few samples: that every path runs")
     args = parser.parse_args()
-    n100, n1k = (200, 1000) if args.quick else (500, 3000)
+    n100, n1k = (20, 100) if args.smoke else (200, 1000) if args.quick else (500, 3000)
     folder = tempfile.TemporaryDirectory()
     here = f"unixsock-stream/{folder.name}/a.sock"
     a = open_session(listen=[here])
@@ -115,7 +117,7 @@ def main() -> int:
                                      ("scart ZenohPublisher → ZenohSubscription", scart_send, s_sent, s_got)):
                 s.clear()
                 g.clear()
-                paced(50, rate, send)  # warm-up
+                paced(min(50, n), rate, send)  # warm-up
                 s.clear()
                 g.clear()
                 paced(n, rate, send)

@@ -41,7 +41,7 @@ from .policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, 
 from .ports import Connection, InputPort, OutputPort
 from .properties import Property
 from .task import TaskContext, TaskState
-from .types import Encoded, TypeRegistry, UnknownValue, register_type, registry
+from scart_wire.types import Encoded, TypeRegistry, UnknownValue, register_type, registry
 
 __all__ = [
     "TaskContext",

@@ -8,8 +8,14 @@ the call returns, and the source's other links never notice) and removed by name
 
 Tasks are kept in the order they were added: ``configure_all``/``start_all`` walk that
 order, ``stop_all``/``cleanup_all`` the reverse. Used as a context manager it stops and
-cleans up everything on exit. ``serve()`` exposes the tasks over gRPC (implemented in
-:mod:`dataflow.remote.server`, imported only when called).
+cleans up everything on exit. ``serve()`` exposes the tasks to other processes through
+the server a ``scart.servers`` entry point names (scart's own, ``grpc``, is the control
+plane's :class:`dataflow.remote.server.DeployerServer`, registered exactly as a plug-in's
+would be), loaded only when called: this core imports no control plane, as it imports no
+transport (:mod:`dataflow.transports`)::
+
+    [project.entry-points."scart.servers"]
+    grpc = "dataflow.remote.server:DeployerServer"
 """
 
 from __future__ import annotations
@@ -18,7 +24,12 @@ import logging
 import re
 import threading
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from importlib.metadata import EntryPoint, entry_points
+from types import MappingProxyType
+from typing import Any, Protocol
+
+from scart_wire.defaults import DEFAULT_LEASE
+from scart_wire.security import Security
 
 from .errors import DeploymentError, NotFoundError
 from .introspection import LinkDescription
@@ -26,17 +37,72 @@ from .policy import ConnPolicy
 from .ports import Connection, InputPort, OutputPort
 from .task import TaskContext, TaskState
 
-if TYPE_CHECKING:  # the remote layer is imported only when serving
-    from .remote.security import Security
-    from .remote.server import DeployerServer
-
-__all__ = ["Deployer", "LINK_NAME"]
+__all__ = ["Deployer", "LINK_NAME", "SERVERS_GROUP", "Server", "ServerFactory", "server_factory"]
 
 #: What a given link name may be: letters, digits, ``_ . / : -``, at most 128 characters.
 LINK_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./:-]{0,127}")  # no '>': default names ("a.out->b.in") are apart
 MAX_NAMED_LINKS = 4096
 
 log = logging.getLogger(__name__)
+
+SERVERS_GROUP = "scart.servers"
+#: scart's own server, used also when its entry points are not installed (a source tree).
+BUILTIN_SERVERS = MappingProxyType({"grpc": "dataflow.remote.server:DeployerServer"})
+
+
+class Server(Protocol):
+    """A served deployer, as :meth:`Deployer.serve` returns it: where it listens
+    (``listen_address``; ``address`` as bound, ``advertised`` to other hosts), the name
+    service its tasks are in, its lifecycle (``stop`` is idempotent), publishing tasks
+    added later, and links from its output ports to ports of other deployers."""
+
+    address: str
+    listen_address: str
+    advertised: str
+    ns_address: str
+    boot_id: str
+
+    def stop(self, grace: float = 0.2) -> None: ...
+
+    def wait(self, timeout: float | None = None) -> bool: ...
+
+    def refresh_names(self) -> list[str]: ...
+
+    def connect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str, policy: ConnPolicy,
+                      defer: bool = False, name: str | None = None,
+                      resume: bool = False) -> tuple[bool, str, str, LinkDescription | None]: ...
+
+    def __enter__(self) -> Server: ...
+
+    def __exit__(self, *exc: object) -> None: ...
+
+
+class ServerFactory(Protocol):
+    """What a ``scart.servers`` entry point names: made with the deployer and
+    :meth:`Deployer.serve`'s arguments, it listens before it returns."""
+
+    def __call__(self, deployer: Deployer, address: str = ..., ns: str | None = ..., lease_seconds: float = ...,
+                 heartbeat_ms: int = ..., max_workers: int = ..., ns_timeout: float = ...,
+                 security: Security | None = ..., advertise: str | None = ...) -> Server: ...
+
+
+def server_factory(name: str = "grpc") -> ServerFactory:
+    """The server the ``scart.servers`` entry point ``name`` names (scart's own when none
+    is installed). Reads the entry points on each call (serving is rare; nothing is kept
+    process-wide). Raises :class:`DeploymentError` naming the entry point when it is
+    unknown or cannot be loaded."""
+    found = {ep.name: ep for ep in entry_points(group=SERVERS_GROUP)}
+    ep = found.get(name)
+    if ep is None and name in BUILTIN_SERVERS:
+        ep = EntryPoint(name, BUILTIN_SERVERS[name], SERVERS_GROUP)
+    if ep is None:
+        raise DeploymentError(f"no deployer server {name!r}; known: {', '.join(sorted(found)) or 'none'}")
+    try:
+        factory: ServerFactory = ep.load()
+    except Exception as exc:
+        raise DeploymentError(f"deployer server {name!r} (entry point {ep.value!r}) cannot be loaded: "
+                              f"{type(exc).__name__}: {exc}") from exc
+    return factory
 
 
 class Deployer:
@@ -217,7 +283,7 @@ class Deployer:
                 written = port.last_sample()[0]
                 for conn in port.connections():
                     sink_task = getattr(conn.input, "task", None)
-                    if sink_task is None or self._tasks.get(sink_task.name) is not sink_task:
+                    if not isinstance(sink_task, TaskContext) or self._tasks.get(sink_task.name) is not sink_task:
                         continue  # an observer's port (subscription, remote link), not a link
                     source, sink = f"{task.name}.{port.name}", f"{sink_task.name}.{conn.input.name}"
                     out.append(LinkDescription(name=self.link_name(source, sink), source=source, sink=sink,
@@ -320,27 +386,25 @@ class Deployer:
 
     def serve(self, address: str = "127.0.0.1:0", ns: str | None = None, *, lease_seconds: float | None = None,
               heartbeat_ms: int = 500, max_workers: int = 64, security: Security | None = None,
-              advertise: str | None = None) -> DeployerServer:
+              advertise: str | None = None) -> Server:
         """Serve these tasks over gRPC at ``address``; returns the running server once it
-        listens (does not block). The one public way to serve a deployer.
+        listens (does not block). The one public way to serve a deployer (the server is
+        the ``grpc`` entry point of ``scart.servers``: see the module docstring).
 
         ``ns=None`` embeds a name service in the server; otherwise the tasks are registered
         with the name service at ``ns`` under a lease of ``lease_seconds`` (default
-        ``dataflow.remote.defaults.DEFAULT_LEASE``; renewed by heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
+        ``scart_wire.defaults.DEFAULT_LEASE``; renewed by heartbeats every third of it). ``heartbeat_ms``: idle interval of subscription
         heartbeats; ``max_workers``: concurrent RPCs; ``security``: TLS and tokens, for this
         server and for its calls to the name service and other deployers (see
-        :mod:`dataflow.remote.security`; default: plaintext, no tokens, loopback only);
+        :mod:`scart_wire.security`; default: plaintext, no tokens, loopback only);
         ``advertise``: the ``HOST[:PORT]`` registered in the name service (default: the bound
         address, or this host's name when listening on every interface). Raises
         :class:`dataflow.remote.AlreadyRegisteredError` for a name held by another live
         deployer, :class:`dataflow.remote.UnavailableError` when nothing answers at ``ns``
         or ``address`` cannot be bound. See :mod:`dataflow.remote.server`."""
-        from dataflow.remote.defaults import DEFAULT_LEASE
-        from dataflow.remote.server import DeployerServer
-
-        return DeployerServer(self, address, ns=ns, lease_seconds=lease_seconds or DEFAULT_LEASE,
-                              heartbeat_ms=heartbeat_ms, max_workers=max_workers, security=security,
-                              advertise=advertise)
+        return server_factory()(self, address, ns=ns, lease_seconds=lease_seconds or DEFAULT_LEASE,
+                                heartbeat_ms=heartbeat_ms, max_workers=max_workers, security=security,
+                                advertise=advertise)
 
     def __enter__(self) -> Deployer:
         return self

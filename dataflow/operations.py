@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar, overload
 
 from .introspection import OperationDescription
-from .types import registry
+from scart_wire.types import registry
 
 __all__ = ["operation", "OperationSpec"]
 

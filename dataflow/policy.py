@@ -198,7 +198,7 @@ class ConnPolicy:
 
     def with_(self, **changes: object) -> ConnPolicy:
         """A copy with some fields changed (the value itself never changes)."""
-        return replace(self, **changes)  # type: ignore[arg-type]
+        return replace(self, **changes)  # type: ignore[arg-type]  # any field by name: __post_init__ checks each
 
     def __str__(self) -> str:
         if self.type is ConnType.DATA:

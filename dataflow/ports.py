@@ -69,11 +69,11 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import pydantic
 
-from .bounds import Bounds, bounded_adapter
+from scart_wire.bounds import Bounds, bounded_adapter
 from .buffers import _NONE, DataObject, Storage, make_storage
 from .errors import DataflowError, PortTypeError, PortValueError
 from .policy import BufferPolicy, ConnPolicy, FlowStatus, WriteStatus
-from .types import registry
+from scart_wire.types import registry
 
 if TYPE_CHECKING:
     from .task import TaskContext
@@ -382,7 +382,7 @@ class OutputPort(Port[T]):
             )
         return storage
 
-    def disconnect(self, other: InputPort[Any] | None = None) -> None:  # type: ignore[override]
+    def disconnect(self, other: InputPort[Any] | None = None) -> None:
         """Disconnect from ``other`` (or from every input); idempotent, thread-safe."""
         if other is None:
             super().disconnect()
@@ -426,7 +426,7 @@ class InputPort(Port[T]):
     ``event=True`` makes the port an event port: new data triggers the owning task's
     event-driven activity (via a data callback). ``ge``/``gt``/``le``/``lt``/``finite``
     bound what may be written to it from outside (remote writes; see
-    :mod:`dataflow.bounds`: numbers must be finite unless ``finite=False``), and
+    :mod:`scart_wire.bounds`: numbers must be finite unless ``finite=False``), and
     ``check(value)``, raising ``ValueError`` with the reason, is the task's own verdict on
     such a value (as a Property's ``check``; its docstring's first line describes it to
     ``scart describe`` and ``scart write``); a task's own connections are not checked.
@@ -472,7 +472,7 @@ class InputPort(Port[T]):
 
     def _detach(self, conn: ChannelConnection) -> None:
         with _setup_lock:
-            if self._conns.pop(conn, None) is None:  # type: ignore[call-overload]
+            if self._conns.pop(conn, None) is None:  # type: ignore[call-overload]  # keyed by itself, as above
                 return
             if _counted(self._refs, conn.storage, -1):
                 self._publish(_without(self._sources, conn.storage))
@@ -503,7 +503,7 @@ class InputPort(Port[T]):
             return bounded_adapter(self.type, bounds).validate_python(value)
         except pydantic.ValidationError as exc:
             raise PortValueError(f"{self.qualname}: {value!r:.80} refused: {exc.errors()[0]['msg']} "
-                                 f"(accepts {self.bounds.text})") from None
+                                 f"(accepts {bounds.text})") from None
 
     def read(self) -> tuple[FlowStatus, T | None]:
         """The next sample and its :class:`FlowStatus` (see module docstring).
@@ -579,8 +579,8 @@ class InputPort(Port[T]):
         current = old[self._current] if self._current < len(old) else None
         self._sources = sources
         if len(self._sources) == 1:  # hot path: read() is the storage's own read
-            self.read = self._sources[0].read  # type: ignore[method-assign]
-            self.read_newest = self._sources[0].read_newest  # type: ignore[method-assign]
+            self.read = self._sources[0].read  # type: ignore[method-assign]  # the hot path: the storage's own
+            self.read_newest = self._sources[0].read_newest  # type: ignore[method-assign]  # (as read)
         else:
             self.__dict__.pop("read", None)
             self.__dict__.pop("read_newest", None)

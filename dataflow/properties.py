@@ -6,7 +6,7 @@ pydantic (lax mode: ``"2"`` → ``2.0`` for a float) and stores it, or raises
 :class:`~dataflow.errors.PortTypeError` (wrong type) /
 :class:`~dataflow.errors.PropertyValueError` (out of its bounds, or rejected by
 ``check``), naming ``task.property``. A number (or a list of numbers) must be finite
-unless ``finite=False`` (see :mod:`dataflow.bounds`). Reads and writes are single
+unless ``finite=False`` (see :mod:`scart_wire.bounds`). Reads and writes are single
 reference operations: thread-safe.
 """
 
@@ -17,9 +17,9 @@ from typing import Any, Generic, TypeVar
 
 import pydantic
 
-from .bounds import Bounds, bounded_adapter
+from scart_wire.bounds import Bounds, bounded_adapter
 from .errors import PortTypeError, PropertyValueError
-from .types import registry
+from scart_wire.types import registry
 
 __all__ = ["Property", "BoundProperty"]
 
@@ -29,7 +29,7 @@ _TYPE_ERRORS = ("_type", "_parsing", "model_attributes_type", "is_instance_of")
 
 class Property(Generic[T]):
     """A task property: type, default value, doc, optional ``check(value)`` raising
-    ValueError, and bounds (``ge``/``gt``/``le``/``lt``, ``finite``; see :mod:`dataflow.bounds`).
+    ValueError, and bounds (``ge``/``gt``/``le``/``lt``, ``finite``; see :mod:`scart_wire.bounds`).
     Raises ``ValueError`` for bounds that cannot hold or a default outside them."""
 
     def __init__(

@@ -50,7 +50,7 @@ import logging
 import threading
 from concurrent.futures import Future
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from .activities import Activity, EventActivity
 from .errors import NotFoundError
@@ -61,11 +61,13 @@ from .introspection import (
     TaskDescription,
 )
 from .operations import describe_operation, spec_of
-from .ports import InputPort, Port
+from .ports import InputPort, OutputPort, Port
 from .properties import BoundProperty, Property
-from .types import registry
+from scart_wire.types import registry
 
 __all__ = ["TaskContext", "TaskState"]
+
+PortT = TypeVar("PortT", bound=Port[Any])
 
 log = logging.getLogger(__name__)
 
@@ -360,7 +362,7 @@ class TaskContext:
                 f"task {self.name} has no port {name!r}; ports: {sorted(self._tc_ports) or 'none'}"
             ) from None
 
-    def add_port(self, port: Port[Any], name: str | None = None) -> Port[Any]:
+    def add_port(self, port: PortT, name: str | None = None) -> PortT:
         """Add a port at run time (name defaults to ``port.name``); returns it.
 
         Raises ``ValueError`` if the name is empty or taken.
@@ -429,19 +431,21 @@ class TaskContext:
         out = {}
         for name, attr in self._operation_attrs.items():
             fn = getattr(type(self), attr)
-            out[name] = describe_operation(name, fn, spec_of(fn))  # type: ignore[arg-type]
+            spec = spec_of(fn)
+            if spec is not None:  # every name here is a declared operation's
+                out[name] = describe_operation(name, fn, spec)
         return out
 
     def check_arguments(self, name: str, args: list[Any]) -> list[Any]:
         """``args`` of operation ``name`` checked as values from outside, by the one check
-        every remote entry uses (:func:`dataflow.bounds.check_argument`): each against its
+        every remote entry uses (:func:`scart_wire.bounds.check_argument`): each against its
         parameter's declared type (numbers strict: no string, no bool), bounds
         (``Annotated[float, Field(ge=...)]``) and finiteness. Returns them converted.
         Raises ``NotFoundError`` for an unknown operation, :class:`~dataflow.errors.PortTypeError`
         or :class:`~dataflow.errors.PortValueError` naming ``task.operation(parameter)``."""
         import typing
 
-        from .bounds import check_argument
+        from scart_wire.bounds import check_argument
 
         attr = self._operation_attrs.get(name)
         if attr is None:
@@ -507,9 +511,9 @@ class TaskContext:
                 doc=p.doc,
                 connections=p.connection_count(),
                 event=bool(getattr(p, "event", False)),
-                bounds=p.bounds.text if getattr(p, "bounds", None) is not None else "",
+                bounds=p.bounds.text if isinstance(p, InputPort) and p.bounds is not None else "",
                 check=getattr(p, "check_text", ""),
-                writes=0 if p.is_input else p.last_sample()[0],
+                writes=p.last_sample()[0] if isinstance(p, OutputPort) else 0,
                 streams=[s.note() for s in p.streams],
             )
             for n, p in self._tc_ports.items()

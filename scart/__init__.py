@@ -15,7 +15,7 @@ runs ``@destroy`` in reverse. Components are plain classes declared with
 :func:`component`, :func:`interface`, :func:`prop`, :func:`reference`,
 :func:`callback`, :func:`oneway`, :func:`init` and :func:`destroy`.
 
-A runtime is configured by a :class:`Settings` (name service, timeouts...) and runs the
+A runtime is configured by a :class:`Settings` (timeouts, security, each extension's own) and runs the
 extensions of its :class:`ExtensionRegistry` (found through entry points; see
 :mod:`scart.spi` to write one): ``Runtime.from_file(path, settings=..., extensions=...)``.
 """
@@ -45,7 +45,7 @@ from scart.errors import (
 )
 from scart.extensions import ExtensionError, ExtensionRegistry
 from scart.runtime import Runtime, RuntimeState, ServiceProxy
-from scart.settings import Remap, Settings
+from scart.settings import Settings
 
 __all__ = [
     "ComponentContext",
@@ -63,7 +63,6 @@ __all__ = [
     "ServiceNotFoundError",
     "ServiceProxy",
     "ServiceUnavailableError",
-    "Remap",
     "Settings",
     "callback",
     "component",

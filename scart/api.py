@@ -68,7 +68,7 @@ def component(
         raise ValueError(f"scope must be 'composite' or 'stateless', not {scope!r}")
 
     def mark(klass: C) -> C:
-        klass.__scart_component__ = {  # type: ignore[attr-defined]
+        klass.__scart_component__ = {  # type: ignore[attr-defined]  # our mark on the user's class
             "services": list(services or []),
             "scope": scope,
             "eager_init": eager_init,
@@ -87,7 +87,7 @@ def interface(
     ``remotable=True`` gives pass-by-value semantics even in-process."""
 
     def mark(klass: C) -> C:
-        klass.__scart_interface__ = {"callback": callback, "remotable": remotable}  # type: ignore[attr-defined]
+        klass.__scart_interface__ = {"callback": callback, "remotable": remotable}  # type: ignore[attr-defined]  # mark
         return klass
 
     return mark(cls) if cls is not None else mark
@@ -95,19 +95,19 @@ def interface(
 
 def oneway(func: F) -> F:
     """Mark an operation one-way: the caller returns at once; it must return ``None``."""
-    func.__scart_oneway__ = True  # type: ignore[attr-defined]
+    func.__scart_oneway__ = True  # type: ignore[attr-defined]  # our mark on the user's function
     return func
 
 
 def init(func: F) -> F:
     """Mark the method called after injection, before the first call (targets first)."""
-    func.__scart_init__ = True  # type: ignore[attr-defined]
+    func.__scart_init__ = True  # type: ignore[attr-defined]  # our mark on the user's function
     return func
 
 
 def destroy(func: F) -> F:
     """Mark the method called when the component stops (reverse of init order)."""
-    func.__scart_destroy__ = True  # type: ignore[attr-defined]
+    func.__scart_destroy__ = True  # type: ignore[attr-defined]  # our mark on the user's function
     return func
 
 
@@ -264,7 +264,7 @@ def interface_info(iface: type) -> InterfaceInfo:
     """
     cached = _cached(iface, _IFACE_ATTR)
     if cached is not None:
-        return cached  # type: ignore[no-any-return]
+        return cached
     meta = getattr(iface, "__scart_interface__", {}) if "__scart_interface__" in vars(iface) else {}
     ops: dict[str, Operation] = {}
     for klass in reversed(iface.__mro__):
@@ -306,7 +306,7 @@ def component_type(cls: type) -> ComponentType:
     """Read the declarations of ``cls`` (decorated with :func:`component` or not). Cached."""
     cached = _cached(cls, _CTYPE_ATTR)
     if cached is not None:
-        return cached  # type: ignore[no-any-return]
+        return cached
     meta = getattr(cls, "__scart_component__", {})
     hints = _hints(cls)
     props: dict[str, tuple[PropSpec, Any]] = {}
@@ -344,6 +344,6 @@ def _element_type(ann: Any, multiple: bool) -> type | None:
         args = typing.get_args(ann)
         ann = args[0] if args else None
     if typing.get_origin(ann) in (typing.Union, getattr(__import__("types"), "UnionType", None)):
-        args = [a for a in typing.get_args(ann) if a is not type(None)]
-        ann = args[0] if len(args) == 1 else None
+        members = [a for a in typing.get_args(ann) if a is not type(None)]
+        ann = members[0] if len(members) == 1 else None
     return ann if isinstance(ann, type) else None

@@ -2,7 +2,7 @@
 
 :func:`assemble` loads a composite and its contribution, introspects every
 implementation, checks every SCA assembly rule (and each extension's own checks), and
-returns an :class:`~scart.graph.Assembly` — or raises one
+returns an :class:`~scart.assembled.Assembly` — or raises one
 :class:`~scart.errors.ScdlError` listing every problem. Nothing is started, and
 nothing touches the network unless the settings say ``online``.
 
@@ -35,7 +35,8 @@ from scart.component_types import SideFile, composite_reference_defaults
 from scart.contribution import METADATA, Contribution, deployable_of, import_object
 from scart.errors import Problem, ScdlError
 from scart.extensions import ExtensionError, ExtensionRegistry
-from scart.graph import DEFAULT, Assembly, Bound, Endpoint, Node, Target
+from scart.assembled import Assembly
+from scart.graph import DEFAULT, Bound, Endpoint, Node, Target
 from scart.model import (
     Binding, Component, ComponentReference, Composite, CompositeReference, CompositeService, Element,
     Interface, Location, PropertyValue,
@@ -95,7 +96,7 @@ def assemble(path: str, overrides: dict[str, str] | None = None, *, strict_overr
     assembler = _Assembler(contribution, registry, context, dict(overrides or {}), strict_overrides)
     if root is None:
         _refuse([contribution.display_problem(p) for p in contribution.problems], set(overrides or {}))
-    result = assembler.run(root)  # type: ignore[arg-type]
+    result = assembler.run(root)
     # a composite used by several components is checked once per use: report each problem once
     # causes first, their knock-ons after: the contributions' metadata, then what was read
     # wrong, then the rest; within each, the root file first, by line
@@ -328,8 +329,8 @@ class _Assembler(Checks):
         for s in comp.services:  # the outer component's bindings on a promoted service
             if s.name in targets:
                 self.bind_promoted(targets[s.name], f"{path}/{s.name}", s.bindings)
-        refs = {cr.name: (RefSpec(_required(cr.multiplicity), _multiple(cr.multiplicity)), None)
-                for cr in inner.references}
+        refs: dict[str, tuple[RefSpec, type | None]] = {
+            cr.name: (RefSpec(_required(cr.multiplicity), _multiple(cr.multiplicity)), None) for cr in inner.references}
         child.ctype = ComponentType(object, services, refs, fake.properties, (), (), (), (), "composite", True)
         self.check_component_names(comp, child.ctype, check_properties=False)
         return child

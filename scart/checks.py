@@ -10,7 +10,8 @@ from scart import errors as E
 from scart.api import ComponentType, InterfaceInfo, interface_info
 from scart.errors import Problem
 from scart.extensions import ExtensionError, ExtensionRegistry
-from scart.graph import Assembly, Bound, Endpoint, Node, Target
+from scart.assembled import Assembly
+from scart.graph import Bound, Endpoint, Node, Target
 from scart.model import Binding, Component, Element, Location
 from scart.spi import BindingProvider, CheckContext, Side
 
@@ -111,7 +112,9 @@ class Checks:
                     self.problem(E.SCART_MISSING_OPERATION, f"{ctype.cls.__name__} lacks operation {op.name!r} "
                                  f"of its declared service {sname!r}", loc)
             for checked in (iface, iface.callback):
-                for op in (checked.operations.values() if checked else ()):
+                if checked is None:
+                    continue
+                for op in checked.operations.values():
                     if op.oneway and op.returns_value:
                         self.problem(E.SCART_ONEWAY_RETURNS, f"one-way operation {checked.name}.{op.name} "
                                      "declares a return value", loc)

@@ -88,7 +88,7 @@ class SideFile:
             props[name] = (required, py_type)
         refs = dict(ctype.references)
         for name, mult in self.multiplicity.items():
-            spec, ref_type = refs[name]
+            _, ref_type = refs[name]
             narrowed = RefSpec(mult.startswith("1"), mult.endswith("n"))
             narrowed.name = name
             refs[name] = (narrowed, ref_type)

@@ -92,6 +92,10 @@ SCART_SIDE_FILE = "SCART-C007"  # a componentType side file and its implementati
 SCART_WIRE_SOURCE = "SCART-C008"  # a <wire>'s @source names no component reference
 
 
+#: How bad a :class:`Problem` is: "error" refuses the composite, "warning" only says so.
+Severity = Literal["error", "warning"]
+
+
 @dataclass(frozen=True)
 class Problem:
     """One composite problem: ``code``, human ``message``, and where (``path``, ``line``).
@@ -103,7 +107,7 @@ class Problem:
     message: str
     path: str
     line: int
-    severity: Literal["error", "warning"] = "error"
+    severity: Severity = "error"
 
     def __str__(self) -> str:
         said = f"warning: {self.message}" if self.severity == "warning" else self.message

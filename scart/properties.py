@@ -62,11 +62,11 @@ _NUMBERS = frozenset("double float decimal".split())
 _ANY_TYPE = f"{{{XSD_NS}}}anyType"
 
 
-class Refused(list):  # type: ignore[type-arg]
+class Refused(list):
     """No value: the property's values were refused (reported already, so nothing more is said)."""
 
 
-class FileValues(list):  # type: ignore[type-arg]
+class FileValues(list):
     """Raw values read from a property's ``@file`` (so that errors do not echo them)."""
 
     def __init__(self, values: list[str], file: str) -> None:

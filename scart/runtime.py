@@ -55,7 +55,8 @@ from scart.api import ComponentContext, InterfaceInfo, interface_info
 from scart.assembly import assemble
 from scart.errors import InvocationError, RuntimeStateError, ScartError, ServiceNotFoundError
 from scart.extensions import ExtensionRegistry
-from scart.graph import DEFAULT, Assembly, Bound, Node, Target
+from scart.assembled import Assembly
+from scart.graph import DEFAULT, Bound, Node, Target
 from scart.local import LocalReferenceBinding, wrap_operation
 from scart.pool import WORKER_PREFIX, OnewayPool
 from scart.model import Binding
@@ -148,7 +149,7 @@ class Runtime:
     def __init__(self, assembly: Assembly, *, settings: Settings | None = None, max_workers: int = 8,
                  max_pending: int = 10_000, drain_timeout: float = 10.0) -> None:
         self.assembly = assembly
-        self._settings = settings if settings is not None else Settings.from_env()
+        self._settings = settings if settings is not None else assembly.registry.settings_from_env()
         self.max_workers = max_workers
         self.max_pending = max_pending
         self.drain_timeout = drain_timeout
@@ -184,10 +185,12 @@ class Runtime:
         ``META-INF/sca-contribution.xml`` lists one deployable composite; ``contributions``
         are more contribution folders it is resolved in (see :mod:`scart.contribution`).
         ``overrides`` maps "Component.property" to a raw value (like ``--set``);
-        ``settings`` configure the runtime and its extensions (default:
-        ``Settings.from_env()``); ``extensions`` is the registry of kinds (default: the
-        installed entry points). Warnings of the composite (``assembly.warnings``) are logged."""
-        settings = settings if settings is not None else Settings.from_env()
+        ``settings`` configure the runtime and its extensions (default: from the
+        environment, :meth:`ExtensionRegistry.settings_from_env`); ``extensions`` is the
+        registry of kinds (default: the installed entry points). Warnings of the composite
+        (``assembly.warnings``) are logged."""
+        extensions = extensions if extensions is not None else ExtensionRegistry()
+        settings = settings if settings is not None else extensions.settings_from_env()
         assembly = assemble(str(path), overrides, extensions=extensions, settings=settings,
                             contributions=contributions)
         for warning in assembly.warnings:
@@ -420,7 +423,7 @@ class Runtime:
         with self._shared_lock:  # re-entrant: a factory may use another shared resource
             if key not in self._shared:
                 self._shared[key] = factory()
-            return self._shared[key]  # type: ignore[no-any-return]
+            return self._shared[key]
 
     def add_stop_hook(self, hook: Callable[[], None]) -> None:
         """Run ``hook`` at the very end of ``stop()`` (after every @destroy and binding stop),

@@ -471,7 +471,9 @@ class Loader:
         )
 
     def _port_children(self, el: etree._Element, what: str) -> tuple[Interface | None, list[Binding], list[Binding]]:
-        iface, bindings, cb_bindings = None, [], []
+        iface: Interface | None = None
+        bindings: list[Binding] = []
+        cb_bindings: list[Binding] = []
         for child in el.iterchildren(tag=etree.Element):
             ns, local = _local(child)
             if local.startswith("interface."):

@@ -21,6 +21,12 @@ provider                   provides
                            stopping its instances)
 :class:`ElementProvider`   ``check`` of ``<scart:NAME>`` children of ``<composite>``
 every provider             ``activate(host)``: a :class:`Participant` run with the composite
+:class:`LaunchProvider`    what an extension adds to ``scart run``, ``validate`` and
+                           ``graph``: its own settings (carried in ``Settings.extensions``),
+                           its command-line options, the names its components run under,
+                           its graph edges, and what it serves beside a running composite
+                           (a :class:`Launched`); found through the ``scart.launch`` entry
+                           points, every one installed takes part
 =========================  ==================================================================
 
 What the runtime offers, :class:`Host`: the :class:`~scart.settings.Settings`, the
@@ -42,6 +48,7 @@ loads, and ``scart validate`` and ``scart run`` show them.
 
 from __future__ import annotations
 
+import argparse
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
@@ -49,19 +56,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Literal, Protocol, TypeVar
 
+from pydantic import BaseModel
+
 from scart.api import CURRENT_CALLBACK, ComponentType, InterfaceInfo, Operation, PropSpec
 from scart.errors import Problem
-from scart.graph import DEFAULT, Node, Target
+from scart.graph import DEFAULT, Bound, Node, Target
 from scart.model import SCART_NS, Binding, Element, Implementation, Location
 from scart.scdl import did_you_mean, parse_xml
-from scart.settings import Remap, Settings
+from scart.settings import Settings
 
 __all__ = [
-    "CURRENT_CALLBACK", "DEFAULT", "SCART_NS", "AssemblyView", "Binding", "BindingProvider", "CheckContext", "ComponentManager", "ComponentType", "Element",
-    "ElementProvider", "Extension", "Host", "Implementation", "ImplementationProblem", "ImplementationProvider",
-    "InterfaceInfo", "Invocation", "Location", "Node", "Operation", "Participant", "Problem", "PropSpec", "ReferenceBinding",
-    "Remap", "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target", "did_you_mean", "parse_host_port",
-    "parse_xml", "port_in_range",
+    "CURRENT_CALLBACK", "DEFAULT", "SCART_NS", "AssemblyView", "Binding", "BindingProvider", "Bound",
+    "CheckContext", "ComponentManager", "ComponentType", "Element", "ElementProvider", "Extension", "GraphEdge",
+    "GraphNode", "Host", "Implementation", "ImplementationProblem", "ImplementationProvider", "InterfaceInfo",
+    "Invocation", "LaunchContext", "LaunchProvider", "Launched", "Location", "Node", "Operation", "Participant",
+    "Problem", "PropSpec", "ReferenceBinding", "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target",
+    "Verb", "did_you_mean", "parse_host_port", "parse_xml", "port_in_range",
 ]
 
 T = TypeVar("T")
@@ -149,7 +159,7 @@ class Host(Protocol):
 
     def shared(self, key: str, factory: Callable[[], T]) -> T:
         """A per-runtime resource, created by ``factory`` on first use (once, even when
-        called from several threads). Keys are namespaced by convention: ``"scart.ext.grpc.servers"``."""
+        called from several threads). Keys are namespaced by convention: ``"scart.bindings.grpc.servers"``."""
 
     def add_stop_hook(self, hook: Callable[[], None]) -> None:
         """Run ``hook`` at the very end of stop (after every @destroy), hooks in reverse order."""
@@ -340,6 +350,105 @@ class ElementProvider(Extension):
               context: CheckContext) -> list[Problem]:
         """Static problems of every such element (``(path prefix, element)`` pairs)."""
         return []
+
+
+# --- launching a composite (scart run, validate, graph) -----------------------------------
+
+#: The composite verbs a :class:`LaunchProvider` takes part in.
+Verb = Literal["run", "validate", "graph"]
+
+
+@dataclass(frozen=True)
+class GraphNode:
+    """A node an extension adds to ``scart graph``: a Graphviz ``shape`` ("" keeps the
+    box) and ``label``, or an ``xlabel`` beside it; several with one ``id`` merge, as in DOT."""
+
+    id: str
+    label: str = ""
+    shape: str = ""
+    xlabel: str = ""
+
+
+@dataclass(frozen=True)
+class GraphEdge:
+    """An edge an extension adds to ``scart graph``, between node ids (component paths,
+    or its own :class:`GraphNode` s)."""
+
+    source: str
+    target: str
+    label: str = ""
+    style: Literal["", "dashed", "dotted", "bold"] = ""
+    color: str = ""
+
+
+@dataclass(frozen=True)
+class LaunchContext:
+    """What a launch provider is told once the composite runs (``scart run``): the
+    settings, what the runtime's participants serve (``{"what": "where"}``), and where
+    the component services are served (None: not served, ``--services off``)."""
+
+    settings: Settings
+    served: Mapping[str, str]
+    services_address: str | None
+
+
+class Launched(Participant):
+    """What a :class:`LaunchProvider` serves beside a running composite (``scart run``):
+    started after the composite and its services endpoint (``start`` raises, naming its
+    option, when it cannot: the run then stops), stopped before them. Once everything
+    started, ``scart run`` says each of :meth:`addresses` (``what at where``) and
+    :meth:`notes`."""
+
+    def notes(self) -> list[str]:
+        """Lines to say once started (default none)."""
+        return []
+
+    def services_option(self) -> str | None:
+        """The options by which ``scart services`` and ``scart call`` find the services
+        endpoint by name through this (``" --ns HOST:PORT"``; ``""``: their defaults do),
+        or None when it does not list them (default)."""
+        return None
+
+
+class LaunchProvider(ABC):
+    """What an extension adds to launching a composite (``scart run``, ``validate`` and
+    ``graph``), as Tuscany's module activators do: its own settings (a frozen pydantic
+    model, carried in ``Settings.extensions``), its command-line options, the names its
+    components run under, its graph edges, and what it serves beside a running composite.
+
+    Registered under ``name`` in the ``scart.launch`` entry points; every one installed
+    takes part. Loaded when a composite verb builds its options, or when a runtime reads
+    its settings from the environment: its module imports nothing heavy."""
+
+    name: ClassVar[str] = ""
+
+    def add_arguments(self, parser: argparse.ArgumentParser, verb: Verb) -> None:
+        """Add this extension's options to ``verb``'s parser (default none)."""
+
+    def settings(self, args: argparse.Namespace, verb: Verb, environ: Mapping[str, str]) -> BaseModel | None:
+        """This extension's settings from ``verb``'s options (the environment where an
+        option is absent); None: none of its own (default). Raises ``ValueError`` naming
+        the option or variable for a bad value."""
+        return None
+
+    def from_env(self, environ: Mapping[str, str]) -> BaseModel | None:
+        """This extension's settings from the environment alone (a runtime made without
+        settings); None: none of its own (default). Raises ``ValueError`` naming the variable."""
+        return None
+
+    def names(self, assembly: AssemblyView, settings: Settings) -> Mapping[str, str]:
+        """The name the components of this extension run under, by component path (``scart
+        run`` and ``scart graph`` show it). Default: none renamed."""
+        return {}
+
+    def graph(self, assembly: AssemblyView, settings: Settings) -> Sequence[GraphNode | GraphEdge]:
+        """What this extension adds to ``scart graph`` (default nothing)."""
+        return ()
+
+    def launch(self, context: LaunchContext) -> Launched | None:
+        """What to serve beside the running composite (``scart run``), not started yet;
+        None: nothing (default)."""
+        return None
 
 
 # --- helpers for extension authors -------------------------------------------------------

@@ -5,7 +5,7 @@ no thread started during the session (daemon or not: activities, servers, connec
 may still be alive.
 
 Markers (the fast loop is ``pytest -m "not integration"``): ``integration`` — real gRPC
-servers, processes or browsers; every test under ``dataflow/remote/``, ``ext/``, ``e2e/``
+servers, processes or browsers; every test under ``dataflow/remote/``, ``bindings/``, ``e2e/``
 and ``security/``, and every ``subprocess`` or ``browser`` test. ``subprocess`` — runs the
 ``scart`` command (the files in :data:`SUBPROCESS_FILES`, or marked one by one).
 ``browser`` — drives Debian's chromium (the ``*_browser.py`` files).
@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 TESTS = Path(__file__).resolve().parent
-INTEGRATION_DIRS = ("dataflow/remote", "ext", "e2e", "security")
+INTEGRATION_DIRS = ("dataflow/remote", "bindings", "e2e", "security")
 SUBPROCESS_FILES = {"scart/test_run_cli.py", "scart/test_stop.py", "scart/test_cli_entry.py",
                     "dataflow/test_dataflow_cli.py"}
 

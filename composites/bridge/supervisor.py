@@ -18,6 +18,7 @@ from typing import Protocol
 import scart
 from dataflow import ConnPolicy
 from dataflow.remote import SampleEvent, connect
+from scart.bindings.dataflow import DataflowSettings
 
 
 @scart.interface
@@ -68,7 +69,8 @@ class ThermostatProxy:
     def open(self) -> None:
         self._record = _Record()
         # the property, else the runtime's name service (scart run --ns, SCART_NS, the default)
-        self._system = connect(self.ns.strip() or self.ctx.settings.ns_address, security=self.ctx.settings.security)
+        ns = self.ns.strip() or DataflowSettings.of(self.ctx.settings).ns_address
+        self._system = connect(ns, security=self.ctx.settings.security)
         proxy = self._system.component(self.task)
         self._proxy = proxy
         self._writer = proxy.connect_input("setpoint", ConnPolicy.data())

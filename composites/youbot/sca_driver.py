@@ -37,6 +37,7 @@ from typing import Any
 import scart
 from dataflow import ConnPolicy, WriteStatus
 from dataflow.remote import ClosedError, RemoteTimeoutError, System, UnavailableError, connect
+from scart.bindings.dataflow import DataflowSettings
 from interfaces import RetrievingStatus, SendingCommands, SettingPeriod
 from proxy_core import DriverProxyCore
 
@@ -78,9 +79,10 @@ class SCAYouBotDriver(DriverProxyCore):
         self._subscribe_error = ""  # the last subscription failure logged (each reason once)
         self._info: dict[str, Any] = {"state": None, "period": None, "period_status": "", "connected": False}
         # the property, else the runtime's name service (scart run --ns, SCART_NS, the default)
-        self._address = self.name_service.strip() or self.ctx.settings.ns_address
+        dataflow_settings = DataflowSettings.of(self.ctx.settings)  # the data-flow extension's own
+        self._address = self.name_service.strip() or dataflow_settings.ns_address
         # the names the driver runs under (scart run --remap renames tasks and ports at launch)
-        remap = self.ctx.settings.remap
+        remap = dataflow_settings.remap
         self._task = remap.component(self.component)
         self._ports = {p: remap.port(self.component, p) for p in ("commands", "period", "jointStatus")}
         self._supervisor = threading.Thread(target=self._supervise, name="scart-youbot-proxy", daemon=True)

@@ -1,7 +1,7 @@
 """The ROS options of the verbs that start a process holding ports (``scart deploy``,
 ``scart run``): shorthands setting this process's defaults for its one ROS 1 node (see
 :mod:`dataflow.transports.ros1.transport`), which its ``ros1`` streams then use; and
-``scart call ros1:/service`` (:func:`call`)."""
+``scart call ros1:/service`` or ``ros2:/service`` (:func:`call`)."""
 
 from __future__ import annotations
 
@@ -38,17 +38,25 @@ def apply(args: argparse.Namespace) -> None:
 
 
 def call(args: argparse.Namespace, json_args: list[Any]) -> Any:
-    """``scart call ros1:/service ['{"field": value}'] [--type pkg/Srv]``: the response as
-    plain data. Raises ``ValueError`` saying what went wrong (no such service, its error,
-    a request that is not one object of its fields)."""
+    """``scart call ros1:/service|ros2:/service ['{"field": value}'] [--type pkg/Srv]``: the
+    response as plain data. Raises ``ValueError`` saying what went wrong (no such service,
+    its error, a request that is not one object of its fields, a ROS 2 call without
+    ``--type``)."""
+    kind, _, service = args.operation.partition(":")
+    if len(json_args) > 1 or (json_args and not isinstance(json_args[0], dict)):
+        raise ValueError("a ROS service takes one object of its request's fields, e.g. '{data: true}'")
+    request = json_args[0] if json_args else {}
+    if kind == "ros2":
+        from dataflow.transports.ros2 import call_service as call_ros2
+
+        if not args.type:
+            raise ValueError("a ROS 2 service needs --type pkg/srv/Type (ROS 2 cannot be asked it)")
+        return call_ros2(service, request, type_name=args.type, timeout=args.timeout)
     from dataflow.transports.ros1.calls import call_service
     from dataflow.transports.ros1.services import ServiceError
 
-    service = args.operation.partition(":")[2]
-    if len(json_args) > 1 or (json_args and not isinstance(json_args[0], dict)):
-        raise ValueError("a ROS service takes one JSON object of its request's fields, e.g. '{\"data\": true}'")
     apply(args)
     try:
-        return call_service(service, json_args[0] if json_args else {}, type_name=args.type, timeout=args.timeout)
+        return call_service(service, request, type_name=args.type, timeout=args.timeout)
     except (ServiceError, TypeError, LookupError) as exc:
         raise ValueError(str(exc)) from None

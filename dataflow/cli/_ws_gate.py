@@ -29,7 +29,7 @@ import logging
 import threading
 from collections.abc import Iterable
 
-from dataflow.remote.security import is_loopback
+from scart_wire.security import is_loopback
 
 __all__ = ["FOXGLOVE_ORIGINS", "WebSocketGate", "handshake_refusal"]
 

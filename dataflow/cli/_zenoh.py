@@ -9,7 +9,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
 __all__ = ["add_arguments", "peers", "refusal_hint", "session_of", "with_session"]
 
@@ -79,7 +79,7 @@ def with_session(args: argparse.Namespace, body: Callable[[argparse.Namespace], 
     every error it can meet, Zenoh's own included, becomes one stderr line and exit 1."""
     from dataflow import DataflowError
     from dataflow.cli.output import err
-    from dataflow.remote.security import from_args
+    from scart_wire.security import from_args
 
     try:
         security = from_args(args)

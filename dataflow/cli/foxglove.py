@@ -316,7 +316,7 @@ class FoxgloveLive:
 
     def __init__(self, system: Any, host: str = "127.0.0.1", port: int = 8765, refresh: float = 2.0,
                  insecure_host: bool = False, owns_system: bool = False, control: Any = None) -> None:
-        from dataflow.remote.security import is_loopback
+        from scart_wire.security import is_loopback
 
         if not is_loopback(host):
             if not insecure_host:
@@ -429,7 +429,7 @@ def control_token(token_file: str | None, security: Any, flag: str) -> str | Non
     what to give (never the token)."""
     import hmac
 
-    from dataflow.remote.security import Role, read_token_file
+    from scart_wire.security import Role, read_token_file
 
     token = read_token_file(token_file) if token_file else None
     table = security.auth_table() if security.auth_file else None
@@ -455,7 +455,7 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
 
     from dataflow.cli.output import err as _err, ns_address, wait_until_stopped as _wait_until_stopped
     from dataflow.remote import connect
-    from dataflow.remote.security import from_args
+    from scart_wire.security import from_args
 
     control = None
     if args.control is not None:

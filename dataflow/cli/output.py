@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 __all__ = ["add_common", "dump", "err", "jsonable", "ns_address", "out", "parse_value", "policy_of", "rate_of",
            "stopped_by_signals", "wait_until_stopped", "with_rates", "with_system"]
@@ -36,7 +36,7 @@ MAX_VALUE_DEPTH = 64
 
 def add_common(parser: argparse.ArgumentParser) -> None:
     """``--ns``, ``--json``, ``--timeout`` and the client's security options."""
-    from dataflow.remote.security import add_arguments
+    from scart_wire.security import add_arguments
 
     parser.add_argument("--ns", default=None, help=f"name service HOST:PORT (default ${NS_ENV} or {DEFAULT_NS_ADDRESS})")
     parser.add_argument("--json", action="store_true", help="JSON on stdout")
@@ -135,7 +135,7 @@ def with_system(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
     from dataflow import DataflowError
     from dataflow.remote import connect
     from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
-    from dataflow.remote.security import from_args
+    from scart_wire.security import from_args
 
     address = ns_address(args)
     source = "--ns" if args.ns else (f"${NS_ENV}" if os.environ.get(NS_ENV) else "the default")

@@ -21,8 +21,8 @@ from dataflow.remote.errors import (
     AlreadyRegisteredError, AuthenticationError, ClosedError, PermissionDeniedError, RemoteError,
     RemoteNotFoundError, RemoteTimeoutError, RemoteTypeError, RemoteValueError, UnavailableError,
 )
-from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
-from dataflow.remote.security import Role, Security, SecurityError
+from scart_wire.defaults import DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
+from scart_wire.security import Role, Security, SecurityError
 
 if TYPE_CHECKING:
     from dataflow.deployer import Deployer

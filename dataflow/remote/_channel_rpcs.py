@@ -22,7 +22,7 @@ import grpc
 from dataflow.policy import ConnPolicy
 from dataflow.remote import _convert as cv
 from dataflow.remote._proto import df as pb
-from dataflow.remote._rpc import Abort, abort, peer_key
+from scart_wire.rpc import Abort, abort, peer_key
 from dataflow.transports import frames
 from dataflow.transports.grpc import ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire
@@ -84,7 +84,7 @@ class ChannelRpcs:
             raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
 
     # ---- subscriptions -------------------------------------------------------------------
-    def Subscribe(self, request: Any, context: grpc.ServicerContext) -> Iterator[bytes]:  # noqa: N802
+    def Subscribe(self, request: pb.SubscribeRequest, context: grpc.ServicerContext) -> Iterator[bytes]:  # noqa: N802
         try:
             served = self._serve(request.task, request.port, cv.policy_from_msg(request.policy),
                                  context.peer() or "", "grpc")
@@ -135,10 +135,10 @@ class ChannelRpcs:
                 self.sinks.carried(link)
 
     # ---- the same-host fast path (see dataflow.transports.ipc) ---------------------------
-    def OpenIpcWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def OpenIpcWriter(self, request: pb.OpenIpcWriterRequest, context: grpc.ServicerContext) -> pb.OpenIpcWriterResponse:  # noqa: N802
         return self._open_ipc("in", request, context)
 
-    def OpenIpcReader(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def OpenIpcReader(self, request: pb.OpenIpcReaderRequest, context: grpc.ServicerContext) -> pb.OpenIpcReaderResponse:  # noqa: N802
         return self._open_ipc("out", request, context)
 
     def _open_ipc(self, kind: str, request: Any, context: grpc.ServicerContext) -> Any:

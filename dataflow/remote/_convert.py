@@ -1,6 +1,6 @@
 """Conversions between the core's policies and statuses and their proto messages (private).
 
-Values have their own public codec, :mod:`dataflow.codec`."""
+Values have their own public codec, :mod:`scart_wire.codec`."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ from dataflow.policy import MAX_BUFFER, MAX_TOPIC, BufferPolicy, ConnPolicy, Con
 from dataflow.remote._proto import df as pb
 from dataflow.transports import MAX_NAME
 
-_CONN_TO_MSG = MappingProxyType({
-    ConnType.DATA: pb.ConnType.Value("CONN_TYPE_DATA"),
-    ConnType.BUFFER: pb.ConnType.Value("CONN_TYPE_BUFFER"),
-    ConnType.CIRCULAR_BUFFER: pb.ConnType.Value("CONN_TYPE_CIRCULAR_BUFFER"),
+_CONN_TO_MSG: Mapping[ConnType, pb.ConnType] = MappingProxyType({
+    ConnType.DATA: pb.CONN_TYPE_DATA,
+    ConnType.BUFFER: pb.CONN_TYPE_BUFFER,
+    ConnType.CIRCULAR_BUFFER: pb.CONN_TYPE_CIRCULAR_BUFFER,
 })
 _CONN_FROM_MSG = MappingProxyType({v: k for k, v in _CONN_TO_MSG.items()})
 
@@ -69,18 +69,23 @@ def _member(enum: Any, field: str, name: str, default: Any) -> Any:
     return enum[name]
 
 
-def _enum_maps(proto_enum: Any, prefix: str, py_enum: Any) -> tuple[Mapping[Any, int], Mapping[int, Any]]:
-    """Both directions between a Python enum and the proto enum whose values are named
-    ``PREFIX_MEMBER`` — built once, so the per-sample conversions are one dict lookup."""
-    to_msg = {member: proto_enum.Value(prefix + member.name) for member in py_enum}
-    return MappingProxyType(to_msg), MappingProxyType({number: member for member, number in to_msg.items()})
+# Both directions between the Python enums and the proto enums (``PREFIX_MEMBER``), built
+# once, so the per-sample conversions are one dict lookup.
+_FLOW_TO: Mapping[FlowStatus, pb.FlowStatus] = MappingProxyType({
+    FlowStatus.NO_DATA: pb.FLOW_STATUS_NO_DATA,
+    FlowStatus.OLD_DATA: pb.FLOW_STATUS_OLD_DATA,
+    FlowStatus.NEW_DATA: pb.FLOW_STATUS_NEW_DATA,
+})
+_FLOW_FROM: Mapping[int, FlowStatus] = MappingProxyType({number: member for member, number in _FLOW_TO.items()})
+_WRITE_TO: Mapping[WriteStatus, pb.WriteStatus] = MappingProxyType({
+    WriteStatus.WRITE_SUCCESS: pb.WRITE_STATUS_WRITE_SUCCESS,
+    WriteStatus.WRITE_FAILURE: pb.WRITE_STATUS_WRITE_FAILURE,
+    WriteStatus.NOT_CONNECTED: pb.WRITE_STATUS_NOT_CONNECTED,
+})
+_WRITE_FROM: Mapping[int, WriteStatus] = MappingProxyType({number: member for member, number in _WRITE_TO.items()})
 
 
-_FLOW_TO, _FLOW_FROM = _enum_maps(pb.FlowStatus, "FLOW_STATUS_", FlowStatus)
-_WRITE_TO, _WRITE_FROM = _enum_maps(pb.WriteStatus, "WRITE_STATUS_", WriteStatus)
-
-
-def flow_to_msg(status: FlowStatus) -> int:
+def flow_to_msg(status: FlowStatus) -> pb.FlowStatus:
     """FlowStatus → proto enum number."""
     return _FLOW_TO[status]
 
@@ -90,7 +95,7 @@ def flow_from_msg(number: int) -> FlowStatus:
     return _FLOW_FROM.get(number, FlowStatus.NO_DATA)
 
 
-def write_to_msg(status: WriteStatus) -> int:
+def write_to_msg(status: WriteStatus) -> pb.WriteStatus:
     """WriteStatus → proto enum number."""
     return _WRITE_TO[status]
 
@@ -102,6 +107,6 @@ def write_from_msg(number: int) -> WriteStatus:
 
 def to_json_text(value: Any) -> str:
     """What ``echo --json`` prints for a value."""
-    from dataflow.types import registry
+    from scart_wire.types import registry
 
     return json.dumps(registry.to_jsonable(value))

@@ -24,7 +24,8 @@ import grpc
 from dataflow.errors import DeploymentError, NotFoundError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy
-from dataflow.remote import _rpc, errors
+from dataflow.remote import errors
+from scart_wire import rpc
 from dataflow.remote._convert import policy_to_msg
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
@@ -111,10 +112,11 @@ class RemoteLink:
                 self._failed("refused", str(exc), exc)
                 backoff = 1.0
             except PEER_FAILURES as exc:
-                limit = isinstance(exc, grpc.RpcError) and exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED  # type: ignore[attr-defined]
-                refusal = DeploymentError(f"link {self.name}: {exc.details()} (a limit of the sink's deployer, "  # type: ignore[union-attr]
-                                          f"{self.sink_task}'s)") if limit else None
-                self._failed("refused" if limit else "waiting", _reason(exc), refusal)
+                refusal = None
+                if isinstance(exc, grpc.RpcError) and exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED:
+                    refusal = DeploymentError(f"link {self.name}: {exc.details()} (a limit of the sink's deployer, "
+                                              f"{self.sink_task}'s)")
+                self._failed("waiting" if refusal is None else "refused", _reason(exc), refusal)
             except Exception as exc:  # noqa: BLE001 - the link's thread must not die: log, back off, retry
                 if not stopping.is_set():
                     log.exception("link %s failed; retrying", self.name)
@@ -127,7 +129,7 @@ class RemoteLink:
     def _connect(self, stopping: threading.Event) -> None:
         server = self.server
         address = server.resolve(self.sink_task)
-        with server.security.channel(address, _rpc.channel_options()) as channel:
+        with server.security.channel(address, rpc.channel_options()) as channel:
             peer = Peer(address, self.sink_task, self.sink_port, df_grpc.DeployerServiceStub(channel),
                         server.ns_timeout, channel_of=channel, channel=self.channel, name=self.name,
                         boot_id=server.boot_id, source_ns=server.ns_address)
@@ -168,7 +170,7 @@ class RemoteLink:
 
 def _reason(exc: BaseException) -> str:
     if isinstance(exc, grpc.RpcError) and hasattr(exc, "code"):
-        return f"{exc.code().name}: {exc.details()}"  # type: ignore[attr-defined]
+        return f"{exc.code().name}: {exc.details()}"
     return f"{type(exc).__name__}: {exc}"
 
 
@@ -199,12 +201,13 @@ class LinkKeeper:
     def _revive(self, link: IncomingLink) -> None:
         task = link.source.rpartition(".")[0]
         entry = self.server.resolve_entry(task, link.source_ns)
-        if not entry.boot_id or entry.boot_id == link.boot_id:
-            return  # the same process (reconnecting by itself), or one that cannot say
+        sink = link.port.task
+        if not entry.boot_id or entry.boot_id == link.boot_id or sink is None:
+            return  # the same process (reconnecting by itself), one that cannot say, or a port gone from its task
         request = pb.ConnectPortsRequest(
-            source_task=task, source_port=link.source.rpartition(".")[2], sink_task=link.port.task.name,
+            source_task=task, source_port=link.source.rpartition(".")[2], sink_task=sink.name,
             sink_port=link.port.name, policy=policy_to_msg(link.policy), name=link.name, resume=True)
-        with self.server.security.channel(entry.address, _rpc.channel_options()) as channel:
+        with self.server.security.channel(entry.address, rpc.channel_options()) as channel:
             df_grpc.DeployerServiceStub(channel).ConnectPorts(request, timeout=self.server.ns_timeout)
         log.info("link %s: its source restarted; made again", link.name)
         self.sinks.finish(link)

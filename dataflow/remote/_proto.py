@@ -1,7 +1,7 @@
 """The remote layer's wire modules (private): the code protoc made of ``dataflow/proto``.
 
 Nothing is compiled at import: the ``_pb2``/``_pb2_grpc`` modules are committed next to
-their ``.proto`` files (see :mod:`dataflow.proto`). Public names: :data:`df`
+their ``.proto`` files (see :mod:`scart_wire.proto`). Public names: :data:`df`
 (``scart.dataflow.v1`` messages and enums), :data:`df_grpc` (its stub and servicer
 registration), :data:`ns` / :data:`ns_grpc` (``scart.naming.v1``), the service
 descriptors :data:`DEPLOYER_SERVICE` and :data:`NAMING_SERVICE`, and their full names.
@@ -14,18 +14,18 @@ from types import MappingProxyType
 
 from google.protobuf.descriptor import ServiceDescriptor
 
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as df
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2_grpc as df_grpc
-from dataflow.proto.scart.naming.v1 import naming_pb2 as ns
-from dataflow.proto.scart.naming.v1 import naming_pb2_grpc as ns_grpc
-from dataflow.remote.security import Role, roles_of_service
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as df
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2_grpc as df_grpc
+from scart_wire.proto.scart.naming.v1 import naming_pb2 as ns
+from scart_wire.proto.scart.naming.v1 import naming_pb2_grpc as ns_grpc
+from scart_wire.security import Role, roles_of_service
 
 DEPLOYER_SERVICE: ServiceDescriptor = df.DESCRIPTOR.services_by_name["DeployerService"]
 NAMING_SERVICE: ServiceDescriptor = ns.DESCRIPTOR.services_by_name["NamingService"]
 DEPLOYER_SERVICE_NAME = DEPLOYER_SERVICE.full_name
 NAMING_SERVICE_NAME = NAMING_SERVICE.full_name
 
-#: The role each method needs (see :mod:`dataflow.remote.security`): reading and
+#: The role each method needs (see :mod:`scart_wire.security`): reading and
 #: subscribing need ``read``; the rest of the DeployerService ``operate``; registering
 #: names with a name service ``admin``.
 DEPLOYER_ROLES: Mapping[str, Role] = MappingProxyType(roles_of_service(

@@ -286,7 +286,7 @@ class NameRegistry:
 
 
 def _health_probe(address: str, boot_id: str) -> bool | None:
-    from dataflow.remote._rpc import health_state
+    from scart_wire.rpc import health_state
 
     return health_state(address, service=boot_service(boot_id) if boot_id else "")
 

@@ -17,11 +17,11 @@ import secrets
 import threading
 import time
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import grpc
 
-from dataflow import codec
+from scart_wire import codec
 from dataflow.errors import NotFoundError, PortTypeError, PortValueError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
@@ -29,7 +29,7 @@ from dataflow.remote import _convert as cv
 from dataflow.remote._channel_rpcs import ChannelRpcs
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
-from dataflow.remote._rpc import Abort, abort, peer_key
+from scart_wire.rpc import Abort, abort, peer_key
 from dataflow.threads import OwnedThread
 from dataflow.transports.sinks import LINGER_S
 
@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from dataflow.remote.server import DeployerServer
 
 log = logging.getLogger(__name__)
+K = TypeVar("K")
 
 WRITER_IDLE_S = 60.0  #: a remote writer unused this long is reclaimed (its client may be gone)
 WRITERS_PER_PORT = 2_048  #: remote writers open on one input port, at most
@@ -50,6 +51,16 @@ _TRANSITIONS = MappingProxyType({
     pb.Transition.Value("TRANSITION_CLEANUP"): "cleanup",
     pb.Transition.Value("TRANSITION_RECOVER"): "recover",
 })
+
+
+
+def _count_down(table: dict[K, int], key: K) -> None:
+    """One less of ``key`` in ``table`` (forgotten at none)."""
+    left = table.get(key, 1) - 1
+    if left > 0:
+        table[key] = left
+    else:
+        table.pop(key, None)
 
 
 class _Seen:
@@ -138,12 +149,8 @@ class _Writers:
             if writer is None or (peer is not None and writer.owner != peer):
                 return None
             del self._by_id[wid]
-            for table, key in ((self._ports, writer.key), (self._peers, writer.owner)):
-                left = table.get(key, 1) - 1
-                if left > 0:
-                    table[key] = left
-                else:
-                    table.pop(key, None)
+            _count_down(self._ports, writer.key)
+            _count_down(self._peers, writer.owner)
             return writer
 
     def sweep(self) -> int:
@@ -202,7 +209,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         return p
 
     def _value_for(self, where: str, py_type: Any, type_name: str, msg: Any, json_text: str) -> Any:
-        from dataflow.types import registry
+        from scart_wire.types import registry
 
         if json_text:
             try:
@@ -251,10 +258,10 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             last_cycle=float(last_cycle),
         )
 
-    def ListTasks(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ListTasks(self, request: pb.ListTasksRequest, context: grpc.ServicerContext) -> pb.ListTasksResponse:  # noqa: N802
         return pb.ListTasksResponse(tasks=[self._summary(t) for t in self.deployer.tasks()])
 
-    def DescribeTask(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def DescribeTask(self, request: pb.DescribeTaskRequest, context: grpc.ServicerContext) -> pb.DescribeTaskResponse:  # noqa: N802
         try:
             task = self._task(request.task)
             d = task.describe()
@@ -288,12 +295,12 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                 )
                 for o in d.operations
             ]
-            info = pb.TaskInfo(summary=self._summary(task), ports=ports, properties=props, operations=ops)
-            return pb.DescribeTaskResponse(task=info)
+            return pb.DescribeTaskResponse(task=pb.TaskInfo(summary=self._summary(task), ports=ports,
+                                                            properties=props, operations=ops))
         except Exception as exc:  # noqa: BLE001 - mapped to a status
             abort(context, exc)
 
-    def ChangeState(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ChangeState(self, request: pb.ChangeStateRequest, context: grpc.ServicerContext) -> pb.ChangeStateResponse:  # noqa: N802
         try:
             task = self._task(request.task)
             name = _TRANSITIONS.get(request.transition)
@@ -313,7 +320,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                 writer = self._defaults[key] = _Writer(task, port, ConnPolicy.data())
             return writer
 
-    def WritePort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def WritePort(self, request: pb.WritePortRequest, context: grpc.ServicerContext) -> pb.WritePortResponse:  # noqa: N802
         try:
             if request.writer:
                 writer = self._writers.get(request.writer, peer_key(context))
@@ -345,7 +352,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             log.warning("a write from %s refused: %s", context.peer(), exc)
             raise
 
-    def OpenWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def OpenWriter(self, request: pb.OpenWriterRequest, context: grpc.ServicerContext) -> pb.OpenWriterResponse:  # noqa: N802
         try:
             port = self._port(request.task, request.port, want_input=True)
             policy = cv.policy_from_msg(request.policy)
@@ -360,16 +367,16 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
-    def CloseWriter(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def CloseWriter(self, request: pb.CloseWriterRequest, context: grpc.ServicerContext) -> pb.CloseWriterResponse:  # noqa: N802
         writer = self._writers.pop(request.writer, peer_key(context))
         left = writer.close(LINGER_S) if writer is not None else 0
-        if left:
+        if writer is not None and left:
             log.warning("a remote writer of %s closed with %d sample(s) its task never read",
-                        ".".join(writer.key), left)  # type: ignore[union-attr]
+                        ".".join(writer.key), left)
         return pb.CloseWriterResponse(undelivered=left)
 
     # ---- reading and subscribing -------------------------------------------------------
-    def ReadPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ReadPort(self, request: pb.ReadPortRequest, context: grpc.ServicerContext) -> pb.ReadPortResponse:  # noqa: N802
         try:
             port = self._port(request.task, request.port, want_input=False)
             key = (request.task, port.name)
@@ -392,8 +399,8 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             abort(context, exc)
 
     # ---- operations and properties -----------------------------------------------------
-    def CallOperation(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
-        from dataflow.types import registry
+    def CallOperation(self, request: pb.CallOperationRequest, context: grpc.ServicerContext) -> pb.CallOperationResponse:  # noqa: N802
+        from scart_wire.types import registry
 
         try:
             task = self._task(request.task)
@@ -403,7 +410,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                     f"{task.name} has no operation {request.operation!r}; operations: {', '.join(sorted(ops)) or '(none)'}"
                 )
             desc = ops[request.operation]
-            given = list(request.json_args) if request.use_json else list(request.args)
+            given: list[Any] = list(request.json_args) if request.use_json else list(request.args)  # texts or Values
             if len(given) != len(desc.params):
                 raise Abort(
                     "INVALID_ARGUMENT",
@@ -446,7 +453,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             raise NotFoundError(f"{task.name} has no property {name!r}; properties: {', '.join(sorted(props)) or '(none)'}")
         return props[name]
 
-    def GetProperty(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def GetProperty(self, request: pb.GetPropertyRequest, context: grpc.ServicerContext) -> pb.GetPropertyResponse:  # noqa: N802
         try:
             task = self._task(request.task)
             prop = self._property(task, request.name)
@@ -455,7 +462,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
-    def SetProperty(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def SetProperty(self, request: pb.SetPropertyRequest, context: grpc.ServicerContext) -> pb.SetPropertyResponse:  # noqa: N802
         try:
             task = self._task(request.task)
             prop = self._property(task, request.name)
@@ -467,7 +474,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             abort(context, exc)
 
     # ---- connections (delegated to the server, which owns the links) -------------------
-    def ConnectPorts(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ConnectPorts(self, request: pb.ConnectPortsRequest, context: grpc.ServicerContext) -> pb.ConnectPortsResponse:  # noqa: N802
         try:
             local, address, note, link = self.owner.connect_ports(
                 request.source_task, request.source_port, request.sink_task, request.sink_port,
@@ -478,7 +485,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
-    def DisconnectPorts(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def DisconnectPorts(self, request: pb.DisconnectPortsRequest, context: grpc.ServicerContext) -> pb.DisconnectPortsResponse:  # noqa: N802
         try:
             if request.name:
                 done = self.owner.disconnect_link(request.name)
@@ -490,7 +497,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
-    def ListLinks(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ListLinks(self, request: pb.ListLinksRequest, context: grpc.ServicerContext) -> pb.ListLinksResponse:  # noqa: N802
         try:
             served = [pb.SubscriptionInfo(**info) for info in self.served.info()[:MAX_LINKS_LISTED]]
             return pb.ListLinksResponse(links=[_link_info(lk) for lk in self.owner.links()[:MAX_LINKS_LISTED]],
@@ -498,14 +505,14 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
-    def RerouteLink(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def RerouteLink(self, request: pb.RerouteLinkRequest, context: grpc.ServicerContext) -> pb.RerouteLinkResponse:  # noqa: N802
         try:
             link = self.owner.reroute(request.name, request.sink_task, request.sink_port)
             return pb.RerouteLinkResponse(link=_link_info(link))
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
-    def StreamPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def StreamPort(self, request: pb.StreamPortRequest, context: grpc.ServicerContext) -> pb.StreamPortResponse:  # noqa: N802
         try:
             link = self.owner.stream(request.task, request.port, cv.policy_from_msg(request.policy),
                                      dict(request.options), name=request.name or None)
@@ -513,7 +520,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
-    def UnstreamPort(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def UnstreamPort(self, request: pb.UnstreamPortRequest, context: grpc.ServicerContext) -> pb.UnstreamPortResponse:  # noqa: N802
         try:
             return pb.UnstreamPortResponse(removed=self.owner.unstream(request.name))
         except Exception as exc:  # noqa: BLE001

@@ -28,10 +28,11 @@ from typing import TYPE_CHECKING, Any
 
 import grpc
 
-from dataflow import codec
+from scart_wire import codec
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy, FlowStatus
-from dataflow.remote import _rpc, errors
+from dataflow.remote import errors
+from scart_wire import rpc
 from dataflow.remote._delivery import Dispatcher, Mailbox
 from dataflow.remote.api import GapEvent, Observer, SampleEvent, Subscription
 from dataflow.threads import OwnedThread
@@ -126,7 +127,7 @@ class GrpcSubscription(Subscription):
     # ---- observer side -----------------------------------------------------------------
     def _deliver(self, event: object) -> None:
         self.delivered += 1
-        self._observer(event)  # type: ignore[arg-type]
+        self._observer(event)  # type: ignore[arg-type]  # its delivery queue holds this subscription's events only
 
     def _watchdog(self) -> None:
         """Dispatcher idle: cancel a stream whose peer stopped sending heartbeats."""
@@ -245,7 +246,7 @@ def _first_failure(exc: BaseException, address: str) -> BaseException | None:
     if isinstance(exc, grpc.RpcError) and hasattr(exc, "code"):
         if exc.code() in (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED, grpc.StatusCode.CANCELLED):
             return None
-        return _rpc.translate(exc, address)
+        return rpc.translate(exc, address)
     if isinstance(exc, TransportError):  # a plug-in that cannot be loaded, a transport's refusal: final
         return exc
     return None

@@ -23,7 +23,7 @@ from typing import Any
 
 import grpc
 
-from dataflow import codec
+from scart_wire import codec
 from dataflow.errors import DataflowError, NotFoundError
 from dataflow.introspection import (
     LinkDescription, OperationDescription, PortDescription, PortStreamDescription, PropertyDescription,
@@ -31,7 +31,8 @@ from dataflow.introspection import (
 )
 from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.remote import _convert as cv
-from dataflow.remote import _rpc, errors
+from dataflow.remote import errors
+from scart_wire import rpc
 from dataflow.remote._proto import df_grpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._subscription import GrpcSubscription
@@ -39,7 +40,7 @@ from dataflow.remote.api import (
     TRANSITIONS, ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, System, split_port,
 )
 from dataflow.remote.naming import NameClient
-from dataflow.remote.security import Security
+from scart_wire.security import Security
 
 __all__ = ["GrpcSystem", "GrpcComponentProxy", "GrpcSubscription", "GrpcPortWriter", "connect"]
 
@@ -90,7 +91,7 @@ class GrpcSystem(System):
                 raise errors.ClosedError("this system proxy is closed")
             entry = self._channels.get(address)
             if entry is None:
-                channel = self.security.channel(address, _rpc.channel_options())
+                channel = self.security.channel(address, rpc.channel_options())
                 entry = self._channels[address] = (channel, df_grpc.DeployerServiceStub(channel))
             return entry[1]
 
@@ -112,7 +113,7 @@ class GrpcSystem(System):
         deadline = timeout or self.timeout
         address = self.resolve(component)
         try:
-            return _rpc.call(getattr(self._stub(address), method), request, deadline, address)
+            return rpc.call(getattr(self._stub(address), method), request, deadline, address)
         except _RETRYABLE as exc:
             if method not in _IDEMPOTENT and not _never_sent(exc):
                 try:
@@ -127,7 +128,7 @@ class GrpcSystem(System):
             if moved == address:
                 raise
             address = moved
-        return _rpc.call(getattr(self._stub(address), method), request, deadline, address)
+        return rpc.call(getattr(self._stub(address), method), request, deadline, address)
 
     def own(self, item: Any) -> None:
         """Track a subscription/writer so :meth:`close` closes it."""
@@ -156,7 +157,7 @@ class GrpcSystem(System):
         for address in sorted({e.address for e in entries}):
             names = {e.component for e in entries if e.address == address}
             try:
-                reply = _rpc.call(self._stub(address).ListTasks, pb.ListTasksRequest(), self.timeout, address)
+                reply = rpc.call(self._stub(address).ListTasks, pb.ListTasksRequest(), self.timeout, address)
             except errors.RemoteError as exc:
                 log.warning("deployer %s: %s", address, exc)
                 out += [ComponentInfo(n, "UNREACHABLE", "", 0.0, 0, 0, address) for n in sorted(names)]
@@ -192,7 +193,7 @@ class GrpcSystem(System):
         out = []
         for address in sorted({e.address for e in self._ns.entries()}):
             try:
-                out.append((address, _rpc.call(self._stub(address).ListLinks, pb.ListLinksRequest(),
+                out.append((address, rpc.call(self._stub(address).ListLinks, pb.ListLinksRequest(),
                                                self.timeout, address)))
             except errors.RemoteError as exc:
                 log.warning("deployer %s: %s", address, exc)
@@ -328,7 +329,7 @@ class GrpcComponentProxy(ComponentProxy):
     def change_state(self, transition: str) -> bool:
         if transition not in TRANSITIONS:
             raise ValueError(f"unknown transition {transition!r}; expected one of {', '.join(TRANSITIONS)}")
-        req = pb.ChangeStateRequest(task=self.name, transition=pb.Transition.Value(f"TRANSITION_{transition.upper()}"))
+        req = pb.ChangeStateRequest(task=self.name, transition=f"TRANSITION_{transition.upper()}")
         return bool(self._invoke("ChangeState", req).accepted)
 
     def connect_input(self, port: str, policy: ConnPolicy = ConnPolicy.data()) -> GrpcPortWriter:
@@ -348,7 +349,7 @@ class GrpcComponentProxy(ComponentProxy):
     def read_sample(self, port: str, timeout: float | None = None) -> tuple[FlowStatus, object | None, int, int]:
         """``(flow, value, sequence, source_time_ns)``; NEW_DATA when written since this
         proxy's last read; ``sequence`` is the port's write number."""
-        return self.read_sample_of(port, timeout)[:4]  # type: ignore[return-value]
+        return self.read_sample_of(port, timeout)[:4]
 
     def read_sample_of(self, port: str, timeout: float | None = None) -> tuple[FlowStatus, object | None, int, int, str]:
         """:meth:`read_sample` plus the deployer's boot id (write numbers restart with a new one)."""

@@ -53,7 +53,7 @@ class LocalPortWriter(PortWriter):
     def write(self, value: object) -> WriteStatus:
         if self._closed:
             raise ClosedError(f"writer to {self.component}.{self.port} is closed")
-        from dataflow.types import registry
+        from scart_wire.types import registry
 
         try:
             value = registry.validate(self._target.type, value)
@@ -175,7 +175,7 @@ class LocalComponentProxy(ComponentProxy):
         return writer.write(value)
 
     def write_json(self, port: str, json_value: object) -> WriteStatus:
-        from dataflow.types import registry
+        from scart_wire.types import registry
 
         target = _port(self.task, port, True)
         return self.write(port, registry.from_jsonable(target.type, json_value))
@@ -205,7 +205,7 @@ class LocalComponentProxy(ComponentProxy):
         return self.task.call(operation, *args)
 
     def call_json(self, operation: str, json_args: list[object], timeout: float | None = None) -> object:
-        from dataflow.types import registry
+        from scart_wire.types import registry
 
         ops = self.task.operations()
         if operation not in ops:
@@ -223,7 +223,7 @@ class LocalComponentProxy(ComponentProxy):
         self.task.set_property(name, value)
 
     def set_property_json(self, name: str, json_value: object) -> object:
-        from dataflow.types import registry
+        from scart_wire.types import registry
 
         prop = self.task.properties()[name] if name in self.task.properties() else None
         if prop is None:

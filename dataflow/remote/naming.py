@@ -26,12 +26,13 @@ from collections.abc import Callable
 import grpc
 
 from dataflow.errors import DataflowError, NotFoundError
-from dataflow.remote import _rpc, errors
-from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
+from dataflow.remote import errors
+from scart_wire import rpc
+from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
 from dataflow.remote._proto import NAMING_ROLES, NAMING_SERVICE_NAME, ns_grpc
 from dataflow.remote._registry import Limits, NameEntry, NameRegistry, RegistryFullError, boot_service
 from dataflow.remote._proto import ns as pb
-from dataflow.remote.security import Security
+from scart_wire.security import Security
 from dataflow.threads import OwnedThread
 
 __all__ = [
@@ -67,11 +68,11 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
     def __init__(self, registry: NameRegistry) -> None:
         self.registry = registry
 
-    def Register(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802 - gRPC method names
+    def Register(self, request: pb.RegisterRequest, context: grpc.ServicerContext) -> pb.RegisterResponse:  # noqa: N802 - gRPC method names
         try:
             lease_id, seconds = self.registry.register(
                 request.address, list(request.components), request.lease_seconds, boot_id=request.boot_id,
-                lease_id=request.lease_id, peer=_rpc.peer_key(context))
+                lease_id=request.lease_id, peer=rpc.peer_key(context))
         except errors.AlreadyRegisteredError as exc:
             context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
         except RegistryFullError as exc:
@@ -82,7 +83,7 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
             context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
         return pb.RegisterResponse(lease_id=lease_id, lease_seconds=seconds)
 
-    def Heartbeat(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Heartbeat(self, request: pb.HeartbeatRequest, context: grpc.ServicerContext) -> pb.HeartbeatResponse:  # noqa: N802
         try:
             seconds = self.registry.heartbeat(request.lease_id, list(request.components) or None)
         except NotFoundError as exc:
@@ -93,18 +94,18 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
             context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
         return pb.HeartbeatResponse(lease_seconds=seconds)
 
-    def Unregister(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Unregister(self, request: pb.UnregisterRequest, context: grpc.ServicerContext) -> pb.UnregisterResponse:  # noqa: N802
         self.registry.unregister(request.lease_id)
         return pb.UnregisterResponse()
 
-    def Resolve(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Resolve(self, request: pb.ResolveRequest, context: grpc.ServicerContext) -> pb.ResolveResponse:  # noqa: N802
         try:
             entry = self.registry.resolve(request.component)
         except NotFoundError as exc:
             context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
         return pb.ResolveResponse(entry=_entry_msg(entry))
 
-    def ListEntries(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ListEntries(self, request: pb.ListEntriesRequest, context: grpc.ServicerContext) -> pb.ListEntriesResponse:  # noqa: N802
         page = self.registry.entries(after=request.page_token, limit=request.page_size or None)
         size = min(request.page_size or self.registry.limits.page, self.registry.limits.page)
         more = len(page) == size and bool(self.registry.entries(after=page[-1].component, limit=1))
@@ -129,7 +130,7 @@ class NameServer:
         if self._executor is None:
             self._server.stop(grace).wait(grace + 5.0)
         else:
-            _rpc.stop_server(self._server, self._executor, grace)
+            rpc.stop_server(self._server, self._executor, grace)
 
     def wait(self, timeout: float | None = None) -> bool:
         """Block until the server terminates or ``timeout`` s pass; True if terminated."""
@@ -148,17 +149,17 @@ def serve_nameserver(
 ) -> NameServer:
     """Start a standalone name service (health + reflection included); returns at once.
 
-    ``security``: TLS and the auth file (see :mod:`dataflow.remote.security`; lookups need
+    ``security``: TLS and the auth file (see :mod:`scart_wire.security`; lookups need
     ``read``, registrations ``admin``). Raises :class:`errors.UnavailableError` when
-    ``address`` cannot be bound, :class:`~dataflow.remote.security.SecurityError` for an
+    ``address`` cannot be bound, :class:`~scart_wire.security.SecurityError` for an
     unsafe bind or unusable security files.
     """
     security = security or Security()
     registry = NameRegistry(default_lease=default_lease, probe=security_probe(security))
     servicer = (ns_grpc.add_NamingServiceServicer_to_server, NamingServicer(registry))
-    server, port, _health, executor = _rpc.make_server(address, [servicer], [NAMING_SERVICE_NAME], max_workers,
+    server, port, _health, executor = rpc.make_server(address, [servicer], [NAMING_SERVICE_NAME], max_workers,
                                                        security=security, roles=NAMING_ROLES)
-    return NameServer(server, _rpc.bound_address(address, port), registry, executor,
+    return NameServer(server, rpc.bound_address(address, port), registry, executor,
                       f"{address.rpartition(':')[0] or '127.0.0.1'}:{port}")
 
 
@@ -173,11 +174,11 @@ class NameClient:
     def __init__(self, address: str, timeout: float = 2.0, security: Security | None = None) -> None:
         self.address = address
         self.timeout = timeout
-        self._channel = (security or Security()).channel(address, _rpc.channel_options())
+        self._channel = (security or Security()).channel(address, rpc.channel_options())
         self._stub = ns_grpc.NamingServiceStub(self._channel)
 
     def _call(self, name: str, request: Any, timeout: float | None) -> Any:
-        return _rpc.call(getattr(self._stub, name), request, timeout or self.timeout, self.address)
+        return rpc.call(getattr(self._stub, name), request, timeout or self.timeout, self.address)
 
     def resolve(self, component: str, timeout: float | None = None) -> NameEntry:
         """Where ``component`` is served."""
@@ -255,7 +256,7 @@ def security_probe(security: Security) -> Callable[[str, str], bool | None]:
     tokenless = dataclasses.replace(security, token=None)
 
     def probe(address: str, boot_id: str) -> bool | None:
-        return _rpc.health_state(address, security=tokenless, service=boot_service(boot_id) if boot_id else "")
+        return rpc.health_state(address, security=tokenless, service=boot_service(boot_id) if boot_id else "")
     return probe
 
 

@@ -31,7 +31,8 @@ from dataflow.deployer import Deployer, same_policy
 from dataflow.errors import CONNECT_DIRECTION, CONNECT_TYPE, DeploymentError, NotFoundError, PortTypeError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy
-from dataflow.remote import _rpc, errors
+from dataflow.remote import errors
+from scart_wire import rpc
 from dataflow.remote._links import SETTLE_S, LinkKeeper, RemoteLink
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import (
@@ -40,6 +41,7 @@ from dataflow.remote._proto import (
     NAMING_ROLES,
     NAMING_SERVICE_NAME,
     df_grpc,
+    ns,
     ns_grpc,
 )
 from dataflow.remote._servicer import DeployerServicer
@@ -54,7 +56,7 @@ from dataflow.remote.naming import (
     held_elsewhere,
     security_probe,
 )
-from dataflow.remote.security import Security
+from scart_wire.security import Security
 from dataflow.transports.streams import PortStream
 
 __all__ = ["DeployerServer"]
@@ -88,15 +90,15 @@ class _EmbeddedNaming(NamingServicer):
     """The embedded name service: publishes tasks added to the deployer after it started
     serving before answering a lookup."""
 
-    def __init__(self, owner: DeployerServer) -> None:
-        super().__init__(owner.registry)
+    def __init__(self, owner: DeployerServer, registry: NameRegistry) -> None:
+        super().__init__(registry)
         self._owner = owner
 
-    def Resolve(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def Resolve(self, request: ns.ResolveRequest, context: grpc.ServicerContext) -> ns.ResolveResponse:  # noqa: N802
         self._owner.refresh_names()
         return super().Resolve(request, context)
 
-    def ListEntries(self, request: Any, context: grpc.ServicerContext) -> Any:  # noqa: N802
+    def ListEntries(self, request: ns.ListEntriesRequest, context: grpc.ServicerContext) -> ns.ListEntriesResponse:  # noqa: N802
         self._owner.refresh_names()
         return super().ListEntries(request, context)
 
@@ -118,7 +120,7 @@ class DeployerServer:
         advertise: str | None = None,
     ) -> None:
         if advertise:
-            _rpc.parse_advertise(advertise)  # a malformed one raises before anything is bound
+            rpc.parse_advertise(advertise)  # a malformed one raises before anything is bound
         self.deployer = deployer
         #: Public id of this server's process (random per start): its health service answers
         #: SERVING for ``scart.boot.<boot_id>``, name services and clients tell restarts by it.
@@ -129,23 +131,23 @@ class DeployerServer:
             default_lease=lease_seconds, probe=security_probe(security), own_boot_id=self.boot_id)
         self._lease_id = ""  # of our own names in the embedded registry
         self._servicer = DeployerServicer(self, heartbeat_ms=heartbeat_ms, max_streams=max(1, max_workers - 8))
-        servicers: list[_rpc.Servicer] = [(add_deployer_service, self._servicer)]
+        servicers: list[rpc.Servicer] = [(add_deployer_service, self._servicer)]
         names = [DEPLOYER_SERVICE_NAME]
         roles = dict(DEPLOYER_ROLES)
         if self.registry is not None:
-            servicers.append((ns_grpc.add_NamingServiceServicer_to_server, _EmbeddedNaming(self)))
+            servicers.append((ns_grpc.add_NamingServiceServicer_to_server, _EmbeddedNaming(self, self.registry)))
             names.append(NAMING_SERVICE_NAME)
             roles.update(NAMING_ROLES)
-        self._server, port, health, self._executor = _rpc.make_server(
+        self._server, port, health, self._executor = rpc.make_server(
             address, servicers, names, max_workers, security=security, roles=roles)
         health.set(boot_service(self.boot_id), health_pb2.HealthCheckResponse.SERVING)
         self._health = health
-        self.address = _rpc.bound_address(address, port)
+        self.address = rpc.bound_address(address, port)
         #: What the server listens on (``0.0.0.0:P`` when bound to every interface).
         self.listen_address = f"{address.rpartition(':')[0] or '127.0.0.1'}:{port}"
         #: Where other processes are told to reach it (name service, Zenoh): ``advertise``,
         #: or the bound address; this host's name for a wildcard listener.
-        self.advertised = _rpc.advertised_address(self.listen_address, advertise)
+        self.advertised = rpc.advertised_address(self.listen_address, advertise)
         self.ns_address = ns or self.address
         self._links: dict[tuple[str, str, str, str], RemoteLink] = {}
         self._serials = itertools.count(1)
@@ -316,8 +318,8 @@ class DeployerServer:
     def _check_sink(self, address: str, task: str, port: str, out: Any) -> None:
         """Refuse a link whose sink is not an input port of the source's type (asked to
         the sink's deployer): naming both types, as a composite's check does."""
-        with self.security.channel(address, _rpc.channel_options()) as channel:
-            reply = _rpc.call(df_grpc.DeployerServiceStub(channel).DescribeTask, pb.DescribeTaskRequest(task=task),
+        with self.security.channel(address, rpc.channel_options()) as channel:
+            reply = rpc.call(df_grpc.DeployerServiceStub(channel).DescribeTask, pb.DescribeTaskRequest(task=task),
                               self.ns_timeout, address)
         ports = {p.name: p for p in reply.task.ports}
         info = ports.get(port)
@@ -439,7 +441,7 @@ class DeployerServer:
         if self._ns_client is not None:
             self._ns_client.close()
         self._servicer.stop()
-        _rpc.stop_server(self._server, self._executor, grace)
+        rpc.stop_server(self._server, self._executor, grace)
 
     def wait(self, timeout: float | None = None) -> bool:
         """Block until the server terminates or ``timeout`` s pass; True if terminated."""

@@ -69,10 +69,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.errors import DataflowError
-from dataflow.transports.ends import ReaderEnd, WriterEnd
+
+if TYPE_CHECKING:  # the ends import the policy, which reads the names from this registry
+    from dataflow.transports.ends import ReaderEnd, WriterEnd
 
 __all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
            "candidates", "carry", "default", "load", "names"]
@@ -130,13 +132,6 @@ class Peer:
     def transport(self) -> str:
         """The transport a subscription's policy names (``auto`` by default)."""
         return self.policy.transport if self.policy is not None else "auto"
-
-    @property
-    def policy_msg(self) -> Any:
-        """The subscription's policy as the wire's message."""
-        from dataflow.remote._convert import policy_to_msg
-
-        return policy_to_msg(self.policy)
 
     @property
     def where(self) -> str:

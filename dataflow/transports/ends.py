@@ -67,9 +67,9 @@ class OutSample:
 class Carrier(Protocol):
     """What a transport attaches to a :class:`WriterEnd` while it is connected."""
 
-    #: How a sample is encoded for this transport (the same function for every carrier
-    #: of a transport, so a sample is encoded once however many ends send it).
-    encode: Callable[[OutSample], Any]
+    def encode(self, sample: OutSample) -> Any:
+        """How a sample is encoded for this transport (the same function for every
+        carrier of a transport, so a sample is encoded once however many ends send it)."""
 
     def send(self, sample: OutSample, data: Any) -> bool:
         """Send ``sample`` (``data``: :attr:`encode`'s result) now without blocking;
@@ -286,7 +286,7 @@ class WriterEnd:
 
     # ---- the transport's side -----------------------------------------------------------
     def connected(self, transport: str, carrier: Carrier, *, new_peer: bool,
-                  first: Callable[[], None] | None = None) -> None:
+                  first: Callable[[], object] | None = None) -> None:
         """The transport is connected: samples go through ``carrier`` from now on.
         ``new_peer``: a reader end that knows nothing of this channel (a first connection,
         or a restarted peer) — it counts from :attr:`peer_last`, so the misses kept here

@@ -14,9 +14,9 @@ import struct
 from types import MappingProxyType
 from typing import Any
 
-from dataflow import codec
-from dataflow.types import registry
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire import codec
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire.types import registry
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 __all__ = ["encoder", "feed", "heartbeat", "report_of", "sample_frame"]

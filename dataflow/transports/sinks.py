@@ -18,12 +18,12 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dataflow import codec
+from scart_wire import codec
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy
 from dataflow.ports import InputPort
 from dataflow.transports.ends import ReaderEnd
-from dataflow.types import registry
+from scart_wire.types import registry
 
 __all__ = ["IncomingLink", "LINGER_S", "Refused", "Sinks", "port_check"]
 

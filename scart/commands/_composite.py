@@ -1,34 +1,39 @@
 """What the composite verbs (``run``, ``validate``, ``graph``) share: the options that
-change a composite at launch (``--set``, ``--remap``, ``--contribution``), the settings
-they make, and assembling a composite with its problems printed."""
+change a composite at launch (``--set``, ``--contribution``, and each extension's own,
+through its :class:`~scart.spi.LaunchProvider`), the settings they make, the names
+components run under, and assembling a composite with its problems printed."""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
-from dataflow import DataflowError
-from dataflow.remote.security import from_args
+from pydantic import BaseModel
+
 from scart.assembly import assemble
 from scart.errors import Problem, ScartError, ScdlError
-from scart.graph import Assembly, Bound, Target
-from scart.settings import Remap, Settings
+from scart.extensions import ExtensionRegistry
+from scart.assembled import Assembly
+from scart.graph import Bound, Target
+from scart.settings import Settings
+from scart.spi import Verb
+from scart_wire.security import SecurityError, from_args
 
-__all__ = ["add_launch_options", "assemble_or_say", "endpoint_text", "parse_overrides", "settings_of"]
-
-TASK_KIND = "implementation.task"  # the data-flow extension's kind (the core does not import it)
+__all__ = ["add_launch_options", "assemble_or_say", "endpoint_text", "parse_overrides", "run_names", "settings_of"]
 
 
-def add_launch_options(parser: argparse.ArgumentParser) -> None:
-    """``--set``, ``--remap`` and ``--contribution`` (repeatable each)."""
+def add_launch_options(parser: argparse.ArgumentParser, verb: Verb,
+                       registry: ExtensionRegistry | None = None) -> None:
+    """``--set`` and ``--contribution`` (repeatable each), then every launch provider's
+    options for ``verb``."""
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="COMPONENT.PROP=VALUE",
                         help="override a component property (repeatable)")
-    parser.add_argument("--remap", action="append", default=[], metavar="FROM=TO",
-                        help="rename a data-flow task or port at launch (FROM:=TO too; TASK.PORT=NAME for one "
-                             "task's port; __ns=NAMESPACE puts every task under NAMESPACE/); repeatable")
     parser.add_argument("--contribution", dest="contributions", action="append", default=[], metavar="DIR",
                         help="another contribution folder the composite is resolved in: its exported "
                              "namespaces and its Python modules (repeatable)")
+    for provider in (registry or ExtensionRegistry()).launch_providers():
+        provider.add_arguments(parser, verb)
 
 
 def parse_overrides(items: list[str]) -> dict[str, str]:
@@ -42,25 +47,34 @@ def parse_overrides(items: list[str]) -> dict[str, str]:
     return out
 
 
-def settings_of(args: argparse.Namespace, **fields: object) -> Settings | None:
-    """The settings of a verb: ``--ns`` (else ``SCART_NS``) and ``fields``; None (after
-    printing why) when a value is invalid."""
-    ns = getattr(args, "ns", None)
+def settings_of(args: argparse.Namespace, verb: Verb, registry: ExtensionRegistry | None = None,
+                **fields: object) -> Settings | None:
+    """The settings of ``verb``: its security options, each launch provider's own settings
+    from its options (else the environment), and ``fields``; None (after printing why)
+    when a value is invalid."""
     try:
+        extensions: list[BaseModel] = []
         try:
             fields["security"] = from_args(args)
-            fields["remap"] = Remap.parse(getattr(args, "remap", None) or [])
-        except (DataflowError, ValueError) as exc:
+            for provider in (registry or ExtensionRegistry()).launch_providers():
+                value = provider.settings(args, verb, os.environ)
+                if value is not None:
+                    extensions.append(value)
+        except (SecurityError, ValueError) as exc:
             raise ScartError(str(exc)) from None
-        if ns:
-            try:
-                return Settings.from_env(ns=ns, **fields)
-            except ScartError as exc:
-                raise ScartError(f"--ns {ns!r}: {str(exc).partition(': ')[2]}") from None
-        return Settings.from_env(**fields)
+        return Settings.from_env(None, extensions=tuple(extensions), **fields)
     except ScartError as exc:
         print(f"scart: {exc}", file=sys.stderr)
         return None
+
+
+def run_names(assembly: Assembly, settings: Settings) -> dict[str, str]:
+    """The name each component runs under when an extension renames it (a remapped task),
+    by path (see :meth:`scart.spi.LaunchProvider.names`)."""
+    names: dict[str, str] = {}
+    for provider in assembly.registry.launch_providers():
+        names.update(provider.names(assembly, settings))
+    return names
 
 
 def assemble_or_say(file: str, raw_overrides: list[str], settings: Settings, unused: set[str] | None = None,

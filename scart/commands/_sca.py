@@ -33,7 +33,7 @@ def at(args: argparse.Namespace) -> str | None:
 def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
     """Run ``body``; a remote fault, a refusal or a malformed target becomes one stderr line
     and exit 1."""
-    from dataflow import DataflowError
+    from scart_wire.errors import DataflowError
     from dataflow.cli.output import err
 
     try:
@@ -44,11 +44,11 @@ def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace],
 
 
 def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
-    from dataflow.proto.scart.sca.v1 import sca_pb2_grpc
-    from dataflow.remote import _rpc
-    from dataflow.remote.security import from_args
+    from scart_wire.proto.scart.sca.v1 import sca_pb2_grpc
+    from scart_wire import rpc
+    from scart_wire.security import from_args
 
-    channel = from_args(args).channel(address, _rpc.channel_options())
+    channel = from_args(args).channel(address, rpc.channel_options())
     return channel, sca_pb2_grpc.ScaServiceStub(channel)
 
 
@@ -56,9 +56,9 @@ def endpoints(args: argparse.Namespace) -> list[str]:
     """The services endpoints registered with the name service (``--ns``, ``SCART_NS``, the
     default); raises ``DataflowError`` naming it when it does not answer."""
     from dataflow.cli.output import ns_address
-    from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
+    from scart_wire.errors import RemoteTimeoutError, UnavailableError
     from dataflow.remote.naming import NameClient
-    from dataflow.remote.security import from_args
+    from scart_wire.security import from_args
 
     ns = ns_address(args)
     names = NameClient(ns, timeout=args.timeout, security=from_args(args))
@@ -74,12 +74,12 @@ def endpoints(args: argparse.Namespace) -> list[str]:
 
 def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     """Every service the server at ``address`` exports: names, interface, operations."""
-    from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
-    from dataflow.remote import _rpc
+    from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
+    from scart_wire import rpc
 
     channel, stub = _stub(address, args)
     try:
-        reply = _rpc.call(stub.ListServices, pb.ListServicesRequest(), args.timeout, address)
+        reply = rpc.call(stub.ListServices, pb.ListServicesRequest(), args.timeout, address)
     finally:
         channel.close()
     return [{"names": list(s.names), "interface": s.interface, "at": address,
@@ -91,7 +91,7 @@ def find(service: str, args: argparse.Namespace) -> str:
     """The endpoint serving ``service`` (``COMPONENT/SERVICE``, a promoted service or a
     single-service component's name) among those the name service knows; raises
     ``NotFoundError`` listing what there is, ``DataflowError`` when it is ambiguous."""
-    from dataflow.errors import DataflowError, NotFoundError
+    from scart_wire.errors import DataflowError, NotFoundError
 
     found, known = [], []
     for address in endpoints(args):
@@ -114,17 +114,18 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
     """Call ``COMPONENT/SERVICE.operation`` (or ``SERVICE.operation`` for a promoted or
     single service) at ``address`` with JSON arguments; the result as JSON-able data.
     Raises ``ValueError`` for a malformed target, ``DataflowError`` for a remote fault."""
-    from dataflow import codec, registry
-    from dataflow.errors import DataflowError
-    from dataflow.proto.scart.sca.v1 import sca_pb2 as pb
-    from dataflow.remote import _rpc
+    from scart_wire import codec
+    from scart_wire.types import registry
+    from scart_wire.errors import DataflowError
+    from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
+    from scart_wire import rpc
 
     service, operation = split_target(target)
     request = pb.CallRequest(invocation=pb.Invocation(service=service, operation=operation,
                                                       args=[codec.encode(a) for a in json_args]))
     channel, stub = _stub(address, args)
     try:
-        reply = _rpc.call(stub.Call, request, args.timeout, address)
+        reply = rpc.call(stub.Call, request, args.timeout, address)
     finally:
         channel.close()
     if reply.outcome.WhichOneof("kind") == "fault":

@@ -64,16 +64,6 @@ def _call(args: argparse.Namespace) -> int:
 
 def _ros_call(args: argparse.Namespace) -> object:
     """``ros1:/service`` or ``ros2:/service``: the response as plain data."""
-    values = _arguments(args)
-    if len(values) > 1 or (values and not isinstance(values[0], dict)):
-        raise ValueError("a ROS service takes one object of its request's fields, e.g. '{data: true}'")
-    if args.operation.startswith("ros1:"):
-        from dataflow.cli import _ros as ros_args
+    from dataflow.cli import _ros as ros_args
 
-        return ros_args.call(args, values)
-    from dataflow.transports.ros2 import call_service
-
-    if not args.type:
-        raise ValueError("a ROS 2 service needs --type pkg/srv/Type (ROS 2 cannot be asked it)")
-    service = args.operation.partition(":")[2]
-    return jsonable(call_service(service, values[0] if values else {}, type_name=args.type, timeout=args.timeout))
+    return jsonable(ros_args.call(args, _arguments(args)))

@@ -1,20 +1,17 @@
 """``scart run FILE``: run a composite until Ctrl-C or SIGTERM.
 
-It fills a :class:`scart.Settings` (``--ns``, else ``SCART_NS``; ``serve=True``) and runs
-the composite with it. When the composite has ``implementation.task`` components, the
-data-flow extension then serves them over gRPC once every component has started, so
-``scart ls``/``describe``/``echo`` see them: with the name service embedded at ``--ns
-HOST:PORT`` (else ``SCART_NS``, else the default 127.0.0.1:7850), or — when a name
-service already answers there — registered with that one. Every component service is
-served on one ``binding.grpc`` endpoint (``--services``), registered with that same name
-service (embedded there when the composite has no tasks and none answers), so ``scart
-services`` and ``scart call Component/Service.op`` find it by name.
+It fills a :class:`scart.Settings` from its options (every extension adds its own and
+makes its own settings from them, through its :class:`~scart.spi.LaunchProvider`) and
+runs the composite with it. Every component service is served on one ``binding.grpc``
+endpoint (``--services``); then each launch provider may serve more beside the running
+composite (:meth:`~scart.spi.LaunchProvider.launch`), for example register that endpoint
+in a name service, so that ``scart services`` and ``scart call Component/Service.op``
+find it by name.
 
 What scart itself says goes to stderr, as ROS's logs do (the start summary, a line per
-thing served: ``scart: dataflow server at HOST:PORT (N task(s))``, ``scart: name service
-at HOST:PORT (embedded|joined)``, ``scart: SCA services at ...``; ``started``, ``stopping``,
-``stopped``); stdout carries only what the components print (held back until the whole
-start succeeded: no URL of a demo that then fails).
+thing served: ``scart: WHAT at WHERE``, ``scart: SCA services at ...``; ``started``,
+``stopping``, ``stopped``); stdout carries only what the components print (held back
+until the whole start succeeded: no URL of a demo that then fails).
 
 ``scart run --dry-run`` loads and checks exactly as ``run`` does (the checks ``scart
 validate`` makes) and starts nothing. Warnings (``path:line: warning: ...``) fail neither.
@@ -47,12 +44,12 @@ import time
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
-from dataflow import DataflowError
-from scart.commands._composite import TASK_KIND, add_launch_options, assemble_or_say, endpoint_text, settings_of
+from scart.commands._composite import add_launch_options, assemble_or_say, endpoint_text, run_names, settings_of
 from scart.errors import ScartError
-from scart.graph import Assembly
+from scart.assembled import Assembly
 from scart.model import SCART_NS, Binding, Location
-from scart.settings import Remap, Settings
+from scart.settings import Settings
+from scart.spi import LaunchContext, Launched
 
 if TYPE_CHECKING:
     from scart.runtime import Runtime
@@ -72,12 +69,11 @@ def _seconds(text: str) -> float:
 
 
 def add_arguments(run: argparse.ArgumentParser) -> None:
-    """The composite, the launch options, where to serve, and the server's security options."""
-    from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
-    from dataflow.remote.security import add_arguments as add_security
+    """The composite, the launch options (the extensions' among them), where to serve, and
+    the server's security options."""
+    from scart_wire.security import add_arguments as add_security
 
     run.add_argument("file", help="the .composite file (or a contribution folder with one deployable)")
-    add_launch_options(run)
     run.add_argument("--workers", type=int, default=8, help="size of the one-way worker pool (default 8)")
     run.add_argument("--stop-timeout", type=float, default=10.0, metavar="SECONDS",
                      help="on stop, how long one-way calls may still run before they are left behind "
@@ -85,27 +81,15 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
     run.add_argument("--start-timeout", type=_seconds, default=START_TIMEOUT, metavar="SECONDS",
                      help="how long starting may take: then the start fails, naming the component and the hook "
                           f"(@init, start_hook...) still running (default {START_TIMEOUT:g})")
-    run.add_argument("--ns", default=None, metavar="HOST:PORT",
-                     help="name service of data-flow tasks and SCA services: where the embedded one listens, or "
-                          f"the running one to join (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
     run.add_argument("--services", default=SERVICES_DEFAULT, metavar="HOST:PORT",
                      help="serve every component service here (binding.grpc, the server's TLS and tokens), "
                           "registered with the name service for `scart services` and `scart call`; default "
                           f"{SERVICES_DEFAULT} (loopback, a free port); 'off' to serve none")
-    run.add_argument("--foxglove", default=None, metavar="[HOST:]PORT",
-                     help="also serve the data-flow tasks live to the Foxglove app here (as `scart foxglove`: "
-                          "ports, properties, operations; 0: a free port; a routable HOST needs --insecure); "
-                          "read-only unless --foxglove-control")
-    run.add_argument("--foxglove-control", nargs="?", const="", default=None, metavar="TOKEN_FILE",
-                     help="make --foxglove writable (set properties, call operations), acting with the 'operate' "
-                          "token in TOKEN_FILE (needed when the runtime checks tokens; never the runtime's own)")
     run.add_argument("--dry-run", action="store_true",
-                     help="load and check the composite exactly as run would (settings, --set, --remap), print "
-                          "what would run, and start nothing")
+                     help="load and check the composite exactly as run would (settings, --set, the extensions' "
+                          "options), print what would run, and start nothing")
+    add_launch_options(run, "run")
     add_security(run, server=True)
-    from dataflow.cli import _ros as ros_args
-
-    ros_args.add_arguments(run)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -126,23 +110,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     stop = threading.Event()
     previous = _handle_signals(stop)
     try:
-        settings = settings_of(args, serve=True)
+        settings = settings_of(args, "run")
         if settings is None:
             return 2
         assembly = assemble_or_say(args.file, args.overrides, settings, contributions=args.contributions)
         if assembly is None:
             return 2
         if getattr(args, "dry_run", False):
-            say(summary(assembly, {}, settings.remap))
+            say(summary(assembly, {}, run_names(assembly, settings)))
             say(f"scart: dry run: {len(assembly.nodes)} component(s) would start; nothing started")
             return 0
-        from dataflow.cli import _ros as ros_args
-
-        try:
-            ros_args.apply(args)
-        except (DataflowError, ValueError) as exc:
-            say(f"scart: start failed: {exc}")
-            return 1
         runtime = Runtime(assembly, settings=settings, max_workers=args.workers, drain_timeout=args.stop_timeout)
         # What components print while starting (e.g. the youBot monitor's URL) is held back
         # and shown only once the whole start succeeded: no URL of a demo that then fails.
@@ -191,67 +168,68 @@ def _handle_signals(stop: threading.Event) -> dict[int, Any]:
 
 
 class _Extras:
-    """What ``scart run`` serves beside the runtime: the services endpoint, its entry in the
-    name service, the Foxglove server. :meth:`stop` undoes what :meth:`start` did (the
-    endpoint itself stops with the runtime, see :func:`_stop_listening`)."""
+    """What ``scart run`` serves beside the runtime: the services endpoint, then what each
+    launch provider serves (:meth:`scart.spi.LaunchProvider.launch`). :meth:`stop` undoes
+    what :meth:`start` did, in reverse (the endpoint itself stops with the runtime, see
+    :func:`_stop_listening`)."""
 
     def __init__(self, runtime: Runtime, settings: Settings) -> None:
         self.runtime, self.settings = runtime, settings
         self.services: list[Any] = []
-        self.foxglove: Any = None
-        self.announcement: Any = None
+        self.launched: list[Launched] = []
 
     def start(self, args: argparse.Namespace) -> str:
-        """Serve, register, start Foxglove; what failed ("" when all started)."""
-        from scart.commands._announce import Announcement
-
+        """Serve the services, then each provider's; what failed ("" when all started)."""
         try:
             self.services = _serve_services(self.runtime, args.services)
         except ScartError as exc:
             return f"--services {args.services}: {exc}"
-        if self.services:
-            self.announcement = Announcement(self.runtime, self.settings, self.services[0].address)
-            self.announcement.start()
-        if args.foxglove is not None:
+        context = LaunchContext(self.settings, self.runtime.served(),
+                                self.services[0].address if self.services else None)
+        for provider in self.runtime.assembly.registry.launch_providers():
             try:
-                self.foxglove = _serve_foxglove(self.runtime, args.foxglove, self.settings, args.foxglove_control)
-            except Exception as exc:  # noqa: BLE001 - bad address, port taken, no tasks: said, all stopped
-                return f"--foxglove {args.foxglove}: {exc}"
+                launched = provider.launch(context)
+                if launched is not None:
+                    launched.start()  # a provider that raises has undone its own start
+                    self.launched.append(launched)
+            except Exception as exc:  # noqa: BLE001 - a bad option, a port taken: said, all stopped
+                return str(exc) if isinstance(exc, ScartError) else f"{provider.name}: {type(exc).__name__}: {exc}"
         return ""
 
     def stop(self) -> None:
-        """Stop Foxglove, take the services out of the name service."""
-        if self.foxglove is not None:
-            self.foxglove.stop()
-        if self.announcement is not None:
-            self.announcement.stop()
+        """Stop what the providers serve, in reverse."""
+        for launched in reversed(self.launched):
+            launched.stop()
+        self.launched = []
 
 
 def _say_started(assembly: Assembly, runtime: Runtime, settings: Settings, extras: _Extras) -> None:
     """The start summary and a line per thing served (stderr)."""
-    say(summary(assembly, runtime.addresses(), settings.remap))
+    say(summary(assembly, runtime.addresses(), run_names(assembly, settings)))
     if extras.services:
-        say(_services_line(extras.services, extras.announcement))
-    if extras.foxglove is not None:
-        say(f"scart: Foxglove at {extras.foxglove.url} ({extras.foxglove.channels} channel(s), "
-            f"{'writable' if extras.foxglove.writable else 'read-only'})")
+        how = next((o for o in (x.services_option() for x in extras.launched) if o is not None), None)
+        say(_services_line(extras.services, how))
+    for launched in extras.launched:
+        for what, where in launched.addresses().items():
+            say(f"scart: {what} at {where}")
     for what, where in runtime.served().items():
         say(f"scart: {what} at {where}")
-    if extras.announcement is not None and extras.announcement.note:
-        say(f"scart: {extras.announcement.note}")
+    for launched in extras.launched:
+        for note in launched.notes():
+            say(f"scart: {note}")
     say(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop")
 
 
-def _services_line(services: list[Any], announcement: Any) -> str:
+def _services_line(services: list[Any], how: str | None) -> str:
     """Where the services are, and a call to paste (a promoted service's first operation if
-    any): by name when the name service has them, else with ``--at``."""
+    any): by name when a launch provider lists them (``how``: the options that find them),
+    else with ``--at``."""
     where = services[0].address
     first = max(services, key=lambda b: len(b.names) > 2)  # one the composite promotes, when there is one
     name = first.names[-1] if len(first.names) > 2 else first.names[0]
     ops = list(first.endpoint.interface.operations)
     target = f"{name}.{ops[0] if ops else 'op'}"
-    if announcement is not None and announcement.registered:
-        how = announcement.ns_option
+    if how is not None:
         return (f"scart: SCA services at {where} (list them: scart services{how}; "
                 f"call one: scart call{how} {target} ARGS...)")
     return (f"scart: SCA services at {where} (list them: scart services --at {where}; "
@@ -281,41 +259,6 @@ def _serve_services(runtime: Runtime, address: str) -> list[Any]:
             binding.stop()
         raise
     return started
-
-
-def _serve_foxglove(runtime: Runtime, spec: str, settings: Settings, control: str | None = None) -> Any:
-    """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service
-    ``runtime`` serves or joined: read-only (on this process's credentials), or with
-    ``control`` (``--foxglove-control [TOKEN_FILE]``) writable, acting with that file's
-    token (see :func:`dataflow.cli.foxglove.control_token`). Raises when the composite
-    serves no tasks, the control token is refused or the server cannot start."""
-    import dataclasses
-
-    host, _, port = spec.rpartition(":")
-    host = host.strip("[]") or "127.0.0.1"
-    if not port.isdigit() or int(port) > 65535:
-        raise ValueError("expected [HOST:]PORT with PORT in 0..65535")
-    where = runtime.served().get("name service")
-    if where is None:
-        raise ScartError("this composite serves no data-flow tasks to show")
-    from dataflow.cli.foxglove import FoxgloveLive, control_token
-    from dataflow.remote import connect
-
-    writer = None
-    if control is not None:
-        token = control_token(control or None, settings.security, "--foxglove-control")
-        writer = connect(where.split()[0], security=dataclasses.replace(settings.security, token=token))
-    system = connect(where.split()[0], security=settings.security)
-    try:
-        live = FoxgloveLive(system, host, int(port), insecure_host=settings.security.insecure, owns_system=True,
-                            control=writer)
-    except BaseException:
-        system.close()
-        if writer is not None:
-            writer.close()
-        raise
-    live.start()  # its stop (also when start raises) closes the clients
-    return live
 
 
 def _start(runtime: Runtime, announced: io.StringIO, stop: threading.Event, timeout: float) -> str | None:
@@ -375,14 +318,15 @@ def _stop_listening(runtime: Runtime, services: list[Any] | None = None, limit: 
         stopper.join(0.2)
 
 
-def summary(assembly: Assembly, addresses: dict[str, str | None], remap: Remap | None = None) -> str:
-    """A short text of what runs: components, their wires, promoted services, bound addresses."""
+def summary(assembly: Assembly, addresses: dict[str, str | None], names: dict[str, str] | None = None) -> str:
+    """A short text of what runs: components (and the name one runs under when an extension
+    renames it: ``names``), their wires, promoted services, bound addresses."""
     c = assembly.composite
     lines = [f"scart: composite {c.name} ({assembly.contribution.display(c.loc.path)})"]
     for path, node in assembly.nodes.items():
         impl = node.model.implementation
         what = (impl.attributes.get("class") or "") if impl else ""
-        runs_as = remap.component(path) if remap and node.kind == TASK_KIND else path
+        runs_as = (names or {}).get(path, path)
         renamed = f" (runs as {runs_as})" if runs_as != path else ""
         lines.append(f"  component {path}{renamed} [{node.kind} {what}] services: {', '.join(node.ctype.services) or '-'}")
         for ref, eps in node.references.items():

@@ -13,16 +13,15 @@ HELP = "check composites without running them (offline)"
 
 
 def add_arguments(validate: argparse.ArgumentParser) -> None:
-    """The files, the launch options, ``--online`` with its name service and credentials."""
-    from dataflow.remote.defaults import DEFAULT_NS_ADDRESS, NS_ENV
-    from dataflow.remote.security import add_arguments as add_security
+    """The files, the launch options (the extensions' among them), ``--online`` and its
+    credentials."""
+    from scart_wire.security import add_arguments as add_security
 
     validate.add_argument("files", nargs="+", help=".composite files (or contribution folders)")
-    add_launch_options(validate)
     validate.add_argument("--online", action="store_true",
-                          help="also check remote data-flow tasks against the running name service")
-    validate.add_argument("--ns", default=None, metavar="HOST:PORT",
-                          help=f"name service for --online (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
+                          help="also let the extensions' checks ask the running services a composite names "
+                               "(remote data-flow tasks in their name service)")
+    add_launch_options(validate, "validate")
     add_security(validate, server=False)
 
 
@@ -33,7 +32,7 @@ def main(args: argparse.Namespace) -> int:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     """Check each file; print "ok" lines or every problem; 0 if all valid, else 2."""
-    settings = settings_of(args, online=args.online)
+    settings = settings_of(args, "validate", online=args.online)
     if settings is None:
         return 2
     failed = 0

@@ -1,4 +1,4 @@
-"""The one Value codec (dataflow.codec): every value round-trips with its type, None and
+"""The one Value codec (scart_wire.codec): every value round-trips with its type, None and
 unregistered values have their own names, unknown names decode to mappings, bad bytes
 are a PortTypeError naming the type, and a port-typed encode uses the port's type."""
 
@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from pydantic import BaseModel
 
 from dataflow import PortTypeError, UnknownValue, register_type
-from dataflow.codec import FLOAT_LIST, JSON_TYPE, NONE_TYPE, Value, decode, encode
+from scart_wire.codec import FLOAT_LIST, JSON_TYPE, NONE_TYPE, Value, decode, encode
 
 
 class Pose(BaseModel):

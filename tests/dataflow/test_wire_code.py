@@ -15,7 +15,7 @@ from packaging.requirements import Requirement
 from packaging.version import Version
 
 from dataflow import Deployer
-from dataflow.proto import _generate
+from scart_wire.proto import _generate
 from dataflow.remote import _proto, serve_nameserver
 from support import ROOT
 from support.remote import Pinger
@@ -34,7 +34,7 @@ def _lower(req: Requirement) -> Version | None:
 
 def test_committed_wire_code_is_what_protoc_makes() -> None:
     stale = _generate.stale()
-    assert not stale, f"regenerate with `python -m dataflow.proto._generate`: {stale}"
+    assert not stale, f"regenerate with `python -m scart_wire.proto._generate`: {stale}"
 
 
 def test_freshness_check_sees_an_edit(tmp_path: Path) -> None:
@@ -42,7 +42,7 @@ def test_freshness_check_sees_an_edit(tmp_path: Path) -> None:
     import shutil
 
     copy = tmp_path / "proto"
-    shutil.copytree(_generate.ROOT, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(_generate.SOURCE, copy, ignore=shutil.ignore_patterns("__pycache__"))
     assert _generate.stale(copy) == []
     value = copy / "scart/dataflow/v1/value.proto"
     value.write_text(value.read_text().replace("bytes data = 2;", "bytes data = 2;\n  string unit = 3;"))
@@ -51,14 +51,14 @@ def test_freshness_check_sees_an_edit(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("proto", _generate.proto_files())
 def test_every_proto_file_is_buf_style(proto: str) -> None:
-    text = (_generate.ROOT / proto).read_text()
+    text = (_generate.SOURCE / proto).read_text()
     package = re.search(r"^package ([\w.]+);", text, re.M)[1]
     assert package.startswith("scart.") and package.endswith(".v1")
     assert proto.startswith(package.replace(".", "/") + "/"), "buf style: directory matches package"
 
 
 def test_sca_imports_only_the_value_message() -> None:
-    from dataflow.proto.scart.sca.v1 import sca_pb2
+    from scart_wire.proto.scart.sca.v1 import sca_pb2
 
     assert [d.name for d in sca_pb2.DESCRIPTOR.dependencies] == ["scart/dataflow/v1/value.proto"]
 
@@ -141,10 +141,10 @@ def test_registered_services_match_proto_descriptors() -> None:
 def test_every_servicer_answers_every_method_of_its_service() -> None:
     """Servicers subclass the generated bases (which answer UNIMPLEMENTED): each must
     override every method of its proto service."""
-    from dataflow.proto.scart.sca.v1 import sca_pb2, sca_pb2_grpc
+    from scart_wire.proto.scart.sca.v1 import sca_pb2, sca_pb2_grpc
     from dataflow.remote._servicer import DeployerServicer
     from dataflow.remote.naming import NamingServicer
-    from scart.ext.grpc._server import _Servicer
+    from scart.bindings.grpc._server import _Servicer
 
     cases = [(DeployerServicer, _proto.df_grpc.DeployerServiceServicer, _proto.DEPLOYER_SERVICE),
              (NamingServicer, _proto.ns_grpc.NamingServiceServicer, _proto.NAMING_SERVICE)]

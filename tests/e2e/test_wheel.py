@@ -78,7 +78,7 @@ def venv(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Venv]:
 
 
 def test_the_wheel_is_installed_not_the_checkout(venv: Venv) -> None:
-    out = venv.python("import scart, dataflow.remote, dataflow.proto; print(scart.__file__, dataflow.proto.__file__)")
+    out = venv.python("import scart, dataflow.remote, scart_wire.proto; print(scart.__file__, scart_wire.proto.__file__)")
     assert out.returncode == 0, out.stderr
     assert str(venv.root) in out.stdout and str(ROOT) not in out.stdout
 

@@ -7,8 +7,10 @@ import threading
 from pathlib import Path
 
 import pytest
+from pydantic import BaseModel, ConfigDict
 
 import scart
+from scart.bindings.dataflow import DataflowSettings
 from support import ROOT
 from support.sca import OSOA, composite, py, write
 
@@ -379,21 +381,44 @@ def test_components_read_the_runtimes_settings_through_their_context(tmp_path: P
     """Settings travel in an object given to the runtime, never a module global: two
     runtimes in one process each see their own."""
     path = write(tmp_path, {"c.composite": composite(f'<component name="T">{py("Tracker")}</component>')})
-    with scart.Runtime.from_file(str(path), settings=scart.Settings(ns="127.0.0.1:7001")) as one, \
-            scart.Runtime.from_file(str(path), settings=scart.Settings(ns="127.0.0.1:7002", timeout=0.5)) as two:
-        assert one._managers["T"].instance().ctx.settings.ns_address == "127.0.0.1:7001"
+    with scart.Runtime.from_file(str(path), settings=scart.Settings(timeout=1.0)) as one, \
+            scart.Runtime.from_file(str(path), settings=scart.Settings(timeout=0.5)) as two:
+        assert one._managers["T"].instance().ctx.settings.timeout == 1.0
         assert two._managers["T"].instance().ctx.settings == two.settings
         assert two.settings.timeout == 0.5
 
 
-@pytest.mark.parametrize("bad", [{"ns": "nohost"}, {"ns": "h:70000"}, {"timeout": float("nan")}, {"timeout": -1.0}])
+@pytest.mark.parametrize("bad", [{"timeout": float("nan")}, {"timeout": -1.0}])
 def test_settings_refuse_bad_values(bad: dict) -> None:
     with pytest.raises(ValueError):
         scart.Settings(**bad)
 
 
-def test_settings_from_env_reads_the_name_service() -> None:
-    assert scart.Settings.from_env({"SCART_NS": " 10.0.0.1:7850 "}).ns == "10.0.0.1:7850"
-    assert scart.Settings.from_env({}).ns_address == "127.0.0.1:7850"
-    assert scart.Settings.from_env({"SCART_NS": "10.0.0.1:7850"}, ns="127.0.0.1:1").ns == "127.0.0.1:1"
+def test_settings_hold_only_what_the_core_reads() -> None:
+    """An extension's settings are its own (``extensions=``); the core's fields are few, and
+    a data-flow field given to the core is refused, saying where it goes."""
+    assert set(scart.Settings.model_fields) == {"online", "timeout", "security", "extensions"}
+    with pytest.raises(ValueError, match=r"ns: not a setting of the SCA core .* extensions=\(\.\.\.\)"):
+        scart.Settings(ns="127.0.0.1:1")
+
+
+class _Own(BaseModel):
+    model_config = ConfigDict(frozen=True)
+    level: int = 1
+
+
+def test_an_extensions_settings_travel_in_the_core_settings() -> None:
+    settings = scart.Settings().with_extension(_Own(level=3))
+    assert settings.extension(_Own).level == 3 and scart.Settings().extension(_Own) == _Own()
+    assert settings.with_extension(_Own(level=4)).extension(_Own).level == 4  # one value per type
+    with pytest.raises(ValueError, match="at most one value of each type"):
+        scart.Settings(extensions=(_Own(), _Own(level=2)))
+
+
+def test_settings_from_env_reads_each_extensions_own() -> None:
+    registry = scart.ExtensionRegistry()
+    assert registry.settings_from_env({"SCART_NS": " 10.0.0.1:7850 "}).extension(DataflowSettings).ns == "10.0.0.1:7850"
+    assert registry.settings_from_env({}).extension(DataflowSettings).ns_address == "127.0.0.1:7850"
+    with pytest.raises(scart.ScartError, match=r"\$SCART_NS: name service 'x': expected"):
+        registry.settings_from_env({"SCART_NS": "x"})
 

@@ -13,7 +13,7 @@ from scart.api import component_type, interface_info
 from scart.values import parse_value
 
 EXPECTED = {
-    "ComponentContext", "ExtensionError", "ExtensionRegistry", "InvocationError", "NoCallbackError", "Problem", "Remap",
+    "ComponentContext", "ExtensionError", "ExtensionRegistry", "InvocationError", "NoCallbackError", "Problem",
     "RemoteError", "Runtime",
     "RuntimeState", "RuntimeStateError", "ScartError", "ScdlError", "ServiceNotFoundError", "ServiceProxy",
     "ServiceUnavailableError", "Settings",

@@ -18,9 +18,9 @@ from dataflow import Deployer, WriteStatus
 from dataflow.remote import (
     AuthenticationError, PermissionDeniedError, Security, SecurityError, connect, serve_nameserver,
 )
-from dataflow.remote._rpc import health_ok
+from scart_wire.rpc import health_ok
 from dataflow.remote.errors import TlsMismatchError
-from dataflow.remote.security import AuthTable, Role
+from scart_wire.security import AuthTable, Role
 from support import ROOT
 from support.certs import Authority, Pem
 from support.remote import Pinger

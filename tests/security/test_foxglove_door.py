@@ -27,7 +27,7 @@ import pytest
 from dataflow import Deployer, PeriodicActivity
 from dataflow.cli.foxglove import MAX_PARAMETER_NAMES, FoxgloveLive, control_token
 from dataflow.remote import connect
-from dataflow.remote.security import Security
+from scart_wire.security import Security
 from support import ROOT
 from support.cli import finish, read_until
 from support.users import run_as, second_user

@@ -144,9 +144,9 @@ def test_numbers_are_finite_wherever_they_sit_in_a_value(bad: float) -> None:
 
 
 def test_binding_grpc_arguments_are_checked_as_values_from_outside() -> None:
-    from dataflow import codec
+    from scart_wire import codec
     from scart.errors import InvocationError
-    from scart.ext.grpc._wire import Signature
+    from scart.bindings.grpc._wire import Signature
 
     class Arm:
         def move(self, v: Annotated[float, pydantic.Field(ge=0.0, le=1.0)], w: float) -> None: ...

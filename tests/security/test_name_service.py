@@ -14,9 +14,9 @@ from dataflow import Deployer, NotFoundError
 from dataflow.remote import AlreadyRegisteredError, RemoteError, connect, serve_nameserver
 from dataflow.remote._proto import ns as pb
 from dataflow.remote._proto import ns_grpc
-from dataflow.remote import _rpc
+from scart_wire import rpc
 from dataflow.remote.naming import Limits, NameClient, NameRegistry
-from dataflow.remote.security import Security
+from scart_wire.security import Security
 from support.remote import Pinger
 
 
@@ -167,7 +167,7 @@ def test_a_silent_holder_keeps_its_names_and_claims_cannot_starve_the_server() -
         for thread in threads:
             thread.start()
         for _ in range(10):  # while they run: health and lookups answer
-            assert _rpc.health_ok(server.address, timeout=2.0)
+            assert rpc.health_ok(server.address, timeout=2.0)
             assert names.resolve("p").address == server.address
         for thread in threads:
             thread.join(timeout=30)

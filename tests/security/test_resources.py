@@ -12,7 +12,7 @@ import grpc
 import pytest
 
 from dataflow import Deployer, OutputPort
-from dataflow.remote import _rpc
+from scart_wire import rpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
 from dataflow.remote.naming import NameClient
@@ -28,7 +28,7 @@ def _silent(stop: threading.Event) -> Iterator[object]:
 
 
 def test_idle_streams_cannot_starve_health_and_lookups(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(_rpc, "FIRST_MESSAGE_S", 1.0)
+    monkeypatch.setattr(rpc, "FIRST_MESSAGE_S", 1.0)
     deployer = Deployer()
     deployer.add(Pinger("p"))
     server = deployer.serve("127.0.0.1:0", max_workers=16)  # 8 streams at most, 8 workers kept
@@ -43,7 +43,7 @@ def test_idle_streams_cannot_starve_health_and_lookups(monkeypatch: pytest.Monke
                    timeout=10, message="streams beyond the budget were not refused")
         for _ in range(20):  # health and lookups still answer, promptly, while 8 streams sit idle
             start = time.monotonic()
-            assert _rpc.health_ok(server.address, timeout=1.0)
+            assert rpc.health_ok(server.address, timeout=1.0)
             assert names.resolve("p").address == server.address
             assert time.monotonic() - start < 0.5
         # a stream that never sends its first message is cancelled: the idle ones go
@@ -61,7 +61,7 @@ def test_idle_streams_cannot_starve_health_and_lookups(monkeypatch: pytest.Monke
 
 
 def test_one_peer_cannot_take_every_stream() -> None:
-    budget = _rpc.StreamBudget(total=8, per_peer=6)
+    budget = rpc.StreamBudget(total=8, per_peer=6)
     assert [budget._take("a") for _ in range(6)] == [None] * 6
     assert budget._take("a") == "at most 6 streams from one peer"
     assert budget._take("b") is None and budget._take("b") is None
@@ -206,7 +206,7 @@ def test_with_tokens_a_caller_is_its_token_not_its_connections(tmp_path) -> None
     as one peer however many connections it opens (on loopback, connections are free)."""
     from grpc_health.v1 import health_pb2, health_pb2_grpc
 
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
     tokens = {"read": "read-" + "a" * 24, "other": "read-" + "b" * 24}
     auth = tmp_path / "tokens.auth"

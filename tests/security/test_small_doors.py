@@ -17,7 +17,7 @@ import pytest
 import scart
 from dataflow import Deployer
 from dataflow.remote import connect, errors
-from dataflow.remote.security import AuthTable, Security, SecurityError
+from scart_wire.security import AuthTable, Security, SecurityError
 from support import ROOT
 from support.certs import Authority
 from support.grpc_binding import gpy, grpc_reference, grpc_service, instance, provider_and_client
@@ -52,7 +52,7 @@ def test_a_fault_carries_a_code_and_a_reference_never_the_traceback(tmp_path: Pa
         return f'<component name="C">{gpy("GeometryClient")}<reference name="geo">' \
                f'{grpc_reference(address, "G/Geometry")}</reference></component>'
 
-    with caplog.at_level(logging.INFO, logger="scart.ext.grpc"):
+    with caplog.at_level(logging.INFO, logger="scart.bindings.grpc"):
         with provider_and_client(tmp_path, provider, client) as (_, rt):
             with pytest.raises(scart.RemoteError) as info:
                 instance(rt, "C").geo.fail("no")

@@ -21,7 +21,7 @@ import pytest
 
 from dataflow import Deployer
 from dataflow.remote import errors
-from dataflow.remote.security import AuthTable, Security
+from scart_wire.security import AuthTable, Security
 from support import wait_until
 from support.remote import Pinger
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import scart
-from scart.ext.grpc._binding import GrpcServiceBinding
+from scart.bindings.grpc._binding import GrpcServiceBinding
 from support.sca import composite, py, write
 
 GCOMPONENTS = '''

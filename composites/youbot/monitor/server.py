@@ -73,7 +73,7 @@ from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any, Protocol, runtime_checkable
 
-from dataflow.remote.security import is_loopback
+from scart_wire.security import is_loopback
 
 from .connections import Connections
 from .hub import StatusHub

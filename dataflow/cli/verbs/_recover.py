@@ -67,7 +67,7 @@ def _write_copy(target: str, overwrite: bool, head: list[Any], records: Any) -> 
 
     fd = open_output(target, overwrite)
     try:
-        writer = Writer(Sink(fd))  # type: ignore[arg-type] - a stream: write, tell, flush
+        writer = Writer(Sink(fd))  # type: ignore[arg-type]  # mcap wants an IO; a Sink has what it uses: write, tell, flush
         writer.start(profile="", library="scart")
         copied, stopped = _copy(writer, head, records)
         writer.finish()

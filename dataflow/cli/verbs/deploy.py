@@ -24,13 +24,14 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from typing import Any
 
 from dataflow.cli import _ros as ros_args
 from dataflow.cli import _zenoh as zenoh_args
-from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
-from dataflow.remote.security import add_arguments as add_arguments_security
-from dataflow.remote.security import from_args
+from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
+from scart_wire.security import add_arguments as add_arguments_security
+from scart_wire.security import from_args
 
 
 HELP = "host data-flow tasks in a served Deployer until Ctrl-C"
@@ -111,7 +112,8 @@ def _make_tasks(args: argparse.Namespace) -> list[Any]:
         if not (isinstance(cls, type) and issubclass(cls, TaskContext)):
             raise ValueError(f"{spec} is not a TaskContext subclass")
         name = name or args.name
-        task = cls(name) if name else (cls() if _has_default_name(cls) else cls(cls.__name__))
+        make: Callable[..., TaskContext] = cls  # with no name only when it has a default one
+        task = make(name) if name else (make() if _has_default_name(cls) else make(cls.__name__))
         if args.period is not None and not task.set_activity(PeriodicActivity(args.period)):
             raise ValueError(f"{task.name}: refused a periodic activity of {args.period} s")
         tasks.append(task)

@@ -9,8 +9,8 @@ import sys
 import threading
 from typing import Any
 
-from dataflow.remote.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS
-from dataflow.remote.security import add_arguments as add_security
+from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS
+from scart_wire.security import add_arguments as add_security
 
 HELP = "run a standalone name service until Ctrl-C"
 
@@ -26,7 +26,7 @@ def main(args: argparse.Namespace) -> int:
     """Serve until SIGINT/SIGTERM; 1 when it cannot listen."""
     from dataflow import DataflowError
     from dataflow.remote.naming import serve_nameserver
-    from dataflow.remote.security import from_args
+    from scart_wire.security import from_args
 
     stop = threading.Event()
 

@@ -153,7 +153,7 @@ class Recording:
         self.counts = {f"{t}.{p}": 0 for t, p, _ in ports}
         self._limit = limit
         self._sink = Sink(fd)
-        self._writer = Writer(self._sink)  # type: ignore[arg-type] - a stream: write, tell, flush
+        self._writer = Writer(self._sink)  # type: ignore[arg-type]  # mcap wants an IO; a Sink has what it uses: write, tell, flush
         self._samples: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._total, self._first, self._last = 0, 0.0, 0.0
         self._writer.start(profile="", library="scart")

@@ -20,7 +20,8 @@ from collections import deque
 from collections.abc import Iterator
 from typing import Any
 
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from dataflow.remote._convert import policy_to_msg
 from dataflow.transports import Peer, Transport, frames
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 from dataflow.transports.ipc import LinkRefused, link_hello
@@ -74,7 +75,7 @@ class GrpcTransport(Transport):
         return True
 
     def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
-        request = pb.SubscribeRequest(task=peer.task, port=peer.port, policy=peer.policy_msg,
+        request = pb.SubscribeRequest(task=peer.task, port=peer.port, policy=policy_to_msg(peer.policy),
                                       heartbeat_ms=int(peer.heartbeat * 1000))
         call = peer.stub.Subscribe(request)
         end.transport = self.name

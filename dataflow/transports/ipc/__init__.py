@@ -28,7 +28,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from dataflow.policy import ConnPolicy
 from dataflow.transports import Peer, Transport, TransportError, frames
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 from dataflow.transports.ipc._hub import Conn, Hub
@@ -55,7 +56,7 @@ class IpcTransport(Transport):
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         hello = link_hello(end, peer)
-        request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=policy_msg(end),
+        request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=policy_msg(end.policy),
                                           host_id=host_id(), hello=hello)
         opened = _open(lambda: peer.stub.OpenIpcWriter(request, timeout=peer.timeout), end.policy.transport, peer)
         if opened is None:
@@ -78,7 +79,7 @@ class IpcTransport(Transport):
         return True
 
     def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
-        request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=peer.policy_msg, host_id=host_id(),
+        request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=policy_msg(peer.policy), host_id=host_id(),
                                           heartbeat_ms=int(peer.heartbeat * 1000))
         opened = _open(lambda: peer.stub.OpenIpcReader(request, timeout=peer.timeout), peer.transport, peer)
         if opened is None:
@@ -96,16 +97,16 @@ class IpcTransport(Transport):
         return True
 
 
-def policy_msg(end: WriterEnd) -> Any:
-    """``end``'s policy as the wire's message."""
+def policy_msg(policy: ConnPolicy) -> Any:
+    """``policy`` as the wire's message."""
     from dataflow.remote._convert import policy_to_msg
 
-    return policy_to_msg(end.policy)
+    return policy_to_msg(policy)
 
 
 def link_hello(end: WriterEnd, peer: Peer) -> Any:
     """What a link's reader end is told when its channel opens."""
-    return pb.LinkHello(task=peer.task, port=peer.port, policy=policy_msg(end), channel=peer.channel,
+    return pb.LinkHello(task=peer.task, port=peer.port, policy=policy_msg(end.policy), channel=peer.channel,
                         after=end.peer_last or end.start, boot_id=peer.boot_id, source=end.port.qualname,
                         type_name=end.port.type_name, name=peer.name, source_ns=peer.source_ns)
 
@@ -123,9 +124,9 @@ def _open(ask: Callable[[], Any], transport: str, peer: Peer) -> tuple[socket.so
         try:
             reply = ask()
         except grpc.RpcError as exc:
-            if exc.code().name not in REFUSED:  # type: ignore[attr-defined]
+            if exc.code().name not in REFUSED:
                 raise
-            raise IpcUnavailable(exc.details() or exc.code().name) from None  # type: ignore[attr-defined]
+            raise IpcUnavailable(exc.details() or exc.code().name) from None
         return connect(reply.ticket.socket, reply.ticket.secret, peer.timeout, peer.cancelled)
     except IpcUnavailable as exc:
         if transport == "ipc":

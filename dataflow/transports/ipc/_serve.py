@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from dataflow.policy import ConnPolicy
-from dataflow.proto.scart.dataflow.v1 import dataflow_pb2 as pb
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import frames
 from dataflow.transports.ipc._hub import Conn, Hub
 from dataflow.transports.sinks import LINGER_S, IncomingLink, Refused, Sinks

@@ -30,7 +30,7 @@ import time
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pydantic
 
@@ -43,12 +43,27 @@ from .node import Node
 from .services import ServiceError, ServiceServer
 from .tcpros import HeaderError, encode_header, read_header
 
+if TYPE_CHECKING:
+    from .transport import Ros1Transport
+
 __all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "serve", "serve_operation",
            "service_type"]
 
 log = logging.getLogger(__name__)
 
 _EMPTY = inspect.Parameter.empty
+
+
+def ros1_transport() -> Ros1Transport:
+    """The process's ``ros1`` transport (the owner of its one node and message types).
+    Raises :class:`TransportError` when the registered ``ros1`` plug-in is another one."""
+    from .transport import Ros1Transport
+
+    transport = load("ros1")
+    if not isinstance(transport, Ros1Transport):
+        raise TransportError(f"the registered 'ros1' transport is {type(transport).__qualname__}, "
+                             "not scart's: its services cannot be served or called")
+    return transport
 
 
 @dataclass(frozen=True)
@@ -174,8 +189,8 @@ class ServedService:
     def __init__(self, service: str, type_name: str, call: Callable[..., Any], params: list[Param],
                  returns: Any, *, converter: str = "", options: dict[str, str] | None = None,
                  label: str = "") -> None:
-        self._transport = load("ros1")
-        types: MessageTypes = self._transport.types  # type: ignore[attr-defined]
+        self._transport = ros1_transport()
+        types: MessageTypes = self._transport.types
         problems = check_service(types, type_name, params, returns, converter)
         if problems:
             raise TransportError(f"ROS service {service} ({type_name}) by {label or 'a callable'}: "
@@ -191,11 +206,11 @@ class ServedService:
             args_of = _request_plan(types, srv, params)[0]
             response_of, convention = _response_plan(types, srv, returns)[:2]
             self._answer = _answering(call, args_of, response_of, srv.response.new if convention else None)
-        self._node = self._transport.acquire(options or {})  # type: ignore[attr-defined]
+        self._node = self._transport.acquire(options or {})
         try:
             self._server: ServiceServer = self._node.advertise_service(service, type_name, self._handle)
         except BaseException:
-            self._transport.release(self._node)  # type: ignore[attr-defined]
+            self._transport.release(self._node)
             raise
         self.name = self._server.name
 
@@ -216,7 +231,7 @@ class ServedService:
             return
         self._closed = True
         self._server.close()
-        self._transport.release(self._node)  # type: ignore[attr-defined]
+        self._transport.release(self._node)
 
 
 def _answering(call: Callable[..., Any], args_of: Callable[[Any], list[Any]], response_of: Callable[[Any], Any],
@@ -332,13 +347,13 @@ class ServiceProxy:
 
     def __init__(self, service: str, type_name: str | None = None, *, returns: type | None = None,
                  options: dict[str, str] | None = None, timeout: float = 5.0) -> None:
-        self._transport = load("ros1")
+        self._transport = ros1_transport()
         self.type_name = type_name
         if type_name is not None:
-            self._transport.types.srv(type_name)  # type: ignore[attr-defined]  # unknown: said now
+            self._transport.types.srv(type_name)  # unknown: said now
         self.returns = returns
         self.timeout = timeout
-        self._node: Node = self._transport.acquire(options or {})  # type: ignore[attr-defined]
+        self._node: Node = self._transport.acquire(options or {})
         self.service = self._node.resolve(service)
         self._closed = False
 
@@ -360,7 +375,7 @@ class ServiceProxy:
     def close(self) -> None:
         if not self._closed:
             self._closed = True
-            self._transport.release(self._node)  # type: ignore[attr-defined]
+            self._transport.release(self._node)
 
     def __enter__(self) -> ServiceProxy:
         return self

@@ -102,7 +102,7 @@ def default_type(py_type: Any) -> str | None:
 
 def type_label(py_type: Any) -> str:
     """A short name of a port type for messages (``float``, ``list[float]``, ``YouBotStatus``)."""
-    return getattr(py_type, "__name__", None) if isinstance(py_type, type) else str(py_type).replace("typing.", "")
+    return py_type.__name__ if isinstance(py_type, type) else str(py_type).replace("typing.", "")
 
 
 def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool, converter: str = "",

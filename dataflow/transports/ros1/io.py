@@ -371,7 +371,7 @@ class FrameReader:
 
     def __init__(self, max_bytes: int, on_frame: Callable[[bytes], None], on_oversized: Callable[[int], None]) -> None:
         self.max_bytes, self.on_frame, self.on_oversized = max_bytes, on_frame, on_oversized
-        self._buf = b""
+        self._buf: bytes | bytearray = b""
         self._skip = 0
 
     def feed(self, data: bytes) -> None:

@@ -95,7 +95,7 @@ def parse_remaps(remaps: Iterable[str] | Mapping[str, str] | None) -> tuple[dict
     elif isinstance(remaps, Mapping):
         pairs = remaps.items()
     else:
-        pairs = [tuple(x.strip() for x in arg.split(":=", 1)) for arg in remaps if ":=" in arg]  # type: ignore[misc]
+        pairs = [(old.strip(), new.strip()) for old, _, new in (arg.partition(":=") for arg in remaps if ":=" in arg)]
     special: dict[str, str] = {}
     names: dict[str, str] = {}
     for src, dst in pairs:

@@ -216,7 +216,8 @@ class Node:
             if self._closed.is_set():
                 return
             self._closed.set()
-            parts = [*self._pubs.values(), *self._subs.values(), *self._srvs.values()]
+            parts: list[Publisher | Subscriber | ServiceServer] = [*self._pubs.values(), *self._subs.values(),
+                                                                   *self._srvs.values()]
         self.control.close(timeout)
         self._registrar.unregister_all(min(1.0, self.master.timeout))
         for part in parts:

@@ -17,7 +17,7 @@ import os
 import socket
 import threading
 import time
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
 from .io import Counters
@@ -137,7 +137,7 @@ class _Handler(SimpleXMLRPCRequestHandler):
     rpc_paths = ("/", "/RPC2")
     counters: Counters  # these three are set per server (a subclass per node)
     max_bytes: int
-    timeout: float  # StreamRequestHandler's per-operation timeout; the deadline bounds the whole
+    timeout: ClassVar[float]  # StreamRequestHandler's per-operation timeout; the deadline bounds the whole
 
     def setup(self) -> None:
         super().setup()

@@ -80,7 +80,8 @@ class Network:
     def config_xml(self) -> str:
         """This configuration as Cyclone DDS XML (what ``CYCLONEDDS_URI`` may hold too)."""
         if self.loopback_only:
-            interface, peers, multicast = '<NetworkInterface address="127.0.0.1"/>', ("127.0.0.1",), False
+            interface, multicast = '<NetworkInterface address="127.0.0.1"/>', False
+            peers: tuple[str, ...] = ("127.0.0.1",)
         else:
             attr = "address" if self.interface and self.interface[0].isdigit() else "name"
             interface = f'<NetworkInterface {attr}="{self.interface}"/>' if self.interface else \

@@ -207,8 +207,9 @@ class Participant:
                 return
             self._closed = True
             endpoints, self._endpoints = self._endpoints, []
-        if getattr(self, "node", None) is not None:
-            self.node.close()  # the node leaves the graph before its endpoints do
+        node = getattr(self, "node", None)
+        if node is not None:
+            node.close()  # the node leaves the graph before its endpoints do
         for endpoint in reversed(endpoints):
             endpoint.close()
         self._dispatcher.close()

@@ -273,8 +273,8 @@ class MessageTypes:
         inner, size = detail
         element = self._member(inner, where)
         if kind == Nodetype.ARRAY:
-            return t.array[element, size]
-        return t.sequence[element, size] if size else t.sequence[element]
+            return t.array[element, size]  # type: ignore[misc]  # cyclonedds: subscripted at run time, untyped
+        return t.sequence[element, size] if size else t.sequence[element]  # type: ignore[misc]  # (as array)
 
     # ----------------------------------------------------------------- conversions
     def to_idl(self, name: str, value: Any) -> IdlStruct:
@@ -384,7 +384,7 @@ def _base_member(detail: tuple[str, int], where: str) -> Any:
     if base in ("float32", "float64"):
         return t.float32 if base == "float32" else t.float64
     if base == "string":
-        return t.bounded_str[bound] if bound else str
+        return t.bounded_str[bound] if bound else str  # type: ignore[misc]  # as array: subscripted at run time
     if base in _INT:
         return _INT[base][2]
     raise ConversionError(f"{where}: ROS 2 type {base!r} is not supported (wstring, wchar, float128)")

@@ -50,7 +50,7 @@ import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from dataflow import codec
+from scart_wire import codec
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
@@ -65,7 +65,7 @@ from dataflow.transports.zenoh._names import PROOF, Prover, ZenohNames, connect_
 from dataflow.transports.zenoh._session import check_endpoint, open_session, zenoh_credentials
 
 if TYPE_CHECKING:
-    from dataflow.remote.security import AuthTable
+    from scart_wire.security import AuthTable
 
 __all__ = ["DEFAULT_NS", "ROOT", "SERVED", "ZenohInput", "ZenohNames", "ZenohPublisher", "ZenohSubscription",
            "ZenohTransport", "check_endpoint", "connect_zenoh", "discover", "key_of", "open_session", "proof_of",

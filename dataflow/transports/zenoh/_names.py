@@ -13,13 +13,13 @@ import secrets
 from typing import TYPE_CHECKING, Any
 from urllib.parse import unquote
 
-from dataflow.remote.security import is_loopback
+from scart_wire.security import is_loopback
 from dataflow.transports.zenoh._keys import _WORD, DEFAULT_NS, MAX_REPLIES, ROOT, SERVED, key_of
 
 if TYPE_CHECKING:
     from dataflow.remote._registry import NameEntry
     from dataflow.remote.client import GrpcSystem
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
 __all__ = ["PROOF", "Prover", "ZenohNames", "connect_zenoh", "discover", "proof_of", "token_id"]
 
@@ -217,7 +217,7 @@ def connect_zenoh(session: Any, ns: str = DEFAULT_NS, timeout: float = 2.0, hear
     a scart name service; calls, subscriptions and links go to the deployers as usual. With
     a token (``security``), only announcements proved for it are used."""
     from dataflow.remote.client import GrpcSystem
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
     security = security if security is not None else Security.from_env()
     return GrpcSystem(f"zenoh:{ns}", timeout=timeout, heartbeat_ms=heartbeat_ms, security=security,

@@ -11,11 +11,11 @@ import tempfile
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
-from dataflow.remote.security import is_loopback
+from scart_wire.security import is_loopback
 from dataflow.transports.zenoh._keys import MAX_PAYLOAD
 
 if TYPE_CHECKING:
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
 __all__ = ["check_endpoint", "open_session", "zenoh_credentials"]
 
@@ -96,14 +96,14 @@ def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecu
 def _admitted(security: Security | None) -> list[tuple[str, str]]:
     """The credentials of the auth file's ``operate`` and ``admin`` tokens (none without
     one). Raises ``ValueError`` for an auth file with neither: no peer could connect."""
-    from dataflow.remote.security import Role
+    from scart_wire.security import Role
 
     table = security.auth_table() if security is not None else None
-    if table is None:
+    if security is None or table is None:
         return []
     admitted = sorted({zenoh_credentials(token.decode()) for token, role in table.entries if role >= Role.OPERATE})
     if not admitted:
-        raise ValueError(f"{security.auth_file}: no operate or admin token, so no Zenoh peer could connect "  # type: ignore[union-attr]
+        raise ValueError(f"{security.auth_file}: no operate or admin token, so no Zenoh peer could connect "
                          "(a Zenoh link both reads and writes)")
     return admitted
 

@@ -13,7 +13,7 @@ import pytest
 from dataflow import (
     ConnPolicy, Deployer, FlowStatus, NotFoundError, PeriodicActivity, PortTypeError, SlaveActivity, WriteStatus,
 )
-from dataflow.codec import Value
+from scart_wire.codec import Value
 from dataflow.remote import RemoteError, connect, local_system
 from dataflow.remote import _proto
 from support import wait_until

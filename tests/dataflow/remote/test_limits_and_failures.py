@@ -16,10 +16,11 @@ import pytest
 
 from dataflow import ConnPolicy, Deployer, OutputPort, SlaveActivity, TaskContext, WriteStatus
 from dataflow.remote import RemoteTimeoutError, RemoteTypeError, UnavailableError, connect, local_system
-from dataflow import codec
+from scart_wire import codec
 from dataflow.remote import _convert as cv
 from dataflow.remote import _proto
-from dataflow.remote import _rpc, _subscription
+from dataflow.remote import _subscription
+from scart_wire import rpc
 from dataflow.remote._proto import DEPLOYER_SERVICE, DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME
 from dataflow.remote._proto import df as pb
 from dataflow.remote.client import GrpcSystem
@@ -78,7 +79,7 @@ def test_buffered_subscription_of_large_samples_loses_nothing_silently() -> None
             assert got == sorted(got)
             # one sample larger than half a message on its own: counted and reported, not sent
             before, delivered = sub.dropped, sub.delivered
-            task.big.write([1.0] * (_rpc.MAX_MESSAGE_BYTES // 8 + 1000))
+            task.big.write([1.0] * (rpc.MAX_MESSAGE_BYTES // 8 + 1000))
             task.big.write([2.0])
             wait_until(lambda: sub.delivered == delivered + 1 and sub.dropped == before + 1, timeout=10)
             assert sub.reconnects == 0 and sub.connected
@@ -191,7 +192,7 @@ def test_local_subscription_survives_observer_exception_and_stamps_on_store() ->
 
 # ---- 5. servers end their worker threads -------------------------------------------------
 def _rpc_threads() -> set[threading.Thread]:
-    return {t for t in threading.enumerate() if t.name.startswith("scart-rpc")}  # _rpc.THREAD_PREFIX
+    return {t for t in threading.enumerate() if t.name.startswith("scart-rpc")}  # rpc.THREAD_PREFIX
 
 
 def test_servers_end_their_worker_threads() -> None:
@@ -246,14 +247,14 @@ def flaky() -> Iterator[tuple[_Flaky, str]]:
     registry = NameRegistry()
     servicers = [(_proto.df_grpc.add_DeployerServiceServicer_to_server, fake),
                  (_proto.ns_grpc.add_NamingServiceServicer_to_server, NamingServicer(registry))]
-    server, port, _health, executor = _rpc.make_server(
+    server, port, _health, executor = rpc.make_server(
         "127.0.0.1:0", servicers, [DEPLOYER_SERVICE_NAME, NAMING_SERVICE_NAME], 8)
     address = f"127.0.0.1:{port}"
     registry.register(address, ["x"], permanent=True)
     try:
         yield fake, address
     finally:
-        _rpc.stop_server(server, executor, 0.0)
+        rpc.stop_server(server, executor, 0.0)
 
 
 def test_only_idempotent_calls_are_retried(flaky) -> None:

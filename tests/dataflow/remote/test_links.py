@@ -180,7 +180,7 @@ def test_a_link_stream_carries_samples_checked_once_and_reports_what_it_lost() -
     the write numbers counted, and every report telling the writer end what it has had."""
     import grpc
 
-    from dataflow import codec
+    from scart_wire import codec
     from dataflow.remote import _convert as cv
     from dataflow.remote._proto import df as pb
     from dataflow.remote._proto import df_grpc

@@ -143,7 +143,7 @@ def test_unregister_on_stop() -> None:
 def test_a_wildcard_listener_is_advertised_by_host_name_or_as_told() -> None:
     import socket
 
-    from dataflow.remote._rpc import advertised_address
+    from scart_wire.rpc import advertised_address
 
     host = socket.gethostname()
     assert advertised_address("127.0.0.1:5000") == "127.0.0.1:5000"

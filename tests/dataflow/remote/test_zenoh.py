@@ -17,6 +17,7 @@ from support.remote import start_scart, stop_process, subprocess_env
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
 from dataflow.remote import errors
+from scart.bindings.dataflow import DataflowSettings
 
 zenoh_transport = pytest.importorskip("dataflow.transports.zenoh")
 pytest.importorskip("zenoh")
@@ -171,7 +172,7 @@ def test_with_tokens_a_zenoh_session_admits_only_peers_presenting_an_operate_tok
     token (it reads the samples), and neither a peer without one nor one with a ``read``
     token (a Zenoh link both reads and writes): those reach no peer and get nothing. The
     command line says why nothing was reached."""
-    from dataflow.remote.security import Security
+    from scart_wire.security import Security
 
     auth = tmp_path / "auth"
     auth.write_text(f"operate {OPERATOR}\nread {READER}\n")
@@ -360,7 +361,7 @@ def test_binding_dataflow_finds_its_task_on_zenoh_without_a_name_service(tmp_pat
               <reference name="pinger"><scart:binding.dataflow component="zp" zenoh="{endpoint}"/></reference>
               <reference name="logger" target="logger"/>
             </component>"""), "zprobe.py": PROBE}, with_components=False)
-        settings = scart.Settings(ns="127.0.0.1:1")  # nothing answers there: only Zenoh can find zp
+        settings = DataflowSettings(ns="127.0.0.1:1").apply()  # nothing answers there: only Zenoh can find zp
         with scart.Runtime.from_file(path, settings=settings) as rt:
             probe = rt.service("probe/Probe")
             wait_until(lambda: _echo(probe, 2.5) == 2.5, timeout=20, message="zp never answered through Zenoh")

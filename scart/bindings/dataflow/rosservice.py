@@ -1,0 +1,198 @@
+"""The ``<scart:rosservice>`` composite element: a ROS 1 service answered by a task's
+operation or by an SCA service's operation (rtt_rosservice's ``connect``)::
+
+    <scart:rosservice service="/youbot/reset" type="std_srvs/Trigger" operation="youBotDriver.reset"/>
+    <scart:rosservice service="/youbot/period" type="my_msgs/SetPeriod"
+                      target="SCAYouBotDriver/SettingPeriod.set_period" timeout="2"/>
+
+``operation`` names ``TASK.OPERATION`` of a task of this composite, ``target``
+``COMPONENT/SERVICE.operation`` of an SCA component (one of the two). Request fields
+become the arguments by name, the result the response (see
+:mod:`dataflow.transports.ros1.calls` for the rules, the ``std_srvs`` success/message
+convention included); ``converter="module:function"`` (``function(request, call)``)
+replaces them. ``msgs`` (``.srv``/``.msg`` files, from the composite's folder) adds
+types; ``master``, ``node``, ``__ns``, ``insecure`` are the node's, as for streams.
+Checked at load (the operation, the types, request fields against parameters and the
+return type against the response: ``SCART-T007``, file:line); served when the composite
+starts (after every component's ``@init``), withdrawn when it stops.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dataflow import DataflowError
+from dataflow.transports import TransportError
+from scart.bindings.dataflow._host import TASK_KIND, host_of
+from scart.bindings.dataflow.settings import DataflowSettings
+from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
+
+__all__ = ["RosServiceElement", "RosServiceParticipant"]
+
+log = logging.getLogger("scart.dataflow")
+
+ROSSERVICE_CODE = "SCART-T007"  #: a scart:rosservice that cannot be made (what it names, its types)
+_OWN = ("service", "type", "operation", "target", "converter", "timeout", "msgs")
+_NODE = ("master", "node", "__name", "__ns", "host", "insecure")
+
+
+@dataclass(frozen=True)
+class RosService:
+    """One ``<scart:rosservice>`` as read."""
+
+    service: str
+    type: str
+    operation: str  # TASK.OPERATION, or "" for an SCA target
+    target: str  # COMPONENT/SERVICE.operation, or ""
+    converter: str
+    timeout: float
+    options: tuple[tuple[str, str], ...]
+    msgs: tuple[str, ...]
+    where: str
+
+
+def _parse(prefix: str, el: Element) -> tuple[RosService | None, list[str]]:
+    a, problems = el.attributes, []
+    service, type_name = (a.get("service") or "").strip(), (a.get("type") or "").strip()
+    operation, target = (a.get("operation") or "").strip(), (a.get("target") or "").strip()
+    if not service or not type_name:
+        problems.append("<scart:rosservice> needs service and type (e.g. service=\"/reset\" type=\"std_srvs/Trigger\")")
+    if bool(operation) == bool(target):
+        problems.append("<scart:rosservice> needs one of operation=\"TASK.OPERATION\" or "
+                        "target=\"COMPONENT/SERVICE.operation\"")
+    if operation and "." not in operation:
+        problems.append(f"<scart:rosservice> operation={operation!r}: expected TASK.OPERATION")
+    if target and ("/" not in target or "." not in target.rpartition("/")[2]):
+        problems.append(f"<scart:rosservice> target={target!r}: expected COMPONENT/SERVICE.operation")
+    try:
+        timeout = float(a.get("timeout") or 5.0)
+        if not 0 < timeout <= 3600:
+            raise ValueError
+    except ValueError:
+        problems.append(f"<scart:rosservice> timeout={a.get('timeout')!r}: seconds, more than 0, at most 3600")
+        timeout = 5.0
+    unknown = sorted(k for k in a if k not in _OWN and k not in _NODE and ":" not in k)
+    if unknown:
+        problems.append(f"<scart:rosservice>: unknown attribute(s) {', '.join(unknown)}")
+    if problems:
+        return None, problems
+    folder = Path(el.loc.path).parent
+    msgs = tuple(str(folder / p.strip()) for p in (a.get("msgs") or "").split(",") if p.strip())
+    options = tuple(sorted((k, v) for k, v in a.items() if k in _NODE))
+    task_op = f"{prefix}{operation}" if operation else ""
+    return RosService(service, type_name, task_op, target, (a.get("converter") or "").strip(), timeout, options,
+                      msgs, str(el.loc)), []
+
+
+class RosServiceElement(ElementProvider):
+    """The ``scart:rosservice`` composite element (see the module docstring)."""
+
+    name = "rosservice"
+
+    def check(self, elements: list[tuple[str, Element]], assembly: AssemblyView,
+              context: CheckContext) -> list[Problem]:
+        out: list[Problem] = []
+        for prefix, el in elements:
+            found, problems = _parse(prefix, el)
+            if found is not None:
+                problems = _check(found, assembly, context)
+            out += [Problem(ROSSERVICE_CODE, msg, el.loc.path, el.loc.line) for msg in problems]
+        return out
+
+    def activate(self, host: Host) -> RosServiceParticipant:
+        found = [s for prefix, el in host.assembly.elements_of(self.name) if (s := _parse(prefix, el)[0])]
+        return RosServiceParticipant(found, host)
+
+
+def _check(rs: RosService, assembly: AssemblyView, context: CheckContext) -> list[str]:
+    from dataflow.transports.ros1.calls import check_service, ros1_transport, signature_of
+
+    try:
+        transport = ros1_transport()
+        for path in rs.msgs:
+            transport.types.add_file(path)
+        if rs.converter:
+            context.import_object(rs.converter)
+    except (TransportError, ValueError, ImportError, AttributeError) as exc:
+        return [f"<scart:rosservice> {rs.service}: {exc}"]
+    try:
+        fn, what = _callable_of(rs, assembly)
+    except LookupError as exc:
+        return [f"<scart:rosservice> {exc}"]
+    params, returns = signature_of(fn, skip_self=True)
+    return [f"<scart:rosservice> {rs.service} ({rs.type}) by {what}: {p}"
+            for p in check_service(transport.types, rs.type, params, returns, rs.converter)]
+
+
+def _callable_of(rs: RosService, assembly: AssemblyView) -> tuple[Any, str]:
+    """The function a service will call, as declared on its class (for the check)."""
+    if rs.operation:
+        task, _, op = rs.operation.rpartition(".")
+        node = assembly.nodes.get(task)
+        if node is None or node.kind != TASK_KIND:
+            tasks = [p for p, n in assembly.nodes.items() if n.kind == TASK_KIND]
+            raise LookupError(f"operation: {task!r} is no task of this composite; tasks: {', '.join(tasks) or 'none'}")
+        attrs = getattr(node.ctype.cls, "_operation_attrs", {})
+        if op not in attrs:
+            raise LookupError(f"operation: task {task!r} has no operation {op!r}; operations: "
+                              f"{', '.join(sorted(attrs)) or 'none'}")
+        return getattr(node.ctype.cls, attrs[op]), f"operation {rs.operation}"
+    component, _, rest = rs.target.partition("/")
+    service, _, op = rest.rpartition(".")
+    node = assembly.nodes.get(component)
+    services = getattr(getattr(node, "ctype", None), "services", None) or {}
+    if service not in services:
+        raise LookupError(f"target: {component!r} has no service {service!r}; services: "
+                          f"{', '.join(sorted(services)) or 'none'}")
+    info = services[service]
+    if op not in info.operations or info.python_type is None:
+        raise LookupError(f"target: service {component}/{service} has no operation {op!r}; operations: "
+                          f"{', '.join(sorted(info.operations)) or 'none'}")
+    return getattr(info.python_type, op), f"{rs.target}"
+
+
+class RosServiceParticipant(Participant):
+    """Serves the ROS services of one runtime at start, withdraws them at stop."""
+
+    def __init__(self, services: list[RosService], host: Host) -> None:
+        self.services = services
+        self.host = host
+        self._served: list[Any] = []
+
+    def start(self) -> None:
+        from dataflow.transports.ros1.calls import ros1_transport, serve, serve_operation
+
+        types: Any = None
+        for rs in self.services:
+            try:
+                if rs.msgs:
+                    types = types or ros1_transport().types
+                    for path in rs.msgs:
+                        types.add_file(path)
+                if rs.converter:
+                    self.host.assembly.import_object(rs.converter)
+                if rs.operation:
+                    task, _, op = rs.operation.rpartition(".")
+                    remap = DataflowSettings.of(self.host.settings).remap
+                    real = host_of(self.host).deployer.task(remap.component(task) if remap else task)
+                    made = serve_operation(real, op, rs.service, rs.type, converter=rs.converter,
+                                           options=dict(rs.options), timeout=rs.timeout)
+                else:
+                    component, _, rest = rs.target.partition("/")
+                    service, _, op = rest.rpartition(".")
+                    fn = self.host.endpoint(f"{component}/{service}").method(op)
+                    made = serve(fn, rs.service, rs.type, converter=rs.converter, options=dict(rs.options),
+                                 label=rs.target)
+            except (DataflowError, ValueError, LookupError, ImportError) as exc:
+                self.stop()
+                raise DataflowError(f"ROS service {rs.service} ({rs.where}): {exc}") from exc
+            self._served.append(made)
+            log.info("ROS service %s (%s) answered by %s", made.name, rs.type, made.label)
+
+    def stop(self) -> None:
+        served, self._served = self._served, []
+        for made in reversed(served):
+            made.close()

@@ -1,0 +1,283 @@
+"""Ranges and finiteness of values that come from outside: properties, input ports written
+remotely, and operation arguments called remotely.
+
+``Property(float, 0.01, ge=0.001, le=1.0)`` and ``InputPort(float, ge=0.0, le=1.0)``
+declare a :class:`Bounds` (limits apply to numbers and lists of numbers). Every number in
+a value from outside must also be finite unless ``finite=False`` — a float, the items of
+a list or tuple, an ``Optional[float]``, the fields of a pydantic model, the values of a
+dict — so a NaN or an infinite set-point is refused before it reaches the task. Operation
+parameters declare limits with ``typing.Annotated[float, pydantic.Field(ge=0.0)]`` and
+are held finite the same way (``Field(allow_inf_nan=True)`` lets NaN and inf through).
+Operation arguments from outside go through one check, :func:`check_argument`, whatever
+the entry (the data-flow path, Foxglove, binding.grpc and the services endpoint): the
+declared type with numbers strict (``"0.5"`` and ``true`` are no float), the bounds,
+finiteness; every entry refuses a value with the same message.
+The check walks the value once (linear in its size, which the transport bounds). What a
+task writes to its own output ports is not checked here (the hot path stays free of
+it): bounds are for what crosses in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import types
+import typing
+from dataclasses import dataclass
+from typing import Annotated, Any
+
+import pydantic
+
+from .errors import PortTypeError, PortValueError
+
+__all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "non_finite"]
+
+_NUMBERS = (float, int)
+_ATOMS = (int, bool, str, bytes, type(None))
+
+
+def non_finite(value: Any) -> float | None:
+    """The first NaN or infinite number found anywhere in ``value`` (floats, complex
+    numbers, lists, tuples, sets, dict values, pydantic models, dataclasses), else None."""
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        kind = type(v)
+        if kind is float:
+            if v - v != 0.0:  # NaN and +-inf (cheaper than math.isfinite in this loop)
+                return v
+        elif kind in _ATOMS:
+            continue
+        elif kind is list or kind is tuple or isinstance(v, (list, tuple, set, frozenset)):
+            stack.extend(v)
+        elif isinstance(v, dict):
+            stack.extend(v.values())
+        elif isinstance(v, float):
+            if not math.isfinite(v):
+                return float(v)
+        elif isinstance(v, complex):
+            if not (math.isfinite(v.real) and math.isfinite(v.imag)):
+                return v.real if not math.isfinite(v.real) else v.imag
+        elif isinstance(v, pydantic.BaseModel):
+            stack.extend(v.__dict__.values())
+        elif dataclasses.is_dataclass(v) and not isinstance(v, type):
+            stack.extend(getattr(v, f.name) for f in dataclasses.fields(v))
+    return None
+
+
+def _all_finite(value: Any) -> Any:
+    bad = non_finite(value)
+    if bad is not None:
+        raise ValueError(f"{bad} is not a finite number")
+    return value
+
+
+#: A pydantic validator refusing a value that holds a NaN or an infinite number.
+FINITE = pydantic.AfterValidator(_all_finite)
+
+
+@functools.lru_cache(maxsize=1024)
+def _may_hold_floats(hint: Any, depth: int = 0) -> bool:
+    """Can a value of ``hint`` hold a float (so that finiteness applies)?"""
+    if depth > 8:
+        return True
+    if hint in (float, complex, Any, object) or isinstance(hint, typing.TypeVar):
+        return True
+    if hint in _ATOMS or hint is type(None):
+        return False
+    origin = typing.get_origin(hint)
+    if origin is Annotated:
+        return _may_hold_floats(typing.get_args(hint)[0], depth + 1)
+    if origin is not None:
+        return any(_may_hold_floats(a, depth + 1) for a in typing.get_args(hint) if a is not Ellipsis) \
+            or not typing.get_args(hint)
+    if isinstance(hint, type):
+        if issubclass(hint, pydantic.BaseModel):
+            annotations: list[Any] = [f.annotation for f in hint.model_fields.values()]  # any type form
+            return any(_may_hold_floats(a, depth + 1) for a in annotations)
+        if dataclasses.is_dataclass(hint):
+            try:
+                hints = typing.get_type_hints(hint)
+            except Exception:
+                return True
+            return any(_may_hold_floats(h, depth + 1) for h in hints.values())
+        return issubclass(hint, (float, complex, list, tuple, set, frozenset, dict))
+    return False
+
+
+def _allows_inf_nan(hint: Any) -> bool:
+    """Does an ``Annotated`` hint say ``allow_inf_nan=True`` (pydantic ``Field``)?"""
+    if typing.get_origin(hint) is not Annotated:
+        return False
+    for meta in typing.get_args(hint)[1:]:
+        for item in (meta, *getattr(meta, "metadata", ())):
+            if getattr(item, "allow_inf_nan", None) is True:
+                return True
+    return False
+
+
+def from_outside(hint: Any) -> Any:
+    """The annotation to check a value of ``hint`` from outside with: ``hint`` itself, held
+    finite when it can hold floats (unless its ``Field`` allows inf and NaN)."""
+    try:
+        if not _may_hold_floats(hint) or _allows_inf_nan(hint):
+            return hint
+    except TypeError:  # unhashable annotation: not cached, checked as is
+        return hint
+    return Annotated[hint, FINITE]
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Lower and upper limits (inclusive ``ge``/``le``, exclusive ``gt``/``lt``) and
+    whether numbers must be finite. Hashable (a cache key)."""
+
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    lt: float | None = None
+    finite: bool = True
+
+    @classmethod
+    def of(cls, py_type: Any, ge: float | None = None, gt: float | None = None, le: float | None = None,
+           lt: float | None = None, finite: bool | None = None) -> Bounds | None:
+        """The bounds of a value of ``py_type`` (None when nothing applies: not a number nor a
+        list of numbers, and no limit given). Raises ``ValueError`` for limits that cannot
+        hold (not finite, or lower above upper) or limits on a type without numbers."""
+        limits = {k: v for k, v in (("ge", ge), ("gt", gt), ("le", le), ("lt", lt)) if v is not None}
+        for key, value in limits.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"{key}={value!r}: a finite number")
+        low = max((v for k, v in limits.items() if k in ("ge", "gt")), default=-math.inf)
+        high = min((v for k, v in limits.items() if k in ("le", "lt")), default=math.inf)
+        if low > high:
+            raise ValueError(f"no value can satisfy {limits}")
+        if _item(py_type) is None:
+            if limits:
+                raise ValueError(f"ge/gt/le/lt apply to numbers and lists of numbers, not {py_type!r}")
+            holds = _may_hold_floats(py_type)
+            if finite and not holds:
+                raise ValueError(f"finite applies to values that can hold numbers, not {py_type!r}")
+            return cls(finite=True) if holds and finite is not False else None
+        return cls(ge, gt, le, lt, True if finite is None else finite)
+
+    @property
+    def text(self) -> str:
+        """``"0.001 <= x <= 1, finite"``: what ``scart describe`` shows."""
+        low = f"{self.ge:g} <= " if self.ge is not None else (f"{self.gt:g} < " if self.gt is not None else "")
+        high = f" <= {self.le:g}" if self.le is not None else (f" < {self.lt:g}" if self.lt is not None else "")
+        parts = [f"{low}x{high}"] if low or high else []
+        if self.finite:
+            parts.append("finite")
+        return ", ".join(parts)
+
+
+def _item(py_type: Any) -> Any:
+    """The number type of ``py_type`` (itself, or a list's items), or None."""
+    if py_type in _NUMBERS:
+        return py_type
+    if typing.get_origin(py_type) is list:
+        args = typing.get_args(py_type)
+        if args and args[0] in _NUMBERS:
+            return args[0]
+    return None
+
+
+@functools.lru_cache(maxsize=1024)
+def bounded_adapter(py_type: Any, bounds: Bounds) -> pydantic.TypeAdapter[Any]:
+    """A pydantic adapter validating a value of ``py_type`` within ``bounds`` (cached)."""
+    item = _item(py_type)
+    if item is None:  # no limits: only finiteness, anywhere in the value
+        return pydantic.TypeAdapter(Annotated[py_type, FINITE] if bounds.finite else py_type)
+    field = pydantic.Field(ge=bounds.ge, gt=bounds.gt, le=bounds.le, lt=bounds.lt,
+                           allow_inf_nan=not bounds.finite if item is float else None)
+    checked: Any = Annotated[item, field]
+    return pydantic.TypeAdapter(list[checked] if item is not py_type else checked)
+
+
+def argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
+    """For each annotated parameter of ``fn`` pydantic can check, the adapter that checks
+    a value from outside (see :func:`argument_adapter`)."""
+    return _argument_adapters(getattr(fn, "__func__", fn))
+
+
+@functools.lru_cache(maxsize=1024)
+def _argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
+    try:
+        hints = typing.get_type_hints(fn, include_extras=True)
+    except Exception:  # unresolvable annotations: nothing checkable
+        return {}
+    out: dict[str, pydantic.TypeAdapter[Any]] = {}
+    for name, hint in hints.items():
+        adapter = argument_adapter(hint) if name != "return" else None
+        if adapter is not None:
+            out[name] = adapter
+    return out
+
+
+def argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+    """The adapter checking an operation argument of type ``hint`` from outside: its type,
+    with numbers strict (a string or a bool is no number), its declared bounds, numbers
+    finite (:func:`from_outside`). None when there is nothing to check (no annotation,
+    ``Any``, a type pydantic cannot check)."""
+    if hint is None or hint is Any or hint is object or isinstance(hint, (str, typing.TypeVar)):
+        return None
+    try:
+        return _cached_argument_adapter(hint)
+    except TypeError:  # unhashable annotation: made each time
+        return _make_argument_adapter(hint)
+
+
+@functools.lru_cache(maxsize=1024)
+def _cached_argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+    return _make_argument_adapter(hint)
+
+
+def _make_argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+    checked = from_outside(hint)
+    try:
+        return pydantic.TypeAdapter(_strict_numbers(checked))
+    except Exception:  # noqa: BLE001 - a type pydantic cannot check: finiteness alone, where it applies
+        return pydantic.TypeAdapter(Annotated[Any, FINITE]) if checked is not hint else None
+
+
+def _strict_numbers(hint: Any, depth: int = 0) -> Any:
+    """``hint`` with each ``float`` and ``int`` in it (inside ``Annotated``, unions and
+    containers) strict: pydantic's lax mode would take ``"0.5"`` or ``true`` as a number."""
+    if hint is float or hint is int:
+        return Annotated[hint, pydantic.Strict()]
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is None or not args or depth > 8:
+        return hint
+    if origin is Annotated:
+        return Annotated[(_strict_numbers(args[0], depth + 1), *hint.__metadata__)]
+    new = tuple(a if a is Ellipsis else _strict_numbers(a, depth + 1) for a in args)
+    if new == args:
+        return hint
+    if origin is typing.Union or isinstance(hint, types.UnionType):
+        return typing.Union[new]  # noqa: UP007 - rebuilt from a tuple
+    if isinstance(hint, types.GenericAlias):
+        return types.GenericAlias(origin, new)
+    try:
+        return hint.copy_with(new)
+    except Exception:  # noqa: BLE001 - a generic we cannot rebuild: as declared
+        return hint
+
+
+def check_argument(where: str, hint: Any, value: Any) -> Any:
+    """The one check of an operation argument from outside, used by every entry (the
+    data-flow path and its CLI, Foxglove, binding.grpc, the services endpoint): ``value``
+    validated as :func:`argument_adapter` says, returned as converted. Raises
+    :class:`~scart_wire.errors.PortTypeError` (not of the declared type) or
+    :class:`~scart_wire.errors.PortValueError` (out of bounds, not finite), each saying
+    ``WHERE: VALUE refused: REASON`` (``where`` is e.g. ``task.operation(parameter)``)."""
+    adapter = argument_adapter(hint)
+    if adapter is None:
+        return value
+    try:
+        return adapter.validate_python(value)
+    except pydantic.ValidationError as exc:
+        error = exc.errors()[0]
+        kind = PortTypeError if error["type"].endswith(("_type", "_parsing", "_class")) else PortValueError
+        raise kind(f"{where}: {value!r:.80} refused: {error['msg']}") from None

@@ -1,0 +1,134 @@
+"""The one codec between Python values and the wire's ``scart.dataflow.v1.Value``.
+
+Every value that crosses a process (port samples, properties, operation arguments and
+results, binding.grpc calls) goes through :func:`encode` and :func:`decode`:
+
+================  ===========================================================
+type name         what it holds
+================  ===========================================================
+``""``            ``None``
+registered name   a value of a registered type, encoded by :data:`scart_wire.types.registry`
+                  (``float64``, ``float64[]``, pydantic models...; see
+                  :mod:`scart_wire.types`)
+``scart.json``    JSON text, for a value the registry has no name for (a dict, a
+                  mixed list, a list of models, an int beyond int64)
+anything else     decodes to :class:`~scart_wire.types.UnknownValue`, a mapping that
+                  keeps its type name: never an error
+================  ===========================================================
+
+``encode(value, py_type)`` with a port's or property's type encodes the value as that
+type (the data-flow side, where types are declared). Without one, the value's own type
+decides, as in the table. inf and NaN survive both ways.
+
+Importing this module imports protobuf (the ``Value`` message class), never grpc.
+"""
+
+from __future__ import annotations
+
+import struct
+from types import MappingProxyType
+from typing import Any
+
+import pydantic
+import pydantic_core
+
+from scart_wire.errors import PortTypeError
+from scart_wire.proto.scart.dataflow.v1.value_pb2 import Value
+from scart_wire.types import UnknownValue, model_json, registry
+
+__all__ = ["FLOAT_LIST", "JSON_TYPE", "NONE_TYPE", "Value", "decode", "encode"]
+
+NONE_TYPE = ""
+JSON_TYPE = "scart.json"
+FLOAT_LIST = registry.type_name(list[float])  # "float64[]": packed little-endian doubles
+
+_PLAIN = (float, int, bool, str, bytes)
+#: A number written to a port of its own type, without the registry's lookups (the hot case).
+_NUMBER = MappingProxyType({float: (registry.type_name(float), struct.Struct("<d").pack),
+                            int: (registry.type_name(int), struct.Struct("<q").pack)})
+_UNPACK = MappingProxyType({registry.type_name(float): struct.Struct("<d").unpack,
+                            registry.type_name(int): struct.Struct("<q").unpack})
+
+
+def encode(value: Any, py_type: Any = None) -> Value:
+    """``value`` as a ``Value`` message (as ``py_type`` when given, see the module docstring).
+
+    Raises :class:`~scart_wire.errors.PortTypeError` naming the type when the value cannot be sent."""
+    if value is None:
+        return Value(type_name=NONE_TYPE)
+    try:
+        if type(value) is py_type:  # a port's own type: the hot cases without the registry's lookups
+            if py_type in _NUMBER:
+                name, pack = _NUMBER[py_type]
+                return Value(type_name=name, data=pack(value))
+            if isinstance(value, pydantic.BaseModel):
+                return Value(type_name=registry.type_name(py_type), data=model_json(value))
+        if py_type is not None:
+            enc = registry.encode(value, py_type)
+            return Value(type_name=enc.type_name, data=enc.data)
+        return _encode_untyped(value)
+    except (struct.error, OverflowError):  # e.g. an int beyond int64: JSON has no such limit
+        return _json(value)
+
+
+def _encode_untyped(value: Any) -> Value:
+    kind = type(value)
+    if kind in _PLAIN or isinstance(value, (pydantic.BaseModel, UnknownValue)):
+        enc = registry.encode(value)
+        return Value(type_name=enc.type_name, data=enc.data)
+    if kind is list or kind is tuple:
+        if value and type(value[0]) is float:  # the hot case (joint vectors...): pack directly
+            try:
+                return Value(type_name=FLOAT_LIST, data=struct.pack(f"<{len(value)}d", *value))
+            except struct.error:  # not all numbers: the general path below
+                pass
+        list_type = _list_type(value)
+        if list_type is not None:
+            enc = registry.encode(list(value), list_type)
+            return Value(type_name=enc.type_name, data=enc.data)
+    elif registry.python_type(registry.type_name(kind)) is kind:
+        enc = registry.encode(value)
+        return Value(type_name=enc.type_name, data=enc.data)
+    return _json(value)
+
+
+def _json(value: Any) -> Value:
+    try:
+        return Value(type_name=JSON_TYPE, data=pydantic_core.to_json(value, inf_nan_mode="constants"))
+    except pydantic_core.PydanticSerializationError as exc:
+        raise PortTypeError(f"cannot encode a value of type {type(value).__qualname__}: {exc}") from None
+
+
+def _list_type(value: list[Any] | tuple[Any, ...]) -> Any:
+    if not value:
+        return list[float]
+    first = type(value[0])
+    if first in (float, int, str) and all(type(v) is first for v in value):
+        return {float: list[float], int: list[int], str: list[str]}[first]
+    return None
+
+
+def decode(msg: Value) -> Any:
+    """The Python value of a ``Value`` message (see the module docstring).
+
+    Raises :class:`~scart_wire.errors.PortTypeError` when the bytes do not fit their type name."""
+    name = msg.type_name
+    unpack = _UNPACK.get(name)
+    if unpack is not None:  # a number, without the registry's lookups (the hot case)
+        try:
+            return unpack(msg.data)[0]
+        except struct.error as exc:
+            raise PortTypeError(f"cannot decode {name}: {exc}") from None
+    if name == NONE_TYPE:
+        return None
+    if name == FLOAT_LIST:  # the hot case, without the registry's lookups
+        data = msg.data
+        if len(data) % 8:
+            raise PortTypeError(f"cannot decode {FLOAT_LIST}: {len(data)} bytes is not a whole number of doubles")
+        return list(struct.unpack(f"<{len(data) // 8}d", data))
+    if name == JSON_TYPE:
+        try:
+            return pydantic_core.from_json(msg.data, allow_inf_nan=True)
+        except ValueError as exc:
+            raise PortTypeError(f"cannot decode {JSON_TYPE}: {exc}") from None
+    return registry.decode(name, msg.data)
