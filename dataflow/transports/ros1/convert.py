@@ -31,11 +31,7 @@ thread-safe.
 
 from __future__ import annotations
 
-import inspect
 import struct
-import sys
-import types
-import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -44,6 +40,8 @@ from typing import Any
 import numpy
 import pydantic
 
+from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
+                        item_type, resolve_converter, type_label, unwrap)
 from .msgs import FieldDef, MessageTypes, UnknownTypeError
 
 __all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "field_conversion", "plan", "resolve_converter",
@@ -60,14 +58,6 @@ TIMES = frozenset({"time", "duration"})
 _DTYPE = MappingProxyType({"byte": "int8", "char": "uint8", "bool": "bool_"})
 _NOT_FIELDS = frozenset({"__msgtype__", "structure_needs_at_least_one_member"})  # rosbags' own, not ROS's
 MAX_DEPTH = 16  #: nesting of models/messages followed, at most
-
-
-@dataclass(frozen=True)
-class ConversionProblem:
-    """Why a port's type and a ROS type do not convert (``warning``: it may, unchecked)."""
-
-    message: str
-    warning: bool = False
 
 
 @dataclass(frozen=True)
@@ -88,21 +78,12 @@ class Conversion:
     to_frame: Callable[[Any, int, int], bytes] | None = None
 
 
-class _Mismatch(Exception):
-    """A planning problem (collected as a :class:`ConversionProblem`)."""
-
-
 def default_type(py_type: Any) -> str | None:
     """The std_msgs type a port of ``py_type`` maps onto without being told, or None."""
     try:
         return PLAIN.get(py_type)
     except TypeError:  # an unhashable annotation
         return None
-
-
-def type_label(py_type: Any) -> str:
-    """A short name of a port type for messages (``float``, ``list[float]``, ``YouBotStatus``)."""
-    return py_type.__name__ if isinstance(py_type, type) else str(py_type).replace("typing.", "")
 
 
 def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool, converter: str = "",
@@ -123,15 +104,15 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
     if converter:
         return _with_converter(types_, py_type, name, outgoing, converter)
     try:
-        if _is_model(py_type):
+        if is_model(py_type):
             fn = _Planner(types_, outgoing, frame_id).top_model(py_type, name)
             via = "field names"
         else:
             fn = _Planner(types_, outgoing, frame_id).top_plain(py_type, name)
             via = "data field"
-    except _Mismatch as exc:
+    except Mismatch as exc:
         return None, [ConversionProblem(str(exc))]
-    fast = _wire_fast(types_, _unwrap(py_type), name, outgoing) if via == "data field" else None
+    fast = _wire_fast(types_, unwrap(py_type), name, outgoing) if via == "data field" else None
     if outgoing:
         return Conversion(name, via, to_ros=fn, to_frame=fast), []
     return Conversion(name, via, from_ros=fn, from_bytes=fast), []
@@ -141,8 +122,8 @@ def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoin
     """How a value of ``py_type`` becomes the field ``fdef`` (``outgoing``) or comes from
     it, as a stream's fields do; raises ``ValueError`` saying why they do not fit."""
     try:
-        return _Planner(types_, outgoing, "").field(_unwrap(py_type), fdef, 0)
-    except _Mismatch as exc:
+        return _Planner(types_, outgoing, "").field(unwrap(py_type), fdef, 0)
+    except Mismatch as exc:
         raise ValueError(str(exc)) from None
 
 
@@ -188,33 +169,13 @@ def _string_value(data: bytes) -> str:
 
 
 # ---- converters -----------------------------------------------------------------------
-def resolve_converter(ref: str) -> Callable[..., Any]:
-    """The function ``module:qualified.name`` of a module this process has imported
-    already; raises ``ValueError`` saying what is wrong (never imports anything)."""
-    module_name, colon, attr = ref.partition(":")
-    if not colon or not module_name or not attr:
-        raise ValueError(f"converter {ref!r}: expected module:function")
-    module = sys.modules.get(module_name)
-    if module is None:
-        raise ValueError(f"converter {ref!r}: module {module_name!r} is not imported in this process (a stream "
-                         "never imports code: import it first; a composite imports its converters at load)")
-    obj: Any = module
-    for part in attr.split("."):
-        obj = getattr(obj, part, None)
-        if obj is None:
-            raise ValueError(f"converter {ref!r}: module {module_name} has no {attr!r}")
-    if not callable(obj):
-        raise ValueError(f"converter {ref!r} is a {type(obj).__name__}, not a function")
-    return obj
-
-
 def _with_converter(types_: MessageTypes, py_type: Any, name: str, outgoing: bool,
                     ref: str) -> tuple[Conversion | None, list[ConversionProblem]]:
     try:
         fn = resolve_converter(ref)
     except ValueError as exc:
         return None, [ConversionProblem(str(exc))]
-    problems = _check_converter(fn, ref, py_type, name, outgoing, types_)
+    problems = check_converter(fn, ref, py_type, name, outgoing, lambda a: a is types_.msg(name).cls)
     if any(not p.warning for p in problems):
         return None, problems
     via = f"converter {ref}"
@@ -234,88 +195,9 @@ def _with_converter(types_: MessageTypes, py_type: Any, name: str, outgoing: boo
     return Conversion(name, via, to_ros=to_ros), problems
 
 
-def _check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: str, outgoing: bool,
-                     types_: MessageTypes) -> list[ConversionProblem]:
-    """The converter takes one argument; its annotations, where given, fit the port."""
-    try:
-        sig = inspect.signature(fn)
-        sig.bind(None)
-    except (TypeError, ValueError):
-        return [ConversionProblem(f"converter {ref} cannot be called with one argument (the "
-                                  f"{'value' if outgoing else 'message'})")]
-    try:
-        hints = typing.get_type_hints(fn)
-    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
-        hints = {}
-    first = next(iter(sig.parameters.values()))
-    given, returned = hints.get(first.name), hints.get("return")
-    port = type_label(py_type)
-    if outgoing:
-        if given is not None and not _accepts(given, py_type):
-            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the port gives {port}")]
-        if returned is not None and not (_is_open(returned) or _is_mapping(returned) or returned is types_.msg(ros_type).cls):
-            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; a {ros_type} (or a mapping "
-                                      "of its fields) is needed")]
-    else:
-        cls = types_.msg(ros_type).cls
-        if given is not None and not (_is_open(given) or given is cls):
-            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the topic gives {ros_type} messages")]
-        if returned is not None and not (_is_open(returned) or (_is_mapping(returned) and _is_model(py_type))
-                                         or _accepts(py_type, returned)):
-            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; the port takes {port}")]
-    if given is None and returned is None:
-        return [ConversionProblem(f"converter {ref} has no type annotations: its types are checked only per "
-                                  "sample", warning=True)]
-    return []
-
-
-def _is_open(annotation: Any) -> bool:
-    return annotation is Any or annotation is object
-
-
-def _is_mapping(annotation: Any) -> bool:
-    origin = typing.get_origin(annotation) or annotation
-    return isinstance(origin, type) and issubclass(origin, Mapping)
-
-
-def _accepts(wanted: Any, given: Any) -> bool:
-    """A parameter annotated ``wanted`` takes a value of type ``given``."""
-    if _is_open(wanted) or wanted == given:
-        return True
-    if wanted is float and given is int:
-        return True
-    return isinstance(wanted, type) and isinstance(given, type) and issubclass(given, wanted)
-
-
 # ---- by field names -------------------------------------------------------------------
-def _is_model(py_type: Any) -> bool:
-    return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
-
-
-def _unwrap(py_type: Any) -> Any:
-    """``X`` for ``Optional[X]`` / ``X | None`` and ``Annotated[X, ...]``."""
-    origin = typing.get_origin(py_type)
-    if origin is typing.Annotated:
-        return _unwrap(typing.get_args(py_type)[0])
-    if origin in (typing.Union, types.UnionType):
-        rest = [a for a in typing.get_args(py_type) if a is not type(None)]
-        if len(rest) == 1:
-            return _unwrap(rest[0])
-    return py_type
-
-
-def _item_type(py_type: Any) -> Any | None:
-    """The item type of ``list[X]`` / ``tuple[X, ...]`` / ``Sequence[X]``, else None."""
-    origin, args = typing.get_origin(py_type), typing.get_args(py_type)
-    if origin in (list, tuple) or (isinstance(origin, type) and origin.__name__ == "Sequence"):
-        if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
-            return None
-        return args[0] if args else Any
-    return None
-
-
 class _Planner:
-    """Builds the conversion functions of one stream, recursively; raises :class:`_Mismatch`."""
+    """Builds the conversion functions of one stream, recursively; raises :class:`Mismatch`."""
 
     def __init__(self, types_: MessageTypes, outgoing: bool, frame_id: str) -> None:
         self.types = types_
@@ -327,12 +209,12 @@ class _Planner:
         fields = self.types.fields(ros_type)
         target = next((f for f in fields if f.name == "data"), fields[0] if len(fields) == 1 else None)
         if target is None:
-            raise _Mismatch(f"a port of type {type_label(py_type)} maps onto a message with a 'data' field "
+            raise Mismatch(f"a port of type {type_label(py_type)} maps onto a message with a 'data' field "
                             f"(std_msgs/...), not {ros_type} (fields: {_names(fields)}): give a converter")
         try:
-            conv = self.field(_unwrap(py_type), target, 0)
-        except _Mismatch as exc:
-            raise _Mismatch(f"port type {type_label(py_type)} vs {ros_type}.{target.name}: {exc}") from None
+            conv = self.field(unwrap(py_type), target, 0)
+        except Mismatch as exc:
+            raise Mismatch(f"port type {type_label(py_type)} vs {ros_type}.{target.name}: {exc}") from None
         msgtype = self.types.msg(ros_type)
         if not self.outgoing:
             name = target.name
@@ -351,7 +233,7 @@ class _Planner:
 
     def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[..., Any]:
         if depth > MAX_DEPTH:
-            raise _Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
+            raise Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
         fields = {f.name: f for f in self.types.fields(ros_type)}
         ours = model.model_fields
         convs: dict[str, Callable[[Any], Any]] = {}
@@ -363,14 +245,14 @@ class _Planner:
                     missing.append(name)
                 continue
             try:
-                convs[name] = self.field(_unwrap(info.annotation), fdef, depth)
-            except _Mismatch as exc:
+                convs[name] = self.field(unwrap(info.annotation), fdef, depth)
+            except Mismatch as exc:
                 problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
         if missing:
             problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
                                f"no field in {ros_type} (its fields: {_names(fields.values())})")
         if problems:
-            raise _Mismatch("; ".join(problems) + "; give a converter")
+            raise Mismatch("; ".join(problems) + "; give a converter")
         if not self.outgoing:
             pairs = tuple(convs.items())
             return lambda msg: {name: conv(getattr(msg, name)) for name, conv in pairs}
@@ -405,9 +287,9 @@ class _Planner:
 
     # -- one field ------------------------------------------------------------------------
     def field(self, py_type: Any, fdef: FieldDef, depth: int) -> Callable[[Any], Any]:
-        if _is_open(py_type):
+        if is_open(py_type):
             if self.outgoing:
-                raise _Mismatch("a field of any type cannot be published: give it a type")
+                raise Mismatch("a field of any type cannot be published: give it a type")
             return _plain_value
         if fdef.array is None:
             return self.scalar(py_type, fdef, depth)
@@ -416,21 +298,21 @@ class _Planner:
     def scalar(self, py_type: Any, fdef: FieldDef, depth: int) -> Callable[[Any], Any]:
         t = fdef.type
         if fdef.is_message:
-            if _is_model(py_type):
+            if is_model(py_type):
                 return self.model(py_type, t, depth + 1)
-            if py_type is dict or _is_mapping(py_type):
+            if py_type is dict or is_mapping(py_type):
                 new = self.types.msg(t).new
                 return (lambda v: new(**v)) if self.outgoing else _plain_value
-            raise _Mismatch(f"{type_label(py_type)} and the message {t} (a model with its fields is needed)")
+            raise Mismatch(f"{type_label(py_type)} and the message {t} (a model with its fields is needed)")
         if t in TIMES:
             if py_type is float or (self.outgoing and py_type is int):
                 return self._time_out(t) if self.outgoing else _seconds
-            raise _Mismatch(f"{type_label(py_type)} and {t} (seconds as a float are needed)")
+            raise Mismatch(f"{type_label(py_type)} and {t} (seconds as a float are needed)")
         ok = ((t in FLOATS and (py_type is float or (self.outgoing and py_type is int)))
               or (t in INTS and (py_type is int or (not self.outgoing and py_type is float)))
               or (t == "bool" and py_type is bool) or (t == "string" and py_type is str))
         if not ok:
-            raise _Mismatch(f"{type_label(py_type)} and {t}" + (" (a float never narrows to an integer)"
+            raise Mismatch(f"{type_label(py_type)} and {t}" + (" (a float never narrows to an integer)"
                                                                  if py_type is int and t in FLOATS else ""))
         if not self.outgoing:
             return float if py_type is float and t in INTS else _same
@@ -442,10 +324,10 @@ class _Planner:
             if self.outgoing:
                 return _sized(lambda v: numpy.frombuffer(v, dtype=numpy.uint8), count, t)
             return lambda v: bytes(numpy.asarray(v, dtype=numpy.uint8))
-        item = _item_type(py_type)
+        item = item_type(py_type)
         if item is None:
-            raise _Mismatch(f"{type_label(py_type)} and {t}[{count or ''}] (a list is needed)")
-        item = _unwrap(item)
+            raise Mismatch(f"{type_label(py_type)} and {t}[{count or ''}] (a list is needed)")
+        item = unwrap(item)
         if fdef.is_message or t in TIMES or t == "string":
             conv = self.field(item, FieldDef(fdef.name, t), depth)
             if conv is _same:

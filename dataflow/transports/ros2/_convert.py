@@ -35,10 +35,6 @@ thread-safe.
 
 from __future__ import annotations
 
-import inspect
-import sys
-import types as pytypes
-import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -47,6 +43,8 @@ from typing import Any
 import pydantic
 from rosbags.typesys.base import Nodetype
 
+from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
+                        item_type, resolve_converter, type_label, unwrap)
 from ._errors import UnknownTypeError
 from ._names import split_type_name
 from ._types import MessageTypes
@@ -67,14 +65,6 @@ MAX_DEPTH = 16  #: nesting of models/messages followed, at most
 
 
 @dataclass(frozen=True)
-class ConversionProblem:
-    """Why a port's type and a ROS 2 type do not convert (``warning``: it may, unchecked)."""
-
-    message: str
-    warning: bool = False
-
-
-@dataclass(frozen=True)
 class Conversion:
     """How values of one port type become messages of ``ros_type`` — ``to_idl(value,
     t_ns)``, publishing: the IDL instance to write — or come from them — ``from_idl(obj)``,
@@ -87,15 +77,6 @@ class Conversion:
     via: str
     to_idl: Callable[[Any, int], Any] | None = None
     from_idl: Callable[[Any], Any] | None = None
-
-
-class _Mismatch(Exception):
-    """A planning problem (collected as a :class:`ConversionProblem`)."""
-
-
-def type_label(py_type: Any) -> str:
-    """A short name of a port type for messages (``float``, ``list[float]``, ``YouBotStatus``)."""
-    return py_type.__name__ if isinstance(py_type, type) else str(py_type).replace("typing.", "")
 
 
 def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool, converter: str = "",
@@ -119,15 +100,15 @@ def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool
         return _with_converter(types, py_type, name, outgoing, converter)
     planner = _Planner(types, outgoing)
     try:
-        if _is_model(py_type):
+        if is_model(py_type):
             fn, via = planner.model(py_type, name, 0), "field names"
         else:
-            fn, via = planner.plain(_unwrap(py_type), name), "data field"
-    except _Mismatch as exc:
+            fn, via = planner.plain(unwrap(py_type), name), "data field"
+    except Mismatch as exc:
         return None, [ConversionProblem(str(exc))]
     if not outgoing:
         return Conversion(name, via, from_idl=fn), []
-    return Conversion(name, via, to_idl=_stamped(types, name, fn, frame_id, _is_model(py_type))), []
+    return Conversion(name, via, to_idl=_stamped(types, name, fn, frame_id, is_model(py_type))), []
 
 
 def _stamped(types: MessageTypes, name: str, fields_of: Callable[[Any], dict[str, Any]], frame_id: str,
@@ -148,33 +129,14 @@ def _stamped(types: MessageTypes, name: str, fields_of: Callable[[Any], dict[str
 
 
 # ---- converters -----------------------------------------------------------------------
-def resolve_converter(ref: str) -> Callable[..., Any]:
-    """The function ``module:qualified.name`` of a module this process has imported
-    already; raises ``ValueError`` saying what is wrong (never imports anything)."""
-    module_name, colon, attr = ref.partition(":")
-    if not colon or not module_name or not attr:
-        raise ValueError(f"converter {ref!r}: expected module:function")
-    module = sys.modules.get(module_name)
-    if module is None:
-        raise ValueError(f"converter {ref!r}: module {module_name!r} is not imported in this process (a stream "
-                         "never imports code: import it first; a composite imports its converters at load)")
-    obj: Any = module
-    for part in attr.split("."):
-        obj = getattr(obj, part, None)
-        if obj is None:
-            raise ValueError(f"converter {ref!r}: module {module_name} has no {attr!r}")
-    if not callable(obj):
-        raise ValueError(f"converter {ref!r} is a {type(obj).__name__}, not a function")
-    return obj
-
-
 def _with_converter(types: MessageTypes, py_type: Any, name: str, outgoing: bool,
                     ref: str) -> tuple[Conversion | None, list[ConversionProblem]]:
     try:
         fn = resolve_converter(ref)
     except ValueError as exc:
         return None, [ConversionProblem(str(exc))]
-    problems = _check_converter(fn, ref, py_type, name, outgoing, types)
+    cls = types.message_class(name)
+    problems = check_converter(fn, ref, py_type, name, outgoing, lambda a: a is cls or _is_msg(a, name))
     if any(not p.warning for p in problems):
         return None, problems
     via = f"converter {ref}"
@@ -188,61 +150,8 @@ def _with_converter(types: MessageTypes, py_type: Any, name: str, outgoing: bool
     return Conversion(name, via, to_idl=to_idl), problems
 
 
-def _check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: str, outgoing: bool,
-                     types: MessageTypes) -> list[ConversionProblem]:
-    """The converter takes one argument; its annotations, where given, fit the port and
-    the message type."""
-    try:
-        sig = inspect.signature(fn)
-        sig.bind(None)
-    except (TypeError, ValueError):
-        return [ConversionProblem(f"converter {ref} cannot be called with one argument (the "
-                                  f"{'value' if outgoing else 'message'})")]
-    try:
-        hints = typing.get_type_hints(fn)
-    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
-        hints = {}
-    first = next(iter(sig.parameters.values()))
-    given, returned = hints.get(first.name), hints.get("return")
-    port, cls = type_label(py_type), types.message_class(ros_type)
-    if outgoing:
-        if given is not None and not _accepts(given, py_type):
-            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the port gives {port}")]
-        if returned is not None and not (_is_open(returned) or _is_mapping(returned) or _is_msg(returned, ros_type)):
-            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; a {ros_type} (or a mapping "
-                                      "of its fields) is needed")]
-    else:
-        if given is not None and not (_is_open(given) or given is cls or _is_msg(given, ros_type)):
-            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the topic gives {ros_type} messages")]
-        if returned is not None and not (_is_open(returned) or (_is_mapping(returned) and _is_model(py_type))
-                                         or _accepts(py_type, returned)):
-            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; the port takes {port}")]
-    if given is None and returned is None:
-        return [ConversionProblem(f"converter {ref} has no type annotations: its types are checked only per "
-                                  "sample", warning=True)]
-    return []
-
-
 def _is_msg(annotation: Any, ros_type: str) -> bool:
     return getattr(annotation, "__msgtype__", None) == ros_type
-
-
-def _is_open(annotation: Any) -> bool:
-    return annotation is Any or annotation is object
-
-
-def _is_mapping(annotation: Any) -> bool:
-    origin = typing.get_origin(annotation) or annotation
-    return isinstance(origin, type) and issubclass(origin, Mapping)
-
-
-def _accepts(wanted: Any, given: Any) -> bool:
-    """A parameter annotated ``wanted`` takes a value of type ``given``."""
-    if _is_open(wanted) or wanted == given:
-        return True
-    if wanted is float and given is int:
-        return True
-    return isinstance(wanted, type) and isinstance(given, type) and issubclass(given, wanted)
 
 
 # ---- plain types and models -----------------------------------------------------------
@@ -254,38 +163,12 @@ def _hashable(py_type: Any) -> bool:
     return True
 
 
-def _is_model(py_type: Any) -> bool:
-    return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
-
-
-def _unwrap(py_type: Any) -> Any:
-    """``X`` for ``Optional[X]`` / ``X | None`` and ``Annotated[X, ...]``."""
-    origin = typing.get_origin(py_type)
-    if origin is typing.Annotated:
-        return _unwrap(typing.get_args(py_type)[0])
-    if origin in (typing.Union, pytypes.UnionType):
-        rest = [a for a in typing.get_args(py_type) if a is not type(None)]
-        if len(rest) == 1:
-            return _unwrap(rest[0])
-    return py_type
-
-
-def _item_type(py_type: Any) -> Any | None:
-    """The item type of ``list[X]`` / ``tuple[X, ...]`` / ``Sequence[X]``, else None."""
-    origin, args = typing.get_origin(py_type), typing.get_args(py_type)
-    if origin in (list, tuple) or (isinstance(origin, type) and origin.__name__ == "Sequence"):
-        if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
-            return None
-        return args[0] if args else Any
-    return None
-
-
 def _names(fields: Any) -> str:
     return ", ".join(name for name, _ in fields) or "none"
 
 
 class _Planner:
-    """Builds the conversion functions of one stream, recursively; raises :class:`_Mismatch`.
+    """Builds the conversion functions of one stream, recursively; raises :class:`Mismatch`.
     Publishing, each function gives what the library's ``to_idl`` takes for that field (a
     mapping for a message); reading, it takes what the IDL instance holds."""
 
@@ -297,20 +180,20 @@ class _Planner:
         fields = self.types.fields(ros_type)
         target = next((f for f in fields if f[0] == "data"), fields[0] if len(fields) == 1 else None)
         if target is None:
-            raise _Mismatch(f"a port of type {type_label(py_type)} maps onto a message with a 'data' field "
+            raise Mismatch(f"a port of type {type_label(py_type)} maps onto a message with a 'data' field "
                             f"(std_msgs/msg/...), not {ros_type} (fields: {_names(fields)}): give a converter")
         key, desc = target
         try:
             conv = self.field(py_type, desc, 0)
-        except _Mismatch as exc:
-            raise _Mismatch(f"port type {type_label(py_type)} vs {ros_type}.{key}: {exc}") from None
+        except Mismatch as exc:
+            raise Mismatch(f"port type {type_label(py_type)} vs {ros_type}.{key}: {exc}") from None
         if self.outgoing:
             return lambda value: {key: conv(value)}
         return lambda obj: conv(getattr(obj, key))
 
     def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[[Any], Any]:
         if depth > MAX_DEPTH:
-            raise _Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
+            raise Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
         fields = dict(self.types.fields(ros_type))
         convs: dict[str, Callable[[Any], Any]] = {}
         problems, missing = [], []
@@ -321,14 +204,14 @@ class _Planner:
                     missing.append(name)
                 continue
             try:
-                convs[name] = self.field(_unwrap(info.annotation), desc, depth)
-            except _Mismatch as exc:
+                convs[name] = self.field(unwrap(info.annotation), desc, depth)
+            except Mismatch as exc:
                 problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
         if missing:
             problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
                                f"no field in {ros_type} (its fields: {_names(fields.items())})")
         if problems:
-            raise _Mismatch("; ".join(problems) + "; give a converter")
+            raise Mismatch("; ".join(problems) + "; give a converter")
         pairs = tuple(convs.items())
         if self.outgoing:
             def to_fields(value: Any) -> dict[str, Any]:
@@ -341,9 +224,9 @@ class _Planner:
     # -- one field ------------------------------------------------------------------------
     def field(self, py_type: Any, desc: Any, depth: int) -> Callable[[Any], Any]:
         kind, detail = desc
-        if _is_open(py_type):
+        if is_open(py_type):
             if self.outgoing:
-                raise _Mismatch("a field of any type cannot be published: give it a type")
+                raise Mismatch("a field of any type cannot be published: give it a type")
             return _same
         if kind == Nodetype.BASE:
             return self.scalar(py_type, detail[0])
@@ -357,7 +240,7 @@ class _Planner:
               or (base == "bool" and py_type is bool) or (base == "string" and py_type is str))
         if not ok:
             narrows = (py_type is float and base in INTS) if self.outgoing else (py_type is int and base in FLOATS)
-            raise _Mismatch(f"{type_label(py_type)} and {base}" + (" (a float never narrows to an integer)"
+            raise Mismatch(f"{type_label(py_type)} and {base}" + (" (a float never narrows to an integer)"
                                                                    if narrows else ""))
         return float if not self.outgoing and py_type is float and base in INTS else _same
 
@@ -365,22 +248,22 @@ class _Planner:
         if ros_type in TIMES:
             if py_type is float or (self.outgoing and py_type is int):
                 return _to_time if self.outgoing else _seconds
-            raise _Mismatch(f"{type_label(py_type)} and {ros_type} (seconds as a float are needed)")
-        if _is_model(py_type):
+            raise Mismatch(f"{type_label(py_type)} and {ros_type} (seconds as a float are needed)")
+        if is_model(py_type):
             return self.model(py_type, ros_type, depth + 1)
-        if py_type is dict or _is_mapping(py_type):
+        if py_type is dict or is_mapping(py_type):
             return _same if self.outgoing else _fields_of
-        raise _Mismatch(f"{type_label(py_type)} and the message {ros_type} (a model with its fields is needed)")
+        raise Mismatch(f"{type_label(py_type)} and the message {ros_type} (a model with its fields is needed)")
 
     def array(self, py_type: Any, inner: Any, count: int, depth: int) -> Callable[[Any], Any]:
         kind, detail = inner
         label = f"{detail if kind == Nodetype.NAME else detail[0]}[{count or ''}]"
         if py_type is bytes and kind == Nodetype.BASE and detail[0] in OCTETS:
             return _same if self.outgoing else bytes
-        item = _item_type(py_type)
+        item = item_type(py_type)
         if item is None:
-            raise _Mismatch(f"{type_label(py_type)} and {label} (a list is needed)")
-        conv = self.field(_unwrap(item), inner, depth)
+            raise Mismatch(f"{type_label(py_type)} and {label} (a list is needed)")
+        conv = self.field(unwrap(item), inner, depth)
         if conv is _same:
             return _same if self.outgoing else list  # octets arrive as bytes, other sequences as lists
         return lambda values: [conv(v) for v in values]

@@ -1,0 +1,146 @@
+"""What the ``ros1`` and ``ros2`` transports share: the rules on the Python side of a
+conversion, which are the same whatever ROS's types are. Type inspection of a port's type
+and of a converter's annotations (:func:`type_label`, :func:`check_converter`...), and
+converters found by name (:func:`resolve_converter`).
+
+One copy, so that the two transports keep one set of rules (their messages name the same
+problems the same way). ROS-agnostic: it imports neither transport, nor rosbags nor
+cyclonedds, and loading it stays as light as loading a transport.
+"""
+
+from __future__ import annotations
+
+import inspect
+import sys
+import types
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import pydantic
+
+__all__ = ["ConversionProblem", "Mismatch", "accepts", "check_converter", "is_mapping", "is_model", "is_open",
+           "item_type", "resolve_converter", "type_label", "unwrap"]
+
+
+# ---- port types and annotations ------------------------------------------------------
+@dataclass(frozen=True)
+class ConversionProblem:
+    """Why a port's type and a ROS type do not convert (``warning``: it may, unchecked)."""
+
+    message: str
+    warning: bool = False
+
+
+class Mismatch(Exception):
+    """A planning problem (collected as a :class:`ConversionProblem`)."""
+
+
+def type_label(py_type: Any) -> str:
+    """A short name of a port type for messages (``float``, ``list[float]``, ``YouBotStatus``)."""
+    return py_type.__name__ if isinstance(py_type, type) else str(py_type).replace("typing.", "")
+
+
+def is_open(annotation: Any) -> bool:
+    """``annotation`` says nothing of the type (``Any``, ``object``)."""
+    return annotation is Any or annotation is object
+
+
+def is_mapping(annotation: Any) -> bool:
+    """``annotation`` is a mapping type (``dict``, ``Mapping[str, X]``...)."""
+    origin = typing.get_origin(annotation) or annotation
+    return isinstance(origin, type) and issubclass(origin, Mapping)
+
+
+def is_model(py_type: Any) -> bool:
+    """``py_type`` is a pydantic model (converted by field names)."""
+    return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
+
+
+def accepts(wanted: Any, given: Any) -> bool:
+    """A parameter annotated ``wanted`` takes a value of type ``given``."""
+    if is_open(wanted) or wanted == given:
+        return True
+    if wanted is float and given is int:
+        return True
+    return isinstance(wanted, type) and isinstance(given, type) and issubclass(given, wanted)
+
+
+def unwrap(py_type: Any) -> Any:
+    """``X`` for ``Optional[X]`` / ``X | None`` and ``Annotated[X, ...]``."""
+    origin = typing.get_origin(py_type)
+    if origin is typing.Annotated:
+        return unwrap(typing.get_args(py_type)[0])
+    if origin in (typing.Union, types.UnionType):
+        rest = [a for a in typing.get_args(py_type) if a is not type(None)]
+        if len(rest) == 1:
+            return unwrap(rest[0])
+    return py_type
+
+
+def item_type(py_type: Any) -> Any | None:
+    """The item type of ``list[X]`` / ``tuple[X, ...]`` / ``Sequence[X]``, else None."""
+    origin, args = typing.get_origin(py_type), typing.get_args(py_type)
+    if origin in (list, tuple) or (isinstance(origin, type) and origin.__name__ == "Sequence"):
+        if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
+            return None
+        return args[0] if args else Any
+    return None
+
+
+# ---- converters -----------------------------------------------------------------------
+def resolve_converter(ref: str) -> Callable[..., Any]:
+    """The function ``module:qualified.name`` of a module this process has imported
+    already; raises ``ValueError`` saying what is wrong (never imports anything)."""
+    module_name, colon, attr = ref.partition(":")
+    if not colon or not module_name or not attr:
+        raise ValueError(f"converter {ref!r}: expected module:function")
+    module = sys.modules.get(module_name)
+    if module is None:
+        raise ValueError(f"converter {ref!r}: module {module_name!r} is not imported in this process (a stream "
+                         "never imports code: import it first; a composite imports its converters at load)")
+    obj: Any = module
+    for part in attr.split("."):
+        obj = getattr(obj, part, None)
+        if obj is None:
+            raise ValueError(f"converter {ref!r}: module {module_name} has no {attr!r}")
+    if not callable(obj):
+        raise ValueError(f"converter {ref!r} is a {type(obj).__name__}, not a function")
+    return obj
+
+
+def check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: str, outgoing: bool,
+                    is_message: Callable[[Any], bool]) -> list[ConversionProblem]:
+    """The converter ``fn`` takes one argument, and its annotations, where given, fit the
+    port's type and the message type (``is_message``: an annotation is ``ros_type``'s
+    class). Checked when a stream is planned, so that a wrong converter is said then."""
+    try:
+        sig = inspect.signature(fn)
+        sig.bind(None)
+    except (TypeError, ValueError):
+        return [ConversionProblem(f"converter {ref} cannot be called with one argument (the "
+                                  f"{'value' if outgoing else 'message'})")]
+    try:
+        hints = typing.get_type_hints(fn)
+    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
+        hints = {}
+    first = next(iter(sig.parameters.values()))
+    given, returned = hints.get(first.name), hints.get("return")
+    port = type_label(py_type)
+    if outgoing:
+        if given is not None and not accepts(given, py_type):
+            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the port gives {port}")]
+        if returned is not None and not (is_open(returned) or is_mapping(returned) or is_message(returned)):
+            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; a {ros_type} (or a mapping "
+                                      "of its fields) is needed")]
+    else:
+        if given is not None and not (is_open(given) or is_message(given)):
+            return [ConversionProblem(f"converter {ref} takes {type_label(given)}; the topic gives {ros_type} messages")]
+        if returned is not None and not (is_open(returned) or (is_mapping(returned) and is_model(py_type))
+                                         or accepts(py_type, returned)):
+            return [ConversionProblem(f"converter {ref} returns {type_label(returned)}; the port takes {port}")]
+    if given is None and returned is None:
+        return [ConversionProblem(f"converter {ref} has no type annotations: its types are checked only per "
+                                  "sample", warning=True)]
+    return []
