@@ -1,7 +1,9 @@
 """What the ``ros1`` and ``ros2`` transports share: the rules on the Python side of a
 conversion, which are the same whatever ROS's types are. Type inspection of a port's type
-and of a converter's annotations (:func:`type_label`, :func:`check_converter`...), and
-converters found by name (:func:`resolve_converter`).
+and of a converter's annotations (:func:`type_label`, :func:`check_converter`...),
+converters found by name (:func:`resolve_converter`), and a service's callable's
+parameters matched to its request (:func:`signature_of`, :func:`match_params`,
+:func:`answering`).
 
 One copy, so that the two transports keep one set of rules (their messages name the same
 problems the same way). ROS-agnostic: it imports neither transport, nor rosbags nor
@@ -20,8 +22,11 @@ from typing import Any
 
 import pydantic
 
-__all__ = ["ConversionProblem", "Mismatch", "accepts", "check_converter", "is_mapping", "is_model", "is_open",
-           "item_type", "resolve_converter", "type_label", "unwrap"]
+from dataflow.transports import TransportError
+
+__all__ = ["ConversionProblem", "Mismatch", "Param", "accepts", "answering", "check_converter", "is_mapping",
+           "is_model", "is_open", "item_type", "match_params", "operation_call", "operation_signature",
+           "resolve_converter", "signature_of", "type_label", "unwrap"]
 
 
 # ---- port types and annotations ------------------------------------------------------
@@ -144,3 +149,92 @@ def check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: st
         return [ConversionProblem(f"converter {ref} has no type annotations: its types are checked only per "
                                   "sample", warning=True)]
     return []
+
+
+# ---- services ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Param:
+    """One parameter of a callable a service calls: its name and type (``Any``: unannotated)."""
+
+    name: str
+    type: Any = Any
+
+
+def signature_of(call: Callable[..., Any], skip_self: bool = False) -> tuple[list[Param], Any]:
+    """The parameters and return annotation of ``call`` (``Any`` where unannotated);
+    ``skip_self``: a function as declared on its class (its first parameter is ``self``)."""
+    try:
+        hints = typing.get_type_hints(call)
+    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
+        hints = {}
+    sig = inspect.signature(call)
+    params = [Param(p.name, hints.get(p.name, Any)) for p in sig.parameters.values()
+              if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    if skip_self and params:
+        params = params[1:]
+    returns = hints.get("return", Any) if sig.return_annotation is not inspect.Parameter.empty else Any
+    return params, type(None) if returns is None else returns
+
+
+def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
+    """The parameters and return type of ``task``'s operation, from its description."""
+    from dataflow import registry
+
+    desc = task.operations().get(operation)
+    if desc is None:
+        raise TransportError(f"task {task.name} has no operation {operation!r}; operations: "
+                             f"{', '.join(sorted(task.operations())) or 'none'}")
+
+    def of(name: str) -> Any:
+        return Any if name == "any" else type(None) if name == "None" else (registry.python_type(name) or Any)
+
+    return [Param(n, of(t)) for n, t in desc.params], of(desc.returns)
+
+
+def operation_call(task: Any, operation: str, timeout: float) -> Callable[..., Any]:
+    """A callable that runs ``task``'s operation: its arguments checked as outside input
+    (bounds, finiteness), its result waited for ≤ ``timeout`` s."""
+    def call(*args: Any) -> Any:
+        checked = task.check_arguments(operation, list(args))
+        return task.send(operation, *checked).result(timeout)
+
+    return call
+
+
+def match_params(params: list[Param], fields: list[str], request: str) -> tuple[list[tuple[Param, str]], list[str]]:
+    """The request field (of ``fields``, ``request``'s) each parameter takes, by name — a
+    one-field request and a one-parameter callable pair up whatever their names — and the
+    problems found (then no pairs)."""
+    if len(params) == 1 and len(fields) == 1:
+        return [(params[0], fields[0])], []
+    known, wanted = set(fields), {p.name for p in params}
+    missing = [p.name for p in params if p.name not in known]
+    unused = [f for f in fields if f not in wanted]
+    problems = ([f"parameter(s) {', '.join(missing)} have no field in {request} (fields: "
+                 f"{', '.join(fields) or 'none'})"] if missing else []) + \
+               ([f"{request} field(s) {', '.join(unused)} match no parameter "
+                 f"({', '.join(p.name for p in params) or 'none'})"] if unused else [])
+    if problems:
+        return [], problems
+    return [(p, p.name) for p in params], []
+
+
+def answering(call: Callable[..., Any], args_of: Callable[[Any], list[Any]], response_of: Callable[[Any], Any],
+              convention: Callable[..., Any] | None) -> Callable[[Any], Any]:
+    """``request -> response`` of a served callable. ``convention``, for a response with
+    ``bool success`` and ``string message``, makes a response from those fields: then
+    ``False`` or an exception answers ``success: false`` (with its text); without it an
+    exception goes to the caller."""
+    def answer(request: Any) -> Any:
+        args = args_of(request)
+        if convention is None:
+            return response_of(call(*args))
+        try:
+            result = call(*args)
+        except Exception as exc:  # noqa: BLE001 - success/message: the failure is the answer
+            return convention(success=False, message=f"{type(exc).__name__}: {exc}"[:1000])
+        if result is False:
+            return convention(success=False)
+        return response_of(result)
+
+    return answer

@@ -27,16 +27,16 @@ import inspect
 import logging
 import socket
 import time
-import typing
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import pydantic
 
 from dataflow.transports import TransportError, load
 
-from .convert import _is_model, _plain_value, field_conversion, resolve_converter, type_label
+from .._rosplan import (Param, answering, is_model, match_params, operation_call, operation_signature,
+                        resolve_converter, signature_of, type_label)
+from .convert import _plain_value, field_conversion
 from .master import MasterError, parse_rosrpc
 from .msgs import MessageTypes, SrvType, UnknownTypeError
 from .node import Node
@@ -51,8 +51,6 @@ __all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_serv
 
 log = logging.getLogger(__name__)
 
-_EMPTY = inspect.Parameter.empty
-
 
 def ros1_transport() -> Ros1Transport:
     """The process's ``ros1`` transport (the owner of its one node and message types).
@@ -66,37 +64,19 @@ def ros1_transport() -> Ros1Transport:
     return transport
 
 
-@dataclass(frozen=True)
-class Param:
-    """One parameter of a callable a service calls: its name and type (``Any``: unannotated)."""
-
-    name: str
-    type: Any = Any
-
-
 # ---- planning ---------------------------------------------------------------------------
 def _request_plan(types: MessageTypes, srv: SrvType, params: list[Param]) -> tuple[Callable[[Any], list[Any]], list[str]]:
     """``request -> positional arguments``, and the problems found."""
-    fields = types.fields(srv.request.name)
-    by_name = {f.name: f for f in fields}
-    if len(params) == 1 and len(fields) == 1:
-        pairs = [(params[0], fields[0])]
-    else:
-        missing = [p.name for p in params if p.name not in by_name]
-        unused = [f.name for f in fields if f.name not in {p.name for p in params}]
-        problems = ([f"parameter(s) {', '.join(missing)} have no field in {srv.request.name} (fields: "
-                     f"{', '.join(by_name) or 'none'})"] if missing else []) + \
-                   ([f"{srv.request.name} field(s) {', '.join(unused)} match no parameter "
-                     f"({', '.join(p.name for p in params) or 'none'})"] if unused else [])
-        if problems:
-            return _no_args, problems
-        pairs = [(p, by_name[p.name]) for p in params]
-    convs, problems = [], []
-    for param, fdef in pairs:
+    by_name = {f.name: f for f in types.fields(srv.request.name)}
+    pairs, problems = match_params(params, list(by_name), srv.request.name)
+    if problems:
+        return _no_args, problems
+    convs = []
+    for param, name in pairs:
         try:
-            convs.append((fdef.name, field_conversion(types, param.type, fdef, outgoing=False)))
+            convs.append((name, field_conversion(types, param.type, by_name[name], outgoing=False)))
         except ValueError as exc:
-            problems.append(f"parameter {param.name} ({type_label(param.type)}) vs {srv.request.name}.{fdef.name}: {exc}")
+            problems.append(f"parameter {param.name} ({type_label(param.type)}) vs {srv.request.name}.{name}: {exc}")
     plan = tuple(convs)
     return (lambda req: [conv(getattr(req, name)) for name, conv in plan]), problems
 
@@ -122,7 +102,7 @@ def _response_plan(types: MessageTypes, srv: SrvType, returns: Any) -> tuple[Cal
         return ((lambda r: new(success=bool(r))) if returns is bool
                 else (lambda r: new(success=True, message=r))), True, []
     try:
-        if _is_model(returns):
+        if is_model(returns):
             to_msg = field_conversion(types, returns, _message_field(resp.name), outgoing=True)
             return to_msg, convention, []
         if len(fields) == 1:
@@ -205,7 +185,7 @@ class ServedService:
         else:
             args_of = _request_plan(types, srv, params)[0]
             response_of, convention = _response_plan(types, srv, returns)[:2]
-            self._answer = _answering(call, args_of, response_of, srv.response.new if convention else None)
+            self._answer = answering(call, args_of, response_of, srv.response.new if convention else None)
         self._node = self._transport.acquire(options or {})
         try:
             self._server: ServiceServer = self._node.advertise_service(service, type_name, self._handle)
@@ -234,23 +214,6 @@ class ServedService:
         self._transport.release(self._node)
 
 
-def _answering(call: Callable[..., Any], args_of: Callable[[Any], list[Any]], response_of: Callable[[Any], Any],
-               convention: Callable[..., Any] | None) -> Callable[[Any], Any]:
-    def answer(request: Any) -> Any:
-        args = args_of(request)
-        if convention is None:
-            return response_of(call(*args))
-        try:
-            result = call(*args)
-        except Exception as exc:  # noqa: BLE001 - success/message: the failure is the answer
-            return convention(success=False, message=f"{type(exc).__name__}: {exc}"[:1000])
-        if result is False:
-            return convention(success=False)
-        return response_of(result)
-
-    return answer
-
-
 def _response_of(srv: SrvType, result: Any) -> Any:
     if type(result) is srv.response.cls:
         return result
@@ -271,48 +234,13 @@ def serve(call: Callable[..., Any], service: str, type_name: str, *, converter: 
                          label=label)
 
 
-def signature_of(call: Callable[..., Any], skip_self: bool = False) -> tuple[list[Param], Any]:
-    """The parameters and return annotation of ``call`` (``Any`` where unannotated);
-    ``skip_self``: a function as declared on its class (its first parameter is ``self``)."""
-    try:
-        hints = typing.get_type_hints(call)
-    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
-        hints = {}
-    sig = inspect.signature(call)
-    params = [Param(p.name, hints.get(p.name, Any)) for p in sig.parameters.values()
-              if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
-    if skip_self and params:
-        params = params[1:]
-    returns = hints.get("return", Any) if sig.return_annotation is not _EMPTY else Any
-    return params, type(None) if returns is None else returns
-
-
-def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
-    """The parameters and return type of ``task``'s operation, from its description."""
-    from dataflow import registry
-
-    desc = task.operations().get(operation)
-    if desc is None:
-        raise TransportError(f"task {task.name} has no operation {operation!r}; operations: "
-                             f"{', '.join(sorted(task.operations())) or 'none'}")
-
-    def of(name: str) -> Any:
-        return Any if name == "any" else type(None) if name == "None" else (registry.python_type(name) or Any)
-
-    return [Param(n, of(t)) for n, t in desc.params], of(desc.returns)
-
-
 def serve_operation(task: Any, operation: str, service: str, type_name: str, *, converter: str = "",
                     options: dict[str, str] | None = None, timeout: float = 5.0) -> ServedService:
     """Answer the ROS service ``service`` with ``task``'s operation ``operation`` (its
     arguments checked as outside input; an answer within ``timeout`` s, else a service
     error). rtt_rosservice's ``connect("task.operation", "/service", "pkg/Srv")``."""
     params, returns = operation_signature(task, operation)
-
-    def call(*args: Any) -> Any:
-        checked = task.check_arguments(operation, list(args))
-        return task.send(operation, *checked).result(timeout)
-
+    call = operation_call(task, operation, timeout)
     return ServedService(service, type_name, call, params, returns, converter=converter, options=options,
                          label=f"{task.name}.{operation}")
 

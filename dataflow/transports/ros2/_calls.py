@@ -22,11 +22,8 @@ the response as plain data, or as a model it is given) and :func:`call_service`.
 
 from __future__ import annotations
 
-import inspect
 import logging
-import typing
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import pydantic
@@ -34,7 +31,9 @@ from rosbags.typesys.base import Nodetype
 
 from dataflow.transports import TransportError, load
 
-from ._convert import _is_model, _Mismatch, _Planner, _unwrap, type_label
+from .._rosplan import (Mismatch, Param, answering, is_model, match_params, operation_call, operation_signature,
+                        signature_of, type_label, unwrap)
+from ._convert import _Planner
 from ._errors import Ros2Error, UnknownTypeError
 from ._names import topic_name
 from ._types import MessageTypes, message_to_dict
@@ -44,14 +43,6 @@ __all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_serv
 log = logging.getLogger(__name__)
 
 _EMPTY = "structure_needs_at_least_one_member"  # rosidl's member of an empty struct: no argument
-
-
-@dataclass(frozen=True)
-class Param:
-    """One parameter of a callable a service calls: its name and type (``Any``: unannotated)."""
-
-    name: str
-    type: Any = Any
 
 
 def _transport() -> Any:
@@ -65,25 +56,15 @@ def _transport() -> Any:
 def _request_plan(types: MessageTypes, request: str, params: list[Param]
                   ) -> tuple[Callable[[Any], list[Any]], list[str]]:
     """``request -> positional arguments``, and the problems found."""
-    fields = [(n, d) for n, d in types.fields(request) if n != _EMPTY]
-    by_name = dict(fields)
-    if len(params) == 1 and len(fields) == 1:
-        pairs = [(params[0], fields[0])]
-    else:
-        missing = [p.name for p in params if p.name not in by_name]
-        unused = [n for n, _ in fields if n not in {p.name for p in params}]
-        problems = ([f"parameter(s) {', '.join(missing)} have no field in {request} (fields: "
-                     f"{', '.join(by_name) or 'none'})"] if missing else []) + \
-                   ([f"{request} field(s) {', '.join(unused)} match no parameter "
-                     f"({', '.join(p.name for p in params) or 'none'})"] if unused else [])
-        if problems:
-            return _no_args, problems
-        pairs = [(p, (p.name, by_name[p.name])) for p in params]
-    planner, convs, problems = _Planner(types, outgoing=False), [], []
-    for param, (name, desc) in pairs:
+    by_name = {n: d for n, d in types.fields(request) if n != _EMPTY}
+    pairs, problems = match_params(params, list(by_name), request)
+    if problems:
+        return _no_args, problems
+    planner, convs = _Planner(types, outgoing=False), []
+    for param, name in pairs:
         try:
-            convs.append((name, planner.field(_unwrap(param.type), desc, 0)))
-        except _Mismatch as exc:
+            convs.append((name, planner.field(unwrap(param.type), by_name[name], 0)))
+        except Mismatch as exc:
             problems.append(f"parameter {param.name} ({type_label(param.type)}) vs {request}.{name}: {exc}")
     plan = tuple(convs)
     return (lambda req: [conv(getattr(req, name)) for name, conv in plan]), problems
@@ -111,13 +92,13 @@ def _response_plan(types: MessageTypes, response: str, returns: Any
                 else (lambda r: {"success": True, "message": r})), True, []
     planner = _Planner(types, outgoing=True)
     try:
-        if _is_model(returns):
+        if is_model(returns):
             return planner.model(returns, response, 0), convention, []
         if len(fields) == 1:
             key, desc = fields[0]
-            conv = planner.field(_unwrap(returns), desc, 0)
+            conv = planner.field(unwrap(returns), desc, 0)
             return (lambda r: {key: conv(r)}), convention, []
-    except _Mismatch as exc:
+    except Mismatch as exc:
         return _nothing, convention, [f"the return type {type_label(returns)} vs {response}: {exc}"]
     return _nothing, convention, [f"the return type {type_label(returns)} fits no field of {response} (fields: "
                                   f"{', '.join(names) or 'none'}): return a model with its fields"]
@@ -177,7 +158,7 @@ class ServedService:
         request, response = types.service(type_name)
         args_of = _request_plan(types, request, params)[0]
         response_of, convention = _response_plan(types, response, returns)[:2]
-        self._answer = _answering(call, args_of, response_of, convention)
+        self._answer = answering(call, args_of, response_of, dict if convention else None)
         self.calls = self.failures = 0
         self._closed = False
         self._participant = self._transport.acquire(where)
@@ -214,36 +195,6 @@ class ServedService:
         self.close()
 
 
-def _answering(call: Callable[..., Any], args_of: Callable[[Any], list[Any]],
-               response_of: Callable[[Any], dict[str, Any]], convention: bool) -> Callable[[Any], dict[str, Any]]:
-    def answer(request: Any) -> dict[str, Any]:
-        args = args_of(request)
-        if not convention:
-            return response_of(call(*args))
-        try:
-            result = call(*args)
-        except Exception as exc:  # noqa: BLE001 - success/message: the failure is the answer
-            return {"success": False, "message": f"{type(exc).__name__}: {exc}"[:1000]}
-        if result is False:
-            return {"success": False}
-        return response_of(result)
-
-    return answer
-
-
-def signature_of(call: Callable[..., Any]) -> tuple[list[Param], Any]:
-    """The parameters and return annotation of ``call`` (``Any`` where unannotated)."""
-    try:
-        hints = typing.get_type_hints(call)
-    except Exception:  # noqa: BLE001 - unresolvable annotations: as if there were none
-        hints = {}
-    sig = inspect.signature(call)
-    params = [Param(p.name, hints.get(p.name, Any)) for p in sig.parameters.values()
-              if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
-    returns = hints.get("return", Any) if sig.return_annotation is not inspect.Parameter.empty else Any
-    return params, type(None) if returns is None else returns
-
-
 def serve(call: Callable[..., Any], service: str, type_name: str, *,
           options: Mapping[str, str] | None = None) -> ServedService:
     """Answer the ROS 2 service ``service`` (``pkg/srv/Srv``) with ``call``, whose
@@ -253,31 +204,12 @@ def serve(call: Callable[..., Any], service: str, type_name: str, *,
     return ServedService(service, type_name, call, params, returns, options=options)
 
 
-def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
-    """The parameters and return type of ``task``'s operation, from its description."""
-    from dataflow import registry
-
-    desc = task.operations().get(operation)
-    if desc is None:
-        raise TransportError(f"task {task.name} has no operation {operation!r}; operations: "
-                             f"{', '.join(sorted(task.operations())) or 'none'}")
-
-    def of(name: str) -> Any:
-        return Any if name == "any" else type(None) if name == "None" else (registry.python_type(name) or Any)
-
-    return [Param(n, of(t)) for n, t in desc.params], of(desc.returns)
-
-
 def serve_operation(task: Any, operation: str, service: str, type_name: str, *,
                     options: Mapping[str, str] | None = None, timeout: float = 5.0) -> ServedService:
     """Answer the ROS 2 service ``service`` with ``task``'s operation ``operation`` (its
     arguments checked as outside input; an answer within ``timeout`` s, else no reply)."""
     params, returns = operation_signature(task, operation)
-
-    def call(*args: Any) -> Any:
-        checked = task.check_arguments(operation, list(args))
-        return task.send(operation, *checked).result(timeout)
-
+    call = operation_call(task, operation, timeout)
     return ServedService(service, type_name, call, params, returns, options=options,
                          label=f"{task.name}.{operation}")
 
