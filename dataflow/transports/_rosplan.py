@@ -1,9 +1,9 @@
 """What the ``ros1`` and ``ros2`` transports share: the rules on the Python side of a
 conversion, which are the same whatever ROS's types are. Type inspection of a port's type
 and of a converter's annotations (:func:`type_label`, :func:`check_converter`...),
-converters found by name (:func:`resolve_converter`), and a service's callable's
-parameters matched to its request (:func:`signature_of`, :func:`match_params`,
-:func:`answering`).
+converters found by name (:func:`resolve_converter`), a service's callable's parameters
+matched to its request (:func:`signature_of`, :func:`match_params`, :func:`answering`),
+and a stream's small pieces (:func:`flag`, :func:`receiver`, :class:`RefusingCarrier`).
 
 One copy, so that the two transports keep one set of rules (their messages name the same
 problems the same way). ROS-agnostic: it imports neither transport, nor rosbags nor
@@ -13,20 +13,29 @@ cyclonedds, and loading it stays as light as loading a transport.
 from __future__ import annotations
 
 import inspect
+import logging
 import sys
+import time
 import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import pydantic
 
-from dataflow.transports import TransportError
+from dataflow.transports import StreamProblem, TransportError
 
-__all__ = ["ConversionProblem", "Mismatch", "Param", "accepts", "answering", "check_converter", "is_mapping",
-           "is_model", "is_open", "item_type", "match_params", "operation_call", "operation_signature",
-           "resolve_converter", "signature_of", "type_label", "unwrap"]
+if TYPE_CHECKING:
+    from dataflow.transports.ends import ReaderEnd
+
+__all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
+           "flag", "is_mapping", "is_model", "is_open", "item_type", "match_params", "operation_call",
+           "operation_signature", "receiver", "resolve_converter", "signature_of", "stream_problems", "type_label",
+           "unwrap", "usable"]
+
+_C = TypeVar("_C")
+_TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
 
 
 # ---- port types and annotations ------------------------------------------------------
@@ -238,3 +247,67 @@ def answering(call: Callable[..., Any], args_of: Callable[[Any], list[Any]], res
         return response_of(result)
 
     return answer
+
+
+# ---- streams ----------------------------------------------------------------------------
+def flag(options: Mapping[str, str], key: str) -> bool:
+    """The boolean option ``key`` (absent: False); raises ``ValueError`` for another word."""
+    value = options.get(key, "").strip().lower()
+    if value in _TRUE:
+        return True
+    if value in _FALSE:
+        return False
+    raise ValueError(f"option {key}={options[key]!r}: expected true or false")
+
+
+def stream_problems(transport: str, port: Any, problems: list[ConversionProblem]) -> list[StreamProblem]:
+    """A stream's conversion problems as the stream problems ``scart validate`` shows,
+    each naming the transport and the port."""
+    where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
+    return [StreamProblem(f"{transport} {where}: {p.message}", p.warning, types=True) for p in problems]
+
+
+def usable(conv: _C | None, problems: list[StreamProblem], log: logging.Logger) -> _C:
+    """The conversion a stream is made with: its warnings logged on ``log`` (the
+    transport's), its errors raised as :class:`TransportError`."""
+    for p in problems:
+        if p.warning:
+            log.warning("%s", p.message)
+    if conv is None:
+        raise TransportError("; ".join(p.message for p in problems if not p.warning))
+    return conv
+
+
+def receiver(end: ReaderEnd, convert: Callable[[Any], Any], label: str) -> Callable[[Any], None]:
+    """What a subscription calls with each message (one at a time): the value converted
+    and handed to ``end``, numbered; a message that does not convert is refused there
+    (``label``: its type), never ending the stream."""
+    count = [0]
+
+    def on_message(msg: Any) -> None:
+        try:
+            value = convert(msg)
+        except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
+            end.refuse(f"a {label} that does not convert: {type(exc).__name__}: {exc}")
+            return
+        count[0] += 1
+        end.receive(count[0], time.time_ns(), value)
+
+    return on_message
+
+
+class RefusingCarrier:
+    """The refusal count of a writer end's carrier: ``refused`` samples, the last one's
+    ``refusal`` (the first is logged on the transport's ``log``)."""
+
+    def __init__(self, label: str, log: logging.Logger) -> None:
+        self._label = label
+        self._log = log
+        self.refused = 0
+        self.refusal = ""
+
+    def _refuse(self, why: str) -> None:
+        self.refused += 1
+        self.refusal = why[:300]
+        if self.refused == 1:
+            self._log.warning("%s: a sample refused: %s", self._label, self.refusal)

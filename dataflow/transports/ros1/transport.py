@@ -45,6 +45,7 @@ from dataflow.policy import ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
+from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
 from .names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
@@ -61,7 +62,6 @@ NODE_OPTIONS = frozenset({"master", "node", "__name", "__ns", "host", "insecure"
 OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "queue_size", "msgs"}) | NODE_OPTIONS
 MAX_QUEUE = 10_000  #: messages waiting for one slow subscriber, at most
 _BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,127}")
-_TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
 
 
 @dataclass(frozen=True)
@@ -79,15 +79,6 @@ class NodeSettings:
     @property
     def node_name(self) -> str:
         return self.name or f"scart_{os.getpid()}"
-
-
-def _flag(options: dict[str, str], key: str) -> bool:
-    value = options.get(key, "").strip().lower()
-    if value in _TRUE:
-        return True
-    if value in _FALSE:
-        return False
-    raise ValueError(f"option {key}={options[key]!r}: expected true or false")
 
 
 def _loopback(host: str) -> bool:
@@ -147,7 +138,7 @@ class Ros1Transport(Transport):
         """The process's defaults with what ``options`` say; raises ``ValueError``."""
         with self._lock:
             settings = self._defaults
-        insecure = _flag(options, "insecure") if "insecure" in options else settings.insecure
+        insecure = flag(options, "insecure") if "insecure" in options else settings.insecure
         host = options.get("host") or ("0.0.0.0" if insecure else "127.0.0.1")
         if not insecure and not _loopback(host):
             raise ValueError(f"host={host}: ROS 1 authenticates no one; a node listens on loopback unless told "
@@ -226,7 +217,7 @@ class Ros1Transport(Transport):
             self.node_settings(options)
             for key in ("latch",):
                 if key in options:
-                    _flag(options, key)
+                    flag(options, key)
             if "queue_size" in options and not (options["queue_size"].isdigit()
                                                 and 1 <= int(options["queue_size"]) <= MAX_QUEUE):
                 out.append(f"ros1: queue_size={options['queue_size']!r}: a whole number 1..{MAX_QUEUE}")
@@ -250,8 +241,7 @@ class Ros1Transport(Transport):
 
         conv, problems = plan(self.types, port.type, options.get("type") or None, outgoing=not port.is_input,
                               converter=options.get("converter", ""), frame_id=options.get("frame_id", ""))
-        where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
-        return conv, [StreamProblem(f"ros1 {where}: {p.message}", p.warning, types=True) for p in problems]
+        return conv, stream_problems("ros1", port, problems)
 
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
         port = end.port
@@ -260,12 +250,7 @@ class Ros1Transport(Transport):
         errors = self._check_options(topic, options)
         if errors:
             raise TransportError("; ".join(errors))
-        conv, problems = self.conversion(port, options)
-        for p in problems:
-            if p.warning:
-                log.warning("%s", p.message)
-        if conv is None:
-            raise TransportError("; ".join(p.message for p in problems if not p.warning))
+        conv = usable(*self.conversion(port, options), log)
         node = self.acquire(options)
         try:
             return _TopicStream(self, node, end, topic, conv, options)
@@ -278,7 +263,7 @@ def _identity(sample: OutSample) -> OutSample:
     return sample
 
 
-class _Carrier:
+class _Carrier(RefusingCarrier):
     """A writer end's carrier onto a ROS publisher: each sample converted and serialised
     once (only while someone subscribes, or the topic latches) and handed to every
     subscriber's connection, never blocking (a slow subscriber's queue drops its oldest).
@@ -287,12 +272,10 @@ class _Carrier:
     encode = staticmethod(_identity)  # converted in send(), only when someone listens
 
     def __init__(self, pub: Any, conv: Conversion, label: str) -> None:
+        super().__init__(label, log)
         to_ros, to_frame, frame = conv.to_ros, conv.to_frame, pub.type.frame
         assert to_ros is not None
         self._pub = pub
-        self._label = label
-        self.refused = 0
-        self.refusal = ""
         if to_frame is not None:  # one fixed field: straight to bytes
             self._frame: Any = lambda sample: to_frame(sample.value, sample.n, sample.t_ns)
         else:
@@ -305,10 +288,7 @@ class _Carrier:
         try:
             frame = sample.encoded(self._frame)
         except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
-            self.refused += 1
-            self.refusal = f"sample {sample.n}: {type(exc).__name__}: {exc}"[:300]
-            if self.refused == 1:
-                log.warning("%s: a sample refused: %s", self._label, self.refusal)
+            self._refuse(f"sample {sample.n}: {type(exc).__name__}: {exc}")
             return True
         pub.publish_frame(frame)
         return True
@@ -335,7 +315,7 @@ class _TopicStream(Stream):
 
     def _publish(self, end: WriterEnd, conv: Conversion, options: dict[str, str]) -> None:
         policy = end.policy
-        latch = _flag(options, "latch") if "latch" in options else policy.init
+        latch = flag(options, "latch") if "latch" in options else policy.init
         size = int(options["queue_size"]) if "queue_size" in options else (
             1 if policy.type is ConnType.DATA else max(1, min(policy.size, MAX_QUEUE)))
         self._pub = self._node.advertise(self.topic, conv.ros_type, latch=latch, queue_size=size)
@@ -348,21 +328,11 @@ class _TopicStream(Stream):
 
     def _subscribe(self, end: ReaderEnd, conv: Conversion) -> None:
         raw = conv.from_bytes is not None  # one fixed field: straight from the bytes, no message object
-        from_ros, label = conv.from_bytes if raw else conv.from_ros, conv.ros_type
+        from_ros = conv.from_bytes if raw else conv.from_ros
         assert from_ros is not None
-        count = [0]
-
-        def on_message(msg: Any) -> None:  # the node's io thread, one message at a time
-            try:
-                value = from_ros(msg)
-            except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
-                end.refuse(f"a {label} that does not convert: {type(exc).__name__}: {exc}")
-                return
-            count[0] += 1
-            end.receive(count[0], time.time_ns(), value)
-
-        end.transport = "ros1"
-        self._sub = self._node.subscribe(self.topic, conv.ros_type, on_message, raw=raw, tcp_nodelay=True)
+        end.transport = "ros1"  # the node's io thread calls the receiver, one message at a time
+        self._sub = self._node.subscribe(self.topic, conv.ros_type, receiver(end, from_ros, conv.ros_type), raw=raw,
+                                         tcp_nodelay=True)
 
     # ---- what it says ------------------------------------------------------------------
     @property

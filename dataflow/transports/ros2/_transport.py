@@ -42,7 +42,6 @@ from __future__ import annotations
 import logging
 import os
 import threading
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,6 +51,7 @@ from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
+from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
 from ._convert import Conversion, plan
 from ._errors import DomainError, Ros2Error
 from ._names import topic_name
@@ -69,16 +69,6 @@ NETWORK_OPTIONS = frozenset({"domain", "insecure", "interface", "peers"})
 OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs"}) | NETWORK_OPTIONS
 MAX_DEPTH = 10_000  #: keep-last depth, at most (the library's bound)
 MAX_DEFINITION_BYTES = 1 << 20  #: a .msg file larger than this is refused (as ros1's)
-_TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
-
-
-def _flag(options: Mapping[str, str], key: str) -> bool:
-    value = options.get(key, "").strip().lower()
-    if value in _TRUE:
-        return True
-    if value in _FALSE:
-        return False
-    raise ValueError(f"option {key}={options[key]!r}: expected true or false")
 
 
 def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False) -> QoS:
@@ -155,7 +145,7 @@ class Ros2Transport(Transport):
             with self._lock:
                 return _Where(domain, self._network)
         try:
-            return _Where(domain, Network.open(interface, peers) if _flag(options, "insecure") else Network.loopback())
+            return _Where(domain, Network.open(interface, peers) if flag(options, "insecure") else Network.loopback())
         except DomainError as exc:
             raise ValueError(str(exc)) from None
 
@@ -212,7 +202,7 @@ class Ros2Transport(Transport):
             self.where(options)
             for key in ("latch", "best_effort"):
                 if key in options:
-                    _flag(options, key)
+                    flag(options, key)
             self._add_msgs(options)
         except ValueError as exc:
             out.append(f"ros2: {exc}")
@@ -238,8 +228,7 @@ class Ros2Transport(Transport):
         """How ``port``'s values cross to the topic's type, and the problems found."""
         conv, problems = plan(self.types, port.type, options.get("type") or None, outgoing=not port.is_input,
                               converter=options.get("converter", ""), frame_id=options.get("frame_id", ""))
-        where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
-        return conv, [StreamProblem(f"ros2 {where}: {p.message}", p.warning, types=True) for p in problems]
+        return conv, stream_problems("ros2", port, problems)
 
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
         port = end.port
@@ -248,12 +237,7 @@ class Ros2Transport(Transport):
         errors = self._check_options(topic, options)
         if errors:
             raise TransportError("; ".join(errors))
-        conv, problems = self.conversion(port, options)
-        for p in problems:
-            if p.warning:
-                log.warning("%s", p.message)
-        if conv is None:
-            raise TransportError("; ".join(p.message for p in problems if not p.warning))
+        conv = usable(*self.conversion(port, options), log)
         participant = self.acquire(self.where(options))
         try:
             return _TopicStream(self, participant, end, topic_name(topic), conv, options)
@@ -269,7 +253,7 @@ def _shown(network: Network) -> str:
     return "loopback only" if network.loopback_only else "open to the network (insecure)"
 
 
-class _Carrier:
+class _Carrier(RefusingCarrier):
     """A writer end's carrier onto a ROS 2 publisher: each sample converted (its header
     stamped with the sample's time) and written, from the writer's thread, never blocking
     (keep-last history). A value that does not convert is refused and counted here."""
@@ -279,12 +263,10 @@ class _Carrier:
         return sample  # converted in send(): the conversion is this stream's own
 
     def __init__(self, publisher: Any, conv: Conversion, label: str) -> None:
+        super().__init__(label, log)
         assert conv.to_idl is not None
         self._to_idl = conv.to_idl
         self._publisher = publisher
-        self._label = label
-        self.refused = 0
-        self.refusal = ""
 
     def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
         try:
@@ -295,12 +277,6 @@ class _Carrier:
         if not self._publisher.publish(message):
             self._refuse(f"sample {sample.n}: {self._publisher.stats().last_refusal}")
         return True  # DDS keeps the newest of its history: never "no room"
-
-    def _refuse(self, why: str) -> None:
-        self.refused += 1
-        self.refusal = why[:300]
-        if self.refused == 1:
-            log.warning("%s: a sample refused: %s", self._label, self.refusal)
 
 
 class _TopicStream(Stream):
@@ -317,13 +293,13 @@ class _TopicStream(Stream):
         self._sub: Any = None
         self._carrier: _Carrier | None = None
         self._closed = False
-        best_effort = _flag(options, "best_effort")
+        best_effort = flag(options, "best_effort")
         try:
             if isinstance(end, WriterEnd):
-                latch = _flag(options, "latch") if "latch" in options else end.policy.init
+                latch = flag(options, "latch") if "latch" in options else end.policy.init
                 self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch))
             else:
-                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=_flag(options, "latch")))
+                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=flag(options, "latch")))
         except BaseException:
             self._close_parts()  # the participant is the caller's to release
             raise
@@ -336,19 +312,8 @@ class _TopicStream(Stream):
     def _subscribe(self, end: ReaderEnd, conv: Conversion, qos: QoS) -> None:
         from_idl, label = conv.from_idl, conv.ros_type
         assert from_idl is not None
-        count = [0]
-
-        def on_message(obj: Any) -> None:  # the participant's thread, one message at a time
-            try:
-                value = from_idl(obj)
-            except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
-                end.refuse(f"a {label} that does not convert: {type(exc).__name__}: {exc}")
-                return
-            count[0] += 1
-            end.receive(count[0], time.time_ns(), value)
-
-        end.transport = "ros2"
-        self._sub = self._participant.subscribe(self.topic, conv.ros_type, on_message, qos, raw=True)
+        end.transport = "ros2"  # the participant's thread calls the receiver, one message at a time
+        self._sub = self._participant.subscribe(self.topic, conv.ros_type, receiver(end, from_idl, label), qos, raw=True)
         self._sub.refused_hook = lambda why: end.refuse(f"a malformed {label}: {why}")
 
     # ---- what it says ------------------------------------------------------------------
