@@ -30,11 +30,12 @@ if TYPE_CHECKING:
     from dataflow.transports.ends import ReaderEnd
 
 __all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
-           "flag", "is_mapping", "is_model", "is_open", "item_type", "match_params", "operation_call",
+           "flag", "is_mapping", "is_model", "is_open", "item_type", "match_params", "model_fields", "operation_call",
            "operation_signature", "receiver", "resolve_converter", "signature_of", "stream_problems", "type_label",
            "unwrap", "usable"]
 
 _C = TypeVar("_C")
+_F = TypeVar("_F")
 _TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
 
 
@@ -101,6 +102,32 @@ def item_type(py_type: Any) -> Any | None:
             return None
         return args[0] if args else Any
     return None
+
+
+def model_fields(model: type[pydantic.BaseModel], ros_type: str, fields: Mapping[str, _F], outgoing: bool,
+                 convert: Callable[[Any, _F], Callable[[Any], Any]]) -> dict[str, Callable[[Any], Any]]:
+    """The conversion of each field of ``model`` to or from its namesake of ``fields``
+    (``ros_type``'s), made by ``convert(annotation, field)``. Publishing, every field of the
+    model needs one; reading, every field it requires. Raises :class:`Mismatch` naming
+    every problem, so that a model is fixed in one go."""
+    convs: dict[str, Callable[[Any], Any]] = {}
+    problems, missing = [], []
+    for name, info in model.model_fields.items():
+        field = fields.get(name)
+        if field is None:
+            if outgoing or info.is_required():
+                missing.append(name)
+            continue
+        try:
+            convs[name] = convert(unwrap(info.annotation), field)
+        except Mismatch as exc:
+            problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
+    if missing:
+        problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
+                           f"no field in {ros_type} (its fields: {', '.join(fields) or 'none'})")
+    if problems:
+        raise Mismatch("; ".join(problems) + "; give a converter")
+    return convs
 
 
 # ---- converters -----------------------------------------------------------------------

@@ -41,7 +41,7 @@ import numpy
 import pydantic
 
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
-                        item_type, resolve_converter, type_label, unwrap)
+                        item_type, model_fields, resolve_converter, type_label, unwrap)
 from .msgs import FieldDef, MessageTypes, UnknownTypeError
 
 __all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "field_conversion", "plan", "resolve_converter",
@@ -235,24 +235,7 @@ class _Planner:
         if depth > MAX_DEPTH:
             raise Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
         fields = {f.name: f for f in self.types.fields(ros_type)}
-        ours = model.model_fields
-        convs: dict[str, Callable[[Any], Any]] = {}
-        problems, missing = [], []
-        for name, info in ours.items():
-            fdef = fields.get(name)
-            if fdef is None:
-                if self.outgoing or info.is_required():
-                    missing.append(name)
-                continue
-            try:
-                convs[name] = self.field(unwrap(info.annotation), fdef, depth)
-            except Mismatch as exc:
-                problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
-        if missing:
-            problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
-                               f"no field in {ros_type} (its fields: {_names(fields.values())})")
-        if problems:
-            raise Mismatch("; ".join(problems) + "; give a converter")
+        convs = model_fields(model, ros_type, fields, self.outgoing, lambda t, fdef: self.field(t, fdef, depth))
         if not self.outgoing:
             pairs = tuple(convs.items())
             return lambda msg: {name: conv(getattr(msg, name)) for name, conv in pairs}

@@ -44,7 +44,7 @@ import pydantic
 from rosbags.typesys.base import Nodetype
 
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
-                        item_type, resolve_converter, type_label, unwrap)
+                        item_type, model_fields, resolve_converter, type_label, unwrap)
 from ._errors import UnknownTypeError
 from ._names import split_type_name
 from ._types import MessageTypes
@@ -195,23 +195,7 @@ class _Planner:
         if depth > MAX_DEPTH:
             raise Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
         fields = dict(self.types.fields(ros_type))
-        convs: dict[str, Callable[[Any], Any]] = {}
-        problems, missing = [], []
-        for name, info in model.model_fields.items():
-            desc = fields.get(name)
-            if desc is None:
-                if self.outgoing or info.is_required():
-                    missing.append(name)
-                continue
-            try:
-                convs[name] = self.field(unwrap(info.annotation), desc, depth)
-            except Mismatch as exc:
-                problems.append(f"{model.__name__}.{name} vs {ros_type}.{name}: {exc}")
-        if missing:
-            problems.insert(0, f"{model.__name__}'s {', '.join(missing)} {'has' if len(missing) == 1 else 'have'} "
-                               f"no field in {ros_type} (its fields: {_names(fields.items())})")
-        if problems:
-            raise Mismatch("; ".join(problems) + "; give a converter")
+        convs = model_fields(model, ros_type, fields, self.outgoing, lambda t, desc: self.field(t, desc, depth))
         pairs = tuple(convs.items())
         if self.outgoing:
             def to_fields(value: Any) -> dict[str, Any]:
