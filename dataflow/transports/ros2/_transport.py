@@ -313,7 +313,8 @@ class _TopicStream(Stream):
         from_idl, label = conv.from_idl, conv.ros_type
         assert from_idl is not None
         end.transport = "ros2"  # the participant's thread calls the receiver, one message at a time
-        self._sub = self._participant.subscribe(self.topic, conv.ros_type, receiver(end, from_idl, label), qos, raw=True)
+        self._sub = self._participant.subscribe(self.topic, conv.ros_type, receiver(end, from_idl, label), qos,
+                                                raw=True)
         self._sub.refused_hook = lambda why: end.refuse(f"a malformed {label}: {why}")
 
     # ---- what it says ------------------------------------------------------------------
