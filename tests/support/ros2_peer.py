@@ -108,6 +108,16 @@ def say(**event: object) -> None:
     print(json.dumps(event), flush=True)
 
 
+def write_when_matched(writer: DataWriter, sample: object, seconds: float = 10) -> None:
+    """Write once the writer sees a reader: DDS discovery is one-sided, so the test's reader
+    having matched this writer does not mean this writer has matched it yet (a volatile
+    sample written before would reach no one)."""
+    deadline = time.monotonic() + seconds
+    while not writer.get_matched_subscriptions() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    writer.write(sample)
+
+
 def relay(dp: DomainParticipant, seconds: float) -> None:
     f_in = DataReader(dp, Topic(dp, "rt/peer/in", Float64_), qos=QOS)
     f_out = DataWriter(dp, Topic(dp, "rt/peer/out", Float64_), qos=QOS)
@@ -123,7 +133,7 @@ def relay(dp: DomainParticipant, seconds: float) -> None:
         for sample in f_in.take(N=100):
             if sample.sample_info.valid_data:
                 say(event="float64", data=sample.data)
-                f_out.write(Float64_(data=sample.data + 1))
+                write_when_matched(f_out, Float64_(data=sample.data + 1))
         for sample in js_in.take(N=100):
             if sample.sample_info.valid_data:
                 say(event="joint_state", frame_id=sample.header.frame_id, sec=sample.header.stamp.sec,
@@ -131,7 +141,7 @@ def relay(dp: DomainParticipant, seconds: float) -> None:
                     position=list(sample.position), velocity=list(sample.velocity))
                 sample.header.frame_id = "peer:" + sample.header.frame_id
                 sample.position = [2 * p for p in sample.position]
-                js_out.write(sample)
+                write_when_matched(js_out, sample)
 
 
 def raw(data: bytes) -> JointState_:
