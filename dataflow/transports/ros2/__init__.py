@@ -93,21 +93,51 @@ them on the library path it is reachable; from PyPI alone it is not. Not built h
 
 from __future__ import annotations
 
-try:
-    import cyclonedds  # noqa: F401
-except ImportError as _exc:  # the transport's registry names this when a policy asks for ros2
-    raise ImportError("ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'") from _exc
+import importlib
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
 
-from ._calls import ServedService, ServiceProxy, call_service, serve, serve_operation
-from ._endpoints import Publisher, PublisherStats, Subscription, SubscriptionStats
-from ._errors import ConversionError, DomainError, Ros2Error, UnknownTypeError
-from ._names import dds_topic, dds_type_name, ros_topic, ros_type_name, service_topics, topic_name
-from ._network import Network, resolve_domain_id
-from ._participant import Participant
-from ._qos import Durability, QoS, Reliability
-from ._services import ServiceClient, ServiceServer
-from ._transport import Ros2Transport, qos_of
-from ._types import DISTROS, MessageTypes, message_to_dict
+if TYPE_CHECKING:
+    from ._calls import ServedService, ServiceProxy, call_service, serve, serve_operation
+    from ._endpoints import Publisher, PublisherStats, Subscription, SubscriptionStats
+    from ._errors import ConversionError, DomainError, Ros2Error, UnknownTypeError
+    from ._names import dds_topic, dds_type_name, ros_topic, ros_type_name, service_topics, topic_name
+    from ._network import Network, resolve_domain_id
+    from ._participant import Participant
+    from ._qos import Durability, QoS, Reliability
+    from ._services import ServiceClient, ServiceServer
+    from ._transport import Ros2Transport, qos_of
+    from ._types import DISTROS, MessageTypes, message_to_dict
+
+#: Where each public name lives: imported when first asked for, so that loading the ``ros2``
+#: transport (``auto`` reads every transport's rank) imports neither Cyclone DDS nor rosbags,
+#: and works without the ``scart[ros2]`` extra (a stream then says it is missing).
+_WHERE = MappingProxyType({
+    **dict.fromkeys(("ServedService", "ServiceProxy", "call_service", "serve", "serve_operation"), "_calls"),
+    **dict.fromkeys(("Publisher", "PublisherStats", "Subscription", "SubscriptionStats"), "_endpoints"),
+    **dict.fromkeys(("ConversionError", "DomainError", "Ros2Error", "UnknownTypeError"), "_errors"),
+    **dict.fromkeys(("dds_topic", "dds_type_name", "ros_topic", "ros_type_name", "service_topics", "topic_name"),
+                    "_names"),
+    **dict.fromkeys(("Network", "resolve_domain_id"), "_network"),
+    "Participant": "_participant",
+    **dict.fromkeys(("Durability", "QoS", "Reliability"), "_qos"),
+    **dict.fromkeys(("ServiceClient", "ServiceServer"), "_services"),
+    **dict.fromkeys(("Ros2Transport", "qos_of"), "_transport"),
+    **dict.fromkeys(("DISTROS", "MessageTypes", "message_to_dict"), "_types"),
+})
+
+
+def __getattr__(name: str) -> Any:
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    try:
+        return getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    except ImportError as exc:
+        if (exc.name or "").partition(".")[0] == "cyclonedds":
+            raise ImportError("ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'") from exc
+        raise
+
 
 __all__ = [
     "Participant", "Publisher", "Subscription", "ServiceServer", "ServiceClient",

@@ -30,9 +30,6 @@ import re
 import threading
 from dataclasses import dataclass
 
-from cyclonedds.core import DDSException
-from cyclonedds.domain import Domain
-
 from ._errors import DomainError
 
 __all__ = ["Network", "resolve_domain_id", "MAX_DOMAIN_ID", "MAX_SAMPLE_BYTES"]
@@ -135,6 +132,9 @@ class _Domains:
                         "configuration: Cyclone DDS configures a domain once per process")
                 entry[2] += 1
                 return
+            from cyclonedds.core import DDSException
+            from cyclonedds.domain import Domain
+
             try:
                 domain = Domain(domain_id, xml)
             except DDSException as exc:

@@ -45,20 +45,22 @@ import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
-from ._convert import Conversion, plan
 from ._errors import DomainError, Ros2Error
 from ._names import topic_name
 from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
-from ._participant import Participant
-from ._qos import QoS
-from ._types import MessageTypes
+
+if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them (see _dds)
+    from ._convert import Conversion
+    from ._participant import Participant
+    from ._qos import QoS
+    from ._types import MessageTypes
 
 __all__ = ["OPTIONS", "Ros2Transport", "qos_of"]
 
@@ -71,8 +73,19 @@ MAX_DEPTH = 10_000  #: keep-last depth, at most (the library's bound)
 MAX_DEFINITION_BYTES = 1 << 20  #: a .msg file larger than this is refused (as ros1's)
 
 
+def _dds() -> None:
+    """Raise :class:`TransportError` naming the extra when Cyclone DDS is missing: the
+    transport loads without it (``auto`` reads its rank), its streams need it."""
+    try:
+        import cyclonedds  # noqa: F401
+    except ImportError:
+        raise TransportError("ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'") from None
+
+
 def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False) -> QoS:
     """The ROS 2 QoS of a stream with ``policy`` (see the module docstring)."""
+    from ._qos import QoS
+
     depth = 1 if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
     return QoS.buffer(depth, best_effort=best_effort, latching=latch)
 
@@ -123,6 +136,9 @@ class Ros2Transport(Transport):
         """The message types of this process (rosbags' Jazzy store and the ``msgs`` given)."""
         with self._lock:
             if self._types is None:
+                _dds()
+                from ._types import MessageTypes
+
                 self._types = MessageTypes()
             return self._types
 
@@ -162,6 +178,8 @@ class Ros2Transport(Transport):
                                          f"{_shown(entry[1])}; this asks for it {_shown(where.network)}")
                 entry[2] += 1
                 return entry[0]
+            from ._participant import Participant
+
             try:
                 made = Participant(where.domain, network=where.network, types=types, node=f"scart_{os.getpid()}")
             except Ros2Error as exc:
@@ -189,6 +207,10 @@ class Ros2Transport(Transport):
 
     # ---- streams -----------------------------------------------------------------------
     def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+        try:
+            _dds()
+        except TransportError as exc:
+            return [StreamProblem(str(exc))]
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
         if problems:
             return problems
@@ -226,11 +248,14 @@ class Ros2Transport(Transport):
 
     def conversion(self, port: Any, options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
         """How ``port``'s values cross to the topic's type, and the problems found."""
+        from ._convert import plan
+
         conv, problems = plan(self.types, port.type, options.get("type") or None, outgoing=not port.is_input,
                               converter=options.get("converter", ""), frame_id=options.get("frame_id", ""))
         return conv, stream_problems("ros2", port, problems)
 
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
+        _dds()
         port = end.port
         if port is None:
             raise TransportError("ros2 converts a port's values: a reader end without its port cannot be streamed")
