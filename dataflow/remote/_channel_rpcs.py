@@ -28,7 +28,7 @@ from dataflow.transports.grpc import ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire
 from dataflow.transports.ipc._serve import IpcServer
 from dataflow.transports.served import Served, ServedSet
-from dataflow.transports.sinks import LINGER_S, Refused, Sinks
+from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, Refused, Sinks
 
 if TYPE_CHECKING:
     from dataflow.remote.server import DeployerServer
@@ -39,8 +39,6 @@ log = logging.getLogger(__name__)
 
 MIN_HEARTBEAT_MS = 50  #: shortest idle heartbeat a subscriber may ask for
 MAX_HEARTBEAT_MS = 10_000  #: longest
-REPORT_EVERY = 64  #: samples between two reports of a gRPC link's reader end, at most ...
-REPORT_S = 0.1  #: ... or this many seconds, when something changed
 
 
 class ChannelRpcs:

@@ -116,11 +116,11 @@ class RemoteLink:
                 if isinstance(exc, grpc.RpcError) and exc.code() == grpc.StatusCode.RESOURCE_EXHAUSTED:
                     refusal = DeploymentError(f"link {self.name}: {exc.details()} (a limit of the sink's deployer, "
                                               f"{self.sink_task}'s)")
-                self._failed("waiting" if refusal is None else "refused", _reason(exc), refusal)
+                self._failed("waiting" if refusal is None else "refused", failure_reason(exc), refusal)
             except Exception as exc:  # noqa: BLE001 - the link's thread must not die: log, back off, retry
                 if not stopping.is_set():
                     log.exception("link %s failed; retrying", self.name)
-                self._failed("waiting", _reason(exc), None)
+                self._failed("waiting", failure_reason(exc), None)
             self.settled.set()
             if stopping.wait(backoff):
                 return
@@ -136,7 +136,7 @@ class RemoteLink:
             self._peer = peer
             if stopping.is_set():
                 return
-            carry(self.policy.transport, lambda t: self._attempt(t, peer), lambda: None, f"link {self.name}",
+            carry(self.policy.transport, lambda t: self._attempt(t, peer), f"link {self.name}",
                   PEER_FAILURES)
         if not stopping.is_set():
             log.info("link %s: the sink's deployer went away; reconnecting", self.name)
@@ -168,7 +168,9 @@ class RemoteLink:
         return lost
 
 
-def _reason(exc: BaseException) -> str:
+def failure_reason(exc: BaseException) -> str:
+    """A peer's failure in one line: a gRPC status by its code and details, else the
+    exception's type and text (what ``scart links`` shows a waiting link or subscription)."""
     if isinstance(exc, grpc.RpcError) and hasattr(exc, "code"):
         return f"{exc.code().name}: {exc.details()}"
     return f"{type(exc).__name__}: {exc}"

@@ -34,6 +34,7 @@ from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.remote import errors
 from scart_wire import rpc
 from dataflow.remote._delivery import Dispatcher, Mailbox
+from dataflow.remote._links import failure_reason
 from dataflow.remote.api import GapEvent, Observer, SampleEvent, Subscription
 from dataflow.threads import OwnedThread
 from dataflow.transports import NoTransportError, Peer, TransportError, carry
@@ -183,14 +184,14 @@ class GrpcSubscription(Subscription):
                 backoff = 0.05
                 reason = "stream ended by the server"
             except PEER_FAILURES as exc:
-                reason = _reason(exc)
+                reason = failure_reason(exc)
                 if not self._settled.is_set():
                     self._first_error = _first_failure(exc, self._system.address)
                     if self._first_error is not None:
                         self._settled.set()
             except Exception as exc:  # noqa: BLE001 - never let the connector die silently
                 log.exception("subscription %s.%s: receiver failed; reconnecting", self.component, self.port)
-                reason = _reason(exc)
+                reason = failure_reason(exc)
             if stopping.is_set():
                 return
             self._mark_down(reason)
@@ -209,7 +210,7 @@ class GrpcSubscription(Subscription):
             return
         self._last_seen = time.monotonic()
         try:
-            carry(self.policy.transport, lambda t: t.subscribe(self._end, peer), lambda: None,
+            carry(self.policy.transport, lambda t: t.subscribe(self._end, peer),
                   f"{self.component}.{self.port}", PEER_FAILURES)
         except NoTransportError as exc:
             raise errors.UnavailableError(str(exc), "UNAVAILABLE", address) from None
@@ -250,12 +251,6 @@ def _first_failure(exc: BaseException, address: str) -> BaseException | None:
     if isinstance(exc, TransportError):  # a plug-in that cannot be loaded, a transport's refusal: final
         return exc
     return None
-
-
-def _reason(exc: BaseException) -> str:
-    if isinstance(exc, grpc.RpcError) and hasattr(exc, "code"):
-        return f"{exc.code().name}: {exc.details()}"
-    return f"{type(exc).__name__}: {exc}"
 
 
 __all__ = ["GrpcSubscription"]

@@ -378,20 +378,15 @@ def candidates(wanted: str) -> list[Transport]:
     return default.candidates(wanted)
 
 
-#: Failures of a peer (not of a plug-in): a carry that raises one of these is retried by
-#: its owner. Transports that talk to a peer raise these; the control plane adds gRPC's.
-PEER_FAILURES: tuple[type[BaseException], ...] = (OSError, ConnectionError, TimeoutError)
-
-
-def carry(wanted: str, attempt: Callable[[Transport], bool], after: Callable[[], None], what: str,
-          peer_failures: tuple[type[BaseException], ...] = PEER_FAILURES) -> None:
+def carry(wanted: str, attempt: Callable[[Transport], bool], what: str,
+          peer_failures: tuple[type[BaseException], ...]) -> None:
     """Offer one connection to the transports for a policy's ``wanted`` in order, until
-    ``attempt(transport)`` says one carried it (and it ended); ``after()`` runs after each
-    attempt, however it went. Raises what an attempt raised when it is a peer's failure
-    (``peer_failures``: the owner reconnects), or :class:`TransportError` naming ``what``
-    and the transports tried when every one declined. Under ``auto``, a transport that
-    raises anything else (a plug-in's bug) is passed over, said once, and the next one
-    tried: it never keeps the connection from the transports that work."""
+    ``attempt(transport)`` says one carried it (and it ended). Raises what an attempt
+    raised when it is a peer's failure (``peer_failures``, the owner's: it reconnects), or
+    :class:`TransportError` naming ``what`` and the transports tried when every one
+    declined. Under ``auto``, a transport that raises anything else (a plug-in's bug) is
+    passed over, said once, and the next one tried: it never keeps the connection from the
+    transports that work."""
     tried = []
     for transport in candidates(wanted):
         tried.append(transport.name)
@@ -405,8 +400,6 @@ def carry(wanted: str, attempt: Callable[[Transport], bool], after: Callable[[],
                 raise
             default.warn_once(f"failed:{transport.name}", f"transport {transport.name!r} failed for {what} "
                               f"({type(exc).__name__}: {exc}); auto goes on with the next one")
-        finally:
-            after()
     raise NoTransportError(f"no transport reaches {what} (tried {', '.join(tried) or 'none'})")
 
 

@@ -188,7 +188,6 @@ class WriterEnd:
         self._sample_bytes = 0
         self.last_sent = 0
         self.transport = ""  #: the carrier's transport while connected, else ""
-        self.offered = 0  #: samples the port wrote since this end was made
         self.sent = 0
         written = port.last_sample()[0]
         #: The port's write number the channel counts from: when this end was made (with
@@ -211,7 +210,6 @@ class WriterEnd:
     # ---- the writer's thread ------------------------------------------------------------
     def offer(self, sample: OutSample) -> bool:
         """Send or keep ``sample`` (see the class); False when it will not leave."""
-        self.offered += 1
         carrier = self._carrier
         if carrier is None:
             self._miss(sample.n)

@@ -25,11 +25,13 @@ from dataflow.ports import InputPort
 from dataflow.transports.ends import ReaderEnd
 from scart_wire.types import registry
 
-__all__ = ["IncomingLink", "LINGER_S", "Refused", "Sinks", "port_check"]
+__all__ = ["IncomingLink", "LINGER_S", "REPORT_EVERY", "REPORT_S", "Refused", "Sinks", "port_check"]
 
 log = logging.getLogger(__name__)
 
 LINGER_S = 1.0  #: how long a closing link's buffer may wait for its task to read it
+REPORT_EVERY = 64  #: samples between two reports of a link's reader end to its source, at most ...
+REPORT_S = 0.1  #: ... or this many seconds, when something changed (on every transport)
 MAX_CHANNELS = 4096  #: incoming links one deployer keeps, at most
 
 

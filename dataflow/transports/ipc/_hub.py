@@ -118,10 +118,6 @@ class Hub:
         if first:
             self.wake()
 
-    def in_thread(self) -> bool:
-        """Whether the caller is the io thread."""
-        return threading.get_ident() == self._ident
-
     def call_later(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the io thread after what it does now (also when called from it:
         never inside the caller, which may hold locks ``fn`` needs)."""

@@ -26,7 +26,8 @@ from dataflow.policy import ConnPolicy
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import frames
 from dataflow.transports.ipc._hub import Conn, Hub
-from dataflow.transports.sinks import LINGER_S, IncomingLink, Refused, Sinks
+from dataflow.transports.ipc._wire import WHOLE
+from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, IncomingLink, Refused, Sinks
 from dataflow.transports.served import Served
 
 __all__ = ["IpcServer", "MAX_CONNECTIONS"]
@@ -40,8 +41,6 @@ TICKETS_PER_PEER = 64
 TICKET_S = 10.0
 HELLO_S = 2.0
 TICKET_BYTES = 16
-REPORT_EVERY = 64  #: samples between two reports of a link's reader end, at most ...
-REPORT_S = 0.1  #: ... or this many seconds, when something changed
 
 
 @dataclass(frozen=True)
@@ -152,7 +151,7 @@ class IpcServer:
         try:
             link, known = self.sinks.open(hello, ticket.policy)
         except Refused as exc:
-            sock.send(frames_whole(pb.LinkResponse(refused=str(exc)).SerializeToString()))
+            sock.send(WHOLE + pb.LinkResponse(refused=str(exc)).SerializeToString())  # before the io thread owns it
             raise
         return _LinkIn(Hub.acquire(), sock, self, link, known)
 
@@ -173,11 +172,6 @@ class IpcServer:
         with self._lock:
             self._conns.discard(conn)
 
-    def readers(self) -> list[Served]:
-        """The subscriptions served over ipc now."""
-        with self._lock:
-            return [c.served for c in self._conns if isinstance(c, _ReaderOut)]
-
     def stop(self) -> None:
         """Close the socket and every connection (idempotent)."""
         with self._lock:
@@ -194,11 +188,6 @@ class IpcServer:
         for sock in pending:
             self._listener.forget_pending(sock)
         self._listener.close()
-
-
-def frames_whole(message: bytes) -> bytes:
-    """One whole-message frame (a control message sent before the io thread owns the socket)."""
-    return b"\x00" + message
 
 
 class _Listener(Conn):

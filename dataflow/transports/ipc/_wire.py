@@ -17,7 +17,7 @@ import threading
 import time
 from collections.abc import Iterator
 
-__all__ = ["CHUNK", "MAX_MESSAGE", "Reassembler", "available", "close_quietly", "connect", "frames_of", "host_id",
+__all__ = ["CHUNK", "MAX_MESSAGE", "Reassembler", "available", "connect", "frames_of", "host_id",
            "IpcUnavailable", "messages_in", "shutdown_quietly"]
 
 CHUNK = 64 * 1024  #: bytes of a message in one frame, at most (well inside a socket's buffer)
@@ -152,9 +152,3 @@ def shutdown_quietly(sock: socket.socket) -> None:
         sock.shutdown(socket.SHUT_RDWR)
     except OSError:
         pass
-
-
-def close_quietly(sock: socket.socket) -> None:
-    """Shut down and close."""
-    shutdown_quietly(sock)
-    sock.close()

@@ -226,10 +226,7 @@ class _Planner:
         return lambda value, _n, _t: cls(**rest, **{key: conv(value)})
 
     def top_model(self, model: type[pydantic.BaseModel], ros_type: str) -> Callable[..., Any]:
-        build = self.model(model, ros_type, 0)
-        if not self.outgoing:
-            return lambda msg: build(msg)
-        return build
+        return self.model(model, ros_type, 0)
 
     def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[..., Any]:
         if depth > MAX_DEPTH:

@@ -56,7 +56,7 @@ from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote.api import SampleEvent
 from dataflow.transports import Stream, Transport, TransportError
-from dataflow.transports.ends import LossCount, OutSample, ReaderEnd, WriterEnd, attach, detach
+from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd, attach, detach
 from dataflow.transports.sinks import port_check
 from dataflow.transports.zenoh._keys import (
     DEFAULT_NS, ENCODING_PREFIX, MAX_PAYLOAD, ROOT, SERVED, check_topic, key_of, served_key,
@@ -276,7 +276,6 @@ class ZenohSubscription:
         self.delivered = 0
         self._observer = observer
         self._end = ReaderEnd(f"zenoh {component}.{port}", codec.decode, self._deliver, lambda: 0)
-        self._end.loss = LossCount()
         self._subscriber = _Subscriber(session, key_of(ns, component, port), self._end)
 
     def _deliver(self, n: int, t_ns: int, value: Any) -> bool:
