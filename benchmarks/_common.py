@@ -3,13 +3,16 @@ the scripts run as ``python benchmarks/bench_*.py``, so this directory is on ``s
 
 from __future__ import annotations
 
+import socket
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 from typing import TypeVar
 
 T = TypeVar("T")
 
-__all__ = ["paced", "pct", "wait_until"]
+__all__ = ["paced", "pct", "raw_socket_rtt2", "wait_until"]
 
 
 def pct(values: list[float], q: float) -> float:
@@ -46,3 +49,34 @@ def wait_until(predicate: Callable[[], T], timeout: float, interval: float = 0.0
             break
         time.sleep(interval)
     return None
+
+
+def raw_socket_rtt2(rate: float, n: int) -> list[float]:
+    """The baseline of a same-host hop: one-way times (RTT/2, s) of ``n`` ``SOCK_SEQPACKET``
+    ping-pongs with a child Python process, sent at ``rate`` Hz on absolute deadlines (as
+    the ports are: idle CPUs between samples cost their wake-up; a tight loop would hide
+    it). 20 warm-up round trips are left out."""
+    parent, kid = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    code = ("import socket\n"
+            f"s = socket.socket(fileno={kid.fileno()})\n"
+            "while True:\n"
+            "    m = s.recv(256)\n"
+            "    if not m: break\n"
+            "    s.send(m)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], pass_fds=(kid.fileno(),))
+    kid.close()
+    out: list[float] = []
+    payload = b"x" * 24
+
+    def ping(_: int) -> None:
+        t0 = time.perf_counter()
+        parent.send(payload)
+        parent.recv(256)
+        out.append((time.perf_counter() - t0) / 2)
+
+    try:
+        paced(n + 20, rate, ping)
+    finally:
+        parent.close()
+        proc.wait(timeout=10)
+    return out[20:]

@@ -34,7 +34,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from _common import paced, pct, wait_until  # noqa: E402
+from _common import paced, pct, raw_socket_rtt2, wait_until  # noqa: E402
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext  # noqa: E402
 
@@ -136,33 +136,6 @@ def scart_hop(transport: str, rate: float, seconds: float, warmup: float) -> dic
     return {where: [ns / 1000 for ns in values] for where, values in found.items()}
 
 
-def raw_hop(rate: float, seconds: float) -> list[float]:
-    """The raw Unix-socket RTT/2 (µs), at ``rate``, as many as a hop's samples."""
-    import socket
-
-    parent, kid = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-    code = ("import socket\n"
-            f"s = socket.socket(fileno={kid.fileno()})\n"
-            "while True:\n"
-            "    m = s.recv(256)\n"
-            "    if not m: break\n"
-            "    s.send(m)\n")
-    proc = subprocess.Popen([sys.executable, "-c", code], pass_fds=(kid.fileno(),))
-    kid.close()
-    out: list[float] = []
-
-    def ping(_: int) -> None:
-        t0 = time.perf_counter_ns()
-        parent.send(b"x" * 24)
-        parent.recv(256)
-        out.append((time.perf_counter_ns() - t0) / 2000)
-
-    paced(int(rate * seconds) + 20, rate, ping)
-    parent.close()
-    proc.wait(timeout=10)
-    return out[20:]
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one round of 3 s hops")
@@ -202,7 +175,7 @@ def main() -> int:
                         label = "scart, default (ipc)" if transport == "auto" else "scart, grpc"
                         samples.setdefault((rate, f"{label}: stored"), []).extend(found["callback"])
                         samples.setdefault((rate, f"{label}: to the task"), []).extend(found["task"])
-                    samples.setdefault((rate, "raw socket RTT/2"), []).extend(raw_hop(rate, seconds))
+                    samples.setdefault((rate, "raw socket RTT/2"), []).extend(t * 1e6 for t in raw_socket_rtt2(rate, int(rate * seconds)))
         finally:
             if bench is not None:
                 bench.stop_master()

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -34,7 +33,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from _common import paced, pct, wait_until  # noqa: E402
+from _common import paced, pct, raw_socket_rtt2, wait_until  # noqa: E402
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.remote import connect  # noqa: E402
@@ -72,34 +71,6 @@ def child(ns: str) -> int:
     sys.stdin.read()
     server.stop()
     return 0
-
-
-def raw_socket_round_trips(rate: float, n: int) -> list[float]:
-    """One-way times (RTT/2, s) of ``n`` SEQPACKET ping-pongs with a child process, sent at
-    ``rate`` Hz on absolute deadlines (as the ports are: idle CPUs between samples cost
-    their wake-up; a tight loop would hide it)."""
-    parent, kid = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-    code = ("import socket, sys\n"
-            f"s = socket.socket(fileno={kid.fileno()})\n"
-            "while True:\n"
-            "    m = s.recv(256)\n"
-            "    if not m: break\n"
-            "    s.send(m)\n")
-    proc = subprocess.Popen([sys.executable, "-c", code], pass_fds=(kid.fileno(),))
-    kid.close()
-    out = []
-    payload = b"x" * 24
-
-    def ping(_: int) -> None:
-        t0 = time.perf_counter()
-        parent.send(payload)
-        parent.recv(256)
-        out.append((time.perf_counter() - t0) / 2)
-
-    paced(n + 20, rate, ping)
-    parent.close()
-    proc.wait(timeout=10)
-    return out[20:]
 
 
 def round_trips(src: Source, sink: Sink, rate: float, n: int) -> tuple[list[float], float]:
@@ -183,7 +154,7 @@ def main() -> int:
         assert proc.stdout is not None and proc.stdout.readline().strip() == "ready"
         raw50 = {}
         for rate, n in ((100.0, n100), (1000.0, n1k)):
-            raw = raw_socket_round_trips(rate, n)
+            raw = raw_socket_rtt2(rate, n)
             raw50[rate] = pct(raw, 0.5)
             rows.append(("raw SEQPACKET RTT/2 (baseline)", f"{rate:g} Hz", raw50[rate], pct(raw, 0.99), "", "", "1.00"))
         with connect(server.address, timeout=5.0) as system:
