@@ -47,17 +47,14 @@ def wait_for_stderr(proc: subprocess.Popen[bytes], needle: bytes, timeout: float
 
 
 def test_a_start_hook_that_hangs_fails_the_start_naming_the_component_and_hook() -> None:
-    started = time.monotonic()
     proc = run("hang-task.composite", "--start-timeout", "2")
     try:
-        proc.wait(timeout=30)
+        proc.wait(timeout=20)  # a start bounded at 2 s ends well within it
     finally:
         out, err = finish(proc)
-    took = time.monotonic() - started
     assert proc.returncode == 1, err
     assert "component slow (start_hook) did not return within 2 s (--start-timeout)" in err, err
     assert "Traceback" not in err and "scart: started" not in out
-    assert took < 20.0
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
@@ -65,14 +62,11 @@ def test_the_first_signal_during_a_hung_init_begins_a_bounded_stop(sig: signal.S
     proc = run("hang-init.composite")  # the default --start-timeout: the signal comes first
     try:
         seen = wait_for_stderr(proc, b"hangs: @init began")
-        signalled = time.monotonic()
         proc.send_signal(sig)
-        proc.wait(timeout=20)
-        took = time.monotonic() - signalled
+        proc.wait(timeout=10)  # the stop that signal begins is bounded
     finally:
         out, err = finish(proc)
     err = seen.decode() + err
     assert proc.returncode == 1, err
     assert "stopping while starting: component Slow (@init open) had not returned" in err, err
-    assert took < 10.0, f"{took:.1f} s from the first signal to the exit"
     assert "scart: started" not in out

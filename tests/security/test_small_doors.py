@@ -9,7 +9,6 @@ import os
 import secrets
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -122,8 +121,6 @@ def test_tls_on_one_end_only_is_said_with_the_flag_that_fixes_it(pki) -> None:  
 def test_a_composite_path_that_is_no_regular_file_is_refused_at_once(tmp_path: Path) -> None:
     fifo = tmp_path / "pipe.composite"
     os.mkfifo(fifo)
-    started = time.monotonic()
     done = subprocess.run([sys.executable, "-m", "scart", "validate", str(fifo)], capture_output=True, text=True,
-                          timeout=30, cwd=ROOT)
+                          timeout=20, cwd=ROOT)  # reading the FIFO would block: never
     assert done.returncode == 2 and "not a regular file" in done.stderr and "Traceback" not in done.stderr
-    assert time.monotonic() - started < 20

@@ -1,7 +1,8 @@
 """An independent ROS 2-speaking Cyclone DDS peer of scart's ``ros2`` streams, run as a
 subprocess by their tests.
 
-Written from the ROS 2 conventions alone (no scart import): its own IDL types declaring
+Written from the ROS 2 conventions alone (no scart import; the IDL types it shares with
+``ros2_peer.py`` come from there): its own IDL types declaring
 the ROS 2 DDS type names (``std_msgs::msg::dds_::Float64_``...), ``rt/`` topics, rmw's
 default QoS (reliable, volatile, keep-last). It joins the domain given with the
 ``CYCLONEDDS_URI`` configuration the tests give it (loopback only) and prints one JSON
@@ -26,7 +27,7 @@ import sys
 import time
 from dataclasses import dataclass
 
-from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
+from cyclonedds.core import ReadCondition, WaitSet
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl import types as t
@@ -35,37 +36,12 @@ from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
-
-
-@dataclass
-class Float64_(IdlStruct, typename="std_msgs::msg::dds_::Float64_"):
-    data: t.float64
+from ros2_peer import ANY, Float64_, Header_, JointState_, Time_, say  # the other peer's IDL types (this folder)
 
 
 @dataclass
 class Int64_(IdlStruct, typename="std_msgs::msg::dds_::Int64_"):
     data: t.int64
-
-
-@dataclass
-class Time_(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
-    sec: t.int32
-    nanosec: t.uint32
-
-
-@dataclass
-class Header_(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
-    stamp: Time_
-    frame_id: str
-
-
-@dataclass
-class JointState_(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
-    header: Header_
-    name: t.sequence[str]
-    position: t.sequence[t.float64]
-    velocity: t.sequence[t.float64]
-    effort: t.sequence[t.float64]
 
 
 @dataclass
@@ -88,11 +64,6 @@ class Float64MultiArray_(IdlStruct, typename="std_msgs::msg::dds_::Float64MultiA
 
 
 TYPES = {"Float64": Float64_, "Int64": Int64_, "JointState": JointState_, "Float64MultiArray": Float64MultiArray_}
-ANY = SampleState.Any | ViewState.Any | InstanceState.Any
-
-
-def say(**event: object) -> None:
-    print(json.dumps(event), flush=True)
 
 
 def qos(depth: int, latched: bool) -> Qos:

@@ -4,7 +4,8 @@ SECONDS`` with ACTIONS (JSON) on stdin. It opens a WebSocket (``foxglove.sdk.v1`
 unless empty), waits for the server's advertisements, sends each action (a JSON op as
 text, or ``{"call": SERVICE, "id": N, "body": {...}}`` as a binary service call), reads
 for ``SECONDS`` and prints one JSON object: the HTTP status of the handshake, its body if
-refused, the JSON messages received, the service call answers by id, the services seen.
+refused, the JSON messages received, the service call answers by id, the services seen,
+whether the actions were sent.
 """
 
 import base64
@@ -68,7 +69,7 @@ def read_frame(sock):
 
 
 def main(host, port, origin, actions, seconds):
-    out = {"status": None, "messages": [], "calls": {}, "services": {}}
+    out = {"status": None, "messages": [], "calls": {}, "services": {}, "sent": False}
     sock = socket.create_connection((host, port), timeout=5)
     key = base64.b64encode(os.urandom(16)).decode()
     request = (f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
@@ -104,7 +105,7 @@ def main(host, port, origin, actions, seconds):
                     sock.sendall(frame(2, struct.pack("<BIII", 2, service, action["id"], 4) + b"json" + body))
                 else:
                     sock.sendall(frame(1, json.dumps(action).encode()))
-            sent = True
+            sent = out["sent"] = True
         if not reader.ready(0.1):
             continue
         try:

@@ -28,6 +28,14 @@ def frame(i: int, size: int) -> bytes:
     return struct.pack("<I", len(body)) + body
 
 
+def received(sock: socket.socket, size: int) -> bytes:
+    """What ``sock`` has (its timeout bounds the wait); fails when the other end closed,
+    which would otherwise make a receive loop spin on empty reads."""
+    data = sock.recv(size)
+    assert data, "the connection closed before every message arrived"
+    return data
+
+
 def test_a_stalled_reader_costs_the_sender_nothing_and_loses_only_counted_messages(loop: IoLoop) -> None:
     ours, theirs = socket.socketpair()
     theirs.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
@@ -49,7 +57,7 @@ def test_a_stalled_reader_costs_the_sender_nothing_and_loses_only_counted_messag
     reader = FrameReader(1 << 20, lambda p: got.append(struct.unpack_from("<I", p)[0]), pytest.fail)
     theirs.settimeout(10)
     while not got or got[-1] != count - 1:  # ends: the last message is never dropped
-        reader.feed(theirs.recv(65536))
+        reader.feed(received(theirs, 65536))
     assert got == sorted(got) and len(got) + dropped == count  # whole frames, in order, all accounted for
     # the io thread counts a message sent after its last byte left: the reader may be first
     wait_until(lambda: conn.stats["messages_sent"] == count - dropped, timeout=5,
@@ -72,7 +80,7 @@ def test_unsent_header_and_partial_message_are_never_dropped(loop: IoLoop) -> No
     reader = FrameReader(8 << 20, got.append, pytest.fail)
     theirs.settimeout(10)
     while len(got) < 3:
-        reader.feed(theirs.recv(1 << 20))
+        reader.feed(received(theirs, 1 << 20))
     assert [len(g) for g in got] == [(4 << 20), 5, 8] and got[1] == b"hello"
     assert struct.unpack_from("<I", got[2])[0] == 2 and conn.stats["dropped"] == 1
     theirs.close()

@@ -22,33 +22,39 @@ def _ros2_threads() -> list[threading.Thread]:
 
 def test_one_thread_per_participant_started_by_a_reader_and_ended_by_close(domain: int, topic: str) -> None:
     ros = Participant(domain)
-    ros.publisher(topic, "std_msgs/msg/Int64")
-    assert _ros2_threads() == []  # no reader, no thread
-    for i in range(3):
-        ros.subscribe(f"{topic}_{i}", "std_msgs/msg/Int64", lambda m: None)
-    assert len(_ros2_threads()) == 1
-    ros.close()
-    ros.close()  # idempotent
-    assert _ros2_threads() == [] and ros.closed
-    with pytest.raises(Ros2Error, match="closed"):
+    try:
         ros.publisher(topic, "std_msgs/msg/Int64")
+        assert _ros2_threads() == []  # no reader, no thread
+        for i in range(3):
+            ros.subscribe(f"{topic}_{i}", "std_msgs/msg/Int64", lambda m: None)
+        assert len(_ros2_threads()) == 1
+        ros.close()
+        ros.close()  # idempotent
+        assert _ros2_threads() == [] and ros.closed
+        with pytest.raises(Ros2Error, match="closed"):
+            ros.publisher(topic, "std_msgs/msg/Int64")
+    finally:
+        ros.close()  # idempotent: also when an assertion failed
 
 
 def test_close_from_a_callback(domain: int, topic: str) -> None:
     ros = Participant(domain)
-    closed = threading.Event()
+    try:
+        closed = threading.Event()
 
-    def on_message(message) -> None:
-        ros.close()
-        closed.set()
+        def on_message(message) -> None:
+            ros.close()
+            closed.set()
 
-    pub = ros.publisher(topic, "std_msgs/msg/Int64")
-    sub = ros.subscribe(topic, "std_msgs/msg/Int64", on_message)
-    wait_until(lambda: pub.matched() and sub.matched(), timeout=15)
-    pub.publish({"data": 1})
-    assert closed.wait(15)
-    wait_until(lambda: not _ros2_threads(), timeout=10, message="the dispatcher outlived close()")
-    assert pub.publish({"data": 2}) is False  # closed: refused quietly, not counted
+        pub = ros.publisher(topic, "std_msgs/msg/Int64")
+        sub = ros.subscribe(topic, "std_msgs/msg/Int64", on_message)
+        wait_until(lambda: pub.matched() and sub.matched(), timeout=15)
+        pub.publish({"data": 1})
+        assert closed.wait(15)
+        wait_until(lambda: not _ros2_threads(), timeout=10, message="the dispatcher outlived close()")
+        assert pub.publish({"data": 2}) is False  # closed: refused quietly, not counted
+    finally:
+        ros.close()  # idempotent: also when an assertion failed
 
 
 def test_closing_the_last_participant_frees_the_domain_for_another_config(domain: int) -> None:
@@ -118,32 +124,38 @@ def test_a_closed_subscription_stops_delivering(domain: int, topic: str) -> None
 
 def test_close_while_threads_publish_and_a_callback_runs(domain: int, topic: str) -> None:
     ros = Participant(domain)
-    pub = ros.publisher(topic, "std_msgs/msg/Int64", QoS.buffer(10))
-    got = threading.Event()
-    ros.subscribe(topic, "std_msgs/msg/Int64", lambda m: got.set(), QoS.buffer(10))
-    results: list[bool] = []
-    errors: list[BaseException] = []
+    workers: list[threading.Thread] = []
+    try:
+        pub = ros.publisher(topic, "std_msgs/msg/Int64", QoS.buffer(10))
+        got = threading.Event()
+        ros.subscribe(topic, "std_msgs/msg/Int64", lambda m: got.set(), QoS.buffer(10))
+        results: list[bool] = []
+        errors: list[BaseException] = []
 
-    def hammer() -> None:
-        try:
-            for i in range(200_000):  # bounded; ends at the first refusal after close
-                sent = pub.publish({"data": i})
-                results.append(sent)
-                if not sent and ros.closed:
-                    break
-        except BaseException as exc:  # noqa: BLE001  (the test is that nothing escapes)
-            errors.append(exc)
+        def hammer() -> None:
+            try:
+                for i in range(200_000):  # bounded; ends at the first refusal after close
+                    sent = pub.publish({"data": i})
+                    results.append(sent)
+                    if not sent and ros.closed:
+                        break
+            except BaseException as exc:  # noqa: BLE001  (the test is that nothing escapes)
+                errors.append(exc)
 
-    workers = [threading.Thread(target=hammer, name=f"hammer-{i}") for i in range(3)]
-    for worker in workers:
-        worker.start()
-    assert got.wait(15)
-    ros.close()
-    for worker in workers:
-        worker.join(30)
-    assert errors == [] and not any(w.is_alive() for w in workers)
-    assert True in results and results[-1] is False  # sent before close, refused quietly after
-    assert _ros2_threads() == []
+        workers += [threading.Thread(target=hammer, name=f"hammer-{i}") for i in range(3)]
+        for worker in workers:
+            worker.start()
+        assert got.wait(15)
+        ros.close()
+        for worker in workers:
+            worker.join(30)
+        assert errors == [] and not any(w.is_alive() for w in workers)
+        assert True in results and results[-1] is False  # sent before close, refused quietly after
+        assert _ros2_threads() == []
+    finally:
+        ros.close()  # idempotent: also when an assertion failed; the hammers then stop
+        for worker in workers:
+            worker.join(30)
 
 
 def test_a_bad_node_name_is_refused_and_frees_the_domain(domain: int) -> None:
