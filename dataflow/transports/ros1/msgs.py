@@ -197,6 +197,7 @@ class MessageTypes:
         self._store = get_typestore(Stores.ROS1_NOETIC)
         self._defs = _fielddefs(self._store)  # the store's own dict: register() updates it
         self._lock = threading.RLock()
+        self._files: dict[Path, str] = {}  # files added (resolved) -> the type each defines
         self._texts: dict[str, str] = {}  # store name → the user's own text
         self._srvs: dict[str, tuple[str, str]] = {}  # ros1 name → (request store name, response store name)
         self._msg_cache: dict[str, MsgType] = {}
@@ -231,12 +232,18 @@ class MessageTypes:
         """Add a ``.msg`` or ``.srv`` file; returns the type name it defines.
 
         The package is ``package`` or, as in a ROS package's layout ``PKG/msg/Type.msg``,
-        the name of the folder above ``msg``/``srv``. Raises :class:`TypeDefinitionError`.
+        the name of the folder above ``msg``/``srv``. A file added before is not read again
+        (every stream and service naming it asks). Raises :class:`TypeDefinitionError`.
         """
         path = Path(path)
         if path.suffix not in (".msg", ".srv"):
             raise TypeDefinitionError(f"{path}: not a .msg or .srv file")
-        pkg = package or path.resolve().parent.parent.name
+        key = path.resolve()
+        with self._lock:
+            known = self._files.get(key)
+        if known is not None and package is None:
+            return known
+        pkg = package or key.parent.parent.name
         try:
             if path.stat().st_size > MAX_DEFINITION_BYTES:
                 raise TypeDefinitionError(f"{path}: larger than {MAX_DEFINITION_BYTES} bytes")
@@ -248,6 +255,9 @@ class MessageTypes:
             (self.add_msg if path.suffix == ".msg" else self.add_srv)(name, text)
         except (TypeDefinitionError, UnknownTypeError) as exc:
             raise TypeDefinitionError(f"{path}: {exc}") from exc
+        if package is None:
+            with self._lock:
+                self._files[key] = name
         return name
 
     def _register(self, texts: dict[str, str], where: str, offsets: dict[str, int] | None = None) -> None:

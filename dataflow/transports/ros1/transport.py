@@ -53,13 +53,14 @@ if TYPE_CHECKING:  # imported when a stream needs them: loading the transport st
     from .msgs import MessageTypes
     from .node import Node
 
-__all__ = ["NodeSettings", "OPTIONS", "Ros1Transport"]
+__all__ = ["NODE_OPTIONS", "NodeSettings", "OPTIONS", "Ros1Transport"]
 
 log = logging.getLogger(__name__)
 
-NODE_OPTIONS = frozenset({"master", "node", "__name", "__ns", "host", "insecure"})
+#: The options that say which node a stream or service uses (the process has one node).
+NODE_OPTIONS = ("master", "node", "__name", "__ns", "host", "insecure")
 #: Every option a ros1 stream takes (another is refused: a typo would otherwise be ignored).
-OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "queue_size", "msgs"}) | NODE_OPTIONS
+OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "queue_size", "msgs", *NODE_OPTIONS})
 MAX_QUEUE = 10_000  #: messages waiting for one slow subscriber, at most
 _BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,127}")
 
@@ -181,7 +182,7 @@ class Ros1Transport(Transport):
     def _same_node(self, node: Node, wanted: NodeSettings, options: dict[str, str]) -> None:
         have = self._settings
         assert have is not None
-        asked = [k for k in ("master", "node", "__name", "__ns", "host", "insecure") if k in options]
+        asked = [k for k in NODE_OPTIONS if k in options]
         if not asked:
             return
         if (wanted.node_name, wanted.master, wanted.namespace, wanted.host) != \

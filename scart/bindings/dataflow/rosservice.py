@@ -26,6 +26,7 @@ from typing import Any
 
 from dataflow import DataflowError
 from dataflow.transports import TransportError
+from dataflow.transports.ros1.transport import NODE_OPTIONS
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
@@ -36,7 +37,6 @@ log = logging.getLogger("scart.dataflow")
 
 ROSSERVICE_CODE = "SCART-T007"  #: a scart:rosservice that cannot be made (what it names, its types)
 _OWN = ("service", "type", "operation", "target", "converter", "timeout", "msgs")
-_NODE = ("master", "node", "__name", "__ns", "host", "insecure")
 
 
 @dataclass(frozen=True)
@@ -74,14 +74,14 @@ def _parse(prefix: str, el: Element) -> tuple[RosService | None, list[str]]:
     except ValueError:
         problems.append(f"<scart:rosservice> timeout={a.get('timeout')!r}: seconds, more than 0, at most 3600")
         timeout = 5.0
-    unknown = sorted(k for k in a if k not in _OWN and k not in _NODE and ":" not in k)
+    unknown = sorted(k for k in a if k not in _OWN and k not in NODE_OPTIONS and ":" not in k)
     if unknown:
         problems.append(f"<scart:rosservice>: unknown attribute(s) {', '.join(unknown)}")
     if problems:
         return None, problems
     folder = Path(el.loc.path).parent
     msgs = tuple(str(folder / p.strip()) for p in (a.get("msgs") or "").split(",") if p.strip())
-    options = tuple(sorted((k, v) for k, v in a.items() if k in _NODE))
+    options = tuple(sorted((k, v) for k, v in a.items() if k in NODE_OPTIONS))
     task_op = f"{prefix}{operation}" if operation else ""
     return RosService(service, type_name, task_op, target, (a.get("converter") or "").strip(), timeout, options,
                       msgs, str(el.loc)), []
