@@ -53,6 +53,14 @@ class Peer:
 
     def next_event(self, kind: str, timeout: float = 15.0) -> dict:
         """The next event of ``kind`` printed within ``timeout`` s (else AssertionError)."""
+        event = self.poll(kind, timeout)
+        if event is None:
+            raise AssertionError(f"the peer printed no {kind!r} within {timeout} s; saw {self.events}; "
+                                 f"stderr: {self._stderr()}")
+        return event
+
+    def poll(self, kind: str, timeout: float) -> dict | None:
+        """The next event of ``kind`` printed within ``timeout`` s, or None (for ``wait_until``)."""
         assert self.proc.stdout is not None
         deadline = time.monotonic() + timeout
         fd = self.proc.stdout.fileno()
@@ -74,8 +82,7 @@ class Peer:
                 if not chunk:
                     break
                 self._buffer += chunk
-        raise AssertionError(f"the peer printed no {kind!r} within {timeout} s; saw {self.events}; "
-                             f"stderr: {self._stderr()}")
+        return None
 
     def _stderr(self) -> str:
         if self.proc.poll() is None:

@@ -94,7 +94,7 @@ def test_an_independent_peer_reads_a_port_and_feeds_one_where_the_task_sees_it(
     assert (into.source, into.sink) == (f"ros2:{topic}/in", "sink.level")
     reader = stream_peer("read", topic + "/out", "Float64")
     values = iter(range(1, 10_000))
-    wait_until(lambda: src.out.write(next(values) / 8) and reader.next_event("sample", timeout=0.2), timeout=15,
+    wait_until(lambda: src.out.write(next(values) / 8) and reader.poll("sample", timeout=0.2), timeout=15,
                message="the peer never read the port")
     writer = stream_peer("write", topic + "/in", "Float64", [1.5, math.nan, 11.0, 2.5])
     writer.next_event("acked")
