@@ -33,6 +33,8 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any
 
+from dataflow.threads import Wake
+
 if TYPE_CHECKING:
     from .task import TaskContext
 
@@ -125,7 +127,7 @@ class _Run:
     __slots__ = ("wake", "stopping", "accepting", "thread")
 
     def __init__(self) -> None:
-        self.wake = threading.Event()
+        self.wake = Wake()
         self.stopping = False
         self.accepting = True
         self.thread: threading.Thread | None = None
@@ -142,7 +144,7 @@ class _ThreadedActivity(Activity):
         self._ops_lock = threading.Lock()  # operation queue only; cycles never take it
 
     @property
-    def _wake(self) -> threading.Event:
+    def _wake(self) -> Wake:
         return self._run.wake
 
     def start(self) -> bool:

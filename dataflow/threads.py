@@ -26,15 +26,59 @@ owner stops its own: tests check that none is left behind.
 
 from __future__ import annotations
 
+import _thread
 import logging
 import threading
 from collections.abc import Callable
 
-__all__ = ["OwnedThread", "JOIN_TIMEOUT"]
+__all__ = ["OwnedThread", "JOIN_TIMEOUT", "Wake"]
 
 log = logging.getLogger(__name__)
 
 JOIN_TIMEOUT = 5.0  #: seconds a stop waits for a thread, by default
+
+
+class Wake:
+    """A wake-up for one waiting thread: :meth:`set` from any thread, :meth:`clear` and
+    :meth:`wait` in the waiter's, as with a ``threading.Event``, but built on one raw
+    lock (a binary semaphore): a set and the wait it ends cost two C calls, where an
+    ``Event`` runs a ``Condition`` in Python (a waiter lock made, queued and notified).
+    A task woken by a sample pays this at every cycle, cold after each wait.
+
+    ``wait`` returning True means a :meth:`set` came since the last :meth:`clear`, or
+    (rarely) just before it: the waiter re-checks what it waits for, as with any wake-up.
+    """
+
+    __slots__ = ("_lock", "_set")
+
+    def __init__(self) -> None:
+        self._lock = _thread.allocate_lock()
+        self._lock.acquire()  # held while not set; a set releases it
+        self._set = False
+
+    def set(self) -> None:
+        """Wake the waiter, now or at its next :meth:`wait` (any thread; never blocks)."""
+        self._set = True
+        try:
+            self._lock.release()
+        except RuntimeError:  # released already: a wake-up is pending
+            pass
+
+    def clear(self) -> None:
+        """Forget a pending wake-up (the waiter's thread, before it checks its work)."""
+        self._lock.acquire(False)
+        self._set = False
+
+    def is_set(self) -> bool:
+        """Whether a wake-up came since the last :meth:`clear`."""
+        return self._set
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until :meth:`set` (or ``timeout`` s); True when set. The waiter's thread only."""
+        if self._lock.acquire(True, -1 if timeout is None else max(0.0, timeout)):
+            self._lock.release()  # still set until cleared, as an Event's wait leaves it
+            return True
+        return False
 
 
 class OwnedThread:

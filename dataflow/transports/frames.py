@@ -33,18 +33,31 @@ def sample_frame(sample: OutSample) -> bytes:
     return frame.SerializeToString()
 
 
+def _varint(x: int) -> bytes:
+    """``x`` (0 <= x < 2**64) as a protobuf varint."""
+    out = bytearray()
+    while x > 0x7F:
+        out.append((x & 0x7F) | 0x80)
+        x >>= 7
+    out.append(x)
+    return bytes(out)
+
+
 def _number_frame(type_name: str, pack: Any) -> Any:
-    """A :func:`sample_frame` for a port of a number type: the same bytes, without the
-    general codec's steps (a periodic writer pays for every step, cold, at each write)."""
+    """A :func:`sample_frame` for a port of a number type: the same bytes as the
+    generated code makes (a test holds the two equal), put together directly. A
+    periodic writer pays for every step cold, at each write: building the message
+    costs half as much again as these few joins."""
+    name = type_name.encode()
+    width = len(pack(0))
+    value_field = bytes((0x0A, len(name) + width + 4, 0x0A, len(name))) + name + bytes((0x12, width))  # Sample.value
+
     def number_frame(sample: OutSample) -> bytes:
-        value = sample.value
-        if type(value) is not sample.type:
-            return sample_frame(sample)
-        frame = _Frame()
-        s = frame.samples.add(sequence=sample.n, source_time_ns=sample.t_ns)
-        s.value.type_name = type_name
-        s.value.data = pack(value)
-        return frame.SerializeToString()
+        value, n, t_ns = sample.value, sample.n, sample.t_ns
+        if type(value) is not sample.type or not (0 < n < 1 << 63 and 0 < t_ns < 1 << 63):
+            return sample_frame(sample)  # a subclass, or a field the generated code would leave out
+        body = value_field + pack(value) + b"\x10" + _varint(n) + b"\x18" + _varint(t_ns)
+        return b"\x12" + bytes((len(body),)) + body  # SubscribeResponse.samples: one, under 128 bytes
     return number_frame
 
 

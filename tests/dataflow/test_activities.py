@@ -213,3 +213,36 @@ def test_periodic_exception_moves_to_exception_and_thread_ends():
     wait_until(lambda: t.state is TaskState.EXCEPTION)
     wait_until(lambda: not any(th.name == "periodic:crash" for th in threading.enumerate()))
     assert t.recover() and t.state is TaskState.STOPPED
+
+
+def test_a_wake_set_from_many_threads_wakes_its_waiter_and_none_is_lost():
+    """The activities' wake-up (a raw-lock binary semaphore): a set before the wait is
+    kept, a clear forgets it, and every set from other threads ends a wait (none lost)."""
+    from dataflow.threads import Wake
+
+    wake = Wake()
+    assert not wake.wait(0.01) and not wake.is_set()
+    wake.set()
+    wake.set()  # twice: still one pending wake-up, never an error
+    assert wake.is_set() and wake.wait(0) and wake.wait(0)  # a wait leaves it set, as an Event's does
+    wake.clear()
+    assert not wake.is_set() and not wake.wait(0.01)
+
+    rounds, woken = 300, []
+    pending = threading.Semaphore(0)  # one per set still to come
+
+    def waiter() -> None:
+        for _ in range(rounds):
+            wake.clear()
+            pending.release()
+            if not wake.wait(10):
+                return
+            woken.append(1)
+
+    thread = threading.Thread(target=waiter)
+    thread.start()
+    for _ in range(rounds):
+        assert pending.acquire(timeout=10)
+        wake.set()
+    thread.join(10)
+    assert not thread.is_alive() and len(woken) == rounds

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import errno
 import logging
-import selectors
+import select
 import socket
 import sys
 import threading
@@ -34,6 +34,11 @@ log = logging.getLogger(__name__)
 
 _get_ident = threading.get_ident
 _monotonic = time.monotonic
+_IN, _OUT = getattr(select, "EPOLLIN", 1), getattr(select, "EPOLLOUT", 4)  # (ipc runs on Linux only)
+_READ, _WRITE = ~_OUT, ~_IN  # as ``selectors`` reads them: an error or a hang-up wakes both
+_UNWATCHED = object()
+_GONE: tuple[None, Any] = (None, _UNWATCHED)
+_TRUNC = int(socket.MSG_TRUNC)  # a plain int: ``flags & socket.MSG_TRUNC`` builds an enum member per frame
 
 TICK_S = 0.05  #: how often each connection's periodic work runs (heartbeats, reports)
 READS_PER_WAKE = 256  #: datagrams one connection may read per wake-up before the others' turn
@@ -47,11 +52,14 @@ class Hub:
     _the_lock = threading.Lock()
 
     def __init__(self) -> None:
-        self._selector = selectors.DefaultSelector()
+        # epoll itself (ipc is Linux only), not ``selectors``: the io thread wakes for every
+        # sample, cold, and the selector's Python layer costs about as much as the poll.
+        self._epoll = select.epoll()
+        self._watched: dict[int, tuple[socket.socket, Any]] = {}  # fd: (socket, its handler)
         self._wake_r, self._wake_w = socket.socketpair()
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
-        self._selector.register(self._wake_r, selectors.EVENT_READ, None)
+        self._register(self._wake_r, _IN, None)
         self._calls: deque[Callable[[], None]] = deque()
         self._conns: set[Conn] = set()
         self._to_flush: set[Conn] = set()  # connections whose writer end has samples for this thread to send
@@ -89,7 +97,7 @@ class Hub:
         for conn in list(self._conns):
             self.forget(conn)
             conn.sock.close()
-        self._selector.close()
+        self._epoll.close()
         self._wake_r.close()
         self._wake_w.close()
 
@@ -130,37 +138,48 @@ class Hub:
             if conn.ended.is_set():
                 return
             self._conns.add(conn)
-            wanted = selectors.EVENT_WRITE if conn._blocked else 0  # it filled up before it was watched
-            self._selector.register(conn.sock, selectors.EVENT_READ | wanted, conn)
+            wanted = _OUT if conn._blocked else 0  # it filled up before it was watched
+            self._register(conn.sock, _IN | wanted, conn)
         self.call_soon(register)
 
     def want_write(self, conn: Conn, wanted: bool) -> None:
         """Watch ``conn`` for room to write (True) or not any more (False)."""
         def modify() -> None:
             if conn in self._conns:
-                events = selectors.EVENT_READ | (selectors.EVENT_WRITE if wanted else 0)
-                self._selector.modify(conn.sock, events, conn)
+                self._epoll.modify(conn.sock.fileno(), _IN | (_OUT if wanted else 0))
         self.call_soon(modify)
 
     def watch(self, sock: socket.socket, handler: object) -> None:
         """Watch a socket for reading with a handler that is not a :class:`Conn` (the io thread)."""
-        self._selector.register(sock, selectors.EVENT_READ, handler)
+        self._register(sock, _IN, handler)
 
     def unwatch(self, sock: socket.socket) -> None:
         """Stop watching a socket given to :meth:`watch` (the io thread; idempotent)."""
-        try:
-            self._selector.unregister(sock)
-        except (KeyError, ValueError, OSError):
-            pass
+        self._unregister(sock)
 
     def forget(self, conn: Conn) -> None:
         """Stop watching ``conn`` (the io thread; :meth:`Conn.close` calls it)."""
         if conn in self._conns:
             self._conns.discard(conn)
-            try:
-                self._selector.unregister(conn.sock)
-            except (KeyError, ValueError, OSError):
-                pass
+            self._unregister(conn.sock)
+
+    def _register(self, sock: socket.socket, events: int, handler: Any) -> None:
+        fd = sock.fileno()
+        self._epoll.register(fd, events)
+        self._watched[fd] = (sock, handler)
+
+    def _unregister(self, sock: socket.socket) -> None:
+        """Stop watching ``sock`` (idempotent; also once it is closed)."""
+        fd = sock.fileno()
+        if fd < 0:  # closed: its number is known only here
+            fd = next((f for f, (s, _) in self._watched.items() if s is sock), -1)
+        if self._watched.get(fd, (None,))[0] is not sock:
+            return
+        del self._watched[fd]
+        try:
+            self._epoll.unregister(fd)
+        except (ValueError, OSError):  # closed meanwhile: the kernel forgot it with the file
+            pass
 
     # ---- the io thread ------------------------------------------------------------------
     def _run(self, stopping: threading.Event) -> None:
@@ -169,14 +188,17 @@ class Hub:
         while not stopping.is_set():
             try:
                 timeout = max(0.0, next_tick - time.monotonic())
-                for key, mask in self._selector.select(timeout):
-                    conn = key.data
+                watched = self._watched
+                for fd, events in self._epoll.poll(timeout, len(watched)):
+                    conn = watched.get(fd, _GONE)[1]
                     if conn is None:
                         self._drain_wake()
                         continue
-                    if mask & selectors.EVENT_READ:
+                    if conn is _UNWATCHED:  # unwatched by a handler earlier in this batch
+                        continue
+                    if events & _READ:
                         conn.readable()
-                    if mask & selectors.EVENT_WRITE and not conn.ended.is_set():
+                    if events & _WRITE and not conn.ended.is_set():
                         conn.writable()
                 self._run_calls()
                 self._run_flushes()
@@ -200,6 +222,8 @@ class Hub:
             pass
 
     def _run_flushes(self) -> None:
+        if not self._to_flush:  # the common case, read without the lock (a flush_soon wakes the loop again)
+            return
         with self._flush_lock:
             conns, self._to_flush = self._to_flush, set()
         for conn in conns:
@@ -207,6 +231,8 @@ class Hub:
                 conn.drained()
 
     def _run_calls(self) -> None:
+        if not self._calls:
+            return
         for _ in range(len(self._calls)):
             try:
                 fn = self._calls.popleft()
@@ -343,7 +369,7 @@ class Conn:
             if not frame:
                 self.close()
                 return
-            message = self._assembler.feed(frame, bool(flags & socket.MSG_TRUNC))
+            message = self._assembler.feed(frame, bool(flags & _TRUNC))
             if message is not None:
                 try:
                     self.message(message)
