@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import errno
 import logging
-import select
 import socket
 import sys
 import threading
@@ -26,6 +25,7 @@ from collections.abc import Callable
 from typing import Any
 
 from dataflow.threads import OwnedThread
+from dataflow.transports._poll import IN, OUT, Poller
 from dataflow.transports.ipc._wire import CHUNK, WHOLE, Reassembler, frames_of, shutdown_quietly
 
 __all__ = ["Conn", "Hub", "TICK_S"]
@@ -34,10 +34,7 @@ log = logging.getLogger(__name__)
 
 _get_ident = threading.get_ident
 _monotonic = time.monotonic
-_IN, _OUT = getattr(select, "EPOLLIN", 1), getattr(select, "EPOLLOUT", 4)  # (ipc runs on Linux only)
-_READ, _WRITE = ~_OUT, ~_IN  # as ``selectors`` reads them: an error or a hang-up wakes both
-_UNWATCHED = object()
-_GONE: tuple[None, Any] = (None, _UNWATCHED)
+_GONE: tuple[None, None, int] = (None, None, 0)  # a socket unwatched by a handler earlier in the same batch
 _TRUNC = int(socket.MSG_TRUNC)  # a plain int: ``flags & socket.MSG_TRUNC`` builds an enum member per frame
 
 TICK_S = 0.05  #: how often each connection's periodic work runs (heartbeats, reports)
@@ -52,14 +49,11 @@ class Hub:
     _the_lock = threading.Lock()
 
     def __init__(self) -> None:
-        # epoll itself (ipc is Linux only), not ``selectors``: the io thread wakes for every
-        # sample, cold, and the selector's Python layer costs about as much as the poll.
-        self._epoll = select.epoll()
-        self._watched: dict[int, tuple[socket.socket, Any]] = {}  # fd: (socket, its handler)
+        self._poller = Poller()
         self._wake_r, self._wake_w = socket.socketpair()
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
-        self._register(self._wake_r, _IN, None)
+        self._poller.register(self._wake_r, IN, self)  # the hub itself: a wake-up
         self._calls: deque[Callable[[], None]] = deque()
         self._conns: set[Conn] = set()
         self._to_flush: set[Conn] = set()  # connections whose writer end has samples for this thread to send
@@ -97,7 +91,7 @@ class Hub:
         for conn in list(self._conns):
             self.forget(conn)
             conn.sock.close()
-        self._epoll.close()
+        self._poller.close()
         self._wake_r.close()
         self._wake_w.close()
 
@@ -138,48 +132,30 @@ class Hub:
             if conn.ended.is_set():
                 return
             self._conns.add(conn)
-            wanted = _OUT if conn._blocked else 0  # it filled up before it was watched
-            self._register(conn.sock, _IN | wanted, conn)
+            wanted = OUT if conn._blocked else 0  # it filled up before it was watched
+            self._poller.register(conn.sock, IN | wanted, conn)
         self.call_soon(register)
 
     def want_write(self, conn: Conn, wanted: bool) -> None:
         """Watch ``conn`` for room to write (True) or not any more (False)."""
         def modify() -> None:
             if conn in self._conns:
-                self._epoll.modify(conn.sock.fileno(), _IN | (_OUT if wanted else 0))
+                self._poller.modify(conn.sock, IN | (OUT if wanted else 0), conn)
         self.call_soon(modify)
 
     def watch(self, sock: socket.socket, handler: object) -> None:
         """Watch a socket for reading with a handler that is not a :class:`Conn` (the io thread)."""
-        self._register(sock, _IN, handler)
+        self._poller.register(sock, IN, handler)
 
     def unwatch(self, sock: socket.socket) -> None:
         """Stop watching a socket given to :meth:`watch` (the io thread; idempotent)."""
-        self._unregister(sock)
+        self._poller.unregister(sock)
 
     def forget(self, conn: Conn) -> None:
         """Stop watching ``conn`` (the io thread; :meth:`Conn.close` calls it)."""
         if conn in self._conns:
             self._conns.discard(conn)
-            self._unregister(conn.sock)
-
-    def _register(self, sock: socket.socket, events: int, handler: Any) -> None:
-        fd = sock.fileno()
-        self._epoll.register(fd, events)
-        self._watched[fd] = (sock, handler)
-
-    def _unregister(self, sock: socket.socket) -> None:
-        """Stop watching ``sock`` (idempotent; also once it is closed)."""
-        fd = sock.fileno()
-        if fd < 0:  # closed: its number is known only here
-            fd = next((f for f, (s, _) in self._watched.items() if s is sock), -1)
-        if self._watched.get(fd, (None,))[0] is not sock:
-            return
-        del self._watched[fd]
-        try:
-            self._epoll.unregister(fd)
-        except (ValueError, OSError):  # closed meanwhile: the kernel forgot it with the file
-            pass
+            self._poller.unregister(conn.sock)
 
     # ---- the io thread ------------------------------------------------------------------
     def _run(self, stopping: threading.Event) -> None:
@@ -188,17 +164,17 @@ class Hub:
         while not stopping.is_set():
             try:
                 timeout = max(0.0, next_tick - time.monotonic())
-                watched = self._watched
-                for fd, events in self._epoll.poll(timeout, len(watched)):
-                    conn = watched.get(fd, _GONE)[1]
+                watched = self._poller.watched
+                for fd, events in self._poller.poll(timeout):
+                    _, conn, wanted = watched.get(fd, _GONE)
                     if conn is None:
+                        continue
+                    if conn is self:
                         self._drain_wake()
                         continue
-                    if conn is _UNWATCHED:  # unwatched by a handler earlier in this batch
-                        continue
-                    if events & _READ:
+                    if events & ~OUT:  # readable, or an error or hang-up (as selectors reads them)
                         conn.readable()
-                    if events & _WRITE and not conn.ended.is_set():
+                    if events & ~IN and wanted & OUT and not conn.ended.is_set():
                         conn.writable()
                 self._run_calls()
                 self._run_flushes()

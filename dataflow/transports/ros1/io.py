@@ -22,13 +22,14 @@ import collections
 import heapq
 import itertools
 import logging
-import selectors
 import socket
 import struct
 import threading
 import time
 from collections.abc import Callable
 from typing import Any
+
+from dataflow.transports._poll import IN, OUT, Poller
 
 from .tcpros import LEN, HeaderError, decode_header
 
@@ -37,7 +38,8 @@ __all__ = ["Conn", "Counters", "FrameReader", "InboundConn", "IoLoop", "Listener
 log = logging.getLogger(__name__)
 
 RECV_BYTES = 256 * 1024
-_READ, _WRITE = selectors.EVENT_READ, selectors.EVENT_WRITE
+_READ, _WRITE = IN, OUT
+_GONE: tuple[None, None, int] = (None, None, 0)  # a socket unregistered by a handler earlier in the same batch
 
 
 class Counters(dict):
@@ -51,14 +53,16 @@ class Counters(dict):
 
 
 class IoLoop:
-    """One selector thread: readiness callbacks, calls from other threads, and timers."""
+    """One poll thread (:mod:`dataflow.transports._poll`): readiness callbacks, calls from
+    other threads, and timers."""
 
     def __init__(self, name: str) -> None:
-        self._sel = selectors.DefaultSelector()
+        self._sel = Poller()
+        self._closed = False
         self._wake_r, self._wake_w = socket.socketpair()
         for sock in (self._wake_r, self._wake_w):
             sock.setblocking(False)
-        self._sel.register(self._wake_r, _READ, None)
+        self._sel.register(self._wake_r, _READ, self)  # the loop itself: a wake-up
         self._calls: collections.deque[tuple[Callable[..., Any], tuple]] = collections.deque()
         self._timers: list[tuple[float, int, Callable[..., Any], tuple]] = []
         self._seq = itertools.count()
@@ -113,10 +117,7 @@ class IoLoop:
         self._sel.modify(sock, events, handler)
 
     def unregister(self, sock: socket.socket) -> None:
-        try:
-            self._sel.unregister(sock)
-        except (KeyError, ValueError):
-            pass
+        self._sel.unregister(sock)
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop the thread, then close every registered handler (idempotent; blocks ≤ timeout)."""
@@ -129,9 +130,10 @@ class IoLoop:
         self._close_all()
 
     def _close_all(self) -> None:
-        if self._sel.get_map() is None:
+        if self._closed:
             return
-        handlers = {key.data for key in self._sel.get_map().values() if key.data is not None}
+        self._closed = True
+        handlers = {handler for handler in self._sel.handlers() if handler is not self}
         for handler in handlers | set(self._owned):
             handler.close("node closing")
         self._sel.close()
@@ -139,12 +141,14 @@ class IoLoop:
         self._wake_w.close()
 
     def _run(self) -> None:
+        watched = self._sel.watched
         while not self._stopping:
-            for key, mask in self._sel.select(self._timeout()):
-                if key.data is None:
+            for fd, events in self._sel.poll(self._timeout()):
+                _, handler, wanted = watched.get(fd, _GONE)
+                if handler is self:
                     self._drain_wake()
-                else:
-                    self._dispatch(key.data, mask)
+                elif handler is not None:
+                    self._dispatch(handler, events, wanted)
             self._run_calls()
             self._run_timers()
         self._close_all()
@@ -164,11 +168,11 @@ class IoLoop:
             pass
 
     @staticmethod
-    def _dispatch(handler: Any, mask: int) -> None:
+    def _dispatch(handler: Any, events: int, wanted: int) -> None:
         try:
-            if mask & _READ:
+            if events & ~_WRITE:  # readable, or an error or hang-up (as selectors reads them)
                 handler.on_readable()
-            if mask & _WRITE and not handler.closed:
+            if events & ~_READ and wanted & _WRITE and not handler.closed:
                 handler.on_writable()
         except Exception as exc:  # a handler's bug must not end the io thread
             log.exception("ROS 1 io: %s failed", handler)
@@ -375,6 +379,11 @@ class FrameReader:
         self._skip = 0
 
     def feed(self, data: bytes) -> None:
+        if not self._buf and not self._skip and len(data) >= 4:  # the hot case: one whole frame, alone
+            (size,) = LEN.unpack_from(data)
+            if len(data) == size + 4 and size <= self.max_bytes:
+                self.on_frame(data[4:])
+                return
         if self._skip:
             cut = min(self._skip, len(data))
             self._skip -= cut
