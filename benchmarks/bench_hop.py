@@ -67,7 +67,8 @@ class HopSink(TaskContext):
 
 def sink_child(count: int, warmup: float) -> None:
     """The subscriber process: serve a ``hop`` sink (embedded name service), say where,
-    and once ``count`` samples came (or 2 s of nothing) print the latencies (ns)."""
+    and once ``count`` samples came (or 2 s of nothing) print the latencies (ns); serve
+    on until stdin closes."""
     deployer = Deployer()
     sink = deployer.add(HopSink("hop"))
     deployer.configure_all()
@@ -87,6 +88,7 @@ def sink_child(count: int, warmup: float) -> None:
     stored = sink.stored[: len(sink.read)]  # in order, one per sample read
     callback = [a - s for a, (_, s) in zip(stored, sink.read) if s - first >= warmup * 1e9]
     print(json.dumps({"task": task, "callback": callback}), flush=True)
+    sys.stdin.read()  # until the parent closes it: the source (registered here) has ended by then
     server.stop()
     deployer.stop_all()
 
@@ -118,8 +120,8 @@ def _carried(shown: str, transport: str) -> bool:
 def scart_hop(transport: str, rate: float, seconds: float, warmup: float) -> dict[str, list[float]]:
     """One scart hop: latencies (µs) where stored ("callback") and where read ("task")."""
     count = int(rate * (seconds + warmup))
-    sink = subprocess.Popen([sys.executable, __file__, "--sink", str(count), str(warmup)], stdout=subprocess.PIPE,
-                            text=True)
+    sink = subprocess.Popen([sys.executable, __file__, "--sink", str(count), str(warmup)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
     try:
         assert sink.stdout is not None
         line = sink.stdout.readline().split()
