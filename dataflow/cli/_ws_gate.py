@@ -26,10 +26,10 @@ from __future__ import annotations
 import asyncio
 import ipaddress
 import logging
-import threading
 from collections.abc import Iterable
 
 from scart_wire.security import is_loopback
+from dataflow.threads import OwnedThread
 
 __all__ = ["FOXGLOVE_ORIGINS", "WebSocketGate", "handshake_refusal"]
 
@@ -97,7 +97,7 @@ class WebSocketGate:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: asyncio.base_events.Server | None = None
         self._tasks: set[asyncio.Task[None]] = set()
-        self._thread: threading.Thread | None = None
+        self._thread: OwnedThread | None = None
 
     @property
     def port(self) -> int:
@@ -116,8 +116,7 @@ class WebSocketGate:
             loop.close()
             raise
         self._loop = loop
-        self._thread = threading.Thread(target=loop.run_forever, name="scart-ws-gate", daemon=True)
-        self._thread.start()
+        self._thread = OwnedThread(lambda _stopping: loop.run_forever(), "scart-ws-gate").start()
 
     def stop(self) -> None:
         """Close the listener and every connection, end the thread (idempotent)."""

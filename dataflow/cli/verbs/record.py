@@ -34,6 +34,7 @@ from typing import Any
 
 from dataflow.cli._mcap import Sink, open_output, output_problem
 from dataflow.cli.output import add_common, err, out, stopped_by_signals, wait_until_stopped, with_system
+from dataflow.threads import OwnedThread
 
 HELP = "record output ports to an MCAP file"
 MAX_RECORDED_PORTS = 256
@@ -165,8 +166,7 @@ class Recording:
                 topic=f"{task}.{port}", message_encoding="json", schema_id=schema_id,
                 metadata={"type_name": type_name})
         self._kept = (self._sink.pos, 0, 0.0, 0.0)  # (bytes, samples, first, last log time) on disk whole
-        self._thread = threading.Thread(target=self._run, name="scart-record-writer", daemon=True)
-        self._thread.start()
+        self._thread = OwnedThread(lambda _stopping: self._run(), "scart-record-writer").start()
         self._closed = False
 
     def observe(self, event: Any) -> None:
@@ -259,7 +259,7 @@ class Recording:
         self._samples.put(_STOP)
         self._thread.join(30)
         try:
-            if self._thread.is_alive():  # never finish a file the writer thread is still writing
+            if self._thread.alive:  # never finish a file the writer thread is still writing
                 self.failure = self.failure or "the writer thread did not finish within 30 s; the file is incomplete"
             elif self.failure is None and self._flush():
                 try:

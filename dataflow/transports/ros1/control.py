@@ -20,6 +20,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from dataflow.threads import OwnedThread
+
 from .io import Counters
 from .master import Master, MasterError, MasterUnreachable
 
@@ -41,13 +43,13 @@ class Control:
         self._seq = itertools.count()
         self._next_tick = 0.0
         self._stopping = False
-        self._thread = threading.Thread(target=self._run, name=f"ros1-control {name}", daemon=True)
+        self._thread = OwnedThread(lambda _stopping: self._run(), f"ros1-control {name}")
 
     def start(self) -> None:
         self._thread.start()
 
     def here(self) -> bool:
-        return threading.current_thread() is self._thread
+        return self._thread.in_thread()
 
     def submit(self, fn: Callable[..., Any], *args: Any, delay: float = 0.0) -> None:
         """Run ``fn(*args)`` on the control thread after ``delay`` s (thread-safe)."""
@@ -66,8 +68,7 @@ class Control:
         with self._cond:
             self._stopping = True
             self._cond.notify()
-        if self._thread.is_alive() and not self.here():
-            self._thread.join(timeout)
+        self._thread.join(timeout)  # (not from the thread itself)
 
     @property
     def stopping(self) -> bool:

@@ -29,6 +29,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from dataflow.threads import OwnedThread
 from dataflow.transports._poll import IN, OUT, Poller
 
 from .tcpros import LEN, HeaderError, decode_header
@@ -69,14 +70,14 @@ class IoLoop:
         self._ids = itertools.count(1)
         self._stopping = False
         self._owned: set[Any] = set()
-        self._thread = threading.Thread(target=self._run, name=f"ros1-io {name}", daemon=True)
+        self._thread = OwnedThread(lambda _stopping: self._run(), f"ros1-io {name}")
 
     def start(self) -> None:
         self._thread.start()
 
     def in_loop(self) -> bool:
         """True on the io thread (or once it has ended: then the caller may act directly)."""
-        return threading.current_thread() is self._thread or not self._thread.is_alive()
+        return self._thread.in_thread() or not self._thread.alive
 
     def adopt(self, conn: Any) -> None:
         """Own ``conn`` until it closes: :meth:`close` closes it if it is still open."""
@@ -123,9 +124,8 @@ class IoLoop:
         """Stop the thread, then close every registered handler (idempotent; blocks ≤ timeout)."""
         self._stopping = True
         self.call_soon(lambda: None)
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join(timeout)
-        if self._thread.is_alive():
+        self._thread.join(timeout)  # (not from the loop itself)
+        if self._thread.alive:
             return  # called from the loop itself: it closes everything as it ends
         self._close_all()
 

@@ -23,6 +23,8 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from dataflow.threads import OwnedThread
+
 from .io import Conn, Counters, FrameReader, InboundConn
 from .master import MasterError, MasterUnreachable, parse_rosrpc
 from .msgs import SrvType
@@ -47,9 +49,8 @@ class Worker:
 
     def __init__(self, name: str) -> None:
         self._queue: queue.Queue[tuple[Callable[..., Any], tuple] | None] = queue.Queue(MAX_PENDING)
-        self._thread = threading.Thread(target=self._run, name=f"ros1-services {name}", daemon=True)
         self._closed = False
-        self._thread.start()
+        self._thread = OwnedThread(lambda _stopping: self._run(), f"ros1-services {name}").start()
 
     def submit(self, fn: Callable[..., Any], *args: Any) -> bool:
         """Queue ``fn(*args)``; False if the queue is full or the worker closed (never blocks)."""
@@ -78,8 +79,7 @@ class Worker:
             except queue.Empty:
                 break
         self._queue.put(None)
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout)
+        self._thread.join(timeout)  # (not from the worker itself)
 
 
 def _error_reply(text: str) -> bytes:

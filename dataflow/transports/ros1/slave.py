@@ -15,10 +15,11 @@ import io
 import logging
 import os
 import socket
-import threading
 import time
 from typing import Any, ClassVar, Protocol
 from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
+
+from dataflow.threads import OwnedThread
 
 from .io import Counters
 
@@ -192,7 +193,7 @@ class SlaveServer:
         self._server.register_instance(api)
         self.port: int = self._server.server_address[1]
         self._stopping = False
-        self._thread = threading.Thread(target=self._run, name=f"ros1-xmlrpc {name}", daemon=True)
+        self._thread = OwnedThread(lambda _stopping: self._run(), f"ros1-xmlrpc {name}")
 
     def start(self) -> None:
         self._thread.start()
@@ -205,7 +206,6 @@ class SlaveServer:
     def close(self, timeout: float = 5.0) -> None:
         """Stop serving (idempotent); from the server's own thread it only signals."""
         self._stopping = True
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join(timeout)
-        if not self._thread.is_alive():
+        self._thread.join(timeout)  # (not from the server's own thread)
+        if not self._thread.alive:
             self._server.server_close()

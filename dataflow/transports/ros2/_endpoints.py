@@ -24,6 +24,8 @@ from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.util import duration
 
+from dataflow.threads import OwnedThread
+
 from ._errors import ConversionError
 from ._network import delete_entity
 
@@ -230,7 +232,7 @@ class Dispatcher:
         self._busy = threading.RLock()  # held while draining: remove() waits for a running drain
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._thread: OwnedThread | None = None
 
     def add(self, condition: Any, drain: Callable[[], None]) -> None:
         """Call ``drain`` whenever ``condition`` triggers."""
@@ -240,8 +242,7 @@ class Dispatcher:
             self._waitset.attach(condition)
             self._drains[id(condition)] = (condition, drain)
             if self._thread is None:
-                self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
-                self._thread.start()
+                self._thread = OwnedThread(lambda _stopping: self._run(), self._name).start()
         self._wake()  # look at the new reader now: it may already hold samples
 
     def remove(self, condition: Any) -> None:
@@ -281,11 +282,8 @@ class Dispatcher:
                 return
             self._stop.set()
         self._wake()
-        thread = self._thread
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout)
-            if thread.is_alive():
-                LOG.warning("ROS 2 dispatcher %s did not end within %.1f s", self._name, timeout)
+        if self._thread is not None:
+            self._thread.join(timeout)  # (not from the thread itself; a thread that stays is logged)
         if self._busy.acquire(timeout=timeout):  # a drain stuck in a callback: the participant's deletion frees these
             try:
                 delete_entity(self._waitset)
