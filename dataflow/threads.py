@@ -41,7 +41,7 @@ JOIN_TIMEOUT = 5.0  #: seconds a stop waits for a thread, by default
 class Wake:
     """A wake-up for one waiting thread: :meth:`set` from any thread, :meth:`clear` and
     :meth:`wait` in the waiter's, as with a ``threading.Event``, but built on one raw
-    lock (a binary semaphore): a set and the wait it ends cost two C calls, where an
+    lock (a binary semaphore): a set and the wait it ends cost a few C calls, where an
     ``Event`` runs a ``Condition`` in Python (a waiter lock made, queued and notified).
     A task woken by a sample pays this at every cycle, cold after each wait.
 

@@ -5,9 +5,9 @@ and handler.
 Why not :mod:`selectors`: an io thread wakes for every sample, cold (after a wait, each
 step costs several times its warm price), and the selector's Python layer around the
 poll (its keys, its event translation) cost about as much as the poll itself. The loop
-reads :attr:`Poller.watched` and the raw events directly; ``events & READ`` and
-``events & WRITE`` say what to do, as ``selectors`` would (an error or a hang-up wakes a
-reader, and a writer that asked for room).
+reads :attr:`Poller.watched` (``.get(fd, GONE)``) and the raw events directly:
+``events & READABLE`` and ``events & WRITABLE`` (for a socket that asked for ``OUT``)
+say what to do, as ``selectors`` would (an error or a hang-up wakes both).
 """
 
 from __future__ import annotations
@@ -16,10 +16,15 @@ import select
 import socket
 from typing import Any
 
-__all__ = ["IN", "OUT", "Poller"]
+__all__ = ["GONE", "IN", "OUT", "Poller", "READABLE", "WRITABLE"]
 
 IN: int = select.POLLIN  #: interest in reading (EPOLLIN has the same value)
 OUT: int = select.POLLOUT  #: interest in room to write (EPOLLOUT likewise)
+READABLE = ~OUT  #: the events that mean "read now": data, an error, a hang-up
+WRITABLE = ~IN  #: the events that mean "write now" to a socket that asked for ``OUT``
+#: What :attr:`Poller.watched` gives for a socket unwatched by a handler earlier in the
+#: same batch of events: ``(socket, handler, events)``, all empty.
+GONE: tuple[None, None, int] = (None, None, 0)
 
 
 class Poller:

@@ -25,7 +25,7 @@ from collections.abc import Callable
 from typing import Any
 
 from dataflow.threads import OwnedThread
-from dataflow.transports._poll import IN, OUT, Poller
+from dataflow.transports._poll import GONE, IN, OUT, READABLE, WRITABLE, Poller
 from dataflow.transports.ipc._wire import CHUNK, WHOLE, Reassembler, frames_of, shutdown_quietly
 
 __all__ = ["Conn", "Hub", "TICK_S"]
@@ -34,7 +34,6 @@ log = logging.getLogger(__name__)
 
 _get_ident = threading.get_ident
 _monotonic = time.monotonic
-_GONE: tuple[None, None, int] = (None, None, 0)  # a socket unwatched by a handler earlier in the same batch
 _TRUNC = int(socket.MSG_TRUNC)  # a plain int: ``flags & socket.MSG_TRUNC`` builds an enum member per frame
 
 TICK_S = 0.05  #: how often each connection's periodic work runs (heartbeats, reports)
@@ -166,15 +165,15 @@ class Hub:
                 timeout = max(0.0, next_tick - time.monotonic())
                 watched = self._poller.watched
                 for fd, events in self._poller.poll(timeout):
-                    _, conn, wanted = watched.get(fd, _GONE)
+                    _, conn, wanted = watched.get(fd, GONE)
                     if conn is None:
                         continue
                     if conn is self:
                         self._drain_wake()
                         continue
-                    if events & ~OUT:  # readable, or an error or hang-up (as selectors reads them)
+                    if events & READABLE:
                         conn.readable()
-                    if events & ~IN and wanted & OUT and not conn.ended.is_set():
+                    if events & WRITABLE and wanted & OUT and not conn.ended.is_set():
                         conn.writable()
                 self._run_calls()
                 self._run_flushes()

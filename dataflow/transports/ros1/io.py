@@ -30,7 +30,7 @@ from collections.abc import Callable
 from typing import Any
 
 from dataflow.threads import OwnedThread
-from dataflow.transports._poll import IN, OUT, Poller
+from dataflow.transports._poll import GONE, IN, OUT, READABLE, WRITABLE, Poller
 
 from .tcpros import LEN, HeaderError, decode_header
 
@@ -40,7 +40,6 @@ log = logging.getLogger(__name__)
 
 RECV_BYTES = 256 * 1024
 _READ, _WRITE = IN, OUT
-_GONE: tuple[None, None, int] = (None, None, 0)  # a socket unregistered by a handler earlier in the same batch
 
 
 class Counters(dict):
@@ -144,7 +143,7 @@ class IoLoop:
         watched = self._sel.watched
         while not self._stopping:
             for fd, events in self._sel.poll(self._timeout()):
-                _, handler, wanted = watched.get(fd, _GONE)
+                _, handler, wanted = watched.get(fd, GONE)
                 if handler is self:
                     self._drain_wake()
                 elif handler is not None:
@@ -170,9 +169,9 @@ class IoLoop:
     @staticmethod
     def _dispatch(handler: Any, events: int, wanted: int) -> None:
         try:
-            if events & ~_WRITE:  # readable, or an error or hang-up (as selectors reads them)
+            if events & READABLE:
                 handler.on_readable()
-            if events & ~_READ and wanted & _WRITE and not handler.closed:
+            if events & WRITABLE and wanted & _WRITE and not handler.closed:
                 handler.on_writable()
         except Exception as exc:  # a handler's bug must not end the io thread
             log.exception("ROS 1 io: %s failed", handler)
