@@ -177,6 +177,10 @@ def test_frame_reader_cuts_joins_and_skips_oversized() -> None:
     frames.clear()
     reader.feed(stream)  # all at once
     assert frames == [b"one", b"", b"two!", b"12345678"] and all(type(f) is bytes for f in frames)
+    frames.clear()
+    for payload in (b"alone", b"", b"x" * 9, b"12345678"):  # one whole frame per read: the common case
+        reader.feed(struct.pack("<I", len(payload)) + payload)
+    assert frames == [b"alone", b"", b"12345678"] and oversized == [20, 20, 9]
 
 
 def test_limits_refuse_nonsense() -> None:
