@@ -241,7 +241,9 @@ class EventActivity(_ThreadedActivity):
         return True
 
     def _on_event(self) -> None:
-        self.trigger()
+        if self._active:  # trigger(), inlined: every sample on an event port comes through here, cold
+            self._pending = True
+            self._run.wake.set()
 
     def _loop(self, run: _Run) -> None:
         wake = run.wake

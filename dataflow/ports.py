@@ -134,6 +134,10 @@ class ChannelConnection(Connection):
     def write(self, value: Any) -> bool:
         """Store ``value`` (already checked) and wake the port's readers; False when the
         storage refused it (a full BUFFER: counted in :attr:`dropped`). Never blocks."""
+        return self.store(0, 0, value)
+
+    def store(self, _n: int, _t_ns: int, value: Any) -> bool:
+        """:meth:`write`, as a reader end's ``store`` (write number and time are its own)."""
         storage = self.storage
         if not storage.write(value):
             return False

@@ -171,7 +171,9 @@ class WriterEnd:
     is not sent: counted, and for a mandatory channel ``write`` says ``WRITE_FAILURE``.
 
     Never blocks and never waits for a lock another thread holds: a writer that finds
-    :meth:`flush` running leaves its sample in the queue for it.
+    the lock taken (by :meth:`flush`, or another writer) leaves its sample in an inbox
+    and raises a flag; whoever holds the lock looks at the flag after letting go, and
+    sends what waits. No sample is left queued with no one to send it.
     """
 
     def __init__(self, port: Any, policy: ConnPolicy, label: str, *, reports: bool = True,
@@ -195,6 +197,9 @@ class WriterEnd:
         self.start = max(0, written - 1) if policy.init else written
         self._carrier: Carrier | None = None
         self._queue: deque[OutSample] = deque()
+        #: Samples written while another thread held the lock, oldest first: only a lock
+        #: holder moves them into the queue (so the queue changes under the lock alone).
+        self._inbox: deque[OutSample] = deque()
         self._room = 1 if policy.type is ConnType.DATA else max(1, policy.size)
         self._lock = threading.Lock()
         self._more = False
@@ -215,11 +220,16 @@ class WriterEnd:
             self._miss(sample.n)
             return False
         lock = self._lock
-        if not lock.acquire(blocking=False):
-            self._more = True
-            return self._keep(sample)  # flush() is running: it sends what is queued, in order
+        if not lock.acquire(blocking=False):  # flush(), or another writer, holds it
+            if self.policy.type is ConnType.BUFFER and len(self._queue) + len(self._inbox) >= self.room:
+                self._miss(sample.n)  # full: BUFFER refuses the newest, as _keep would
+                return False
+            self._inbox.append(sample)
+            self._more = True  # once the sample waits: the holder looks again after it lets go ...
+            self._pump()  # ... unless it let go before it could see the flag
+            return True
         try:
-            if not self._queue:
+            if not self._queue and not self._inbox:
                 encode = carrier.encode
                 data = sample._bytes if sample._key is encode else self._encoded(sample, carrier)  # once per transport
                 if data is None:
@@ -230,9 +240,28 @@ class WriterEnd:
                     if not self.reports and self._unsent_total:
                         self._unsent.trim(sample.n)
                     return True
+            self._take_inbox()
             return self._keep(sample)
         finally:
             lock.release()
+            if self._more:  # another writer queued a sample while this one held the lock
+                self._pump()
+
+    def _pump(self) -> None:
+        """Send what waits, in the writer's thread, never waiting for the lock: whoever
+        holds it looks at ``_more`` once it lets go (see :meth:`flush`). So a sample
+        queued while the lock was held is never left waiting with no one to send it."""
+        for _ in range(1000):  # bounded: each round means a writer queued meanwhile
+            if not self._lock.acquire(blocking=False):
+                return
+            try:
+                self._more = False
+                if not self._send_queued():
+                    return  # no room: the transport calls flush() once it has
+            finally:
+                self._lock.release()
+            if not self._more:
+                return
 
     def _encoded(self, sample: OutSample, carrier: Carrier) -> Any:
         """``sample`` encoded for ``carrier`` (once per transport); None, counted and
@@ -301,8 +330,9 @@ class WriterEnd:
                 first()
         if self.policy.init:  # RTT's init: a new connection starts with the last value written
             n, value = self.port.last_sample()
-            if n > self.peer_last and n > 0 and not self._queue:
-                self._keep(OutSample(n, _time_ns(), value, self.port.type))
+            with self._lock:
+                if n > self.peer_last and n > 0 and not self._queue and not self._inbox:
+                    self._keep(OutSample(n, _time_ns(), value, self.port.type))
         self.flush()
         if self.on_connected is not None:
             self.on_connected()
@@ -312,6 +342,7 @@ class WriterEnd:
         with self._lock:
             self._carrier = None
             self.transport = ""
+            self._take_inbox()
             while self._queue:
                 self._miss(self._queue.popleft().n)
 
@@ -321,23 +352,36 @@ class WriterEnd:
         for _ in range(1000):  # bounded: each round means a writer queued meanwhile
             with self._lock:
                 self._more = False
-                carrier = self._carrier
-                queue = self._queue
-                while queue and carrier is not None:
-                    sample = queue[0]
-                    data = self._encoded(sample, carrier)
-                    if data is not None and not carrier.send(sample, data):
-                        return
-                    queue.popleft()
-                    if data is not None:
-                        self._sent(sample.n)
+                if not self._send_queued():
+                    return
             if not self._more:
                 return
+
+    def _take_inbox(self) -> None:
+        """Move what writers left in the inbox into the queue, in order (under the lock)."""
+        inbox = self._inbox
+        while inbox:
+            self._keep(inbox.popleft())
+
+    def _send_queued(self) -> bool:
+        """Send the queue in order (under the lock); False when the carrier has no room."""
+        self._take_inbox()
+        carrier = self._carrier
+        queue = self._queue
+        while queue and carrier is not None:
+            sample = queue[0]
+            data = self._encoded(sample, carrier)
+            if data is not None and not carrier.send(sample, data):
+                return False
+            queue.popleft()
+            if data is not None:
+                self._sent(sample.n)
+        return True
 
     @property
     def pending(self) -> int:
         """Samples waiting for room."""
-        return len(self._queue)
+        return len(self._queue) + len(self._inbox)
 
     def report(self, last: int, lost: int) -> None:
         """The reader end's count: it has had every write up to ``last`` but ``lost``."""

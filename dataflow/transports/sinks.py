@@ -72,7 +72,7 @@ class IncomingLink:
         self.connection = port.open_channel(policy, peer=source)
         conn = self.connection
         self.end = ReaderEnd(f"link {name or source} into {port.qualname}", port_check(port),
-                             lambda _n, _t, value: conn.write(value), lambda: conn.dropped, after=after)
+                             conn.store, lambda: conn.dropped, after=after)
         self.end.writer(boot_id)
 
     @property

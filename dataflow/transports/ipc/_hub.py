@@ -278,7 +278,11 @@ class Conn:
                 return False
             sample.inline += 1
         if len(data) > CHUNK or not self._lock.acquire(blocking=False):
-            return self.put(data)
+            if self.put(data):
+                return True
+            if not (self._blocked or self._closed):  # another thread was sending on it: what waits goes next
+                self.hub.flush_soon(self)
+            return False
         try:  # put(), inlined for the hot case: one small message, nothing held
             if self._held or self._closed:
                 return False

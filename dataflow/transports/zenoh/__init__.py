@@ -312,7 +312,7 @@ class ZenohInput:
         self.policy = policy or ConnPolicy.data()
         self.connection = conn = target.open_channel(self.policy, peer=f"zenoh:{self.key}")
         self.end = ReaderEnd(f"zenoh {self.key} into {target.qualname}", port_check(target),
-                             lambda _n, _t, value: conn.write(value), lambda: conn.dropped)
+                             conn.store, lambda: conn.dropped)
         self.end.transport = "zenoh"
         try:
             self._subscriber = _Subscriber(session, self.key, self.end)
