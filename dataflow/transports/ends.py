@@ -221,10 +221,17 @@ class WriterEnd:
             return False
         lock = self._lock
         if not lock.acquire(blocking=False):  # flush(), or another writer, holds it
-            if self.policy.type is ConnType.BUFFER and len(self._queue) + len(self._inbox) >= self.room:
-                self._miss(sample.n)  # full: BUFFER refuses the newest, as _keep would
-                return False
-            self._inbox.append(sample)
+            inbox = self._inbox
+            if len(self._queue) + len(inbox) >= self.room:  # full, as _keep would find it
+                if self.policy.type is ConnType.BUFFER:
+                    self._miss(sample.n)  # BUFFER refuses the newest
+                    return False
+                if len(inbox) >= self.room:  # DATA and CIRCULAR_BUFFER: the newest replaces the oldest
+                    try:
+                        self._miss(inbox.popleft().n)
+                    except IndexError:  # the holder took them meanwhile
+                        pass
+            inbox.append(sample)
             self._more = True  # once the sample waits: the holder looks again after it lets go ...
             self._pump()  # ... unless it let go before it could see the flag
             return True

@@ -75,3 +75,23 @@ def test_a_full_buffer_refuses_the_newest_even_while_another_thread_sends() -> N
     assert statuses == ["WRITE_SUCCESS", "WRITE_SUCCESS", "WRITE_FAILURE"]  # a mandatory buffer says so
     assert carrier.sent == [1, 2, 3] and end.unsent == 1  # the fourth write: refused, counted
     detach(src.out, end)
+
+
+def test_a_circular_buffer_keeps_the_newest_and_counts_the_rest_while_another_thread_sends() -> None:
+    src = Src("src")
+    end = WriterEnd(src.out, ConnPolicy.circular_buffer(4), "test end")
+    attach(src.out, end)
+    carrier = GatedCarrier(hold_at=1)
+    end.connected("test", carrier, new_peer=True)
+    first = threading.Thread(target=src.out.write, args=(0,))
+    first.start()
+    try:
+        assert carrier.holding.wait(10)
+        for k in range(9):  # writes 2..10 while 1 is being sent: more than the buffer holds
+            src.out.write(k)
+        assert end.pending == 4  # bounded while it waits
+    finally:
+        carrier.release.set()
+        first.join(10)
+    assert carrier.sent == [1, 7, 8, 9, 10] and end.unsent == 5  # the newest four, the rest counted
+    detach(src.out, end)
