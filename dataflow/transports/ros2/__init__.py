@@ -135,7 +135,9 @@ def __getattr__(name: str) -> Any:
         return getattr(importlib.import_module(f"{__name__}.{module}"), name)
     except ImportError as exc:
         if (exc.name or "").partition(".")[0] == "cyclonedds":
-            raise ImportError("ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'") from exc
+            from ._errors import NEEDS_DDS
+
+            raise ImportError(NEEDS_DDS) from exc
         raise
 
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-__all__ = ["Ros2Error", "UnknownTypeError", "ConversionError", "DomainError"]
+__all__ = ["NEEDS_DDS", "Ros2Error", "UnknownTypeError", "ConversionError", "DomainError"]
+
+#: What a user is told when Cyclone DDS (the ``scart[ros2]`` extra) is missing.
+NEEDS_DDS = "ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'"
 
 
 class Ros2Error(Exception):

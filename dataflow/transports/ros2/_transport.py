@@ -52,7 +52,7 @@ from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
-from ._errors import DomainError, Ros2Error
+from ._errors import NEEDS_DDS, DomainError, Ros2Error
 from ._names import topic_name
 from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
 
@@ -79,7 +79,7 @@ def _dds() -> None:
     try:
         import cyclonedds  # noqa: F401
     except ImportError:
-        raise TransportError("ROS 2 needs Cyclone DDS: pip install 'scart[ros2]'") from None
+        raise TransportError(NEEDS_DDS) from None
 
 
 def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False) -> QoS:
