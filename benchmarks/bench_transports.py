@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from _common import paced, pct, raw_socket_rtt2, wait_until  # noqa: E402
 
-from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext  # noqa: E402
+from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.remote import connect  # noqa: E402
 
 
@@ -56,7 +56,7 @@ class Mirror(TaskContext):
     def echo(self, port: InputPort) -> None:
         for _ in range(10_000):
             status, value = port.read()
-            if status.name != "NEW_DATA":
+            if status is not FlowStatus.NEW_DATA:
                 return
             self.out.write(value)
 
@@ -83,7 +83,7 @@ def round_trips(src: Source, sink: Sink, rate: float, n: int) -> tuple[list[floa
     def on_back(port: InputPort) -> None:
         for _ in range(10_000):
             status, value = port.read()
-            if status.name != "NEW_DATA":
+            if status is not FlowStatus.NEW_DATA:
                 return
             back[value] = time.perf_counter()
             if len(back) >= n:

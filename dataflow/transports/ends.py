@@ -77,6 +77,10 @@ class Carrier(Protocol):
         :meth:`WriterEnd.flush`). Called in the writer's thread, or in the transport's
         own from ``flush``; never by two threads at once."""
 
+    # Optional: ``batch_bytes: int``, for a carrier whose encoded samples joined end to end
+    # are one message holding them all (scart's frames): what waits for room then leaves
+    # in messages of up to that many bytes, many samples each (``send`` gets the last one).
+
 
 class Fanout:
     """The writer ends of one output port: each write is handed to every end (in the
@@ -375,7 +379,12 @@ class WriterEnd:
         self._take_inbox()
         carrier = self._carrier
         queue = self._queue
+        limit = getattr(carrier, "batch_bytes", 0)
         while queue and carrier is not None:
+            if limit and len(queue) > 1:
+                if not self._send_batch(carrier, limit):
+                    return False
+                continue
             sample = queue[0]
             data = self._encoded(sample, carrier)
             if data is not None and not carrier.send(sample, data):
@@ -383,6 +392,34 @@ class WriterEnd:
             queue.popleft()
             if data is not None:
                 self._sent(sample.n)
+        return True
+
+    def _send_batch(self, carrier: Carrier, limit: int) -> bool:
+        """Send the oldest queued samples joined into one message of at most ``limit``
+        bytes (a carrier whose frames join: see ``Carrier.batch_bytes``); False, with the
+        queue as it was, when the carrier has no room. A reader that fell behind then
+        catches up a message of many samples at a time, not one each."""
+        queue = self._queue
+        taken: list[OutSample] = []
+        parts: list[Any] = []
+        size = 0
+        while queue:
+            sample = queue[0]
+            data = self._encoded(sample, carrier)
+            if data is not None:
+                if parts and size + len(data) > limit:
+                    break
+                taken.append(sample)
+                parts.append(data)
+                size += len(data)
+            queue.popleft()
+        if not parts:
+            return True
+        if not carrier.send(taken[-1], parts[0] if len(parts) == 1 else b"".join(parts)):
+            queue.extendleft(reversed(taken))
+            return False
+        for sample in taken:
+            self._sent(sample.n)
         return True
 
     @property

@@ -266,6 +266,12 @@ class Conn:
         finally:
             self._lock.release()
 
+    #: A carrier's batch (see ``Carrier``): samples that waited for room leave joined
+    #: into messages of up to this many bytes (scart's frames join into one). A reader
+    #: that fell behind then catches up hundreds of small samples per read, while one
+    #: message stays a few milliseconds of its io thread's work at most.
+    batch_bytes = 16 * 1024
+
     def send_sample(self, sample: Any, data: bytes) -> bool:
         """A carrier's ``send``: from the writer's thread for the first :data:`INLINE_SENDS`
         connections a sample goes to (one reader, one link: no thread hand-over at all),

@@ -9,7 +9,10 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from scart_wire import codec
+from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow import ConnPolicy, OutputPort, TaskContext
+from dataflow.transports import frames
 from dataflow.transports.ends import WriterEnd, attach, detach
 
 
@@ -81,3 +84,61 @@ def test_a_circular_buffer_keeps_the_newest_and_counts_the_rest_while_another_th
             src.out.write(k)
         assert end.pending == 4  # bounded while it waits
     assert carrier.sent == [1, 7, 8, 9, 10] and end.unsent == 5  # the newest four, the rest counted
+
+
+class FullCarrier:
+    """A socket that has no room until ``room`` is set; joins frames (``batch_bytes``),
+    as ipc's carrier does: what it sends is kept as whole messages."""
+
+    def __init__(self, batch_bytes: int) -> None:
+        self.batch_bytes = batch_bytes
+        self.room = False
+        self.messages: list[bytes] = []
+
+    encode = staticmethod(frames.encoder(int))
+
+    def send(self, sample, data) -> bool:
+        if not self.room:
+            return False
+        self.messages.append(data)
+        return True
+
+
+def test_what_waited_for_room_leaves_joined_in_order_and_within_the_batch_size() -> None:
+    src = Src("src")
+    end = WriterEnd(src.out, ConnPolicy.buffer(100), "test end")
+    attach(src.out, end)
+    carrier = FullCarrier(batch_bytes=200)
+    try:
+        end.connected("test", carrier, new_peer=True)
+        for k in range(30):  # the reader is behind: all 30 wait
+            assert src.out.write(1000 + k).name == "WRITE_SUCCESS"
+        assert end.pending == 30 and carrier.messages == []
+        carrier.room = True
+        end.flush()  # the transport, once its socket has room again
+    finally:
+        detach(src.out, end)
+    assert end.pending == 0 and end.sent == 30 and end.unsent == 0
+    assert 1 < len(carrier.messages) < 30  # many samples per message, none larger than the batch size
+    assert all(len(m) <= 200 for m in carrier.messages)
+    received = [(s.sequence, codec.decode(s.value)) for m in carrier.messages for s in pb.LinkRequest.FromString(m).samples]
+    assert received == [(k + 1, 1000 + k) for k in range(30)]  # each once, in order, as written
+
+
+def test_a_batch_the_carrier_has_no_room_for_stays_queued_whole() -> None:
+    src = Src("src")
+    end = WriterEnd(src.out, ConnPolicy.buffer(100), "test end")
+    attach(src.out, end)
+    carrier = FullCarrier(batch_bytes=10_000)
+    try:
+        end.connected("test", carrier, new_peer=True)
+        for k in range(5):
+            src.out.write(k)
+        end.flush()  # still no room: nothing is lost or counted as sent
+        assert end.pending == 5 and end.sent == 0 and end.unsent == 0
+        carrier.room = True
+        end.flush()
+    finally:
+        detach(src.out, end)
+    assert len(carrier.messages) == 1 and end.sent == 5
+    assert [s.sequence for s in pb.LinkRequest.FromString(carrier.messages[0]).samples] == [1, 2, 3, 4, 5]
