@@ -138,6 +138,9 @@ class TypeRegistry:
         self._by_name: dict[str, Any] = {}
         self._by_type: dict[Any, str] = {}
         self._adapters: dict[Any, pydantic.TypeAdapter[Any]] = {}
+        #: name → its model's JSON validator, once decoded (a name never changes its type):
+        #: a model sample, the common case off the number path, without the lookups below.
+        self._models: dict[str, Callable[[bytes], Any]] = {}
         for py_type, name in (
             (float, "float64"),
             (int, "int64"),
@@ -300,6 +303,12 @@ class TypeRegistry:
 
         Raises ``PortTypeError`` when the bytes do not fit a known type.
         """
+        validate = self._models.get(type_name)
+        if validate is not None:
+            try:
+                return validate(data)
+            except pydantic.ValidationError as exc:
+                raise PortTypeError(f"cannot decode {type_name}: {exc}") from None
         py_type = self.python_type(type_name)
         if py_type is None:
             return self._unknown(type_name, data)
@@ -319,7 +328,9 @@ class TypeRegistry:
             if py_type == list[int]:
                 return list(struct.unpack(f"<{len(data) // 8}q", data))
             if _is_model(py_type):
-                return py_type.model_validate_json(data)
+                value = py_type.model_validate_json(data)
+                self._models[type_name] = py_type.__pydantic_validator__.validate_json  # built now: the same check
+                return value
             return self._adapter(py_type).validate_json(data)
         except (struct.error, UnicodeDecodeError, pydantic.ValidationError) as exc:
             raise PortTypeError(f"cannot decode {type_name}: {exc}") from None

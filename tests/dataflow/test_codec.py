@@ -100,6 +100,18 @@ def test_bad_bytes_are_a_port_type_error_naming_the_type(name: str, data: bytes)
         decode(Value(type_name=name, data=data))
 
 
+def test_a_model_decodes_and_refuses_alike_every_time() -> None:
+    """The first decode of a model's name takes the registry's lookups; later ones go
+    straight to its validator: the same value, and the same error for bad bytes."""
+    good = encode(Registered(name="r", values=[1.0, math.nan]), Registered)
+    bad = Value(type_name=good.type_name, data=b'{"name": "r", "values": ["x"]}')
+    for _ in range(3):
+        back = decode(good)
+        assert type(back) is Registered and back.name == "r" and math.isnan(back.values[1])
+        with pytest.raises(PortTypeError, match=re.escape("cannot decode test.codec.Registered")):
+            decode(bad)
+
+
 def test_a_value_that_cannot_be_encoded_names_its_type() -> None:
     with pytest.raises(PortTypeError, match="cannot encode a value of type object"):
         encode(object())
