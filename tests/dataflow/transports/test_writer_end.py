@@ -104,20 +104,27 @@ class FullCarrier:
         return True
 
 
-def test_what_waited_for_room_leaves_joined_in_order_and_within_the_batch_size() -> None:
+@contextmanager
+def reader_behind(batch_bytes: int) -> Iterator[tuple[Src, WriterEnd, FullCarrier]]:
+    """A connected writer end whose carrier has no room yet (the reader is behind)."""
     src = Src("src")
     end = WriterEnd(src.out, ConnPolicy.buffer(100), "test end")
     attach(src.out, end)
-    carrier = FullCarrier(batch_bytes=200)
+    carrier = FullCarrier(batch_bytes)
     try:
         end.connected("test", carrier, new_peer=True)
+        yield src, end, carrier
+    finally:
+        detach(src.out, end)
+
+
+def test_what_waited_for_room_leaves_joined_in_order_and_within_the_batch_size() -> None:
+    with reader_behind(batch_bytes=200) as (src, end, carrier):
         for k in range(30):  # the reader is behind: all 30 wait
             assert src.out.write(1000 + k).name == "WRITE_SUCCESS"
         assert end.pending == 30 and carrier.messages == []
         carrier.room = True
         end.flush()  # the transport, once its socket has room again
-    finally:
-        detach(src.out, end)
     assert end.pending == 0 and end.sent == 30 and end.unsent == 0
     assert 1 < len(carrier.messages) < 30  # many samples per message, none larger than the batch size
     assert all(len(m) <= 200 for m in carrier.messages)
@@ -126,19 +133,12 @@ def test_what_waited_for_room_leaves_joined_in_order_and_within_the_batch_size()
 
 
 def test_a_batch_the_carrier_has_no_room_for_stays_queued_whole() -> None:
-    src = Src("src")
-    end = WriterEnd(src.out, ConnPolicy.buffer(100), "test end")
-    attach(src.out, end)
-    carrier = FullCarrier(batch_bytes=10_000)
-    try:
-        end.connected("test", carrier, new_peer=True)
+    with reader_behind(batch_bytes=10_000) as (src, end, carrier):
         for k in range(5):
             src.out.write(k)
         end.flush()  # still no room: nothing is lost or counted as sent
         assert end.pending == 5 and end.sent == 0 and end.unsent == 0
         carrier.room = True
         end.flush()
-    finally:
-        detach(src.out, end)
     assert len(carrier.messages) == 1 and end.sent == 5
     assert [s.sequence for s in pb.LinkRequest.FromString(carrier.messages[0]).samples] == [1, 2, 3, 4, 5]
