@@ -8,7 +8,8 @@ it gives room back to writers whose socket was full, and runs each connection's
 periodic work (heartbeats, reports) every :data:`TICK_S`.
 
 Samples go out from the writer's own thread (``send`` with ``MSG_DONTWAIT``): the io
-thread sends only what had to wait for room, and control frames. The hub starts with
+thread sends only what had to wait for room (joined, many samples per message: see
+:attr:`Conn.batch_bytes`), and control frames. The hub starts with
 its first connection and ends with its last (:meth:`Hub.acquire`, :meth:`Hub.release`).
 """
 
