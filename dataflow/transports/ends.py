@@ -378,27 +378,18 @@ class WriterEnd:
         """Send the queue in order (under the lock); False when the carrier has no room."""
         self._take_inbox()
         carrier = self._carrier
-        queue = self._queue
         limit = getattr(carrier, "batch_bytes", 0)
-        while queue and carrier is not None:
-            if limit and len(queue) > 1:
-                if not self._send_batch(carrier, limit):
-                    return False
-                continue
-            sample = queue[0]
-            data = self._encoded(sample, carrier)
-            if data is not None and not carrier.send(sample, data):
+        while self._queue and carrier is not None:
+            if not self._send_next(carrier, limit):
                 return False
-            queue.popleft()
-            if data is not None:
-                self._sent(sample.n)
         return True
 
-    def _send_batch(self, carrier: Carrier, limit: int) -> bool:
-        """Send the oldest queued samples joined into one message of at most ``limit``
-        bytes (a carrier whose frames join: see ``Carrier.batch_bytes``); False, with the
-        queue as it was, when the carrier has no room. A reader that fell behind then
-        catches up a message of many samples at a time, not one each."""
+    def _send_next(self, carrier: Carrier, limit: int) -> bool:
+        """Send the oldest queued sample, or (``limit`` > 0: a carrier whose frames join,
+        see ``Carrier.batch_bytes``) the oldest samples joined into one message of at most
+        ``limit`` bytes; False, with the queue as it was, when the carrier has no room. A
+        reader that fell behind then catches up many samples per message, not one each.
+        A sample that cannot be encoded is counted (:meth:`_encoded`) and skipped."""
         queue = self._queue
         taken: list[OutSample] = []
         parts: list[Any] = []
@@ -407,11 +398,11 @@ class WriterEnd:
             sample = queue[0]
             data = self._encoded(sample, carrier)
             if data is not None:
-                if parts and size + len(data) > limit:
+                if parts and (not limit or size + len(data) > limit):
                     break
                 taken.append(sample)
                 parts.append(data)
-                size += len(data)
+                size += len(data) if limit else 0
             queue.popleft()
         if not parts:
             return True

@@ -39,7 +39,6 @@ __all__ = ["Conn", "Counters", "FrameReader", "InboundConn", "IoLoop", "Listener
 log = logging.getLogger(__name__)
 
 RECV_BYTES = 256 * 1024
-_READ, _WRITE = IN, OUT
 
 
 class Counters(dict):
@@ -62,7 +61,7 @@ class IoLoop:
         self._wake_r, self._wake_w = socket.socketpair()
         for sock in (self._wake_r, self._wake_w):
             sock.setblocking(False)
-        self._sel.register(self._wake_r, _READ, self)  # the loop itself: a wake-up
+        self._sel.register(self._wake_r, IN, self)  # the loop itself: a wake-up
         self._calls: collections.deque[tuple[Callable[..., Any], tuple]] = collections.deque()
         self._timers: list[tuple[float, int, Callable[..., Any], tuple]] = []
         self._seq = itertools.count()
@@ -109,7 +108,7 @@ class IoLoop:
         else:
             self.call_soon(heapq.heappush, self._timers, entry)
 
-    def register(self, sock: socket.socket, handler: Any, events: int = _READ) -> None:
+    def register(self, sock: socket.socket, handler: Any, events: int = IN) -> None:
         """Watch ``sock`` for ``handler`` (io thread only); the loop now owns ``sock``."""
         self._sel.register(sock, events, handler)
 
@@ -171,7 +170,7 @@ class IoLoop:
         try:
             if events & READABLE:
                 handler.on_readable()
-            if events & WRITABLE and wanted & _WRITE and not handler.closed:
+            if events & WRITABLE and wanted & OUT and not handler.closed:
                 handler.on_writable()
         except Exception as exc:  # a handler's bug must not end the io thread
             log.exception("ROS 1 io: %s failed", handler)
@@ -315,7 +314,7 @@ class Conn:
 
     def _set_events(self) -> None:
         if not self.closed:
-            self.loop.modify(self.sock, self, _READ | _WRITE if self._writing else _READ)
+            self.loop.modify(self.sock, self, IN | OUT if self._writing else IN)
 
     def _fail_later(self, reason: str) -> None:
         self.loop.call_soon(self.close, reason)
