@@ -262,15 +262,21 @@ class WriterEnd:
         """Send what waits, in the writer's thread, never waiting for the lock: whoever
         holds it looks at ``_more`` once it lets go (see :meth:`flush`). So a sample
         queued while the lock was held is never left waiting with no one to send it."""
+        self._drain(blocking=False)
+
+    def _drain(self, blocking: bool) -> None:
+        """Send the queue while there is room, again as long as a writer queued meanwhile
+        (``_more``); without ``blocking``, only if the lock is free."""
+        lock = self._lock
         for _ in range(1000):  # bounded: each round means a writer queued meanwhile
-            if not self._lock.acquire(blocking=False):
+            if not lock.acquire(blocking):
                 return
             try:
                 self._more = False
                 if not self._send_queued():
                     return  # no room: the transport calls flush() once it has
             finally:
-                self._lock.release()
+                lock.release()
             if not self._more:
                 return
 
@@ -360,13 +366,7 @@ class WriterEnd:
     def flush(self) -> None:
         """Send what waits in the queue until it is empty or the carrier is full again
         (the transport's thread, when its socket has room). Never blocks."""
-        for _ in range(1000):  # bounded: each round means a writer queued meanwhile
-            with self._lock:
-                self._more = False
-                if not self._send_queued():
-                    return
-            if not self._more:
-                return
+        self._drain(blocking=True)
 
     def _take_inbox(self) -> None:
         """Move what writers left in the inbox into the queue, in order (under the lock)."""
