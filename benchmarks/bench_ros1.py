@@ -14,9 +14,13 @@ each a publisher process and a subscriber process, three kinds of side:
   written with ``port.write``), or an event input port fed by such a stream, the sample
   timed in the task's ``update_hook`` (reader end, the port's check, the buffer, and the
   task's wake-up: one hand-over to the task's thread);
-* ``scart-port``: the same input port, the sample timed when it is in the port (a data
-  callback, in the node's io thread, right after the reader end stored it): the stream's
-  own cost, without the task's wake-up.
+* ``scart-port``: an input port fed by such a stream, not an event port, the sample timed
+  when it is in the port (a data callback, in the node's io thread, right after the reader
+  end stored it, as rospy's callback runs in its receiving thread): the stream's own cost,
+  with no task to wake;
+* ``scart-event-port``: the same with the event port of ``scart``: the data callback runs
+  after the port has woken its task (the kernel call that hands the sample over), so the
+  row minus ``scart-port`` is the wake-up's cost to the node's thread.
 
 The publisher sends ``std_msgs/Int64(time.monotonic_ns())`` on absolute deadlines at 1 kHz
 and at 100 Hz (rospy with ``queue_size=1`` and ``tcp_nodelay=True``, the subscriber with
@@ -47,8 +51,10 @@ from _common import paced, pct, wait_until  # noqa: E402
 SYSTEM_PYTHON = "/usr/bin/python3"
 TOPIC = "/bench_hop"
 #: publisher > subscriber, in the order measured (alternating within each round)
-HOPS = (("rospy", "rospy"), ("scart", "rospy"), ("rospy", "scart-port"), ("rospy", "scart"), ("ours", "rospy"),
-        ("rospy", "ours"), ("scart", "scart"))
+HOPS = (("rospy", "rospy"), ("scart", "rospy"), ("rospy", "scart-port"), ("rospy", "scart-event-port"),
+        ("rospy", "scart"), ("ours", "rospy"), ("rospy", "ours"), ("scart", "scart"))
+#: the subscriber roles of a scart side, by its name in a hop
+SCART_ROLES = {"scart": "sub", "scart-port": "sub-port", "scart-event-port": "sub-event-port"}
 
 # The rospy side: run by the system Python (Debian's rospy), as publisher or subscriber.
 ROSPY_PEER = r'''
@@ -115,13 +121,15 @@ def scart_side(role: str, rate: float, count: int, warmup: float, topic: str) ->
     class Stamper(TaskContext):
         stamp = OutputPort(int)
 
+    in_port = role in ("sub-port", "sub-event-port")  # timed in the port: an update_hook only drains
+
     class Receiver(TaskContext):
-        stamp = InputPort(int, event=True)
+        stamp = InputPort(int, event=role != "sub-port")
 
         def __init__(self, name: str) -> None:
             super().__init__(name)
             self.got: list[tuple[int, int]] = []
-            if role == "sub-port":  # timed in the port: the update_hook only drains
+            if in_port:
                 self.stamp.add_data_callback(lambda port: self.got.append((time.monotonic_ns(), port_value(port))))
 
         def drain(self) -> None:
@@ -130,7 +138,7 @@ def scart_side(role: str, rate: float, count: int, warmup: float, topic: str) ->
                     return
 
         def update_hook(self) -> None:
-            if role == "sub-port":
+            if in_port:
                 return self.drain()
             for _ in range(1000):
                 flow, value = self.stamp.read()
@@ -203,7 +211,7 @@ class Bench:
         if side == "rospy":
             return [SYSTEM_PYTHON, str(self.rospy_script), *args]
         if side.startswith("scart"):
-            role = role + ("-port" if side == "scart-port" else "")
+            role = SCART_ROLES[side] if role == "sub" else role
             return [sys.executable, __file__, "--child-scart", role, *args[1:]]
         return [sys.executable, __file__, "--child", *args]
 
