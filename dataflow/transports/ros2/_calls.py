@@ -38,14 +38,16 @@ from ._errors import Ros2Error, UnknownTypeError
 from ._names import topic_name
 from ._types import MessageTypes, message_to_dict
 
-__all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "serve", "serve_operation"]
+__all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "ros2_transport", "serve",
+           "serve_operation"]
 
 log = logging.getLogger(__name__)
 
 _EMPTY = "structure_needs_at_least_one_member"  # rosidl's member of an empty struct: no argument
 
 
-def _transport() -> Any:
+def ros2_transport() -> Any:
+    """The process's ``ros2`` transport (scart's: a plug-in under that name is refused)."""
     transport = load("ros2")
     if not hasattr(transport, "acquire"):
         raise TransportError(f"transport 'ros2' is a {type(transport).__qualname__}, not scart's")
@@ -144,7 +146,7 @@ class ServedService:
 
     def __init__(self, service: str, type_name: str, call: Callable[..., Any], params: list[Param], returns: Any,
                  *, options: Mapping[str, str] | None = None, label: str = "") -> None:
-        self._transport = _transport()
+        self._transport = ros2_transport()
         types: MessageTypes = self._transport.types
         self.label = label or getattr(call, "__qualname__", "a callable")
         problems = check_service(types, type_name, params, returns)
@@ -196,12 +198,13 @@ class ServedService:
 
 
 def serve(call: Callable[..., Any], service: str, type_name: str, *,
-          options: Mapping[str, str] | None = None) -> ServedService:
+          options: Mapping[str, str] | None = None, label: str = "") -> ServedService:
     """Answer the ROS 2 service ``service`` (``pkg/srv/Srv``) with ``call``, whose
-    parameters and return annotation say how requests and responses map. Raises
-    :class:`TransportError` (types that do not map, a bad name, no participant)."""
+    parameters and return annotation say how requests and responses map (``label``: what
+    answers, in messages). Raises :class:`TransportError` (types that do not map, a bad
+    name, no participant)."""
     params, returns = signature_of(call)
-    return ServedService(service, type_name, call, params, returns, options=options)
+    return ServedService(service, type_name, call, params, returns, options=options, label=label)
 
 
 def serve_operation(task: Any, operation: str, service: str, type_name: str, *,
@@ -225,7 +228,7 @@ class ServiceProxy:
 
     def __init__(self, service: str, type_name: str, *, returns: type | None = None,
                  options: Mapping[str, str] | None = None, timeout: float = 5.0) -> None:
-        self._transport = _transport()
+        self._transport = ros2_transport()
         self._transport.types.service(type_name)  # an unknown type: said now
         self.service, self.type_name, self.returns, self.timeout = topic_name(service), type_name, returns, timeout
         self._participant = self._transport.acquire(self._transport.where(options or {}))

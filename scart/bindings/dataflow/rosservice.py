@@ -1,17 +1,23 @@
-"""The ``<scart:rosservice>`` composite element: a ROS 1 service answered by a task's
-operation or by an SCA service's operation (rtt_rosservice's ``connect``)::
+"""The ``<scart:rosservice>`` composite element: a ROS 1 or ROS 2 service answered by a
+task's operation or by an SCA service's operation (rtt_rosservice's ``connect``)::
 
     <scart:rosservice service="/youbot/reset" type="std_srvs/Trigger" operation="youBotDriver.reset"/>
     <scart:rosservice service="/youbot/period" type="my_msgs/SetPeriod"
                       target="SCAYouBotDriver/SettingPeriod.set_period" timeout="2"/>
+    <scart:rosservice transport="ros2" service="/youbot/reset" type="std_srvs/srv/Trigger"
+                      operation="youBotDriver.reset" domain="7"/>
 
 ``operation`` names ``TASK.OPERATION`` of a task of this composite, ``target``
 ``COMPONENT/SERVICE.operation`` of an SCA component (one of the two). Request fields
 become the arguments by name, the result the response (see
 :mod:`dataflow.transports.ros1.calls` for the rules, the ``std_srvs`` success/message
 convention included); ``converter="module:function"`` (``function(request, call)``)
-replaces them. ``msgs`` (``.srv``/``.msg`` files, from the composite's folder) adds
-types; ``master``, ``node``, ``__ns``, ``insecure`` are the node's, as for streams.
+replaces them (ROS 1 only). ``msgs`` (``.srv``/``.msg`` files, from the composite's
+folder) adds types; ``master``, ``node``, ``__ns``, ``insecure`` are the ROS 1 node's, as
+for streams. ``transport="ros2"`` (default ``ros1``) serves it over DDS instead (the rules
+of :mod:`dataflow.transports.ros2`, type names ``pkg/srv/Type``, ``msgs`` named
+``.../pkg/srv/Type.srv`` or ``.../pkg/msg/Type.msg``), with the participant's options
+``domain``, ``insecure``, ``interface``, ``peers``.
 Checked at load (the operation, the types, request fields against parameters and the
 return type against the response: ``SCART-T007``, file:line); served when the composite
 starts (after every component's ``@init``), withdrawn when it stops.
@@ -26,7 +32,9 @@ from typing import Any
 
 from dataflow import DataflowError
 from dataflow.transports import TransportError
+from dataflow.transports._rosplan import signature_of
 from dataflow.transports.ros1.transport import NODE_OPTIONS
+from dataflow.transports.ros2._errors import Ros2Error
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
@@ -36,7 +44,8 @@ __all__ = ["RosServiceElement", "RosServiceParticipant"]
 log = logging.getLogger("scart.dataflow")
 
 ROSSERVICE_CODE = "SCART-T007"  #: a scart:rosservice that cannot be made (what it names, its types)
-_OWN = ("service", "type", "operation", "target", "converter", "timeout", "msgs")
+_OWN = ("service", "type", "operation", "target", "converter", "timeout", "msgs", "transport")
+TRANSPORTS = ("ros1", "ros2")
 
 
 @dataclass(frozen=True)
@@ -45,6 +54,7 @@ class RosService:
 
     service: str
     type: str
+    transport: str  # ros1 or ros2
     operation: str  # TASK.OPERATION, or "" for an SCA target
     target: str  # COMPONENT/SERVICE.operation, or ""
     converter: str
@@ -56,6 +66,12 @@ class RosService:
 
 def _parse(prefix: str, el: Element) -> tuple[RosService | None, list[str]]:
     a, problems = el.attributes, []
+    transport = (a.get("transport") or "ros1").strip()
+    if transport not in TRANSPORTS:
+        problems.append(f"<scart:rosservice> transport={transport!r}: expected one of {', '.join(TRANSPORTS)}")
+    network = _network_options(transport)
+    if transport == "ros2" and a.get("converter"):
+        problems.append("<scart:rosservice> converter: ROS 1 services only (a ROS 2 service maps by field names)")
     service, type_name = (a.get("service") or "").strip(), (a.get("type") or "").strip()
     operation, target = (a.get("operation") or "").strip(), (a.get("target") or "").strip()
     if not service or not type_name:
@@ -74,17 +90,17 @@ def _parse(prefix: str, el: Element) -> tuple[RosService | None, list[str]]:
     except ValueError:
         problems.append(f"<scart:rosservice> timeout={a.get('timeout')!r}: seconds, more than 0, at most 3600")
         timeout = 5.0
-    unknown = sorted(k for k in a if k not in _OWN and k not in NODE_OPTIONS and ":" not in k)
+    unknown = sorted(k for k in a if k not in _OWN and k not in network and ":" not in k)
     if unknown:
         problems.append(f"<scart:rosservice>: unknown attribute(s) {', '.join(unknown)}")
     if problems:
         return None, problems
     folder = Path(el.loc.path).parent
     msgs = tuple(str(folder / p.strip()) for p in (a.get("msgs") or "").split(",") if p.strip())
-    options = tuple(sorted((k, v) for k, v in a.items() if k in NODE_OPTIONS))
+    options = tuple(sorted((k, v) for k, v in a.items() if k in network))
     task_op = f"{prefix}{operation}" if operation else ""
-    return RosService(service, type_name, task_op, target, (a.get("converter") or "").strip(), timeout, options,
-                      msgs, str(el.loc)), []
+    return RosService(service, type_name, transport, task_op, target, (a.get("converter") or "").strip(), timeout,
+                      options, msgs, str(el.loc)), []
 
 
 class RosServiceElement(ElementProvider):
@@ -107,24 +123,62 @@ class RosServiceElement(ElementProvider):
         return RosServiceParticipant(found, host)
 
 
-def _check(rs: RosService, assembly: AssemblyView, context: CheckContext) -> list[str]:
-    from dataflow.transports.ros1.calls import check_service, ros1_transport, signature_of
+def _network_options(transport: str) -> frozenset[str] | tuple[str, ...]:
+    """The options of the process's ROS 1 node or ROS 2 participant an element may set."""
+    if transport == "ros2":
+        from dataflow.transports.ros2._transport import NETWORK_OPTIONS  # no Cyclone DDS needed to read it
 
-    try:
-        transport = ros1_transport()
+        return NETWORK_OPTIONS
+    return NODE_OPTIONS
+
+
+def _types_of(rs: RosService) -> Any:
+    """The transport's message types, with the element's ``msgs`` added. Raises
+    TransportError, ImportError (ros2 without ``scart[ros2]``), ValueError, OSError."""
+    if rs.transport == "ros1":
+        from dataflow.transports.ros1.calls import ros1_transport
+
+        types = ros1_transport().types
         for path in rs.msgs:
-            transport.types.add_file(path)
+            types.add_file(path)
+        return types
+    from dataflow.transports.ros2._calls import ros2_transport
+
+    types = ros2_transport().types
+    for path in rs.msgs:
+        file = Path(path)
+        name = f"{file.parent.parent.name}/{file.parent.name}/{file.stem}"
+        kind = (file.suffix, file.parent.name)
+        if kind not in ((".srv", "srv"), (".msg", "msg")):
+            raise ValueError(f"msgs: {path}: a ROS 2 type file is named .../PACKAGE/srv/TYPE.srv or "
+                             ".../PACKAGE/msg/TYPE.msg")
+        if types.has(f"{name}_Request" if kind[1] == "srv" else name):
+            continue  # added by another element or stream already
+        (types.add_srv_file if kind[1] == "srv" else types.add_msg_file)(file, name)
+    return types
+
+
+def _check(rs: RosService, assembly: AssemblyView, context: CheckContext) -> list[str]:
+    try:
+        types = _types_of(rs)
         if rs.converter:
             context.import_object(rs.converter)
-    except (TransportError, ValueError, ImportError, AttributeError) as exc:
+    except (TransportError, Ros2Error, ValueError, OSError, ImportError, AttributeError) as exc:
         return [f"<scart:rosservice> {rs.service}: {exc}"]
     try:
         fn, what = _callable_of(rs, assembly)
     except LookupError as exc:
         return [f"<scart:rosservice> {exc}"]
     params, returns = signature_of(fn, skip_self=True)
-    return [f"<scart:rosservice> {rs.service} ({rs.type}) by {what}: {p}"
-            for p in check_service(transport.types, rs.type, params, returns, rs.converter)]
+    if rs.transport == "ros2":
+        from dataflow.transports.ros2._calls import check_service as check_ros2
+
+        problems = check_ros2(types, rs.type, params, returns)
+    else:
+        from dataflow.transports.ros1.calls import check_service
+
+        problems = check_service(types, rs.type, params, returns, rs.converter)
+    return [f"<scart:rosservice> {rs.service} ({rs.type}) by {what}: {p}" for p in problems]
 
 
 def _callable_of(rs: RosService, assembly: AssemblyView) -> tuple[Any, str]:
@@ -163,34 +217,39 @@ class RosServiceParticipant(Participant):
         self._served: list[Any] = []
 
     def start(self) -> None:
-        from dataflow.transports.ros1.calls import ros1_transport, serve, serve_operation
-
-        types: Any = None
         for rs in self.services:
             try:
-                if rs.msgs:
-                    types = types or ros1_transport().types
-                    for path in rs.msgs:
-                        types.add_file(path)
-                if rs.converter:
-                    self.host.assembly.import_object(rs.converter)
-                if rs.operation:
-                    task, _, op = rs.operation.rpartition(".")
-                    remap = DataflowSettings.of(self.host.settings).remap
-                    real = host_of(self.host).deployer.task(remap.component(task) if remap else task)
-                    made = serve_operation(real, op, rs.service, rs.type, converter=rs.converter,
-                                           options=dict(rs.options), timeout=rs.timeout)
-                else:
-                    component, _, rest = rs.target.partition("/")
-                    service, _, op = rest.rpartition(".")
-                    fn = self.host.endpoint(f"{component}/{service}").method(op)
-                    made = serve(fn, rs.service, rs.type, converter=rs.converter, options=dict(rs.options),
-                                 label=rs.target)
-            except (DataflowError, ValueError, LookupError, ImportError) as exc:
+                made = self._serve(rs)
+            except (DataflowError, Ros2Error, ValueError, LookupError, ImportError, OSError) as exc:
                 self.stop()
                 raise DataflowError(f"ROS service {rs.service} ({rs.where}): {exc}") from exc
             self._served.append(made)
-            log.info("ROS service %s (%s) answered by %s", made.name, rs.type, made.label)
+            log.info("ROS service %s (%s, %s) answered by %s", made.name, rs.type, rs.transport, made.label)
+
+    def _serve(self, rs: RosService) -> Any:
+        """Serve ``rs`` over its transport, answered by its operation or SCA target."""
+        lib: Any  # the transport's serve and serve_operation
+        if rs.transport == "ros2":
+            from dataflow.transports import ros2 as lib
+
+            how: dict[str, Any] = dict(options=dict(rs.options))
+        else:
+            from dataflow.transports.ros1 import calls as lib
+
+            how = dict(converter=rs.converter, options=dict(rs.options))
+        if rs.msgs:
+            _types_of(rs)
+        if rs.converter:
+            self.host.assembly.import_object(rs.converter)
+        if rs.operation:
+            task, _, op = rs.operation.rpartition(".")
+            remap = DataflowSettings.of(self.host.settings).remap
+            real = host_of(self.host).deployer.task(remap.component(task) if remap else task)
+            return lib.serve_operation(real, op, rs.service, rs.type, timeout=rs.timeout, **how)
+        component, _, rest = rs.target.partition("/")
+        service, _, op = rest.rpartition(".")
+        fn = self.host.endpoint(f"{component}/{service}").method(op)
+        return lib.serve(fn, rs.service, rs.type, label=rs.target, **how)
 
     def stop(self) -> None:
         served, self._served = self._served, []
