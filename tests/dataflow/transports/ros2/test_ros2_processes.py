@@ -1,7 +1,8 @@
 """ROS 2 streams of scart processes, as a user makes them: ``scart stream COMP.PORT
 ros2:/topic --type T`` against a ``scart deploy``, and the youBot demo's ROS 2 composite
-(``/joint_states``, its period and pose from ROS 2 topics), each judged by the
-independent peer (``support/ros2_stream_peer.py``) over loopback on this run's domain."""
+(``/joint_states``, its period and pose from ROS 2 topics, its reset a ROS 2 service),
+each judged by the independent peer (``support/ros2_stream_peer.py``) over loopback on
+this run's domain."""
 
 from __future__ import annotations
 
@@ -79,5 +80,10 @@ def test_the_youbot_ros2_composite_speaks_joint_states_and_takes_period_and_pose
         def moved() -> bool:
             return reader.next_event("sample")["position"][0] > 0.1
         wait_until(moved, timeout=30, message="joint 1 never moved toward the pose sent")
+
+        reset = scart("call", "ros2:/youbot/reset", "--type", "std_srvs/srv/Empty", domain=on_domain)
+        assert reset.returncode == 0, reset.stderr  # the driver's reset operation, as a ROS 2 service
+        wait_until(lambda: abs(reader.next_event("sample")["position"][0]) < 0.05, timeout=30,
+                   message="joint 1 never went back to the candle pose after the reset")
     finally:
         assert demo.stop() == 0, demo.output()
