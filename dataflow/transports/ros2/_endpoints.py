@@ -103,6 +103,11 @@ class Publisher:
             self._last_refusal = why
         return False
 
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called (``publish`` then returns False, refusing nothing)."""
+        return self._closed
+
     def matched(self) -> int:
         """How many readers this publisher is matched with now (0 once closed)."""
         if self._closed:

@@ -300,6 +300,8 @@ class _Carrier(RefusingCarrier):
             self._refuse(f"sample {sample.n}: {type(exc).__name__}: {exc}")
             return True
         if not self._publisher.publish(message):
+            if self._publisher.closed:  # the stream is closing: not sent, counted by the writer end
+                return False
             self._refuse(f"sample {sample.n}: {self._publisher.stats().last_refusal}")
         return True  # DDS keeps the newest of its history: never "no room"
 

@@ -172,6 +172,21 @@ def test_a_message_that_does_not_convert_is_refused_counted_and_named(
     assert note.refused == 1 and "3 is odd" in note.refusal and "does not convert" in note.refusal
 
 
+def test_a_sample_written_as_its_stream_closes_is_unsent_not_refused(domain: int, topic: str,
+                                                                      deployer: Deployer) -> None:
+    src = deployer.add(Source("src"))
+    made = deployer.stream("src.out", _ros2(topic, ConnPolicy.buffer(10)), {"domain": str(domain)})
+    stream = deployer.streams()[made.name]
+    src.out.write(1.0)
+    stream._stream._pub.close()  # noqa: SLF001 - the race of a stop: the publisher goes first
+    src.out.write(2.0)
+    note = _note(src, "out")
+    assert (note.refused, note.refusal) == (0, "")  # not a refusal (it used to say "sample 2: None")
+    assert stream.writer.pending == 1  # kept, as its policy says, ...
+    deployer.unstream(made.name)
+    assert (stream.writer.sent, stream.writer.unsent, stream.writer.dropped) == (1, 1, 1)  # ... then counted unsent
+
+
 def test_a_value_a_message_cannot_hold_is_refused_counted_and_named(
         domain: int, topic: str, deployer: Deployer) -> None:
     src = deployer.add(Source("src"))
