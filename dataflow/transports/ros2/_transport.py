@@ -62,7 +62,7 @@ if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them
     from ._qos import QoS
     from ._types import MessageTypes
 
-__all__ = ["OPTIONS", "Ros2Transport", "qos_of"]
+__all__ = ["OPTIONS", "Ros2Transport", "add_type_file", "qos_of"]
 
 log = logging.getLogger(__name__)
 
@@ -231,20 +231,8 @@ class Ros2Transport(Transport):
         return out
 
     def _add_msgs(self, options: Mapping[str, str]) -> None:
-        types = self.types
         for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
-            file = Path(path)
-            name = f"{file.parent.parent.name}/{file.parent.name}/{file.stem}"
-            if file.suffix != ".msg" or file.parent.name != "msg":
-                raise ValueError(f"msgs: {path}: a message file is named .../PACKAGE/msg/TYPE.msg")
-            if types.has(name):
-                continue  # added by another stream already
-            try:
-                if file.stat().st_size > MAX_DEFINITION_BYTES:
-                    raise ValueError(f"larger than {MAX_DEFINITION_BYTES} bytes")
-                types.add_msg_file(file, name)
-            except (OSError, ValueError) as exc:
-                raise ValueError(f"msgs: {path}: {exc}") from None
+            add_type_file(self.types, path)
 
     def conversion(self, port: Any, options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
         """How ``port``'s values cross to the topic's type, and the problems found."""
@@ -276,6 +264,29 @@ class Ros2Transport(Transport):
 
 def _shown(network: Network) -> str:
     return "loopback only" if network.loopback_only else "open to the network (insecure)"
+
+
+def add_type_file(types: MessageTypes, path: str, kinds: tuple[str, ...] = ("msg",)) -> None:
+    """Add the type defined in the file ``path``, named by its place:
+    ``.../PACKAGE/msg/TYPE.msg`` (or ``.../PACKAGE/srv/TYPE.srv`` with ``"srv"`` in ``kinds``);
+    nothing if that type is known already. Raises ``ValueError`` naming the file: a name
+    out of place, more than :data:`MAX_DEFINITION_BYTES`, unreadable, or not a definition."""
+    file = Path(path)
+    kind = file.parent.name
+    if kind not in kinds or file.suffix != f".{kind}":
+        if kinds == ("msg",):
+            raise ValueError(f"msgs: {path}: a message file is named .../PACKAGE/msg/TYPE.msg")
+        raise ValueError(f"msgs: {path}: a ROS 2 type file is named "
+                         + " or ".join(f".../PACKAGE/{k}/TYPE.{k}" for k in kinds))
+    name = f"{file.parent.parent.name}/{kind}/{file.stem}"
+    if types.has(f"{name}_Request" if kind == "srv" else name):
+        return  # added by another stream or service already
+    try:
+        if file.stat().st_size > MAX_DEFINITION_BYTES:
+            raise ValueError(f"larger than {MAX_DEFINITION_BYTES} bytes")
+        (types.add_srv_file if kind == "srv" else types.add_msg_file)(file, name)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"msgs: {path}: {exc}") from None
 
 
 class _Carrier(RefusingCarrier):

@@ -143,18 +143,11 @@ def _types_of(rs: RosService) -> Any:
             types.add_file(path)
         return types
     from dataflow.transports.ros2._calls import ros2_transport
+    from dataflow.transports.ros2._transport import add_type_file
 
     types = ros2_transport().types
     for path in rs.msgs:
-        file = Path(path)
-        name = f"{file.parent.parent.name}/{file.parent.name}/{file.stem}"
-        kind = (file.suffix, file.parent.name)
-        if kind not in ((".srv", "srv"), (".msg", "msg")):
-            raise ValueError(f"msgs: {path}: a ROS 2 type file is named .../PACKAGE/srv/TYPE.srv or "
-                             ".../PACKAGE/msg/TYPE.msg")
-        if types.has(f"{name}_Request" if kind[1] == "srv" else name):
-            continue  # added by another element or stream already
-        (types.add_srv_file if kind[1] == "srv" else types.add_msg_file)(file, name)
+        add_type_file(types, path, kinds=("srv", "msg"))
     return types
 
 

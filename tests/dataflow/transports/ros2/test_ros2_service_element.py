@@ -74,11 +74,15 @@ def _write(tmp_path: Path, body: str) -> tuple[Path, str]:
      "std_srvs/srv/Nope"),
     ('<scart:rosservice transport="ros2" service="/x" type="my_srvs/srv/Mean" operation="calc.halve" '
      'msgs="Mean.srv"/>', "a ROS 2 type file is named .../PACKAGE/srv/TYPE.srv"),
-], ids=["types", "converter", "ros1-option", "transport", "srv-type", "msgs-name"])
+    ('<scart:rosservice transport="ros2" service="/x" type="my_srvs/srv/Big" operation="calc.halve" '
+     'msgs="my_srvs/srv/Big.srv"/>', "my_srvs/srv/Big.srv: larger than 1048576 bytes"),
+], ids=["types", "converter", "ros1-option", "transport", "srv-type", "msgs-name", "msgs-size"])
 def test_what_does_not_map_is_refused_at_load_with_file_line_and_code(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], element: str, words: str) -> None:
     path, text = _write(tmp_path, element + "<!--HERE-->")
     (tmp_path / "Mean.srv").write_text(MEAN, encoding="utf-8")
+    (tmp_path / "my_srvs" / "srv").mkdir(parents=True)
+    (tmp_path / "my_srvs" / "srv" / "Big.srv").write_text("#" * (1 << 20) + "\n---\n", encoding="utf-8")  # a bound
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     code = "SCART-X003" if "ros3" in element else "SCART-T007"
