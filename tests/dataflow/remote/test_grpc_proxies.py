@@ -321,10 +321,11 @@ def test_slow_subscriber_never_slows_the_task() -> None:
         cycles, overruns = task.activity.cycles, task.activity.overruns
         mark = len(seen)
         wait_until(lambda: len(seen) >= mark + 40, timeout=10, message=f"the other subscriber got {len(seen)}")
-        # the task keeps its pace (overruns here would come from machine load, not from the
-        # stuck subscriber: allow a few percent) and the other subscriber misses nothing
+        # the task keeps its pace and the other subscriber misses nothing. A writer held by the
+        # stuck subscriber would be late at every cycle; a loaded machine makes some late (seen
+        # in CI: 4 of 40), so the bound is half, not a timing budget
         ran = task.activity.cycles - cycles
-        assert ran >= 40 and task.activity.overruns - overruns <= max(2, ran // 20)
+        assert ran >= 40 and task.activity.overruns - overruns < ran // 2
         assert seen == sorted(seen) and seen[-1] - seen[mark] == len(seen) - 1 - mark
     finally:
         stuck.set()
