@@ -234,13 +234,17 @@ def test_deploy_ls_and_echo_over_zenoh_without_a_name_service(tmp_path, session)
         alone = _scart("ls", "--zenoh", "--ns", "127.0.0.1:1")  # nowhere to look
         assert alone.returncode == 1 and "give --zenoh-connect ENDPOINT" in alone.stderr
         zenoh = ["--zenoh", "--zenoh-connect", endpoint, "--ns", "127.0.0.1:1"]  # no name service answers there
-        listed = wait_until(lambda: json.loads(_scart("ls", "--json", *zenoh).stdout or "[]"), timeout=15)
-        assert listed == [{"name": "zp", "ports": ["output", "ticks"]}]
+        listed = [{"name": "zp", "ports": ["output", "ticks"]}]  # each port's token comes on its own: wait for both
+
+        def lists(*args: str) -> bool:
+            return json.loads(_scart("ls", "--json", *args).stdout or "[]") == listed
+
+        wait_until(lambda: lists(*zenoh), timeout=15, message="ls over Zenoh never listed zp's two ports")
         echoed = _scart("echo", "zp.ticks", "-n", "2", "--json", *zenoh)
         ticks = [json.loads(x) for x in echoed.stdout.split()]
         assert echoed.returncode == 0 and len(ticks) == 2 and ticks[1] > ticks[0] > 0
         via_router = ["--zenoh", "--zenoh-connect", router_at]
-        assert json.loads(_scart("ls", "--json", *via_router).stdout) == listed
+        wait_until(lambda: lists(*via_router), timeout=15, message="ls through the router never listed zp")
         # the Python API: lookups from Zenoh, then calls and a subscription to the deployer
         client = session(connect=[router_at], mode="client")
         with zenoh_transport.connect_zenoh(client, timeout=5.0) as system:  # closes its subscriptions too
