@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import resource
 import signal
 import subprocess
 import sys
@@ -282,11 +281,20 @@ def small_tmpfs(tmp_path: Path, size: str) -> Iterator[Path]:
         subprocess.run(["umount", str(where)], capture_output=True, timeout=30)
 
 
-def record_until_full(path: Path, ns: str, preexec: object = None) -> tuple[int, str, float]:
+#: Runs the rest of its arguments under a kernel limit on the size of the files written (a
+#: fresh interpreter sets it, then execs: a preexec_fn would fork this process, whose gRPC
+#: threads can abort the child before it execs).
+FSIZE_LIMITED = ("import os, resource, sys; lim = int(sys.argv[1]); "
+                 "resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim)); "
+                 "os.execv(sys.executable, [sys.executable, *sys.argv[2:]])")
+
+
+def record_until_full(path: Path, ns: str, file_limit: int | None = None) -> tuple[int, str, float]:
     began = time.monotonic()
-    done = subprocess.run([sys.executable, "-m", "scart", "record", "youBotDriver.jointStatus", "-o", str(path),
-                           "--duration", "60", "--ns", ns], capture_output=True, text=True, timeout=45,
-                          env=subprocess_env(ns), preexec_fn=preexec)  # type: ignore[arg-type]
+    limited = ["-c", FSIZE_LIMITED, str(file_limit)] if file_limit is not None else []
+    done = subprocess.run([sys.executable, *limited, "-m", "scart", "record", "youBotDriver.jointStatus",
+                           "-o", str(path), "--duration", "60", "--ns", ns], capture_output=True, text=True,
+                          timeout=45, env=subprocess_env(ns))
     return done.returncode, done.stderr, time.monotonic() - began
 
 
@@ -314,9 +322,6 @@ def test_a_full_disk_stops_the_recording_and_finishes_the_file(tmp_path: Path, r
 
 
 def test_a_file_size_limit_stops_the_recording_and_finishes_the_file(tmp_path: Path, robot: str) -> None:
-    def limit() -> None:  # in the child: a real kernel limit on the size of the files it writes
-        resource.setrlimit(resource.RLIMIT_FSIZE, (64 << 10, 64 << 10))
-
-    code, err, took = record_until_full(tmp_path / "run.mcap", robot, limit)
+    code, err, took = record_until_full(tmp_path / "run.mcap", robot, file_limit=64 << 10)  # a real kernel limit
     assert code == 1 and took < 40, (code, took, err)
     assert_finished_as_far_as_it_got(tmp_path / "run.mcap", err, "the file-size limit is reached")
