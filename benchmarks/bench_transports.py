@@ -18,7 +18,12 @@ Rows:
   cycles whose answer came back within the period;
 - throughput of one connection (``src.out → mirror.inp`` only, BUFFER(10000), written as
   fast as one thread can): samples/s the mirror received (its output's write number,
-  read over gRPC), and drops.
+  read over gRPC), and drops. A writer flat out holds its process's GIL, so its own
+  io thread, which sends what waited for room, gets the GIL only every switch interval
+  (5 ms): this row is the link under overload, with drops;
+- sustained throughput of one connection: the same, written at a set rate (a burst each
+  millisecond, on absolute deadlines) for 2 s: what a connection carries without loss
+  (issue 21's goal: 100,000 samples/s).
 """
 
 from __future__ import annotations
@@ -37,6 +42,8 @@ from _common import paced, pct, raw_socket_rtt2, wait_until  # noqa: E402
 
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.remote import connect  # noqa: E402
+
+BURST_S = 0.001  #: a paced throughput row writes its samples in a burst this often
 
 
 class Source(TaskContext):
@@ -106,17 +113,28 @@ def round_trips(src: Source, sink: Sink, rate: float, n: int) -> tuple[list[floa
     return one_way, in_time
 
 
-def throughput(system: object, src: Source, transport: str, n: int) -> tuple[float, int, int]:
-    """(samples/s received by the mirror, drops, received) for ``n`` writes flat out: the
-    mirror's output port's write number counts what it received."""
+def throughput(system: object, src: Source, transport: str, n: int, rate: float = 0.0) -> tuple[float, int, int]:
+    """(samples/s received by the mirror, drops, received) for ``n`` writes: flat out
+    (``rate`` 0), or paced at ``rate`` samples/s in bursts of :data:`BURST_S` (on absolute
+    deadlines). The mirror's output port's write number counts what it received."""
     system.connect_ports("src.out", "mirror.inp", ConnPolicy.buffer(10_000).with_(transport=transport),  # type: ignore[attr-defined]
                          name="flat")
     proxy = system.component("mirror")  # type: ignore[attr-defined]
     wait_until(lambda: any(lk.name == "flat" and lk.transport == transport for lk in system.links()), 10)  # type: ignore[attr-defined]
     start = proxy.read_sample_of("out")[2]
+    write = src.out.write
     t0 = time.perf_counter()
-    for k in range(n):
-        src.out.write(k)
+    if rate:
+        burst = max(1, round(rate * BURST_S))
+
+        def write_burst(b: int) -> None:
+            for k in range(b * burst, min(n, (b + 1) * burst)):
+                write(k)
+
+        paced(-(-n // burst), rate / burst, write_burst)
+    else:
+        for k in range(n):
+            write(k)
     last = [start, time.perf_counter()]
 
     def arrived() -> bool:
@@ -142,6 +160,8 @@ def main() -> int:
     if args.child:
         return child(args.child)
     n100, n1k, nflat = (20, 100, 500) if args.smoke else (200, 1000, 5000) if args.quick else (500, 3000, 20000)
+    sustain_s, rates = (0.05, (10_000,)) if args.smoke else (1.0, (100_000,)) if args.quick else \
+        (2.0, (50_000, 100_000, 150_000))
 
     deployer = Deployer()
     src = deployer.add(Source("src"))
@@ -177,6 +197,11 @@ def main() -> int:
                 flat, dropped, got = throughput(system, src, transport, nflat)
                 rows.append((f"{transport}: throughput, one connection", "flat out", None, None,
                              f"{got}/{nflat} (drops {dropped})", f"{flat:,.0f}/s", ""))
+                for rate in rates:
+                    n = int(rate * sustain_s)
+                    paced_rate, dropped, got = throughput(system, src, transport, n, rate)
+                    rows.append((f"{transport}: sustained, one connection", f"{rate:,}/s", None, None,
+                                 f"{got}/{n} (drops {dropped})", f"{paced_rate:,.0f}/s", ""))
     finally:
         if proc.stdin is not None:
             proc.stdin.close()
