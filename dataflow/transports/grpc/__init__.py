@@ -5,8 +5,9 @@ the ``scart.transports`` entry point ``grpc``; rank 100: ``auto``'s fallback).
   says which port and channel), ``LinkResponse`` s back. The writer end's samples wait in
   a small queue (:data:`ROOM` frames) for the stream's sending thread, which sends what
   waits together (frames joined end to end are one frame holding all their samples).
-* A subscription is one server-streaming ``Subscribe`` call of ``SubscribeResponse`` s
-  (the deployer's side is :func:`serve_subscription`).
+* A subscription is fed by a server-streaming ``Subscribe`` call of ``SubscribeResponse`` s
+  (the deployer's side is :func:`serve_subscription`), one per subscribing system proxy,
+  port and policy: subscriptions alike share it (:mod:`~dataflow.transports.grpc._shared`).
 
 The frames are the same bytes as on ipc, encoded once per write (:mod:`~dataflow.transports.frames`).
 """
@@ -25,6 +26,7 @@ from dataflow.remote._convert import policy_to_msg
 from dataflow.threads import Wake
 from dataflow.transports import Peer, Transport, frames
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
+from dataflow.transports.grpc import _shared
 from dataflow.transports.ipc import LinkRefused, link_hello
 
 __all__ = ["GrpcTransport", "LINK_METHOD", "ROOM", "passthrough"]
@@ -52,6 +54,9 @@ class GrpcTransport(Transport):
     name = "grpc"
     rank = 100
 
+    def __init__(self) -> None:
+        self._streams = _shared.SharedStreams()  # the Subscribe streams open, shared by subscriptions alike
+
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         carrier = _LinkCarrier(end)
         call = peer.channel_of.stream_stream(LINK_METHOD, request_serializer=passthrough,
@@ -76,16 +81,21 @@ class GrpcTransport(Transport):
         return True
 
     def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
+        """Feed ``end`` from the peer's port: one ``Subscribe`` call, shared by the
+        subscriptions of this system proxy to that port with the same policy (see
+        :mod:`~dataflow.transports.grpc._shared`); raises what the call failed with."""
         request = pb.SubscribeRequest(task=peer.task, port=peer.port, policy=policy_to_msg(peer.policy),
                                       heartbeat_ms=int(peer.heartbeat * 1000))
-        call = peer.stub.Subscribe(request)
         end.transport = self.name
-        if not peer.opened(call.cancel):
-            call.cancel()
-            return True
-        for message in call:
-            end.seen = time.monotonic()
-            frames.feed(end, message)
+        stream, left = self._streams.attach(peer.stub, request, end, peer.heartbeat)
+        try:
+            if peer.opened(lambda: stream.leave(end)):
+                left.wait()
+            failed = stream.ended_for(end)
+        finally:
+            stream.leave(end)
+        if failed and stream.error is not None:
+            raise stream.error
         return True
 
 

@@ -345,16 +345,17 @@ def test_subscription_limit_is_a_precise_error() -> None:
     system = connect(server.address, heartbeat_ms=200)
     try:
         proxy = system.component("p")
-        grpc = ConnPolicy.data().with_(transport="grpc")  # gRPC streams are what the pool bounds
-        subs = [proxy.subscribe("ticks", lambda e: None, policy=grpc) for _ in range(2)]
+        # gRPC streams are what the pool bounds; subscriptions alike share one, so each policy differs
+        policies = [ConnPolicy.buffer(k + 1).with_(transport="grpc") for k in range(3)]
+        subs = [proxy.subscribe("ticks", lambda e: None, policy=policies[k]) for k in range(2)]
         with pytest.raises(RemoteError, match="at most 2 streams at once") as info:
-            proxy.subscribe("ticks", lambda e: None, policy=grpc)
+            proxy.subscribe("ticks", lambda e: None, policy=policies[2])
         assert info.value.code == "RESOURCE_EXHAUSTED"
         subs[0].close()
 
         def try_subscribe():
             try:
-                return proxy.subscribe("ticks", lambda e: None, policy=grpc)
+                return proxy.subscribe("ticks", lambda e: None, policy=policies[2])
             except RemoteError:
                 return None  # the server has not seen the cancellation yet
 
@@ -362,3 +363,98 @@ def test_subscription_limit_is_a_precise_error() -> None:
     finally:
         system.close()
         server.stop()
+
+
+def _shared_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name.startswith("scart-grpc-sub-")]
+
+
+def test_subscriptions_alike_share_one_stream() -> None:
+    """Subscriptions of one system proxy to one port with one policy over gRPC are fed by
+    one ``Subscribe`` stream: more of them than the deployer has streams for, each
+    receiving every write, none counted lost; one that joins later counts from where it
+    joined (with ``init``, it gets the last value at once); the first one leaving does
+    not end the others'; the last one ends the stream's thread."""
+    deployer = Deployer()
+    task = deployer.add(Pinger("p"))
+    task.set_activity(SlaveActivity())
+    deployer.configure_all()
+    deployer.start_all()
+    server = deployer.serve("127.0.0.1:0", max_workers=10)  # 2 streams at most
+    system = connect(server.address, timeout=5.0, heartbeat_ms=200)
+    try:
+        proxy = system.component("p")
+        policy = ConnPolicy.buffer(100).with_(transport="grpc")
+        got: list[list[int]] = [[] for _ in range(6)]
+        subs = [proxy.subscribe("ticks", lambda e, k=k: got[k].append(e.value), policy=policy) for k in range(4)]
+        assert len(_shared_threads()) == 1
+        for _ in range(10):
+            task.activity.step()
+        wait_until(lambda: all(len(g) == 10 for g in got[:4]), timeout=5, message=f"got {got}")
+        assert got[:4] == [list(range(1, 11))] * 4 and [s.dropped for s in subs] == [0] * 4
+
+        init = policy.with_(init=True)  # another policy: another stream, which starts with the last value
+        late = [proxy.subscribe("ticks", lambda e: got[4].append(e.value), policy=init)]
+        wait_until(lambda: got[4] == [10], timeout=5, message=f"the last value, at once: {got[4]}")
+        late.append(proxy.subscribe("ticks", lambda e: got[5].append(e.value), policy=init))  # joins it midway
+        wait_until(lambda: got[5] == [10], timeout=5, message=f"the last value, at once: {got[5]}")
+        joined = proxy.subscribe("ticks", lambda e: None, policy=policy)  # joins the first stream midway
+        assert len(_shared_threads()) == 2
+        subs[0].close()
+        for _ in range(5):
+            task.activity.step()
+        wait_until(lambda: all(len(g) == 15 for g in got[1:4]) and len(got[5]) == 6, timeout=5, message=f"got {got}")
+        assert got[1:4] == [list(range(1, 16))] * 3 and got[4] == got[5] == list(range(10, 16))
+        wait_until(lambda: joined.delivered == 5, timeout=5, message=f"delivered {joined.delivered}")
+        assert [s.dropped for s in (*subs[1:], *late, joined)] == [0] * 6  # joining midway loses nothing
+        for sub in (*subs[1:], *late, joined):
+            sub.close()
+        assert wait_until(lambda: not _shared_threads(), timeout=5)
+    finally:
+        system.close()
+        server.stop()
+        deployer.stop_all()
+        deployer.cleanup_all()
+
+
+def test_a_shared_stream_counts_what_a_restart_lost() -> None:
+    """Two subscriptions sharing a stream, their deployer restarted on the same address:
+    both come back, and each counts the writes it missed as dropped."""
+    deployer = Deployer()
+    task = deployer.add(Pinger("p"))
+    task.set_activity(SlaveActivity())
+    deployer.configure_all()
+    deployer.start_all()
+    server = deployer.serve("127.0.0.1:0")
+    address = server.address
+    system = connect(address, timeout=5.0, heartbeat_ms=200)
+    again = None
+    try:
+        proxy = system.component("p")
+        policy = ConnPolicy.buffer(100).with_(transport="grpc")
+        got: list[list[int]] = [[], []]
+        subs = [proxy.subscribe("ticks", lambda e, k=k: got[k].append(e.value), policy=policy) for k in range(2)]
+        task.activity.step()
+        wait_until(lambda: got == [[1], [1]], timeout=5, message=f"got {got}")
+        server.stop()
+        again = Deployer()
+        task = again.add(Pinger("p"))
+        task.set_activity(SlaveActivity())
+        again.configure_all()
+        again.start_all()
+        for _ in range(3):  # written before anyone is back: lost, and counted
+            task.activity.step()
+        server = again.serve(address)
+        wait_until(lambda: all(s.connected for s in subs), timeout=10, message="not reconnected")
+        task.activity.step()
+        wait_until(lambda: got == [[1, 4], [1, 4]], timeout=5, message=f"got {got}")
+        assert [s.dropped for s in subs] == [3, 3]
+        for sub in subs:
+            sub.close()
+    finally:
+        system.close()
+        server.stop()
+        for d in (deployer, again):
+            if d is not None:
+                d.stop_all()
+                d.cleanup_all()
