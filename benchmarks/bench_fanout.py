@@ -8,7 +8,9 @@ This process hosts a 1 kHz periodic task writing an ``int`` each cycle; a child 
 
 - **on time**: the share of the writer's cycles that ended before the next deadline
   (``1 − overruns / cycles``), with 0 subscribers (the baseline, same run) and with 40 on
-  ``ipc`` and on ``grpc`` (issue 21's goal: ≥ 99 %); plus what the subscribers received;
+  ``ipc`` and on ``grpc`` (issue 21's goal: ≥ 99 %); plus what the subscribers received.
+  The 40 share one system proxy, so one stream ("one proxy"), or have one proxy each, so
+  40 streams, as 40 processes would ("a proxy each");
 - **50 subscriptions closed**: the time ``close()`` of 50 ipc subscriptions takes in one
   process (goal: under 1 s; a deployer bounds the channels one peer holds open, and 100
   from one process are refused since issue 23's bounds);
@@ -21,6 +23,7 @@ This process hosts a 1 kHz periodic task writing an ``int`` each cycle; a child 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import subprocess
 import sys
@@ -53,17 +56,20 @@ Many = type("Many", (TaskContext,), {f"in{i}": InputPort(int) for i in range(LIN
 Sources = type("Sources", (TaskContext,), {f"out{i}": OutputPort(int) for i in range(LINKS)})
 
 
-def child(ns: str, n: int, transport: str, seconds: float) -> None:
+def child(ns: str, n: int, transport: str, seconds: float, apart: bool = False) -> None:
     """Serve the ``many`` sinks; with ``n``, open ``n`` subscriptions to ``writer.out`` for
-    ``seconds`` and print what they received; then wait for stdin to close."""
+    ``seconds`` and print what they received; then wait for stdin to close. The
+    subscriptions share one system proxy, so one stream (``apart``: one proxy each, as
+    ``n`` processes would, so ``n`` streams)."""
     deployer = Deployer()
     deployer.add(Many("many"))
     server = deployer.serve("127.0.0.1:0", ns=ns)
     got = [0] * n
-    with connect(ns, timeout=10.0) as system:
-        proxy = system.component("writer")
-        subs = [proxy.subscribe("out", lambda e, i=i: got.__setitem__(i, got[i] + 1),
-                                ConnPolicy.data().with_(transport=transport)) for i in range(n)]
+    policy = ConnPolicy.data().with_(transport=transport)
+    with contextlib.ExitStack() as stack:
+        systems = [stack.enter_context(connect(ns, timeout=10.0)) for _ in range(n if apart and n else 1)]
+        subs = [systems[i % len(systems)].component("writer").subscribe(
+            "out", lambda e, i=i: got.__setitem__(i, got[i] + 1), policy) for i in range(n)]
         print("ready", server.address, flush=True)
         if n:
             time.sleep(seconds)
@@ -72,11 +78,13 @@ def child(ns: str, n: int, transport: str, seconds: float) -> None:
     server.stop()
 
 
-def on_time(ns: str, writer: Writer, n: int, transport: str, seconds: float) -> tuple[float, str]:
-    """The writer's on-time share over ``seconds`` with ``n`` subscribers in a child process."""
+def on_time(ns: str, writer: Writer, n: int, transport: str, seconds: float, apart: bool = False) -> tuple[float, str]:
+    """The writer's on-time share over ``seconds`` with ``n`` subscribers in a child process
+    (``apart``: each with its own system proxy)."""
     proc = None
     if n:
-        proc = subprocess.Popen([sys.executable, __file__, "--child", ns, str(n), transport, str(seconds + 1)],
+        proc = subprocess.Popen([sys.executable, __file__, "--child", ns, str(n), transport, str(seconds + 1),
+                                 "apart" if apart else "shared"],
                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         assert proc.stdout is not None
         if not proc.stdout.readline().startswith("ready"):
@@ -95,11 +103,12 @@ def on_time(ns: str, writer: Writer, n: int, transport: str, seconds: float) -> 
 
 
 def close_time(ns: str, n: int) -> float:
-    """Seconds to close ``n`` ipc subscriptions opened in this process (to a port not written
-    meanwhile: the time is the closing's, not a flood's)."""
+    """Seconds to close ``n`` ipc subscriptions opened in this process, each to a port of its
+    own, so each a stream of its own (to ports not written meanwhile: the time is the
+    closing's, not a flood's)."""
     with connect(ns, timeout=10.0) as system:
         proxy = system.component("sources")
-        subs = [proxy.subscribe("out0", lambda e: None, ConnPolicy.data().with_(transport="ipc")) for _ in range(n)]
+        subs = [proxy.subscribe(f"out{i}", lambda e: None, ConnPolicy.data().with_(transport="ipc")) for i in range(n)]
         t0 = time.perf_counter()
         for sub in subs:
             sub.close()
@@ -109,7 +118,7 @@ def close_time(ns: str, n: int) -> float:
 def connect_time(ns: str, transport: str) -> str:
     """Seconds to connect :data:`LINKS` links to the child's input ports, each up on return
     (or the refusal of the first one a limit refused, with its limit)."""
-    proc = subprocess.Popen([sys.executable, __file__, "--child", ns, "0", "ipc", "0"], stdin=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, __file__, "--child", ns, "0", "ipc", "0", "shared"], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None
@@ -143,10 +152,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="3 s per on-time row")
     parser.add_argument("--smoke", action="store_true", help="1 s per row, 4 subscribers (every path works)")
-    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        child(args.child[0], int(args.child[1]), args.child[2], float(args.child[3]))
+        child(args.child[0], int(args.child[1]), args.child[2], float(args.child[3]), args.child[4] == "apart")
         return 0
     seconds, readers, closed = (1.0, 4, 10) if args.smoke else (3.0, 40, 50) if args.quick else (5.0, 40, 50)
     deployer = Deployer()
@@ -158,10 +167,11 @@ def main() -> int:
     server = deployer.serve("127.0.0.1:0")
     rows = []
     try:
-        for n, transport in ((0, "-"), (readers, "ipc"), (readers, "grpc"), (0, "-")):
-            share, detail = on_time(server.address, writer, n, transport if n else "ipc", seconds)
-            rows.append((f"1 kHz writer, {n} subscribers" + (f" ({transport})" if n else ""), f"{share:.2%} on time",
-                         detail))
+        for n, transport, apart in ((0, "-", False), (readers, "ipc", False), (readers, "grpc", False),
+                                    (readers, "ipc", True), (readers, "grpc", True), (0, "-", False)):
+            share, detail = on_time(server.address, writer, n, transport if n else "ipc", seconds, apart)
+            rows.append((f"1 kHz writer, {n} subscribers" + (f" ({transport}, {'a proxy each' if apart else 'one proxy'})"
+                                                             if n else ""), f"{share:.2%} on time", detail))
         rows.append((f"{closed} ipc subscriptions closed", f"{close_time(server.address, closed):.3f} s",
                      "goal < 1 s"))
         for transport in ("ipc", "grpc"):

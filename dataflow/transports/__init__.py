@@ -21,7 +21,9 @@ word                what it is
 **link**            a channel between an output port of one deployer and an input port
                     of another, made through the control plane (``scart connect``).
 **subscription**    a channel from an output port to an observer in another process
-                    (``proxy.subscribe``, ``scart echo``).
+                    (``proxy.subscribe``, ``scart echo``). On scart's own transports,
+                    subscriptions alike (one system proxy, port and policy) share one
+                    channel, each with its own reader end (:mod:`._shared`).
 **stream**          one end joined to a named **topic** of a transport instead of a
                     peer's port (``ConnPolicy(transport=..., topic=...)``, ``scart
                     stream``, ``<scart:stream>``): RTT's ``name_id``.

@@ -7,7 +7,7 @@ the ``scart.transports`` entry point ``grpc``; rank 100: ``auto``'s fallback).
   waits together (frames joined end to end are one frame holding all their samples).
 * A subscription is fed by a server-streaming ``Subscribe`` call of ``SubscribeResponse`` s
   (the deployer's side is :func:`serve_subscription`), one per subscribing system proxy,
-  port and policy: subscriptions alike share it (:mod:`~dataflow.transports.grpc._shared`).
+  port and policy: subscriptions alike share it (:mod:`~dataflow.transports._shared`).
 
 The frames are the same bytes as on ipc, encoded once per write (:mod:`~dataflow.transports.frames`).
 """
@@ -23,10 +23,10 @@ from typing import Any
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.remote._convert import policy_to_msg
-from dataflow.threads import Wake
+from dataflow.threads import OwnedThread, Wake
 from dataflow.transports import Peer, Transport, frames
+from dataflow.transports._shared import SharedFeed, SharedStreams, carry_shared
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
-from dataflow.transports.grpc import _shared
 from dataflow.transports.ipc import LinkRefused, link_hello
 
 __all__ = ["GrpcTransport", "LINK_METHOD", "ROOM", "passthrough"]
@@ -55,7 +55,7 @@ class GrpcTransport(Transport):
     rank = 100
 
     def __init__(self) -> None:
-        self._streams = _shared.SharedStreams()  # the Subscribe streams open, shared by subscriptions alike
+        self._streams = SharedStreams()  # the Subscribe streams open, shared by subscriptions alike
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         carrier = _LinkCarrier(end)
@@ -81,22 +81,33 @@ class GrpcTransport(Transport):
         return True
 
     def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
-        """Feed ``end`` from the peer's port: one ``Subscribe`` call, shared by the
-        subscriptions of this system proxy to that port with the same policy (see
-        :mod:`~dataflow.transports.grpc._shared`); raises what the call failed with."""
+        """Feed ``end`` from the peer's port: one ``Subscribe`` call, read by a thread of its
+        own and shared by the subscriptions of this system proxy to that port with the
+        same policy (see :mod:`~dataflow.transports._shared`)."""
         request = pb.SubscribeRequest(task=peer.task, port=peer.port, policy=policy_to_msg(peer.policy),
                                       heartbeat_ms=int(peer.heartbeat * 1000))
-        end.transport = self.name
-        stream, left = self._streams.attach(peer.stub, request, end, peer.heartbeat)
-        try:
-            if peer.opened(lambda: stream.leave(end)):
-                left.wait()
-            failed = stream.ended_for(end)
-        finally:
-            stream.leave(end)
-        if failed and stream.error is not None:
-            raise stream.error
-        return True
+
+        def open_stream(feed: SharedFeed) -> bool:
+            call = peer.stub.Subscribe(request)
+            reader = OwnedThread(lambda stopping: _read(call, feed), f"scart-grpc-sub-{peer.where}", wake=call.cancel)
+            feed.close, feed.join_stream = reader.signal, reader.join
+            reader.start()
+            return True
+
+        key = (peer.stub, request.SerializeToString(deterministic=True))
+        return carry_shared(self.name, self._streams, key, end, peer, open_stream)
+
+
+def _read(call: Any, feed: SharedFeed) -> None:
+    """A shared ``Subscribe`` call's thread: each response to the reader ends, until it ends."""
+    error = None
+    try:
+        for message in call:
+            feed.feed(message)
+    except Exception as exc:  # noqa: BLE001 - every reader end is told, and reconnects
+        error = exc
+    finally:
+        feed.ended(error)
 
 
 class _LinkCarrier:

@@ -24,13 +24,13 @@ from __future__ import annotations
 import logging
 import socket
 import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.policy import ConnPolicy
 from dataflow.transports import Peer, Transport, TransportError, frames
+from dataflow.transports._shared import SharedFeed, SharedStreams, carry_shared
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 from dataflow.transports.ipc._hub import Conn, Hub
 from dataflow.transports.ipc._wire import IpcUnavailable, available, connect, host_id
@@ -78,23 +78,29 @@ class IpcTransport(Transport):
             end.disconnected()
         return True
 
+    def __init__(self) -> None:
+        self._streams = SharedStreams()  # the subscriptions' sockets open, shared by subscriptions alike
+
     def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
+        """Feed ``end`` from the peer's port: one socket, read by the io thread and shared
+        by the subscriptions of this system proxy to that port with the same policy (see
+        :mod:`~dataflow.transports._shared`)."""
         request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=policy_msg(peer.policy), host_id=host_id(),
                                           heartbeat_ms=int(peer.heartbeat * 1000))
-        opened = _open(lambda: peer.stub.OpenIpcReader(request, timeout=peer.timeout), peer.transport, peer)
-        if opened is None:
-            return False
-        sock, first = opened
-        conn = _SubIn(Hub.acquire(), sock, end)
-        end.transport = self.name
-        try:
-            if peer.opened(conn.close):
-                conn.message(first)  # the "connected" heartbeat
-                conn.start()
-                conn.ended.wait()
-        finally:
-            conn.close()
-        return True
+
+        def open_stream(feed: SharedFeed) -> bool:
+            opened = _open(lambda: peer.stub.OpenIpcReader(request, timeout=peer.timeout), peer.transport, peer)
+            if opened is None:
+                return False
+            sock, first = opened
+            conn = _SubIn(Hub.acquire(), sock, feed, f"subscription to {peer.where}")
+            feed.close = conn.close
+            conn.message(first)  # the "connected" heartbeat
+            conn.start()
+            return True
+
+        key = (peer.stub, request.SerializeToString(deterministic=True))
+        return carry_shared(self.name, self._streams, key, end, peer, open_stream)
 
 
 def policy_msg(policy: ConnPolicy) -> Any:
@@ -168,15 +174,18 @@ class _LinkOut(Conn):
 
 
 class _SubIn(Conn):
-    """A subscription coming in: frames into its reader end."""
+    """A subscription coming in: frames into the reader ends of its shared feed."""
 
-    def __init__(self, hub: Hub, sock: socket.socket, end: ReaderEnd) -> None:
-        super().__init__(hub, sock, end.label)
-        self.end = end
+    def __init__(self, hub: Hub, sock: socket.socket, feed: SharedFeed, label: str) -> None:
+        super().__init__(hub, sock, label)
+        self.feed = feed
 
     def readable(self) -> None:
-        self.end.seen = time.monotonic()  # any byte: alive (a large sample is many frames)
+        self.feed.alive()  # any byte: alive (a large sample is many frames)
         super().readable()
 
     def message(self, data: bytes) -> None:
-        frames.feed(self.end, pb.SubscribeResponse.FromString(data))
+        self.feed.feed(pb.SubscribeResponse.FromString(data))
+
+    def ended_hook(self) -> None:
+        self.feed.ended()

@@ -20,14 +20,20 @@ from support import wait_until
 from support.remote import Pinger
 
 
-@pytest.fixture(params=["grpc", "local"])
-def env(request: pytest.FixtureRequest) -> Iterator[tuple[Pinger, object, object]]:
-    """(task stepped by hand, system, server or None) for both implementations."""
-    deployer = Deployer()
+def _running_pinger(deployer: Deployer) -> Pinger:
+    """A running ``Pinger("p")`` in ``deployer``, stepped by hand."""
     task = deployer.add(Pinger("p"))
     task.set_activity(SlaveActivity())
     deployer.configure_all()
     deployer.start_all()
+    return task
+
+
+@pytest.fixture(params=["grpc", "local"])
+def env(request: pytest.FixtureRequest) -> Iterator[tuple[Pinger, object, object]]:
+    """(task stepped by hand, system, server or None) for both implementations."""
+    deployer = Deployer()
+    task = _running_pinger(deployer)
     server = None
     if request.param == "grpc":
         server = deployer.serve("127.0.0.1:0")
@@ -233,10 +239,7 @@ def test_operations_and_properties(env) -> None:
 @pytest.fixture
 def served() -> Iterator[tuple[Pinger, object]]:
     deployer = Deployer()
-    task = deployer.add(Pinger("p"))
-    task.set_activity(SlaveActivity())
-    deployer.configure_all()
-    deployer.start_all()
+    task = _running_pinger(deployer)
     server = deployer.serve("127.0.0.1:0")
     try:
         yield task, server
@@ -365,29 +368,28 @@ def test_subscription_limit_is_a_precise_error() -> None:
         server.stop()
 
 
-def _shared_threads() -> list[threading.Thread]:
-    return [t for t in threading.enumerate() if t.name.startswith("scart-grpc-sub-")]
+def _served(system: object, source: str) -> int:
+    """Subscriptions of ``source`` its deployer serves (``scart links -s``)."""
+    return sum(sub.source == source for sub in system.subscriptions())  # type: ignore[attr-defined]
 
 
-def test_subscriptions_alike_share_one_stream() -> None:
-    """Subscriptions of one system proxy to one port with one policy over gRPC are fed by
-    one ``Subscribe`` stream: more of them than the deployer has streams for, each
-    receiving every write, none counted lost; one that joins later counts from where it
-    joined (with ``init``, it gets the last value at once); the first one leaving does
-    not end the others'; the last one ends the stream's thread."""
+@pytest.mark.parametrize("transport", ["grpc", "ipc"])
+def test_subscriptions_alike_share_one_stream(transport: str) -> None:
+    """Subscriptions of one system proxy to one port with one policy are fed by one
+    stream: the deployer serves one subscription (on gRPC, more of them than it has
+    streams for), each receives every write, none counted lost; one that joins later
+    counts from where it joined (with ``init``, it gets the last value at once); the
+    first one leaving does not end the others'; the last one ends the stream."""
     deployer = Deployer()
-    task = deployer.add(Pinger("p"))
-    task.set_activity(SlaveActivity())
-    deployer.configure_all()
-    deployer.start_all()
-    server = deployer.serve("127.0.0.1:0", max_workers=10)  # 2 streams at most
+    task = _running_pinger(deployer)
+    server = deployer.serve("127.0.0.1:0", max_workers=10)  # 2 gRPC streams at most
     system = connect(server.address, timeout=5.0, heartbeat_ms=200)
     try:
         proxy = system.component("p")
-        policy = ConnPolicy.buffer(100).with_(transport="grpc")
+        policy = ConnPolicy.buffer(100).with_(transport=transport)
         got: list[list[int]] = [[] for _ in range(6)]
         subs = [proxy.subscribe("ticks", lambda e, k=k: got[k].append(e.value), policy=policy) for k in range(4)]
-        assert len(_shared_threads()) == 1
+        assert _served(system, "p.ticks") == 1 and {s.transport for s in subs} == {transport}
         for _ in range(10):
             task.activity.step()
         wait_until(lambda: all(len(g) == 10 for g in got[:4]), timeout=5, message=f"got {got}")
@@ -399,7 +401,7 @@ def test_subscriptions_alike_share_one_stream() -> None:
         late.append(proxy.subscribe("ticks", lambda e: got[5].append(e.value), policy=init))  # joins it midway
         wait_until(lambda: got[5] == [10], timeout=5, message=f"the last value, at once: {got[5]}")
         joined = proxy.subscribe("ticks", lambda e: None, policy=policy)  # joins the first stream midway
-        assert len(_shared_threads()) == 2
+        assert _served(system, "p.ticks") == 2
         subs[0].close()
         for _ in range(5):
             task.activity.step()
@@ -409,7 +411,8 @@ def test_subscriptions_alike_share_one_stream() -> None:
         assert [s.dropped for s in (*subs[1:], *late, joined)] == [0] * 6  # joining midway loses nothing
         for sub in (*subs[1:], *late, joined):
             sub.close()
-        assert wait_until(lambda: not _shared_threads(), timeout=5)
+        assert wait_until(lambda: _served(system, "p.ticks") == 0, timeout=5)
+        assert not [t for t in threading.enumerate() if t.name.startswith("scart-grpc-sub-")]
     finally:
         system.close()
         server.stop()
@@ -417,31 +420,26 @@ def test_subscriptions_alike_share_one_stream() -> None:
         deployer.cleanup_all()
 
 
-def test_a_shared_stream_counts_what_a_restart_lost() -> None:
+@pytest.mark.parametrize("transport", ["grpc", "ipc"])
+def test_a_shared_stream_counts_what_a_restart_lost(transport: str) -> None:
     """Two subscriptions sharing a stream, their deployer restarted on the same address:
     both come back, and each counts the writes it missed as dropped."""
     deployer = Deployer()
-    task = deployer.add(Pinger("p"))
-    task.set_activity(SlaveActivity())
-    deployer.configure_all()
-    deployer.start_all()
+    task = _running_pinger(deployer)
     server = deployer.serve("127.0.0.1:0")
     address = server.address
     system = connect(address, timeout=5.0, heartbeat_ms=200)
     again = None
     try:
         proxy = system.component("p")
-        policy = ConnPolicy.buffer(100).with_(transport="grpc")
+        policy = ConnPolicy.buffer(100).with_(transport=transport)
         got: list[list[int]] = [[], []]
         subs = [proxy.subscribe("ticks", lambda e, k=k: got[k].append(e.value), policy=policy) for k in range(2)]
         task.activity.step()
         wait_until(lambda: got == [[1], [1]], timeout=5, message=f"got {got}")
         server.stop()
         again = Deployer()
-        task = again.add(Pinger("p"))
-        task.set_activity(SlaveActivity())
-        again.configure_all()
-        again.start_all()
+        task = _running_pinger(again)
         for _ in range(3):  # written before anyone is back: lost, and counted
             task.activity.step()
         server = again.serve(address)
