@@ -27,6 +27,7 @@ delivered rate at a given offered rate with the bare per-message ceiling.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import queue
 import signal
@@ -304,18 +305,20 @@ def _deployer_process(period: float) -> tuple[subprocess.Popen, str]:
 
 def scart_fanout(seconds: float, subscribers: int, stuck: bool) -> tuple[float, float, int, float]:
     """The task in its own deployer process at 100 Hz; ``subscribers`` subscriptions from this
-    process (+ one whose observer never returns). Returns (min per-subscriber rate,
+    process, each through a system proxy of its own (+ one whose observer never returns). Returns (min per-subscriber rate,
     jitter of the task's write times, overruns during the run, max period)."""
     proc, address = _deployer_process(0.01)
     counts = [0] * max(1, subscribers)
     stamps: list[float] = []
     hold = threading.Event()
     try:
-        with connect(address) as system:
+        with contextlib.ExitStack() as stack:
+            system = stack.enter_context(connect(address))
             proxy = system.component("source")
             probe = proxy.subscribe("status", lambda e: stamps.append(e.source_time), policy=ConnPolicy.buffer(1000))
-            subs = [proxy.subscribe("status", lambda e, i=i: counts.__setitem__(i, counts[i] + 1))
-                    for i in range(subscribers)]
+            # one system proxy each, as separate processes: subscriptions alike of one proxy share a stream
+            subs = [stack.enter_context(connect(address)).component("source").subscribe(
+                "status", lambda e, i=i: counts.__setitem__(i, counts[i] + 1)) for i in range(subscribers)]
             if stuck:
                 subs.append(proxy.subscribe("status", lambda e: hold.wait(), policy=ConnPolicy.buffer(4)))
             before = proxy.describe().overruns
