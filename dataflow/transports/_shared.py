@@ -202,13 +202,14 @@ class SharedStreams:
             del self._feeds[feed.key]
 
 
-def carry_shared(transport: str, streams: SharedStreams, key: tuple[Any, ...], end: ReaderEnd, peer: Peer,
+def carry_shared(transport: str, streams: SharedStreams, request: Any, end: ReaderEnd, peer: Peer,
                  open_stream: Callable[[SharedFeed], bool]) -> bool:
-    """A transport's ``subscribe`` on a shared stream: attach ``end`` (opening the stream
-    when it is the first), wait until it leaves (the peer's cancel) or the stream ends,
-    then leave. False when the transport cannot carry it; raises what the stream failed
-    with."""
+    """A transport's ``subscribe`` on a shared stream: attach ``end`` to the stream that
+    ``request`` (a protobuf message) opens at the peer, opening it when it is the first;
+    wait until it leaves (the peer's cancel) or the stream ends, then leave. False when
+    the transport cannot carry it; raises what the stream failed with."""
     end.transport = transport  # before the first frame: the subscription is up with it
+    key = (peer.stub, request.SerializeToString(deterministic=True))  # the system proxy's channel, the request
     attached = streams.attach(key, end, peer.heartbeat, open_stream)
     if attached is None:
         end.transport = ""

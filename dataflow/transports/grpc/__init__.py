@@ -94,8 +94,7 @@ class GrpcTransport(Transport):
             reader.start()
             return True
 
-        key = (peer.stub, request.SerializeToString(deterministic=True))
-        return carry_shared(self.name, self._streams, key, end, peer, open_stream)
+        return carry_shared(self.name, self._streams, request, end, peer, open_stream)
 
 
 def _read(call: Any, feed: SharedFeed) -> None:

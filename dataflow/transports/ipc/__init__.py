@@ -54,6 +54,9 @@ class IpcTransport(Transport):
     name = "ipc"
     rank = 10
 
+    def __init__(self) -> None:
+        self._streams = SharedStreams()  # the subscriptions' sockets open, shared by subscriptions alike
+
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         hello = link_hello(end, peer)
         request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=policy_msg(end.policy),
@@ -78,9 +81,6 @@ class IpcTransport(Transport):
             end.disconnected()
         return True
 
-    def __init__(self) -> None:
-        self._streams = SharedStreams()  # the subscriptions' sockets open, shared by subscriptions alike
-
     def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
         """Feed ``end`` from the peer's port: one socket, read by the io thread and shared
         by the subscriptions of this system proxy to that port with the same policy (see
@@ -99,8 +99,7 @@ class IpcTransport(Transport):
             conn.start()
             return True
 
-        key = (peer.stub, request.SerializeToString(deterministic=True))
-        return carry_shared(self.name, self._streams, key, end, peer, open_stream)
+        return carry_shared(self.name, self._streams, request, end, peer, open_stream)
 
 
 def policy_msg(policy: ConnPolicy) -> Any:
