@@ -163,3 +163,34 @@ def test_writer_survives_restart(ns, procs) -> None:
         _deploy(procs, ns.address)
         assert writer.write(2.0).name == "WRITE_SUCCESS"
         writer.close()
+
+
+@pytest.mark.parametrize("transport", ["ipc", "grpc"])
+def test_subscriptions_sharing_a_stream_survive_a_freeze_each_counting_exactly(ns, procs, transport) -> None:
+    """Two subscriptions alike share one stream: a frozen deployer is noticed by both,
+    both resume after it, and each counts exactly what it missed."""
+    _deploy(procs, ns.address)
+    with connect(ns.address, timeout=1.0, heartbeat_ms=200) as system:
+        proxy = system.component("p")
+        policy = ConnPolicy.buffer(10_000).with_(transport=transport)
+        recs = [Recorder(), Recorder()]
+        subs = [proxy.subscribe("ticks", rec, policy=policy, on_gap=rec.on_gap) for rec in recs]
+        assert sum(s.source == "p.ticks" for s in system.subscriptions()) == 1  # one stream
+        wait_until(lambda: min(r.count() for r in recs) >= 3, timeout=10)
+        procs[0].send_signal(signal.SIGSTOP)
+        try:
+            wait_until(lambda: not any(s.connected for s in subs), timeout=5, message="a frozen peer must be detected")
+        finally:
+            procs[0].send_signal(signal.SIGCONT)
+        wait_until(lambda: all(s.gaps for s in subs), timeout=15, message="both should resume after SIGCONT")
+        wait_until(lambda: sum(s.source == "p.ticks" for s in system.subscriptions()) == 1, timeout=10,
+                   message="back on one stream")
+        marks = [r.count() for r in recs]
+        wait_until(lambda: all(r.count() >= m + 10 for r, m in zip(recs, marks, strict=True)), timeout=10)
+        for sub in subs:
+            sub.close()
+    for rec, sub in zip(recs, subs, strict=True):
+        values = list(rec.values)
+        missing = (values[-1] - values[0] + 1) - len(values)
+        assert values == sorted(set(values)) and missing > 0, values
+        assert sub.dropped == missing and "no heartbeat" in sub.gaps[0].reason
