@@ -50,7 +50,7 @@ next), True once a connection it carried has ended, and raises what interrupted 
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
 Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
-``grpc``, ``zenoh``, ``ros1``, ``ros2``) are registered exactly as a third party's would be::
+``grpc``, ``zenoh``, ``ros1``, ``ros2``, ``yarp``) are registered exactly as a third party's would be::
 
     [project.entry-points."scart.transports"]
     mine = "my_package.transport:MyTransport"
@@ -92,7 +92,8 @@ BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
                             "grpc": "dataflow.transports.grpc:GrpcTransport",
                             "zenoh": "dataflow.transports.zenoh:ZenohTransport",
                             "ros1": "dataflow.transports.ros1.transport:Ros1Transport",
-                            "ros2": "dataflow.transports.ros2:Ros2Transport"})
+                            "ros2": "dataflow.transports.ros2:Ros2Transport",
+                            "yarp": "dataflow.transports.yarp:YarpTransport"})
 
 
 class TransportError(DataflowError):

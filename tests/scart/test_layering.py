@@ -35,6 +35,7 @@ import pytest
 import dataflow
 import scart
 import scart_wire
+import scart_yarp
 from support import DATA, ROOT
 
 CALCULATOR = ROOT / "composites" / "calculator" / "calculator.composite"
@@ -135,6 +136,21 @@ def test_the_wire_layer_imports_neither_world() -> None:
     assert offenders == set()
 
 
+#: The protocol stacks: libraries of their own, which know nothing of scart (RTT's rtt_ros, YARP's os::impl).
+STACKS = ("scart_yarp",)
+
+
+@pytest.mark.parametrize("stack", STACKS)
+def test_a_protocol_stack_imports_nothing_of_scart(stack: str) -> None:
+    """Lazy and annotation-only imports count too; and a fresh interpreter that imports the
+    stack has loaded no module of scart's."""
+    offenders = {f"{p.relative_to(ROOT)}: {m}" for p in _sources(stack) for m in _imports(p)
+                 if _within(m, "scart", "dataflow", "scart_wire", "pydantic", "grpc")}
+    assert offenders == set()
+    loaded = loaded_after(f"import {stack}, {stack}.admin")
+    assert not loaded & {"scart", "dataflow", "scart_wire", "pydantic", "grpc"}
+
+
 #: dataflow's core: its top-level modules, and the transport SPI the core reads names from.
 DATAFLOW_CORE = [*sorted((ROOT / "dataflow").glob("*.py")),
                  *(ROOT / "dataflow" / "transports" / f"{m}.py"
@@ -206,7 +222,7 @@ def _nearest(name: str, known: set[str]) -> str:
 def import_graph() -> dict[str, set[str]]:
     """``{module: modules it imports when it runs}`` over scart, dataflow and scart_wire."""
     paths = {".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__"): p
-             for package in ("scart", "dataflow", "scart_wire") for p in _sources(package)}
+             for package in ("scart", "dataflow", "scart_wire", *STACKS) for p in _sources(package)}
     return {name: _runtime_imports(path, name, set(paths)) for name, path in paths.items()}
 
 
@@ -263,7 +279,7 @@ def test_the_circle_finder_can_fail() -> None:
 
 
 #: The README's layers, most specific first (a module belongs to the first that names it).
-LAYERS = ("scart_wire", "dataflow.transports", "dataflow.remote", "dataflow.cli", "dataflow", "scart.bindings",
+LAYERS = (*STACKS, "scart_wire", "dataflow.transports", "dataflow.remote", "dataflow.cli", "dataflow", "scart.bindings",
           "scart.spi", "scart.errors", "scart")
 
 
@@ -287,12 +303,12 @@ def test_the_readmes_layer_table_is_the_import_graph() -> None:
     """Every import statement (lazy and annotation-only ones too), by layer: the README's
     Architecture table says exactly which layers each one imports."""
     found: dict[str, set[str]] = {}
-    for package in ("scart", "dataflow", "scart_wire"):
+    for package in ("scart", "dataflow", "scart_wire", *STACKS):
         for path in _sources(package):
             module = ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
             source = _layer(module)
             source = "scart" if source in ("scart.spi", "scart.errors") else source
-            targets = {_layer(m) for m in _imports(path) if _within(m, "scart", "dataflow", "scart_wire")}
+            targets = {_layer(m) for m in _imports(path) if _within(m, "scart", "dataflow", "scart_wire", *STACKS)}
             if source == "scart":
                 targets -= {"scart.spi", "scart.errors"}
             found.setdefault(source, set()).update(targets - {source})
@@ -310,7 +326,8 @@ def _modules(package: object) -> list[str]:
     return names
 
 
-@pytest.mark.parametrize("package", [scart, dataflow, scart_wire], ids=["scart", "dataflow", "scart_wire"])
+@pytest.mark.parametrize("package", [scart, dataflow, scart_wire, scart_yarp],
+                         ids=["scart", "dataflow", "scart_wire", "scart_yarp"])
 def test_no_module_level_mutable_state(package: object) -> None:
     """Constant tables are read-only (MappingProxyType, tuples, frozensets); registries and
     settings belong to objects a caller owns, but the process-wide registries of
@@ -450,7 +467,7 @@ def test_every_type_ignore_names_its_code_and_says_why() -> None:
     """mypy runs in CI (``.ci/run``); where it is told to look away, the line says which
     error and why: ``# type: ignore[code]  # reason``."""
     bare = re.compile(r"#\s*type:\s*ignore(?!\[[\w-]+(?:,\s*[\w-]+)*\]  # \S)")
-    offenders = [f"{p.relative_to(ROOT)}:{n}" for package in ("scart", "dataflow", "scart_wire")
+    offenders = [f"{p.relative_to(ROOT)}:{n}" for package in ("scart", "dataflow", "scart_wire", *STACKS)
                  for p in _sources(package)
                  for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if bare.search(line)]
     assert offenders == []
