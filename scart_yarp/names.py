@@ -1,6 +1,7 @@
 """YARP's name server, from the client's side: where it is (YARP's own configuration, as
 ``yarp conf`` writes it) and what it is asked (``register``, ``unregister``, ``query``,
-``list``), over the ``text_ack`` carrier as ``yarp name`` speaks it.
+``list``), in the name server's own line protocol (``NAME_SERVER query /r``), as YARP's
+``NameClient`` speaks it (the server answers it also when many ask at once).
 
 Where the server is, as YARP 3.5 finds it (``NameConfig``): the namespace is
 ``YARP_NAMESPACE``, else the first word of ``yarp_namespace.conf``, else ``/root``; its
@@ -9,7 +10,7 @@ file is ``yarp.conf`` for ``/root``, else the namespace made safe (``/my ns`` �
 ``~/.config/yarp``; the file's first line is ``HOST PORT yarp``.
 
 Every call opens one connection, sends one command and reads the reply with a deadline
-(blocking, thread-safe: nothing is shared between calls).
+(blocking; thread-safe: a client's calls go one at a time).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from __future__ import annotations
 import os
 import re
 import socket
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,12 +27,17 @@ __all__ = ["Contact", "NameClient", "NameServerError", "config_dir", "name_serve
            "parse_address"]
 
 MAX_REPLY = 1 << 20  #: bytes of a name server's reply, at most
+ATTEMPTS = 6  #: tries of one command when the server drops the connection (it is busy)
 _NAME = re.compile(r"/[^\s\"]{0,255}")
 _REGISTRATION = re.compile(r"registration name (\S+) ip (\S+) port (\d+) type (\S+)")
 
 
 class NameServerError(OSError):
     """The name server cannot be found, reached, or did what was asked."""
+
+
+class _Dropped(OSError):
+    """The server closed a connection before answering (it was busy): tried again."""
 
 
 @dataclass(frozen=True)
@@ -102,6 +109,7 @@ class NameClient:
     def __init__(self, address: tuple[str, int] | None = None, timeout: float = 5.0) -> None:
         self._address = address
         self.timeout = timeout
+        self._lock = threading.Lock()
 
     @property
     def address(self) -> tuple[str, int]:
@@ -128,15 +136,25 @@ class NameClient:
         return self._registrations(self.command("list"))
 
     def command(self, text: str) -> str:
-        """Send one command line; the reply's lines up to ``*** end of message`` (blocks ≤ timeout)."""
+        """Send one command line; the reply's lines up to ``*** end of message`` (blocks ≤
+        timeout). ``yarpserver`` drops connections when several come at once: a dropped
+        one is tried again (≤ :data:`ATTEMPTS` times, backing off), as YARP's own client does."""
         host, port = self.address
         deadline = time.monotonic() + self.timeout
-        try:
-            with socket.create_connection((host, port), timeout=self.timeout) as sock:
-                sock.sendall(b"CONNACK /scart/name\r\nd\n" + text.encode("utf-8") + b"\n")
-                return self._reply(sock, deadline)
-        except OSError as exc:
-            raise NameServerError(f"the YARP name server at {host}:{port} does not answer: {exc}") from None
+        with self._lock:  # one at a time from this client: the server serves one at a time
+            for attempt in range(ATTEMPTS):
+                try:
+                    with socket.create_connection((host, port), timeout=max(0.01, deadline - time.monotonic())) as sock:
+                        sock.sendall(b"NAME_SERVER " + text.encode("utf-8") + b"\n")
+                        return self._reply(sock, deadline)
+                except (ConnectionResetError, _Dropped) as exc:
+                    if attempt == ATTEMPTS - 1 or time.monotonic() + 0.05 * 2 ** attempt >= deadline:
+                        raise NameServerError(f"the YARP name server at {host}:{port} does not answer: {exc}") \
+                            from None
+                    time.sleep(0.05 * 2 ** attempt)  # then again, as the server frees up
+                except OSError as exc:
+                    raise NameServerError(f"the YARP name server at {host}:{port} does not answer: {exc}") from None
+        raise AssertionError("unreachable")
 
     @staticmethod
     def _reply(sock: socket.socket, deadline: float) -> str:
@@ -148,10 +166,9 @@ class NameClient:
             sock.settimeout(left)
             chunk = sock.recv(65536)
             if not chunk:
-                raise OSError("the connection closed before the reply ended")
+                raise _Dropped("the connection closed before the reply ended")
             data += chunk
-        text = data.decode("utf-8", errors="replace")
-        return text.split("\n", 1)[1] if text.startswith("Welcome") else text  # the text carrier's greeting
+        return data.decode("utf-8", errors="replace")
 
     @staticmethod
     def _registrations(reply: str) -> list[Contact]:

@@ -127,10 +127,11 @@ class Network:
     def open_port(self, name: str, *, reader: Callable[[Incoming], Any] | None = None,
                   responder: Callable[[list[Any]], list[Any]] | None = None, queue: int = 1,
                   connect: dict[str, str] | None = None) -> Port:
-        """Open ``name``: listen, register it (now, or as soon as the name server answers),
-        and keep connected to ``connect`` (``{peer: carrier}``: as a writer, connect to each
-        reader; as a reader, ask each writer to connect here). Raises ``ValueError`` for a
-        bad or taken name, ``OSError`` when no socket can be had."""
+        """Open ``name``: listen, register it (now — blocking ≤ the name client's timeout —
+        or, when the name server does not answer, as soon as it does), and keep connected
+        to ``connect`` (``{peer: carrier}``: as a writer, connect to each reader; as a
+        reader, ask each writer to connect here). Raises ``ValueError`` for a bad or taken
+        name, ``OSError`` when no socket can be had."""
         check_name(name)
         listener = socket.socket(socket.AF_INET6 if ":" in self.host else socket.AF_INET)
         listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -148,7 +149,7 @@ class Network:
             if responder is not None:
                 self._rpc[name] = _Worker(f"scart-yarp-rpc{name}")
         self._call(lambda: self._listen(port))
-        self._control.submit(lambda: self._register(port))
+        self._register(port)  # at once when the name server answers; else the control thread retries
         return port
 
     def close_port(self, port: Port) -> None:

@@ -5,8 +5,9 @@ run`` registered with the name service: ``Component/Service``, a promoted servic
 single-service component's name (``scart call Locomotor.poses``). ``--at HOST:PORT`` (or
 ``SCART_SERVICES``) calls the SCA service served there, without the name service.
 ``ros1:/service`` and ``ros2:/service`` call a ROS service (one object of its request's
-fields; ``--type`` its type, which ROS 1 can also tell itself). Arguments are JSON or YAML
-(a bare word is a string)."""
+fields; ``--type`` its type, which ROS 1 can also tell itself); ``yarp:/port`` a YARP RPC
+port (the arguments are the bottle: ``scart call yarp:/arm/rpc scale 2``). Arguments are
+JSON or YAML (a bare word is a string)."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ HELP = "call a task's operation or an SCA service's, with JSON or YAML arguments
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The target, its arguments, ``--at`` and the common options."""
-    parser.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op|ros1:/service|ros2:/service")
+    parser.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op|ros1:/service|ros2:/service|yarp:/port")
     parser.add_argument("args", nargs="*", help="arguments: JSON or YAML each (a ROS service: one object of "
                                                 "its request's fields)")
     parser.add_argument("--at", default=None, metavar="HOST:PORT",
@@ -29,8 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--type", default=None, metavar="pkg/Srv",
                         help="a ROS service's type (ROS 1: default, asked of the service as rosservice does)")
     from dataflow.cli import _ros as ros_args
+    from dataflow.cli import _yarp as yarp_args
 
     ros_args.add_arguments(parser)
+    yarp_args.add_arguments(parser)
     add_common(parser)
 
 
@@ -38,6 +41,8 @@ def main(args: argparse.Namespace) -> int:
     """Call; 1 when the target is unknown, refuses or raises."""
     if args.operation.startswith(("ros1:", "ros2:")):  # a ROS service: found through ROS, no name service
         return with_services(args, lambda a: _print(a, _ros_call(a)))
+    if args.operation.startswith("yarp:"):  # a YARP RPC port: found through YARP's name server
+        return with_services(args, lambda a: _print(a, _yarp_call(a)))
     address = at(args)
     if address is not None:
         return with_services(args, lambda a: _print(a, call(address, a.operation, _arguments(a), a)))
@@ -60,6 +65,13 @@ def _call(args: argparse.Namespace) -> int:
         result = args.system.component(name).call_json(operation, _arguments(args), timeout=args.timeout)
         return _print(args, jsonable(result))
     return _print(args, call(find(name, args), args.operation, _arguments(args), args))
+
+
+def _yarp_call(args: argparse.Namespace) -> object:
+    """``yarp:/port``: the reply bottle as plain data."""
+    from dataflow.cli import _yarp as yarp_args
+
+    return jsonable(yarp_args.call(args, _arguments(args)))
 
 
 def _ros_call(args: argparse.Namespace) -> object:

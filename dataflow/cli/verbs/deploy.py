@@ -28,6 +28,7 @@ from collections.abc import Callable
 from typing import Any
 
 from dataflow.cli import _ros as ros_args
+from dataflow.cli import _yarp as yarp_args
 from dataflow.cli import _zenoh as zenoh_args
 from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from scart_wire.security import add_arguments as add_arguments_security
@@ -60,6 +61,7 @@ def add_arguments(deploy: argparse.ArgumentParser) -> None:
     zenoh_args.add_arguments(deploy, "also publish every output port on Zenoh (scart/NS/TASK/PORT) and announce "
                                      "the tasks with liveliness tokens")
     ros_args.add_arguments(deploy)
+    yarp_args.add_arguments(deploy)
     add_arguments_security(deploy, server=True)
 
 
@@ -146,6 +148,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     try:
         security = from_args(args)
         ros_args.apply(args)
+        yarp_args.apply(args)
         ns, listen = _where(args, security)
     except (DataflowError, ValueError) as exc:
         _err(f"scart deploy: {exc}")

@@ -33,7 +33,7 @@ import pydantic
 
 from scart_yarp.bottle import Vocab
 
-__all__ = ["Conversion", "plan"]
+__all__ = ["Conversion", "Unfit", "item_reader", "plan"]
 
 Out = Callable[[Any], Any]
 In = Callable[[Any], Any]
@@ -61,13 +61,23 @@ def plan(py_type: Any) -> tuple[Conversion | None, list[str]]:
             return Conversion(out, inp, shape), []
         item = _item_type(py_type)
         if item is not None:
-            each_out, each_in, shape = _convert(item, "item")
+            each_out, each_in, shape = _convert(item, "")
             return Conversion(lambda v: [each_out(x) for x in v], _list_in(each_in, "the bottle"),
                               f"{shape} ..."), []
         one_out, one_in, shape = _convert(py_type, "the value")
         return Conversion(lambda v: [one_out(v)], _single(one_in), shape), []
     except TypeError as exc:
         return None, [str(exc)]
+
+
+def item_reader(py_type: Any) -> Callable[[Any], Any]:
+    """What reads one bottle item as a value of ``py_type`` (an operation's argument; a
+    model from the list of its fields), raising :class:`Unfit`; a type with no bottle form
+    is read as plain data (its own check then judges it)."""
+    try:
+        return _convert(py_type, "argument")[1]
+    except TypeError:
+        return _plain
 
 
 def _is_model(t: Any) -> bool:
@@ -139,7 +149,15 @@ def _list_in(each: In, where: str) -> In:
     def from_bottle(items: Any) -> list[Any]:
         if type(items) is not list:
             raise Unfit(f"{where}: a list is wanted, got {_what(items)}")
-        return [each(x) for x in items]
+        try:
+            return [each(x) for x in items]
+        except Unfit:
+            for i, x in enumerate(items):  # the first that does not fit, by its place
+                try:
+                    each(x)
+                except Unfit as exc:
+                    raise Unfit(f"item {i + 1} of {len(items)}: {exc}") from None
+            raise
     return from_bottle
 
 
@@ -152,6 +170,9 @@ def _single(each: In) -> Callable[[list[Any]], Any]:
 
 
 def _named(inp: In, where: str) -> In:
+    if not where:
+        return inp
+
     def check(item: Any) -> Any:
         try:
             return inp(item)

@@ -8,7 +8,7 @@ options             ``--remap FROM=TO`` (every verb); ``--ns HOST:PORT`` (``run`
                     embedded name service listens, or the running one to join; ``validate``:
                     the one ``--online`` asks); ``--foxglove [HOST:]PORT`` and
                     ``--foxglove-control [TOKEN_FILE]``, ``--ros-master URI`` and
-                    ``--ros-name NAME`` (``run``)
+                    ``--ros-name NAME``, ``--yarp-server HOST:PORT`` (``run``)
 settings            a :class:`~scart.bindings.dataflow.settings.DataflowSettings` (``--ns``,
                     else ``SCART_NS``; ``serve`` for ``run``)
 names               a task runs under its remapped name
@@ -32,6 +32,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from dataflow.cli import _ros as ros_args
+from dataflow.cli import _yarp as yarp_args
 from scart.bindings.dataflow.settings import DataflowSettings, Remap
 from scart.errors import ScartError
 from scart.spi import (
@@ -69,6 +70,7 @@ class DataflowLaunch(LaunchProvider):
                                      "'operate' token in TOKEN_FILE (needed when the runtime checks tokens; never "
                                      "the runtime's own)")
             ros_args.add_arguments(parser)
+            yarp_args.add_arguments(parser)
         elif verb == "validate":
             parser.add_argument("--ns", default=None, metavar="HOST:PORT",
                                 help=f"name service for --online (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
@@ -78,6 +80,7 @@ class DataflowLaunch(LaunchProvider):
         Raises ``ValueError`` naming the option or variable."""
         if verb == "run":
             ros_args.apply(args)  # the process's ROS 1 node defaults; a bad URI or name raises
+            yarp_args.apply(args)  # the process's YARP name server; a bad address raises
         fields: dict[str, object] = {"remap": Remap.parse(getattr(args, "remap", None) or []), "serve": verb == "run",
                                      "foxglove": getattr(args, "foxglove", None),
                                      "foxglove_control": getattr(args, "foxglove_control", None)}
