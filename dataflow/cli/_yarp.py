@@ -35,21 +35,6 @@ def apply(args: argparse.Namespace) -> None:
 def call(args: argparse.Namespace, values: list[Any]) -> Any:
     """``scart call yarp:/port WORD ARGS...``: the reply bottle as plain data (a vocab as its
     text). Raises ``ValueError`` saying what went wrong (no such port, no answer)."""
-    from scart_yarp import NameClient, parse_address, rpc_call
-    from scart_yarp.bottle import BottleError
+    from dataflow.transports.yarp.rpc import call_rpc
 
-    port = args.operation.partition(":")[2]
-    server = getattr(args, "yarp_server", None)
-    try:
-        names = NameClient(parse_address(server) if server else None, timeout=args.timeout)
-        reply = rpc_call(names, port, values)
-    except (OSError, BottleError) as exc:
-        raise ValueError(f"yarp:{port}: {exc}") from None
-    return _plain(reply)
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, list):
-        return [_plain(v) for v in value]
-    text = getattr(value, "text", None)
-    return text if isinstance(text, str) else value
+    return call_rpc(args.operation.partition(":")[2], values, getattr(args, "yarp_server", None), args.timeout)

@@ -25,9 +25,39 @@ from dataflow.transports import TransportError
 
 from .convert import Unfit, item_reader, plan
 
-__all__ = ["RpcPort", "rpc_port_name", "serve_calls", "serve_task"]
+__all__ = ["RpcPort", "call_rpc", "check_port_name", "rpc_port_name", "serve_calls", "serve_task"]
 
 log = logging.getLogger(__name__)
+
+
+def check_port_name(name: str) -> str:
+    """``name`` if it is a YARP port name; ``ValueError`` saying the form otherwise."""
+    from scart_yarp.names import check_name
+
+    return check_name(name)
+
+
+def call_rpc(port: str, values: list[Any], server: str | None = None, timeout: float = 5.0) -> list[Any]:
+    """Call the YARP RPC port ``port`` with the bottle ``values``, as ``yarp rpc`` does; the
+    reply as plain data (a vocab as its text). ``server``: the name server ``HOST:PORT``
+    (default YARP's configuration). Raises ``ValueError`` saying what went wrong."""
+    from scart_yarp import NameClient, parse_address, rpc_call
+    from scart_yarp.bottle import BottleError
+
+    try:
+        names = NameClient(parse_address(server) if server else None, timeout=timeout)
+        reply = rpc_call(names, port, values)
+    except (OSError, BottleError) as exc:
+        raise ValueError(f"yarp:{port}: {exc}") from None
+    return [_plain(v) for v in reply]
+
+
+def _plain(value: Any) -> Any:
+    from scart_yarp import Vocab
+
+    if isinstance(value, list):
+        return [_plain(v) for v in value]
+    return value.text if isinstance(value, Vocab) else value
 
 
 def rpc_port_name(component: str) -> str:

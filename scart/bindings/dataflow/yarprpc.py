@@ -47,8 +47,7 @@ class YarpRpc:
 
 
 def _parse(prefix: str, el: Element) -> tuple[YarpRpc | None, list[str]]:
-    from dataflow.transports.yarp.rpc import rpc_port_name
-    from scart_yarp.names import check_name
+    from dataflow.transports.yarp.rpc import check_port_name, rpc_port_name
 
     a, problems = el.attributes, []
     component = (a.get("component") or "").strip()
@@ -56,7 +55,7 @@ def _parse(prefix: str, el: Element) -> tuple[YarpRpc | None, list[str]]:
         problems.append('<scart:yarprpc> needs component="TASK or COMPONENT"')
     port = (a.get("port") or "").strip() or rpc_port_name(prefix + component)
     try:
-        check_name(port)
+        check_port_name(port)
     except ValueError as exc:
         problems.append(f"<scart:yarprpc> port: {exc}")
     try:
