@@ -20,6 +20,12 @@ generated code and with the types checked at load time::
   ``float64``). ``build="mod:function"`` is called with the converted inputs as keyword
   arguments (by input name); without it the type is a pydantic model whose fields are the
   inputs (by name).
+* **Topics** — an input may be fed by a topic instead of a port, and the output may be
+  written to one: a ``<scart:stream transport=".." topic=".." .../>`` inside the
+  ``<scart:input>`` (which then takes a ``type`` and no ``from``) or the ``<scart:output>``,
+  its other attributes the transport's options, as ``<scart:stream>``'s. So a bridge joins
+  two middlewares by itself (a YARP port to a ROS topic: ``composites/yarp-ros/``), the
+  port's type checked against each topic's at load.
 * **Trigger** — ``periodic`` (every ``period`` s, the default when ``period`` is given),
   ``any`` (on any new input, the default otherwise) or ``all`` (when every input has a new
   sample and their arrival times lie within ``window`` s of each other, as
@@ -93,8 +99,24 @@ _UNKNOWN: Any = None  # a type not known at load time (checked at start)
 # --- the element, read ------------------------------------------------------------------
 
 @dataclass(frozen=True)
+class TopicSpec:
+    """A ``<scart:stream transport=".." topic=".."/>`` inside an input or the output: the
+    bridge's own port joined to a topic of a transport (the other options the transport's)."""
+
+    transport: str
+    topic: str
+    options: tuple[tuple[str, str], ...]
+    loc: Location
+
+    @property
+    def where(self) -> str:
+        return f"{self.transport}:{self.topic}"
+
+
+@dataclass(frozen=True)
 class InputSpec:
-    """One ``<scart:input>``."""
+    """One ``<scart:input>``: fed by the port ``source``, or by the topic ``topic`` (then
+    its type is ``declared``)."""
 
     name: str
     source: tuple[str, str]
@@ -106,6 +128,13 @@ class InputSpec:
     ns: str | None
     where: str
     loc: Location | None = None  # the <scart:input>: where problems about this input are said
+    topic: TopicSpec | None = None
+    declared: str | None = None  # the type of a topic-fed input (mod:Class or a registry name)
+
+    @property
+    def origin(self) -> str:
+        """What feeds it, as messages say: ``TASK.PORT`` or ``transport:topic``."""
+        return self.topic.where if self.topic is not None else ".".join(self.source)
 
 
 @dataclass(frozen=True)
@@ -121,6 +150,7 @@ class BridgeSpec:
     output_type: str
     build: str | None
     where: str
+    output_topic: TopicSpec | None = None
 
 
 def _split(ref: str) -> tuple[str, str] | None:
@@ -188,22 +218,46 @@ def parse_bridge(prefix: str, el: Element) -> tuple[BridgeSpec | None, list[tupl
         bad(f"<scart:output name={output!r}>: the name must be an identifier", outputs[0])
     if output in {i.name for i in inputs}:
         bad(f"the output and an input are both named {output!r}", outputs[0])
+    output_topic = _topic(outputs[0], bad)
     if problems:
         return None, problems
     return BridgeSpec(name, trigger, period, window, tuple(inputs), output, output_type, out.get("build") or None,
-                      str(el.loc)), problems
+                      str(el.loc), output_topic), problems
+
+
+def _topic(el: Element, bad: Callable[[str, Element], None]) -> TopicSpec | None:
+    """The ``<scart:stream>`` inside an input or output element, if any."""
+    streams = [c for c in el.children if c.kind == "stream"]
+    if not streams:
+        return None
+    if len(streams) > 1:
+        bad(f"<scart:{el.kind}> holds {len(streams)} <scart:stream>: one at most", el)
+        return None
+    a = streams[0].attributes
+    transport, topic = (a.get("transport") or "").strip(), (a.get("topic") or "").strip()
+    if not transport or not topic:
+        bad('<scart:stream> needs transport and topic (e.g. transport="yarp" topic="/robot/state")', streams[0])
+        return None
+    options = tuple(sorted((k, v) for k, v in a.items() if k not in ("transport", "topic") and ":" not in k))
+    return TopicSpec(transport, topic, options, streams[0].loc)
 
 
 def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None], trigger: str) -> InputSpec | None:
     a = el.attributes
     name = (a.get("name") or "").strip()
-    source = _split(a.get("from", ""))
+    topic = _topic(el, bad)
+    source = _split(a.get("from", "")) if topic is None else ("", "")
     if name and not name.isidentifier():
         bad(f"<scart:input name={name!r}>: the name must be an identifier (it is a keyword argument, a field, "
             "a port)", el)
         return None
+    if topic is not None and (a.get("from") or not a.get("type")):
+        bad(f"<scart:input name={name!r}> fed by a <scart:stream> takes a type (mod:Class or a registry name such "
+            "as float64[]) and no from", el)
+        return None
     if not name or source is None:
-        bad(f"<scart:input name={name!r}> from={a.get('from', '')!r}: expected TASK.PORT", el)
+        bad(f"<scart:input name={name!r}> from={a.get('from', '')!r}: expected TASK.PORT (or a <scart:stream> "
+            "inside, and a type)", el)
         return None
     try:
         policy = ConnPolicy.parse(a.get("policy", "data"))
@@ -230,8 +284,9 @@ def _parse_input(prefix: str, el: Element, bad: Callable[[str, Element], None], 
     if missing == "default" and a.get("default") is None:
         bad(f"input {name!r}: missing=\"default\" needs a default value", el)
         return None
-    return InputSpec(name, (prefix + source[0], source[1]), policy, a.get("convert") or None, path, missing,
-                     a.get("default"), a.get("ns") or None, str(el.loc), el.loc)
+    return InputSpec(name, (prefix + source[0], source[1]) if topic is None else source, policy,
+                     a.get("convert") or None, path, missing, a.get("default"), a.get("ns") or None, str(el.loc),
+                     el.loc, topic, a.get("type") or None)
 
 
 # --- types ------------------------------------------------------------------------------
@@ -373,17 +428,43 @@ class Resolver:
 
     def output_type(self, spec: BridgeSpec) -> Any:
         """The output's Python type (``mod:Class``, or a registry name); None (reported) if unknown."""
-        if ":" in spec.output_type:
-            return self._import(spec.output_type, f"bridge {spec.name!r} output {spec.output!r} type")
-        tp = registry.python_type(spec.output_type)
-        if tp is None:
-            self.problem(BRIDGE, f"bridge {spec.name!r} output {spec.output!r}: type {spec.output_type!r} is neither "
-                         "mod:Class nor a registered type name")
+        tp = self._type(spec.output_type, f"bridge {spec.name!r} output {spec.output!r}")
+        if tp is not None and spec.output_topic is not None:
+            self.topic(spec.output_topic, OutputPort(tp, spec.output), f"bridge {spec.name!r} output {spec.output!r}")
         return tp
+
+    def _type(self, ref: str, what: str) -> Any:
+        if ":" in ref:
+            return self._import(ref, f"{what} type")
+        tp = registry.python_type(ref)
+        if tp is None:
+            self.problem(BRIDGE, f"{what}: type {ref!r} is neither mod:Class nor a registered type name")
+        return tp
+
+    def topic(self, topic: TopicSpec, port: Any, what: str) -> None:
+        """What keeps the bridge's ``port`` from joining ``topic`` (said at the stream's line)."""
+        from dataflow.transports import TransportError, load
+
+        outer, self._at = self._at, topic.loc
+        try:
+            found = load(topic.transport).check_stream(port, topic.topic, dict(topic.options))
+        except TransportError as exc:
+            self.problem(BRIDGE, f"{what}: {exc}")
+            found = []
+        for p in found:
+            self.problem(BRIDGE_TYPE if p.types else BRIDGE, f"{what} <scart:stream {topic.where}>: {p.message}",
+                         "warning" if p.warning else "error")
+        self._at = outer
 
     def source_type(self, spec: BridgeSpec, inp: InputSpec, online: bool) -> tuple[Any, bool]:
         """(the source port's type or unknown, whether the source runs in this runtime)."""
         self._at = inp.loc
+        if inp.topic is not None:
+            what = f"bridge {spec.name!r} input {inp.name!r}"
+            tp = self._type(inp.declared or "", what)
+            if tp is not None:
+                self.topic(inp.topic, InputPort(tp, inp.name), what)
+            return (tp if tp is not None else _UNKNOWN), True
         comp, port = inp.source
         where = f"bridge {spec.name!r} input {inp.name!r}: {comp}.{port}"
         node = self.assembly.nodes.get(comp)
@@ -465,7 +546,7 @@ class Resolver:
                 path = path[1:]  # "arm.joints[*].position" on input arm: the input's own name leads
             tp, why = path_type(src, path)
             if why is not None:
-                self.problem(BRIDGE_TYPE, f"{where}: field path on {'.'.join(inp.source)} ({shown(src)}): {why}")
+                self.problem(BRIDGE_TYPE, f"{where}: field path on {inp.origin} ({shown(src)}): {why}")
             return (lambda value: apply_path(value, path)), tp
         if inp.convert is None:
             return None, src
@@ -490,7 +571,7 @@ class Resolver:
                          severity="warning")
         if not same_type(src, wanted):
             self.problem(BRIDGE_TYPE, f"{where}: converter {inp.convert} takes {shown(_plain(wanted))}, but "
-                         f"{'.'.join(inp.source)} is {shown(src)}")
+                         f"{inp.origin} is {shown(src)}")
         return fn, _plain(hints.get("return", _UNKNOWN))
 
     def default(self, spec: BridgeSpec, inp: InputSpec, tp: Any) -> Any:
@@ -586,8 +667,9 @@ class BridgeTask(TaskContext):
         self._inputs: dict[str, _Input] = {}
         for inp in spec.inputs:
             tp = resolved.sources[inp.name]
+            origin = inp.origin if inp.topic is not None else ".".join(remap.endpoint(*inp.source))
             port: InputPort[Any] = InputPort(tp if tp is not None else object, remap.port(spec.name, inp.name),
-                                             f"from {'.'.join(remap.endpoint(*inp.source))}", event=event)
+                                             f"from {origin}", event=event)
             self._inputs[inp.name] = _Input(self.add_port(port))
         self.output: OutputPort[Any] = self.add_port(
             OutputPort(resolved.output_type, remap.port(spec.name, spec.output), f"built by bridge {self.name}"))
@@ -728,7 +810,7 @@ def _remote_inputs(spec: BridgeSpec, assembly: AssemblyView, context: CheckConte
     out: list[Problem] = []
     for inp in spec.inputs:
         comp = inp.source[0]
-        if comp in assembly.nodes or comp in specs or inp.loc is None:
+        if inp.topic is not None or comp in assembly.nodes or comp in specs or inp.loc is None:
             continue
         loc = inp.loc
 
@@ -755,6 +837,7 @@ class BridgeParticipant(Participant):
         self.tasks: list[BridgeTask] = []
         self._connectors: list[ConnectParticipant] = []
         self._pending: list[BridgeSpec] = []
+        self._streams: list[str] = []  # the bridges' own ports joined to topics
         self._waiting: Watcher | None = None
         self._lock = threading.Lock()  # the watcher adds bridges while stop may run
 
@@ -804,16 +887,33 @@ class BridgeParticipant(Participant):
         names = set(deployer.names())
         remote: list[Link] = []
         for inp in spec.inputs:
-            source = remap.endpoint(*inp.source)
             sink = (task.name, task._inputs[inp.name].port.name)
+            if inp.topic is not None:
+                self._stream(".".join(sink), inp.topic, inp.policy)
+                continue
+            source = remap.endpoint(*inp.source)
             if source[0] in names:
                 deployer.connect(".".join(source), ".".join(sink), inp.policy)
             else:
                 remote.append(Link(source, sink, inp.policy, inp.ns, inp.where))
+        if spec.output_topic is not None:
+            self._stream(f"{task.name}.{task.output.name}", spec.output_topic, ConnPolicy.data())
         connect_present(self.host, task.name)
         if not task.start():
             raise ScartError(f"bridge {spec.name}: start refused (state {task.state.name})")
         return remote
+
+    def _stream(self, port: str, topic: TopicSpec, policy: ConnPolicy) -> None:
+        """Join the bridge's ``port`` to ``topic`` (undone at stop). Raises ``ScartError``."""
+        deployer = host_of(self.host).deployer
+        try:
+            made = deployer.stream(port, policy.with_(transport=topic.transport, topic=topic.topic),
+                                   dict(topic.options))
+        except (DataflowError, ValueError) as exc:
+            raise ScartError(f"bridge stream {port} ({topic.loc}): {exc}") from exc
+        with self._lock:
+            self._streams.append(made.name)
+        log.info("bridge stream %s: %s -> %s", made.name, made.source, made.sink)
 
     def _connect_remote(self, links: list[Link]) -> None:
         """Connect inputs from other deployers in the background (whenever their source appears)."""
@@ -858,8 +958,12 @@ class BridgeParticipant(Participant):
         with self._lock:
             connectors, self._connectors = list(self._connectors), []
             tasks = list(self.tasks)
+            streams, self._streams = list(self._streams), []
         for connector in connectors:
             connector.stop()
+        deployer = host_of(self.host).deployer
+        for name in reversed(streams):
+            deployer.unstream(name)
         for task in reversed(tasks):
             try:
                 retire(task)
