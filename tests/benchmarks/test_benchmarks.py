@@ -26,6 +26,8 @@ NEEDS = {
     "bench_ros2.py": (lambda: _installed("cyclonedds"), "cyclonedds (pip install 'scart[ros2]')"),
     "bench_zenoh.py": (lambda: _installed("zenoh"), "eclipse-zenoh (pip install 'scart[zenoh]')"),
     "bench_youbot.py": (lambda: _installed("psutil"), "psutil (pip install 'scart[bench]')"),
+    "bench_yarp.py": (lambda: shutil.which("yarpserver") is not None and shutil.which("yarp") is not None,
+                      "YARP's yarpserver and yarp on PATH (the steering repository's shared/yarp/build.sh)"),
 }
 
 

@@ -1,0 +1,269 @@
+"""Benchmark of scart on YARP against YARP itself and rospy, hop by hop, one run.
+
+Usage: ``python benchmarks/bench_yarp.py [--quick | --smoke]`` (needs YARP's ``yarpserver``
+and ``yarp`` on PATH; the rospy row needs Debian's ``ros-core`` and ``python3-rospy``).
+
+Each hop sends ``CLOCK_MONOTONIC`` stamps (an int, one per sample) at 1 kHz and 100 Hz on
+absolute deadlines, from a writer process to a reader process on this host, and the reader
+notes when each arrived (the first second of each hop is left out). The hops:
+
+* ``yarp → yarp``: YARP's own tools, C++ (the anchor): the bench writes each stamp to
+  ``yarp write``'s stdin and reads it from ``yarp read``'s stdout;
+* ``scart → yarp``: a scart output port streamed on YARP (``tcp``), read by ``yarp read``
+  (its stdout read by the bench);
+* ``yarp → scart``: ``yarp write`` (fed by the bench) into a scart input port, timed in the
+  port's data callback (as rospy's callback runs in its receiving thread);
+* ``scart → scart``: two scart processes, both sides native;
+* ``rospy → rospy``: Debian's rospy, ``tcp_nodelay`` (the goal's yardstick);
+* ``pipe → cat → pipe``: the bench through ``cat``: what the two pipe legs of the
+  ``yarp → yarp`` row cost by themselves (the ``scart → yarp`` and ``yarp → scart`` rows
+  have one leg each).
+
+Goal (issue 32): scart's hops at most the rospy hop of the same run; the ratio to YARP's
+own hop is printed too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from _common import paced, pct, wait_until  # noqa: E402
+from bench_ros1 import ROSPY_PEER, Bench, _has_rospy, _wait_for  # noqa: E402
+
+HOPS = (("rospy", "rospy"), ("yarp", "yarp"), ("scart", "yarp"), ("yarp", "scart"), ("scart", "scart"),
+        ("pipe", "pipe"))
+IN, OUT = "/bench/scart/in", "/bench/scart/out"
+
+
+def scart_side(role: str, rate: float, count: int, warmup: float, server: str, peer: str) -> None:
+    """The ``--child`` side: a scart port streamed on YARP, writing stamps (``pub``,
+    connected to ``peer``) or noting them in its data callback (``sub``)."""
+    from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext
+
+    class Stamper(TaskContext):
+        stamp = OutputPort(int)
+
+    class Receiver(TaskContext):
+        stamp = InputPort(int)
+
+        def __init__(self, name: str) -> None:
+            super().__init__(name)
+            self.got: list[tuple[int, int]] = []
+            self.stamp.add_data_callback(lambda port: self.got.append((time.monotonic_ns(),
+                                                                       port.read_newest()[1])))
+
+    options = {"server": server, **({"connect": peer} if role == "pub" else {})}
+    with Deployer() as dep:
+        task = dep.add(Stamper("stamper") if role == "pub" else Receiver("receiver"))
+        dep.configure_all()
+        dep.start_all()
+        made = dep.stream(f"{task.name}.stamp", ConnPolicy.data().with_(transport="yarp", topic=OUT if role == "pub"
+                                                                        else IN), options)
+        if role == "pub":
+            port = dep.streams()[made.name]._stream._port  # the benchmark peeks: wait for its reader
+            wait_until(lambda: peer in port.outputs, 30)
+            paced(count, rate, lambda k: task.stamp.write(time.monotonic_ns()))
+            time.sleep(0.5)
+        else:
+            print("ready", flush=True)
+            _wait_for(task.got, count, rate)
+        dep.unstream(made.name)
+        dep.stop_all()
+    if role != "pub":
+        got = list(task.got)
+        first = got[0][1] if got else 0
+        print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
+
+
+class Yarp:
+    """A ``yarpserver`` of the bench's own (own configuration folder, a free port)."""
+
+    def __init__(self, folder: Path) -> None:
+        from bench_ros1 import _free_port
+
+        self.port = _free_port()
+        self.address = f"127.0.0.1:{self.port}"
+        self.env = dict(os.environ, YARP_CONFIG_HOME=str(folder / "yarp"))
+        subprocess.run(["yarp", "conf", "127.0.0.1", str(self.port)], env=self.env, capture_output=True, check=True)
+        self.server = subprocess.Popen(["yarpserver", "--read", "--ip", "127.0.0.1", "--socket", str(self.port)],
+                                       env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                       start_new_session=True)
+        if not wait_until(lambda: self.registered("/root"), timeout=30, interval=0.05):
+            raise SystemExit("yarpserver did not start")
+
+    def registered(self, name: str) -> bool:
+        done = subprocess.run(["yarp", "name", "query", name], env=self.env, capture_output=True, text=True)
+        return f"registration name {name} " in done.stdout
+
+    def tool(self, *args: str) -> subprocess.Popen[str]:
+        return subprocess.Popen(["yarp", *args], env=self.env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.DEVNULL, text=True, bufsize=1)
+
+    def stop(self) -> None:
+        self.server.terminate()
+        self.server.wait(timeout=10)
+
+
+def _lines(proc: subprocess.Popen[str], got: list[tuple[int, int]], ready: threading.Event) -> None:
+    """Note when each stamp a tool prints arrives (a thread of the bench's)."""
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        now = time.monotonic_ns()
+        word = line.strip().split(" ")[0]
+        if word.lstrip("-").isdigit():
+            got.append((now, int(word)))
+        elif "Receiving input" in line or word == "ready":
+            ready.set()
+
+
+def _feed(proc: subprocess.Popen[str], count: int, rate: float) -> None:
+    assert proc.stdin is not None
+    stdin = proc.stdin
+
+    def one(_: int) -> None:
+        stdin.write(f"{time.monotonic_ns()}\n")
+        stdin.flush()
+
+    paced(count, rate, one)
+
+
+def yarp_hop(yarp: Yarp, pub: str, sub: str, rate: float, seconds: float, warmup: float) -> list[float]:
+    """A hop with a YARP tool or ``cat`` on one side or both; the latencies in µs."""
+    count = int(rate * (seconds + warmup))
+    got: list[tuple[int, int]] = []
+    ready = threading.Event()
+    procs: list[subprocess.Popen[str]] = []
+    try:
+        if pub == "pipe":
+            cat = subprocess.Popen(["cat"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
+            procs.append(cat)
+            threading.Thread(target=_lines, args=(cat, got, ready), daemon=True).start()
+            _feed(cat, count, rate)
+        elif sub == "yarp":
+            reader = yarp.tool("read", "/bench/r")
+            procs.append(reader)
+            threading.Thread(target=_lines, args=(reader, got, ready), daemon=True).start()
+            wait_until(lambda: yarp.registered("/bench/r"), 30)
+            if pub == "yarp":
+                writer = yarp.tool("write", "/bench/w", "/bench/r")
+                procs.append(writer)
+                ready.wait(30)
+                _feed(writer, count, rate)
+            else:
+                subprocess.run([sys.executable, __file__, "--child", "pub", str(rate), str(count), str(warmup),
+                                yarp.address, "/bench/r"], check=True, timeout=count / rate + 120)
+        else:  # yarp → scart
+            receiver = subprocess.Popen([sys.executable, __file__, "--child", "sub", str(rate), str(count),
+                                         str(warmup), yarp.address, ""], stdout=subprocess.PIPE, text=True)
+            assert receiver.stdout is not None
+            if receiver.stdout.readline().strip() != "ready":
+                raise RuntimeError("the scart receiver failed")
+            writer = yarp.tool("write", "/bench/w", IN)
+            procs.append(writer)
+            time.sleep(0.5)  # the writer's connection is made when it starts (no event to wait on)
+            _feed(writer, count, rate)
+            out, _ = receiver.communicate(timeout=count / rate + 120)
+            return [ns / 1000 for ns in json.loads(out.strip().splitlines()[-1])]
+        wait_until(lambda: len(got) >= count, timeout=5)
+    finally:
+        for proc in procs:
+            proc.terminate()
+            proc.wait(timeout=10)
+    first = got[0][1] if got else 0
+    return [(a - s) / 1000 for a, s in got if s - first >= warmup * 1e9]
+
+
+def scart_pair(yarp: Yarp, rate: float, seconds: float, warmup: float) -> list[float]:
+    """scart → scart: both processes native."""
+    count = int(rate * (seconds + warmup))
+    receiver = subprocess.Popen([sys.executable, __file__, "--child", "sub", str(rate), str(count), str(warmup),
+                                 yarp.address, ""], stdout=subprocess.PIPE, text=True)
+    assert receiver.stdout is not None
+    try:
+        if receiver.stdout.readline().strip() != "ready":
+            raise RuntimeError("the scart receiver failed")
+        subprocess.run([sys.executable, __file__, "--child", "pub", str(rate), str(count), str(warmup),
+                        yarp.address, IN], check=True, timeout=count / rate + 120)
+        out, _ = receiver.communicate(timeout=count / rate + 120)
+    finally:
+        if receiver.poll() is None:
+            receiver.kill()
+            receiver.wait()
+    return [ns / 1000 for ns in json.loads(out.strip().splitlines()[-1])]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="one round of 2 s hops")
+    parser.add_argument("--smoke", action="store_true", help="one short round (proves every path works)")
+    parser.add_argument("--child", nargs=6, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        role, rate, count, warmup, server, peer = args.child
+        scart_side(role, float(rate), int(count), float(warmup), server, peer)
+        return 0
+    if shutil.which("yarpserver") is None or shutil.which("yarp") is None:
+        print("YARP's yarpserver and yarp are not on PATH (the steering repository's shared/yarp/build.sh builds "
+              "them): nothing to measure\n\n| rate | hop | p50 µs |\n|---|---|---|")
+        return 0
+    rounds, seconds, warmup = (1, 0.5, 0.2) if args.smoke else (1, 2.0, 1.0) if args.quick else (3, 5.0, 1.0)
+    hops = list(HOPS)
+    rospy = shutil.which("rosmaster") is not None and _has_rospy()
+    if not rospy:
+        print("rosmaster or rospy is missing (Debian: apt-get install ros-core python3-rospy): no rospy row")
+        hops.remove(("rospy", "rospy"))
+    samples: dict[tuple[float, str, str], list[float]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        script = Path(tmp) / "rospy_peer.py"
+        script.write_text(ROSPY_PEER)
+        yarp = Yarp(Path(tmp))
+        ros = Bench(Path(tmp), script)
+        if rospy:
+            ros.start_master()
+        try:
+            for _ in range(rounds):
+                for rate in (1000.0,) if args.smoke else (1000.0, 100.0):
+                    for pub, sub in hops:
+                        if pub == "rospy":
+                            got = ros.hop("rospy", "rospy", rate, seconds, warmup)
+                        elif pub == sub == "scart":
+                            got = scart_pair(yarp, rate, seconds, warmup)
+                        else:
+                            got = yarp_hop(yarp, pub, sub, rate, seconds, warmup)
+                        samples.setdefault((rate, pub, sub), []).extend(got)
+        finally:
+            if rospy:
+                ros.stop_master()
+            yarp.stop()
+    print_table(samples, rounds, seconds, warmup)
+    return 0
+
+
+def print_table(samples: dict[tuple[float, str, str], list[float]], rounds: int, seconds: float, warmup: float) -> None:
+    print(f"\nYARP same-host hop, a stamp per sample, {rounds} round(s) of {seconds:g} s per hop (the first "
+          f"{warmup:g} s discarded), alternating; load average {os.getloadavg()[0]:.1f}\n")
+    print("| rate | hop | samples | p50 µs | p99 µs | p50 / rospy | p99 / rospy | p50 / yarp→yarp |")
+    print("|---|---|---|---|---|---|---|---|")
+    for (rate, pub, sub), values in samples.items():
+        rospy, yarp = samples.get((rate, "rospy", "rospy")), samples.get((rate, "yarp", "yarp"))
+
+        def ratio(base: list[float] | None, q: float) -> str:
+            return f"{pct(values, q) / pct(base, q):.2f}×" if base else "—"
+
+        print(f"| {rate:g} Hz | {pub} → {sub} | {len(values)} | {pct(values, 0.5):.0f} | {pct(values, 0.99):.0f} | "
+              f"{ratio(rospy, 0.5)} | {ratio(rospy, 0.99)} | {ratio(yarp, 0.5)} |")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
