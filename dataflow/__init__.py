@@ -37,7 +37,7 @@ from .introspection import (
     TaskDescription,
 )
 from .operations import operation
-from .policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
+from .policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WaitMode, WriteStatus
 from .ports import Connection, InputPort, OutputPort
 from .properties import Property
 from .task import TaskContext, TaskState
@@ -54,6 +54,7 @@ __all__ = [
     "LockPolicy",
     "BufferPolicy",
     "FlowStatus",
+    "WaitMode",
     "WriteStatus",
     "Property",
     "operation",

@@ -53,6 +53,11 @@ value delivered is still always a whole, single sample.
 
 ``LOCKED`` storages serialise every operation on a ``threading.Lock`` (RTT's
 ``DataObjectLocked``): simple, fair, but a preempted holder delays the others.
+
+A buffer whose policy makes its writer wait (YARP's flow control: ``ConnPolicy.wait``) is a
+:class:`WaitingStorage`: a write to a full buffer waits for a read to make room (at most
+``wait_timeout`` s, then refused and counted), and every read tells the waiting writer.
+Only such a connection's writer ever waits; its reads take a lock to tell it.
 ``UNSYNC`` storages are for single-threaded use; in CPython they share the lock-free
 implementation (which costs no more than an unsynchronised one would).
 """
@@ -60,12 +65,13 @@ implementation (which costs no more than an unsynchronised one would).
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from typing import Any
 
-from .policy import ConnPolicy, ConnType, FlowStatus, LockPolicy
+from .policy import ConnPolicy, ConnType, FlowStatus, LockPolicy, WaitMode
 
-__all__ = ["Storage", "DataObject", "Buffer", "LockedStorage", "make_storage"]
+__all__ = ["Storage", "DataObject", "Buffer", "LockedStorage", "WaitingStorage", "make_storage"]
 
 _NONE: Any = object()  # "no value", distinct from a written None
 _NEW = FlowStatus.NEW_DATA
@@ -108,8 +114,18 @@ class Storage:
         return self._drops.value
 
     def write(self, value: Any) -> bool:  # pragma: no cover - interface
-        """Store ``value``; False when it was rejected (full BUFFER). Never blocks."""
+        """Store ``value``; False when it was rejected (full BUFFER). Never blocks (but a
+        :class:`WaitingStorage`'s, whose writer asked to wait)."""
         raise NotImplementedError
+
+    def write_now(self, value: Any) -> bool:
+        """:meth:`write` that never waits, whatever the policy (a transport's thread, which
+        must not: it holds the writer back by other means)."""
+        return self.write(value)
+
+    def has_room(self) -> bool:
+        """A write now would be taken without dropping anything (DATA: always)."""
+        return True
 
     def read(self) -> tuple[FlowStatus, Any]:  # pragma: no cover - interface
         """Take the next sample (see the truth table). Never blocks."""
@@ -282,9 +298,73 @@ class LockedStorage(Storage):
         return self._inner.size()
 
 
+class WaitingStorage(Storage):
+    """Wraps a buffer whose writer waits for room (``ConnPolicy.wait``): :meth:`write` to a
+    full buffer blocks until a read frees a slot or ``wait_timeout`` s pass (then it is
+    refused and counted, as a full buffer refuses); every read wakes the writer. Thread-safe.
+    ``room`` callbacks (:meth:`on_room`) are called after each read that freed a slot."""
+
+    __slots__ = ("_inner", "_room", "_callbacks", "waited")
+
+    def __init__(self, inner: Storage) -> None:
+        super().__init__(inner.policy)
+        self._inner = inner
+        self._room = threading.Condition(threading.Lock())
+        self._callbacks: tuple[Any, ...] = ()
+        self.waited = 0.0  #: seconds writers spent waiting for room, in all
+
+    @property
+    def dropped(self) -> int:
+        return self._inner.dropped
+
+    def has_room(self) -> bool:
+        return self._inner.size() < self.policy.size
+
+    def write_now(self, value: Any) -> bool:
+        return self._inner.write(value)
+
+    def write(self, value: Any) -> bool:
+        if not self.has_room():
+            started = time.monotonic()
+            with self._room:
+                self._room.wait_for(self.has_room, self.policy.wait_timeout)
+            self.waited += time.monotonic() - started
+        return self._inner.write(value)
+
+    def _freed(self, status: FlowStatus) -> None:
+        if status is _NEW:
+            with self._room:
+                self._room.notify_all()
+            for callback in self._callbacks:
+                callback()
+
+    def read(self) -> tuple[FlowStatus, Any]:
+        status, value = self._inner.read()
+        self._freed(status)
+        return status, value
+
+    def read_newest(self) -> tuple[FlowStatus, Any]:
+        status, value = self._inner.read_newest()
+        self._freed(status)
+        return status, value
+
+    def clear(self) -> None:
+        self._inner.clear()
+        self._freed(_NEW)
+
+    def size(self) -> int:
+        return self._inner.size()
+
+    def on_room(self, callback: Any) -> None:
+        """Call ``callback()`` (in the reader's thread) whenever a read makes room."""
+        self._callbacks = (*self._callbacks, callback)
+
+
 def make_storage(policy: ConnPolicy) -> Storage:
     """The storage a connection with ``policy`` needs (new, empty)."""
     inner: Storage = DataObject(policy) if policy.type is ConnType.DATA else Buffer(policy)
     if policy.lock_policy is LockPolicy.LOCKED:
-        return LockedStorage(inner)
+        inner = LockedStorage(inner)
+    if policy.wait is not WaitMode.NO_WAIT and policy.type is not ConnType.DATA:
+        return WaitingStorage(inner)
     return inner

@@ -20,6 +20,30 @@ else ``grpc``), ``"ipc"`` (the same-host fast path; ``"shm"`` is accepted for it
 inside one process ignores it. ``topic`` (RTT's ``name_id``) makes a *stream*: the port
 joined to a named topic of that transport rather than to another port.
 ``size`` is at most :data:`MAX_BUFFER`, everywhere.
+
+**Flow control** (YARP's, seed 002 §5): ``wait`` says how the writer behaves when a reader
+is behind — :attr:`WaitMode.NO_WAIT` (default: it never waits; a full buffer refuses the
+sample, counted), :attr:`WaitMode.WAIT_AFTER` (the write returns once the sample has gone
+to every reader: stored in its buffer, waiting for room if need be) or
+:attr:`WaitMode.WAIT_BEFORE` (the write first waits until every reader has room, then
+hands the sample over) — each wait bounded by ``wait_timeout`` s, after which the sample is
+refused and counted. The reader's buffering is the connection type: YARP's
+*single-buffer* is ``BUFFER(1)`` (:meth:`ConnPolicy.single_buffer`), *double-buffer*
+``BUFFER(2)``, *triple-buffer* (YARP's default: the newest sample always) ``DATA``. A
+waiting writer with a single or double buffer delivers every sample, slowed to its
+slowest reader; a ``DATA`` reader always has room, so its writer never waits.
+
+==============================  =========================  =================================
+YARP                            RTT                        ``ConnPolicy``
+==============================  =========================  =================================
+no-wait writer                  (every RTT writer)         ``wait=NO_WAIT`` (default)
+wait-after / wait-before        —                          ``wait=WAIT_AFTER`` / ``WAIT_BEFORE``
+single-buffer reader            ``BUFFER(1)``              :meth:`single_buffer`
+double-buffer reader            ``BUFFER(2)``              :meth:`double_buffer`
+triple-buffer reader (default)  ``DATA``                   :meth:`triple_buffer`, ``data()``
+strict reader (keep all)        ``BUFFER(n)``              :meth:`buffer`
+newest n                        ``CIRCULAR_BUFFER(n)``     :meth:`circular_buffer`
+==============================  =========================  =================================
 ``mandatory`` (default True, as RTT 2.9: "by default, all connections are mandatory"):
 a sample rejected by a mandatory connection makes ``write`` return ``WRITE_FAILURE``;
 a non-mandatory connection's rejection is only counted in its ``dropped``.
@@ -41,8 +65,8 @@ import enum
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
-__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WriteStatus", "MAX_BUFFER",
-           "TRANSPORTS", "transport_names"]
+__all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WaitMode", "WriteStatus",
+           "MAX_BUFFER", "MAX_WAIT", "TRANSPORTS", "transport_names"]
 
 #: scart's own transport names (``shm`` is taken as ``ipc``: see the module docstring);
 #: plug-ins add theirs (:func:`transport_names`).
@@ -54,6 +78,7 @@ _TRANSPORT_ALIASES = MappingProxyType({"shm": "ipc", "": "auto"})
 #: processes alike (a bigger one is refused when the policy is made, naming this limit).
 MAX_BUFFER = 100_000
 MAX_TOPIC = 256  #: characters of a stream's topic, at most
+MAX_WAIT = 60.0  #: seconds a waiting writer may be told to wait for a reader, at most
 
 
 def transport_names() -> tuple[str, ...]:
@@ -95,6 +120,16 @@ class BufferPolicy(enum.Enum):
     SHARED = "shared"
 
 
+class WaitMode(enum.Enum):
+    """How a writer behaves when a reader is behind (YARP's flow control; see the module
+    docstring): never waits, waits after handing a sample over until every reader has it,
+    or waits before until every reader has room."""
+
+    NO_WAIT = "no-wait"
+    WAIT_AFTER = "wait-after"
+    WAIT_BEFORE = "wait-before"
+
+
 class FlowStatus(enum.Enum):
     """Result of ``InputPort.read``: nothing ever, an already read sample, or a new one."""
 
@@ -126,6 +161,8 @@ class ConnPolicy:
     mandatory: bool = True
     transport: str = "auto"
     topic: str = ""
+    wait: WaitMode = WaitMode.NO_WAIT
+    wait_timeout: float = 1.0
 
     def __post_init__(self) -> None:
         transport = _TRANSPORT_ALIASES.get(self.transport, self.transport)
@@ -143,6 +180,10 @@ class ConnPolicy:
             raise ValueError(f"ConnPolicy.size {self.size} is over the limit MAX_BUFFER ({MAX_BUFFER} samples)")
         if len(self.topic) > MAX_TOPIC or not self.topic.isprintable():
             raise ValueError(f"ConnPolicy.topic: at most {MAX_TOPIC} printable characters, got {self.topic[:40]!r}")
+        if not isinstance(self.wait, WaitMode):
+            raise ValueError(f"ConnPolicy.wait must be a WaitMode, got {self.wait!r}")
+        if not 0 < self.wait_timeout <= MAX_WAIT:  # also refuses NaN
+            raise ValueError(f"ConnPolicy.wait_timeout must be seconds in (0, {MAX_WAIT:g}], got {self.wait_timeout!r}")
 
     @classmethod
     def data(
@@ -177,30 +218,62 @@ class ConnPolicy:
         return cls(ConnType.CIRCULAR_BUFFER, size, lock_policy, init, buffer_policy)
 
     @classmethod
+    def single_buffer(cls, wait: WaitMode = WaitMode.NO_WAIT) -> ConnPolicy:
+        """YARP's single-buffer reader: one sample held, ``BUFFER(1)``; with a waiting
+        writer (``wait``), nothing is lost."""
+        return cls.buffer(1).with_(wait=wait)
+
+    @classmethod
+    def double_buffer(cls, wait: WaitMode = WaitMode.NO_WAIT) -> ConnPolicy:
+        """YARP's double-buffer reader: one sample being read, one waiting: ``BUFFER(2)``."""
+        return cls.buffer(2).with_(wait=wait)
+
+    @classmethod
+    def triple_buffer(cls, wait: WaitMode = WaitMode.NO_WAIT) -> ConnPolicy:
+        """YARP's triple-buffer reader (its default): the newest sample, ``DATA``; its
+        writer never has to wait."""
+        return cls.data().with_(wait=wait)
+
+    @classmethod
     def parse(cls, text: str) -> ConnPolicy:
-        """Parse the short form ``"data"``, ``"buffer:8"`` or ``"circular:8"``.
+        """Parse the short form ``"data"``, ``"buffer:8"`` or ``"circular:8"``, or YARP's
+        reader names ``"single"``, ``"double"``, ``"triple"``; each may end with a writer's
+        wait mode: ``"single,wait-before"``, ``"buffer:8,wait-after"``, ``",no-wait"``.
 
         Raises ``ValueError`` naming the valid forms for anything else.
         """
-        kind, _, size = text.strip().lower().partition(":")
+        body, _, wait = text.strip().lower().partition(",")
+        kind, _, size = body.strip().partition(":")
         try:
-            if kind == "data" and not size:
-                return cls.data()
-            if kind == "buffer" and size:
-                return cls.buffer(int(size))
-            if kind in ("circular", "circular_buffer") and size:
-                return cls.circular_buffer(int(size))
+            mode = WaitMode(wait.strip()) if wait.strip() else WaitMode.NO_WAIT
+        except ValueError:
+            raise ValueError(f"invalid connection policy {text!r}: a writer's wait is "
+                             f"{one_of(tuple(m.value for m in WaitMode))}") from None
+        try:
+            found = cls._parse_kind(kind, size)
         except ValueError as exc:
             raise ValueError(f"invalid connection policy {text!r}: {exc}") from None
-        raise ValueError(
-            f"invalid connection policy {text!r}: expected 'data', 'buffer:N' or 'circular:N'"
-        )
+        if found is None:
+            raise ValueError(f"invalid connection policy {text!r}: expected 'data', 'buffer:N', 'circular:N', "
+                             "'single', 'double' or 'triple', and optionally ',wait-after' or ',wait-before'")
+        return found.with_(wait=mode) if mode is not WaitMode.NO_WAIT else found
+
+    @classmethod
+    def _parse_kind(cls, kind: str, size: str) -> ConnPolicy | None:
+        if kind in ("data", "triple") and not size:
+            return cls.data()
+        if kind in ("single", "double") and not size:
+            return cls.buffer(1 if kind == "single" else 2)
+        if kind == "buffer" and size:
+            return cls.buffer(int(size))
+        if kind in ("circular", "circular_buffer") and size:
+            return cls.circular_buffer(int(size))
+        return None
 
     def with_(self, **changes: object) -> ConnPolicy:
         """A copy with some fields changed (the value itself never changes)."""
         return replace(self, **changes)  # type: ignore[arg-type]  # any field by name: __post_init__ checks each
 
     def __str__(self) -> str:
-        if self.type is ConnType.DATA:
-            return "data"
-        return f"{self.type.value}:{self.size}"
+        text = "data" if self.type is ConnType.DATA else f"{self.type.value}:{self.size}"
+        return text if self.wait is WaitMode.NO_WAIT else f"{text},{self.wait.value}"

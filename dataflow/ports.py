@@ -137,9 +137,11 @@ class ChannelConnection(Connection):
         return self.store(0, 0, value)
 
     def store(self, _n: int, _t_ns: int, value: Any) -> bool:
-        """:meth:`write`, as a reader end's ``store`` (write number and time are its own)."""
+        """:meth:`write`, as a reader end's ``store`` (write number and time are its own).
+        Never waits, even where the policy makes writers wait: a transport asks
+        :meth:`~dataflow.buffers.Storage.has_room` first and holds its writer back itself."""
         storage = self.storage
-        if not storage.write(value):
+        if not storage.write_now(value):
             return False
         for reader in storage.readers:
             if reader._callbacks:

@@ -49,6 +49,7 @@ class Connection:
         self.sent = self.acked = self.dropped = self.received = 0
         self.closed = False
         self.paused = False  #: not read for now (the reader's buffer is full: the writer is held back)
+        self.held: deque[Frame] = deque()  #: messages received and not yet taken by the owner (io thread)
         self.closing = 0.0  #: when closing once what waits is sent: the deadline (monotonic)
         self._out: deque[tuple[memoryview, bool]] = deque()  # parts, and whether each ends a message
         self._waiting = 0  # messages not wholly handed to the kernel
@@ -71,6 +72,11 @@ class Connection:
     def idle(self) -> bool:
         """Nothing waits to be sent, and every message sent was acknowledged (tcp)."""
         return self._waiting == 0 and (not self.acks or self.inbound or self.acked >= self.sent)
+
+    @property
+    def sending(self) -> bool:
+        """Bytes wait for room in the socket."""
+        return bool(self._out)
 
     @property
     def text(self) -> bool:

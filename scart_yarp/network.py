@@ -322,7 +322,7 @@ class Network:
     def watch_write(self, conn: Connection) -> None:
         """``conn`` has bytes waiting for room: the io thread sends them when it has."""
         def want() -> None:
-            if not conn.closed and conn.sock.fileno() in self._conns:
+            if not conn.closed and not conn.paused and conn.sock.fileno() in self._conns:
                 self._events(conn, selectors.EVENT_READ | selectors.EVENT_WRITE)
         self._call(want)
 
@@ -349,6 +349,9 @@ class Network:
                 self._sel.unregister(conn.sock)
             except (KeyError, ValueError):
                 pass
+        if conn.held:
+            conn.port.counters["dropped"] += len(conn.held)  # held back, and its writer went: not delivered
+            conn.held.clear()
         conn.close()
         conn.port.forget(conn)
         if why:
@@ -484,7 +487,31 @@ class Network:
         for frame in frames:
             if conn.closed:
                 return
-            port.handle(conn, frame)
+            if conn.held or not port.handle(conn, frame):
+                conn.held.append(frame)  # in order: once one is held, the later ones wait behind it
+        if conn.held and not conn.paused:
+            self._pause(conn)
+
+    def _pause(self, conn: Connection) -> None:
+        """Stop reading ``conn``: its writer waits (its socket fills, or its acknowledgement does not come)."""
+        conn.paused = True
+        try:
+            self._sel.unregister(conn.sock)
+        except (KeyError, ValueError):
+            pass
+
+    def resume(self, port: Port) -> None:
+        """Hand ``port``'s held messages over again, and read their connections again once
+        none is left (thread-safe: done in the io thread)."""
+        def again() -> None:
+            for conn in [c for c in self._conns.values() if c.port is port and c.paused and not c.closed]:
+                while conn.held and port.handle(conn, conn.held[0]):
+                    conn.held.popleft()
+                if not conn.held:
+                    conn.paused = False
+                    events = selectors.EVENT_READ | (selectors.EVENT_WRITE if conn.sending else 0)
+                    self._sel.register(conn.sock, events, conn)
+        self._call(again)
 
     # ---- the end ------------------------------------------------------------------------
     def close(self) -> None:

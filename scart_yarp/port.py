@@ -77,7 +77,8 @@ class Incoming:
 
 class Port:
     """A YARP port of ``network`` (see the module docstring). ``reader(Incoming)`` is
-    called in the io thread for each data message (keep it short); ``responder(values)
+    called in the io thread for each data message (keep it short; returning False holds
+    the message back until :meth:`resume`); ``responder(values)
     -> values`` answers requests in the port's own thread (an RPC port). Thread-safe."""
 
     def __init__(self, network: Network, name: str, listener: socket.socket, *,
@@ -261,28 +262,36 @@ class Port:
         self.last_problem = text
         log.warning("YARP port %s: %s", self.name, text)
 
+    def resume(self) -> None:
+        """The owner has room again: what was held back is handed over (in order) and the
+        held connections are read again (thread-safe; see :meth:`handle`)."""
+        self.network.resume(self)
+
     # ---- what comes in (io thread) ------------------------------------------------------
-    def handle(self, conn: Connection, frame: Frame) -> None:
-        """One message from ``conn``."""
+    def handle(self, conn: Connection, frame: Frame) -> bool:
+        """One message from ``conn``; False when the owner's ``reader`` returned False
+        (no room now): the message is then held, unacknowledged, and the connection is
+        not read until :meth:`resume` — so a writer waiting for its acknowledgement waits
+        for the reader (YARP's flow control)."""
         key = frame.key
         if key in "dD" and self.responder is not None:
             self.network.request(self, conn, frame)
-            return
+            return True
         if key in "dD":
-            conn.received += 1
             if self.reader is not None:
                 try:
-                    self.reader(Incoming(conn.peer, frame.payload, self.limits.bottle))
+                    if self.reader(Incoming(conn.peer, frame.payload, self.limits.bottle)) is False:
+                        return False
                 except Exception as exc:  # noqa: BLE001 - the owner's failure never ends the connection
                     self.counters["reader_errors"] += 1
                     self.say(f"its reader failed: {type(exc).__name__}: {exc}"[:300])
+            conn.received += 1
             conn.ack()
-        elif key == "a":
-            self.network.admin(self, conn, frame)
         elif key == "q":
             self.network.drop(conn, "")
         else:
             self.network.admin(self, conn, frame)
+        return True
 
     def answer(self, conn: Connection, reply: list[Any] | None, frame: Frame) -> None:
         """Send ``reply`` (or nothing) for ``frame`` back on ``conn``, then its acknowledgement."""

@@ -518,6 +518,9 @@ class ReaderEnd:
         self.port = port
         #: Its channel's policy, when a transport needs it (a ROS 2 stream's QoS depth).
         self.policy = policy
+        #: Its channel's storage, when a transport holds writers back until it has room
+        #: (flow control: ``has_room()``, ``on_room(callback)``; see :mod:`dataflow.buffers`).
+        self.storage: Any = None
         self.init = init  #: its policy hands a new connection the last value written
         self.seen = time.monotonic()  #: when its transport last heard from the writer (any byte)
         self._check = check

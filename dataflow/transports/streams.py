@@ -46,6 +46,7 @@ class PortStream:
             self._connection = conn = port.open_channel(policy, peer=f"{policy.transport}:{policy.topic}")
             self.reader = ReaderEnd(label, port_check(port), conn.store,
                                     lambda: conn.dropped, port=port, policy=policy)
+            self.reader.storage = conn.storage
             end: Any = self.reader
         else:
             self.writer = end = WriterEnd(port, policy, label)

@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from dataflow.policy import ConnType
+from dataflow.policy import ConnPolicy, ConnType, WaitMode
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
@@ -185,14 +185,18 @@ def _peers(options: dict[str, str]) -> list[str]:
 
 class _Carrier:
     """A writer end's carrier onto a YARP port: each sample converted and encoded once,
-    written to every reader without blocking (a reader that is behind drops it: counted).
-    A value that does not convert is refused and counted here."""
+    written to every reader (a reader that is behind drops it: counted). The policy's
+    ``wait`` (YARP's flow control) makes the writer wait, ≤ ``wait_timeout`` s, until
+    every reader acknowledged the sample before (``WAIT_BEFORE``) or this one
+    (``WAIT_AFTER``); without it, it never waits. A value that does not convert is
+    refused and counted here, as is one whose wait timed out."""
 
-    def __init__(self, port: Port, conv: Conversion, label: str) -> None:
+    def __init__(self, port: Port, conv: Conversion, label: str, policy: ConnPolicy) -> None:
         from scart_yarp import bottle
 
         self._port = port
         self._label = label
+        self._wait, self._timeout = policy.wait, policy.wait_timeout
         to_bottle, encode = conv.to_bottle, bottle.encode
         self.refused = 0
         self.refusal = ""
@@ -212,13 +216,22 @@ class _Carrier:
         try:
             data = sample.encoded(self._encode)
         except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
-            self.refused += 1
-            self.refusal = f"sample {sample.n}: {type(exc).__name__}: {exc}"[:300]
-            if self.refused == 1:
-                log.warning("%s: a sample refused: %s", self._label, self.refusal)
+            self._refuse(sample, f"{type(exc).__name__}: {exc}")
             return True
-        self._port.write(binary=data)
+        port = self._port
+        if self._wait is WaitMode.WAIT_BEFORE and not port.wait_sent(self._timeout):
+            self._refuse(sample, f"no reader had room within {self._timeout:g} s (wait-before)")
+            return True
+        port.write(binary=data)
+        if self._wait is WaitMode.WAIT_AFTER and not port.wait_sent(self._timeout):
+            self._refuse(sample, f"not every reader took it within {self._timeout:g} s (wait-after)")
         return True
+
+    def _refuse(self, sample: OutSample, why: str) -> None:
+        self.refused += 1
+        self.refusal = f"sample {sample.n}: {why}"[:300]
+        if self.refused == 1:
+            log.warning("%s: a sample refused: %s", self._label, self.refusal)
 
 
 class _PortStream(Stream):
@@ -238,11 +251,14 @@ class _PortStream(Stream):
         if isinstance(end, WriterEnd):
             queue = 1 if end.policy.type is ConnType.DATA else max(1, min(end.policy.size, MAX_QUEUE))
             self._port = network.open_port(topic, queue=queue, connect=connect)
-            self._carrier = _Carrier(self._port, conv, end.label)
+            self._carrier = _Carrier(self._port, conv, end.label, end.policy)
             end.connected("yarp", self._carrier, new_peer=True)
         else:
             end.transport = "yarp"
-            self._port = network.open_port(topic, reader=_receiver(end, conv), connect=connect)
+            storage = end.storage
+            self._port = network.open_port(topic, reader=_receiver(end, conv, storage), connect=connect)
+            if storage is not None and end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT:
+                storage.on_room(self._port.resume)  # a read made room: what was held back comes in
 
     @property
     def waiting(self) -> str:
@@ -273,23 +289,29 @@ class _PortStream(Stream):
         self._transport.release(self._network)
 
 
-def _receiver(end: ReaderEnd, conv: Conversion) -> Any:
+def _receiver(end: ReaderEnd, conv: Conversion, storage: Any) -> Any:
     """What the YARP port calls (io thread) with each bottle: decoded, converted, handed
-    to ``end`` numbered; a bottle that is malformed or does not fit is refused there."""
+    to ``end`` numbered; a bottle that is malformed or does not fit is refused there. With
+    a policy that makes writers wait, a bottle that finds the buffer full is held back
+    (False: YARP's writer then waits for its acknowledgement) until a read makes room."""
     from scart_yarp import BottleError
 
     from .convert import Unfit
 
     from_bottle = conv.from_bottle
     count = [0]
+    holds = end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT and storage is not None
 
-    def on_message(msg: Incoming) -> None:
+    def on_message(msg: Incoming) -> bool:
+        if holds and not storage.has_room():
+            return False
         try:
             value = from_bottle(msg.values())
         except (BottleError, Unfit) as exc:
             end.refuse(f"a bottle from {msg.source} that does not fit: {exc}")
-            return
+            return True
         count[0] += 1
         end.receive(count[0], time.time_ns(), value)
+        return True
 
     return on_message

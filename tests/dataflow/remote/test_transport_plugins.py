@@ -158,9 +158,10 @@ def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> N
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr
     lines = dict(line.split(" ", 1) for line in result.stdout.splitlines())
-    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "faulty", "ros1", "ros2", "tap", "zenoh"]  # Not-A-Name ignored
+    assert lines["names"].split() == ["auto", "ipc", "shm", "grpc", "broken", "faulty", "ros1", "ros2", "tap", "yarp",
+                                      "zenoh"]  # Not-A-Name ignored
     assert "transport entry point 'Not-A-Name'" in result.stderr and "a lower-case word" in result.stderr
-    assert "must be auto, ipc, shm, grpc, broken, faulty, ros1, ros2, tap or zenoh" in lines["long:"]
+    assert "must be auto, ipc, shm, grpc, broken, faulty, ros1, ros2, tap, yarp or zenoh" in lines["long:"]
     # the broken plug-in is named with its entry point and what failed
     assert "'broken'" in lines["broken:"] and "scart_no_such_module:Transport" in lines["broken:"]
     assert "ModuleNotFoundError" in lines["broken:"]

@@ -6,6 +6,8 @@ of the port's bounds) — never passed on half-decoded."""
 from __future__ import annotations
 
 import re
+import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -14,7 +16,8 @@ from support import wait_until
 from support.yarp import YarpServer, yarpserver
 from support.yarp_tasks import Arm
 
-from dataflow import ConnPolicy, Deployer, PeriodicActivity
+from dataflow import (ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, PeriodicActivity, TaskContext,
+                      WaitMode)
 from dataflow.introspection import LinkDescription
 from dataflow.transports import TransportError, load
 
@@ -122,3 +125,68 @@ def test_a_stream_that_cannot_be_made_says_why(arm: Arm) -> None:
     problems = transport.check_stream(Arm.out, "no slash", {"colour": "red"})
     assert [p.message.split(":")[0] for p in problems] == ["yarp", "yarp"]
     assert "unknown option(s) colour" in problems[0].message and "port name 'no slash'" in problems[1].message
+
+
+class Flow(TaskContext):
+    """A writer's port and a reader's, streamed to each other over YARP (no activity: the
+    test writes and reads them)."""
+
+    out = OutputPort(int)
+    inp = InputPort(int)
+
+
+@pytest.mark.parametrize("wait", [WaitMode.WAIT_BEFORE, WaitMode.WAIT_AFTER])
+def test_over_yarp_a_waiting_writer_and_a_single_buffer_lose_nothing(yarp: YarpServer, wait: WaitMode) -> None:
+    """Figure 2 across YARP's TCP: the slow reader's full buffer holds its YARP port's
+    acknowledgement back, the writer waits for it, and every sample arrives."""
+    got, read_when_written = _figure2(yarp, ConnPolicy.single_buffer(wait).with_(wait_timeout=10.0))
+    assert got == list(range(1, 31))
+    assert read_when_written >= 27  # the writer was held to the reader's pace
+
+
+def test_over_yarp_a_no_wait_writer_never_waits_and_the_reader_counts_its_losses(yarp: YarpServer) -> None:
+    got, read_when_written = _figure2(yarp, ConnPolicy.single_buffer())
+    assert read_when_written < 15 and got and len(got) < 30 and got == sorted(got)
+
+
+def _figure2(yarp: YarpServer, policy: ConnPolicy, n: int = 30) -> tuple[list[int], int]:
+    dep = Deployer()
+    task = dep.add(Flow("flow"))
+    dep.configure_all()
+    dep.start_all()
+    got: list[int] = []
+    try:
+        sink = dep.stream("flow.inp", policy.with_(transport="yarp", topic="/flow/in"), {"server": yarp.address})
+        dep.stream("flow.out", policy.with_(transport="yarp", topic="/flow/out"),
+                   {"server": yarp.address, "connect": "/flow/in"})
+        wait_until(lambda: "/flow/in" in yarp.tool("ping", "/flow/out").stdout, timeout=15)
+        reader = threading.Thread(target=_slow_reader, args=(task.inp, got, n))
+        reader.start()
+        for value in range(1, n + 1):
+            task.out.write(value)
+        read_when_written = len(got)
+        reader.join(30)
+        link = next(lk for lk in dep.links() if lk.name == sink.name)
+        assert link.samples - len(got) == link.dropped or not got  # what it did not get is counted
+        return got, read_when_written
+    finally:
+        for name in list(dep.streams()):
+            dep.unstream(name)
+        dep.stop_all()
+        dep.cleanup_all()
+
+
+def _slow_reader(port: InputPort[int], got: list[int], n: int) -> None:
+    deadline = time.monotonic() + 20
+    quiet = 0
+    while time.monotonic() < deadline and quiet < 400:  # bounded: 20 s, or 0.4 s with nothing new
+        flow, value = port.read()
+        if flow is FlowStatus.NEW_DATA:
+            got.append(value)
+            quiet = 0
+            if value == n:
+                return
+            time.sleep(0.004)  # the slow observer's work per sample
+        else:
+            quiet += 1
+            time.sleep(0.001)
