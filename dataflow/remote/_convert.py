@@ -9,7 +9,8 @@ from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
 
-from dataflow.policy import MAX_BUFFER, MAX_TOPIC, BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WriteStatus
+from dataflow.policy import (MAX_BUFFER, MAX_TOPIC, BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WaitMode,
+                             WriteStatus)
 from dataflow.remote._proto import df as pb
 from dataflow.transports import MAX_NAME
 
@@ -22,7 +23,12 @@ _CONN_FROM_MSG = MappingProxyType({v: k for k, v in _CONN_TO_MSG.items()})
 
 
 def policy_to_msg(policy: ConnPolicy) -> Any:
-    """ConnPolicy → ``scart.dataflow.v1.ConnPolicy``."""
+    """ConnPolicy → ``scart.dataflow.v1.ConnPolicy``. Raises ``ValueError`` for a writer
+    that waits (:class:`~dataflow.policy.WaitMode`): the control plane's channels carry
+    no-wait writers, and a wait is said, never dropped on the way."""
+    if policy.wait is not WaitMode.NO_WAIT:
+        raise ValueError(f"policy {policy}: a writer that waits holds back only a reader in its own process, or one "
+                         "on the yarp transport; channels between deployers carry no-wait writers")
     return pb.ConnPolicy(
         type=_CONN_TO_MSG[policy.type],
         size=policy.size,

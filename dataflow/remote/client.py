@@ -371,6 +371,7 @@ class GrpcComponentProxy(ComponentProxy):
         period: float | None = None,
         on_gap: Callable[[GapEvent], None] | None = None,
     ) -> GrpcSubscription:
+        cv.policy_to_msg(policy)  # raises now for a policy no channel carries (a waiting writer)
         self.read_sample(port)  # raises now for an unknown port or an input port
         with self._lock:
             self._seen.pop(port, None)

@@ -30,7 +30,7 @@ from grpc_health.v1 import health_pb2
 from dataflow.deployer import Deployer, same_policy
 from dataflow.errors import CONNECT_DIRECTION, CONNECT_TYPE, DeploymentError, NotFoundError, PortTypeError
 from dataflow.introspection import LinkDescription
-from dataflow.policy import ConnPolicy
+from dataflow.policy import ConnPolicy, WaitMode
 from dataflow.remote import errors
 from scart_wire import rpc
 from dataflow.remote._links import SETTLE_S, LinkKeeper, RemoteLink
@@ -282,6 +282,10 @@ class DeployerServer:
             return True, self.address, note, self.deployer.find_link(self.deployer.link_name(source, sink))
         if name is not None:
             self.deployer.check_link_name(source, sink, name)
+        if policy.wait is not WaitMode.NO_WAIT:  # said, never dropped on the way
+            raise ValueError(f"link {source} -> {sink}: a writer that waits ({policy.wait.value}) holds back only "
+                             "a reader in this process, or one on the yarp transport (a stream); links between "
+                             "deployers carry no-wait writers")
         try:
             address = self.resolve(sink_task)
         except NotFoundError:
