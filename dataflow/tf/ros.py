@@ -129,6 +129,8 @@ class Ros1Frames(RosFrames):
 
     origin = "ros1"
     TYPE = "tf2_msgs/TFMessage"
+    #: tf2_msgs/TFMessage.msg, which rosbags' Noetic store lacks (its md5sum is ROS's: 94810edd...)
+    DEFINITION = "geometry_msgs/TransformStamped[] transforms\n"
 
     def __init__(self, buffer: FrameBuffer, options: Mapping[str, str] | None = None) -> None:
         super().__init__(buffer)
@@ -139,6 +141,8 @@ class Ros1Frames(RosFrames):
         self.node = transport.acquire(dict(options or {}))
         self._parts: list[Any] = []
         try:
+            if self.TYPE not in self.node.types.names():
+                self.node.types.add_msg(self.TYPE, self.DEFINITION)
             self._pub = self.node.advertise(TF, self.TYPE, queue_size=_DEPTH)
             self._parts.append(self._pub)
             self._static_pub = self.node.advertise(TF_STATIC, self.TYPE, latch=True, queue_size=1)
