@@ -8,63 +8,21 @@ too; and refuse, count and say once what tf2 is sent that a tree should not hold
 
 from __future__ import annotations
 
-import functools
-import json
 import logging
-import subprocess
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from support import TESTS, wait_until
-from support.ros1 import SYSTEM_PYTHON, Proc, RosMaster, has_rospy, needs_ros, rosmaster
+from support import wait_until
+from support.ros1 import needs_ros, rosmaster
+from support.tf2 import Peer, require_tf2
 
 from dataflow.tf import ConnectivityError, ExtrapolationError, FrameBuffer, Transform, TransformError
 from dataflow.tf.ros import Ros1Frames
 
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess, needs_ros]
 
-PEER = TESTS / "dataflow" / "tf2_peer.py"
-APT = "apt-get install python3-tf2-ros python3-tf2-msgs"
 TOLERANCE = 1e-9
-
-
-@functools.cache
-def has_tf2() -> bool:
-    if not has_rospy():
-        return False
-    probe = subprocess.run([SYSTEM_PYTHON, "-c", "import tf2_ros, tf2_msgs.msg"], capture_output=True, timeout=60)
-    return probe.returncode == 0
-
-
-def require_tf2() -> None:
-    if not has_tf2():
-        pytest.skip(f"Debian's tf2_ros is not installed for {SYSTEM_PYTHON} (CI: {APT})")
-
-
-class Peer:
-    """``tf2_peer.py`` in a subprocess: a JSON command per line in, a JSON answer per line out."""
-
-    def __init__(self, ros: RosMaster, *args: str) -> None:
-        self.proc = Proc(subprocess.Popen([SYSTEM_PYTHON, str(PEER), *args], env=ros.env, stdin=subprocess.PIPE,
-                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0,
-                                          start_new_session=True))
-        self.lines = 0
-
-    def next(self, timeout: float = 30.0) -> dict[str, Any]:
-        self.lines += 1
-        text = self.proc.read_until("\n", timeout=timeout, count=self.lines)
-        return json.loads(text.splitlines()[self.lines - 1])
-
-    def ask(self, **command: Any) -> dict[str, Any]:
-        assert self.proc.proc.stdin is not None
-        self.proc.proc.stdin.write((json.dumps(command) + "\n").encode())
-        return self.next()
-
-    def stop(self) -> None:
-        if self.proc.proc.stdin is not None:
-            self.proc.proc.stdin.close()
-        self.proc.stop()
 
 
 @pytest.fixture(scope="module")
