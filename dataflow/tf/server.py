@@ -118,7 +118,7 @@ class FrameServer(TaskContext):
     def _on_publish(self, transforms: list[Transform], static: bool, origin: str) -> None:
         if static:
             self._write_statics()
-        elif self.tf.connection_count():
+        elif self.tf.connected() or self.tf._fanout is not None:  # a connection, or channel ends (other processes)
             self.tf.write(message_of(transforms))
 
     def _write_statics(self) -> None:
