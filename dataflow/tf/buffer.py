@@ -171,7 +171,7 @@ class FrameBuffer:
         with self._lock:
             for transform in batch:
                 try:
-                    parent, child, values = _checked(transform)
+                    parent, child, values = _checked(transform, self._frames)
                     if self._insert(parent, child, transform.stamp_ns, values, static, authority):
                         stored.append(transform)
                 except TransformError as exc:
@@ -434,32 +434,37 @@ class FrameBuffer:
             self._paths.clear()
 
 
-def _checked(transform: Transform) -> tuple[str, str, Values]:
-    """Names (a leading ``/`` dropped, as tf2) and values of ``transform``, the rotation
-    normalised; raises :class:`FrameTreeError` or :class:`TransformValueError`."""
-    if not isinstance(transform, Transform):
+def _checked(transform: Transform, known: dict[str, Frame]) -> tuple[str, str, Values]:
+    """Names (a leading ``/`` dropped, as tf2) and values of ``transform``, a rotation
+    further than 1e-12 from unit normalised; raises :class:`FrameTreeError` or
+    :class:`TransformValueError`. A name ``known`` was checked when its frame was made."""
+    if type(transform) is not Transform and not isinstance(transform, Transform):
         raise TransformValueError(f"{transform!r:.80}: a dataflow.tf.Transform")
-    parent, child = _strip(transform.frame_id), _strip(transform.child_frame_id)
-    for what, name in (("frame_id", parent), ("child_frame_id", child)):
-        if not _NAME.fullmatch(name):
-            raise FrameTreeError(f"{what} {name[:80]!r}: a frame name (1 to {MAX_NAME} characters, no space, not "
-                                 "only '/')")
+    parent, child = transform.frame_id, transform.child_frame_id
+    if child not in known or parent[:1] == "/" or child[:1] == "/":
+        parent, child = _strip(parent), _strip(child)
+        for what, name in (("frame_id", parent), ("child_frame_id", child)):
+            if not _NAME.fullmatch(name):
+                raise FrameTreeError(f"{what} {name[:80]!r}: a frame name (1 to {MAX_NAME} characters, no space, "
+                                     "not only '/')")
     if parent == child:
         raise FrameTreeError(f"frame {child!r} cannot be its own parent")
     try:
-        tx, ty, tz = (float(v) for v in transform.translation)
-        qx, qy, qz, qw = (float(v) for v in transform.rotation)
+        tx, ty, tz = map(float, transform.translation)
+        qx, qy, qz, qw = map(float, transform.rotation)
     except (TypeError, ValueError):
         raise TransformValueError(f"frame {child!r}: translation (x, y, z) and rotation (x, y, z, w) are numbers, "
                                   f"not {transform.translation!r:.60} and {transform.rotation!r:.60}") from None
-    if not all(map(math.isfinite, (tx, ty, tz, qx, qy, qz, qw))):
+    if not math.isfinite(tx + ty + tz + qx + qy + qz + qw) and not all(  # the sum: one test when all is well
+            map(math.isfinite, (tx, ty, tz, qx, qy, qz, qw))):
         raise TransformValueError(f"frame {child!r} (parent {parent!r}): a number is not finite: translation "
                                   f"{(tx, ty, tz)}, rotation {(qx, qy, qz, qw)}")
     norm2 = qx * qx + qy * qy + qz * qz + qw * qw
-    if abs(norm2 - 1.0) >= QUATERNION_TOLERANCE:
+    off = abs(norm2 - 1.0)
+    if off >= QUATERNION_TOLERANCE:
         raise TransformValueError(f"frame {child!r} (parent {parent!r}): rotation {(qx, qy, qz, qw)} is not a unit "
                                   f"quaternion (squared norm {norm2:.6g}; tf2's tolerance {QUATERNION_TOLERANCE:g})")
-    if norm2 != 1.0:
+    if off > 1e-12:
         n = math.sqrt(norm2)
         qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
     return parent, child, (tx, ty, tz, qx, qy, qz, qw)
