@@ -74,6 +74,7 @@ class FrameServer(TaskContext):
         self.ros1, self.ros2 = (dict(ros1) if ros1 is not None else None), (dict(ros2) if ros2 is not None else None)
         self._ros: list[RosFrames] = []
         self._unhook: Any = None
+        self.failure = ""  #: why the last start was refused ("" when it was not)
         self.set_activity(PeriodicActivity(period))
         self._prop_values["cache"] = self.buffer.cache_time
 
@@ -82,7 +83,9 @@ class FrameServer(TaskContext):
         return True
 
     def start_hook(self) -> bool:
-        """Follow the tree on the ports; join the ROS asked for (a failure refuses the start)."""
+        """Follow the tree on the ports; join the ROS asked for (a failure refuses the start,
+        :attr:`failure` says why)."""
+        self.failure = ""
         self.buffer.cache_time = self.cache
         self._unhook = self.buffer.on_publish(self._on_publish)
         self._write_statics()
@@ -93,7 +96,8 @@ class FrameServer(TaskContext):
             if self.ros2 is not None:
                 self._ros.append(Ros2Frames(self.buffer, self.ros2))
         except TransportError as exc:
-            log.error("%s: cannot join ROS's /tf: %s", self.name, exc)
+            self.failure = f"cannot join ROS's /tf: {exc}"
+            log.error("%s: %s", self.name, self.failure)
             self.stop_hook()
             return False
         return True

@@ -32,6 +32,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from dataflow import DataflowError
 from dataflow.tf import FrameServer, Transform, TransformError
@@ -151,6 +152,29 @@ def _tree_problems(statics: list[tuple[Element, Transform]]) -> list[tuple[Eleme
     return out
 
 
+def _ros_problems(spec: Frames) -> list[str]:
+    """What the ROS options would be refused for when the tree joins ROS (no network)."""
+    from dataflow.transports import TransportError, load
+
+    out = []
+    for name, options in (("ros1", spec.ros1), ("ros2", spec.ros2)):
+        if options is None:
+            continue
+        try:
+            transport: Any = load(name)
+            if name == "ros1":
+                transport.node_settings(options)
+            else:
+                import cyclonedds  # noqa: F401 - ROS 2 needs it: say so at load
+
+                transport.where(options)
+        except ImportError:
+            out.append("<scart:frames> ros2=\"true\" needs Cyclone DDS: pip install 'scart[ros2]'")
+        except (TransportError, ValueError, AttributeError) as exc:
+            out.append(f"<scart:frames> {name}: {exc}")
+    return out
+
+
 class FramesElement(ElementProvider):
     """The ``scart:frames`` composite element (see the module docstring)."""
 
@@ -160,7 +184,9 @@ class FramesElement(ElementProvider):
               context: CheckContext) -> list[Problem]:
         out: list[Problem] = []
         for prefix, el in elements:
-            _, problems = _parse(prefix, el)
+            found, problems = _parse(prefix, el)
+            if found is not None:
+                problems = [(el, msg) for msg in _ros_problems(found)]
             out += [Problem(FRAMES_CODE, msg, at.loc.path, at.loc.line) for at, msg in problems]
         for _, el in elements[1:]:
             first = elements[0][1]
@@ -199,9 +225,9 @@ class FramesParticipant(Participant):
         deployer.add(task)
         self.task = task
         if not (task.configure() and task.start()):
+            why = task.failure or f"it is {task.state.name}"
             self.stop()
-            raise DataflowError(f"frames ({spec.where}): the frame tree's task {task.name} did not start "
-                                "(see the log: ROS could not be joined?)")
+            raise DataflowError(f"frames ({spec.where}): the frame tree's task {task.name} did not start: {why}")
         dataflow_host.start()
         dataflow_host.refresh()
         log.info("frames: tree served as %s (%g s kept%s)", task.name, spec.cache,

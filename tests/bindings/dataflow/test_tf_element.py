@@ -84,6 +84,8 @@ def test_tasks_publish_and_read_through_the_composites_tree(tmp_path: Path) -> N
     ('<scart:frames ros1="maybe"/>', "@ros1 'maybe' is not a valid boolean", 0),  # the schema's words, SCART-X003
     ('<scart:frames color="red"/>', "unknown attribute(s) color", 0),
     ('<scart:frames/><scart:frames/>', "one per process", 0),
+    ('<scart:frames ros1="true" master="ftp://robot"/>', "ros1: ROS master URI 'ftp://robot' is not http://", 0),
+    ('<scart:frames ros2="true" domain="999"/>', "ros2: option domain='999': an integer 0..232", 0),
     ('<scart:frames>|<scart:frame parent="a" child="b" xyz="1 2"/></scart:frames>', "xyz='1 2': 3 finite numbers", 1),
     ('<scart:frames>|<scart:frame parent="a" child="b" rpy="0 nan 0"/></scart:frames>', "rpy='0 nan 0'", 1),
     ('<scart:frames>|<scart:frame parent="a" child="b" quaternion="0 0 0 2"/></scart:frames>',
@@ -92,7 +94,7 @@ def test_tasks_publish_and_read_through_the_composites_tree(tmp_path: Path) -> N
      "'b' has the parent 'a'", 2),
     ('<scart:frames>|<scart:frame parent="a" child="b"/>|<scart:frame parent="b" child="a"/></scart:frames>',
      "would close a cycle", 2),
-], ids=["cache", "flag", "attribute", "two", "xyz", "nan", "quaternion", "second-parent", "cycle"])
+], ids=["cache", "flag", "attribute", "two", "master", "domain", "xyz", "nan", "quaternion", "second-parent", "cycle"])
 def test_what_cannot_be_a_tree_is_refused_at_load(tmp_path: Path, capsys: pytest.CaptureFixture[str], element: str,
                                                   words: str, below: int) -> None:
     text = composite(WHEEL + "<!--HERE-->" + element.replace("|", "\n"))
