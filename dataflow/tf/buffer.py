@@ -103,6 +103,13 @@ class _Miss(Exception):
         self.frame = frame
 
 
+def _seconds(value: object) -> float:
+    """A time argument as float seconds (an int too); raises ``TypeError`` for anything else."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"time {value!r:.40}: seconds, a number")
+    return float(value)
+
+
 def _ns(time_s: float) -> int:
     if not math.isfinite(time_s):
         raise TransformValueError(f"time {time_s!r}: a finite number of seconds")
@@ -260,14 +267,14 @@ class FrameBuffer:
     # ---- lookups ------------------------------------------------------------------------
     @overload
     def lookup(self, target: str, source: str, time: float = 0.0, /, *, extrapolate: float = 0.0,
-               timeout: float = 0.0, time_ns: int | None = None) -> Transform: ...
+               timeout: float = 0.0, time_ns: int | None = None) -> Transform: ...  # noqa: E704
 
     @overload
     def lookup(self, target: str, target_time: float, source: str, source_time: float, fixed: str, /, *,
                extrapolate: float = 0.0, timeout: float = 0.0) -> Transform: ...
 
-    def lookup(self, target: str, *args: float | str, extrapolate: float = 0.0, timeout: float = 0.0,
-               time_ns: int | None = None) -> Transform:
+    def lookup(self, target: str, source: str | float, time: float | str = 0.0, /, *rest: float | str,
+               extrapolate: float = 0.0, timeout: float = 0.0, time_ns: int | None = None) -> Transform:
         """The pose of ``source`` in ``target`` at ``time`` (s; 0: the newest time the whole
         path has), or ``time_ns`` (exact nanoseconds); tf2's ``lookupTransform``.
 
@@ -279,24 +286,36 @@ class FrameBuffer:
         never). ``timeout``: seconds to wait for the transforms to arrive (0: answer now).
         Raises :class:`UnknownFrameError`, :class:`ConnectivityError`,
         :class:`ExtrapolationError` (after the timeout, the last of them)."""
-        if len(args) == 2 and not timeout and not extrapolate and time_ns is None:
-            try:  # the hot case first: one time, no waiting, no extrapolation
-                return self._lookup(target, args[0], round(args[1] * 1e9), 0)  # type: ignore[arg-type, operator]  # checked below when wrong
-            except (TypeError, ValueError, OverflowError) as exc:
-                if isinstance(exc, TransformError):
-                    raise
+        if not (rest or timeout or extrapolate) and time_ns is None and type(time) is float:
+            # the hot case, written out: one time, no waiting, no extrapolation (what _lookup does)
+            try:
+                t = round(time * 1e9)
+            except (ValueError, OverflowError):  # NaN, infinite
+                t = _ns(time)
+            with self._lock:
+                path = self._paths.get((target, source))  # type: ignore[arg-type]  # a float source finds none
+                if path is not None:
+                    if t == 0 and path.dynamic:
+                        t = min(f.stamps[-1] for f in path.dynamic)
+                    try:
+                        s = _walk(path.source, t, 0)
+                        g = _walk(path.target, t, 0) if path.target else None
+                    except _Miss as miss:
+                        raise self._extrapolation(path.target_name, path.source_name, t, 0, miss.frame) from None
+                    return _combine(path.target_name, path.source_name, t, s, g)
         ext = _ns(extrapolate)
         if ext < 0:
             raise ValueError(f"extrapolate={extrapolate!r}: seconds, 0 or more")
-        if len(args) == 4:
-            target_time, source, source_time, fixed = args
-            tt, ts = _ns(float(target_time)), _ns(float(source_time))
-            return self._waiting_for(timeout, lambda: self._travel(target, tt, str(source), ts, str(fixed), ext))
-        if len(args) not in (1, 2) or not isinstance(args[0], str):
+        if len(rest) == 2:  # lookup(target, target_time, source, source_time, fixed)
+            target_time, via, source_time, fixed = source, time, rest[0], rest[1]
+            if not isinstance(via, str) or not isinstance(fixed, str):
+                raise TypeError("lookup(target, target_time, source, source_time, fixed): the frames as str")
+            tt, ts = _ns(_seconds(target_time)), _ns(_seconds(source_time))
+            return self._waiting_for(timeout, lambda: self._travel(target, tt, via, ts, fixed, ext))
+        if rest or not isinstance(source, str) or isinstance(time, str):
             raise TypeError("lookup(target, source, time=0.0) or lookup(target, target_time, source, source_time, "
                             "fixed), the frames as str and the times as float")
-        source = args[0]
-        t = time_ns if time_ns is not None else _ns(float(args[1]) if len(args) == 2 else 0.0)
+        t = time_ns if time_ns is not None else _ns(_seconds(time))
         return self._waiting_for(timeout, lambda: self._lookup(target, source, t, ext))
 
     def can_transform(self, target: str, source: str, time: float = 0.0, *, extrapolate: float = 0.0,
