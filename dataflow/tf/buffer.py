@@ -118,7 +118,7 @@ def _ns(time_s: float) -> int:
 
 def _strip(name: object) -> str:
     if not isinstance(name, str):
-        raise FrameTreeError(f"frame name {name!r}: a string")
+        raise FrameTreeError(f"frame name {name!r}: a string", "bad name")
     return name[1:] if name.startswith("/") else name
 
 
@@ -202,15 +202,15 @@ class FrameBuffer:
             frame = self._new_frame(parent, child, static, authority)
         elif frame.parent != parent:
             raise FrameTreeError(f"frame {child!r} has the parent {frame.parent!r}: a transform giving it the "
-                                 f"parent {parent!r} is refused (one parent per frame)")
+                                 f"parent {parent!r} is refused (one parent per frame)", "second parent")
         if frame.static != static:
             frame.reset(static)
             self._paths.clear()
         outcome = frame.insert(stamp, values, self._keep_ns, self.max_kept)
         if outcome == OLD:
             self._refuse(TransformError(f"frame {child!r} at {seconds(stamp)} s: older than the "
-                                        f"{self.cache_time:g} s kept before its newest, {seconds(frame.stamps[-1])}"),
-                         "old")
+                                        f"{self.cache_time:g} s kept before its newest, {seconds(frame.stamps[-1])}",
+                                        "old"))
             return False
         if outcome == DUPLICATE:
             return False
@@ -219,12 +219,12 @@ class FrameBuffer:
 
     def _new_frame(self, parent: str, child: str, static: bool, authority: str) -> Frame:
         if len(self._frames) >= self.max_frames:
-            raise FrameTreeError(f"frame {child!r}: the tree holds {self.max_frames} frames already")
+            raise FrameTreeError(f"frame {child!r}: the tree holds {self.max_frames} frames already", "full")
         ancestor: str | None = parent
         while ancestor is not None:
             if ancestor == child:
                 raise FrameTreeError(f"frame {child!r} with the parent {parent!r} would close a cycle: "
-                                     f"{child!r} is an ancestor of {parent!r}")
+                                     f"{child!r} is an ancestor of {parent!r}", "cycle")
             up = self._frames.get(ancestor)
             ancestor = up.parent if up is not None else None
         frame = Frame(child, parent, static, authority)
@@ -235,8 +235,8 @@ class FrameBuffer:
         self._paths.clear()
         return frame
 
-    def _refuse(self, exc: TransformError, reason: str | None = None) -> None:
-        reason = reason or _reason(exc)
+    def _refuse(self, exc: TransformError) -> None:
+        reason = exc.reason or "refused"
         self._refused[reason] = self._refused.get(reason, 0) + 1
         if reason not in self._said:
             self._said.add(reason)
@@ -458,48 +458,36 @@ def _checked(transform: Transform, known: dict[str, Frame]) -> tuple[str, str, V
     further than 1e-12 from unit normalised; raises :class:`FrameTreeError` or
     :class:`TransformValueError`. A name ``known`` was checked when its frame was made."""
     if type(transform) is not Transform and not isinstance(transform, Transform):
-        raise TransformValueError(f"{transform!r:.80}: a dataflow.tf.Transform")
+        raise TransformValueError(f"{transform!r:.80}: a dataflow.tf.Transform", "not numbers")
     parent, child = transform.frame_id, transform.child_frame_id
     if child not in known or parent[:1] == "/" or child[:1] == "/":
         parent, child = _strip(parent), _strip(child)
         for what, name in (("frame_id", parent), ("child_frame_id", child)):
             if not _NAME.fullmatch(name):
                 raise FrameTreeError(f"{what} {name[:80]!r}: a frame name (1 to {MAX_NAME} characters, no space, "
-                                     "not only '/')")
+                                     "not only '/')", "bad name")
     if parent == child:
-        raise FrameTreeError(f"frame {child!r} cannot be its own parent")
+        raise FrameTreeError(f"frame {child!r} cannot be its own parent", "bad name")
     try:
         tx, ty, tz = map(float, transform.translation)
         qx, qy, qz, qw = map(float, transform.rotation)
     except (TypeError, ValueError):
         raise TransformValueError(f"frame {child!r}: translation (x, y, z) and rotation (x, y, z, w) are numbers, "
-                                  f"not {transform.translation!r:.60} and {transform.rotation!r:.60}") from None
+                                  f"not {transform.translation!r:.60} and {transform.rotation!r:.60}", "not numbers") from None
     if not math.isfinite(tx + ty + tz + qx + qy + qz + qw) and not all(  # the sum: one test when all is well
             map(math.isfinite, (tx, ty, tz, qx, qy, qz, qw))):
         raise TransformValueError(f"frame {child!r} (parent {parent!r}): a number is not finite: translation "
-                                  f"{(tx, ty, tz)}, rotation {(qx, qy, qz, qw)}")
+                                  f"{(tx, ty, tz)}, rotation {(qx, qy, qz, qw)}", "not finite")
     norm2 = qx * qx + qy * qy + qz * qz + qw * qw
     off = abs(norm2 - 1.0)
     if off >= QUATERNION_TOLERANCE:
         raise TransformValueError(f"frame {child!r} (parent {parent!r}): rotation {(qx, qy, qz, qw)} is not a unit "
-                                  f"quaternion (squared norm {norm2:.6g}; tf2's tolerance {QUATERNION_TOLERANCE:g})")
+                                  f"quaternion (squared norm {norm2:.6g}; tf2's tolerance {QUATERNION_TOLERANCE:g})",
+                                  "not a unit quaternion")
     if off > 1e-12:
         n = math.sqrt(norm2)
         qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
     return parent, child, (tx, ty, tz, qx, qy, qz, qw)
-
-
-def _reason(exc: TransformError) -> str:
-    text = str(exc)
-    if isinstance(exc, TransformValueError):
-        return "not finite" if "not finite" in text else "not a unit quaternion" if "unit" in text else "not numbers"
-    if "cycle" in text:
-        return "cycle"
-    if "one parent" in text:
-        return "second parent"
-    if "holds" in text:
-        return "full"
-    return "bad name"
 
 
 def _call(listener: Listener, stored: list[Transform], static: bool, origin: str) -> None:

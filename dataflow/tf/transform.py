@@ -14,7 +14,13 @@ __all__ = ["ConnectivityError", "ExtrapolationError", "FrameTreeError", "Transfo
 
 
 class TransformError(DataflowError):
-    """Base of what :mod:`dataflow.tf` raises."""
+    """Base of what :mod:`dataflow.tf` raises; ``reason`` names a refusal's kind (``cycle``,
+    ``not finite``...: how :attr:`FrameBuffer.refused <dataflow.tf.FrameBuffer.refused>`
+    counts it)."""
+
+    def __init__(self, message: str, reason: str = "") -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 class UnknownFrameError(TransformError, LookupError):
