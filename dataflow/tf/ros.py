@@ -150,6 +150,9 @@ class Ros1Frames(RosFrames):
             self._parts.append(self.node.subscribe(TF, self.TYPE, lambda m: self._on_message(m, False)))
             self._parts.append(self.node.subscribe(TF_STATIC, self.TYPE, lambda m: self._on_message(m, True)))
             self._start()
+        except (ValueError, RuntimeError) as exc:  # /tf taken in this node already, the node closed
+            self._close()
+            raise TransportError(f"ros1: {exc}") from None
         except BaseException:
             self._close()
             raise

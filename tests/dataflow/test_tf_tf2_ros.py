@@ -19,6 +19,7 @@ from support.tf2 import Peer, require_tf2
 
 from dataflow.tf import ConnectivityError, ExtrapolationError, FrameBuffer, Transform, TransformError
 from dataflow.tf.ros import Ros1Frames
+from dataflow.transports import TransportError
 
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess, needs_ros]
 
@@ -100,6 +101,12 @@ def test_both_refuse_a_time_before_the_first_stamp_and_a_tree_apart(
     assert peer.ask(lookup=["world", "isle", 0])["error"].startswith("ConnectivityException")  # ...apart
     with pytest.raises(ConnectivityError, match="no path joins them"):
         buffer.lookup("world", "isle")
+
+
+def test_a_second_tree_on_the_processs_node_is_refused_saying_why(
+        world: tuple[FrameBuffer, Peer, dict[str, Any]]) -> None:
+    with pytest.raises(TransportError, match="already publishes /tf"):
+        Ros1Frames(FrameBuffer())  # the process's one node has /tf: one tree per process
 
 
 def test_what_a_tree_must_not_hold_is_refused_counted_and_said_once(
