@@ -26,7 +26,7 @@ import threading
 from collections.abc import Iterable
 from importlib.metadata import EntryPoint, entry_points
 from types import MappingProxyType
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from scart_wire.defaults import DEFAULT_LEASE
 from scart_wire.security import Security
@@ -36,6 +36,9 @@ from .introspection import LinkDescription
 from .policy import ConnPolicy
 from .ports import Connection, InputPort, OutputPort
 from .task import TaskContext, TaskState
+
+if TYPE_CHECKING:
+    from .tf.buffer import FrameBuffer
 
 __all__ = ["Deployer", "LINK_NAME", "SERVERS_GROUP", "Server", "ServerFactory", "server_factory"]
 
@@ -114,6 +117,25 @@ class Deployer:
         self._link_names: dict[tuple[str, str], str] = {}  # ("a.out", "b.in") -> name given
         self._link_lock = threading.RLock()  # links are checked, made and named as one step
         self._streams: dict[str, Any] = {}  # name -> a stream (anything with describe() -> LinkDescription)
+        self._frames: FrameBuffer | None = None
+
+    @property
+    def frames(self) -> FrameBuffer:
+        """The frame tree of these tasks (:mod:`dataflow.tf`; ``task.frames`` in each):
+        one per deployer, made on first use. Setting another gives it to every task."""
+        with self._lock:
+            if self._frames is None:
+                from .tf.buffer import FrameBuffer
+
+                self._frames = FrameBuffer()
+            return self._frames
+
+    @frames.setter
+    def frames(self, buffer: FrameBuffer) -> None:
+        with self._lock:
+            self._frames = buffer
+            for task in self._tasks.values():
+                task.frames = buffer
 
     def add(self, task: TaskContext) -> TaskContext:
         """Add ``task``; returns it. Raises ``DeploymentError`` if its name is taken."""
@@ -121,6 +143,7 @@ class Deployer:
             if task.name in self._tasks:
                 raise DeploymentError(f"a task named {task.name!r} is already deployed")
             self._tasks[task.name] = task
+            task._tc_frames_from = lambda: self.frames
         return task
 
     def task(self, name: str) -> TaskContext:

@@ -50,7 +50,7 @@ import logging
 import threading
 from concurrent.futures import Future
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from .activities import Activity, EventActivity
 from .errors import NotFoundError
@@ -64,6 +64,9 @@ from .operations import describe_operation, spec_of
 from .ports import InputPort, OutputPort, Port
 from .properties import BoundProperty, Property
 from scart_wire.types import registry
+
+if TYPE_CHECKING:
+    from .tf.buffer import FrameBuffer
 
 __all__ = ["TaskContext", "TaskState"]
 
@@ -145,6 +148,29 @@ class TaskContext:
             self.add_port(port)
         self._tc_activity: Activity = EventActivity()
         self._tc_activity.task = self
+        self._tc_frames: FrameBuffer | None = None
+        self._tc_frames_from: Callable[[], FrameBuffer] | None = None  # its deployer's, once added
+
+    # -- frames -----------------------------------------------------------------
+    @property
+    def frames(self) -> FrameBuffer:
+        """The frame tree this task reads and publishes through (:mod:`dataflow.tf`):
+        its deployer's, the one of its process (a composite's ``<scart:frames>`` joins it to
+        ROS); a task in no deployer gets one of its own, made on first use. Thread-safe."""
+        frames = self._tc_frames
+        if frames is None:
+            if self._tc_frames_from is not None:
+                frames = self._tc_frames_from()
+            else:
+                from .tf.buffer import FrameBuffer
+
+                frames = FrameBuffer()
+            self._tc_frames = frames
+        return frames
+
+    @frames.setter
+    def frames(self, buffer: FrameBuffer) -> None:
+        self._tc_frames = buffer
 
     # -- state ----------------------------------------------------------------
     @property

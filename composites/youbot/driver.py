@@ -15,6 +15,11 @@ a plausible one:
   ``command_timeout`` s while a set-point is pending) — plus rare random ones (rate
   ``random_error_rate`` per joint per cycle) that last one sample.
 
+Each cycle it also publishes the arm's frames, ``base_link → arm_link_0 … arm_link_5``
+(:mod:`youbot_arm`: the youBot's link lengths and joint axes), in its process's frame
+tree (``self.frames``), stamped with the sample's time; ``<scart:frames ros1="true"/>``
+puts them on ``/tf``.
+
 ``period`` (input port) changes the task's own activity period: a value in
 [``MIN_PERIOD``, ``MAX_PERIOD``] = [0.001, 1] s is accepted, anything else is refused;
 ``accepted_period`` and ``period_status`` (read-only properties: an outside set is refused)
@@ -45,6 +50,7 @@ from dataflow import (
     operation,
 )
 
+from youbot_arm import arm_frames, mount
 from youbot_model import (
     ERROR_BITS,
     JOINT_LIMITS,
@@ -141,6 +147,7 @@ class YouBotDriver(TaskContext):
         if isinstance(act, PeriodicActivity) and act.period != self.accepted_period:
             self._set_status(accepted_period=act.period, period_status=f"accepted {act.period:g} s")
         self._reset_state()
+        self.frames.publish(mount(), static=True, authority=self.name)
         return True
 
     def update_hook(self) -> None:
@@ -152,7 +159,9 @@ class YouBotDriver(TaskContext):
             self._apply_command(cmd)
         self._step(self.accepted_period)
         self._sequence += 1
-        self.status.write(self._sample())
+        now = time.time_ns()
+        self.status.write(self._sample(now / 1e9))
+        self.frames.publish(arm_frames(self._pos, now), authority=self.name)
 
     # -- simulation -------------------------------------------------------------
     def _set_status(self, **values: object) -> None:
@@ -237,7 +246,7 @@ class YouBotDriver(TaskContext):
                 flags |= BIT[rng.choice(RANDOM_BITS)]
             self._flags[j] = flags
 
-    def _sample(self) -> YouBotStatus:
+    def _sample(self, timestamp: float) -> YouBotStatus:
         joints = [
             JointStatus.model_construct(
                 position=self._pos[j],
@@ -250,7 +259,7 @@ class YouBotDriver(TaskContext):
             for j in range(N_JOINTS)
         ]
         return YouBotStatus.model_construct(
-            joints=joints, timestamp=time.time(), sequence=self._sequence
+            joints=joints, timestamp=timestamp, sequence=self._sequence
         )
 
     @property

@@ -10,7 +10,9 @@ call Locomotor.move_to_pose``, another component): each new one the Locomotor re
 (``last_move``) shows ``busy``, then ``idle`` and ``reached`` (or why not). A small owned thread (~2 Hz) keeps the driver info (state,
 period, connection) up to date. Where its ``bridge`` reference is wired (``youbot.composite``:
 a ``binding.dataflow`` to the ``armSummary`` bridge), each refresh also reads the newest
-``ArmSummary`` and shows it.
+``ArmSummary`` and shows it; where its ``gripper`` reference is wired (a ``binding.dataflow``
+to the ``gripper`` task of :mod:`youbot_arm`, which reads the frame tree), where the gripper
+is in ``base_link``.
 
 At start it prints ``youBot Monitor: http://HOST:PORT/`` on stdout (flushed). With
 ``control_token`` true, a fresh random token is made at each start and the printed URL
@@ -34,9 +36,10 @@ import scart
 from arm_summary import ArmSummaryReader
 from interfaces import Moving, RetrievingStatus, SettingPeriod
 from monitor import MonitorServer
+from youbot_arm import GripperPosition
 from youbot_model import ERROR_BITS, JOINT_LIMITS
 
-__all__ = ["YouBotMonitor", "MonitorStatistics"]
+__all__ = ["GripperReader", "YouBotMonitor", "MonitorStatistics"]
 
 log = logging.getLogger("youbot.monitor")
 
@@ -49,6 +52,13 @@ class MonitorStatistics(Protocol):
         """{"url", "published", "refreshes", "latencies": [s, ...] (newest ≤ 20000),
         "first_sequence", "last_sequence", "events": [[name, detail], ...]}."""
         ...
+
+
+@scart.interface
+class GripperReader(Protocol):
+    """The newest sample of the gripper task's ``position`` port (binding.dataflow reference)."""
+
+    def position(self) -> GripperPosition | None: ...
 
 
 @scart.component(services=[MonitorStatistics])
@@ -64,6 +74,7 @@ class YouBotMonitor:
     period: SettingPeriod = scart.reference()
     locomotor: Moving = scart.reference()
     bridge: ArmSummaryReader | None = scart.reference(required=False)
+    gripper: GripperReader | None = scart.reference(required=False)
     context: scart.ComponentContext = scart.context()
 
     @scart.init
@@ -153,6 +164,7 @@ class YouBotMonitor:
         if event == "refresh":
             self.refreshes += 1
             self._read_summary()
+            self._read_gripper()
             self._publish_newest(self.status.get_joints_status())
             self.server.publish_event("refresh")
             self._watch_moves()
@@ -257,6 +269,18 @@ class YouBotMonitor:
             return
         if value is not None:
             self.server.set_summary(value.model_dump())
+
+    def _read_gripper(self) -> None:
+        """Where the gripper is in base_link, to the page (carried with the next status)."""
+        if self.gripper is None:
+            return
+        try:
+            value = self.gripper.position()
+        except Exception as exc:  # noqa: BLE001 - the task not there (yet): nothing to show
+            log.debug("gripper: %s", exc)
+            return
+        if value is not None:
+            self.server.set_gripper(value.model_dump())
 
     def _refresh_info(self) -> None:
         try:

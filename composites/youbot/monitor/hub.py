@@ -64,6 +64,7 @@ class StatusHub:
         self._closed = False
         self._status: dict[str, object] | None = None
         self._summary: dict[str, Any] | None = None  # the demo bridge's newest ArmSummary
+        self._gripper: dict[str, Any] | None = None  # the gripper in base_link, from the frame tree
         self._status_json = "null"
         self._status_json_of = 0  # the sample count that _status_json encodes
         self._received_at: float | None = None
@@ -134,6 +135,12 @@ class StatusHub:
         with self._cond:
             self._summary = dict(summary)
 
+    def set_gripper(self, gripper: dict[str, Any]) -> None:
+        """Keep where the gripper is in ``base_link`` (``x``, ``y``, ``z`` [m], ``stamp`` [s]);
+        it goes out with the next status, as the summary does."""
+        with self._cond:
+            self._gripper = dict(gripper)
+
     @property
     def error_flag_names(self) -> dict[int, str]:
         """A copy of the bit index → name table used to decode error flag words."""
@@ -188,6 +195,7 @@ class StatusHub:
                 "samples": self._samples,
                 "driver": dict(self._driver),
                 "summary": None if self._summary is None else dict(self._summary),
+                "gripper": None if self._gripper is None else dict(self._gripper),
                 "flags": self._decoded_flags(status),
                 "events": events,
                 "coalesced": {k: dict(v, age=time.time() - v["last"]) for k, v in self._coalesced.items()},

@@ -608,6 +608,10 @@ class MonitorServer:
         """The newest ``ArmSummary`` of the demo's bridge (as a dict): in the next snapshot."""
         self._hub.set_summary(summary)
 
+    def set_gripper(self, gripper: dict[str, object]) -> None:
+        """Where the gripper is in ``base_link`` (``x``, ``y``, ``z`` [m]): in the next snapshot."""
+        self._hub.set_gripper(gripper)
+
     def set_driver_info(self, state: str, period: float, connected: bool) -> None:
         """Driver state (e.g. ``RUNNING``), its accepted period in seconds, and whether
         it is reachable; a change of ``connected`` is logged. Thread-safe."""

@@ -168,7 +168,7 @@ class DataflowHost(Participant):
         if self.server is not None or not own.serve:
             return  # served already (by a program calling serve()), or not asked to
         if not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()) and not \
-                self.host.assembly.elements_of("bridge"):
+                self.host.assembly.elements_of("bridge") and not self.host.assembly.elements_of("frames"):
             return
         from dataflow.remote.errors import UnavailableError
         from dataflow.remote.naming import name_service_answers

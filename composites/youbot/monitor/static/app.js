@@ -333,6 +333,10 @@
     if (sm && Array.isArray(sm.positions)) {
       $("arm-summary").textContent = (sm.busy ? "busy" : "idle") + " · " + sm.positions.map((p) => p.toFixed(2)).join(" ");
     }
+    const gr = msg.gripper;
+    if (gr && typeof gr.x === "number") {
+      $("gripper").textContent = [gr.x, gr.y, gr.z].map((v) => v.toFixed(3)).join(" ") + " m";
+    }
     setConn(msg);
     if (!periodTouched && document.activeElement !== $("period-input") && typeof d.period === "number") {
       $("period-input").value = String(+(d.period * 1000).toFixed(3));

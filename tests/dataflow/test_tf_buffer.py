@@ -1,0 +1,207 @@
+"""The frame buffer on its own (``dataflow.tf``): lookups in time, the tree's rules, the errors.
+
+tf2 itself is the judge in ``test_tf_tf2_ros.py``; these check what a user relies on with
+values worked out by hand (rotations about one axis interpolate as their angle does)."""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+
+import pytest
+
+from dataflow import Deployer, TaskContext
+from dataflow.tf import (ConnectivityError, ExtrapolationError, FrameBuffer, FrameTreeError, Transform,
+                         TransformValueError, UnknownFrameError)
+from dataflow.tf._math import axis_angle, from_rpy, multiply, rpy, slerp
+
+S = 1_000_000_000  # ns per s
+
+
+def yaw(angle: float) -> tuple[float, float, float, float]:
+    return axis_angle((0.0, 0.0, 1.0), angle)
+
+
+def close(a: tuple[float, ...], b: tuple[float, ...], tol: float = 1e-12) -> bool:
+    return len(a) == len(b) and all(abs(x - y) <= tol for x, y in zip(a, b, strict=True))
+
+
+def same_rotation(a: tuple[float, ...], b: tuple[float, ...], tol: float = 1e-12) -> bool:
+    return close(a, b, tol) or close(a, tuple(-x for x in b), tol)
+
+
+@pytest.fixture
+def arm() -> FrameBuffer:
+    """base → shoulder (static, 1 m up) → elbow (turning about z, 0 → 90° over 1 s, moving
+    0 → 2 m along x) → hand (static, 1 m along x)."""
+    frames = FrameBuffer()
+    frames.publish(Transform("base", "shoulder", (0.0, 0.0, 1.0)), static=True)
+    frames.publish(Transform("elbow", "hand", (1.0, 0.0, 0.0)), static=True)
+    for k in range(11):
+        frames.publish(Transform("shoulder", "elbow", (0.2 * k, 0.0, 0.0), yaw(math.pi / 20 * k), 100 * S + k * S // 10))
+    return frames
+
+
+def test_a_chain_composes_and_interpolates_between_the_two_nearest_stamps(arm: FrameBuffer) -> None:
+    at = arm.lookup("base", "hand", 100.25)  # between the stamps 100.2 and 100.3
+    angle = math.pi / 2 * 0.25
+    assert close(at.translation, (0.5 + math.cos(angle), math.sin(angle), 1.0))
+    assert same_rotation(at.rotation, yaw(angle))
+    assert (at.frame_id, at.child_frame_id, at.stamp_ns) == ("base", "hand", 100_250_000_000)
+    assert close(arm.lookup("hand", "base", 100.25).inverse().translation, at.translation)
+    assert close(at.apply((1.0, 0.0, 0.0)), (0.5 + 2 * math.cos(angle), 2 * math.sin(angle), 1.0))
+
+
+def test_time_zero_is_the_newest_time_the_whole_path_has(arm: FrameBuffer) -> None:
+    arm.publish(Transform("base", "wheel", (0.0, 0.0, 0.0), stamp_ns=100 * S + S // 2))
+    assert arm.lookup("base", "hand").stamp_ns == 101 * S
+    assert arm.lookup("wheel", "hand").stamp_ns == 100 * S + S // 2  # the older of the two
+    assert arm.lookup("base", "shoulder").stamp_ns == 0  # statics only: for all time
+    assert close(arm.lookup("base", "shoulder", 1e6).translation, (0.0, 0.0, 1.0))
+
+
+def test_a_time_outside_what_is_kept_names_both_frames_the_time_and_the_span(arm: FrameBuffer) -> None:
+    with pytest.raises(ExtrapolationError) as before:
+        arm.lookup("base", "hand", 99.5)
+    text = str(before.value)
+    for part in ("'hand'", "'base'", "99.500000000", "'elbow'", "100.000000000 to 101.000000000", "before its oldest"):
+        assert part in text, text
+    with pytest.raises(ExtrapolationError, match=r"0\.250000000 s after its newest .*extrapolation not asked for"):
+        arm.lookup("base", "hand", 101.25)
+    assert not arm.can_transform("base", "hand", 101.25)
+
+
+def test_extrapolation_only_when_asked_and_within_its_bound(arm: FrameBuffer) -> None:
+    ahead = arm.lookup("shoulder", "elbow", 101.1, extrapolate=0.2)  # the last two stamps, carried on
+    assert close(ahead.translation, (2.2, 0.0, 0.0), 1e-9)
+    assert same_rotation(ahead.rotation, yaw(math.pi / 20 * 11), 1e-9)
+    with pytest.raises(ExtrapolationError, match="more than the 0.200000000 s of extrapolation allowed"):
+        arm.lookup("shoulder", "elbow", 101.3, extrapolate=0.2)
+    with pytest.raises(ValueError):
+        arm.lookup("shoulder", "elbow", 101.1, extrapolate=-1.0)
+
+
+def test_no_path_and_unknown_frames_are_clear_errors(arm: FrameBuffer) -> None:
+    arm.publish(Transform("map", "odom"), static=True)
+    with pytest.raises(ConnectivityError) as no_path:
+        arm.lookup("map", "hand", 100.5)
+    assert "'hand' in 'map' at 100.500000000 s: no path joins them" in str(no_path.value)
+    assert "the tree of 'base'" in str(no_path.value) and "the tree of 'map'" in str(no_path.value)
+    with pytest.raises(UnknownFrameError, match="no frame 'nowhere' in the tree; frames: base, elbow, hand"):
+        arm.lookup("base", "nowhere")
+    assert arm.lookup("hand", "hand", 5.0).translation == (0.0, 0.0, 0.0)
+
+
+def test_a_cycle_and_a_second_parent_are_refused_when_published(arm: FrameBuffer) -> None:
+    with pytest.raises(FrameTreeError, match="would close a cycle"):
+        arm.publish(Transform("hand", "base"), static=True)
+    with pytest.raises(FrameTreeError, match="'elbow' has the parent 'shoulder'.*parent 'base' is refused"):
+        arm.publish(Transform("base", "elbow", stamp_ns=101 * S))
+    with pytest.raises(FrameTreeError, match="its own parent"):
+        arm.publish(Transform("base", "base"))
+    assert [(f.name, f.parent) for f in arm.frames()] == [("elbow", "shoulder"), ("hand", "elbow"),
+                                                          ("shoulder", "base")]
+    assert arm.roots() == ["base"]
+    assert arm.refused == {"cycle": 1, "second parent": 1, "bad name": 1}
+
+
+def test_nan_and_non_unit_rotations_are_refused_counted_and_said_once(caplog: pytest.LogCaptureFixture) -> None:
+    frames = FrameBuffer()
+    with pytest.raises(TransformValueError, match="not finite"):
+        frames.publish(Transform("a", "b", (math.nan, 0.0, 0.0)))
+    caplog.set_level(logging.WARNING, "dataflow.tf.buffer")
+    bad = [Transform("a", "b", rotation=(0.0, 0.0, 0.0, math.nan), stamp_ns=k) for k in range(1, 4)]
+    bad += [Transform("a", "b", rotation=(0.0, 0.0, 0.0, 1.5), stamp_ns=k) for k in range(4, 6)]
+    good = Transform("a", "b", rotation=(0.0, 0.0, 0.0, 1.004), stamp_ns=9)  # within tf2's tolerance: normalised
+    assert frames.receive([*bad, good], origin="ros1") == 1
+    assert frames.refused == {"not finite": 4, "not a unit quaternion": 2}
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 2 and "said once" in said[0], said
+    assert frames.lookup("a", "b").rotation == (0.0, 0.0, 0.0, 1.0)
+
+
+def test_the_history_is_bounded_by_the_cache_time() -> None:
+    frames = FrameBuffer(cache_time=1.0)
+    for k in range(50):
+        frames.publish(Transform("a", "b", (float(k), 0.0, 0.0), stamp_ns=k * S // 10))
+    (info,) = frames.frames()
+    assert (info.oldest_ns, info.newest_ns, info.kept) == (39 * S // 10, 49 * S // 10, 11)
+    assert info.rate == pytest.approx(10.0) and info.received == 50
+    assert frames.publish(Transform("a", "b", stamp_ns=S)) == 0  # older than what is kept: refused, counted
+    assert frames.refused == {"old": 1}
+    with pytest.raises(ExtrapolationError, match="the buffer keeps 1 s"):
+        frames.lookup("a", "b", 3.0)
+
+
+def test_stamps_out_of_order_and_repeated_keep_the_interpolation_right() -> None:
+    frames = FrameBuffer()
+    seen: list[int] = []
+    frames.on_publish(lambda ts, static, origin: seen.extend(t.stamp_ns for t in ts))
+    for k in (0, 4, 2, 1, 3):
+        frames.publish(Transform("a", "b", (float(k), 0.0, 0.0), yaw(0.1 * k), stamp_ns=k * S))
+    assert close(frames.lookup("a", "b", 2.5).translation, (2.5, 0.0, 0.0))
+    assert same_rotation(frames.lookup("a", "b", 1.5).rotation, yaw(0.15))
+    frames.publish(Transform("a", "b", (3.0, 0.0, 0.0), yaw(0.1 * 3), stamp_ns=3 * S))  # the same: nothing new
+    frames.publish(Transform("a", "b", (30.0, 0.0, 0.0), yaw(0.3), stamp_ns=3 * S))  # another value: replaces
+    assert close(frames.lookup("a", "b", 3.5).translation, (17.0, 0.0, 0.0))
+    assert seen == [0, 4 * S, 2 * S, S, 3 * S, 3 * S]
+
+
+def test_the_time_travel_form_goes_through_the_fixed_frame() -> None:
+    """A robot drives along x in odom; its laser is 1 m ahead. Where was the laser at 1 s,
+    seen from the robot at 3 s? 2 m behind it, less the 1 m ahead: -1 m."""
+    frames = FrameBuffer()
+    frames.publish(Transform("base", "laser", (1.0, 0.0, 0.0)), static=True)
+    for k in range(5):
+        frames.publish(Transform("odom", "base", (float(k), 0.0, 0.0), stamp_ns=k * S))
+    seen = frames.lookup("base", 3.0, "laser", 1.0, "odom")
+    assert close(seen.translation, (-1.0, 0.0, 0.0)) and seen.stamp_ns == 3 * S
+    assert (seen.frame_id, seen.child_frame_id) == ("base", "laser")
+
+
+def test_a_lookup_with_a_timeout_waits_for_the_transform() -> None:
+    frames = FrameBuffer()
+    frames.publish(Transform("a", "b", stamp_ns=S))
+    later = threading.Timer(0.05, lambda: frames.publish(Transform("a", "b", (1.0, 0.0, 0.0), stamp_ns=3 * S)))
+    later.start()
+    try:
+        assert close(frames.lookup("a", "b", 2.0, timeout=10.0).translation, (0.5, 0.0, 0.0))
+        with pytest.raises(ExtrapolationError):
+            frames.lookup("a", "b", 9.0, timeout=0.05)
+    finally:
+        later.join()
+
+
+def test_listeners_get_what_is_stored_but_not_back_what_their_origin_gave() -> None:
+    frames = FrameBuffer()
+    got: list[tuple[str, bool, str]] = []
+    stop = frames.on_publish(lambda ts, static, origin: got.append((ts[0].child_frame_id, static, origin)), "ros1")
+    frames.publish(Transform("a", "b", stamp_ns=1))
+    frames.receive([Transform("a", "c", stamp_ns=1)], origin="ros1")
+    frames.receive([Transform("a", "d")], static=True, origin="ros2")
+    stop()
+    frames.publish(Transform("a", "e", stamp_ns=1))
+    assert got == [("b", False, ""), ("d", True, "ros2")]
+
+
+def test_a_task_reads_and_publishes_through_its_deployers_tree() -> None:
+    deployer = Deployer()
+    one, two = deployer.add(TaskContext("one")), deployer.add(TaskContext("two"))
+    one.frames.publish(Transform("world", "one", (1.0, 2.0, 3.0)), static=True)
+    assert two.frames is deployer.frames and two.frames.lookup("world", "one").translation == (1.0, 2.0, 3.0)
+    alone = TaskContext("alone")
+    assert alone.frames is not deployer.frames and alone.frames is alone.frames
+    other = FrameBuffer()
+    deployer.frames = other
+    assert one.frames is other and two.frames is other
+
+
+def test_the_math_agrees_with_itself() -> None:
+    q = from_rpy(0.1, -0.2, 0.3)
+    assert close(rpy(q), (0.1, -0.2, 0.3))
+    assert close(multiply(yaw(0.2), yaw(0.3)), yaw(0.5))
+    assert close(slerp(yaw(0.0), yaw(1.0), 0.25), yaw(0.25))
+    assert slerp(yaw(0.5), yaw(0.5), 0.3) == yaw(0.5)
+    t = Transform.from_rpy("a", "b", (1.0, 2.0, 3.0), (0.0, 0.0, math.pi / 2))
+    assert close((t * t.inverse()).translation, (0.0, 0.0, 0.0)) and close(t.rpy, (0.0, 0.0, math.pi / 2))
