@@ -1,6 +1,6 @@
 """YARP's protocols in Python, with no YARP library: the name server's (``names``), the
-port protocol with its ``tcp``, ``fast_tcp`` and ``text`` carriers (``wire``,
-``connection``, ``port``) and Bottles (``bottle``) — as YARP 3.5's sources define them.
+port protocol with its ``tcp``, ``fast_tcp``, ``text`` and ``udp`` carriers (``wire``,
+``dgram``, ``connection``, ``port``) and Bottles (``bottle``) — as YARP 3.5's sources define them.
 
 A library of its own: it knows nothing of scart's ports and imports nothing of scart
 (standard library only). scart's ``yarp`` transport is a thin adapter over it.

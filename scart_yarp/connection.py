@@ -17,6 +17,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from .dgram import DatagramReader
 from .wire import ACK, CARRIERS, Frame, IncomingParser, ProtocolError, read_number, yarp_number
 
 if TYPE_CHECKING:
@@ -44,6 +45,8 @@ class Connection:
         self.peer = peer
         self.queue = max(1, queue)  #: messages that may wait for room, at most
         self.parser = IncomingParser(port.limits.message) if inbound else None
+        #: A ``udp`` connection's datagram reader (inbound), once the TCP greeting is done.
+        self.dgram: DatagramReader | None = None
         self.opened = time.monotonic()
         self.address = _peer_address(sock)
         self.sent = self.acked = self.dropped = self.received = 0
@@ -61,7 +64,7 @@ class Connection:
     # ---- what it is ---------------------------------------------------------------------
     @property
     def greeted(self) -> bool:
-        return not self.inbound or (self.parser is not None and self.parser.greeted)
+        return not self.inbound or self.dgram is not None or (self.parser is not None and self.parser.greeted)
 
     @property
     def acks(self) -> bool:
@@ -77,6 +80,10 @@ class Connection:
     def sending(self) -> bool:
         """Bytes wait for room in the socket."""
         return bool(self._out)
+
+    @property
+    def datagrams(self) -> bool:
+        return self.carrier == "udp"
 
     @property
     def text(self) -> bool:
@@ -125,6 +132,21 @@ class Connection:
             self.sent += 1
         return left
 
+    def send_datagrams(self, datagrams: list[bytes]) -> bool:
+        """Send one message as ``datagrams`` (a ``udp`` output), never blocking: what the
+        kernel does not take at once is lost (counted in ``dropped``), as YARP's udp loses it."""
+        with self._lock:
+            if self.closed:
+                return False
+            try:
+                for datagram in datagrams:
+                    self.sock.send(datagram)
+            except OSError:  # no room, or the reader's socket is gone: the message is lost
+                self.dropped += 1
+                return False
+            self.sent += 1
+            return True
+
     def writable(self) -> bool:
         """The io thread: send what waits; True when nothing is left."""
         with self._lock:
@@ -154,12 +176,15 @@ class Connection:
         except OSError:
             return None
         if not data:
-            return None
+            return None if self.dgram is None else []  # an empty datagram is no end
+        if self.dgram is not None:
+            return self.dgram.feed(data)
         if self.parser is not None:
             frames = self.parser.feed(data)
             if self.parser.greeted and not self.carrier:
                 self.carrier, self.peer = self.parser.carrier, self.parser.sender
-                self._welcome()
+                if self.carrier != "udp":  # udp answers with its datagram socket's port (the network does)
+                    self._welcome()
             return frames
         self._acks(data)
         return []

@@ -36,7 +36,8 @@ from typing import Any
 from .connection import Connection
 from .names import NameClient, NameServerError, check_name
 from .port import Incoming, Port, PortLimits
-from .wire import Frame, ProtocolError
+from .dgram import DatagramReader
+from .wire import Frame, ProtocolError, yarp_number
 
 __all__ = ["Network"]
 
@@ -310,6 +311,50 @@ class Network:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         return sock
 
+    def datagram_to(self, host: str, port: int) -> socket.socket:
+        """A datagram socket sending to ``host:port`` (a ``udp`` reader; loopback only unless insecure)."""
+        if not self.insecure and not is_loopback(host):
+            raise OSError(f"{host} is not loopback: scart's YARP sends to other hosts only when insecure")
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.connect((host, port))
+        sock.setblocking(False)
+        return sock
+
+    def tell_reader_gone(self, reader: str, writer: str) -> None:
+        """Ask the port ``reader`` to drop its (connectionless) input from ``writer``, in
+        the control thread (a reader that does not answer keeps it until it restarts)."""
+        from .admin import admin_call
+
+        def job() -> None:
+            try:
+                admin_call(self, reader, ["del", writer])
+            except OSError as exc:
+                log.info("YARP port %s: %s not told its udp input from it is gone (%s)", writer, reader, exc)
+
+        self._control.submit(job)
+
+    def _to_datagrams(self, conn: Connection) -> None:
+        """A writer asked for ``udp``: open a datagram socket, answer its port over TCP,
+        close the TCP connection and read the datagrams from now on (io thread)."""
+        port = conn.port
+        udp = socket.socket(socket.AF_INET6 if ":" in self.host else socket.AF_INET, socket.SOCK_DGRAM)
+        udp.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        udp.bind((self.host, 0))
+        udp.setblocking(False)
+        try:
+            conn.sock.send(yarp_number(udp.getsockname()[1]))
+        except OSError:
+            udp.close()
+            self._forget(conn, "")
+            return
+        self._forget(conn, "")
+        dgram = Connection(port, udp, inbound=True, carrier="udp", peer=conn.peer)
+        dgram.parser = None
+        dgram.dgram = DatagramReader(conn.peer, port.limits.message)
+        port.accepted(dgram)
+        self._conns[udp.fileno()] = dgram
+        self._sel.register(udp, selectors.EVENT_READ, dgram)
+
     def watch(self, conn: Connection) -> None:
         """Read ``conn`` in the io thread from now on."""
         def add() -> None:
@@ -483,6 +528,9 @@ class Network:
             return
         if not conn.inbound:
             port.progressed()
+            return
+        if conn.carrier == "udp" and conn.dgram is None:
+            self._to_datagrams(conn)
             return
         for frame in frames:
             if conn.closed:

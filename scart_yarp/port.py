@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 from . import bottle
 from .bottle import BottleError, Vocab
 from .connection import Connection
+from .dgram import datagrams
 from .wire import QUIT_BINARY, Frame, carrier_header, command_block, data_frame, read_number, sender_specifier
 
 if TYPE_CHECKING:
@@ -127,11 +128,11 @@ class Port:
         frames: dict[str, Any] = {}
         taken = 0
         for conn in outputs:
-            kind = "text" if conn.text else "binary"
+            kind = "text" if conn.text else "udp" if conn.datagrams else "binary"
             frame = frames.get(kind)
             if frame is None:
                 frame = frames[kind] = self._frame(kind, data, values)
-            if conn.send(frame):
+            if conn.send_datagrams(frame) if conn.datagrams else conn.send(frame):
                 taken += 1
             else:
                 self.counters["dropped"] += 1
@@ -142,7 +143,8 @@ class Port:
         if kind == "text":
             text = bottle.to_text(values if values is not None else bottle.decode(data))
             return [f"d\r\n{text}\r\n".encode("utf-8")]
-        return data_frame([command_block("D"), data])
+        parts = data_frame([command_block("D"), data])
+        return datagrams(parts) if kind == "udp" else parts
 
     def wait_sent(self, timeout: float) -> bool:
         """Block until every connection has sent (tcp: had acknowledged) what was written
@@ -177,10 +179,13 @@ class Port:
             return False, f"Do not know how to connect to {target} ({exc})"
         if contact is None:
             return False, f"Do not know how to connect to {target}"
-        carrier = carrier or (contact.carrier if contact.carrier in ("tcp", "fast_tcp", "text") else "tcp")
+        carrier = carrier or (contact.carrier if contact.carrier in ("tcp", "fast_tcp", "text", "udp") else "tcp")
         try:
             sock = self.network.connect_to(contact.host, contact.port)
-            self._greet(sock, carrier)
+            answer = self._greet(sock, carrier)
+            if carrier == "udp":  # agreed over TCP; the messages go as datagrams to the port it answered
+                sock.close()
+                sock = self.network.datagram_to(contact.host, answer)
         except (OSError, ValueError) as exc:
             return False, f"Cannot connect to {target}: {exc}"
         conn = Connection(self, sock, inbound=False, carrier=carrier, peer=target, queue=self.queue)
@@ -193,8 +198,9 @@ class Port:
         log.info("YARP port %s: output to %s (%s)", self.name, target, carrier)
         return True, f"Added connection from {self.name} to {target}"
 
-    def _greet(self, sock: socket.socket, carrier: str) -> None:
-        """Open a connection as ``carrier`` and read the reader's answer (blocking, bounded)."""
+    def _greet(self, sock: socket.socket, carrier: str) -> int:
+        """Open a connection as ``carrier`` and read the reader's answer (blocking,
+        bounded); the number a binary carrier's reader answered (udp: its datagram port)."""
         sock.settimeout(self.network.names.timeout)
         if carrier.startswith("text"):
             sock.sendall(carrier_header(carrier) + self.name.encode() + b"\r\n")
@@ -212,17 +218,27 @@ class Port:
                 if not chunk:
                     raise OSError("the reader closed the connection at its greeting")
                 answer += chunk
-            if read_number(answer) is None:
+            number = read_number(answer)
+            if number is None:
                 raise OSError(f"the reader answered {answer!r}, not a YARP greeting")
+            sock.setblocking(False)
+            return number
         sock.setblocking(False)
+        return 0
 
     def remove_output(self, target: str) -> bool:
-        """Stop writing to ``target`` (``q`` said, socket closed); False when not connected."""
+        """Stop writing to ``target`` (``q`` said, socket closed; on ``udp``, which has no
+        connection to say it on, the reader is asked to drop its input, as YARP does);
+        False when not connected."""
         with self._lock:
             conn = self._outputs.pop(target, None)
         if conn is None:
             return False
-        self._quit(conn)
+        if conn.datagrams:
+            self.network.drop(conn, "")
+            self.network.tell_reader_gone(target, self.name)
+        else:
+            self._quit(conn)
         return True
 
     def remove_input(self, source: str) -> bool:

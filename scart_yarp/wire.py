@@ -16,6 +16,10 @@ carrier       first 8 bytes               then
                                           lines (``d``, then the bottle's text)
 ``text_ack``  ``CONNACK ``                as ``text``; each message is answered (the
                                           reply's lines, then ``<ACK>``)
+``udp``       ``YA`` int32 7777+0 ``RP``  the sender's name; the receiver answers the
+                                          port of a datagram socket, the TCP connection
+                                          closes, and messages go as datagrams
+                                          (:mod:`.dgram`)
 ============  ==========================  =============================================
 
 A binary message is an index — ``YA`` int32 10 ``RP``, a byte with the number of blocks,
@@ -40,7 +44,7 @@ _NUMBER = struct.Struct("<2si2s")
 TCP_SPECIFIER, UDP_SPECIFIER, MCAST_SPECIFIER = 3, 0, 1
 ACK_FLAG = 128
 #: The carriers scart speaks natively, and whether each acknowledges every message.
-CARRIERS = MappingProxyType({"tcp": True, "fast_tcp": False, "text": False, "text_ack": True})
+CARRIERS = MappingProxyType({"tcp": True, "fast_tcp": False, "text": False, "text_ack": True, "udp": False})
 MAX_NAME = 1000  #: bytes of a sender's name (YARP clamps it there too)
 MAX_LINE = 1 << 20  #: bytes of one line on a text connection
 
@@ -65,7 +69,9 @@ ACK = yarp_number(0)
 
 def carrier_header(carrier: str) -> bytes:
     """The 8 bytes that open a connection of ``carrier``; ``ValueError`` for one scart
-    does not speak (``udp``/``mcast`` are refused: scart sends no datagrams)."""
+    does not speak (``mcast``: scart sends no multicast)."""
+    if carrier == "udp":
+        return yarp_number(7777 + UDP_SPECIFIER)
     if carrier == "tcp":
         return yarp_number(7777 + TCP_SPECIFIER + ACK_FLAG)
     if carrier == "fast_tcp":
@@ -74,9 +80,9 @@ def carrier_header(carrier: str) -> bytes:
         return b"CONNECT "
     if carrier == "text_ack":
         return b"CONNACK "
-    if carrier in ("udp", "mcast"):
-        raise ValueError(f"carrier {carrier!r}: scart speaks YARP over TCP only (tcp, fast_tcp, text); it sends no "
-                         "datagrams, so a port connects to it with one of those")
+    if carrier == "mcast":
+        raise ValueError("carrier 'mcast': scart sends no multicast (it would leave this host); a port connects to "
+                         "it with tcp, fast_tcp, text or udp")
     raise ValueError(f"carrier {carrier!r}: scart speaks {', '.join(CARRIERS)}")
 
 
@@ -92,9 +98,10 @@ def carrier_of(header: bytes) -> str:
     spec = n - 7777
     if spec % 16 == TCP_SPECIFIER:
         return "tcp" if spec & ACK_FLAG else "fast_tcp"
-    if spec % 16 in (UDP_SPECIFIER, MCAST_SPECIFIER):
-        raise ProtocolError(f"carrier {'udp' if spec % 16 == UDP_SPECIFIER else 'mcast'} asked: scart speaks YARP "
-                            "over TCP only (tcp, fast_tcp, text)")
+    if spec % 16 == UDP_SPECIFIER:
+        return "udp"
+    if spec % 16 == MCAST_SPECIFIER:
+        raise ProtocolError("carrier mcast asked: scart sends no multicast (tcp, fast_tcp, text and udp it speaks)")
     raise ProtocolError(f"unknown carrier specifier {spec}")
 
 

@@ -72,7 +72,7 @@ def test_a_port_is_registered_listed_and_withdrawn(yarp: YarpServer, net: Networ
     assert not yarp.registered("/scart/probe")
 
 
-@pytest.mark.parametrize("carrier", ["tcp", "fast_tcp", "text"])
+@pytest.mark.parametrize("carrier", ["tcp", "fast_tcp", "text", "udp"])
 def test_yarp_write_reaches_a_reading_port_on_each_carrier(yarp: YarpServer, net: Network, carrier: str) -> None:
     inbox = Inbox()
     net.open_port("/scart/in", reader=inbox)
@@ -93,7 +93,7 @@ def test_yarp_write_reaches_a_reading_port_on_each_carrier(yarp: YarpServer, net
         writer.stop()
 
 
-@pytest.mark.parametrize("carrier", ["tcp", "fast_tcp", "text"])
+@pytest.mark.parametrize("carrier", ["tcp", "fast_tcp", "text", "udp"])
 def test_yarp_read_gets_what_a_writing_port_writes_on_each_carrier(yarp: YarpServer, net: Network,
                                                                     carrier: str) -> None:
     out = net.open_port("/scart/out")
@@ -106,6 +106,8 @@ def test_yarp_read_gets_what_a_writing_port_writes_on_each_carrier(yarp: YarpSer
         assert yarp.tool("name", "query", "/r").returncode == 0
         out.write(["sample", 1, 0.5, b"\x01\x02", ["a", 2], True])
         reader.read_until('sample 1 0.5 {1 2} (a 2) true', timeout=15)
+        out.write(["big", list(range(30_000))])  # 120 kB: several datagrams on udp
+        reader.read_until("big (0 1 2 ", timeout=15)
         listed = yarp.tool("connect", "/scart/out", "/r", carrier)  # again: YARP lists it, then replaces it
         assert listed.returncode == 0
         done = yarp.tool("disconnect", "/scart/out", "/r")

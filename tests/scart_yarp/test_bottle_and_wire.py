@@ -93,14 +93,15 @@ def test_a_bottle_nested_10000_deep_is_refused_before_it_is_walked() -> None:
         bottle.decode(bottle.encode(list(range(3)) + [[1, 2, 3]]), Limits(items=5))
 
 
-def test_headers_name_their_carriers_and_refuse_datagrams_and_strangers() -> None:
+def test_headers_name_their_carriers_and_refuse_multicast_and_strangers() -> None:
     assert carrier_header("tcp") == b"YA\xe4\x1e\x00\x00RP"  # what yarp write opened with: 7777 + 3 + 128
     assert [carrier_of(carrier_header(c)) for c in ("tcp", "fast_tcp", "text", "text_ack")] == \
         ["tcp", "fast_tcp", "text", "text_ack"]
-    with pytest.raises(ValueError, match="no datagrams"):
-        carrier_header("udp")
-    with pytest.raises(ProtocolError, match="udp asked"):
-        carrier_of(yarp_number(7777))
+    assert carrier_of(carrier_header("udp")) == "udp" and carrier_header("udp") == yarp_number(7777)
+    with pytest.raises(ValueError, match="no multicast"):
+        carrier_header("mcast")
+    with pytest.raises(ProtocolError, match="mcast asked"):
+        carrier_of(yarp_number(7778))
     with pytest.raises(ProtocolError, match="not a YARP connection"):
         carrier_of(b"GET / HT")
 
@@ -132,3 +133,21 @@ def test_the_parser_reads_a_text_session() -> None:
 def test_a_peer_breaking_the_protocol_is_refused_naming_why(stream: bytes, why: str) -> None:
     with pytest.raises(ProtocolError, match=why):
         IncomingParser(max_message=64 << 20).feed(stream)
+
+
+def test_a_message_crosses_in_datagrams_and_a_lost_one_costs_its_message_only() -> None:
+    """YARP's udp carrier: each datagram a CRC-32 and its number in the message; a
+    datagram lost or damaged loses its message (counted) and the next message is whole."""
+    from scart_yarp.dgram import MAX_PAYLOAD, DatagramReader, datagrams
+
+    def message(values: list) -> list[bytes]:
+        return datagrams(data_frame([command_block("D"), bottle.encode(values)]))
+
+    big, small = message(["big", list(range(40_000))]), message(["small", 1])
+    assert len(big) == 3 and all(len(d) <= MAX_PAYLOAD + 8 for d in big) and len(small) == 1
+    reader = DatagramReader("/w", max_message=1 << 20)
+    got = [f for d in [*big, *small] for f in reader.feed(d)]
+    assert [bottle.decode(f.payload)[0] for f in got] == ["big", "small"] and reader.lost == 0
+    damaged = big[1][:-1] + bytes([big[1][-1] ^ 1])
+    got = [f for d in [big[0], damaged, big[2], *small, big[0], big[2], *small] for f in reader.feed(d)]
+    assert [bottle.decode(f.payload)[0] for f in got] == ["small", "small"] and reader.lost == 2

@@ -12,7 +12,7 @@ fails the port's own check (NaN, out of range): ``scart describe`` names the las
 
 **Options** (:data:`OPTIONS`): ``connect`` (YARP ports, comma-separated: an output stream
 keeps writing to each, an input stream keeps asking each to write to it; retried until
-they are there), ``carrier`` (``tcp``, ``fast_tcp`` or ``text``, for those connections),
+they are there), ``carrier`` (``tcp``, ``fast_tcp``, ``text`` or ``udp``, for those connections),
 ``server`` (the name server, ``HOST:PORT``; default ``--yarp-server``, else YARP's own
 configuration: ``yarp conf``), ``insecure``.
 
@@ -45,7 +45,7 @@ log = logging.getLogger(__name__)
 
 #: Every option a yarp stream takes (another is refused: a typo would otherwise be ignored).
 OPTIONS = frozenset({"connect", "carrier", "server", "insecure"})
-CARRIERS = ("tcp", "fast_tcp", "text")
+CARRIERS = ("tcp", "fast_tcp", "text", "udp")
 MAX_QUEUE = 1000  #: messages that may wait for one slow YARP reader, at most
 
 
@@ -158,8 +158,8 @@ class YarpTransport(Transport):
             out.append(f"yarp: {exc}")
         carrier = options.get("carrier", "tcp")
         if carrier not in CARRIERS:
-            out.append(f"yarp: carrier={carrier!r}: scart speaks YARP over {', '.join(CARRIERS)} (udp and mcast "
-                       "send datagrams, which scart does not)")
+            out.append(f"yarp: carrier={carrier!r}: scart speaks YARP over {', '.join(CARRIERS)} (mcast would leave "
+                       "this host: scart sends no multicast)")
         return out
 
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:

@@ -98,7 +98,7 @@ def test_what_has_no_bottle_form_or_names_nothing_is_refused_at_load(tmp_path: P
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     expected = {"TABLE": ("SCART-T006", "the value is dict[str, float], which has no bottle form"),
-                "MCAST": ("SCART-T005", "carrier='mcast': scart speaks YARP over tcp, fast_tcp, text"),
+                "MCAST": ("SCART-T005", "carrier='mcast': scart speaks YARP over tcp, fast_tcp, text, udp"),
                 "RPC": ("SCART-T008", "component: 'rovr' is in no composite here")}
     for marker, (code, words) in expected.items():
         line = line_of(text, f"<!--{marker}-->")

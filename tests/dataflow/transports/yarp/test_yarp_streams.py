@@ -119,8 +119,8 @@ def test_yarp_connect_and_disconnect_work_either_way(yarp: YarpServer, arm: Arm)
 
 def test_a_stream_that_cannot_be_made_says_why(arm: Arm) -> None:
     transport = load("yarp")
-    with pytest.raises(TransportError, match="carrier='udp': scart speaks YARP over tcp, fast_tcp, text"):
-        DEPLOYERS[arm].stream("arm.cmd", ConnPolicy.data().with_(transport="yarp", topic="/x"), {"carrier": "udp"})
+    with pytest.raises(TransportError, match="carrier='mcast': scart speaks YARP over tcp, fast_tcp, text, udp"):
+        DEPLOYERS[arm].stream("arm.cmd", ConnPolicy.data().with_(transport="yarp", topic="/x"), {"carrier": "mcast"})
     assert DEPLOYERS[arm].streams() == {}
     problems = transport.check_stream(Arm.out, "no slash", {"colour": "red"})
     assert [p.message.split(":")[0] for p in problems] == ["yarp", "yarp"]
