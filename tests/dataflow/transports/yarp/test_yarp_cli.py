@@ -64,3 +64,26 @@ def test_scart_stream_against_a_deployer_speaks_yarp(yarp: YarpServer) -> None:
         reader.stop()
         assert stop_process(proc) == 0
     assert not yarp.registered("/arm/state") and not yarp.registered("/arm/gain")  # withdrawn at the stop
+
+
+def test_a_bad_yarp_server_address_is_one_line_and_nothing_starts() -> None:
+    done = subprocess.run([sys.executable, "-m", "scart", "deploy", "support.yarp_tasks:Arm", "--yarp-server",
+                           "nowhere", "--ns", f"127.0.0.1:{free_port()}"], capture_output=True, text=True, timeout=60,
+                          env=subprocess_env())
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert "a YARP name server address is HOST:PORT, got 'nowhere'" in done.stderr
+
+
+def test_yarp_ports_stay_on_loopback_unless_insecure() -> None:
+    from scart_yarp import Network
+
+    with pytest.raises(ValueError, match="YARP authenticates no one; ports listen on loopback unless insecure"):
+        Network(("127.0.0.1", 1), host="0.0.0.0")
+    net = Network(("127.0.0.1", 1))
+    try:
+        with pytest.raises(OSError, match="is not loopback: scart's YARP connects to other hosts only when insecure"):
+            net.connect_to("192.0.2.1", 10000)  # TEST-NET: never reached, refused before any packet
+        with pytest.raises(OSError, match="is not loopback"):
+            net.datagram_to("192.0.2.1", 10000)
+    finally:
+        net.close()
