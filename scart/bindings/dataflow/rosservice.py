@@ -35,9 +35,10 @@ from dataflow.transports import TransportError
 from dataflow.transports._rosplan import signature_of
 from dataflow.transports.ros1.transport import NODE_OPTIONS
 from dataflow.transports.ros2._errors import Ros2Error
+from scart.bindings.dataflow._elements import Serving, check_each
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
-from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
+from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Problem
 
 __all__ = ["RosServiceElement", "RosServiceParticipant"]
 
@@ -110,13 +111,7 @@ class RosServiceElement(ElementProvider):
 
     def check(self, elements: list[tuple[str, Element]], assembly: AssemblyView,
               context: CheckContext) -> list[Problem]:
-        out: list[Problem] = []
-        for prefix, el in elements:
-            found, problems = _parse(prefix, el)
-            if found is not None:
-                problems = _check(found, assembly, context)
-            out += [Problem(ROSSERVICE_CODE, msg, el.loc.path, el.loc.line) for msg in problems]
-        return out
+        return check_each(elements, _parse, lambda rs: _check(rs, assembly, context), ROSSERVICE_CODE)
 
     def activate(self, host: Host) -> RosServiceParticipant:
         found = [s for prefix, el in host.assembly.elements_of(self.name) if (s := _parse(prefix, el)[0])]
@@ -201,23 +196,18 @@ def _callable_of(rs: RosService, assembly: AssemblyView) -> tuple[Any, str]:
     return getattr(info.python_type, op), f"{rs.target}"
 
 
-class RosServiceParticipant(Participant):
+class RosServiceParticipant(Serving[RosService]):
     """Serves the ROS services of one runtime at start, withdraws them at stop."""
 
-    def __init__(self, services: list[RosService], host: Host) -> None:
-        self.services = services
-        self.host = host
-        self._served: list[Any] = []
+    failures = (DataflowError, Ros2Error, ValueError, LookupError, ImportError, OSError)
 
-    def start(self) -> None:
-        for rs in self.services:
-            try:
-                made = self._serve(rs)
-            except (DataflowError, Ros2Error, ValueError, LookupError, ImportError, OSError) as exc:
-                self.stop()
-                raise DataflowError(f"ROS service {rs.service} ({rs.where}): {exc}") from exc
-            self._served.append(made)
-            log.info("ROS service %s (%s, %s) answered by %s", made.name, rs.type, rs.transport, made.label)
+    def what(self, rs: RosService) -> str:
+        return f"ROS service {rs.service} ({rs.where})"
+
+    def serve(self, rs: RosService) -> Any:
+        made = self._serve(rs)
+        log.info("ROS service %s (%s, %s) answered by %s", made.name, rs.type, rs.transport, made.label)
+        return made
 
     def _serve(self, rs: RosService) -> Any:
         """Serve ``rs`` over its transport, answered by its operation or SCA target."""
@@ -243,8 +233,3 @@ class RosServiceParticipant(Participant):
         service, _, op = rest.rpartition(".")
         fn = self.host.endpoint(f"{component}/{service}").method(op)
         return lib.serve(fn, rs.service, rs.type, label=rs.target, **how)
-
-    def stop(self) -> None:
-        served, self._served = self._served, []
-        for made in reversed(served):
-            made.close()

@@ -20,11 +20,11 @@ import logging
 from dataclasses import dataclass
 from typing import Any
 
-from dataflow import DataflowError
 from dataflow.transports import TransportError
+from scart.bindings.dataflow._elements import Serving, check_each
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
-from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
+from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Problem
 
 __all__ = ["YarpRpcElement", "YarpRpcParticipant"]
 
@@ -97,13 +97,7 @@ class YarpRpcElement(ElementProvider):
 
     def check(self, elements: list[tuple[str, Element]], assembly: AssemblyView,
               context: CheckContext) -> list[Problem]:
-        out: list[Problem] = []
-        for prefix, el in elements:
-            found, problems = _parse(prefix, el)
-            if found is not None:
-                problems = _check(found, assembly)
-            out += [Problem(YARPRPC_CODE, msg, el.loc.path, el.loc.line) for msg in problems]
-        return out
+        return check_each(elements, _parse, lambda rpc: _check(rpc, assembly), YARPRPC_CODE)
 
     def activate(self, host: Host) -> YarpRpcParticipant:
         found = [r for prefix, el in host.assembly.elements_of(self.name) if (r := _parse(prefix, el)[0])]
@@ -130,24 +124,13 @@ def _check(rpc: YarpRpc, assembly: AssemblyView) -> list[str]:
     return []
 
 
-class YarpRpcParticipant(Participant):
+class YarpRpcParticipant(Serving[YarpRpc]):
     """Serves the YARP RPC ports of one runtime at start, withdraws them at stop."""
 
-    def __init__(self, rpcs: list[YarpRpc], host: Host) -> None:
-        self.rpcs = rpcs
-        self.host = host
-        self._served: list[Any] = []
+    def what(self, rpc: YarpRpc) -> str:
+        return f"YARP RPC port {rpc.port} ({rpc.where})"
 
-    def start(self) -> None:
-        for rpc in self.rpcs:
-            try:
-                made = self._serve(rpc)
-            except (DataflowError, ValueError, LookupError, OSError) as exc:
-                self.stop()
-                raise DataflowError(f"YARP RPC port {rpc.port} ({rpc.where}): {exc}") from exc
-            self._served.append(made)
-
-    def _serve(self, rpc: YarpRpc) -> Any:
+    def serve(self, rpc: YarpRpc) -> Any:
         from dataflow.transports.yarp.rpc import serve_calls, serve_task
 
         node = self.host.assembly.nodes.get(rpc.component)
@@ -158,8 +141,3 @@ class YarpRpcParticipant(Participant):
         calls = {word: self.host.endpoint(f"{rpc.component}/{service}").method(op)
                  for word, (service, op) in _sca_operations(node).items()}
         return serve_calls(calls, rpc.port, rpc.component, dict(rpc.options))
-
-    def stop(self) -> None:
-        served, self._served = self._served, []
-        for made in reversed(served):
-            made.close()
