@@ -292,7 +292,8 @@ def test_connect_refuses_an_unknown_transport_before_connecting() -> None:
 
     result = run("connect", "a.out", "b.in", "--transport", "nope", "--ns", "127.0.0.1:1")
     assert result.returncode == 2
-    assert "--transport: ConnPolicy.transport must be auto, ipc, shm, grpc, ros1, ros2 or zenoh, got 'nope'" in result.stderr
+    assert ("--transport: ConnPolicy.transport must be auto, ipc, shm, grpc, ros1, ros2, yarp or zenoh, got 'nope'"
+            in result.stderr)
 
 
 def test_deploy_advertises_what_it_is_told_and_refuses_a_malformed_address() -> None:

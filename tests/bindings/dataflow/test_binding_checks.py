@@ -160,7 +160,7 @@ class T(TaskContext):
     ('ns="nohost"', "ns 'nohost': expected the name service as \"host:port\""),
     ('ns="h:99999"', "ns 'h:99999'"),
     ('period="1e-9"', "period '1e-9': at least 0.001 s"),
-    ('transport="tcp"', "transport='tcp': expected auto, ipc, shm, grpc, ros1, ros2 or zenoh"),
+    ('transport="tcp"', "transport='tcp': expected auto, ipc, shm, grpc, ros1, ros2, yarp or zenoh"),
     ('zenoh="tcp/10.0.0.1:7447"', "Zenoh endpoint 'tcp/10.0.0.1:7447' is not loopback"),
     ('zenoh="nowhere"', "expected PROTOCOL/ADDRESS"),
     ('zenoh="unixsock-stream/z.sock" zenoh-ns="a/b"', "'a/b' cannot be a Zenoh key chunk"),
