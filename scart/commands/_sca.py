@@ -26,8 +26,15 @@ MAX_ENDPOINTS = 64  # services endpoints one command lists or searches
 
 
 def at(args: argparse.Namespace) -> str | None:
-    """``--at``, else ``$SCART_SERVICES``, else None (then the name service is asked)."""
-    return getattr(args, "at", None) or os.environ.get(SERVICES_ENV) or None
+    """``--at``, else ``$SCART_SERVICES``, else None (then the name service is asked).
+    Raises ``ValueError`` naming ``$SCART_SERVICES`` when it is not ``HOST:PORT``."""
+    from dataflow.cli.output import checked_address
+
+    given = getattr(args, "at", None)
+    if given:
+        return str(given)
+    env = os.environ.get(SERVICES_ENV)
+    return checked_address(env, f"${SERVICES_ENV}") if env else None
 
 
 def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, jsonable, out, parse_value, with_system
+from dataflow.cli.output import add_common, address_arg, dump, err, jsonable, out, parse_value, with_system
 from scart.commands._sca import SERVICES_ENV, at, call, find, split_target, with_services
 
 HELP = "call a task's operation or an SCA service's, with JSON or YAML arguments"
@@ -23,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("operation", metavar="COMP.OP|COMPONENT/SERVICE.op|ros1:/service|ros2:/service")
     parser.add_argument("args", nargs="*", help="arguments: JSON or YAML each (a ROS service: one object of "
                                                 "its request's fields)")
-    parser.add_argument("--at", default=None, metavar="HOST:PORT",
+    parser.add_argument("--at", default=None, metavar="HOST:PORT", type=address_arg,
                         help="call the SCA service served there, without the name service (scart run prints it: "
                              f"'SCA services at ...'; or ${SERVICES_ENV})")
     parser.add_argument("--type", default=None, metavar="pkg/Srv",
@@ -38,7 +38,11 @@ def main(args: argparse.Namespace) -> int:
     """Call; 1 when the target is unknown, refuses or raises."""
     if args.operation.startswith(("ros1:", "ros2:")):  # a ROS service: found through ROS, no name service
         return with_services(args, lambda a: _print(a, _ros_call(a)))
-    address = at(args)
+    try:
+        address = at(args)
+    except ValueError as exc:
+        err(f"call: {exc}")
+        return 2
     if address is not None:
         return with_services(args, lambda a: _print(a, call(address, a.operation, _arguments(a), a)))
     return with_system(args, _call)

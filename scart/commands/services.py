@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, out
+from dataflow.cli.output import add_common, address_arg, dump, out
 from scart.commands._sca import SERVICES_ENV, at, endpoints, list_services, with_services
 
 HELP = "list the SCA services scart run serves (found through the name service, or --at)"
@@ -14,7 +14,7 @@ HELP = "list the SCA services scart run serves (found through the name service, 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``--at`` and the common options."""
-    parser.add_argument("--at", default=None, metavar="HOST:PORT",
+    parser.add_argument("--at", default=None, metavar="HOST:PORT", type=address_arg,
                         help=f"list the services served there instead (scart run prints it), or ${SERVICES_ENV}")
     add_common(parser)
 

@@ -1,0 +1,111 @@
+"""What a new user met and took for success (issue: "every promise kept"): each case
+through the ``scart`` command a user types, as a real subprocess against a real served
+deployer. A typo never prints ``null`` and exit 0; a field a model does not have is
+refused, not dropped; an address without a port, a negative timeout and a huge argument
+get one short line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+
+import pydantic
+import pytest
+
+from dataflow import Deployer, InputPort, OutputPort, PeriodicActivity, TaskContext, operation, register_type
+from support import ROOT
+from support.remote import subprocess_env
+
+pytestmark = [pytest.mark.integration, pytest.mark.subprocess]
+
+
+@register_type("PromisePose")
+class Pose(pydantic.BaseModel):
+    x: float
+    y: float
+
+
+class Filter(TaskContext):
+    """A task with a model input and a counter output (a new user's first task)."""
+
+    pose_in = InputPort(Pose, doc="where to go")
+    ticks = OutputPort(int, doc="cycle counter")
+
+    def __init__(self, name: str = "Filter") -> None:
+        super().__init__(name)
+        self.count = 0
+        self.poses: list[Pose] = []
+
+    def update_hook(self) -> None:
+        self.count += 1
+        self.ticks.write(self.count)
+        flow, pose = self.pose_in.read()
+        if flow.name == "NEW_DATA":
+            self.poses.append(pose)
+
+    @operation
+    def scale(self, pose: Pose, factor: float = 1.0) -> float:
+        """``factor`` times the pose's x."""
+        return pose.x * factor
+
+
+@pytest.fixture(scope="module")
+def served() -> Iterator[tuple[str, Filter]]:
+    """A served deployer (embedded name service) hosting one Filter, running."""
+    deployer = Deployer()
+    task = Filter()
+    task.set_activity(PeriodicActivity(0.02))
+    deployer.add(task)
+    deployer.configure_all()
+    deployer.start_all()
+    server = deployer.serve("127.0.0.1:0")
+    try:
+        yield server.address, task
+    finally:
+        server.stop()
+        deployer.stop_all()
+
+
+def scart(ns: str | None, *args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "scart", *args], capture_output=True, text=True, timeout=60,
+                          env={**subprocess_env(ns), **(env or {})}, cwd=ROOT)
+
+
+def test_echo_of_a_field_the_samples_lack_exits_1_naming_the_fields(served: tuple[str, Filter]) -> None:
+    ns, _ = served
+    done = scart(ns, "echo", "Filter.ticks", "--once", "--field", "jionts")
+    assert done.returncode == 1, done
+    assert "null" not in done.stdout and done.stdout == ""
+    assert "has no jionts" in done.stderr and done.stderr.count("\n") == 1
+
+
+def test_write_refuses_a_field_the_model_does_not_have(served: tuple[str, Filter]) -> None:
+    ns, task = served
+    done = scart(ns, "write", "Filter.pose_in", "{x: 1, y: 2, z: 3}")
+    assert done.returncode == 1, done
+    assert "unknown field z" in done.stderr and "Pose has: x, y" in done.stderr, done.stderr
+    near = scart(ns, "write", "Filter.pose_in", "{x: 1, yy: 2}")
+    assert near.returncode == 1 and "did you mean 'y'?" in near.stderr, near.stderr
+    assert task.poses == []  # nothing reached the task
+    ok = scart(ns, "write", "Filter.pose_in", "{x: 1, y: 2}")
+    assert ok.returncode == 0, ok.stderr
+
+
+def test_an_address_without_a_port_and_a_negative_timeout_are_refused() -> None:
+    for args in (["ls", "--ns", "localhost"], ["ls", "--timeout", "-1"], ["ls", "--timeout", "nan"],
+                 ["call", "--at", "localhost", "x.y"]):
+        done = scart(None, *args)
+        assert done.returncode == 2, (args, done)
+        assert "443" not in done.stderr and ("HOST:PORT" in done.stderr or "> 0" in done.stderr), done.stderr
+    env = scart(None, "ls", env={"SCART_NS": "localhost"})
+    assert env.returncode == 2 and "$SCART_NS 'localhost': expected HOST:PORT" in env.stderr, env.stderr
+
+
+def test_an_error_line_echoes_a_bounded_part_of_a_huge_argument() -> None:
+    huge = "x" * 120_000  # as long as one argument of a command line may be
+    for args in (["info", huge], ["state", "task", huge]):
+        done = scart(None, *args)
+        assert done.returncode in (1, 2), done
+        assert len(done.stderr) < 4000 and "characters left out" in done.stderr, len(done.stderr)
