@@ -33,6 +33,9 @@ import logging
 import math
 import random
 import time
+from typing import Annotated
+
+from pydantic import Field
 
 from dataflow import (
     FlowStatus,
@@ -122,8 +125,9 @@ class YouBotDriver(TaskContext):
         self._reset_state()
 
     @operation
-    def set_period(self, seconds: float) -> bool:
-        """Request a new period (same as writing the ``period`` port); True if accepted."""
+    def set_period(self, seconds: Annotated[float, Field(ge=MIN_PERIOD, le=MAX_PERIOD)]) -> bool:
+        """Request a new period (same as writing the ``period`` port); True if accepted.
+        Its bounds are declared, so a call from outside is refused as a write is."""
         return self._apply_period(seconds)
 
     @operation

@@ -18,6 +18,9 @@ from dataflow import Deployer, InputPort, OutputPort, PeriodicActivity, TaskCont
 from support import ROOT
 from support.remote import subprocess_env
 
+sys.path.insert(0, str(ROOT / "composites" / "youbot"))
+from driver import YouBotDriver  # noqa: E402
+
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess]
 
 
@@ -58,6 +61,7 @@ def served() -> Iterator[tuple[str, Filter]]:
     task = Filter()
     task.set_activity(PeriodicActivity(0.02))
     deployer.add(task)
+    deployer.add(YouBotDriver())
     deployer.configure_all()
     deployer.start_all()
     server = deployer.serve("127.0.0.1:0")
@@ -109,3 +113,25 @@ def test_an_error_line_echoes_a_bounded_part_of_a_huge_argument() -> None:
         done = scart(None, *args)
         assert done.returncode in (1, 2), done
         assert len(done.stderr) < 4000 and "characters left out" in done.stderr, len(done.stderr)
+
+
+def test_call_takes_the_arguments_by_name_as_one_mapping(served: tuple[str, Filter]) -> None:
+    ns, _ = served
+    named = scart(ns, "call", "Filter.scale", "{pose: {x: 2, y: 0}, factor: 3}")
+    assert named.returncode == 0 and json.loads(named.stdout) == 6.0, named
+    in_order = scart(ns, "call", "Filter.scale", "{x: 2, y: 0}", "2")  # a model's fields: one argument
+    assert in_order.returncode == 0 and json.loads(in_order.stdout) == 4.0, in_order
+    missing = scart(ns, "call", "Filter.scale", "{pose: {x: 2, y: 0}, factr: 3}")
+    assert missing.returncode == 1 and "missing 'factor'" in missing.stderr and "no argument 'factr'" in missing.stderr
+
+
+def test_call_and_write_refuse_a_value_alike(served: tuple[str, Filter]) -> None:
+    """``call set_period 5`` printed ``false`` and exited 0 where ``write period 5`` exited
+    1: a value the task's declaration refuses is refused at either door, exit 1."""
+    ns, _ = served
+    write = scart(ns, "write", "youBotDriver.period", "5")
+    call = scart(ns, "call", "youBotDriver.set_period", "5")
+    assert (write.returncode, call.returncode) == (1, 1), (write, call)
+    assert call.stdout == "" and "set_period(seconds): 5 refused" in call.stderr and "1" in call.stderr
+    accepted = scart(ns, "call", "youBotDriver.set_period", "{seconds: 0.02}")
+    assert accepted.returncode == 0 and json.loads(accepted.stdout) is True, accepted

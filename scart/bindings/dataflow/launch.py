@@ -238,6 +238,11 @@ class DataflowLaunched(Launched):
             return None
         return self.announcement.ns_option
 
+    def service_name(self, name: str) -> str:
+        """``NS/name`` under ``--remap __ns=NS``: how the name service finds it."""
+        namespace = self.own.remap.namespace
+        return f"{namespace}/{name}" if namespace else name
+
 
 def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = None) -> Any:
     """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service

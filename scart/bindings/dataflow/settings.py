@@ -43,7 +43,9 @@ class Remap(BaseModel):
     * ``youBotDriver=left/youBotDriver`` renames the task (or bridge) ``youBotDriver``;
     * ``jointStatus=joint_states`` renames every port called ``jointStatus``;
       ``youBotDriver.jointStatus=joint_states`` only that task's;
-    * ``__ns=left`` puts every task name not renamed otherwise under ``left/``.
+    * ``__ns=left`` puts every task name not renamed otherwise under ``left/``, and the
+      component services ``scart run`` registers with the name service too (``scart call
+      left/Locomotor.move_to_pose``).
 
     They apply wherever the composite names a task or a port: the task's own name (so its
     name-service registration), its ports, ``scart:connect`` ends, bridge inputs and
@@ -76,6 +78,12 @@ class Remap(BaseModel):
 
     def __bool__(self) -> bool:
         return bool(self.rules)
+
+    @property
+    def namespace(self) -> str:
+        """The namespace of ``__ns=NS`` (``"left"``), else ``""``: SCA services are found
+        under it too (``left/Locomotor``), as tasks run under it."""
+        return (self._rule("__ns") or "").strip("/")
 
     def _rule(self, name: str) -> str | None:
         return next((new for old, new in reversed(self.rules) if old == name), None)

@@ -74,6 +74,7 @@ class Exported:
                 fn = self.plain[name] = self.endpoint.operation(name, None)
         else:
             fn = self.endpoint.operation(name, callback)
+        sig.check_shape(len(inv.args), inv.kwargs)
         return fn(*sig.args(inv.args), **sig.kwargs(inv.kwargs))
 
     def send(self, inv: Any, callback: object | None) -> None:
@@ -83,6 +84,7 @@ class Exported:
         if sig is None:
             raise InvocationError(f"{self.names[0]} has no operation {name!r}")
         method = self.endpoint.method(name)
+        sig.check_shape(len(inv.args), inv.kwargs)
         args, kwargs = sig.args(inv.args), sig.kwargs(inv.kwargs)
 
         def work() -> None:
@@ -102,7 +104,9 @@ class Exported:
     def info(self) -> Any:
         """This service as a ``ServiceInfo`` message."""
         iface, cb = self.endpoint.interface, self.callback_iface
-        ops = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value) for o in iface.operations.values()]
+        ops = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value,
+                                params=self.sigs[o.name].params if o.name in self.sigs else [])
+               for o in iface.operations.values()]
         cbs = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value)
                for o in (cb.operations.values() if cb is not None else ())]
         return pb.ServiceInfo(names=self.names, interface=iface.name, operations=ops,
