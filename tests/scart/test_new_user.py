@@ -1,12 +1,14 @@
 """What a new user met with the SCA verbs and took for success, or could not do (issue:
 "every promise kept", section 3), each through ``scart`` as typed: a call by named
 arguments, a missing argument said in one line (no traceback in ``scart run``'s
-terminal), the SCA services of a ``--remap __ns=`` run found under that namespace."""
+terminal), the SCA services of a ``--remap __ns=`` run found under that namespace, a
+busy port said in one line with what to do (not gRPC's raw ``add_port.cc`` line)."""
 
 from __future__ import annotations
 
 import json
 import re
+import socket
 
 import pytest
 
@@ -14,6 +16,7 @@ from support import ROOT, free_port
 from support.cli import finish, read_until, run, start
 
 CALCULATOR = ROOT / "composites" / "calculator" / "calculator.composite"
+FIRST = ROOT / "composites" / "first" / "first.composite"
 
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess]
 
@@ -54,3 +57,17 @@ def test_the_services_of_a_run_under_a_namespace_are_found_under_it() -> None:
             if proc is not None:
                 proc.terminate()
                 finish(proc)
+
+
+def test_a_busy_port_is_said_in_one_line_without_grpc_s_own() -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        taken = f"127.0.0.1:{busy.getsockname()[1]}"
+        for args in (["run", str(FIRST), "--ns", taken],
+                     ["run", str(CALCULATOR), "--services", taken, "--ns", f"127.0.0.1:{free_port()}"]):
+            done = run(*args)
+            assert done.returncode == 1, done
+            assert "add_port.cc" not in done.stderr and "E1" not in done.stderr, done.stderr
+            assert f"cannot listen on {taken}: the port is in use" in done.stderr, done.stderr
+            assert "choose another port" in done.stderr

@@ -27,7 +27,7 @@ from typing import Any
 import grpc
 
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
-from scart_wire.rpc import StreamBudget, server_options
+from scart_wire.rpc import StreamBudget, bind_problem, server_options
 from scart_wire.security import Security, SecurityError, auth_interceptor
 from dataflow.threads import OwnedThread
 from scart.bindings.grpc._wire import (
@@ -302,6 +302,11 @@ class GrpcServer:
         server = grpc.server(self._server_pool, options=server_options(), interceptors=interceptors,
                              maximum_concurrent_rpcs=MAX_WORKERS)  # beyond: RESOURCE_EXHAUSTED, never a queue
         pb_grpc.add_ScaServiceServicer_to_server(_Servicer(self), server)
+        problem = bind_problem(self.configured)
+        if problem is not None:
+            server.stop(None)
+            self._server_pool.shutdown(wait=False)
+            raise ScartError(f"binding.grpc: {problem}")
         try:
             if credentials is not None:
                 port = server.add_secure_port(self.configured, credentials)
