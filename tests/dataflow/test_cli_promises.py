@@ -135,3 +135,12 @@ def test_call_and_write_refuse_a_value_alike(served: tuple[str, Filter]) -> None
     assert call.stdout == "" and "set_period(seconds): 5 refused" in call.stderr and "1" in call.stderr
     accepted = scart(ns, "call", "youBotDriver.set_period", "{seconds: 0.02}")
     assert accepted.returncode == 0 and json.loads(accepted.stdout) is True, accepted
+
+
+def test_a_garbage_tls_ca_gets_one_clear_line(tmp_path) -> None:  # noqa: ANN001 - pytest's tmp_path
+    garbage = tmp_path / "ca.pem"
+    garbage.write_text("not a certificate\n")
+    done = scart(None, "ls", "--ns", "127.0.0.1:9", "--tls-ca", str(garbage))
+    assert done.returncode == 1, done
+    assert done.stderr == f"scart ls: --tls-ca {garbage}: no PEM certificate in it (give the CA's certificate, a " \
+                          "file starting '-----BEGIN CERTIFICATE-----')\n", done.stderr  # no gRPC line, no "nothing answers"
