@@ -256,15 +256,21 @@ def output_problem(path: str, overwrite: bool) -> str | None:
 
 
 def open_output(path: str, overwrite: bool) -> int:
-    """The file descriptor of a new output file (exclusive unless ``overwrite``); raises
-    ``ValueError`` with one line when it cannot be made."""
+    """The file descriptor of a new output file (exclusive unless ``overwrite``), readable
+    and writable by its owner only (0600, as token files are: a recording holds what the
+    robot did); raises ``ValueError`` with one line when it cannot be made."""
     flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
     try:
-        return os.open(path, flags, 0o644)
+        fd = os.open(path, flags, 0o600)
     except FileExistsError:
         raise ValueError(f"-o {path}: the file exists; give --overwrite to replace it") from None
     except OSError as exc:
         raise ValueError(f"-o {path}: {exc.strerror}") from None
+    try:
+        os.fchmod(fd, 0o600)  # a file overwritten keeps its mode otherwise
+    except OSError:
+        pass  # a file system without modes: nothing more to do
+    return fd
 
 
 class Sink:

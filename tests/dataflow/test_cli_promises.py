@@ -144,3 +144,14 @@ def test_a_garbage_tls_ca_gets_one_clear_line(tmp_path) -> None:  # noqa: ANN001
     assert done.returncode == 1, done
     assert done.stderr == f"scart ls: --tls-ca {garbage}: no PEM certificate in it (give the CA's certificate, a " \
                           "file starting '-----BEGIN CERTIFICATE-----')\n", done.stderr  # no gRPC line, no "nothing answers"
+
+
+def test_a_recording_is_made_private(served: tuple[str, Filter], tmp_path) -> None:  # noqa: ANN001
+    ns, _ = served
+    fresh, old = tmp_path / "run.mcap", tmp_path / "old.mcap"
+    old.write_text("")
+    old.chmod(0o644)
+    for path, extra in ((fresh, ()), (old, ("--overwrite",))):
+        done = scart(ns, "record", "Filter.ticks", "-o", str(path), "-n", "2", *extra)
+        assert done.returncode == 0, done.stderr
+        assert path.stat().st_mode & 0o777 == 0o600, oct(path.stat().st_mode)
