@@ -263,12 +263,12 @@ def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = Non
     security = context.settings.security
     writer = None
     if control is not None:
-        token = control_token(control or None, security, "--foxglove-control")
+        token = control_token(control or None, security, "--foxglove-control", ns=where.split()[0])
         writer = connect(where.split()[0], security=dataclasses.replace(security, token=token))
     system = connect(where.split()[0], security=security)
     try:
         live = FoxgloveLive(system, host, int(port), insecure_host=security.insecure, owns_system=True,
-                            control=writer)
+                            control=writer, auth_file=security.auth_file)
     except BaseException:
         system.close()
         if writer is not None:
