@@ -27,8 +27,8 @@ from typing import Any
 
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
-__all__ = ["add_common", "address_arg", "checked_address", "dump", "err", "jsonable", "ns_address", "out",
-           "parse_value", "policy_of", "rate_of", "seconds_arg", "stopped_by_signals", "wait_until_stopped",
+__all__ = ["add_common", "address_arg", "checked_address", "dump", "err", "jsonable", "listen_arg", "ns_address",
+           "out", "parse_value", "policy_of", "rate_of", "seconds_arg", "stopped_by_signals", "wait_until_stopped",
            "with_rates", "with_system"]
 
 #: A value typed on the command line (JSON or YAML), at most this long.
@@ -52,12 +52,14 @@ def add_common(parser: argparse.ArgumentParser) -> None:
     add_arguments(parser, server=False)
 
 
-def checked_address(text: str, what: str) -> str:
-    """``text`` when it is ``HOST:PORT`` with a port in 1..65535; else ``ValueError``
-    naming ``what`` (``localhost`` alone would go to gRPC's default port, 443)."""
+def checked_address(text: str, what: str, free_port: bool = False) -> str:
+    """``text`` when it is ``HOST:PORT`` with a port in 1..65535 (0..65535 with
+    ``free_port``: where a server listens); else ``ValueError`` naming ``what``
+    (``localhost`` alone would go to gRPC's default port, 443)."""
     m = _HOST_PORT.match(text.strip())
-    if m is None or not 1 <= int(m["port"]) <= 65535:
-        raise ValueError(f"{what} {text[:80]!r}: expected HOST:PORT with a port in 1..65535 "
+    low = 0 if free_port else 1
+    if m is None or not low <= int(m["port"]) <= 65535:
+        raise ValueError(f"{what} {text[:80]!r}: expected HOST:PORT with a port in {low}..65535 "
                          f"(e.g. {DEFAULT_NS_ADDRESS})")
     return text.strip()
 
@@ -66,6 +68,14 @@ def address_arg(text: str) -> str:
     """argparse type of an address option: :func:`checked_address` (a usage error, exit 2)."""
     try:
         return checked_address(text, "")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).strip()) from None
+
+
+def listen_arg(text: str) -> str:
+    """argparse type of an address a server may listen on (port 0: a free one)."""
+    try:
+        return checked_address(text, "", free_port=True)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc).strip()) from None
 

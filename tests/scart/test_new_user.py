@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import socket
+from pathlib import Path
 
 import pytest
 
@@ -71,3 +73,43 @@ def test_a_busy_port_is_said_in_one_line_without_grpc_s_own() -> None:
             assert "add_port.cc" not in done.stderr and "E1" not in done.stderr, done.stderr
             assert f"cannot listen on {taken}: the port is in use" in done.stderr, done.stderr
             assert "choose another port" in done.stderr
+
+
+def test_a_typo_in_a_connect_end_is_an_error_and_an_external_task_is_declared(tmp_path: Path) -> None:
+    """``to="filtr.inp"`` was a warning: validate exited 0 and run waited forever for
+    ``filtr``. A task served by another process is declared ``<scart:external>``, and
+    ``run`` says what it waits for."""
+    folder = tmp_path / "first"
+    shutil.copytree(ROOT / "composites" / "first", folder, ignore=shutil.ignore_patterns("__pycache__"))
+    original = (folder / "first.composite").read_text(encoding="utf-8")
+    typo = folder / "typo.composite"
+    typo.write_text(original.replace('to="summer.inp"', 'to="sumer.inp"'), encoding="utf-8")
+    checked = run("validate", str(typo))
+    assert checked.returncode == 2, checked
+    assert "'sumer' is no task of this composite (did you mean 'summer'?)" in checked.stderr
+    assert '<scart:external task="sumer"/>' in checked.stderr
+    declared = folder / "declared.composite"
+    declared.write_text(original.replace('to="summer.inp"', 'to="far.inp"').replace(
+        "<scart:connect ", '<scart:external task="far"/>\n    <scart:connect '), encoding="utf-8")
+    assert run("validate", str(declared)).returncode == 0
+    proc = start("run", str(declared), "--ns", f"127.0.0.1:{free_port()}")
+    try:
+        said = read_until(proc, "linked when it appears)")
+    finally:
+        proc.terminate()
+        finish(proc)
+    assert re.search(r"waiting for far in name service \S+ \(declared external: linked when it appears\)", said), said
+
+
+def test_an_element_typo_gets_the_near_element(tmp_path: Path) -> None:
+    """``<scart:conect>`` was told 'did you mean component', ``<scart:brige>`` nothing."""
+    path = tmp_path / "typo.composite"
+    path.write_text('<composite xmlns="http://docs.oasis-open.org/ns/opencsa/sca/200912" xmlns:scart="urn:scart:1.0" '
+                    'targetNamespace="urn:t" name="T">\n  <scart:conect from="a.out" to="b.in"/>\n'
+                    '  <scart:brige name="x"/>\n</composite>\n', encoding="utf-8")
+    checked = run("validate", str(path))
+    assert checked.returncode == 2
+    assert f"{path}:2: unknown element <conect> in 'urn:scart:1.0' inside <composite> (did you mean 'connect'?)" \
+        in checked.stderr
+    assert f"{path}:3: unknown element <brige> in 'urn:scart:1.0' inside <composite> (did you mean 'bridge'?)" \
+        in checked.stderr

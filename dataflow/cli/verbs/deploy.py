@@ -29,7 +29,7 @@ from typing import Any
 
 from dataflow.cli import _ros as ros_args
 from dataflow.cli import _zenoh as zenoh_args
-from dataflow.cli.output import address_arg
+from dataflow.cli.output import listen_arg
 from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from scart_wire.security import add_arguments as add_arguments_security
 from scart_wire.security import from_args
@@ -48,7 +48,7 @@ def add_arguments(deploy: argparse.ArgumentParser) -> None:
     deploy.add_argument("--advertise", default=None, metavar="HOST[:PORT]",
                         help="the address registered in the name service and announced on Zenoh (default: "
                              "the one listened on; this host's name when listening on every interface)")
-    deploy.add_argument("--ns", default=None, type=address_arg, metavar="HOST:PORT", help=f"name service HOST:PORT (or ${NS_ENV}): joined when one answers there, else embedded there; "
+    deploy.add_argument("--ns", default=None, type=listen_arg, metavar="HOST:PORT", help=f"name service HOST:PORT (or ${NS_ENV}): joined when one answers there, else embedded there; "
                         "default: embed one")
     deploy.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="name-service lease (s)")
     deploy.add_argument("--heartbeat-ms", type=int, default=500, help="idle heartbeat of subscriptions (ms)")
