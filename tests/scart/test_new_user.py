@@ -113,3 +113,22 @@ def test_an_element_typo_gets_the_near_element(tmp_path: Path) -> None:
         in checked.stderr
     assert f"{path}:3: unknown element <brige> in 'urn:scart:1.0' inside <composite> (did you mean 'bridge'?)" \
         in checked.stderr
+
+
+def test_run_chooses_where_its_data_flow_server_listens() -> None:
+    """``deploy`` had ``--listen``; ``run`` could not choose its data-flow address."""
+    ns, listen = f"127.0.0.1:{free_port()}", f"127.0.0.1:{free_port()}"
+    first = start("run", str(FIRST), "--ns", ns)
+    second = None
+    try:
+        read_until(first, "started")
+        second = start("run", str(FIRST), "--ns", ns, "--listen", listen, "--remap", "__ns=b")
+        said = read_until(second, "started")
+        assert f"dataflow server at {listen}" in said and f"name service at {ns} (joined)" in said, said
+        rows = {r["name"]: r for r in json.loads(run("ls", "--ns", ns, "--json").stdout)}
+        assert rows["b/ticker"]["deployer"] == listen and rows["ticker"]["deployer"] == ns
+    finally:
+        for proc in (second, first):
+            if proc is not None:
+                proc.terminate()
+                finish(proc)

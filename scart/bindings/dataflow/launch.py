@@ -6,7 +6,8 @@ hook                what it does
 ==================  ===========================================================================
 options             ``--remap FROM=TO`` (every verb); ``--ns HOST:PORT`` (``run``: where the
                     embedded name service listens, or the running one to join; ``validate``:
-                    the one ``--online`` asks); ``--foxglove [HOST:]PORT`` and
+                    the one ``--online`` asks); ``--listen HOST:PORT`` (``run``: where the
+                    data-flow server listens); ``--foxglove [HOST:]PORT`` and
                     ``--foxglove-control [TOKEN_FILE]``, ``--ros-master URI`` and
                     ``--ros-name NAME`` (``run``)
 settings            a :class:`~scart.bindings.dataflow.settings.DataflowSettings` (``--ns``,
@@ -60,6 +61,9 @@ class DataflowLaunch(LaunchProvider):
                                 help="name service of data-flow tasks and SCA services: where the embedded one "
                                      f"listens, or the running one to join (default: ${NS_ENV}, else "
                                      f"{DEFAULT_NS_ADDRESS})")
+            parser.add_argument("--listen", default=None, metavar="HOST:PORT",
+                                help="where the data-flow server listens (as scart deploy --listen; default: the "
+                                     "name service's address when this run embeds it, else a free loopback port)")
             parser.add_argument("--foxglove", default=None, metavar="[HOST:]PORT",
                                 help="also serve the data-flow tasks live to the Foxglove app here (as `scart "
                                      "foxglove`: ports, properties, operations; 0: a free port; a routable HOST needs "
@@ -81,6 +85,12 @@ class DataflowLaunch(LaunchProvider):
         fields: dict[str, object] = {"remap": Remap.parse(getattr(args, "remap", None) or []), "serve": verb == "run",
                                      "foxglove": getattr(args, "foxglove", None),
                                      "foxglove_control": getattr(args, "foxglove_control", None)}
+        listen = getattr(args, "listen", None)
+        if listen:
+            try:
+                fields["listen"] = DataflowSettings(listen=listen).listen
+            except ValueError as exc:
+                raise ValueError(f"--listen {listen!r}: expected HOST:PORT (port 0..65535)") from exc
         ns = getattr(args, "ns", None)
         if ns:
             try:

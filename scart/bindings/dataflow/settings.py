@@ -14,6 +14,9 @@ field                  meaning
                        read from the environment (:meth:`DataflowSettings.from_env`)
 ``serve``              serve the composite's data-flow tasks over gRPC at start, with a name
                        service embedded at ``ns_address`` or joined there (``scart run``)
+``listen``             where that data-flow server listens, ``HOST:PORT`` (``scart run
+                       --listen``); None: the name service's address when it embeds one,
+                       else a free loopback port
 ``remap``              names of data-flow tasks and ports changed at launch (:class:`Remap`,
                        ``--remap FROM=TO``)
 ``foxglove``           ``scart run --foxglove [HOST:]PORT``: also serve the tasks to Foxglove
@@ -115,18 +118,19 @@ class DataflowSettings(BaseModel):
 
     ns: str | None = None
     serve: bool = False
+    listen: str | None = None
     remap: Remap = Remap()
     foxglove: str | None = None
     foxglove_control: str | None = None
 
-    @field_validator("ns")
+    @field_validator("ns", "listen")
     @classmethod
     def _host_port(cls, value: str | None) -> str | None:
         if value is None:
             return None
         parsed = parse_host_port(value.strip())
         if parsed is None or not port_in_range(parsed[1], zero_ok=True):
-            raise ValueError(f'name service {value!r}: expected "host:port" (port 0..65535)')
+            raise ValueError(f'{value[:80]!r}: expected "host:port" (port 0..65535)')
         return value.strip()
 
     @property
