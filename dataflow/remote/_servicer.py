@@ -497,12 +497,12 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
     def DisconnectPorts(self, request: pb.DisconnectPortsRequest, context: grpc.ServicerContext) -> pb.DisconnectPortsResponse:  # noqa: N802
         try:
             if request.name:
-                done = self.owner.disconnect_link(request.name)
+                lost = self.owner.disconnect_link_counted(request.name)
             else:
-                done = self.owner.disconnect_ports(
+                lost = self.owner.disconnect_counted(
                     request.source_task, request.source_port, request.sink_task, request.sink_port
                 )
-            return pb.DisconnectPortsResponse(disconnected=done)
+            return pb.DisconnectPortsResponse(disconnected=lost is not None, undelivered=lost or 0)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 

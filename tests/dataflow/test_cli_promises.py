@@ -7,6 +7,7 @@ get one short line."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -15,7 +16,7 @@ import pydantic
 import pytest
 
 from dataflow import Deployer, InputPort, OutputPort, PeriodicActivity, TaskContext, operation, register_type
-from support import ROOT
+from support import ROOT, wait_until
 from support.remote import subprocess_env
 
 sys.path.insert(0, str(ROOT / "composites" / "youbot"))
@@ -52,6 +53,12 @@ class Filter(TaskContext):
     def scale(self, pose: Pose, factor: float = 1.0) -> float:
         """``factor`` times the pose's x."""
         return pose.x * factor
+
+
+class Hoarder(TaskContext):
+    """A sink that never reads what arrives (a slow consumer at its worst)."""
+
+    inp = InputPort(int, doc="never read")
 
 
 @pytest.fixture(scope="module")
@@ -155,3 +162,42 @@ def test_a_recording_is_made_private(served: tuple[str, Filter], tmp_path) -> No
         done = scart(ns, "record", "Filter.ticks", "-o", str(path), "-n", "2", *extra)
         assert done.returncode == 0, done.stderr
         assert path.stat().st_mode & 0o777 == 0o600, oct(path.stat().st_mode)
+
+
+@pytest.fixture
+def far(served: tuple[str, Filter]) -> Iterator[str]:
+    """A second served deployer, joining the first's name service, hosting a Hoarder."""
+    ns, _ = served
+    deployer = Deployer()
+    deployer.add(Hoarder("hoard"))
+    deployer.configure_all()
+    deployer.start_all()
+    server = deployer.serve("127.0.0.1:0", ns=ns)
+    try:
+        yield ns
+    finally:
+        server.stop()
+        deployer.stop_all()
+
+
+def test_connecting_again_over_another_transport_says_so_and_disconnect_counts(far: str) -> None:
+    ns = far
+    made = scart(ns, "connect", "Filter.ticks", "hoard.inp", "--policy", "buffer:1000", "--transport", "ipc",
+                 "--name", "feed")
+    assert made.returncode == 0 and made.stdout.strip() == \
+        "connected Filter.ticks -> hoard.inp (buffer:1000, ipc) as feed", made
+    again = scart(ns, "connect", "Filter.ticks", "hoard.inp", "--policy", "buffer:1000", "--transport", "grpc",
+                  "--name", "feed2")
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.strip() == ("connected Filter.ticks -> hoard.inp (buffer:1000, grpc) as feed2: "
+                                    "transport changed from ipc to grpc; renamed from feed to feed2")  # not "data to data"
+
+    def written() -> int:
+        links = json.loads(scart(ns, "links", "--json").stdout)
+        return next((lk["samples"] for lk in links if lk["name"] == "feed2"), 0)
+
+    wait_until(lambda: written() >= 10, timeout=20, interval=0.2, message="nothing went over the link")
+    gone = scart(ns, "disconnect", "feed2")
+    assert gone.returncode == 0, gone.stderr
+    said = re.fullmatch(r"disconnected: (\d+) sample\(s\) written were never delivered", gone.stdout.strip())
+    assert said is not None and int(said[1]) >= 10, gone.stdout  # the sink read none of them
