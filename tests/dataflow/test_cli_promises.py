@@ -201,3 +201,29 @@ def test_connecting_again_over_another_transport_says_so_and_disconnect_counts(f
     assert gone.returncode == 0, gone.stderr
     said = re.fullmatch(r"disconnected: (\d+) sample\(s\) written were never delivered", gone.stdout.strip())
     assert said is not None and int(said[1]) >= 10, gone.stdout  # the sink read none of them
+
+
+def test_a_stream_to_zenoh_uses_the_deployer_s_own_session() -> None:
+    """``scart stream w.out zenoh:KEY`` against a deployer started with ``--zenoh`` said "run
+    the deployer with --zenoh": its session was never handed to streams."""
+    pytest.importorskip("zenoh")
+    from dataflow.transports.zenoh import open_session
+    from support.remote import address_of, start_scart, stop_process
+
+    proc, line = start_scart(["deploy", "support.remote:Pinger", "--name", "zp", "--period", "0.02",
+                              "--ns", "127.0.0.1:0", "--zenoh"], ready="serving")
+    client = None
+    try:
+        endpoint, address = line.rpartition("listening on ")[2], address_of(line)
+        client = open_session(connect=[endpoint], mode="client")
+        got: list[object] = []
+        subscriber = client.declare_subscriber("robot/ticks", got.append)
+        made = scart(address, "stream", "zp.ticks", "zenoh:robot/ticks")
+        assert made.returncode == 0, made.stderr
+        assert "run the deployer with --zenoh" not in made.stderr
+        wait_until(lambda: len(got) >= 2, timeout=15, message="nothing published on robot/ticks")
+        subscriber.undeclare()
+    finally:
+        if client is not None:
+            client.close()
+        assert stop_process(proc) == 0

@@ -215,6 +215,9 @@ class _Hosted:
                 self.zenoh_session, self.zenoh_listen = zenoh_args.session_of(args, serve=True, security=self.security)
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
                 raise _Failed(f"--zenoh: {zenoh_args.plain_error(str(exc))}") from None
+            from dataflow.transports.zenoh import use_session
+
+            use_session(self.zenoh_session)  # streams asked of this deployer (scart stream ... zenoh:KEY) use it
         try:
             for task in _make_tasks(args):
                 self.deployer.add(task)
@@ -259,6 +262,9 @@ class _Hosted:
             if self.publisher is not None:
                 self.publisher.close()
             if self.zenoh_session is not None:
+                from dataflow.transports.zenoh import use_session
+
+                use_session(None)
                 self.zenoh_session.close()
         except Exception as exc:  # noqa: BLE001 - Zenoh failing to close never keeps the tasks running
             _err(f"scart deploy: closing Zenoh: {exc}")
