@@ -27,19 +27,14 @@ VERBS_GROUP = "scart.verbs"
 CORE_VERBS = MappingProxyType({"run": "scart.commands.run", "validate": "scart.commands.validate",
                                "graph": "scart.commands.graph"})
 _FIRST = tuple(CORE_VERBS)  # listed first in --help, the others alphabetically
-#: A usage error echoes at most this many characters of what was typed.
-MAX_ECHO_CHARS = 2000
-
-
 class _Parser(argparse.ArgumentParser):
     """argparse's parser, its usage errors bounded: an argument of megabytes is not echoed
     whole ("invalid choice: '...'")."""
 
     def error(self, message: str) -> typing.NoReturn:
-        if len(message) > MAX_ECHO_CHARS:
-            keep = MAX_ECHO_CHARS // 2
-            message = f"{message[:keep]} ... ({len(message) - 2 * keep} characters left out) ... {message[-keep:]}"
-        super().error(message)
+        from scart_wire.errors import bounded
+
+        super().error(bounded(message))
 
 
 def verb_modules() -> dict[str, str]:

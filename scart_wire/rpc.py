@@ -112,21 +112,29 @@ class Abort(Exception):
         self.code = code
 
 
+#: ``bounded(text)``: a status's details carry at most this much of an error's text (a name
+#: of megabytes sent by a client is not echoed whole: gRPC would drop the reply for its
+#: metadata size).
+bounded = errors.bounded
+
+
 def abort(context: grpc.ServicerContext, exc: BaseException) -> NoReturn:
-    """Abort the RPC with the status matching ``exc`` (never returns)."""
+    """Abort the RPC with the status matching ``exc`` (never returns); its text bounded
+    (:data:`scart_wire.errors.MAX_ECHO`)."""
     from scart_wire.errors import DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 
+    text = bounded(str(exc))
     if isinstance(exc, Abort):
-        context.abort(grpc.StatusCode[exc.code], str(exc))
+        context.abort(grpc.StatusCode[exc.code], text)
     if isinstance(exc, NotFoundError):
-        context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+        context.abort(grpc.StatusCode.NOT_FOUND, text)
     if isinstance(exc, (PropertyValueError, PortValueError)):
-        context.abort(grpc.StatusCode.OUT_OF_RANGE, str(exc))
+        context.abort(grpc.StatusCode.OUT_OF_RANGE, text)
     if isinstance(exc, (PortTypeError, TypeError, ValueError)):
-        context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+        context.abort(grpc.StatusCode.INVALID_ARGUMENT, text)
     if isinstance(exc, DeploymentError):  # a refused deployment step (a link name taken, an input as source...)
-        context.abort(grpc.StatusCode.FAILED_PRECONDITION, str(exc))
-    context.abort(grpc.StatusCode.INTERNAL, f"{type(exc).__name__}: {exc}")
+        context.abort(grpc.StatusCode.FAILED_PRECONDITION, text)
+    context.abort(grpc.StatusCode.INTERNAL, bounded(f"{type(exc).__name__}: {exc}"))
 
 
 #: A servicer and the generated function that adds it to a server

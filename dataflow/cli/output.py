@@ -35,8 +35,6 @@ __all__ = ["add_common", "address_arg", "checked_address", "dump", "err", "jsona
 MAX_VALUE_CHARS = 1 << 20
 #: ... and nested at most this deep.
 MAX_VALUE_DEPTH = 64
-#: A diagnostic line echoes at most this many characters (a 3 MB argument is cut, said).
-MAX_ECHO_CHARS = 2000
 _HOST_PORT = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
 
 
@@ -101,18 +99,12 @@ def ns_address(args: argparse.Namespace) -> str:
 
 
 def err(message: str) -> None:
-    """One diagnostic line on stderr, ``scart `` first; at most :data:`MAX_ECHO_CHARS` of
-    it (what an argument echoes is cut in the middle, and said)."""
+    """One diagnostic line on stderr, ``scart `` first; at most
+    :data:`scart_wire.errors.MAX_ECHO` characters of it (what an argument echoes is cut in
+    the middle, and said)."""
+    from scart_wire.errors import bounded
+
     print(f"scart {bounded(message)}", file=sys.stderr, flush=True)
-
-
-def bounded(text: str, limit: int = MAX_ECHO_CHARS) -> str:
-    """``text``, or its head and tail around ``... (N characters left out) ...`` when
-    it is longer than ``limit``."""
-    if len(text) <= limit:
-        return text
-    keep = limit // 2
-    return f"{text[:keep]} ... ({len(text) - 2 * keep} characters left out) ... {text[-keep:]}"
 
 
 def out(text: str) -> None:

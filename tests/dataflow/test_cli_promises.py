@@ -227,3 +227,17 @@ def test_a_stream_to_zenoh_uses_the_deployer_s_own_session() -> None:
         if client is not None:
             client.close()
         assert stop_process(proc) == 0
+
+
+def test_a_server_echoes_a_bounded_part_of_a_huge_name(served: tuple[str, Filter]) -> None:
+    """A 3 MB port name came back whole in the error, past gRPC's metadata limit: the
+    client then saw "Stream removed" instead of the reason."""
+    from dataflow import NotFoundError
+    from dataflow.remote import connect
+
+    ns, _ = served
+    with connect(ns) as system:
+        with pytest.raises(NotFoundError) as refused:
+            system.component("Filter").write("y" * 3_000_000, 1.0)
+    said = str(refused.value)
+    assert len(said) < 4000 and "characters left out" in said and "ports:" in said, said[:300]

@@ -22,6 +22,7 @@ import pydantic
 
 from scart_wire import codec
 from scart_wire.bounds import argument_adapter, check_argument
+from scart_wire.errors import bounded
 from dataflow.errors import DataflowError, PortTypeError
 from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
 from scart_wire.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
@@ -232,7 +233,7 @@ def fault(exc: BaseException) -> Any:
     under that reference (a warning when the operation itself failed)."""
     kind = type(exc)
     name = kind.__qualname__ if kind.__module__ == "builtins" else f"{kind.__module__}.{kind.__qualname__}"
-    message = exc.remote_message if isinstance(exc, RemoteError) else str(exc)
+    message = bounded(exc.remote_message if isinstance(exc, RemoteError) else str(exc))
     code, reference = fault_code(exc), secrets.token_hex(6)
     failed = code == "FAILED"  # the operation's own failure: its traceback is worth keeping; a refusal's is not
     log.log(logging.WARNING if failed else logging.INFO, "binding.grpc fault %s (%s): %s: %s",
