@@ -29,7 +29,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, field_validator
 
 from scart.spi import Settings, parse_host_port, port_in_range
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
@@ -125,12 +125,13 @@ class DataflowSettings(BaseModel):
 
     @field_validator("ns", "listen")
     @classmethod
-    def _host_port(cls, value: str | None) -> str | None:
+    def _host_port(cls, value: str | None, info: ValidationInfo) -> str | None:
         if value is None:
             return None
         parsed = parse_host_port(value.strip())
         if parsed is None or not port_in_range(parsed[1], zero_ok=True):
-            raise ValueError(f'{value[:80]!r}: expected "host:port" (port 0..65535)')
+            what = "name service" if info.field_name == "ns" else "listen address"
+            raise ValueError(f'{what} {value[:80]!r}: expected "host:port" (port 0..65535)')
         return value.strip()
 
     @property
