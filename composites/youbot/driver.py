@@ -78,6 +78,10 @@ def _read_only(value: object) -> None:
     raise ValueError("read-only: set by the driver itself")
 
 
+#: What ``set_period`` takes: declared, so a call from outside is refused as a write is.
+_Period = Annotated[float, Field(ge=MIN_PERIOD, le=MAX_PERIOD, allow_inf_nan=False)]
+
+
 def _valid_period(seconds: float) -> None:
     """a period in [0.001, 1] s"""
     if not MIN_PERIOD <= seconds <= MAX_PERIOD:
@@ -125,7 +129,7 @@ class YouBotDriver(TaskContext):
         self._reset_state()
 
     @operation
-    def set_period(self, seconds: Annotated[float, Field(ge=MIN_PERIOD, le=MAX_PERIOD)]) -> bool:
+    def set_period(self, seconds: _Period) -> bool:
         """Request a new period (same as writing the ``period`` port); True if accepted.
         Its bounds are declared, so a call from outside is refused as a write is."""
         return self._apply_period(seconds)
