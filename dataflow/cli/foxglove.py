@@ -570,7 +570,17 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
         if control is not None:
             control.close()
         raise
-    live.start()
+    try:
+        live.start()
+    except OSError as exc:  # the port taken, or the server behind the gate could not be kept private
+        from dataflow.cli._inner_guard import GuardError
+
+        import errno
+
+        why = "the port is in use" if exc.errno == errno.EADDRINUSE else (exc.strerror or str(exc))
+        _err(f"foxglove: {exc}" if isinstance(exc, GuardError) else
+             f"foxglove: cannot listen on {args.host}:{args.port}: {why}; choose another --port (0: a free one)")
+        return 1
     try:
         print(f"scart: Foxglove at {live.url} ({live.channels} channel(s), "
               f"{'writable' if live.writable else 'read-only'})", flush=True)

@@ -354,3 +354,16 @@ def test_an_admin_token_is_refused_without_condition(robot: Robot) -> None:
         assert "Foxglove at" not in done.stdout and robot.tokens["admin"] not in done.stderr + done.stdout
     with served(robot, "--control", robot.token_file("operate"), auth_file=False) as live:
         assert "writable" in live.line
+
+
+def test_a_busy_port_is_one_line(robot: Robot) -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        done = subprocess.run([sys.executable, "-m", "scart", "foxglove", "--port", str(port), "--ns", robot.address,
+                               "--duration", "5"], capture_output=True, text=True, timeout=60, cwd=ROOT,
+                              env={**youbot_env(), "SCART_TOKEN": robot.tokens["read"]})
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.strip().endswith(f"cannot listen on 127.0.0.1:{port}: the port is in use; choose another "
+                                        "--port (0: a free one)"), done.stderr
