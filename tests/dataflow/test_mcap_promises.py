@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import struct
 import subprocess
 import sys
@@ -78,26 +77,31 @@ def amplified(path: Path, messages: int, chunks: int = 1, distinct: bool = False
     return path
 
 
+#: ``scart ARGS`` in this interpreter, then its own peak memory on a last stderr line (the
+#: kernel's ``VmHWM`` of the program's memory: ``ru_maxrss`` would count the forking
+#: pytest process's too).
+PEAK = """
+import sys
+from scart.cli import main
+try:
+    code = main(sys.argv[1:])
+finally:
+    peak = next(line for line in open("/proc/self/status") if line.startswith("VmHWM:"))
+    print(peak.strip(), file=sys.stderr)
+sys.exit(code)
+"""
+
+
 def run_measured(*args: str, timeout: float = 60.0) -> tuple[int, str, float, float]:
-    """``scart ARGS``: its exit code, stderr, seconds taken and peak memory (MiB), measured
-    for that process alone (``wait4``), killed past ``timeout``."""
+    """``scart ARGS``: its exit code, stderr (without the peak line), seconds taken and
+    peak memory (MiB), killed past ``timeout``."""
     began = time.monotonic()
-    proc = subprocess.Popen([sys.executable, "-m", "scart", *args], cwd=ROOT, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
-    for _ in range(int(timeout / 0.02) + 1):  # bounded in count and time: a condition, not a sleep
-        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-        if pid:
-            break
-        time.sleep(0.02)
-    else:
-        proc.kill()
-        _, status, usage = os.wait4(proc.pid, 0)
+    done = subprocess.run([sys.executable, "-c", PEAK, *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout)
     took = time.monotonic() - began
-    assert proc.stderr is not None
-    err = proc.stderr.read()
-    proc.stderr.close()
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    return proc.returncode, err, took, usage.ru_maxrss / 1024
+    err, _, peak = done.stderr.rstrip("\n").rpartition("\n")
+    assert peak.startswith("VmHWM:"), done.stderr
+    return done.returncode, err + "\n", took, int(peak.split()[1]) / 1024
 
 
 def test_a_few_kilobytes_of_millions_of_messages_stop_at_once_with_one_line(tmp_path: Path) -> None:
