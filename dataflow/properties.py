@@ -17,7 +17,7 @@ from typing import Any, Generic, TypeVar
 
 import pydantic
 
-from scart_wire.bounds import Bounds, bounded_adapter
+from scart_wire.bounds import Bounds, bounded_adapter, unknown_field
 from .errors import PortTypeError, PropertyValueError
 from scart_wire.types import registry
 
@@ -74,6 +74,9 @@ class Property(Generic[T]):
     def validate(self, value: Any, task_name: str = "?") -> T:
         """Coerce ``value`` to the property's type and run ``check``; raises as the module says."""
         where = f"{task_name}.{self.name}"
+        said = unknown_field(self.type, value)
+        if said is not None:
+            raise PortTypeError(f"{where}: invalid value for {self.type_name}: unknown field {said}")
         try:
             result = self._adapter.validate_python(value)
         except pydantic.ValidationError as exc:

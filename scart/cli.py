@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import typing
 from collections.abc import Sequence
 from importlib.metadata import entry_points
 from types import MappingProxyType, ModuleType
@@ -26,6 +27,14 @@ VERBS_GROUP = "scart.verbs"
 CORE_VERBS = MappingProxyType({"run": "scart.commands.run", "validate": "scart.commands.validate",
                                "graph": "scart.commands.graph"})
 _FIRST = tuple(CORE_VERBS)  # listed first in --help, the others alphabetically
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, its usage errors bounded: an argument of megabytes is not echoed
+    whole ("invalid choice: '...'")."""
+
+    def error(self, message: str) -> typing.NoReturn:
+        from scart_wire.errors import bounded
+
+        super().error(bounded(message))
 
 
 def verb_modules() -> dict[str, str]:
@@ -58,7 +67,7 @@ def _load(name: str, module: str) -> ModuleType | None:
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The argument parser: every verb (importing each verb module), or with ``only`` that
     verb alone (its module alone imported)."""
-    parser = argparse.ArgumentParser(prog="scart", description="SCA runtime with an Orocos-style data-flow bridge.")
+    parser = _Parser(prog="scart", description="SCA runtime with an Orocos-style data-flow bridge.")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     modules = verb_modules()
     if only is not None and only in modules:

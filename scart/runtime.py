@@ -232,6 +232,10 @@ class Runtime:
                     self._managers[path].start()
                 except Exception as exc:
                     raise ScartError(f"starting component {path} failed: {type(exc).__name__}: {exc}") from exc
+                with self._lock:
+                    late = self.state is RuntimeState.STOPPED
+                if late:  # its start returned after a stop that left it behind: destroyed now
+                    _quietly(self._managers[path].stop, f"destroying {path}")
             self._next_step(None)
             self._start_participants()
             self._start_service_bindings()
@@ -277,6 +281,10 @@ class Runtime:
             return
         self._stopping_thread = threading.current_thread()
         deadline = time.monotonic() + self.drain_timeout
+        hung = self._starting  # a component whose start has not returned: nothing of it to destroy yet
+        if hung is not None:
+            log.warning("stop: component %s had not returned from its start; not waited for (destroyed if it ever "
+                        "returns)", hung)
         try:
             for binding in reversed(self._service_bindings):
                 _quietly(binding.stop, "stopping a service binding")
@@ -284,7 +292,7 @@ class Runtime:
                 _quietly(participant.stop, "stopping an extension participant")
             if self._pool is not None:
                 self._drain_pool(self._pool, deadline)
-            self._destroy_all(list(reversed(self._started)), deadline)
+            self._destroy_all([p for p in reversed(self._started) if p != hung], deadline)
             for bindings in self._ref_bindings.values():
                 for rb in bindings:
                     _quietly(rb.stop, "stopping a reference binding")

@@ -306,7 +306,8 @@ class Loader:
                 if ns != SCART_NS or self.validate_scart(child):  # scart's own: the shipped XSD too
                     comp.extensions.append(self.read_element(child))
             elif local not in _IGNORED:
-                self.unknown(child, "composite", COMPOSITE_CHILDREN)
+                self.unknown(child, "composite", COMPOSITE_CHILDREN if ns in SCA_NAMESPACES else
+                             _scart_composite_children() if ns == SCART_NS else ())
         return comp
 
     def unknown(self, el: etree._Element, parent: str, known: Iterable[str]) -> None:
@@ -671,6 +672,12 @@ def _scart_elements() -> tuple[str, ...]:
     """The global elements the shipped XSD declares."""
     root = etree.parse(str(_SCHEMA_PATH), _parser()).getroot()
     return tuple(e.get("name", "") for e in root.iterchildren(f"{{{XSD_NS}}}element"))
+
+
+def _scart_composite_children() -> tuple[str, ...]:
+    """The elements of scart's namespace that stand inside ``<composite>`` (what a typo of
+    one is compared with: ``<scart:conect>`` is near ``connect``, never ``component``)."""
+    return tuple(e for e in _scart_elements() if not e.startswith(("implementation.", "interface.", "binding.")))
 
 
 @functools.cache

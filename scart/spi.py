@@ -409,6 +409,11 @@ class Launched(Participant):
         or None when it does not list them (default)."""
         return None
 
+    def service_name(self, name: str) -> str:
+        """The name ``scart call`` finds the service ``name`` by through this (a namespace
+        put before it, ``--remap __ns=``); default ``name``."""
+        return name
+
 
 class LaunchProvider(ABC):
     """What an extension adds to launching a composite (``scart run``, ``validate`` and

@@ -11,7 +11,9 @@ are held finite the same way (``Field(allow_inf_nan=True)`` lets NaN and inf thr
 Operation arguments from outside go through one check, :func:`check_argument`, whatever
 the entry (the data-flow path, Foxglove, binding.grpc and the services endpoint): the
 declared type with numbers strict (``"0.5"`` and ``true`` are no float), the bounds,
-finiteness; every entry refuses a value with the same message.
+finiteness; every entry refuses a value with the same message. A field a model does not
+declare is refused too (:func:`refuse_unknown_fields`): pydantic would drop it silently,
+so ``{x: 1, y: 2, z: 3}`` written to a port of ``{x, y}`` would "succeed" without ``z``.
 The check walks the value once (linear in its size, which the transport bounds). What a
 task writes to its own output ports is not checked here (the hot path stays free of
 it): bounds are for what crosses in.
@@ -31,7 +33,8 @@ import pydantic
 
 from .errors import PortTypeError, PortValueError
 
-__all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "non_finite"]
+__all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "non_finite",
+           "refuse_unknown_fields", "unknown_field"]
 
 _NUMBERS = (float, int)
 _ATOMS = (int, bool, str, bytes, type(None))
@@ -265,6 +268,66 @@ def _strict_numbers(hint: Any, depth: int = 0) -> Any:
         return hint
 
 
+_MAX_WALK = 10_000  #: mappings :func:`unknown_field` looks into, at most (the transport bounds the value anyway)
+
+
+def unknown_field(hint: Any, value: Any) -> str | None:
+    """Where ``value`` (plain data from outside: mappings, lists) names a field that the
+    pydantic model it would become does not declare, e.g. ``"pose.z (Pose has: x, y)"``;
+    None when every field is known. Follows ``hint`` through models, ``Optional``/unions
+    of one model, lists, tuples and ``Annotated``, bounded in depth and work."""
+    budget = [_MAX_WALK]
+    return _unknown(hint, value, "", 0, budget)
+
+
+def _unknown(hint: Any, value: Any, path: str, depth: int, budget: list[int]) -> str | None:
+    if depth > 32 or budget[0] <= 0:
+        return None
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is Annotated:
+        return _unknown(args[0], value, path, depth + 1, budget)
+    if origin is typing.Union or isinstance(hint, types.UnionType):
+        models = [a for a in args if isinstance(a, type) and issubclass(a, pydantic.BaseModel)]
+        return _unknown(models[0], value, path, depth + 1, budget) if len(models) == 1 else None
+    if origin in (list, tuple, set, frozenset) and isinstance(value, (list, tuple)):
+        item_hint = args[0] if args else Any
+        for i, item in enumerate(value):
+            said = _unknown(args[i] if origin is tuple and len(args) == len(value) else item_hint, item,
+                            f"{path}[{i}]", depth + 1, budget)
+            if said is not None:
+                return said
+        return None
+    if not (isinstance(hint, type) and issubclass(hint, pydantic.BaseModel) and isinstance(value, dict)):
+        return None
+    budget[0] -= 1
+    fields = hint.model_fields
+    names = {alias for name, f in fields.items() for alias in (name, f.alias) if alias}
+    if hint.model_config.get("extra") != "allow":
+        for key in value:
+            if key not in names:
+                from difflib import get_close_matches
+
+                near = get_close_matches(str(key), list(fields), n=1, cutoff=0.6)
+                hint_text = f"; did you mean {near[0]!r}?" if near else ""
+                return (f"{path + '.' if path else ''}{str(key)[:80]} ({hint.__name__} has: "
+                        f"{', '.join(list(fields)[:20])}{hint_text})")
+    for name, f in fields.items():
+        key = name if name in value else f.alias
+        if key in value:
+            said = _unknown(f.annotation, value[key], f"{path + '.' if path else ''}{name}", depth + 1, budget)
+            if said is not None:
+                return said
+    return None
+
+
+def refuse_unknown_fields(where: str, hint: Any, value: Any) -> None:
+    """Raise :class:`~scart_wire.errors.PortTypeError` (``WHERE: unknown field ...``) when
+    ``value`` names a field its model does not declare (see :func:`unknown_field`)."""
+    said = unknown_field(hint, value)
+    if said is not None:
+        raise PortTypeError(f"{where}: unknown field {said}")
+
+
 def check_argument(where: str, hint: Any, value: Any) -> Any:
     """The one check of an operation argument from outside, used by every entry (the
     data-flow path and its CLI, Foxglove, binding.grpc, the services endpoint): ``value``
@@ -275,6 +338,7 @@ def check_argument(where: str, hint: Any, value: Any) -> Any:
     adapter = argument_adapter(hint)
     if adapter is None:
         return value
+    refuse_unknown_fields(where, hint, value)
     try:
         return adapter.validate_python(value)
     except pydantic.ValidationError as exc:

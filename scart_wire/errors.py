@@ -18,6 +18,8 @@ in-process proxies handles the gRPC ones unchanged. The gRPC status code is kept
 from __future__ import annotations
 
 __all__ = [
+    "MAX_ECHO",
+    "bounded",
     "DataflowError",
     "PortTypeError",
     "NotFoundError",
@@ -35,6 +37,19 @@ __all__ = [
     "PermissionDeniedError",
     "TlsMismatchError",
 ]
+
+#: Characters of one error text, at most, where it echoes what someone sent (a name or an
+#: argument of megabytes is cut in the middle, and said): the CLI's lines, a status's details.
+MAX_ECHO = 2000
+
+
+def bounded(text: str, limit: int = MAX_ECHO) -> str:
+    """``text``, or its head and tail around ``... (N characters left out) ...`` when it is
+    longer than ``limit``."""
+    if len(text) <= limit:
+        return text
+    keep = limit // 2
+    return f"{text[:keep]} ... ({len(text) - 2 * keep} characters left out) ... {text[-keep:]}"
 
 
 class DataflowError(Exception):

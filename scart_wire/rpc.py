@@ -112,21 +112,29 @@ class Abort(Exception):
         self.code = code
 
 
+#: ``bounded(text)``: a status's details carry at most this much of an error's text (a name
+#: of megabytes sent by a client is not echoed whole: gRPC would drop the reply for its
+#: metadata size).
+bounded = errors.bounded
+
+
 def abort(context: grpc.ServicerContext, exc: BaseException) -> NoReturn:
-    """Abort the RPC with the status matching ``exc`` (never returns)."""
+    """Abort the RPC with the status matching ``exc`` (never returns); its text bounded
+    (:data:`scart_wire.errors.MAX_ECHO`)."""
     from scart_wire.errors import DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 
+    text = bounded(str(exc))
     if isinstance(exc, Abort):
-        context.abort(grpc.StatusCode[exc.code], str(exc))
+        context.abort(grpc.StatusCode[exc.code], text)
     if isinstance(exc, NotFoundError):
-        context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+        context.abort(grpc.StatusCode.NOT_FOUND, text)
     if isinstance(exc, (PropertyValueError, PortValueError)):
-        context.abort(grpc.StatusCode.OUT_OF_RANGE, str(exc))
+        context.abort(grpc.StatusCode.OUT_OF_RANGE, text)
     if isinstance(exc, (PortTypeError, TypeError, ValueError)):
-        context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+        context.abort(grpc.StatusCode.INVALID_ARGUMENT, text)
     if isinstance(exc, DeploymentError):  # a refused deployment step (a link name taken, an input as source...)
-        context.abort(grpc.StatusCode.FAILED_PRECONDITION, str(exc))
-    context.abort(grpc.StatusCode.INTERNAL, f"{type(exc).__name__}: {exc}")
+        context.abort(grpc.StatusCode.FAILED_PRECONDITION, text)
+    context.abort(grpc.StatusCode.INTERNAL, bounded(f"{type(exc).__name__}: {exc}"))
 
 
 #: A servicer and the generated function that adds it to a server
@@ -183,6 +191,10 @@ def make_server(
     reflection.enable_server_reflection(
         [*service_names, health.SERVICE_NAME, reflection.SERVICE_NAME], server
     )
+    problem = bind_problem(address)
+    if problem is not None:
+        stop_server(server, executor, 0.0)
+        raise errors.UnavailableError(problem, "UNAVAILABLE", address)
     try:
         port = server.add_secure_port(address, credentials) if credentials else server.add_insecure_port(address)
     except RuntimeError as exc:
@@ -193,6 +205,39 @@ def make_server(
         raise errors.UnavailableError(f"cannot listen on {address}", "UNAVAILABLE", address)
     server.start()
     return server, port, health_servicer, executor
+
+
+def bind_problem(address: str) -> str | None:
+    """Why a server cannot listen on ``address`` (``HOST:PORT``), asked of the kernel with a
+    socket of our own before gRPC tries (gRPC would print its own raw ``add_port.cc`` line on
+    stderr): the port in use, or an address this host does not have; None when it can (or
+    for port 0, or an address that is not ``HOST:PORT``: gRPC then says)."""
+    import errno
+
+    host, _, port_text = address.rpartition(":")
+    host = host.strip("[]")
+    if not port_text.isdigit() or int(port_text) == 0 or not host:
+        return None
+    try:
+        infos = socket.getaddrinfo(host, int(port_text), type=socket.SOCK_STREAM)[:4]
+    except OSError:
+        return f"cannot listen on {address}: no such host here"
+    problems = []
+    for family, kind, proto, _, where in infos:  # gRPC fails only when it can bind none of them
+        with socket.socket(family, kind, proto) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as gRPC's listener: TIME_WAIT is no conflict
+            try:
+                probe.bind(where)
+                return None
+            except OSError as exc:
+                if exc.errno == errno.EADDRINUSE:
+                    problems.append(f"the port is in use (another scart, or another program: `ss -ltnp 'sport = "
+                                    f":{port_text}'` says which); choose another port, or 0 for a free one")
+                elif exc.errno == errno.EADDRNOTAVAIL:
+                    problems.append(f"this host has no address {host}")
+                else:
+                    problems.append(exc.strerror or str(exc))
+    return f"cannot listen on {address}: {sorted(problems, key=lambda p: 'in use' not in p)[0]}" if problems else None
 
 
 def stop_server(server: grpc.Server, executor: Any, grace: float = 0.2, timeout: float = 5.0) -> None:

@@ -156,9 +156,13 @@ class Security:
         return bool(self.cert and self.key)
 
     def check(self) -> None:
-        """Raise :class:`SecurityError` for settings that cannot work together."""
+        """Raise :class:`SecurityError` for settings that cannot work together, and for a
+        ``--tls-ca`` file holding no PEM certificate (gRPC would print its own lines and the
+        CLI "nothing answers")."""
         if bool(self.cert) != bool(self.key):
             raise SecurityError("--tls-cert and --tls-key go together (a certificate and its private key)")
+        if self.ca:
+            _check_ca(self.ca)
 
     def auth_table(self) -> AuthTable | None:
         """The auth file's tokens (read now), or None without one."""
@@ -269,6 +273,22 @@ def read_token_file(path: str | os.PathLike[str]) -> str:
         if line:
             return line
     raise SecurityError(f"token file {path}: no token in it")
+
+
+def _check_ca(ca: str) -> None:
+    """Raise :class:`SecurityError` naming ``--tls-ca`` when ``ca`` is not a readable file of
+    PEM certificates."""
+    import ssl
+
+    text = _read_bounded(ca, MAX_PEM_BYTES, "--tls-ca")
+    if "-----BEGIN CERTIFICATE-----" not in text:
+        raise SecurityError(f"--tls-ca {ca}: no PEM certificate in it (give the CA's certificate, a file "
+                            "starting '-----BEGIN CERTIFICATE-----')")
+    try:
+        ssl.create_default_context(cadata=text)
+    except (ssl.SSLError, ValueError) as exc:
+        why = str(exc).split(" (_ssl.c")[0]  # OpenSSL's own words, without its source line
+        raise SecurityError(f"--tls-ca {ca}: not a PEM CA certificate ({why})") from None
 
 
 def _check_key_pair(cert: str, key: str) -> None:

@@ -38,6 +38,9 @@ import logging
 import math
 import random
 import time
+from typing import Annotated
+
+from pydantic import Field
 
 from dataflow import (
     FlowStatus,
@@ -79,6 +82,10 @@ RANDOM_BITS = ("UNDER_VOLTAGE", "OVER_VOLTAGE", "HALL_SENSOR_ERROR", "ENCODER_ER
 
 def _read_only(value: object) -> None:
     raise ValueError("read-only: set by the driver itself")
+
+
+#: What ``set_period`` takes: declared, so a call from outside is refused as a write is.
+_Period = Annotated[float, Field(ge=MIN_PERIOD, le=MAX_PERIOD, allow_inf_nan=False)]
 
 
 def _valid_period(seconds: float) -> None:
@@ -128,8 +135,9 @@ class YouBotDriver(TaskContext):
         self._reset_state()
 
     @operation
-    def set_period(self, seconds: float) -> bool:
-        """Request a new period (same as writing the ``period`` port); True if accepted."""
+    def set_period(self, seconds: _Period) -> bool:
+        """Request a new period (same as writing the ``period`` port); True if accepted.
+        Its bounds are declared, so a call from outside is refused as a write is."""
         return self._apply_period(seconds)
 
     @operation

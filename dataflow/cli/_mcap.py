@@ -11,7 +11,16 @@ decompressed:
   anything is decompressed, and decompression stops at the declared size (a chunk that
   holds more than it declares is refused too);
 * a message longer than :data:`MAX_MESSAGE_BYTES`, not JSON, or nested deeper than
-  :data:`MAX_JSON_DEPTH` is skipped and counted, never decoded further.
+  :data:`MAX_JSON_DEPTH` is skipped and counted, never decoded further;
+* the work of one file is bounded (:class:`Budget`), so that a few kilobytes cannot
+  take seconds and hundreds of megabytes (a chunk of millions of identical tiny
+  messages compresses to almost nothing): at most :data:`MAX_RATIO` bytes decompressed
+  per byte of the file (a chunk declaring more is refused before it is decompressed;
+  all chunks together likewise, with :data:`MIN_EXPANSION` bytes allowed whatever the
+  file's size), at most one message per byte of the file (and :data:`MIN_MESSAGES`
+  whatever its size), at most :data:`MAX_READ_SECONDS` of reading (the time spent in
+  the scan, not what a caller does between two records). A chunk's messages are read
+  one by one from its data, never all made at once.
 
 Anything else malformed raises :class:`McapError`, whose text says what is wrong and
 where (the caller names the file): one line for the user, never a traceback.
@@ -24,19 +33,44 @@ import json
 import os
 import stat
 import struct
+import time
+from array import array
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "McapError", "McapScan", "Sink", "decode_json",
-           "open_output", "output_problem"]
+__all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "MAX_RATIO", "MAX_READ_SECONDS", "Budget",
+           "McapError", "McapScan", "Sink", "decode_json", "open_output", "output_problem"]
 
 MAGIC = b"\x89MCAP0\r\n"
 MAX_MESSAGE_BYTES = 4 << 20
 MAX_CHUNK_BYTES = 64 << 20  #: a chunk's uncompressed size, at most
 MAX_RECORD_BYTES = MAX_CHUNK_BYTES + (1 << 20)  #: a record of the file (a chunk and its header), at most
 MAX_JSON_DEPTH = 64
+MAX_RATIO = 1000  #: bytes decompressed per byte of the file, at most (a chunk, and all of them together)
+MIN_EXPANSION = 64 << 20  #: bytes any file may decompress in all, whatever its size
+MIN_MESSAGES = 1_000_000  #: messages any file may hold, whatever its size (else one per byte of it)
+MAX_READ_SECONDS = 60.0  #: seconds of reading one file, at most
 _HEAD = struct.Struct("<BQ")  # opcode, length
+_LOG_TIME = struct.Struct("<Q")  # a Message record's log time, after its channel id (u16) and sequence (u32)
+_CHECK_EVERY = 4096  # messages between two looks at the clock
+
+
+@dataclass(frozen=True)
+class Budget:
+    """What reading one file may cost, at most (see the module docstring): decompressed
+    bytes per byte of the file (``ratio``), messages in all, seconds of reading. ``of``
+    makes the one for a file of a given size."""
+
+    ratio: int = MAX_RATIO
+    expansion: int = MIN_EXPANSION
+    messages: int = MIN_MESSAGES
+    seconds: float = MAX_READ_SECONDS
+
+    @classmethod
+    def of(cls, size: int) -> Budget:
+        """The budget of a file of ``size`` bytes: everything scales with it, from a floor."""
+        return cls(expansion=max(MIN_EXPANSION, MAX_RATIO * size), messages=max(MIN_MESSAGES, size))
 
 
 class McapError(ValueError):
@@ -50,16 +84,31 @@ class McapScan:
     short ends (None for a complete one) and :attr:`complete` says a footer was read."""
 
     path: str
+    budget: Budget | None = None  #: None: :meth:`Budget.of` the file's size
     truncated_at: int | None = None
     complete: bool = False
     schemas: dict[int, Any] = field(default_factory=dict)
     channels: dict[int, Any] = field(default_factory=dict)
+    count: int = 0  #: messages read so far
+    expanded: int = 0  #: bytes decompressed so far
+    spent: float = 0.0  #: seconds spent reading so far
+    _budget: Budget = field(default_factory=Budget, init=False, repr=False)  # the one in force, once reading
 
     def records(self) -> Iterator[Any]:
         """The file's Schema, Channel and Message records in file order (a chunk's messages
-        in log-time order). Blocks on file reads only; raises :class:`McapError`."""
+        in log-time order). Blocks on file reads only; raises :class:`McapError` (also when
+        the file would cost more than its :class:`Budget`)."""
+        resumed = time.monotonic()
+        for record in self._records():
+            self.spent += time.monotonic() - resumed
+            yield record
+            resumed = time.monotonic()
+        self.spent += time.monotonic() - resumed
+
+    def _records(self) -> Iterator[Any]:
         with self._open() as fh:
             size = os.fstat(fh.fileno()).st_size
+            self._budget = self.budget or Budget.of(size)
             if fh.read(len(MAGIC)) != MAGIC:
                 raise McapError("not an MCAP file (it does not start with the MCAP magic)")
             pos = len(MAGIC)
@@ -81,6 +130,18 @@ class McapScan:
                     return
                 yield from self._parse(opcode, body, pos)
                 pos += _HEAD.size + length
+
+    def _spend(self, messages: int, at: int, started: float) -> None:
+        """Count ``messages`` more read (in the chunk at byte ``at``, this stretch of reading
+        begun at ``started``); :class:`McapError` past the budget's messages or seconds."""
+        budget = self._budget
+        self.count += messages
+        if self.count > budget.messages:
+            raise McapError(f"more than {budget.messages} messages by byte {at}: more than scart reads from a file "
+                            f"this size (one message per byte of it, {MIN_MESSAGES} at least)")
+        if self.spent + time.monotonic() - started > budget.seconds:
+            raise McapError(f"still reading after {budget.seconds:g} s, at byte {at} ({self.count} messages): more "
+                            "than scart spends on one file")
 
     def messages(self) -> Iterator[tuple[str, int, dict[str, Any] | None]]:
         """``(topic, log_time ns, JSON data or None)`` of each message (None: skipped, see
@@ -108,19 +169,51 @@ class McapScan:
         """The records one top-level record holds (a chunk's, decompressed with bounds)."""
         ops, records = _opcodes(), _records()
         if opcode == ops.CHUNK:
-            chunk = _read(records.Chunk, body, pos)
-            inner = _parse_chunk(chunk, pos)
-            messages = sorted((r for r in inner if isinstance(r, records.Message)), key=lambda m: m.log_time)
-            for record in inner:
-                if not isinstance(record, records.Message):
-                    self._learn(record)
-                    yield record
-            yield from messages
+            yield from self._chunk(_read(records.Chunk, body, pos), pos)
         elif opcode in (ops.SCHEMA, ops.CHANNEL, ops.MESSAGE):
             kind = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel, ops.MESSAGE: records.Message}[opcode]
+            if kind is records.Message:
+                self._spend(1, pos, time.monotonic())
             record = _read(kind, body, pos)
             self._learn(record)
             yield record
+
+    def _chunk(self, chunk: Any, pos: int) -> Iterator[Any]:
+        """A chunk's Schema and Channel records (learned), then its messages in log-time
+        order, each made only when it is yielded."""
+        records = _records()
+        declared = chunk.uncompressed_size
+        budget = self._budget
+        if declared > max(1 << 20, budget.ratio * len(chunk.data)):
+            raise McapError(f"the chunk at byte {pos} declares {declared} bytes from {len(chunk.data)} compressed "
+                            f"({declared // max(1, len(chunk.data))}:1): more than scart expands ({budget.ratio}:1)")
+        if self.expanded + declared > budget.expansion:
+            raise McapError(f"the chunks up to byte {pos} declare {self.expanded + declared} bytes in all: more than "
+                            f"scart expands from a file this size ({budget.ratio} bytes per byte of it)")
+        self.expanded += declared
+        data = _decompress(chunk, pos)
+        times, offsets, ordered = array("Q"), array("Q"), True
+        started = time.monotonic()
+        for kind, offset, length in _chunk_records(data, pos):
+            if kind is records.Message:
+                if length < 22:
+                    raise McapError(f"a malformed Message record at byte {pos}")
+                log_time = _LOG_TIME.unpack_from(data, offset + 6)[0]
+                ordered = ordered and (not times or log_time >= times[-1])
+                times.append(log_time)
+                offsets.append(offset)
+                if len(offsets) % _CHECK_EVERY == 0:
+                    self._spend(_CHECK_EVERY, pos, started)
+            else:
+                record = _read(kind, data[offset:offset + length], pos)
+                self._learn(record)
+                yield record
+        self._spend(len(offsets) % _CHECK_EVERY, pos, started)
+        order: Any = range(len(offsets)) if ordered else sorted(range(len(offsets)), key=times.__getitem__)
+        for i in order:
+            offset = offsets[i]
+            length = _HEAD.unpack_from(data, offset - _HEAD.size)[1]
+            yield _read(records.Message, data[offset:offset + length], pos)
 
     def _learn(self, record: Any) -> None:
         records = _records()
@@ -149,12 +242,11 @@ def decode_json(data: bytes) -> dict[str, Any] | None:
     return value
 
 
-def _parse_chunk(chunk: Any, pos: int) -> list[Any]:
-    """The Schema, Channel and Message records of a chunk (other kinds skipped)."""
+def _chunk_records(data: bytes, pos: int) -> Iterator[tuple[Any, int, int]]:
+    """``(kind, offset, length)`` of each Schema, Channel and Message record in a chunk's
+    ``data`` (other kinds skipped), nothing parsed yet."""
     ops, records = _opcodes(), _records()
-    data = _decompress(chunk, pos)
     kinds = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel, ops.MESSAGE: records.Message}
-    out: list[Any] = []
     offset = 0
     while offset < len(data):
         if len(data) - offset < _HEAD.size:
@@ -165,9 +257,8 @@ def _parse_chunk(chunk: Any, pos: int) -> list[Any]:
             raise McapError(f"the chunk at byte {pos} holds a record longer than itself")
         kind = kinds.get(opcode)
         if kind is not None:
-            out.append(_read(kind, data[offset:offset + length], pos))
+            yield kind, offset, length
         offset += length
-    return out
 
 
 def _decompress(chunk: Any, pos: int) -> bytes:
@@ -256,15 +347,21 @@ def output_problem(path: str, overwrite: bool) -> str | None:
 
 
 def open_output(path: str, overwrite: bool) -> int:
-    """The file descriptor of a new output file (exclusive unless ``overwrite``); raises
-    ``ValueError`` with one line when it cannot be made."""
+    """The file descriptor of a new output file (exclusive unless ``overwrite``), readable
+    and writable by its owner only (0600, as token files are: a recording holds what the
+    robot did); raises ``ValueError`` with one line when it cannot be made."""
     flags = os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if overwrite else os.O_EXCL)
     try:
-        return os.open(path, flags, 0o644)
+        fd = os.open(path, flags, 0o600)
     except FileExistsError:
         raise ValueError(f"-o {path}: the file exists; give --overwrite to replace it") from None
     except OSError as exc:
         raise ValueError(f"-o {path}: {exc.strerror}") from None
+    try:
+        os.fchmod(fd, 0o600)  # a file overwritten keeps its mode otherwise
+    except OSError:
+        pass  # a file system without modes: nothing more to do
+    return fd
 
 
 class Sink:

@@ -15,14 +15,25 @@ Security (the protocol carries no credentials, so the server decides alone):
   (:mod:`dataflow.cli._ws_gate`) that admits a WebSocket only with a loopback ``Host``
   and either no ``Origin`` (a program) or one of the Foxglove app's
   (:data:`~dataflow.cli._ws_gate.FOXGLOVE_ORIGINS`): no other web page can connect.
+- **Only the gate reaches the SDK's server**: a socket filter on its listening socket
+  drops every connection but the gate's own (:mod:`dataflow.cli._inner_guard`, which says
+  why: the SDK takes no Unix socket and checks no peer, and every local user can read the
+  address it listens on).
+- **Tokens**: the printed URL carries a token made for this launch (``ws://HOST:PORT/
+  ?token=...``); with an auth file (``--auth-file``, the runtime's), any token of it is
+  accepted too, and a connection without one is refused (reading needs ``read``, as at
+  every door). Without an auth file, tokenless connections (any local program) are
+  admitted read-only but counted apart and bounded, so a token holder always gets in;
+  a connection must send its request within 2 s.
 - **Read-only by default**, whatever token this process holds: parameters can be read,
   a ``setParameters`` is refused, and no service is offered. ``--foxglove-control``
   (``scart foxglove --control``) makes it writable: parameters can be set and task
   operations are Foxglove *services* named ``task.operation`` (JSON: the request is an
   object of the arguments by name, or a list of them in order; the response is
   ``{"result": ...}``). Writes then act with a token given for that purpose (a file
-  holding a token of the ``operate`` role, never this process's own token; where the
-  auth file is known, its role is checked and ``admin`` refused), and only on loopback.
+  holding a token of the ``operate`` role, never this process's own token; its role is
+  checked against the auth file where it is known, else asked of the name service, and
+  ``admin`` is refused either way), and only on loopback.
 - **Refusals** (by the task: a bound, a type; by the deployer: the role; read-only) come
   back as the protocol's failures: a service call's ``serviceCallFailure`` with the
   reason; a parameter's ``status`` message (level error) with the reason, the value
@@ -315,7 +326,8 @@ class FoxgloveLive:
     ``ValueError`` for a routable host refused."""
 
     def __init__(self, system: Any, host: str = "127.0.0.1", port: int = 8765, refresh: float = 2.0,
-                 insecure_host: bool = False, owns_system: bool = False, control: Any = None) -> None:
+                 insecure_host: bool = False, owns_system: bool = False, control: Any = None,
+                 auth_file: str | None = None) -> None:
         from scart_wire.security import is_loopback
 
         if not is_loopback(host):
@@ -327,16 +339,37 @@ class FoxgloveLive:
                                  "loopback only, the protocol carries no credentials")
             log.warning("foxglove: serving on %s (--insecure): anyone who reaches it sees every port and property "
                         "(the Foxglove protocol has no authentication)", host)
+        import secrets
+
+        from scart_wire.security import AuthTable
+
         self.host, self.port, self.refresh_period = host, port, refresh
         self._system, self._owns_system, self._control = system, owns_system, control
+        self._table = AuthTable.load(auth_file) if auth_file else None  # raises naming the file
+        self._seat = secrets.token_urlsafe(24)  # this launch's own token: the printed URL carries it
         self._bridge: _Bridge | None = None
         self._server: Any = None
         self._gate: Any = None
+        self._guard: Any = None
         self._thread = OwnedThread(self._refreshing, "scart-foxglove-refresh")
 
     @property
-    def url(self) -> str:
+    def address(self) -> str:
+        """``ws://HOST:PORT`` once started (no token)."""
         return f"ws://{self.host}:{self._gate.port}" if self._gate is not None else ""
+
+    @property
+    def url(self) -> str:
+        """What to open in the Foxglove app: the address with this launch's token."""
+        return f"{self.address}/?token={self._seat}" if self._gate is not None else ""
+
+    def accepts(self, token: str) -> bool:
+        """Whether a connection presenting ``token`` is a token holder: this launch's own,
+        or one of the auth file (any role). Constant time."""
+        import hmac
+
+        own = hmac.compare_digest(token.encode(), self._seat.encode())
+        return own or (self._table is not None and self._table.role_of(token) is not None)
 
     @property
     def channels(self) -> int:
@@ -361,9 +394,10 @@ class FoxgloveLive:
             capabilities = [foxglove.Capability.Parameters]
             if self._control is not None:
                 capabilities.append(foxglove.Capability.Services)
-            self._server, inner_host = self._inner_server(bridge, capabilities, services)
+            self._server, self._guard = self._inner_server(bridge, capabilities, services)
             bridge.server = self._server
-            self._gate = WebSocketGate(self.host, self.port, (inner_host, self._server.port))
+            self._gate = WebSocketGate(self.host, self.port, self._guard.address, tokens=self.accepts,
+                                       tokens_required=self._table is not None, guard=self._guard)
             self._gate.start()
             self._thread.start()
         except BaseException:
@@ -371,24 +405,42 @@ class FoxgloveLive:
             raise
 
     @staticmethod
-    def _inner_server(bridge: _Bridge, capabilities: list[Any], services: list[Any]) -> tuple[Any, str]:
-        """The SDK's server, behind the gate, and its address: a random one of 127.0.0.0/8 (a
-        web page cannot guess it to go around the gate), else 127.0.0.1; a free port."""
+    def _inner_server(bridge: _Bridge, capabilities: list[Any], services: list[Any]) -> tuple[Any, Any]:
+        """The SDK's server, behind the gate, and the guard that lets only the gate reach it
+        (:mod:`dataflow.cli._inner_guard`): on a random address of 127.0.0.0/8 (a web page
+        cannot guess it), else 127.0.0.1; a free port. A connection that came before the
+        guard: started again elsewhere (3 tries). Raises ``GuardError`` when it cannot be
+        kept private."""
         import secrets
 
         import foxglove
 
-        hosts = [f"127.{secrets.randbelow(254) + 1}.{secrets.randbelow(256)}.{secrets.randbelow(254) + 1}",
-                 "127.0.0.1"]
-        for host in hosts:
+        from dataflow.cli._inner_guard import GuardError, InnerGuard
+
+        for attempt in range(3):
+            server, host = None, ""
+            for host in (f"127.{secrets.randbelow(254) + 1}.{secrets.randbelow(256)}.{secrets.randbelow(254) + 1}",
+                         "127.0.0.1"):
+                try:
+                    server = foxglove.start_server(
+                        name="scart", host=host, port=0, context=bridge.context, server_listener=bridge,
+                        capabilities=capabilities, supported_encodings=["json"], services=services)
+                    break
+                except Exception as exc:  # noqa: BLE001 - that address not routed to loopback here: the next one
+                    if host == "127.0.0.1":
+                        raise
+                    log.debug("foxglove: cannot listen on %s (%s); 127.0.0.1 then", host, exc)
+            assert server is not None
+            guard = InnerGuard((host, server.port))
             try:
-                return foxglove.start_server(
-                    name="scart", host=host, port=0, context=bridge.context, server_listener=bridge,
-                    capabilities=capabilities, supported_encodings=["json"], services=services), host
-            except Exception as exc:  # noqa: BLE001 - that address not routed to loopback here: the next one
-                if host == hosts[-1]:
+                guard.start()
+                return server, guard
+            except GuardError as exc:
+                guard.close()
+                server.stop()
+                if attempt == 2 or "before its guard" not in str(exc):
                     raise
-                log.debug("foxglove: cannot listen on %s (%s); 127.0.0.1 then", host, exc)
+                log.warning("foxglove: %s; starting it again elsewhere", exc)
         raise AssertionError("unreachable")
 
     def _refreshing(self, stopping: threading.Event) -> None:
@@ -410,6 +462,9 @@ class FoxgloveLive:
         if self._server is not None:
             self._server.stop()
             self._server = None
+        if self._guard is not None:
+            self._guard.close()
+            self._guard = None
         if self._bridge is not None:
             self._bridge.close()  # subscriptions end even when the server could not start
             self._bridge = None
@@ -421,12 +476,15 @@ class FoxgloveLive:
             self._system.close()
 
 
-def control_token(token_file: str | None, security: Any, flag: str) -> str | None:
+def control_token(token_file: str | None, security: Any, flag: str, ns: str | None = None) -> str | None:
     """The token a writable Foxglove server acts with: the first line of ``token_file``
     (None without one). Where ``security`` names the auth file (the runtime checks tokens),
-    a token is needed and must be of the ``operate`` role; it may never be ``security``'s
-    own token (the runtime's, perhaps admin). Raises ``ValueError`` saying, with ``flag``,
-    what to give (never the token)."""
+    a token is needed and must be of the ``operate`` role. Where it does not, the name
+    service at ``ns`` is asked whether the token holds the ``admin`` role (a call only
+    ``admin`` may make, harmless: a lease nobody holds): an ``admin`` token is refused
+    either way, and one the name service does not accept too. It may never be
+    ``security``'s own token (the runtime's, perhaps admin). Raises ``ValueError`` saying,
+    with ``flag``, what to give (never the token)."""
     import hmac
 
     from scart_wire.security import Role, read_token_file
@@ -446,11 +504,54 @@ def control_token(token_file: str | None, security: Any, flag: str) -> str | Non
     if token is not None and security.token and hmac.compare_digest(token.encode(), security.token.encode()):
         raise ValueError(f"{flag} {token_file}: that is this process's own token; give one made for Foxglove "
                          "(of the 'operate' role)")
+    if token is not None and table is None and ns is not None:
+        _refuse_admin(ns, token, token_file or "", security, flag)
     return token
 
 
+def _refuse_admin(ns: str, token: str, token_file: str, security: Any, flag: str) -> None:
+    """Raise ``ValueError`` when the name service at ``ns`` grants ``token`` the ``admin``
+    role, or does not accept it; nothing when it refuses it ``admin`` (or checks no
+    token at all: then no token has a role)."""
+    import dataclasses
+
+    from dataflow.remote.naming import NameClient
+    from scart_wire.errors import AuthenticationError, PermissionDeniedError, RemoteError, RemoteNotFoundError
+
+    def admitted(with_token: str | None) -> bool:
+        names = NameClient(ns, timeout=3.0, security=dataclasses.replace(security, token=with_token))
+        try:
+            names.heartbeat("scart-foxglove-role-probe")  # admin only; a lease nobody holds: changes nothing
+            return True
+        except RemoteNotFoundError:
+            return True  # let in, and told the lease is unknown
+        except (PermissionDeniedError, AuthenticationError):
+            return False
+        except RemoteError as exc:
+            raise ValueError(f"{flag}: cannot ask the name service at {ns} the role of {token_file}: {exc}") from None
+        finally:
+            names.close()
+
+    if not admitted(token):
+        names = NameClient(ns, timeout=3.0, security=dataclasses.replace(security, token=token))
+        try:
+            names.entries()  # read: does it accept the token at all?
+        except AuthenticationError:
+            raise ValueError(f"{flag} {token_file}: the name service at {ns} does not accept that token") from None
+        except RemoteError:
+            pass  # it accepts it (a role below admin), whatever else it says
+        finally:
+            names.close()
+        return
+    if not admitted("scart-no-such-token"):  # it checks tokens, and this one is admin
+        raise ValueError(f"{flag} {token_file}: that token has the 'admin' role (the name service at {ns} says); "
+                         "give one of the 'operate' role made for Foxglove (--auth-file AUTH lets scart check it "
+                         "itself)")
+
+
 def cmd_foxglove(args: argparse.Namespace) -> int:
-    """``scart foxglove [--host H] [--port P] [--control [TOKEN_FILE]]``: see the module docstring."""
+    """``scart foxglove [--host H] [--port P] [--control [TOKEN_FILE]] [--auth-file AUTH]``:
+    see the module docstring."""
     import dataclasses
 
     from dataflow.cli.output import err as _err, ns_address, wait_until_stopped as _wait_until_stopped
@@ -458,17 +559,28 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
     from scart_wire.security import from_args
 
     control = None
+    security = from_args(args)
     if args.control is not None:
-        security = from_args(args)
-        token = control_token(args.control or None, security, "--control")
+        token = control_token(args.control or None, security, "--control", ns=ns_address(args))
         control = connect(ns_address(args), timeout=args.timeout, security=dataclasses.replace(security, token=token))
     try:
-        live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host, control=control)
+        live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host, control=control,
+                            auth_file=security.auth_file)
     except BaseException:
         if control is not None:
             control.close()
         raise
-    live.start()
+    try:
+        live.start()
+    except OSError as exc:  # the port taken, or the server behind the gate could not be kept private
+        from dataflow.cli._inner_guard import GuardError
+
+        import errno
+
+        why = "the port is in use" if exc.errno == errno.EADDRINUSE else (exc.strerror or str(exc))
+        _err(f"foxglove: {exc}" if isinstance(exc, GuardError) else
+             f"foxglove: cannot listen on {args.host}:{args.port}: {why}; choose another --port (0: a free one)")
+        return 1
     try:
         print(f"scart: Foxglove at {live.url} ({live.channels} channel(s), "
               f"{'writable' if live.writable else 'read-only'})", flush=True)

@@ -15,7 +15,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
+import re
 import signal
 import sys
 import threading
@@ -25,33 +27,84 @@ from typing import Any
 
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
-__all__ = ["add_common", "dump", "err", "jsonable", "ns_address", "out", "parse_value", "policy_of", "rate_of",
-           "stopped_by_signals", "wait_until_stopped", "with_rates", "with_system"]
+__all__ = ["add_common", "address_arg", "checked_address", "dump", "err", "jsonable", "listen_arg", "ns_address",
+           "out", "parse_value", "policy_of", "rate_of", "seconds_arg", "stopped_by_signals", "wait_until_stopped",
+           "with_rates", "with_system"]
 
 #: A value typed on the command line (JSON or YAML), at most this long.
 MAX_VALUE_CHARS = 1 << 20
 #: ... and nested at most this deep.
 MAX_VALUE_DEPTH = 64
+_HOST_PORT = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
 
 
 def add_common(parser: argparse.ArgumentParser) -> None:
     """``--ns``, ``--json``, ``--timeout`` and the client's security options."""
     from scart_wire.security import add_arguments
 
-    parser.add_argument("--ns", default=None, help=f"name service HOST:PORT (default ${NS_ENV} or {DEFAULT_NS_ADDRESS})")
+    parser.add_argument("--ns", default=None, type=address_arg, metavar="HOST:PORT",
+                        help=f"name service HOST:PORT (default ${NS_ENV} or {DEFAULT_NS_ADDRESS})")
     parser.add_argument("--json", action="store_true", help="JSON on stdout")
-    parser.add_argument("--timeout", type=float, default=3.0, help="deadline of each remote call (s)")
+    parser.add_argument("--timeout", type=seconds_arg, default=3.0, metavar="SECONDS",
+                        help="deadline of each remote call (s, > 0)")
     add_arguments(parser, server=False)
 
 
+def checked_address(text: str, what: str, free_port: bool = False) -> str:
+    """``text`` when it is ``HOST:PORT`` with a port in 1..65535 (0..65535 with
+    ``free_port``: where a server listens); else ``ValueError`` naming ``what``
+    (``localhost`` alone would go to gRPC's default port, 443)."""
+    m = _HOST_PORT.match(text.strip())
+    low = 0 if free_port else 1
+    if m is None or not low <= int(m["port"]) <= 65535:
+        raise ValueError(f"{what} {text[:80]!r}: expected HOST:PORT with a port in {low}..65535 "
+                         f"(e.g. {DEFAULT_NS_ADDRESS})")
+    return text.strip()
+
+
+def address_arg(text: str) -> str:
+    """argparse type of an address option: :func:`checked_address` (a usage error, exit 2)."""
+    try:
+        return checked_address(text, "")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).strip()) from None
+
+
+def listen_arg(text: str) -> str:
+    """argparse type of an address a server may listen on (port 0: a free one)."""
+    try:
+        return checked_address(text, "", free_port=True)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).strip()) from None
+
+
+def seconds_arg(text: str) -> float:
+    """argparse type of a duration: a finite number of seconds > 0 (exit 2 otherwise)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text[:80]!r}: expected a number of seconds > 0")
+    return value
+
+
 def ns_address(args: argparse.Namespace) -> str:
-    """The name service to use: ``--ns``, else ``$SCART_NS``, else the default."""
-    return args.ns or os.environ.get(NS_ENV) or DEFAULT_NS_ADDRESS
+    """The name service to use: ``--ns``, else ``$SCART_NS``, else the default. Raises
+    ``ValueError`` naming ``$SCART_NS`` when it is not ``HOST:PORT``."""
+    if args.ns:
+        return str(args.ns)
+    env = os.environ.get(NS_ENV)
+    return checked_address(env, f"${NS_ENV}") if env else DEFAULT_NS_ADDRESS
 
 
 def err(message: str) -> None:
-    """One diagnostic line on stderr, ``scart `` first."""
-    print(f"scart {message}", file=sys.stderr, flush=True)
+    """One diagnostic line on stderr, ``scart `` first; at most
+    :data:`scart_wire.errors.MAX_ECHO` characters of it (what an argument echoes is cut in
+    the middle, and said)."""
+    from scart_wire.errors import bounded
+
+    print(f"scart {bounded(message)}", file=sys.stderr, flush=True)
 
 
 def out(text: str) -> None:
@@ -137,7 +190,11 @@ def with_system(args: argparse.Namespace, body: Callable[[argparse.Namespace], i
     from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
     from scart_wire.security import from_args
 
-    address = ns_address(args)
+    try:
+        address = ns_address(args)
+    except ValueError as exc:
+        err(f"{args.command}: {exc}")
+        return 2
     source = "--ns" if args.ns else (f"${NS_ENV}" if os.environ.get(NS_ENV) else "the default")
     try:
         system = connect(address, timeout=args.timeout, security=from_args(args))

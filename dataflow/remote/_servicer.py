@@ -209,6 +209,9 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         return p
 
     def _value_for(self, where: str, py_type: Any, type_name: str, msg: Any, json_text: str) -> Any:
+        """A written value as the port's type; a field its model does not declare is
+        refused (INVALID_ARGUMENT), never dropped."""
+        from scart_wire.bounds import unknown_field
         from scart_wire.types import registry
 
         if json_text:
@@ -216,6 +219,9 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                 obj = json.loads(json_text)
             except json.JSONDecodeError as exc:
                 raise Abort("INVALID_ARGUMENT", f"{where}: value is not valid JSON ({exc})") from None
+            said = unknown_field(py_type, obj)
+            if said is not None:
+                raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}: unknown field {said}")
             try:
                 return registry.from_jsonable(py_type, obj)
             except (PortTypeError, TypeError, ValueError) as exc:
@@ -225,6 +231,9 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             value = codec.decode(msg)
             if type(value) is py_type:  # decoded as the port's own type: nothing to coerce
                 return value
+            said = unknown_field(py_type, value)
+            if said is not None:
+                raise PortTypeError(f"unknown field {said}")
             return registry.validate(py_type, value)
         except (PortTypeError, TypeError, ValueError) as exc:
             raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, given {given}: {exc}") from None
@@ -488,12 +497,12 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
     def DisconnectPorts(self, request: pb.DisconnectPortsRequest, context: grpc.ServicerContext) -> pb.DisconnectPortsResponse:  # noqa: N802
         try:
             if request.name:
-                done = self.owner.disconnect_link(request.name)
+                lost = self.owner.disconnect_link_counted(request.name)
             else:
-                done = self.owner.disconnect_ports(
+                lost = self.owner.disconnect_counted(
                     request.source_task, request.source_port, request.sink_task, request.sink_port
                 )
-            return pb.DisconnectPortsResponse(disconnected=done)
+            return pb.DisconnectPortsResponse(disconnected=lost is not None, undelivered=lost or 0)
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 

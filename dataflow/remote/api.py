@@ -319,6 +319,17 @@ class System(ABC):
     def disconnect_link(self, name: str) -> bool:
         """Undo the link (or stream) called ``name``; False if it was gone already."""
 
+    def disconnect_counted(self, source: str, sink: str) -> int | None:
+        """:meth:`disconnect_ports`, saying how many samples written were never delivered to
+        the sink's task (after it could read what its buffer held); None when the ports were
+        not connected. In one process nothing is lost on the way: 0."""
+        return 0 if self.disconnect_ports(source, sink) else None
+
+    def disconnect_link_counted(self, name: str) -> int | None:
+        """:meth:`disconnect_link`, saying how many samples were never delivered (see
+        :meth:`disconnect_counted`)."""
+        return 0 if self.disconnect_link(name) else None
+
     def stream(self, port: str, policy: ConnPolicy, options: dict[str, str] | None = None,
                name: str | None = None) -> LinkDescription:
         """Join ``"task.port"`` to the topic ``policy.topic`` of the transport

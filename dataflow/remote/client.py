@@ -233,15 +233,24 @@ class GrpcSystem(System):
 
     def disconnect_link(self, name: str) -> bool:
         """Undo the link called ``name``; False if it was gone already."""
+        return self.disconnect_link_counted(name) is not None
+
+    def disconnect_link_counted(self, name: str) -> int | None:
+        """:meth:`disconnect_link`, with the samples never delivered (None: it was gone)."""
         link = self._link(name)
         reply = self._invoke(split_port(link.source)[0], "DisconnectPorts", pb.DisconnectPortsRequest(name=name))
-        return bool(reply.disconnected)
+        return int(reply.undelivered) if reply.disconnected else None
 
     def disconnect_ports(self, source: str, sink: str) -> bool:
         """Undo :meth:`connect_ports`; False if they were not connected."""
+        return self.disconnect_counted(source, sink) is not None
+
+    def disconnect_counted(self, source: str, sink: str) -> int | None:
+        """:meth:`disconnect_ports`, with the samples never delivered (None: not connected)."""
         (st, sp), (kt, kp) = split_port(source), split_port(sink)
         req = pb.DisconnectPortsRequest(source_task=st, source_port=sp, sink_task=kt, sink_port=kp)
-        return bool(self._invoke(st, "DisconnectPorts", req).disconnected)
+        reply = self._invoke(st, "DisconnectPorts", req)
+        return int(reply.undelivered) if reply.disconnected else None
 
     def close(self) -> None:
         """Close subscriptions, writers, channels (idempotent)."""

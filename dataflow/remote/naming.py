@@ -74,24 +74,24 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
                 request.address, list(request.components), request.lease_seconds, boot_id=request.boot_id,
                 lease_id=request.lease_id, peer=rpc.peer_key(context))
         except errors.AlreadyRegisteredError as exc:
-            context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
+            context.abort(grpc.StatusCode.ALREADY_EXISTS, rpc.bounded(str(exc)))
         except RegistryFullError as exc:
-            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, str(exc))
+            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, rpc.bounded(str(exc)))
         except NotFoundError as exc:
-            context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+            context.abort(grpc.StatusCode.NOT_FOUND, rpc.bounded(str(exc)))
         except ValueError as exc:
-            context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+            context.abort(grpc.StatusCode.INVALID_ARGUMENT, rpc.bounded(str(exc)))
         return pb.RegisterResponse(lease_id=lease_id, lease_seconds=seconds)
 
     def Heartbeat(self, request: pb.HeartbeatRequest, context: grpc.ServicerContext) -> pb.HeartbeatResponse:  # noqa: N802
         try:
             seconds = self.registry.heartbeat(request.lease_id, list(request.components) or None)
         except NotFoundError as exc:
-            context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+            context.abort(grpc.StatusCode.NOT_FOUND, rpc.bounded(str(exc)))
         except RegistryFullError as exc:
-            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, str(exc))
+            context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED, rpc.bounded(str(exc)))
         except ValueError as exc:
-            context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+            context.abort(grpc.StatusCode.INVALID_ARGUMENT, rpc.bounded(str(exc)))
         return pb.HeartbeatResponse(lease_seconds=seconds)
 
     def Unregister(self, request: pb.UnregisterRequest, context: grpc.ServicerContext) -> pb.UnregisterResponse:  # noqa: N802
@@ -102,7 +102,7 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
         try:
             entry = self.registry.resolve(request.component)
         except NotFoundError as exc:
-            context.abort(grpc.StatusCode.NOT_FOUND, str(exc))
+            context.abort(grpc.StatusCode.NOT_FOUND, rpc.bounded(str(exc)))
         return pb.ResolveResponse(entry=_entry_msg(entry))
 
     def ListEntries(self, request: pb.ListEntriesRequest, context: grpc.ServicerContext) -> pb.ListEntriesResponse:  # noqa: N802

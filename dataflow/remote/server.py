@@ -309,7 +309,7 @@ class DeployerServer:
         note = ""
         if old is not None:
             old.close()
-            note = f"policy changed from {old.policy} to {policy}"
+            note = _changes(old.policy, policy, old.name, given)
         if name is not None:
             self.deployer.name_link(source, sink, name)
         if address:  # the sink is known: return once the first connection is settled (links then tells how)
@@ -340,24 +340,35 @@ class DeployerServer:
                          graceful: bool = True) -> bool:
         """Undo :meth:`connect_ports` (what waits is delivered first, unless not
         ``graceful``); False when they were not connected."""
+        return self.disconnect_counted(source_task, source_port, sink_task, sink_port, graceful) is not None
+
+    def disconnect_counted(self, source_task: str, source_port: str, sink_task: str, sink_port: str,
+                           graceful: bool = True) -> int | None:
+        """:meth:`disconnect_ports`, saying how many samples written were never delivered
+        (None: they were not connected; an in-process pair: 0, nothing leaves)."""
         key = (source_task, source_port, sink_task, sink_port)
         with self._lock:
             link = self._links.pop(key, None)
         if link is not None:
-            link.close(graceful)
+            lost = link.close(graceful)
             self.deployer.forget_link(f"{source_task}.{source_port}", f"{sink_task}.{sink_port}")
-            return True
+            return lost
         if source_task in self.deployer.names() and sink_task in self.deployer.names():
-            return self.deployer.disconnect(f"{source_task}.{source_port}", f"{sink_task}.{sink_port}")
-        return False
+            return 0 if self.deployer.disconnect(f"{source_task}.{source_port}", f"{sink_task}.{sink_port}") else None
+        return None
 
     def disconnect_link(self, name: str) -> bool:
         """Undo the link or stream called ``name``; raises ``NotFoundError`` listing names."""
+        return self.disconnect_link_counted(name) is not None
+
+    def disconnect_link_counted(self, name: str) -> int | None:
+        """:meth:`disconnect_link`, saying how many samples were never delivered (see
+        :meth:`disconnect_counted`; a stream: 0)."""
         if name in self.deployer.streams():
-            return self.unstream(name)
+            return 0 if self.unstream(name) else None
         link = self.find_link(name)
         (st, sp), (kt, kp) = link.source.rsplit(".", 1), link.sink.rsplit(".", 1)
-        return self.disconnect_ports(st, sp, kt, kp)
+        return self.disconnect_counted(st, sp, kt, kp)
 
     def links(self) -> list[LinkDescription]:
         """The links whose source is one of these tasks (in-process ones, then those to
@@ -456,3 +467,15 @@ class DeployerServer:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def _changes(old: ConnPolicy, new: ConnPolicy, old_name: str, new_name: str) -> str:
+    """What connecting a linked pair again changed: its policy, its transport, its name."""
+    notes = []
+    if not same_policy(old, new):
+        notes.append(f"policy changed from {old} to {new}")
+    if old.transport != new.transport:
+        notes.append(f"transport changed from {old.transport} to {new.transport}")
+    if old_name != new_name:
+        notes.append(f"renamed from {old_name} to {new_name}")
+    return "; ".join(notes) or "connected again"

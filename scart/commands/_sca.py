@@ -19,15 +19,22 @@ import os
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["SERVICES_ENV", "at", "call", "endpoints", "find", "list_services", "with_services"]
+__all__ = ["SERVICES_ENV", "at", "call", "endpoints", "find", "list_services", "named_endpoints", "with_services"]
 
 SERVICES_ENV = "SCART_SERVICES"
 MAX_ENDPOINTS = 64  # services endpoints one command lists or searches
 
 
 def at(args: argparse.Namespace) -> str | None:
-    """``--at``, else ``$SCART_SERVICES``, else None (then the name service is asked)."""
-    return getattr(args, "at", None) or os.environ.get(SERVICES_ENV) or None
+    """``--at``, else ``$SCART_SERVICES``, else None (then the name service is asked).
+    Raises ``ValueError`` naming ``$SCART_SERVICES`` when it is not ``HOST:PORT``."""
+    from dataflow.cli.output import checked_address
+
+    given = getattr(args, "at", None)
+    if given:
+        return str(given)
+    env = os.environ.get(SERVICES_ENV)
+    return checked_address(env, f"${SERVICES_ENV}") if env else None
 
 
 def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
@@ -55,6 +62,13 @@ def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
 def endpoints(args: argparse.Namespace) -> list[str]:
     """The services endpoints registered with the name service (``--ns``, ``SCART_NS``, the
     default); raises ``DataflowError`` naming it when it does not answer."""
+    return sorted({address for address, _ in named_endpoints(args)})
+
+
+def named_endpoints(args: argparse.Namespace) -> list[tuple[str, str]]:
+    """``(address, namespace)`` of each services endpoint the name service knows (the
+    namespace of a ``scart run --remap __ns=NS``, else ``""``); raises ``DataflowError``
+    naming the name service when it does not answer."""
     from dataflow.cli.output import ns_address
     from scart_wire.errors import RemoteTimeoutError, UnavailableError
     from dataflow.remote.naming import NameClient
@@ -69,11 +83,15 @@ def endpoints(args: argparse.Namespace) -> list[str]:
                         "(scart run prints it: 'SCA services at ...')") from None
     finally:
         names.close()
-    return sorted({e.address for e in entries})[:MAX_ENDPOINTS]
+    from dataflow.remote.naming import SCA_PREFIX
+
+    found = {(e.address, e.component[len(SCA_PREFIX):].removesuffix(e.address).rstrip("/")) for e in entries}
+    return sorted(found)[:MAX_ENDPOINTS]
 
 
-def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]]:
-    """Every service the server at ``address`` exports: names, interface, operations."""
+def list_services(address: str, args: argparse.Namespace, namespace: str = "") -> list[dict[str, Any]]:
+    """Every service the server at ``address`` exports: names (each under ``namespace/``
+    when one is given), interface, operations."""
     from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
     from scart_wire import rpc
 
@@ -82,47 +100,56 @@ def list_services(address: str, args: argparse.Namespace) -> list[dict[str, Any]
         reply = rpc.call(stub.ListServices, pb.ListServicesRequest(), args.timeout, address)
     finally:
         channel.close()
-    return [{"names": list(s.names), "interface": s.interface, "at": address,
-             "operations": [{"name": o.name, "oneway": o.oneway, "returns_value": o.returns_value}
-                            for o in s.operations]} for s in reply.services]
+    under = f"{namespace}/" if namespace else ""
+    return [{"names": [under + n for n in s.names], "interface": s.interface, "at": address,
+             "operations": [{"name": o.name, "oneway": o.oneway, "returns_value": o.returns_value,
+                             "params": list(o.params)} for o in s.operations]} for s in reply.services]
 
 
-def find(service: str, args: argparse.Namespace) -> str:
-    """The endpoint serving ``service`` (``COMPONENT/SERVICE``, a promoted service or a
-    single-service component's name) among those the name service knows; raises
-    ``NotFoundError`` listing what there is, ``DataflowError`` when it is ambiguous."""
+def find(service: str, args: argparse.Namespace) -> tuple[str, str]:
+    """``(endpoint, name there)`` of ``service`` (``COMPONENT/SERVICE``, a promoted service or
+    a single-service component's name; ``NS/...`` for a run under ``--remap __ns=NS``)
+    among those the name service knows; raises ``NotFoundError`` listing what there is,
+    ``DataflowError`` when it is ambiguous."""
     from scart_wire.errors import DataflowError, NotFoundError
 
     found, known = [], []
-    for address in endpoints(args):
+    for address, namespace in named_endpoints(args):
         try:
-            listed = list_services(address, args)
+            listed = list_services(address, args, namespace)
         except DataflowError:  # an endpoint going away: the others still count
             continue
         known += [s["names"][0] for s in listed]
         if any(service in s["names"] for s in listed):
-            found.append(address)
+            found.append((address, service.removeprefix(f"{namespace}/") if namespace else service))
     if not found:
         raise NotFoundError(f"no component or SCA service named {service!r}; SCA services: "
                             f"{', '.join(sorted(known)[:20]) or 'none registered'}")
     if len(found) > 1:
-        raise DataflowError(f"SCA service {service!r} is served at {', '.join(found)}: choose one with --at")
+        raise DataflowError(f"SCA service {service!r} is served at {', '.join(a for a, _ in found)}: choose one "
+                            "with --at")
     return found[0]
 
 
-def call(address: str, target: str, json_args: list[Any], args: argparse.Namespace) -> Any:
+def call(address: str, target: str, json_args: list[Any], args: argparse.Namespace,
+         kwargs: dict[str, Any] | None = None, there: str | None = None) -> Any:
     """Call ``COMPONENT/SERVICE.operation`` (or ``SERVICE.operation`` for a promoted or
-    single service) at ``address`` with JSON arguments; the result as JSON-able data.
-    Raises ``ValueError`` for a malformed target, ``DataflowError`` for a remote fault."""
+    single service) at ``address`` with JSON arguments (in order, and ``kwargs`` by name);
+    ``there``: the service's name at ``address`` when ``target`` names it under a
+    namespace (see :func:`find`). The result as JSON-able data. Raises ``ValueError`` for a malformed target,
+    ``DataflowError`` for a remote fault: a refused argument (a missing one, a value its
+    declaration refuses) in the server's words, an operation that raised with its type."""
     from scart_wire import codec
     from scart_wire.types import registry
     from scart_wire.errors import DataflowError
     from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
     from scart_wire import rpc
 
-    service, operation = split_target(target)
+    shown, operation = split_target(target)
+    service = there or shown  # the name at the endpoint (without the namespace it is found under)
     request = pb.CallRequest(invocation=pb.Invocation(service=service, operation=operation,
-                                                      args=[codec.encode(a) for a in json_args]))
+                                                      args=[codec.encode(a) for a in json_args],
+                                                      kwargs={k: codec.encode(v) for k, v in (kwargs or {}).items()}))
     channel, stub = _stub(address, args)
     try:
         reply = rpc.call(stub.Call, request, args.timeout, address)
@@ -130,6 +157,11 @@ def call(address: str, target: str, json_args: list[Any], args: argparse.Namespa
         channel.close()
     if reply.outcome.WhichOneof("kind") == "fault":
         fault = reply.outcome.fault
+        if fault.code == "INVALID_ARGUMENT":  # the caller's mistake: the server's own words say it
+            message = fault.message
+            if message.startswith(f"{operation}("):
+                message = f"{shown}.{message}"
+            raise DataflowError(f"{message} (refused: give the arguments in order, or as one mapping by name)")
         ref = f" (reference {fault.reference} in the server's log)" if fault.reference else ""
         raise DataflowError(f"{target} raised {fault.type}: {fault.message}{ref}")
     return registry.to_jsonable(codec.decode(reply.outcome.value))

@@ -207,8 +207,8 @@ def _say_started(assembly: Assembly, runtime: Runtime, settings: Settings, extra
     """The start summary and a line per thing served (stderr)."""
     say(summary(assembly, runtime.addresses(), run_names(assembly, settings)))
     if extras.services:
-        how = next((o for o in (x.services_option() for x in extras.launched) if o is not None), None)
-        say(_services_line(extras.services, how))
+        lister = next((x for x in extras.launched if x.services_option() is not None), None)
+        say(_services_line(extras.services, lister))
     for launched in extras.launched:
         for what, where in launched.addresses().items():
             say(f"scart: {what} at {where}")
@@ -220,15 +220,16 @@ def _say_started(assembly: Assembly, runtime: Runtime, settings: Settings, extra
     say(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop")
 
 
-def _services_line(services: list[Any], how: str | None) -> str:
+def _services_line(services: list[Any], lister: Launched | None) -> str:
     """Where the services are, and a call to paste (a promoted service's first operation if
-    any): by name when a launch provider lists them (``how``: the options that find them),
-    else with ``--at``."""
+    any): by name when a launch provider lists them (``lister``: its options find them, its
+    names name them), else with ``--at``."""
     where = services[0].address
     first = max(services, key=lambda b: len(b.names) > 2)  # one the composite promotes, when there is one
     name = first.names[-1] if len(first.names) > 2 else first.names[0]
     ops = list(first.endpoint.interface.operations)
-    target = f"{name}.{ops[0] if ops else 'op'}"
+    how = lister.services_option() if lister is not None else None
+    target = f"{lister.service_name(name) if lister is not None else name}.{ops[0] if ops else 'op'}"
     if how is not None:
         return (f"scart: SCA services at {where} (list them: scart services{how}; "
                 f"call one: scart call{how} {target} ARGS...)")

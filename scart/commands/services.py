@@ -6,15 +6,15 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, out
-from scart.commands._sca import SERVICES_ENV, at, endpoints, list_services, with_services
+from dataflow.cli.output import add_common, address_arg, dump, out
+from scart.commands._sca import SERVICES_ENV, at, list_services, named_endpoints, with_services
 
 HELP = "list the SCA services scart run serves (found through the name service, or --at)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``--at`` and the common options."""
-    parser.add_argument("--at", default=None, metavar="HOST:PORT",
+    parser.add_argument("--at", default=None, metavar="HOST:PORT", type=address_arg,
                         help=f"list the services served there instead (scart run prints it), or ${SERVICES_ENV}")
     add_common(parser)
 
@@ -27,8 +27,8 @@ def main(args: argparse.Namespace) -> int:
 def _services(args: argparse.Namespace) -> int:
     address = at(args)
     services = []
-    for where in [address] if address else endpoints(args):
-        services += list_services(where, args)
+    for where, namespace in [(address, "")] if address else named_endpoints(args):
+        services += list_services(where, args, namespace)
     if args.json:
         out(dump(services))
         return 0

@@ -165,7 +165,7 @@ def test_connect_and_disconnect_across_deployers(system) -> None:
     ns, _ = system
     out = json.loads(scart(ns, "connect", "pinger.output", "far.input", "--policy", "buffer:8", "--json").stdout)
     assert out == {"name": "pinger.output->far.input", "source": "pinger.output", "sink": "far.input", "policy": "buffer:8",
-                   "connected": True, "note": ""}
+                   "transport": "auto", "connected": True, "note": ""}
     scart(ns, "write", "pinger.input", "7.0")
     # far echoes what arrived from the other deployer (DATA subscription: last written value first)
     assert json.loads(scart(ns, "echo", "far.output", "-n", "1", "--json").stdout) == 7.0
@@ -190,7 +190,8 @@ def test_named_links_listed_rerouted_and_disconnected(system) -> None:
     assert (rows["floats"]["sink"], rows["floats"]["transport"]) == ("pinger.samples", "local")
     wrong = scart(ns, "reroute", "floats", "pinger.input", check=False)  # float, not list[float]
     assert wrong.returncode == 1 and "types differ" in wrong.stderr
-    assert json.loads(scart(ns, "disconnect", "floats", "--json").stdout) == {"name": "floats", "disconnected": True}
+    assert json.loads(scart(ns, "disconnect", "floats", "--json").stdout) == {"name": "floats", "disconnected": True,
+                                                                            "undelivered": 0}
     gone = scart(ns, "disconnect", "floats", check=False)
     assert gone.returncode == 1 and "no link 'floats'" in gone.stderr
 

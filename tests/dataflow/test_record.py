@@ -74,7 +74,7 @@ def test_record_describe_and_replay_into_a_driverless_deployer(tmp_path: Path) -
     info = json.loads(subprocess.run([sys.executable, "-m", "scart", "info", str(run), "--json"], capture_output=True,
                                      text=True, timeout=60).stdout)
     assert info["channels"] == [{"topic": "youBotDriver.jointStatus", "type": "YouBotStatus", "count": len(recorded),
-                                 "rate": info["channels"][0]["rate"]}]
+                                 "rate": info["channels"][0]["rate"], "declared": True}]
     assert 80 < info["channels"][0]["rate"] < 120 and info["messages"] == len(recorded)
 
     fresh = Deployer()

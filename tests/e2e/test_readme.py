@@ -87,3 +87,15 @@ def test_graph_says_that_drawing_needs_graphviz() -> None:
     helped = subprocess.run([sys.executable, "-m", "scart", "graph", "--help"], capture_output=True, text=True,
                             timeout=60)
     assert "Graphviz" in helped.stdout and "apt-get install graphviz" in " ".join(helped.stdout.split())
+
+
+def test_the_security_section_states_the_buffer_limit_that_holds() -> None:
+    """The limit a remote buffer meets is ``MAX_BUFFER``, in the security section as in the
+    transports' (it once said 10 000 there while 100 000 held)."""
+    from dataflow.policy import MAX_BUFFER
+
+    security = README[README.index("## Security"):README.index("## Crossing processes")]
+    said = re.search(r"buffer is at most `MAX_BUFFER` \(([\d ]+)\) samples", security)
+    assert said is not None, "the security section names the buffer limit"
+    assert int(said[1].replace(" ", "")) == MAX_BUFFER
+    assert "10 000 samples" not in security

@@ -70,3 +70,20 @@ def test_the_first_signal_during_a_hung_init_begins_a_bounded_stop(sig: signal.S
     assert proc.returncode == 1, err
     assert "stopping while starting: component Slow (@init open) had not returned" in err, err
     assert "scart: started" not in out
+
+
+def test_a_signal_during_a_hung_start_exits_at_once() -> None:
+    """The README says "stops at once"; it exited after 10.4 s (the default --stop-timeout,
+    waiting for the very component that hung). What started before it is stopped; the one
+    that never returned is not waited for."""
+    proc = subprocess.Popen(scart_cmd("run", str(DATA / "hang-init.composite"), "--ns", ns_address()),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)  # default --stop-timeout: 10 s
+    try:
+        seen = wait_for_stderr(proc, b"hangs: @init began")
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=5)  # at once: not the 10 s a stop may take
+    finally:
+        out, err = finish(proc)
+    err = seen.decode() + err
+    assert proc.returncode == 1, err
+    assert "component Slow had not returned from its start; not waited for" in err, err

@@ -1,6 +1,7 @@
 """A Foxglove WebSocket client in the standard library only, so that another local user
 (:mod:`support.users`) can run it from its source: ``python3 -c SOURCE HOST PORT ORIGIN
-SECONDS`` with ACTIONS (JSON) on stdin. It opens a WebSocket (``foxglove.sdk.v1``; ``ORIGIN`` sent
+SECONDS [PATH]`` with ACTIONS (JSON) on stdin (``PATH``: the request's, default ``/``; a
+token goes there as ``/?token=...``). It opens a WebSocket (``foxglove.sdk.v1``; ``ORIGIN`` sent
 unless empty), waits for the server's advertisements, sends each action (a JSON op as
 text, or ``{"call": SERVICE, "id": N, "body": {...}}`` as a binary service call), reads
 for ``SECONDS`` and prints one JSON object: the HTTP status of the handshake, its body if
@@ -68,11 +69,11 @@ def read_frame(sock):
     return b0 & 0x0F, read_exact(sock, n)
 
 
-def main(host, port, origin, actions, seconds):
+def main(host, port, origin, actions, seconds, path="/"):
     out = {"status": None, "messages": [], "calls": {}, "services": {}, "sent": False}
     sock = socket.create_connection((host, port), timeout=5)
     key = base64.b64encode(os.urandom(16)).decode()
-    request = (f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+    request = (f"GET {path} HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
                "Sec-WebSocket-Protocol: foxglove.sdk.v1, foxglove.websocket.v1\r\n"
                + (f"Origin: {origin}\r\n" if origin else "") + "\r\n")
@@ -129,4 +130,5 @@ def main(host, port, origin, actions, seconds):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[2]), sys.argv[3], json.loads(sys.stdin.read() or "[]"), float(sys.argv[4]))
+    main(sys.argv[1], int(sys.argv[2]), sys.argv[3], json.loads(sys.stdin.read() or "[]"), float(sys.argv[4]),
+         *sys.argv[5:6])

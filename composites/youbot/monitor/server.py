@@ -32,9 +32,15 @@ trusted: web pages from other origins running in that user's browser. The checks
   cross-site requests (forms, ``fetch`` with ``no-cors``) before the backend is called;
   ``application/json`` additionally forces a CORS preflight this server never grants.
 - **Token** (optional, ``token=``): POSTs must also carry it in ``X-Monitor-Token`` (the
-  page reads it from its own ``?token=`` and sends it); compared in constant time, never
-  logged (request lines are logged with ``token=***``). Stops other local users and
-  programs that only know the port from moving the arm. GETs stay open: they only read.
+  page reads it from its own ``?token=`` and sends it), else 401; compared in constant
+  time, never logged (request lines are logged with ``token=***``). Stops other local
+  users and programs that only know the port from moving the arm. GETs stay open: they
+  only read.
+- **Refusals are worded as at every other door**: ``COMMAND: WHAT refused: WHY``, the
+  command named as the operation it reaches (``set_period``, ``move``); a value as the
+  one check of operation arguments says it (``set_period(seconds): 'fast' refused: Input
+  should be a valid number``); a token as the gRPC doors do (``set_period: no valid
+  token ...``).
 - **Headers** (every answer): ``X-Frame-Options: DENY`` and CSP ``frame-ancestors 'none'``
   (no clickjacking through a frame), a ``default-src 'self'`` CSP for the page,
   ``X-Content-Type-Options: nosniff``, ``Referrer-Policy: no-referrer`` (the token never
@@ -71,8 +77,11 @@ import time
 import urllib.parse
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from types import MappingProxyType
 from typing import Any, Protocol, runtime_checkable
 
+from scart_wire.bounds import check_argument
+from scart_wire.errors import DataflowError
 from scart_wire.security import is_loopback
 
 from .connections import Connections
@@ -322,6 +331,7 @@ class _Handler(BaseHTTPRequestHandler):
     def do_POST(self) -> None:  # noqa: N802 - stdlib name
         path = self.path.split("?", 1)[0]
         backend = self.server.monitor._backend
+        command = _COMMANDS.get(path, path)
         try:
             self._check_origin()
             self._check_token()
@@ -333,7 +343,8 @@ class _Handler(BaseHTTPRequestHandler):
             else:
                 raise _BadRequest(f"no such command: {path}", HTTPStatus.NOT_FOUND)
         except _BadRequest as exc:
-            self._send_json(exc.status, {"ok": False, "message": str(exc)})
+            said = str(exc) if str(exc).startswith(f"{command}") else f"{command}: {exc}"
+            self._send_json(exc.status, {"ok": False, "message": said})
             return
         self._send_json(HTTPStatus.OK, {"ok": bool(ok), "message": str(message)})
 
@@ -343,10 +354,10 @@ class _Handler(BaseHTTPRequestHandler):
         """A command must come from our own page: ``Origin`` is ``http://`` + an allowed Host."""
         origin = self.headers.get("Origin")
         if origin is None:
-            raise _BadRequest("commands need an Origin header (send them from the monitor page)",
+            raise _BadRequest("a command without an Origin header refused (send it from the monitor page)",
                               HTTPStatus.FORBIDDEN)
         if origin.strip().lower() not in self.server.allowed_origins:
-            raise _BadRequest(f"cross-origin command refused (Origin {origin[:100]!r})", HTTPStatus.FORBIDDEN)
+            raise _BadRequest(f"Origin {origin[:100]!r} refused: cross-origin command", HTTPStatus.FORBIDDEN)
 
     def _check_token(self) -> None:
         """In token mode, ``X-Monitor-Token`` must equal the token (constant-time compare)."""
@@ -355,8 +366,8 @@ class _Handler(BaseHTTPRequestHandler):
             return
         given = self.headers.get(TOKEN_HEADER, "")
         if not hmac.compare_digest(given.encode("utf-8", "replace"), expected.encode()):
-            raise _BadRequest("missing or wrong control token: open the URL the monitor printed",
-                              HTTPStatus.FORBIDDEN)
+            raise _BadRequest("no valid token (missing or wrong control token: open the URL the monitor printed, "
+                              "which carries it)", HTTPStatus.UNAUTHORIZED)
 
     # -- helpers ----------------------------------------------------------------------
 
@@ -457,13 +468,19 @@ def _sse_frame(message: dict[str, Any], event_id: str) -> bytes:
     return f"id: {event_id}\nevent: update\ndata: ".encode() + body.encode() + b"\n\n"
 
 
+#: The operation each command reaches: what its refusals are named after.
+_COMMANDS = MappingProxyType({"/api/period": "set_period", "/api/pose": "move"})
+
+
 def _number(body: Any, key: str) -> float:
+    """``body[key]``, a finite number (a refusal worded as the one check of operation
+    arguments words it: ``set_period(seconds): VALUE refused: REASON``)."""
     if not isinstance(body, dict) or key not in body:
         raise _BadRequest(f'expected a JSON object like {{"{key}": 0.01}}')
-    value = body[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _BadRequest(f"{key!r} must be a finite number, got {value!r}")
-    return float(value)
+    try:
+        return float(check_argument(f"set_period({key})", float, body[key]))  # the one check every door uses
+    except DataflowError as exc:
+        raise _BadRequest(str(exc)) from None
 
 
 def _pose(body: Any) -> str | list[float]:
@@ -476,7 +493,8 @@ def _pose(body: Any) -> str | list[float]:
         isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pose
     ):
         return [float(v) for v in pose]
-    raise _BadRequest(f"'pose' must be a pose name or a list of joint positions, got {pose!r}")
+    raise _BadRequest(f"move(pose): {pose!r:.80} refused: Input should be a pose name or a list of finite joint "
+                      "positions")
 
 
 class MonitorServer:

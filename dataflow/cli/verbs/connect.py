@@ -45,8 +45,9 @@ def cmd_connect(args: argparse.Namespace) -> int:
     note = args.system.connect_ports(args.source, args.sink, policy, name=args.name)
     name = args.name or next((lk.name for lk in args.system.links()
                               if (lk.source, lk.sink) == (args.source, args.sink)), f"{args.source}->{args.sink}")
-    doc = {"name": name, "source": args.source, "sink": args.sink, "policy": str(policy), "connected": True,
-           "note": note}
-    out(dump(doc) if args.json else f"connected {args.source} -> {args.sink} ({policy}) as {name}"
+    doc = {"name": name, "source": args.source, "sink": args.sink, "policy": str(policy),
+           "transport": policy.transport, "connected": True, "note": note}
+    over = f", {policy.transport}" if policy.transport != "auto" else ""
+    out(dump(doc) if args.json else f"connected {args.source} -> {args.sink} ({policy}{over}) as {name}"
         + (f": {note}" if note else ""))
     return 0

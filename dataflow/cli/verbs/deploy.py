@@ -30,6 +30,7 @@ from typing import Any
 from dataflow.cli import _ros as ros_args
 from dataflow.cli import _yarp as yarp_args
 from dataflow.cli import _zenoh as zenoh_args
+from dataflow.cli.output import listen_arg
 from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from scart_wire.security import add_arguments as add_arguments_security
 from scart_wire.security import from_args
@@ -48,7 +49,7 @@ def add_arguments(deploy: argparse.ArgumentParser) -> None:
     deploy.add_argument("--advertise", default=None, metavar="HOST[:PORT]",
                         help="the address registered in the name service and announced on Zenoh (default: "
                              "the one listened on; this host's name when listening on every interface)")
-    deploy.add_argument("--ns", default=None, help=f"name service HOST:PORT (or ${NS_ENV}): joined when one answers there, else embedded there; "
+    deploy.add_argument("--ns", default=None, type=listen_arg, metavar="HOST:PORT", help=f"name service HOST:PORT (or ${NS_ENV}): joined when one answers there, else embedded there; "
                         "default: embed one")
     deploy.add_argument("--lease", type=float, default=DEFAULT_LEASE, help="name-service lease (s)")
     deploy.add_argument("--heartbeat-ms", type=int, default=500, help="idle heartbeat of subscriptions (ms)")
@@ -217,6 +218,9 @@ class _Hosted:
                 self.zenoh_session, self.zenoh_listen = zenoh_args.session_of(args, serve=True, security=self.security)
             except Exception as exc:  # noqa: BLE001 - Zenoh's own errors (a bad endpoint) say what is wrong
                 raise _Failed(f"--zenoh: {zenoh_args.plain_error(str(exc))}") from None
+            from dataflow.transports.zenoh import use_session
+
+            use_session(self.zenoh_session)  # streams asked of this deployer (scart stream ... zenoh:KEY) use it
         try:
             for task in _make_tasks(args):
                 self.deployer.add(task)
@@ -261,6 +265,9 @@ class _Hosted:
             if self.publisher is not None:
                 self.publisher.close()
             if self.zenoh_session is not None:
+                from dataflow.transports.zenoh import use_session
+
+                use_session(None)
                 self.zenoh_session.close()
         except Exception as exc:  # noqa: BLE001 - Zenoh failing to close never keeps the tasks running
             _err(f"scart deploy: closing Zenoh: {exc}")

@@ -1,5 +1,6 @@
 """``scart disconnect LINK`` or ``scart disconnect A.out B.in``: undo a link (exit 1 when
-there was none)."""
+there was none), saying how many samples written were never delivered to the sink's
+task (it may read what its buffer holds first, 1 s at most)."""
 
 from __future__ import annotations
 
@@ -25,10 +26,17 @@ def main(args: argparse.Namespace) -> int:
 def cmd_disconnect(args: argparse.Namespace) -> int:
     """``scart disconnect A.out B.in`` or ``scart disconnect LINK``."""
     if args.sink is None:
-        done = args.system.disconnect_link(args.source)
-        doc = {"name": args.source, "disconnected": done}
+        lost = args.system.disconnect_link_counted(args.source)
+        doc: dict[str, object] = {"name": args.source}
     else:
-        done = args.system.disconnect_ports(args.source, args.sink)
-        doc = {"source": args.source, "sink": args.sink, "disconnected": done}
-    out(dump(doc) if args.json else ("disconnected" if done else "were not connected"))
-    return 0 if done else 1
+        lost = args.system.disconnect_counted(args.source, args.sink)
+        doc = {"source": args.source, "sink": args.sink}
+    doc.update(disconnected=lost is not None, undelivered=lost or 0)
+    if args.json:
+        out(dump(doc))
+    elif lost is None:
+        out("were not connected")
+    else:
+        out(f"disconnected: {lost} sample(s) written were never delivered" if lost else
+            "disconnected: every sample written was delivered")
+    return 0 if lost is not None else 1

@@ -1,7 +1,8 @@
 """``scart echo COMP.PORT [-n N | --once] [--field PATH]``: each sample of an output port
 (or the part ``--field`` names): readable, over several lines for a structure (``---
-[sequence]`` first), or one JSON line with ``--json`` (what ``write`` accepts).
-``--zenoh`` takes the samples from Zenoh, with no name service."""
+[sequence]`` first), or one JSON line with ``--json`` (what ``write`` accepts). A
+sample without the ``--field`` asked for ends it: one line naming the fields there are,
+exit 1 (a typo never prints ``null``). ``--zenoh`` takes the samples from Zenoh, with no name service."""
 
 from __future__ import annotations
 
@@ -70,6 +71,9 @@ def _echo(args: argparse.Namespace) -> int:
             wait_until_stopped(done, args.duration)
         finally:
             sub.close()
+    if printer.failed:
+        err(f"echo: {printer.failed}")
+        return 1
     if sub.dropped and args.zenoh:
         err(f"echo: {sub.dropped} sample(s) lost on Zenoh or not decodable")
     elif sub.dropped:
@@ -83,6 +87,7 @@ class _Printer:
     def __init__(self, args: argparse.Namespace, path: Any, done: threading.Event) -> None:
         self.args, self.path, self.done = args, path, done
         self.count = 0
+        self.failed = ""  #: why echoing stopped: a sample without the ``--field`` asked for
         self._lock = threading.Lock()
 
     def __call__(self, event: Any) -> None:
@@ -97,8 +102,9 @@ class _Printer:
                 try:
                     data = apply_path(data, self.path)
                 except (KeyError, IndexError, TypeError, AttributeError):
-                    err(f"echo: sample {event.sequence} has no {args.field}")
-                    data = None
+                    self.failed = f"sample {event.sequence} of {args.port} has no {args.field}{_fields_of(data)}"
+                    self.done.set()  # an unknown field is an error (exit 1), never a null printed
+                    return
             if args.json:
                 out(dump(data))
             elif isinstance(data, (dict, list)) and data:
@@ -108,3 +114,10 @@ class _Printer:
             self.count += 1
             if args.n is not None and self.count >= args.n:
                 self.done.set()
+
+
+def _fields_of(data: Any) -> str:
+    """``"; its fields: a, b, c"`` for a structure (what ``--field`` could name first)."""
+    if isinstance(data, dict) and data:
+        return f"; its fields: {', '.join(sorted(map(str, data))[:20])}"
+    return f"; the sample is of type {type(data).__name__}" if data is not None else ""

@@ -21,6 +21,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--control", "--foxglove-control", dest="control", nargs="?", const="", default=None,
                         metavar="TOKEN_FILE", help="writable: parameters can be set and operations called, acting with "
                                                    "the 'operate' token in TOKEN_FILE (default: read-only)")
+    parser.add_argument("--auth-file", default=None, metavar="PATH",
+                        help="the tokens the deployers check ($SCART_AUTH_FILE): the control token's role is checked "
+                             "against it, and a viewer must present one of them (?token= in the URL)")
     add_common(parser)
 
 

@@ -32,6 +32,9 @@ def main(args: argparse.Namespace) -> int:
     if doc["truncated"]:
         err(f"info: {args.file}: truncated at byte {doc['truncated_at']} (a recording cut short): what comes before "
             f"is listed; `scart record --recover {args.file}` writes a complete copy")
+    if doc["undeclared"]:
+        err(f"info: {args.file}: {doc['undeclared']} message(s) of channels the file never declares (listed as "
+            "undeclared; scart play stops at the first)")
     if args.json:
         out(dump(doc))
         return 0
@@ -44,7 +47,9 @@ def main(args: argparse.Namespace) -> int:
 
 def describe(path: str) -> dict[str, Any]:
     """What ``scart info --json`` prints: ``file``, ``duration`` (s), ``messages``,
-    ``channels`` (``topic``, ``type``, ``count``, ``rate``), ``truncated`` and
+    ``channels`` (``topic``, ``type``, ``count``, ``rate``, ``declared``: a message may name
+    a channel the file never declares; it is counted in its own row, so the rows add up
+    to ``messages``), ``undeclared`` (those messages), ``truncated`` and
     ``truncated_at``. Raises :class:`~dataflow.cli._mcap.McapError`."""
     from mcap import records as kinds
 
@@ -60,10 +65,14 @@ def describe(path: str) -> dict[str, Any]:
             end = record.log_time if end is None else max(end, record.log_time)
     duration = max(0.0, ((end or 0) - (start or 0)) / 1e9)
     channels = []
-    for cid, channel in sorted(scan.channels.items()):
-        schema = scan.schemas.get(channel.schema_id)
+    for cid in sorted(set(scan.channels) | set(counts)):  # a channel the file never declares has its row too
+        channel = scan.channels.get(cid)
+        schema = scan.schemas.get(channel.schema_id) if channel is not None else None
         count = counts.get(cid, 0)
-        channels.append({"topic": channel.topic, "type": schema.name if schema else "", "count": count,
-                         "rate": round(count / duration, 2) if duration > 0 else 0.0})
+        channels.append({"topic": channel.topic if channel is not None else f"(channel {cid}, undeclared)",
+                         "type": schema.name if schema else "", "count": count,
+                         "rate": round(count / duration, 2) if duration > 0 else 0.0,
+                         "declared": channel is not None})
     return {"file": path, "duration": round(duration, 6), "messages": sum(counts.values()), "channels": channels,
-            "truncated": scan.truncated_at is not None, "truncated_at": scan.truncated_at}
+            "truncated": scan.truncated_at is not None, "truncated_at": scan.truncated_at,
+            "undeclared": sum(c["count"] for c in channels if not c["declared"])}

@@ -1,6 +1,7 @@
 """``scart run``'s services endpoint in the name service: found by name, not by address.
 
-The endpoint is registered as one entry, ``sca:HOST:PORT`` (its address), under a lease
+The endpoint is registered as one entry, ``sca:HOST:PORT`` (its address; ``sca:NS/HOST:PORT``
+under ``--remap __ns=NS``, whose services are then named ``NS/Component/Service``), under a lease
 renewed by heartbeats like a deployer's (:class:`dataflow.remote.naming.Registration`),
 so it goes when the process goes. The name service is the one the runtime's tasks are
 served with (embedded or joined); for a composite without tasks, the one answering at
@@ -51,7 +52,9 @@ class Announcement:
         except DataflowError as exc:
             self.note = f"SCA services not in a name service ({exc}); reach them with --at {self.address}"
             return
-        registration = Registration(self.ns, self.address, lambda: [SCA_PREFIX + self.address],
+        namespace = DataflowSettings.of(self.settings).remap.namespace
+        entry = f"{SCA_PREFIX}{namespace + '/' if namespace else ''}{self.address}"
+        registration = Registration(self.ns, self.address, lambda: [entry],
                                     security=self.settings.security, timeout=self.settings.timeout)
         try:
             registration.start()

@@ -8,9 +8,10 @@
   with a ``.`` (it would read as ``TASK.PORT``), no two tasks under one name, no port
   renamed onto a name its task already has — :func:`remap_problems`;
 * a data-flow end (``scart:connect``, a bridge input) that names no task of the
-  composite: offline a warning ("did you mean"), as it is looked up in the name service
-  when the composite runs; with ``settings.online`` an error when no name service knows
-  it — :func:`remote_end`.
+  composite: an error ("did you mean") unless the task is declared external
+  (``<scart:external>``) or the element names its ``ns``; those are looked up in the
+  name service when the composite runs, and with ``settings.online`` an error when no
+  name service knows them — :func:`remote_end`.
 """
 
 from __future__ import annotations
@@ -107,17 +108,22 @@ def remote_end(comp: str, what: str, ns: str | None, assembly: AssemblyView, con
                add: Add) -> dict[str, PortInfo] | None:
     """The ports of ``comp``, a data-flow end that is no task of the composite (``what``
     names the end in messages; ``ns`` the name service the element names, if any), when
-    ``settings.online`` lets a name service say; else None. Offline, an end whose
-    element names no name service gets a warning; online, one no name service knows
+    ``settings.online`` lets a name service say; else None. An end that is neither
+    declared external (:mod:`~scart.bindings.dataflow.external`) nor given an ``ns`` is an
+    error ("did you mean"): a typo would wait forever; online, one no name service knows
     (or whose name service does not answer) is an error."""
+    from scart.bindings.dataflow.external import externals
+
     near = did_you_mean(comp, local_names(assembly))
+    declared = externals(assembly)
     settings = context.settings
-    if not settings.online:
-        if ns is None:
-            add(f"{what}: {comp!r} is no task of this composite{near}; it is looked up in the name service "
-                "when the composite runs (scart validate --online asks it now)", "warning")
+    if ns is None and comp not in declared:
+        add(f"{what}: {comp!r} is no task of this composite{near}; a task another process serves is declared "
+            f"<scart:external task=\"{comp}\"/>", "error")
         return None
-    address = ns or DataflowSettings.of(settings).ns_address
+    if not settings.online:
+        return None
+    address = ns or declared.get(comp) or DataflowSettings.of(settings).ns_address
     runs_as = DataflowSettings.of(settings).remap.component(comp)
     names, ports = _lookup(address, runs_as, settings)
     if names is None:

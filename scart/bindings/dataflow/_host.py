@@ -159,10 +159,12 @@ class DataflowHost(Participant):
         return server
 
     def start(self) -> None:
-        """With ``settings.serve`` and tasks in the composite: serve them, joining the name
-        service answering at the settings' address, else embedding one there (at a free
-        port when no address was given and that one cannot be bound). Raises
-        ``DataflowError`` when serving fails."""
+        """With ``settings.serve`` and tasks in the composite: serve them (at the settings'
+        ``listen``, else a free loopback port), joining the name service answering at the
+        settings' address, else embedding one there (at a free port when no address was
+        given and that one cannot be bound; at ``listen`` when it is given and ``ns`` is
+        not). Raises ``DataflowError`` when serving fails, or when ``listen`` and ``ns``
+        are both given and no name service answers at ``ns``."""
         settings = self.host.settings
         own = DataflowSettings.of(settings)
         if self.server is not None or not own.serve:
@@ -176,7 +178,13 @@ class DataflowHost(Participant):
         ns = own.ns_address
         joined = name_service_answers(ns, security=settings.security)
         if joined:
-            server = self.serve("127.0.0.1:0", ns=ns)
+            server = self.serve(own.listen or "127.0.0.1:0", ns=ns)
+        elif own.listen and own.listen != ns:
+            if own.ns is not None:
+                raise DataflowError(f"--listen {own.listen}: no name service answers at {ns} (--ns) to register "
+                                    f"with; start one (scart nameserver --listen {ns}), or drop --listen to embed it "
+                                    "there")
+            server = self.serve(own.listen)  # no name service asked for: the embedded one is here
         else:
             try:
                 server = self.serve(ns)

@@ -6,7 +6,8 @@ hook                what it does
 ==================  ===========================================================================
 options             ``--remap FROM=TO`` (every verb); ``--ns HOST:PORT`` (``run``: where the
                     embedded name service listens, or the running one to join; ``validate``:
-                    the one ``--online`` asks); ``--foxglove [HOST:]PORT`` and
+                    the one ``--online`` asks); ``--listen HOST:PORT`` (``run``: where the
+                    data-flow server listens); ``--foxglove [HOST:]PORT`` and
                     ``--foxglove-control [TOKEN_FILE]``, ``--ros-master URI`` and
                     ``--ros-name NAME``, ``--yarp-server HOST:PORT`` (``run``)
 settings            a :class:`~scart.bindings.dataflow.settings.DataflowSettings` (``--ns``,
@@ -61,6 +62,9 @@ class DataflowLaunch(LaunchProvider):
                                 help="name service of data-flow tasks and SCA services: where the embedded one "
                                      f"listens, or the running one to join (default: ${NS_ENV}, else "
                                      f"{DEFAULT_NS_ADDRESS})")
+            parser.add_argument("--listen", default=None, metavar="HOST:PORT",
+                                help="where the data-flow server listens (as scart deploy --listen; default: the "
+                                     "name service's address when this run embeds it, else a free loopback port)")
             parser.add_argument("--foxglove", default=None, metavar="[HOST:]PORT",
                                 help="also serve the data-flow tasks live to the Foxglove app here (as `scart "
                                      "foxglove`: ports, properties, operations; 0: a free port; a routable HOST needs "
@@ -84,6 +88,12 @@ class DataflowLaunch(LaunchProvider):
         fields: dict[str, object] = {"remap": Remap.parse(getattr(args, "remap", None) or []), "serve": verb == "run",
                                      "foxglove": getattr(args, "foxglove", None),
                                      "foxglove_control": getattr(args, "foxglove_control", None)}
+        listen = getattr(args, "listen", None)
+        if listen:
+            try:
+                fields["listen"] = DataflowSettings(listen=listen).listen
+            except ValueError as exc:
+                raise ValueError(f"--listen {listen!r}: expected HOST:PORT (port 0..65535)") from exc
         ns = getattr(args, "ns", None)
         if ns:
             try:
@@ -241,6 +251,11 @@ class DataflowLaunched(Launched):
             return None
         return self.announcement.ns_option
 
+    def service_name(self, name: str) -> str:
+        """``NS/name`` under ``--remap __ns=NS``: how the name service finds it."""
+        namespace = self.own.remap.namespace
+        return f"{namespace}/{name}" if namespace else name
+
 
 def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = None) -> Any:
     """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service
@@ -261,12 +276,12 @@ def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = Non
     security = context.settings.security
     writer = None
     if control is not None:
-        token = control_token(control or None, security, "--foxglove-control")
+        token = control_token(control or None, security, "--foxglove-control", ns=where.split()[0])
         writer = connect(where.split()[0], security=dataclasses.replace(security, token=token))
     system = connect(where.split()[0], security=security)
     try:
         live = FoxgloveLive(system, host, int(port), insecure_host=security.insecure, owns_system=True,
-                            control=writer)
+                            control=writer, auth_file=security.auth_file)
     except BaseException:
         system.close()
         if writer is not None:

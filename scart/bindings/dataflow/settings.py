@@ -14,6 +14,9 @@ field                  meaning
                        read from the environment (:meth:`DataflowSettings.from_env`)
 ``serve``              serve the composite's data-flow tasks over gRPC at start, with a name
                        service embedded at ``ns_address`` or joined there (``scart run``)
+``listen``             where that data-flow server listens, ``HOST:PORT`` (``scart run
+                       --listen``); None: the name service's address when it embeds one,
+                       else a free loopback port
 ``remap``              names of data-flow tasks and ports changed at launch (:class:`Remap`,
                        ``--remap FROM=TO``)
 ``foxglove``           ``scart run --foxglove [HOST:]PORT``: also serve the tasks to Foxglove
@@ -26,7 +29,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, field_validator
 
 from scart.spi import Settings, parse_host_port, port_in_range
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
@@ -43,7 +46,9 @@ class Remap(BaseModel):
     * ``youBotDriver=left/youBotDriver`` renames the task (or bridge) ``youBotDriver``;
     * ``jointStatus=joint_states`` renames every port called ``jointStatus``;
       ``youBotDriver.jointStatus=joint_states`` only that task's;
-    * ``__ns=left`` puts every task name not renamed otherwise under ``left/``.
+    * ``__ns=left`` puts every task name not renamed otherwise under ``left/``, and the
+      component services ``scart run`` registers with the name service too (``scart call
+      left/Locomotor.move_to_pose``).
 
     They apply wherever the composite names a task or a port: the task's own name (so its
     name-service registration), its ports, ``scart:connect`` ends, bridge inputs and
@@ -77,6 +82,12 @@ class Remap(BaseModel):
     def __bool__(self) -> bool:
         return bool(self.rules)
 
+    @property
+    def namespace(self) -> str:
+        """The namespace of ``__ns=NS`` (``"left"``), else ``""``: SCA services are found
+        under it too (``left/Locomotor``), as tasks run under it."""
+        return (self._rule("__ns") or "").strip("/")
+
     def _rule(self, name: str) -> str | None:
         return next((new for old, new in reversed(self.rules) if old == name), None)
 
@@ -107,18 +118,20 @@ class DataflowSettings(BaseModel):
 
     ns: str | None = None
     serve: bool = False
+    listen: str | None = None
     remap: Remap = Remap()
     foxglove: str | None = None
     foxglove_control: str | None = None
 
-    @field_validator("ns")
+    @field_validator("ns", "listen")
     @classmethod
-    def _host_port(cls, value: str | None) -> str | None:
+    def _host_port(cls, value: str | None, info: ValidationInfo) -> str | None:
         if value is None:
             return None
         parsed = parse_host_port(value.strip())
         if parsed is None or not port_in_range(parsed[1], zero_ok=True):
-            raise ValueError(f'name service {value!r}: expected "host:port" (port 0..65535)')
+            what = "name service" if info.field_name == "ns" else "listen address"
+            raise ValueError(f'{what} {value[:80]!r}: expected "host:port" (port 0..65535)')
         return value.strip()
 
     @property

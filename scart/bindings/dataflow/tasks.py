@@ -36,8 +36,10 @@ settings' ``serve``, as ``scart run`` does). Static errors (``file:line``): malf
 message lists the ports), wrong direction, a bad policy, type mismatch (for a remote
 end: with ``settings.online`` when its name service answers at load time, else checked
 when connecting and logged), neither end in this composite. An end naming no task of this
-composite is a warning ("did you mean"; not when ``ns`` says where to look); with
-``settings.online`` one that no name service knows is an error.
+composite is an error ("did you mean") unless it is declared ``<scart:external task="..."/>``
+(:mod:`~scart.bindings.dataflow.external`) or ``ns`` says where to look; with
+``settings.online`` one that no name service knows is an error. ``scart run`` says once
+what a link waits for.
 """
 
 from __future__ import annotations
@@ -326,6 +328,11 @@ class ConnectElement(ElementProvider):
             add(TASK_CONNECT, f"<scart:connect zenoh=...> from: {link.source[0]!r} is in this composite; with zenoh "
                 "the source is a task of another deployer, read from its Zenoh key (scart deploy --zenoh)")
             return
+        if not {link.source[0], link.sink[0]} & (set(assembly.nodes) | set(bridges)) and link.zenoh is None:
+            known = [p for p, n in assembly.nodes.items() if n.kind == TASK_KIND]
+            add(TASK_CONNECT, f"<scart:connect>: neither {link.source[0]!r} nor {link.sink[0]!r} is a task of this "
+                f"composite; tasks: {', '.join(known) or 'none'}")
+            return
         for (comp, port), want, role in ((link.source, "out", "from"), (link.sink, "in", "to")):
             node = assembly.nodes.get(comp)
             if node is None and link.zenoh is not None:  # the Zenoh source: nothing to look at before start
@@ -426,6 +433,9 @@ class ConnectParticipant(Participant):
         self._clients: dict[str, Any] = {}
         self._waiting_logged: set[Link] = set()
         self._link_ns: dict[Link, str] = {}  # the name service each made link was made through
+        from scart.bindings.dataflow.external import externals
+
+        self._externals = {remap.component(name): ns for name, ns in externals(runtime.assembly).items()}
 
     def _is_local(self, link: Link) -> bool:
         return self._local(link.source[0]) and self._local(link.sink[0])
@@ -486,7 +496,7 @@ class ConnectParticipant(Participant):
             return  # not served (yet): scart run serves right after start
         for link in self._remote:
             remote = link.sink[0] if self._local(link.source[0]) else link.source[0]
-            ns = link.ns or host.ns_address
+            ns = link.ns or self._externals.get(remote) or host.ns_address
             try:
                 entry = self._client(ns).resolve(remote)
             except DataflowError:
@@ -495,8 +505,9 @@ class ConnectParticipant(Participant):
                     del self._made[link]
                 elif link not in self._waiting_logged:  # once: a typo would be silent otherwise
                     self._waiting_logged.add(link)
-                    log.warning("connect %s (%s): waiting for %s in name service %s", link.text, link.where,
-                                remote, ns)
+                    log.warning("connect %s (%s): waiting for %s in name service %s (%s)", link.text, link.where,
+                                remote, ns, "declared external: linked when it appears" if remote in self._externals
+                                else "linked when it appears")
                 continue
             self._waiting_logged.discard(link)
             if self._made.get(link) == entry.boot_id:

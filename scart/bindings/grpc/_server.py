@@ -27,7 +27,7 @@ from typing import Any
 import grpc
 
 from scart.errors import InvocationError, ScartError, ServiceNotFoundError
-from scart_wire.rpc import StreamBudget, server_options
+from scart_wire.rpc import StreamBudget, bind_problem, server_options
 from scart_wire.security import Security, SecurityError, auth_interceptor
 from dataflow.threads import OwnedThread
 from scart.bindings.grpc._wire import (
@@ -74,6 +74,7 @@ class Exported:
                 fn = self.plain[name] = self.endpoint.operation(name, None)
         else:
             fn = self.endpoint.operation(name, callback)
+        sig.check_shape(len(inv.args), inv.kwargs)
         return fn(*sig.args(inv.args), **sig.kwargs(inv.kwargs))
 
     def send(self, inv: Any, callback: object | None) -> None:
@@ -83,6 +84,7 @@ class Exported:
         if sig is None:
             raise InvocationError(f"{self.names[0]} has no operation {name!r}")
         method = self.endpoint.method(name)
+        sig.check_shape(len(inv.args), inv.kwargs)
         args, kwargs = sig.args(inv.args), sig.kwargs(inv.kwargs)
 
         def work() -> None:
@@ -102,7 +104,9 @@ class Exported:
     def info(self) -> Any:
         """This service as a ``ServiceInfo`` message."""
         iface, cb = self.endpoint.interface, self.callback_iface
-        ops = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value) for o in iface.operations.values()]
+        ops = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value,
+                                params=self.sigs[o.name].params if o.name in self.sigs else [])
+               for o in iface.operations.values()]
         cbs = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value)
                for o in (cb.operations.values() if cb is not None else ())]
         return pb.ServiceInfo(names=self.names, interface=iface.name, operations=ops,
@@ -298,6 +302,11 @@ class GrpcServer:
         server = grpc.server(self._server_pool, options=server_options(), interceptors=interceptors,
                              maximum_concurrent_rpcs=MAX_WORKERS)  # beyond: RESOURCE_EXHAUSTED, never a queue
         pb_grpc.add_ScaServiceServicer_to_server(_Servicer(self), server)
+        problem = bind_problem(self.configured)
+        if problem is not None:
+            server.stop(None)
+            self._server_pool.shutdown(wait=False)
+            raise ScartError(f"binding.grpc: {problem}")
         try:
             if credentials is not None:
                 port = server.add_secure_port(self.configured, credentials)

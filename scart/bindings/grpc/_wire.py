@@ -22,6 +22,7 @@ import pydantic
 
 from scart_wire import codec
 from scart_wire.bounds import argument_adapter, check_argument
+from scart_wire.errors import bounded
 from dataflow.errors import DataflowError, PortTypeError
 from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
 from scart_wire.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401  (the two sides use it)
@@ -121,13 +122,15 @@ class Signature:
     finiteness; a refusal says ``LABEL.op(param): VALUE refused: REASON``), the result
     (see :func:`reader`)."""
 
-    __slots__ = ("positional", "named", "result")
+    __slots__ = ("positional", "named", "result", "label", "_shape")
 
     def __init__(self, func: Callable[..., Any] | None, label: str = "") -> None:
         """``label``: what refusals name the operation (default: the function's name)."""
         self.positional: list[Converter] = []
         self.named: dict[str, Converter] = {}
         self.result: Converter = decode
+        self.label = label
+        self._shape: inspect.Signature | None = None
         if func is None:
             return
         try:
@@ -135,7 +138,8 @@ class Signature:
             params = [p for p in inspect.signature(func).parameters.values() if p.name != "self"]
         except Exception:  # unresolvable annotations: values pass as decoded
             return
-        op = label or func.__name__
+        op = self.label = label or func.__name__
+        self._shape = inspect.Signature(params)
         for p in params:
             read = _checked_reader(f"{op}({p.name})", hints.get(p.name))
             if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
@@ -153,6 +157,22 @@ class Signature:
         """Decoded and coerced keyword arguments (``Value`` messages in)."""
         named = self.named
         return {k: named.get(k, decode)(v) for k, v in values.items()}
+
+    @property
+    def params(self) -> list[str]:
+        """The parameters' names, in order (empty when the function is not known)."""
+        return list(self._shape.parameters) if self._shape is not None else []
+
+    def check_shape(self, n_args: int, names: typing.Iterable[str]) -> None:
+        """Raise :class:`ArgumentRefused` when ``n_args`` positional arguments and the
+        keyword arguments ``names`` do not fit the operation (one missing, one too many,
+        an unknown name): the caller's mistake, said in one line, never a traceback."""
+        if self._shape is None:
+            return
+        try:
+            self._shape.bind(*range(n_args), **dict.fromkeys(names))
+        except TypeError as exc:
+            raise ArgumentRefused(f"{self.label}({', '.join(self._shape.parameters)}): {exc}") from None
 
 
 def _checked_reader(where: str, hint: Any) -> Converter:
@@ -213,10 +233,11 @@ def fault(exc: BaseException) -> Any:
     under that reference (a warning when the operation itself failed)."""
     kind = type(exc)
     name = kind.__qualname__ if kind.__module__ == "builtins" else f"{kind.__module__}.{kind.__qualname__}"
-    message = exc.remote_message if isinstance(exc, RemoteError) else str(exc)
+    message = bounded(exc.remote_message if isinstance(exc, RemoteError) else str(exc))
     code, reference = fault_code(exc), secrets.token_hex(6)
-    log.log(logging.WARNING if code == "FAILED" else logging.INFO, "binding.grpc fault %s (%s): %s: %s",
-            reference, code, name, message, exc_info=exc)
+    failed = code == "FAILED"  # the operation's own failure: its traceback is worth keeping; a refusal's is not
+    log.log(logging.WARNING if failed else logging.INFO, "binding.grpc fault %s (%s): %s: %s",
+            reference, code, name, message, exc_info=exc if failed else None)
     return pb.Fault(type=name, message=message, code=code, reference=reference)
 
 

@@ -105,7 +105,7 @@ def test_connect_to_a_missing_task_says_so_once_and_links_are_undone_at_stop(
     (tmp_path / "rv5tasks.py").write_text(RV5TASKS)
     ns = f"127.0.0.1:{free_port()}"
     one = composite('<component name="scaler"><scart:implementation.task class="rv5tasks:Scaler"/></component>'
-                    '<scart:connect from="scaler.level" to="ghost.x"/>', name="One")
+                    '<scart:external task="ghost"/><scart:connect from="scaler.level" to="ghost.x"/>', name="One")
     two = composite('<component name="ghost"><scart:implementation.task class="rv5tasks:Scaler"/></component>',
                     name="Two")
     d1, d2 = tmp_path / "one", tmp_path / "two"

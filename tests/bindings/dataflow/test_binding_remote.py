@@ -294,6 +294,7 @@ def test_composite_mixing_wire_binding_dataflow_task_connect_and_grpc(robot: Rob
     robot.start()
     text = composite(f"""
         <component name="logger"><scart:implementation.task class="mixed:Logger"/></component>
+        <scart:external task="thermostat"/>
         <scart:connect from="thermostat.temperature" to="logger.temps" policy="buffer:16"/>
         <component name="panel"><scart:implementation.python class="mixed:PanelImpl"/>
           <reference name="logger" target="logger"/>

@@ -190,6 +190,7 @@ def remote_count(folder: Path, start: bool = True) -> Iterator[tuple[Deployer, s
 
 def test_three_inputs_local_and_of_another_deployer(tmp_path: Path) -> None:
     path, _ = make(tmp_path, SOURCES + """
+        <scart:external task="remoteCount"/>
         <scart:bridge name="statusBridge" trigger="any">
           <scart:input name="arm" from="armSrc.status" field="arm.joints[*].position"/>
           <scart:input name="busy" from="flagSrc.busy" missing="default" default="false"/>
@@ -226,6 +227,7 @@ def test_three_inputs_local_and_of_another_deployer(tmp_path: Path) -> None:
 
 def test_a_remote_source_of_the_wrong_type_fails_the_start_or_the_online_load(tmp_path: Path) -> None:
     path, text = make(tmp_path, """
+        <scart:external task="remoteCount"/>
         <scart:bridge name="b">
           <scart:input name="n" from="remoteCount.count" convert="bridgemods:wrong"/><!--HERE-->
           <scart:output name="o" type="string" build="bridgemods:ident"/>
@@ -531,6 +533,7 @@ def only(joints: list[float]) -> Only:
 
 def test_a_composite_with_only_a_bridge_is_served(tmp_path: Path) -> None:
     path, _ = make(tmp_path, """
+        <scart:external task="remoteCount"/>
         <scart:bridge name="lonely">
           <scart:input name="n" from="remoteCount.count"/>
           <scart:output name="o" type="int64" build="bridgemods:same"/>

@@ -1,6 +1,7 @@
 """``scart validate`` finds what ``scart run`` would refuse, and says it the same way: task
 property values (types, bounds, read-only), ``scart:connect`` ends and bridge inputs that
-name nothing (a warning with "did you mean" offline, an error with ``--online``), names
+name nothing and are not declared external (an error with "did you mean"; a declared one
+no name service knows: an error with ``--online``), names
 after ``--remap``, the bridge's own rules; and a bridge whose remote source is absent
 waits for it. Each case runs ``scart validate`` and ``scart run`` (or ``run --dry-run``)
 in real subprocesses and compares what they print."""
@@ -85,46 +86,52 @@ def first_on_path(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.syspath_prepend(str(ROOT / "composites" / "first"))
 
 
-def first(tmp_path: Path, source: str, extra: str = "") -> tuple[Path, str]:
+def first(tmp_path: Path, source: str, extra: str = "", external: str = "") -> tuple[Path, str]:
+    """composites/first with its connect's source replaced (``extra`` attributes added), and
+    ``external`` declared a task another process serves."""
     folder = tmp_path / "first"
     shutil.copytree(ROOT / "composites" / "first", folder, ignore=shutil.ignore_patterns("__pycache__"))
     text = (folder / "first.composite").read_text(encoding="utf-8")
     text = text.replace('from="ticker.ticks"', f'from="{source}"{extra}')
+    if external:
+        text = text.replace("<scart:connect ", f'<scart:external task="{external}"/>\n    <scart:connect ')
     (folder / "first.composite").write_text(text, encoding="utf-8")
     return folder / "first.composite", text
 
 
-def test_a_connect_end_that_names_no_task_is_a_warning_with_did_you_mean(tmp_path: Path) -> None:
+def test_a_connect_end_that_names_no_task_is_an_error_with_did_you_mean(tmp_path: Path) -> None:
+    """A typo (``tikcer``) was a warning: validate exited 0 and run waited forever."""
     path, text = first(tmp_path, "tikcer.ticks")
     checked = run("validate", str(path))
     dry = run("run", "--dry-run", str(path))
-    assert checked.returncode == 0 and dry.returncode == 0 and "nothing started" in dry.stderr
+    assert checked.returncode == dry.returncode == 2, (checked.stderr, dry.stderr)
     assert problems(checked.stderr) == problems(dry.stderr) == [
-        f"{path}:{line_of(text, 'tikcer')}: warning: <scart:connect> from: 'tikcer' is no task of this composite "
-        "(did you mean 'ticker'?); it is looked up in the name service when the composite runs (scart validate "
-        "--online asks it now) [SCART-T002]"]
-    assert "1 warning(s)" in checked.stdout
-    named, _ = first(tmp_path / "ns", "far.ticks", ' ns="127.0.0.1:7850"')  # an end said to be remote: no warning
-    quiet = run("validate", str(named))
-    assert quiet.returncode == 0 and problems(quiet.stderr) == []
+        f"{path}:{line_of(text, 'tikcer')}: <scart:connect> from: 'tikcer' is no task of this composite "
+        "(did you mean 'ticker'?); a task another process serves is declared <scart:external task=\"tikcer\"/> "
+        "[SCART-T002]"]
+    for named in (first(tmp_path / "ns", "far.ticks", ' ns="127.0.0.1:7850"')[0],  # an end said to be remote
+                  first(tmp_path / "declared", "far.ticks", external="far")[0]):  # a task declared external
+        quiet = run("validate", str(named))
+        assert quiet.returncode == 0 and problems(quiet.stderr) == [], quiet.stderr
 
 
 def test_online_a_connect_end_no_name_service_knows_is_an_error(tmp_path: Path, first_on_path: None) -> None:
     ns = serve_nameserver("127.0.0.1:0")
     other = Deployer()
     try:
-        path, text = first(tmp_path, "tikcer.ticks")
+        path, text = first(tmp_path, "tikcer.ticks", external="tikcer")
         refused = run("validate", "--online", "--ns", ns.address, str(path))
         assert refused.returncode == 2
+        at = line_of(text, 'from="tikcer')
         assert problems(refused.stderr) == [
-            f"{path}:{line_of(text, 'tikcer')}: <scart:connect> from: no task 'tikcer' in this composite nor in the "
+            f"{path}:{at}: <scart:connect> from: no task 'tikcer' in this composite nor in the "
             f"name service at {ns.address} (did you mean 'ticker'?); it knows: none [SCART-T002]"]
         from first import Ticker  # a task of another deployer, registered in that name service
 
         other.add(Ticker("farTicker"))
         server = other.serve("127.0.0.1:0", ns=ns.address)
         try:
-            known, _ = first(tmp_path / "known", "farTicker.ticks")
+            known, _ = first(tmp_path / "known", "farTicker.ticks", external="farTicker")
             ok = run("validate", "--online", "--ns", ns.address, str(known))
             assert ok.returncode == 0 and problems(ok.stderr) == [], ok.stderr
         finally:
@@ -190,8 +197,9 @@ def from_text(text: str) -> float:
 
 
 def bridge(tmp_path: Path, attrs: str, convert: str = "mods:double", source: str = "src.value") -> tuple[Path, str]:
+    external = "" if source.startswith("src.") else f'<scart:external task="{source.partition(".")[0]}"/>'
     text = composite(f"""
-        <component name="src"><scart:implementation.task class="mods:Source"/></component>
+        <component name="src"><scart:implementation.task class="mods:Source"/></component>{external}
         <scart:bridge name="b"{attrs}>
           <scart:input name="value" from="{source}" convert="{convert}"/><!--INPUT-->
           <scart:output name="out" type="mods:Out"/>
@@ -284,8 +292,8 @@ def test_a_remote_source_that_appears_with_the_wrong_type_is_logged_and_the_run_
 
 
 def test_runtime_from_file_logs_the_warnings(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    path, _ = first(tmp_path, "tikcer.ticks")
+    path, _ = bridge(tmp_path, "", convert="mods:loose")
     with caplog.at_level("WARNING", logger="scart.runtime"):
         rt = scart.Runtime.from_file(str(path))
-    assert "warning: <scart:connect> from: 'tikcer' is no task of this composite (did you mean 'ticker'?)" in caplog.text
-    assert [w.code for w in rt.assembly.warnings] == ["SCART-T002"]
+    assert "warning: bridge 'b' input 'value': converter mods:loose has no type annotation" in caplog.text
+    assert [w.code for w in rt.assembly.warnings] == ["SCART-B001"]

@@ -652,7 +652,9 @@ class RerouteLinkResponse(_message.Message):
     def __init__(self, link: _Optional[_Union[LinkInfo, _Mapping]] = ...) -> None: ...
 
 class DisconnectPortsResponse(_message.Message):
-    __slots__ = ("disconnected",)
+    __slots__ = ("disconnected", "undelivered")
     DISCONNECTED_FIELD_NUMBER: _ClassVar[int]
+    UNDELIVERED_FIELD_NUMBER: _ClassVar[int]
     disconnected: bool
-    def __init__(self, disconnected: _Optional[bool] = ...) -> None: ...
+    undelivered: int
+    def __init__(self, disconnected: _Optional[bool] = ..., undelivered: _Optional[int] = ...) -> None: ...

@@ -158,14 +158,16 @@ class ListServicesRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class OperationInfo(_message.Message):
-    __slots__ = ("name", "oneway", "returns_value")
+    __slots__ = ("name", "oneway", "returns_value", "params")
     NAME_FIELD_NUMBER: _ClassVar[int]
     ONEWAY_FIELD_NUMBER: _ClassVar[int]
     RETURNS_VALUE_FIELD_NUMBER: _ClassVar[int]
+    PARAMS_FIELD_NUMBER: _ClassVar[int]
     name: str
     oneway: bool
     returns_value: bool
-    def __init__(self, name: _Optional[str] = ..., oneway: _Optional[bool] = ..., returns_value: _Optional[bool] = ...) -> None: ...
+    params: _containers.RepeatedScalarFieldContainer[str]
+    def __init__(self, name: _Optional[str] = ..., oneway: _Optional[bool] = ..., returns_value: _Optional[bool] = ..., params: _Optional[_Iterable[str]] = ...) -> None: ...
 
 class ServiceInfo(_message.Message):
     __slots__ = ("names", "interface", "operations", "callback_interface", "callback_operations")
