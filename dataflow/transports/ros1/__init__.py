@@ -25,8 +25,8 @@ The story — make a node, offer and use topics and services, close it::
 
 **Threads.** ``Node(...)`` starts, and :meth:`Node.close` ends (idempotent, from any
 thread): one *io* thread reading every TCPROS socket through a selector (subscriber
-callbacks run there: keep them short); one *XML-RPC* thread serving the node's Slave API;
-one *control* thread for blocking control-plane work (master calls, connecting to
+callbacks run there: keep them short); one *XML-RPC* thread accepting calls to the node's
+Slave API and up to 8 serving them side by side (a slow client holds one); one *control* thread for blocking control-plane work (master calls, connecting to
 publishers); and, once a service is advertised, one *service* thread running handlers.
 ``publish()`` sends from the caller's thread when the socket takes the bytes, else queues
 them for the io thread; a slow subscriber's queue is bounded (oldest dropped, counted).
@@ -44,7 +44,9 @@ again. :meth:`Node.wait_registered` blocks until the master knows it all.
 and ``.msg``/``.srv`` files or texts the user adds; md5sums and definitions as genmsg.
 
 **Robustness.** Peers are bounded (:class:`Limits`): header size and time, message size,
-connections, XML-RPC request size and time. Malformed headers, oversized messages,
+connections in all and from one address, XML-RPC request size and time; a service
+connection with no request, or a subscriber taking none of what waits for it, for
+``idle_seconds`` is closed. Malformed headers, oversized messages,
 stalled peers, md5sum mismatches, vanished peers and master retries are each counted in
 ``node.counters`` (and the publisher's, subscriber's or service's ``counters``), logged,
 and survived.

@@ -6,6 +6,7 @@ import logging
 import os
 import socket
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
@@ -15,7 +16,8 @@ from .master import Master
 from .msgs import MessageTypes
 from .names import NodeNames, node_names
 from .services import ServiceServer, Worker, call_service
-from .slave import SlaveApi, SlaveServer
+from .rpcserver import RpcServer
+from .slave import SlaveApi
 from .tcpros import Limits, encode_header
 from .topics import Publisher, Subscriber
 
@@ -26,7 +28,7 @@ log = logging.getLogger(__name__)
 NODE_COUNTERS = (
     "malformed_headers", "stalled_peers", "oversized_messages", "md5_mismatches", "peer_disconnects",
     "refused_connections", "connect_failures", "callback_errors", "service_errors", "xmlrpc_bad_requests",
-    "master_retries", "master_reregistrations",
+    "master_retries", "master_reregistrations", "idle_closed",
 )
 
 
@@ -93,10 +95,10 @@ class Node:
     def _start(self, master_poll: float) -> None:
         self.loop = IoLoop(self.caller_id)
         self._listener: Listener | None = None
-        self._slave: SlaveServer | None = None
+        self._slave: RpcServer | None = None
         try:
             self._listener = Listener(self.loop, self.host, 0, self._accept)
-            self._slave = SlaveServer(SlaveApi(self), self.host, 0, self.counters, self.caller_id,
+            self._slave = RpcServer(SlaveApi(self), self.host, 0, self.counters, self.caller_id,
                                       self.limits.xmlrpc_bytes, self.limits.xmlrpc_seconds)
         except OSError:
             if self._listener is not None:
@@ -107,6 +109,7 @@ class Node:
         self._registrar = Registrar(self.master, self.uri, master_poll, self.counters, self._on_publishers)
         self.control = Control(self.caller_id, self._registrar.tick)
         self.loop.start()
+        self.loop.call_later(max(0.05, self.limits.idle_seconds / 4), self._sweep_idle)
         self._listener.start()
         self._slave.start()
         self.control.start()
@@ -273,15 +276,38 @@ class Node:
 
     # -- the io thread: accepted connections ----------------------------------------------
     def _accept(self, sock: socket.socket, addr: Any) -> None:
-        peer = f"{addr[0]}:{addr[1]}"
-        if self.loop.owned() >= self.limits.max_connections:
+        peer, limits = f"{addr[0]}:{addr[1]}", self.limits
+        open_now = self.loop.owned()
+        full = open_now >= limits.max_connections
+        if not full:
+            from_peer = sum(1 for c in self.loop.connections() if isinstance(c, InboundConn) and c.address == addr[0])
+            full = from_peer >= limits.max_per_peer
+        if full:
             self.counters["refused_connections"] += 1
-            log.warning("ROS 1 node %s: %d connections open: refusing %s", self.caller_id, self.loop.owned(), peer)
+            n = self.counters["refused_connections"]
+            if n & (n - 1) == 0:  # the 1st, 2nd, 4th... refusal: a flood is said, not echoed
+                why = (f"{open_now} connections open" if open_now >= limits.max_connections
+                       else f"{limits.max_per_peer} connections open from {addr[0]}")
+                log.warning("ROS 1 node %s: %s: refusing %s (%d refused so far)", self.caller_id, why, peer, n)
             sock.close()
             return
-        conn = InboundConn(self.loop, sock, peer, self.limits.max_header, self._route, self.counters)
+        conn = InboundConn(self.loop, sock, peer, limits.max_header, self._route, self.counters)
+        conn.address = addr[0]
         self.loop.register(sock, conn)
-        conn.expect_header_within(self.limits.header_timeout)
+        conn.expect_header_within(limits.header_timeout)
+
+    def _sweep_idle(self) -> None:
+        """Close the connections idle past ``Limits.idle_seconds`` (io thread, re-armed)."""
+        if self.closed:
+            return
+        now, bound = time.monotonic(), self.limits.idle_seconds
+        for conn in self.loop.connections():
+            if conn.idle_kind and not conn.closed and conn.idle_for(now) >= bound:
+                self.counters["idle_closed"] += 1
+                log.info("ROS 1 node %s: %s connection %s idle for %.0f s: closed", self.caller_id, conn.idle_kind,
+                         conn.peer, bound)
+                conn.close("idle")
+        self.loop.call_later(max(0.05, bound / 4), self._sweep_idle)
 
     def _route(self, conn: InboundConn, header: dict[str, str]) -> None:
         if "service" in header:
