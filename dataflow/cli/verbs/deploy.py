@@ -146,6 +146,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     try:
         security = from_args(args)
         ros_args.apply(args)
+        ros_args.exit_on_shutdown("scart deploy")
         ns, listen = _where(args, security)
     except (DataflowError, ValueError) as exc:
         _err(f"scart deploy: {exc}")

@@ -161,10 +161,20 @@ class Registrar:
 
     def unregister_all(self, timeout: float) -> None:
         """Unregister everything once, without waiting for a master that is down (closing)."""
+        self._unregister_once(timeout, keep=False)
+
+    def reset(self, timeout: float) -> None:
+        """Unregister everything once (not waiting for a master that is down), keeping what
+        is wanted: the next :meth:`tick` registers it all again (a restart)."""
+        self._unregister_once(timeout, keep=True)
+
+    def _unregister_once(self, timeout: float, keep: bool) -> None:
         with self._cond:
             todo = {k: self._desired[k] for k in self._registered if k in self._desired} | self._stale
-            self._desired.clear()
+            if not keep:
+                self._desired.clear()
             self._registered.clear()
+            self._failed.clear()
             self._stale.clear()
         quick = Master(self.master.uri, self.master.caller_id, timeout)
         for key, args in todo.items():

@@ -28,7 +28,7 @@ log = logging.getLogger(__name__)
 NODE_COUNTERS = (
     "malformed_headers", "stalled_peers", "oversized_messages", "md5_mismatches", "peer_disconnects",
     "refused_connections", "connect_failures", "callback_errors", "service_errors", "xmlrpc_bad_requests",
-    "master_retries", "master_reregistrations", "idle_closed",
+    "master_retries", "master_reregistrations", "idle_closed", "restarts",
 )
 
 
@@ -48,7 +48,9 @@ class Node:
     is advertised as ``ROS_HOSTNAME``/``ROS_IP``/the hostname). ``types``: a shared
     :class:`MessageTypes` (else one of its own). ``limits``: the bounds on peers.
     ``master_timeout``: s per master call; ``master_poll``: s between checks that the
-    master still knows the node. ``env`` stands for ``os.environ`` (tests).
+    master still knows the node. ``respawn``: a peer's ``shutdown`` (``rosnode kill``)
+    restarts the node (everything unregistered, then registered again at once) instead
+    of closing it. ``env`` stands for ``os.environ`` (tests).
 
     The constructor starts the servers and threads and raises ``OSError`` if a port
     cannot be bound, :class:`~.names.RosNameError` for a bad name, remap or master URI,
@@ -69,6 +71,7 @@ class Node:
         limits: Limits | None = None,
         master_timeout: float = 3.0,
         master_poll: float = 1.0,
+        respawn: bool = False,
         env: Mapping[str, str] | None = None,
     ) -> None:
         env = os.environ if env is None else env
@@ -89,7 +92,9 @@ class Node:
         self._srvs: dict[str, ServiceServer] = {}
         self._worker: Worker | None = None
         self._closed = threading.Event()
-        self.shutdown_reason: str | None = None
+        self.respawn = respawn
+        self.shutdown_reason: str | None = None  #: who asked it to shut down, and why (``CALLER: reason``)
+        self._shutdown_hooks: list[Callable[[str, str], None]] = []
         self._start(master_poll)
 
     def _start(self, master_poll: float) -> None:
@@ -205,6 +210,12 @@ class Node:
     @property
     def closed(self) -> bool:
         return self._closed.is_set()
+
+    def add_shutdown_hook(self, hook: Callable[[str, str], None]) -> None:
+        """Call ``hook(caller_id, reason)`` when a peer's ``shutdown`` (``rosnode kill``) has
+        closed the node, as ``rospy.on_shutdown`` (on the node's control thread; not with
+        ``respawn``, which restarts instead, nor on :meth:`close`)."""
+        self._shutdown_hooks.append(hook)
 
     def wait_closed(self, timeout: float | None = None) -> bool:
         """Block until the node is closed (by :meth:`close` or a peer's ``shutdown``)."""
@@ -342,9 +353,30 @@ class Node:
             self.control.submit(sub.update_publishers, uris)
 
     def request_shutdown(self, caller_id: str, reason: str) -> None:
+        self.shutdown_reason = f"{caller_id}: {reason or '(no reason)'}"
+        if self.respawn:
+            log.warning("ROS 1 node %s: %s asked it to shut down (%s): it restarts (respawn)", self.caller_id,
+                        caller_id, reason or "no reason")
+            self.control.submit(self._restart)
+            return
         log.warning("ROS 1 node %s: %s asked it to shut down: %s", self.caller_id, caller_id, reason or "(no reason)")
-        self.shutdown_reason = f"{caller_id}: {reason}"
-        self.control.submit(self.close)
+        self.control.submit(self._shut_down, caller_id, reason)
+
+    def _shut_down(self, caller_id: str, reason: str) -> None:
+        """As rospy's ``signal_shutdown``: unregister everything, close, then tell the hooks."""
+        self.close()
+        for hook in list(self._shutdown_hooks):
+            try:
+                hook(caller_id, reason)
+            except Exception:
+                log.exception("ROS 1 node %s: a shutdown hook failed", self.caller_id)
+
+    def _restart(self) -> None:
+        """Unregister everything, then register it all again at once (the control thread)."""
+        self._registrar.reset(min(1.0, self.master.timeout))
+        self.counters["restarts"] += 1
+        self._registrar.tick()
+        log.warning("ROS 1 node %s: restarted, registered again with %s", self.caller_id, self.master_uri)
 
     def _connections(self) -> list[Conn]:
         parts: list[Any] = [*list(self._pubs.values()), *list(self._subs.values())]

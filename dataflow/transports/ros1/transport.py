@@ -58,7 +58,7 @@ __all__ = ["NODE_OPTIONS", "NodeSettings", "OPTIONS", "Ros1Transport"]
 log = logging.getLogger(__name__)
 
 #: The options that say which node a stream or service uses (the process has one node).
-NODE_OPTIONS = ("master", "node", "__name", "__ns", "host", "insecure")
+NODE_OPTIONS = ("master", "node", "__name", "__ns", "host", "insecure", "respawn")
 #: Every option a ros1 stream takes (another is refused: a typo would otherwise be ignored).
 OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "queue_size", "msgs", *NODE_OPTIONS})
 MAX_QUEUE = 10_000  #: messages waiting for one slow subscriber, at most
@@ -69,13 +69,14 @@ _BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,127}")
 class NodeSettings:
     """How this process's ROS node is made: ``master`` (None: ``ROS_MASTER_URI``, else
     ROS's default), ``name`` ("": ``scart_<pid>``), ``namespace`` (None: ``ROS_NAMESPACE``),
-    ``host`` it listens on (loopback unless ``insecure``)."""
+    ``host`` it listens on (loopback unless ``insecure``), what a ``rosnode kill`` does."""
 
     master: str | None = None
     name: str = ""
     namespace: str | None = None
     host: str = "127.0.0.1"
     insecure: bool = False
+    respawn: bool = False  #: a ``rosnode kill`` restarts the node instead of ending it
 
     @property
     def node_name(self) -> str:
@@ -107,13 +108,14 @@ class Ros1Transport(Transport):
         self._node: Node | None = None
         self._settings: NodeSettings | None = None
         self._users = 0
+        self._shutdown_hooks: list[Any] = []
 
     # ---- the process's node ------------------------------------------------------------
     def configure(self, *, master: str | None = None, name: str | None = None, namespace: str | None = None,
-                  insecure: bool | None = None) -> None:
+                  insecure: bool | None = None, respawn: bool | None = None) -> None:
         """Set this process's defaults for its ROS node (``--ros-master``, ``--ros-name``,
-        ``--insecure``); a node already made keeps its own. Raises ``ValueError`` for a
-        bad master URI or name."""
+        ``--ros-namespace``, ``--insecure``, ``respawn``); a node already made keeps its
+        own. Raises ``ValueError`` for a bad master URI or name."""
         if master is not None:
             master_uri_from(master)
         if name and not _BASE_NAME.fullmatch(name):
@@ -123,7 +125,27 @@ class Ros1Transport(Transport):
                                        if v is not None}
             if insecure is not None:
                 changes.update(insecure=insecure, host="0.0.0.0" if insecure else "127.0.0.1")
+            if respawn is not None:
+                changes["respawn"] = respawn
             self._defaults = replace(self._defaults, **changes)
+
+    def on_shutdown(self, hook: Any) -> None:
+        """Call ``hook(node, caller_id, reason)`` when a peer (``rosnode kill``) has shut this
+        process's node down, as rospy ends its process then: ``scart run`` and ``scart
+        deploy`` stop. Not called when the node respawns."""
+        with self._lock:
+            self._shutdown_hooks.append(hook)
+
+    def _node_shut_down(self, node: Node, caller_id: str, reason: str) -> None:
+        with self._lock:
+            hooks = list(self._shutdown_hooks)
+            if node is self._node:
+                self._node, self._settings = None, None  # a later stream makes a new one
+        if not hooks:
+            log.warning("ROS 1 node %s was shut down by %s (%s): its streams and services are down", node.caller_id,
+                        caller_id, reason or "no reason")
+        for hook in hooks:
+            hook(node.caller_id, caller_id, reason)
 
     @property
     def types(self) -> MessageTypes:
@@ -150,8 +172,9 @@ class Ros1Transport(Transport):
         master = options.get("master") or settings.master
         if master is not None:
             master_uri_from(master)
-        return NodeSettings(master=master, name=name,
-                            namespace=options.get("__ns", settings.namespace), host=host, insecure=insecure)
+        respawn = flag(options, "respawn") if "respawn" in options else settings.respawn
+        return NodeSettings(master=master, name=name, namespace=options.get("__ns", settings.namespace), host=host,
+                            insecure=insecure, respawn=respawn)
 
     def acquire(self, options: dict[str, str]) -> Node:
         """This process's node (made now if there is none), for one more user; each
@@ -172,9 +195,11 @@ class Ros1Transport(Transport):
                 return node
             try:
                 node = Node(wanted.node_name, master_uri=wanted.master, host=wanted.host, namespace=wanted.namespace,
-                            types=types)
+                            types=types, respawn=wanted.respawn)
             except (OSError, ValueError) as exc:
                 raise TransportError(f"ros1: cannot make the ROS node {wanted.node_name}: {exc}") from None
+            made = node
+            node.add_shutdown_hook(lambda caller, reason: self._node_shut_down(made, caller, reason))
             self._node, self._settings, self._users = node, wanted, 1
         log.info("ROS 1 node %s: master %s, listening on %s", node.caller_id, node.master_uri, wanted.host)
         return node
@@ -185,8 +210,8 @@ class Ros1Transport(Transport):
         asked = [k for k in NODE_OPTIONS if k in options]
         if not asked:
             return
-        if (wanted.node_name, wanted.master, wanted.namespace, wanted.host) != \
-                (have.node_name, have.master, have.namespace, have.host):
+        if (wanted.node_name, wanted.master, wanted.namespace, wanted.host, wanted.respawn) != \
+                (have.node_name, have.master, have.namespace, have.host, have.respawn):
             raise TransportError(f"ros1: this process's ROS node is {node.caller_id} (master {node.master_uri}, "
                                  f"listening on {have.host}); {', '.join(f'{k}={options[k]}' for k in asked)} asks "
                                  "for another: one node per process")
@@ -216,7 +241,7 @@ class Ros1Transport(Transport):
         try:
             check_name(topic, "topic name")
             self.node_settings(options)
-            for key in ("latch",):
+            for key in ("latch", "respawn"):
                 if key in options:
                     flag(options, key)
             if "queue_size" in options and not (options["queue_size"].isdigit()
@@ -339,6 +364,8 @@ class _TopicStream(Stream):
     @property
     def waiting(self) -> str:
         node = self._node
+        if node.closed:
+            return f"a ROS node: {node.caller_id} was shut down by {node.shutdown_reason or 'its owner'}"
         if not node.master_reachable:
             return f"the ROS master {node.master_uri}"
         if not node.is_registered("pub" if self._pub is not None else "sub", self.topic):

@@ -78,6 +78,7 @@ class DataflowLaunch(LaunchProvider):
         Raises ``ValueError`` naming the option or variable."""
         if verb == "run":
             ros_args.apply(args)  # the process's ROS 1 node defaults; a bad URI or name raises
+            ros_args.exit_on_shutdown("scart")
         fields: dict[str, object] = {"remap": Remap.parse(getattr(args, "remap", None) or []), "serve": verb == "run",
                                      "foxglove": getattr(args, "foxglove", None),
                                      "foxglove_control": getattr(args, "foxglove_control", None)}
