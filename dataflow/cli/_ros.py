@@ -8,11 +8,37 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
+from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["add_arguments", "apply", "call", "exit_on_shutdown"]
+__all__ = ["add_arguments", "apply", "attach", "call", "detach", "exit_on_shutdown", "split_params"]
+
+#: A launch-time parameter, as on a ROS command line: ``_TASK/PROPERTY:=VALUE`` (YAML).
+PARAM = re.compile(r"_([A-Za-z][\w/]*):=(.*)\Z", re.S)
+MAX_PARAMS = 256
+
+
+def split_params(items: Iterable[str]) -> tuple[list[str], dict[str, Any]]:
+    """``items`` apart from the launch-time parameters among them, and those parameters
+    (``_TASK/PROP:=VALUE``, the value read as YAML, as ROS reads it). Raises ``ValueError``."""
+    import yaml
+
+    rest, params = [], {}
+    for item in items:
+        match = PARAM.match(item)
+        if match is None:
+            rest.append(item)
+            continue
+        try:
+            params[match.group(1)] = yaml.safe_load(match.group(2))
+        except yaml.YAMLError as exc:
+            raise ValueError(f"ROS parameter {item[:80]!r}: the value is not YAML: {exc}") from None
+    if len(params) > MAX_PARAMS:
+        raise ValueError(f"{len(params)} ROS parameters: at most {MAX_PARAMS}")
+    return rest, params
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,20 +55,67 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="this process's ROS node namespace, ROS 1 and ROS 2 (default $ROS_NAMESPACE, else /)")
 
 
-def apply(args: argparse.Namespace) -> None:
-    """Set the process's ROS defaults from ``args`` (nothing is loaded unless one is given).
-    Raises ``ValueError`` for a bad URI or name."""
+def add_params(parser: argparse.ArgumentParser, dest: str = "ros_params") -> None:
+    """The launch-time ROS parameters: positional arguments ``_TASK/PROPERTY:=VALUE``
+    (``scart run``), also after the options, as on a ROS command line (the parser's
+    ``take_extras``)."""
+    parser.add_argument(dest, nargs="*", default=[], metavar="_TASK/PROPERTY:=VALUE",
+                        help="set a task's property at launch, as a ROS node's private parameter (its ROS 1 "
+                             "parameter ~TASK/PROPERTY; the value is YAML)")
+    take_params(parser, dest)
+
+
+def take_params(parser: argparse.ArgumentParser, dest: str) -> None:
+    """Let ``parser`` take ``_TASK/PROPERTY:=VALUE`` words that follow its options too,
+    into the list ``dest`` (argparse takes positionals only before them)."""
+    def take(args: argparse.Namespace, extras: list[str]) -> list[str]:
+        taken = [e for e in extras if PARAM.match(e)]
+        setattr(args, dest, [*getattr(args, dest), *taken])
+        return [e for e in extras if not PARAM.match(e)]
+
+    parser.set_defaults(take_extras=take)
+
+
+def apply(args: argparse.Namespace, params: dict[str, Any] | None = None) -> None:
+    """Set the process's ROS defaults from ``args`` and the launch-time ``params``
+    (nothing is loaded unless one is given). Raises ``ValueError`` for a bad URI or name."""
     master, name = getattr(args, "ros_master", None), getattr(args, "ros_name", None)
     namespace = getattr(args, "ros_namespace", None)
     insecure = bool(getattr(args, "insecure", False))
-    if master is None and name is None and namespace is None and not insecure:
+    if master is None and name is None and namespace is None and not insecure and not params:
         return
     from dataflow.transports import load
 
     transport = load("ros1")
     configure = getattr(transport, "configure", None)
     if configure is not None:
-        configure(master=master, name=name, namespace=namespace, insecure=insecure or None)
+        configure(master=master, name=name, namespace=namespace, insecure=insecure or None, params=params or None)
+
+
+def attach(deployer: Any) -> None:
+    """Make this process's ROS 1 node (when there is one, or it was told to be one) speak
+    for ``deployer``'s tasks: their properties its parameters. Raises ``ValueError`` (a
+    launch-time parameter refused) or the transport's error (no node could be made)."""
+    from dataflow.transports import TransportError, load
+
+    try:
+        transport = load("ros1")
+    except TransportError:
+        return
+    if hasattr(transport, "attach"):
+        transport.attach(deployer)
+
+
+def detach(deployer: Any) -> None:
+    """Undo :func:`attach` (idempotent)."""
+    from dataflow.transports import TransportError, load
+
+    try:
+        transport = load("ros1")
+    except TransportError:
+        return
+    if hasattr(transport, "detach"):
+        transport.detach(deployer)
 
 
 def exit_on_shutdown(prog: str) -> None:

@@ -7,7 +7,7 @@ import threading
 
 from pydantic import BaseModel
 
-from dataflow import FlowStatus, InputPort, OutputPort, TaskContext, operation, register_type
+from dataflow import FlowStatus, InputPort, OutputPort, Property, TaskContext, operation, register_type
 
 
 @register_type("RosTestPoint")
@@ -27,6 +27,8 @@ class Gauge(TaskContext):
     number = InputPort(int, doc="any int64")
     count = OutputPort(int, doc="the cycle number")
     point = OutputPort(Point, doc="a point moving along x")
+    ceiling = Property(float, 1.0, doc="a bounded number (a ROS parameter)", ge=0.0, le=10.0)
+    note = Property(str, "", doc="free text (a ROS parameter)")
 
     def __init__(self, name: str = "gauge") -> None:
         super().__init__(name)

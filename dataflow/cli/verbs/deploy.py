@@ -40,7 +40,8 @@ HELP = "host data-flow tasks in a served Deployer until Ctrl-C"
 def add_arguments(deploy: argparse.ArgumentParser) -> None:
     """The classes to host and how to serve them."""
     deploy.add_argument("classes", nargs="+", metavar="pkg.mod:Class[@name]",
-                        help="TaskContext classes to host (the current folder is on the import path, as for python -m)")
+                        help="TaskContext classes to host (the current folder is on the import path, as for python "
+                             "-m); also _TASK/PROPERTY:=VALUE, a task's property set at launch as a ROS parameter")
     deploy.add_argument("--name", default=None, help="task name (one class only; default: the class's own)")
     deploy.add_argument("--period", type=float, default=None, help="run each task periodically (s)")
     deploy.add_argument("--listen", default=None, help="HOST:PORT to serve on (default: see above)")
@@ -60,6 +61,7 @@ def add_arguments(deploy: argparse.ArgumentParser) -> None:
     zenoh_args.add_arguments(deploy, "also publish every output port on Zenoh (scart/NS/TASK/PORT) and announce "
                                      "the tasks with liveliness tokens")
     ros_args.add_arguments(deploy)
+    ros_args.take_params(deploy, "classes")
     add_arguments_security(deploy, server=True)
 
 
@@ -145,7 +147,10 @@ def cmd_deploy(args: argparse.Namespace) -> int:
 
     try:
         security = from_args(args)
-        ros_args.apply(args)
+        args.classes, params = ros_args.split_params(args.classes)
+        if not args.classes:
+            raise ValueError("no TaskContext class to host (pkg.mod:Class)")
+        ros_args.apply(args, params)
         ros_args.exit_on_shutdown("scart deploy")
         ns, listen = _where(args, security)
     except (DataflowError, ValueError) as exc:
@@ -218,6 +223,7 @@ class _Hosted:
         try:
             for task in _make_tasks(args):
                 self.deployer.add(task)
+            ros_args.attach(self.deployer)  # launch-time parameters set; told so, the ROS node is made
             self.deployer.configure_all()
             if not args.no_start:
                 self.deployer.start_all()
@@ -266,6 +272,7 @@ class _Hosted:
             self.server.stop()
         self.deployer.stop_all()
         self.deployer.cleanup_all()
+        ros_args.detach(self.deployer)
 
 
 def _open_ros2() -> None:

@@ -12,7 +12,7 @@ from typing import Any
 
 from .control import Control, Registrar
 from .io import Conn, Counters, InboundConn, IoLoop, Listener
-from .master import Master
+from .master import Master, MasterError, MasterUnreachable
 from .msgs import MessageTypes
 from .names import NodeNames, node_names
 from .services import ServiceServer, Worker, call_service
@@ -95,6 +95,7 @@ class Node:
         self.respawn = respawn
         self.shutdown_reason: str | None = None  #: who asked it to shut down, and why (``CALLER: reason``)
         self._shutdown_hooks: list[Callable[[str, str], None]] = []
+        self._params: dict[str, Callable[[str, Any], None]] = {}  # namespace/ -> callback
         self._start(master_poll)
 
     def _start(self, master_poll: float) -> None:
@@ -111,7 +112,8 @@ class Node:
             raise
         self.tcpros_port: int = self._listener.port
         self.uri: str = f"http://{_url_host(self.advertised_host)}:{self._slave.port}/"
-        self._registrar = Registrar(self.master, self.uri, master_poll, self.counters, self._on_publishers)
+        self._registrar = Registrar(self.master, self.uri, master_poll, self.counters, self._on_publishers,
+                                    self._on_param)
         self.control = Control(self.caller_id, self._registrar.tick)
         self.loop.start()
         self.loop.call_later(max(0.05, self.limits.idle_seconds / 4), self._sweep_idle)
@@ -189,6 +191,59 @@ class Node:
         if self.loop.in_loop() and not self.closed:
             raise RuntimeError("call_service from a subscriber callback would block the node's io thread")
         return call_service(self, self.resolve(service), self.types.srv(type_name), request, timeout)
+
+    # -- parameters (the master's parameter server) -----------------------------------------
+    def get_param(self, key: str, default: Any = None) -> Any:
+        """The parameter ``key`` (resolved: ``~x`` is private), ``default`` when unset.
+        Blocks ≤ the master timeout; raises :class:`~.master.MasterUnreachable`."""
+        try:
+            return self.master.get_param(self.resolve(key))
+        except MasterUnreachable:
+            raise
+        except MasterError:
+            return default
+
+    def set_param(self, key: str, value: Any) -> None:
+        """Set the parameter ``key`` (resolved) to ``value`` (an XML-RPC value; a dict sets
+        a namespace). Blocks ≤ the master timeout; raises :class:`~.master.MasterError`."""
+        self.master.set_param(self.resolve(key), value)
+
+    def subscribe_param(self, key: str, callback: Callable[[str, Any], None]) -> str:
+        """Call ``callback(key, value)`` with ``key``'s value (``{}`` when unset; a dict for a
+        namespace) once subscribed, and with each change of ``key`` or a name under it
+        (a peer's ``setParam``: ``rosparam set``), on the control thread, as rospy's
+        parameter cache is kept. Kept subscribed across master restarts. Returns the
+        resolved key; raises ``RosNameError``, ``ValueError`` if subscribed already."""
+        resolved = self.resolve(key)
+        with self._lock:
+            if resolved in self._params:
+                raise ValueError(f"node {self.caller_id} subscribes to parameter {resolved} already")
+            self._params[resolved] = callback
+        self._want(("param", resolved), ())
+        return resolved
+
+    def unsubscribe_param(self, key: str) -> None:
+        """Stop :meth:`subscribe_param`'s callbacks for ``key`` (idempotent)."""
+        resolved = self.resolve(key)
+        with self._lock:
+            if self._params.pop(resolved, None) is None:
+                return
+        if not self._closed.is_set():
+            self._registrar.drop(("param", resolved))
+            self.control.tick_now()
+
+    def param_update(self, key: str, value: Any) -> None:
+        """A ``paramUpdate`` from the master (the XML-RPC thread): each subscription under
+        which ``key`` lies is told, on the control thread."""
+        key = key.rstrip("/") or "/"
+        for sub, callback in list(self._params.items()):
+            if key == sub or key.startswith(sub.rstrip("/") + "/"):
+                self.control.submit(callback, key, value)
+
+    def _on_param(self, key: str, value: Any) -> None:
+        callback = self._params.get(key)
+        if callback is not None:
+            callback(key, value)
 
     def master_for(self, timeout: float) -> Master:
         """A client of this node's master whose calls time out after ``timeout`` s."""

@@ -36,6 +36,7 @@ class NodeView(Protocol):
     def tcpros_endpoint(self, topic: str) -> tuple[str, int] | None: ...
     def publisher_update(self, topic: str, uris: list[str]) -> None: ...
     def request_shutdown(self, caller_id: str, reason: str) -> None: ...
+    def param_update(self, key: str, value: Any) -> None: ...
 
 
 def _ok_str(*values: Any, limit: int = 4096) -> bool:
@@ -77,8 +78,11 @@ class SlaveApi:
         return [1, "publications", self._node.publications()] if _ok_str(caller_id) else self._bad("getPublications")
 
     def paramUpdate(self, caller_id: str, key: str, value: Any) -> list[Any]:  # noqa: N802
-        # this node subscribes to no parameter: accepted and ignored, as rospy does for unknown keys
-        return [1, "", 0] if _ok_str(caller_id, key) else self._bad("paramUpdate")
+        # a key this node does not subscribe to is accepted and ignored, as rospy does
+        if not _ok_str(caller_id, key):
+            return self._bad("paramUpdate")
+        self._node.param_update(key, value)
+        return [1, "", 0]
 
     def publisherUpdate(self, caller_id: str, topic: str, publishers: list[str]) -> list[Any]:  # noqa: N802
         if not (_ok_str(caller_id, topic) and isinstance(publishers, list) and len(publishers) <= MAX_PUBLISHERS

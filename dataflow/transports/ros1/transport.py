@@ -49,6 +49,7 @@ from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
 from .names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
+    from .citizen import Citizen
     from .convert import Conversion
     from .msgs import MessageTypes
     from .node import Node
@@ -109,18 +110,29 @@ class Ros1Transport(Transport):
         self._settings: NodeSettings | None = None
         self._users = 0
         self._shutdown_hooks: list[Any] = []
+        self._told = False  # configure() was given something: the process is a ROS node from its start
+        self._launch_params: dict[str, Any] = {}
+        self._deployers: list[Any] = []
+        self._held: list[Node] = []
+        self._citizen: Citizen | None = None
 
     # ---- the process's node ------------------------------------------------------------
     def configure(self, *, master: str | None = None, name: str | None = None, namespace: str | None = None,
-                  insecure: bool | None = None, respawn: bool | None = None) -> None:
+                  insecure: bool | None = None, respawn: bool | None = None,
+                  params: dict[str, Any] | None = None) -> None:
         """Set this process's defaults for its ROS node (``--ros-master``, ``--ros-name``,
-        ``--ros-namespace``, ``--insecure``, ``respawn``); a node already made keeps its
-        own. Raises ``ValueError`` for a bad master URI or name."""
+        ``--ros-namespace``, ``--insecure``, ``respawn``, launch-time ``_TASK/PROP:=value``
+        ``params``); a node already made keeps its own. A process told any of these is a
+        ROS node from its start (:meth:`attach`). Raises ``ValueError`` for a bad master
+        URI or name."""
         if master is not None:
             master_uri_from(master)
         if name and not _BASE_NAME.fullmatch(name):
             raise ValueError(f"node name {name!r}: a base name (letters, digits and '_', starting with a letter)")
         with self._lock:
+            if any(v is not None for v in (master, name, namespace, insecure, respawn)) or params:
+                self._told = True
+            self._launch_params.update(params or {})
             changes: dict[str, Any] = {k: v for k, v in (("master", master), ("name", name), ("namespace", namespace))
                                        if v is not None}
             if insecure is not None:
@@ -136,7 +148,57 @@ class Ros1Transport(Transport):
         with self._lock:
             self._shutdown_hooks.append(hook)
 
+    def attach(self, deployer: Any) -> None:
+        """Let this process's node speak for ``deployer``'s tasks (:mod:`.citizen`: their
+        properties are its parameters), now or when it is made. The launch-time parameters
+        are set on its tasks now (``ValueError`` naming one refused); a process told it is
+        a ROS node (:meth:`configure`) makes its node now (:class:`TransportError` when it
+        cannot), held until :meth:`detach`."""
+        from .citizen import apply_launch_params
+
+        with self._lock:
+            params, told = dict(self._launch_params), self._told
+        apply_launch_params(deployer.tasks(), params)
+        with self._lock:
+            self._deployers.append(deployer)
+            node = self._node
+        if told:
+            self._held.append(self.acquire({}))
+        elif node is not None:
+            self._become_citizen(node)
+
+    def detach(self, deployer: Any) -> None:
+        """Undo :meth:`attach` (idempotent): the node made for it goes with its last user."""
+        with self._lock:
+            if deployer not in self._deployers:
+                return
+            self._deployers.remove(deployer)
+            held = self._held.pop() if self._held else None
+        if held is not None:
+            self.release(held)
+
+    def _tasks(self) -> list[Any]:
+        with self._lock:
+            deployers = list(self._deployers)
+        return [task for deployer in deployers for task in deployer.tasks()]
+
+    def _become_citizen(self, node: Node) -> None:
+        from .citizen import Citizen
+
+        with self._lock:
+            if self._citizen is not None or not self._deployers or node is not self._node:
+                return
+            citizen = self._citizen = Citizen(node, self._tasks)
+        citizen.start()
+
+    def _end_citizen(self) -> None:
+        with self._lock:
+            citizen, self._citizen = self._citizen, None
+        if citizen is not None:
+            citizen.close()
+
     def _node_shut_down(self, node: Node, caller_id: str, reason: str) -> None:
+        self._end_citizen()
         with self._lock:
             hooks = list(self._shutdown_hooks)
             if node is self._node:
@@ -202,6 +264,7 @@ class Ros1Transport(Transport):
             node.add_shutdown_hook(lambda caller, reason: self._node_shut_down(made, caller, reason))
             self._node, self._settings, self._users = node, wanted, 1
         log.info("ROS 1 node %s: master %s, listening on %s", node.caller_id, node.master_uri, wanted.host)
+        self._become_citizen(node)
         return node
 
     def _same_node(self, node: Node, wanted: NodeSettings, options: dict[str, str]) -> None:
@@ -225,6 +288,7 @@ class Ros1Transport(Transport):
             if self._users > 0:
                 return
             self._node, self._settings = None, None
+        self._end_citizen()
         node.close()
 
     # ---- streams -----------------------------------------------------------------------

@@ -69,6 +69,7 @@ class DataflowLaunch(LaunchProvider):
                                      "'operate' token in TOKEN_FILE (needed when the runtime checks tokens; never "
                                      "the runtime's own)")
             ros_args.add_arguments(parser)
+            ros_args.add_params(parser)
         elif verb == "validate":
             parser.add_argument("--ns", default=None, metavar="HOST:PORT",
                                 help=f"name service for --online (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
@@ -76,8 +77,8 @@ class DataflowLaunch(LaunchProvider):
     def settings(self, args: argparse.Namespace, verb: Verb, environ: Mapping[str, str]) -> DataflowSettings:
         """``--ns`` (else ``SCART_NS``), ``--remap``, ``--foxglove*``; ``serve`` for ``run``.
         Raises ``ValueError`` naming the option or variable."""
-        if verb == "run":
-            ros_args.apply(args)  # the process's ROS 1 node defaults; a bad URI or name raises
+        if verb == "run":  # the process's ROS 1 node defaults; a bad URI, name or parameter raises
+            ros_args.apply(args, ros_args.split_params(getattr(args, "ros_params", None) or [])[1])
             ros_args.exit_on_shutdown("scart")
         fields: dict[str, object] = {"remap": Remap.parse(getattr(args, "remap", None) or []), "serve": verb == "run",
                                      "foxglove": getattr(args, "foxglove", None),

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -53,3 +54,43 @@ def test_rosnode_kill_ends_scart_deploy_saying_who_asked(ros: RosMaster) -> None
         assert "/doomed" not in nodes(ros)  # everything it had registered is gone with it
     finally:
         stop_process(proc)
+
+
+def stop(proc: subprocess.Popen[str]) -> str:
+    """Stop ``proc`` as Ctrl-C does; what it said on stderr."""
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    return err
+
+
+def rosparam(ros: RosMaster, *args: str) -> str:
+    done = ros.tool("rosparam", *args)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.strip()
+
+
+def test_task_properties_are_the_nodes_parameters(ros: RosMaster) -> None:
+    proc, ns = deploy(ros, "params", "_gauge/ceiling:=0.5")
+    try:
+        key = "/params/gauge/ceiling"
+        wait_until(lambda: key in rosparam(ros, "list").split(), timeout=20)
+        assert rosparam(ros, "get", key) == "0.5"  # the launch-time value, through the property's check
+        assert rosparam(ros, "get", "/params/gauge/note") == "''"
+        rosparam(ros, "set", key, "2.5")
+        wait_until(lambda: scart("prop", "get", "gauge", "ceiling", ns=ns).stdout.strip() == "2.5", timeout=10)
+        rosparam(ros, "set", key, "99")  # beyond the property's bounds: refused, and set back
+        wait_until(lambda: rosparam(ros, "get", key) == "2.5", timeout=10)
+        assert scart("prop", "get", "gauge", "ceiling", ns=ns).stdout.strip() == "2.5"
+        assert scart("prop", "set", "gauge", "ceiling", "3.5", ns=ns).returncode == 0
+        wait_until(lambda: rosparam(ros, "get", key) == "3.5", timeout=10)  # a change made elsewhere
+    finally:
+        said = stop(proc)
+    assert f"ROS parameter {key}: 99 refused: gauge.ceiling" in said and "it keeps 2.5" in said, said
+
+
+def test_a_refused_launch_time_parameter_fails_the_launch(ros: RosMaster) -> None:
+    done = subprocess.run([sys.executable, "-m", "scart", "deploy", "support.ros1_tasks:Gauge", "_gauge/ceiling:=50",
+                           "--ns", f"127.0.0.1:{free_port()}", "--ros-master", ros.uri], capture_output=True,
+                          text=True, timeout=60, env=subprocess_env())
+    assert done.returncode == 1
+    assert "ROS parameter _gauge/ceiling:=50: refused: gauge.ceiling" in done.stderr, done.stderr

@@ -1,0 +1,180 @@
+"""The process's tasks as its ROS 1 node's own: what makes the node a citizen of a ROS
+system rather than a guest (the ``ros1`` transport's adapter; the node library knows
+nothing of tasks).
+
+**Parameters.** Each task's properties are the node's private parameters, one namespace
+per task: property ``max_velocity`` of task ``youBotDriver`` of node ``/youbot`` is
+``/youbot/youBotDriver/max_velocity``. When the node is made, a value the parameter
+server holds there already (a launch file's ``<param>``) is taken, through the
+property's own check; then every property is set there. ``rosparam set`` reaches the
+task through the property's check (type, bounds, read-only): a refused value is logged
+with the reason (so ``/rosout`` says it) and the parameter set back to the property's
+value, which it keeps. A property changed otherwise (``scart prop set``, the task
+itself) is set on the server within a second. A value XML-RPC cannot carry (bytes, an
+integer beyond 32 bits) is not a parameter. After a master restart, all are set again.
+
+Everything runs on the node's control thread; :meth:`Citizen.close` ends it (idempotent).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import pydantic
+
+from dataflow.errors import DataflowError
+
+from .master import MasterError
+from .names import RosNameError, check_name
+from .node import Node
+
+__all__ = ["Citizen", "SYNC_SECONDS", "apply_launch_params", "to_param"]
+
+log = logging.getLogger(__name__)
+
+SYNC_SECONDS = 1.0  #: how often properties changed by others are set on the parameter server
+_INT32 = range(-(2**31), 2**31)
+
+
+def to_param(value: Any) -> Any:
+    """``value`` as a ROS parameter (what XML-RPC carries), or None when it cannot be one."""
+    if isinstance(value, bool) or isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return value if value in _INT32 else None
+    if isinstance(value, float):
+        return value
+    if isinstance(value, pydantic.BaseModel):
+        return to_param(value.model_dump(mode="json"))
+    if isinstance(value, (list, tuple)):
+        items = [to_param(v) for v in value]
+        return None if any(i is None for i in items) else items
+    if isinstance(value, Mapping):
+        pairs = {str(k): to_param(v) for k, v in value.items() if v is not None}
+        return None if any(v is None for v in pairs.values()) else pairs
+    return None
+
+
+def _same(a: Any, b: Any) -> bool:
+    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+
+
+def _find(tasks: list[Any], path: str) -> tuple[Any, str] | None:
+    """``(task, property)`` of ``TASK/PROP`` (a task's name may hold ``/``), or None."""
+    name, _, prop = path.rpartition("/")
+    for task in tasks:
+        if task.name == name and prop in task.properties():
+            return task, prop
+    return None
+
+
+def apply_launch_params(tasks: list[Any], params: Mapping[str, Any]) -> None:
+    """Set launch-time parameters (``_TASK/PROP:=value``) on the tasks' properties, each
+    through its check. Raises ``ValueError`` naming the parameter and why."""
+    for path, value in params.items():
+        found = _find(tasks, path)
+        if found is None:
+            name, _, prop = path.rpartition("/")
+            task = next((t for t in tasks if t.name == name), None)
+            known = (f"task {name} has the properties {', '.join(sorted(task.properties())) or 'none'}" if task
+                     else f"the tasks are {', '.join(t.name for t in tasks) or 'none'}")
+            raise ValueError(f"ROS parameter _{path}: no such task property ({known})")
+        try:
+            found[0].set_property(found[1], value)
+        except DataflowError as exc:
+            raise ValueError(f"ROS parameter _{path}:={value!r}: refused: {exc}") from None
+
+
+class Citizen:
+    """The tasks ``tasks()`` returns, as ``node``'s parameters (see the module docstring)."""
+
+    def __init__(self, node: Node, tasks: Callable[[], list[Any]]) -> None:
+        self.node, self._tasks = node, tasks
+        self.namespace = node.resolve("~")
+        self._published: dict[str, Any] = {}
+        self._skipped: set[str] = set()
+        self._closed = False
+
+    def start(self) -> None:
+        """Subscribe to the node's private namespace: its value taken, then every property
+        set (:meth:`_namespace`), and again after a master restart. Never blocks."""
+        self.node.subscribe_param("~", self._update)
+        self.node.control.submit(self._sync, delay=SYNC_SECONDS)
+
+    def close(self) -> None:
+        """Stop syncing and stop listening to the parameters (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            if not self.node.closed:
+                self.node.unsubscribe_param("~")
+
+    # -- the control thread ---------------------------------------------------------------
+    def _params(self) -> dict[str, tuple[Any, str]]:
+        """Every task property that can be a parameter: key → (task, property)."""
+        out: dict[str, tuple[Any, str]] = {}
+        for task in self._tasks():
+            try:
+                check_name(task.name, "task name")
+            except RosNameError:
+                if task.name not in self._skipped:
+                    self._skipped.add(task.name)
+                    log.warning("ROS 1 node %s: task %r is no ROS name: its properties are no parameters",
+                                self.node.caller_id, task.name)
+                continue
+            for prop in task.properties():
+                out[f"{self.namespace}/{task.name}/{prop}"] = (task, prop)
+        return out
+
+    def _update(self, key: str, value: Any) -> None:
+        """A parameter under the namespace changed (or the namespace's whole value came)."""
+        if self._closed:
+            return
+        if isinstance(value, dict):  # a namespace: its leaves, then everything set again
+            for sub, item in value.items():
+                self._update(f"{key.rstrip('/')}/{sub}", item)
+            if key.rstrip("/") == self.namespace:
+                self._publish(force=True)
+            return
+        target = self._params().get(key)
+        if target is None:
+            return  # a parameter of the user's own under the namespace
+        task, prop = target
+        if _same(to_param(task.get_property(prop)), value):
+            self._published[key] = value
+            return
+        try:
+            task.set_property(prop, value)
+        except DataflowError as exc:
+            kept = task.get_property(prop)
+            log.warning("ROS parameter %s: %r refused: %s; it keeps %r", key, value, exc, kept)
+            self._set(key, to_param(kept))
+            return
+        self._published[key] = to_param(task.get_property(prop))
+
+    def _sync(self) -> None:
+        if self._closed or self.node.closed:
+            return
+        self._publish(force=False)
+        self.node.control.submit(self._sync, delay=SYNC_SECONDS)
+
+    def _publish(self, force: bool) -> None:
+        for key, (task, prop) in self._params().items():
+            value = to_param(task.get_property(prop))
+            if value is None or (not force and key in self._published and _same(self._published[key], value)):
+                continue
+            if not self._set(key, value):
+                return
+
+    def _set(self, key: str, value: Any) -> bool:
+        if value is None:
+            return True
+        try:
+            self.node.master.set_param(key, value)
+        except MasterError as exc:
+            log.debug("ROS parameter %s not set: %s", key, exc)
+            return False
+        self._published[key] = value
+        return True
