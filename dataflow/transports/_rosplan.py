@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
            "flag", "is_mapping", "is_model", "is_open", "item_type", "match_params", "model_fields", "operation_call",
-           "operation_signature", "receiver", "resolve_converter", "signature_of", "stream_problems", "type_label",
+           "operation_signature", "receiver", "resolve_converter", "signature_of", "stamper", "stream_problems", "type_label",
            "unwrap", "usable"]
 
 _C = TypeVar("_C")
@@ -321,6 +321,18 @@ def receiver(end: ReaderEnd, convert: Callable[[Any], Any], label: str) -> Calla
         end.receive(count[0], time.time_ns(), value)
 
     return on_message
+
+
+def stamper(port: Any) -> Callable[[int], int]:
+    """``wall_ns -> stamp``: what a ROS message's stamp is for a sample ``port`` wrote at
+    ``wall_ns``, on its task's clock (a simulation's, with ``use_sim_time``), read at
+    each sample (:mod:`dataflow.clock`)."""
+    from dataflow.clock import WALL
+
+    task = getattr(port, "task", None)
+    if task is None:
+        return WALL.stamp
+    return lambda wall_ns: task.clock.stamp(wall_ns)
 
 
 class RefusingCarrier:

@@ -19,6 +19,14 @@ class Point(BaseModel):
     z: float = 0.0
 
 
+@register_type("RosTestHeat")
+class Heat(BaseModel):
+    """The fields of a sensor_msgs/Temperature but its header (stamped by the stream)."""
+
+    temperature: float = 0.0
+    variance: float = 0.0
+
+
 class Gauge(TaskContext):
     """A bounded input (``level`` in [0, 1]), an int input, a counting output and a point
     output, and operations a ROS service can answer."""
@@ -27,6 +35,7 @@ class Gauge(TaskContext):
     number = InputPort(int, doc="any int64")
     count = OutputPort(int, doc="the cycle number")
     point = OutputPort(Point, doc="a point moving along x")
+    heat = OutputPort(Heat, doc="the cycle number as a temperature")
     ceiling = Property(float, 1.0, doc="a bounded number (a ROS parameter)", ge=0.0, le=10.0)
     note = Property(str, "", doc="free text (a ROS parameter)")
 
@@ -37,6 +46,11 @@ class Gauge(TaskContext):
         self.levels: list[float] = []
         self.numbers: list[int] = []
         self.loggers: list[tuple[str, str]] = []
+
+    @operation
+    def cycle_count(self) -> int:
+        """The cycles run so far."""
+        return self.cycles
 
     @operation
     def seen(self) -> list[float]:
@@ -63,6 +77,7 @@ class Gauge(TaskContext):
         self.cycles += 1
         self.count.write(self.cycles)
         self.point.write(Point(x=self.cycles * 0.5, y=1.0, z=-2.0))
+        self.heat.write(Heat(temperature=float(self.cycles)))
 
     def drain(self) -> None:
         """Read what waits on the inputs (the hook does; a test without an activity may)."""

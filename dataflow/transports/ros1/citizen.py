@@ -13,18 +13,27 @@ value, which it keeps. A property changed otherwise (``scart prop set``, the tas
 itself) is set on the server within a second. A value XML-RPC cannot carry (bytes, an
 integer beyond 32 bits) is not a parameter. After a master restart, all are set again.
 
-Everything runs on the node's control thread; :meth:`Citizen.close` ends it (idempotent).
+**Time.** With the parameter ``/use_sim_time`` true (read at start, and followed), the
+node subscribes to ``/clock`` and every task of the deployers lives in that time
+(:class:`~dataflow.clock.SimClock`, :meth:`Deployer.use_clock`): periodic tasks tick on
+it (``rosbag play --clock -r 2`` runs them twice as fast, a paused bag pauses them) and
+the stamps scart puts on messages come from it. Without it, nothing changes.
+
+Everything runs on the node's control thread (the clock's ticks on its io thread);
+:meth:`Citizen.close` ends it (idempotent).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import struct
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import pydantic
 
+from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
 from .master import MasterError
@@ -58,6 +67,10 @@ def to_param(value: Any) -> Any:
     return None
 
 
+def _ns(secs: int, nsecs: int) -> int:
+    return secs * 1_000_000_000 + nsecs
+
+
 def _same(a: Any, b: Any) -> bool:
     return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
 
@@ -88,28 +101,65 @@ def apply_launch_params(tasks: list[Any], params: Mapping[str, Any]) -> None:
             raise ValueError(f"ROS parameter _{path}:={value!r}: refused: {exc}") from None
 
 
-class Citizen:
-    """The tasks ``tasks()`` returns, as ``node``'s parameters (see the module docstring)."""
+_CLOCK = struct.Struct("<II")  # rosgraph_msgs/Clock: time (secs, nsecs)
 
-    def __init__(self, node: Node, tasks: Callable[[], list[Any]]) -> None:
-        self.node, self._tasks = node, tasks
+
+class Citizen:
+    """The tasks of the deployers ``deployers()`` returns, as ``node``'s own (see the
+    module docstring)."""
+
+    def __init__(self, node: Node, deployers: Callable[[], list[Any]]) -> None:
+        self.node, self._deployers = node, deployers
         self.namespace = node.resolve("~")
+        self.clock: Clock = WALL
+        self._clock_sub: Any = None
         self._published: dict[str, Any] = {}
         self._skipped: set[str] = set()
         self._closed = False
 
+    def _tasks(self) -> list[Any]:
+        return [task for deployer in self._deployers() for task in deployer.tasks()]
+
     def start(self) -> None:
-        """Subscribe to the node's private namespace: its value taken, then every property
-        set (:meth:`_namespace`), and again after a master restart. Never blocks."""
+        """Subscribe to the node's private namespace (its value taken, then every property
+        set, and again after a master restart) and to ``/use_sim_time``. Never blocks."""
         self.node.subscribe_param("~", self._update)
+        self.node.subscribe_param("/use_sim_time", self._sim_time)
         self.node.control.submit(self._sync, delay=SYNC_SECONDS)
 
     def close(self) -> None:
-        """Stop syncing and stop listening to the parameters (idempotent)."""
-        if not self._closed:
-            self._closed = True
-            if not self.node.closed:
-                self.node.unsubscribe_param("~")
+        """Stop syncing, listening to the parameters and following ``/clock``; the
+        deployers' tasks go back to the system's clock (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        if not self.node.closed:
+            self.node.unsubscribe_param("~")
+            self.node.unsubscribe_param("/use_sim_time")
+        self._follow(False)
+
+    # -- time -----------------------------------------------------------------------------
+    def _sim_time(self, _key: str, value: Any) -> None:
+        self._follow((value is True or value == "true") and not self._closed)
+
+    def _follow(self, simulated: bool) -> None:
+        """Follow ``/clock`` (or stop) and give the deployers' tasks that clock."""
+        if simulated and self._clock_sub is None:
+            clock = SimClock()
+            self._clock_sub = self.node.subscribe("/clock", "rosgraph_msgs/Clock", lambda data: clock.set(
+                _ns(*_CLOCK.unpack_from(data))) if len(data) == 8 else None, raw=True)
+            self.clock = clock
+            log.info("ROS 1 node %s: use_sim_time: the tasks follow /clock", self.node.caller_id)
+        elif not simulated and self._clock_sub is not None:
+            self._clock_sub.close()
+            self._clock_sub, self.clock = None, WALL
+            log.info("ROS 1 node %s: use_sim_time off: the tasks follow the system's clock", self.node.caller_id)
+        self._give_clock()
+
+    def _give_clock(self) -> None:
+        for deployer in self._deployers():
+            if deployer.clock is not self.clock:
+                deployer.use_clock(self.clock)
 
     # -- the control thread ---------------------------------------------------------------
     def _params(self) -> dict[str, tuple[Any, str]]:
@@ -157,6 +207,7 @@ class Citizen:
     def _sync(self) -> None:
         if self._closed or self.node.closed:
             return
+        self._give_clock()  # (a deployer attached since)
         self._publish(force=False)
         self.node.control.submit(self._sync, delay=SYNC_SECONDS)
 

@@ -45,7 +45,7 @@ from dataflow.policy import ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
-from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
+from .._rosplan import RefusingCarrier, flag, receiver, stamper, stream_problems, usable
 from .names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
@@ -177,10 +177,9 @@ class Ros1Transport(Transport):
         if held is not None:
             self.release(held)
 
-    def _tasks(self) -> list[Any]:
+    def _attached(self) -> list[Any]:
         with self._lock:
-            deployers = list(self._deployers)
-        return [task for deployer in deployers for task in deployer.tasks()]
+            return list(self._deployers)
 
     def _become_citizen(self, node: Node) -> None:
         from .citizen import Citizen
@@ -188,7 +187,7 @@ class Ros1Transport(Transport):
         with self._lock:
             if self._citizen is not None or not self._deployers or node is not self._node:
                 return
-            citizen = self._citizen = Citizen(node, self._tasks)
+            citizen = self._citizen = Citizen(node, self._attached)
         citizen.start()
 
     def _end_citizen(self) -> None:
@@ -361,15 +360,15 @@ class _Carrier(RefusingCarrier):
 
     encode = staticmethod(_identity)  # converted in send(), only when someone listens
 
-    def __init__(self, pub: Any, conv: Conversion, label: str) -> None:
+    def __init__(self, pub: Any, conv: Conversion, label: str, stamp: Any) -> None:
         super().__init__(label, log)
         to_ros, to_frame, frame = conv.to_ros, conv.to_frame, pub.type.frame
         assert to_ros is not None
         self._pub = pub
         if to_frame is not None:  # one fixed field: straight to bytes
-            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, sample.t_ns)
+            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, stamp(sample.t_ns))
         else:
-            self._frame = lambda sample: frame(to_ros(sample.value, sample.n, sample.t_ns))
+            self._frame = lambda sample: frame(to_ros(sample.value, sample.n, stamp(sample.t_ns)))
 
     def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
         pub = self._pub
@@ -409,7 +408,7 @@ class _TopicStream(Stream):
         size = int(options["queue_size"]) if "queue_size" in options else (
             1 if policy.type is ConnType.DATA else max(1, min(policy.size, MAX_QUEUE)))
         self._pub = self._node.advertise(self.topic, conv.ros_type, latch=latch, queue_size=size)
-        self._carrier = _Carrier(self._pub, conv, end.label)
+        self._carrier = _Carrier(self._pub, conv, end.label, stamper(end.port))
         end.connected("ros1", self._carrier, new_peer=True)
         if latch and not policy.init:  # the last value written is what a late subscriber gets first (init: the end's)
             n, value = end.port.last_sample()

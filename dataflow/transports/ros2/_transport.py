@@ -51,7 +51,7 @@ from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
-from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
+from .._rosplan import RefusingCarrier, flag, receiver, stamper, stream_problems, usable
 from ._errors import NEEDS_DDS, DomainError, Ros2Error
 from ._names import topic_name
 from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
@@ -298,15 +298,16 @@ class _Carrier(RefusingCarrier):
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(): the conversion is this stream's own
 
-    def __init__(self, publisher: Any, conv: Conversion, label: str) -> None:
+    def __init__(self, publisher: Any, conv: Conversion, label: str, stamp: Any) -> None:
         super().__init__(label, log)
         assert conv.to_idl is not None
         self._to_idl = conv.to_idl
         self._publisher = publisher
+        self._stamp = stamp
 
     def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
         try:
-            message = self._to_idl(sample.value, sample.t_ns)
+            message = self._to_idl(sample.value, self._stamp(sample.t_ns))
         except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
             self._refuse(f"sample {sample.n}: {type(exc).__name__}: {exc}")
             return True
@@ -344,7 +345,7 @@ class _TopicStream(Stream):
 
     def _publish(self, end: WriterEnd, conv: Conversion, qos: QoS) -> None:
         self._pub = self._participant.publisher(self.topic, conv.ros_type, qos)
-        self._carrier = _Carrier(self._pub, conv, end.label)
+        self._carrier = _Carrier(self._pub, conv, end.label, stamper(end.port))
         end.connected("ros2", self._carrier, new_peer=True)
 
     def _subscribe(self, end: ReaderEnd, conv: Conversion, qos: QoS) -> None:

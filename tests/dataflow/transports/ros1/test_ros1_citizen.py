@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -94,3 +95,46 @@ def test_a_refused_launch_time_parameter_fails_the_launch(ros: RosMaster) -> Non
                           text=True, timeout=60, env=subprocess_env())
     assert done.returncode == 1
     assert "ROS parameter _gauge/ceiling:=50: refused: gauge.ceiling" in done.stderr, done.stderr
+
+
+def bag_of(path: Path, start_s: int, seconds: float, period: float = 0.05) -> Path:
+    """A ROS 1 bag of ``seconds`` of std_msgs/String on /chatter from ``start_s`` (its time)."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    string = store.types["std_msgs/msg/String"]
+    with Writer(path) as writer:
+        conn = writer.add_connection("/chatter", string.__msgtype__, typestore=store)
+        for i in range(int(seconds / period) + 1):
+            data = store.serialize_ros1(string(data=f"{i}"), string.__msgtype__)
+            writer.write(conn, start_s * 1_000_000_000 + round(i * period * 1e9), data)
+    return path
+
+
+def cycles(ns: str) -> int:
+    done = scart("call", "gauge.cycle_count", ns=ns)
+    assert done.returncode == 0, done.stderr
+    return int(done.stdout)
+
+
+def test_rosbag_play_clock_drives_the_tasks_periods(ros: RosMaster, tmp_path: Path) -> None:
+    bag = bag_of(tmp_path / "three_seconds.bag", 1000, 3.0)
+    rosparam(ros, "set", "/use_sim_time", "true")
+    proc, ns = deploy(ros, "simulated")  # a period of 0.05 s
+    try:
+        made = scart("stream", "gauge.heat", "ros1:/gauge/heat", "--type", "sensor_msgs/Temperature",
+                     "--option", "latch=true", ns=ns)
+        assert made.returncode == 0, made.stderr
+        wait_until(lambda: " * /clock [" in ros.tool("rosnode", "info", "/simulated").stdout, timeout=20)
+        before = cycles(ns)
+        played = ros.tool("rosbag", "play", "--clock", "-r", "2", "-q", str(bag), timeout=60)  # 3 s in 1.5 s
+        assert played.returncode == 0, played.stderr
+        ran = cycles(ns) - before
+        assert 50 <= ran <= 63, f"{ran} cycles of 0.05 s in a 3 s bag played at 2x"  # wall time would give ~30
+        echo = ros.tool("rostopic", "echo", "-n", "1", "/gauge/heat", timeout=30)
+        secs = int(re.search(r"secs: (\d+)", echo.stdout).group(1))
+        assert 1000 <= secs <= 1003, echo.stdout  # stamped in the bag's time, not the system's
+        assert cycles(ns) - before == ran  # the bag over, no more /clock: the tasks wait
+    finally:
+        stop(proc)
