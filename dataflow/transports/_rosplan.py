@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from dataflow.transports.ends import ReaderEnd
 
 __all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
-           "flag", "is_mapping", "is_model", "is_open", "item_type", "match_params", "model_fields", "operation_call",
+           "flag", "is_mapping", "latched", "is_model", "is_open", "item_type", "match_params", "model_fields", "operation_call",
            "operation_signature", "receiver", "resolve_converter", "signature_of", "stamper", "stream_problems", "type_label",
            "unwrap", "usable"]
 
@@ -285,6 +285,18 @@ def flag(options: Mapping[str, str], key: str) -> bool:
     if value in _FALSE:
         return False
     raise ValueError(f"option {key}={options[key]!r}: expected true or false")
+
+
+def latched(options: Mapping[str, str], policy: Any) -> bool:
+    """Whether a ROS stream's publisher latches (ROS 1 latch, ROS 2 transient-local): only
+    when asked, as in ROS — the ``latch`` option, or a buffer policy given ``init`` (DATA's
+    own ``init``, its default, is not asking: a restarting subscriber must not get a
+    stale command)."""
+    from dataflow.policy import ConnType
+
+    if "latch" in options:
+        return flag(options, "latch")
+    return bool(policy is not None and policy.init and policy.type is not ConnType.DATA)
 
 
 def stream_problems(transport: str, port: Any, problems: list[ConversionProblem]) -> list[StreamProblem]:

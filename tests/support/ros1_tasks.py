@@ -33,6 +33,8 @@ class Gauge(TaskContext):
 
     level = InputPort(float, ge=0.0, le=1.0, doc="a level in [0, 1]")
     number = InputPort(int, doc="any int64")
+    pose = InputPort(Point, doc="any point, NaN and inf included (ROS's floats)")
+    strict = InputPort(float, finite=True, doc="a finite number: asks for it")
     count = OutputPort(int, doc="the cycle number")
     point = OutputPort(Point, doc="a point moving along x")
     heat = OutputPort(Heat, doc="the cycle number as a temperature")

@@ -19,6 +19,9 @@ node subscribes to ``/clock`` and every task of the deployers lives in that time
 it (``rosbag play --clock -r 2`` runs them twice as fast, a paused bag pauses them) and
 the stamps scart puts on messages come from it. Without it, nothing changes.
 
+**Logging.** Python's log records go to ``/rosout`` with the node's name, and the node
+serves ``~get_loggers`` and ``~set_logger_level`` (:mod:`.rosout`).
+
 Everything runs on the node's control thread (the clock's ticks on its io thread);
 :meth:`Citizen.close` ends it (idempotent).
 """
@@ -29,7 +32,7 @@ import logging
 import math
 import struct
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pydantic
 
@@ -39,6 +42,9 @@ from dataflow.errors import DataflowError
 from .master import MasterError
 from .names import RosNameError, check_name
 from .node import Node
+
+if TYPE_CHECKING:
+    from .rosout import Rosout
 
 __all__ = ["Citizen", "SYNC_SECONDS", "apply_launch_params", "to_param"]
 
@@ -113,6 +119,7 @@ class Citizen:
         self.namespace = node.resolve("~")
         self.clock: Clock = WALL
         self._clock_sub: Any = None
+        self._rosout: Rosout | None = None
         self._published: dict[str, Any] = {}
         self._skipped: set[str] = set()
         self._closed = False
@@ -123,6 +130,12 @@ class Citizen:
     def start(self) -> None:
         """Subscribe to the node's private namespace (its value taken, then every property
         set, and again after a master restart) and to ``/use_sim_time``. Never blocks."""
+        from .rosout import Rosout
+
+        try:
+            self._rosout = Rosout(self.node, lambda: self.clock.now_ns())
+        except ValueError as exc:  # the node publishes /rosout, or serves a logger service, already
+            log.warning("ROS 1 node %s: no /rosout: %s", self.node.caller_id, exc)
         self.node.subscribe_param("~", self._update)
         self.node.subscribe_param("/use_sim_time", self._sim_time)
         self.node.control.submit(self._sync, delay=SYNC_SECONDS)
@@ -133,6 +146,8 @@ class Citizen:
         if self._closed:
             return
         self._closed = True
+        if self._rosout is not None:
+            self._rosout.close()
         if not self.node.closed:
             self.node.unsubscribe_param("~")
             self.node.unsubscribe_param("/use_sim_time")

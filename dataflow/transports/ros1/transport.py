@@ -45,7 +45,7 @@ from dataflow.policy import ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
-from .._rosplan import RefusingCarrier, flag, receiver, stamper, stream_problems, usable
+from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
 from .names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
@@ -404,7 +404,7 @@ class _TopicStream(Stream):
 
     def _publish(self, end: WriterEnd, conv: Conversion, options: dict[str, str]) -> None:
         policy = end.policy
-        latch = flag(options, "latch") if "latch" in options else policy.init
+        latch = latched(options, policy)
         size = int(options["queue_size"]) if "queue_size" in options else (
             1 if policy.type is ConnType.DATA else max(1, min(policy.size, MAX_QUEUE)))
         self._pub = self._node.advertise(self.topic, conv.ros_type, latch=latch, queue_size=size)

@@ -16,18 +16,20 @@ for another network on an open domain is refused.
 
 **Options** (:data:`OPTIONS`): ``type`` (``pkg/msg/Type``; a plain port's default is its
 ``std_msgs`` type), ``converter`` (``module:function``), ``frame_id`` (a header stamped on
-a model without one), ``latch`` (``true``: transient-local; for a writer, also the
-policy's ``init``), ``best_effort`` (``true``), ``msgs`` (``.msg`` files named
-``.../pkg/msg/Type.msg``, comma-separated), and ``domain``, ``insecure``, ``interface``,
-``peers``. Conversion is planned and type-checked when the stream is made
+a model without one), ``latch`` (``true``: transient-local; for a writer, also a buffer
+policy's ``init``), ``best_effort`` (``true``), ``deadline``, ``lifespan``,
+``liveliness_lease`` (seconds), ``msgs`` (``.msg`` files named ``.../pkg/msg/Type.msg``,
+comma-separated), and ``domain``, ``insecure``, ``interface``, ``peers``. Conversion is planned and type-checked when the stream is made
 (:mod:`._convert`); a message that does not convert is refused and counted (the reader
 end's ``refuse``, or :attr:`~dataflow.transports.Stream.refused` for a value scart
 publishes), as is a value that fails the port's type or bounds (NaN, out of range):
 ``scart describe`` names the last one under the port.
 
-**QoS** from the stream's policy, as rmw maps ROS 2's: DATA → keep-last 1; BUFFER(n) and
-CIRCULAR_BUFFER(n) → keep-last n (at most 10,000); reliable unless ``best_effort``;
-transient-local with ``latch``. The policy-shaped buffer stays the input port's: DDS's
+**QoS** from the stream's policy, rclpy's defaults unless asked otherwise: DATA →
+keep-last 10 (rclpy's depth); BUFFER(n) and CIRCULAR_BUFFER(n) → keep-last n (at most
+10,000); reliable unless ``best_effort``; volatile, transient-local only with ``latch``
+(or a buffer policy given ``init``); ``deadline``, ``lifespan``, ``liveliness_lease``
+(seconds) when given, else infinite; liveliness automatic. The policy-shaped buffer stays the input port's: DDS's
 history is the transit's only. A message carries no scart write number, so a reader
 counts what it refused and what its buffer dropped, not what DDS lost on the way (a
 reliable keep-last reader overwrites what it has not taken).
@@ -51,7 +53,7 @@ from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
-from .._rosplan import RefusingCarrier, flag, receiver, stamper, stream_problems, usable
+from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
 from ._errors import NEEDS_DDS, DomainError, Ros2Error
 from ._names import topic_name
 from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
@@ -67,8 +69,10 @@ __all__ = ["OPTIONS", "Ros2Transport", "add_type_file", "qos_of"]
 log = logging.getLogger(__name__)
 
 NETWORK_OPTIONS = frozenset({"domain", "insecure", "interface", "peers"})
+DURATIONS = ("deadline", "lifespan", "liveliness_lease")  #: QoS options in seconds
 #: Every option a ros2 stream takes (another is refused: a typo would otherwise be ignored).
-OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs"}) | NETWORK_OPTIONS
+OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs", *DURATIONS}) | NETWORK_OPTIONS
+DATA_DEPTH = 10  #: keep-last depth of a DATA stream: rclpy's default
 MAX_DEPTH = 10_000  #: keep-last depth, at most (the library's bound)
 MAX_DEFINITION_BYTES = 1 << 20  #: a .msg file larger than this is refused (as ros1's)
 
@@ -82,12 +86,33 @@ def _dds() -> None:
         raise TransportError(NEEDS_DDS) from None
 
 
-def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False) -> QoS:
-    """The ROS 2 QoS of a stream with ``policy`` (see the module docstring)."""
-    from ._qos import QoS
+def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False,
+           seconds: Mapping[str, float] | None = None) -> QoS:
+    """The ROS 2 QoS of a stream with ``policy`` (see the module docstring); ``seconds``:
+    ``deadline``, ``lifespan``, ``liveliness_lease`` when given."""
+    from ._qos import QoS, Durability, Reliability
 
-    depth = 1 if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
-    return QoS.buffer(depth, best_effort=best_effort, latching=latch)
+    depth = DATA_DEPTH if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
+    given = seconds or {}
+    return QoS(depth, Reliability.BEST_EFFORT if best_effort else Reliability.RELIABLE,
+               Durability.TRANSIENT_LOCAL if latch else Durability.VOLATILE,
+               deadline=given.get("deadline"), lifespan=given.get("lifespan"),
+               liveliness_lease=given.get("liveliness_lease"))
+
+
+def _seconds(options: Mapping[str, str]) -> dict[str, float]:
+    """The QoS durations ``options`` give (s); raises ``ValueError`` naming a bad one."""
+    out = {}
+    for key in DURATIONS:
+        if key in options:
+            try:
+                value = float(options[key])
+            except ValueError:
+                value = float("nan")
+            if not 0 < value < 1e6:
+                raise ValueError(f"option {key}={options[key]!r}: seconds > 0 (omit it for ROS's infinite)")
+            out[key] = value
+    return out
 
 
 @dataclass(frozen=True)
@@ -225,6 +250,7 @@ class Ros2Transport(Transport):
             for key in ("latch", "best_effort"):
                 if key in options:
                     flag(options, key)
+            _seconds(options)
             self._add_msgs(options)
         except ValueError as exc:
             out.append(f"ros2: {exc}")
@@ -332,13 +358,14 @@ class _TopicStream(Stream):
         self._sub: Any = None
         self._carrier: _Carrier | None = None
         self._closed = False
-        best_effort = flag(options, "best_effort")
+        best_effort, seconds = flag(options, "best_effort"), _seconds(options)
         try:
             if isinstance(end, WriterEnd):
-                latch = flag(options, "latch") if "latch" in options else end.policy.init
-                self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch))
+                latch = latched(options, end.policy)
+                self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch, seconds=seconds))
             else:
-                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=flag(options, "latch")))
+                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=flag(options, "latch"),
+                                                  seconds=seconds))
         except BaseException:
             self._close_parts()  # the participant is the caller's to release
             raise

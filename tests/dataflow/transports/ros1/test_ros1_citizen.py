@@ -138,3 +138,37 @@ def test_rosbag_play_clock_drives_the_tasks_periods(ros: RosMaster, tmp_path: Pa
         assert cycles(ns) - before == ran  # the bag over, no more /clock: the tasks wait
     finally:
         stop(proc)
+
+
+def test_the_log_goes_to_rosout_and_the_logger_services_change_it(ros: RosMaster) -> None:
+    proc, ns = deploy(ros, "talky")
+    key, logger = "/talky/gauge/ceiling", "dataflow.transports.ros1.citizen"
+    echo = ros.spawn("rostopic", "echo", "/rosout")
+    try:
+        wait_until(lambda: key in rosparam(ros, "list").split(), timeout=20)
+        listed = ros.tool("rosservice", "call", "/talky/get_loggers")
+        assert listed.returncode == 0 and f'name: "{logger}"' in listed.stdout, listed.stdout + listed.stderr
+
+        def level(name: str) -> None:
+            done = ros.tool("rosservice", "call", "/talky/set_logger_level", f"{{logger: '{logger}', level: '{name}'}}")
+            assert done.returncode == 0, done.stderr
+
+        def refuse(value: str) -> None:  # a warning of that logger, once the value is set back
+            rosparam(ros, "set", key, value)
+            wait_until(lambda: rosparam(ros, "get", key) == "1.0", timeout=10)
+
+        level("error")
+        refuse("98")  # a warning: not published now
+        level("warn")
+        refuse("99")
+        text = echo.read_until("99 refused", timeout=30)
+        assert "98 refused" not in text  # /rosout is one ordered stream: 98's record would come first
+        record = text[text.rindex("header:"):]
+        assert 'name: "/talky"' in record and "level: 4" in record, record
+        assert f'msg: "ROS parameter {key}: 99 refused' in record and "function: \"_update\"" in record, record
+        assert " - /rosout" in record  # the topics the node publishes
+        bad = ros.tool("rosservice", "call", "/talky/set_logger_level", "{logger: 'nobody.here', level: 'debug'}")
+        assert bad.returncode != 0 and "no logger 'nobody.here'" in bad.stdout + bad.stderr
+    finally:
+        echo.stop()
+        stop(proc)

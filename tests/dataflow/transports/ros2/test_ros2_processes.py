@@ -49,12 +49,14 @@ def test_scart_stream_joins_a_deployed_port_to_ros2_topics(on_domain: int, topic
         writer = stream_peer("write", f"{topic}/in", "Float64", [2.5, float("nan")])
         writer.next_event("acked")
         assert reader.next_event("sample")["data"] == 2.5  # in over ROS 2, gain 1, out over ROS 2
+        nan = reader.next_event("sample")["data"]
+        assert nan != nan  # a legal ROS float: a port that does not ask for finite values takes it, as ROS does
         described = scart("describe", "pinger", "--ns", ns, domain=on_domain)
         assert f"ros2:{topic}/in (std_msgs/msg/Float64), connected, UNAUTHENTICATED" in described.stdout
-        assert "1 refused, last: pinger.input: nan refused" in described.stdout, described.stdout
+        assert "refused" not in described.stdout, described.stdout
         links = json.loads(scart("links", "--json", "--ns", ns, domain=on_domain).stdout)
         listed = {lk["name"]: lk for lk in links}
-        assert listed[f"pinger.input~ros2:{topic}/in"]["dropped"] == 1
+        assert listed[f"pinger.input~ros2:{topic}/in"]["dropped"] == 0
     finally:
         assert stop_process(proc) == 0
 
