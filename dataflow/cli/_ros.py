@@ -90,44 +90,45 @@ def apply(args: argparse.Namespace, params: dict[str, Any] | None = None) -> Non
     configure = getattr(transport, "configure", None)
     if configure is not None:
         configure(master=master, name=name, namespace=namespace, insecure=insecure or None, params=params or None)
+    if name is not None or namespace is not None:  # the ROS 2 node's too (nothing of Cyclone DDS loaded here)
+        configure = getattr(_transport("ros2"), "configure", None)
+        if configure is not None:
+            configure(name=name, namespace=namespace)
 
 
-def attach(deployer: Any) -> None:
-    """Make this process's ROS 1 node (when there is one, or it was told to be one) speak
-    for ``deployer``'s tasks: their properties its parameters. Raises ``ValueError`` (a
-    launch-time parameter refused) or the transport's error (no node could be made)."""
+def _transport(name: str) -> Any:
     from dataflow.transports import TransportError, load
 
     try:
-        transport = load("ros1")
+        return load(name)
     except TransportError:
-        return
-    if hasattr(transport, "attach"):
-        transport.attach(deployer)
+        return None
+
+
+def attach(deployer: Any) -> None:
+    """Make this process's ROS nodes (ROS 1: when there is one, or it was told to be one;
+    ROS 2: when a stream or service makes one) speak for ``deployer``'s tasks: their
+    properties its parameters, its log on /rosout. Raises ``ValueError`` (a launch-time
+    parameter refused) or the transport's error (no ROS 1 node could be made)."""
+    for name in ("ros1", "ros2"):
+        transport = _transport(name)
+        if hasattr(transport, "attach"):
+            transport.attach(deployer)
 
 
 def detach(deployer: Any) -> None:
     """Undo :func:`attach` (idempotent)."""
-    from dataflow.transports import TransportError, load
-
-    try:
-        transport = load("ros1")
-    except TransportError:
-        return
-    if hasattr(transport, "detach"):
-        transport.detach(deployer)
+    for name in ("ros2", "ros1"):
+        transport = _transport(name)
+        if hasattr(transport, "detach"):
+            transport.detach(deployer)
 
 
 def exit_on_shutdown(prog: str) -> None:
     """When a peer shuts this process's ROS 1 node down (``rosnode kill``, the Slave API's
     ``shutdown``), say who asked and stop the process as SIGTERM does (a clean stop):
     rospy ends its process then. For a verb that owns its process (``run``, ``deploy``)."""
-    from dataflow.transports import TransportError, load
-
-    try:
-        on_shutdown = getattr(load("ros1"), "on_shutdown", None)
-    except TransportError:
-        return
+    on_shutdown = getattr(_transport("ros1"), "on_shutdown", None)
     if on_shutdown is None:
         return
 

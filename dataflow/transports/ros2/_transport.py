@@ -6,7 +6,9 @@ ros2:/topic --type T``, ``<scart:stream transport="ros2" .../>`` — an output p
 publishing on ``rt/<topic>`` (CDR, DDS type ``pkg::msg::dds_::Type_``), an input port fed
 from it. Not part of ``auto``: DDS carries no links.
 
-**One participant per process and domain** (a ROS 2 node named ``scart_<pid>``), made
+**One participant per process and domain** (a ROS 2 node named ``--ros-name``, else
+``scart_<pid>``, in ``--ros-namespace``, else ``ROS_NAMESPACE``; with the process's tasks'
+properties as its parameters and its log on ``/rosout``, see :mod:`._citizen`), made
 when the first stream (or service) needs it and closed when the last one goes. The
 domain is the ``domain`` option, else ``ROS_DOMAIN_ID``, else 0. The network is loopback
 only (the ``lo`` interface, no multicast, the explicit peer 127.0.0.1) unless the stream
@@ -55,7 +57,7 @@ from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
 from ._errors import NEEDS_DDS, DomainError, Ros2Error
-from ._names import topic_name
+from ._names import check_node_name, topic_name
 from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
 
 if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them (see _dds)
@@ -138,15 +140,26 @@ class Ros2Transport(Transport):
         self._network = Network.loopback()
         self._types: MessageTypes | None = None
         self._open: dict[int, list[Any]] = {}  # domain -> [Participant, Network, users]
+        self._node_name = ""
+        self._namespace: str | None = None
+        self._deployers: list[Any] = []
+        self._citizens: dict[int, Any] = {}  # domain -> its participant's Ros2Citizen
 
     # ---- the process's participants ----------------------------------------------------
     def configure(self, *, insecure: bool | None = None, interface: str | None = None,
-                  peers: tuple[str, ...] = ()) -> None:
-        """Set this process's default network for ROS 2 (``scart deploy --insecure``):
-        ``insecure`` opens it (multicast discovery on ``interface``, else the one Cyclone
-        picks, and unicast ``peers``); False: loopback only; None: as it is. A domain already
-        open keeps its network until its last user goes. Raises ``ValueError`` for a bad
-        interface or peer."""
+                  peers: tuple[str, ...] = (), name: str | None = None, namespace: str | None = None) -> None:
+        """Set this process's defaults for ROS 2: its node's ``name`` and ``namespace``
+        (``--ros-name``, ``--ros-namespace``; else ``scart_<pid>`` in ``ROS_NAMESPACE``,
+        else ``/``), and its network (``scart deploy --insecure``): ``insecure`` opens it
+        (multicast discovery on ``interface``, else the one Cyclone picks, and unicast
+        ``peers``); False: loopback only; None: as it is. A domain already open keeps its
+        node and network until its last user goes. Raises ``ValueError`` for a bad name,
+        namespace, interface or peer."""
+        if name is not None or namespace is not None:
+            check_node_name(name or "scart", namespace or "/")
+            with self._lock:
+                self._node_name = name or self._node_name
+                self._namespace = namespace if namespace is not None else self._namespace
         if insecure is None:
             return
         try:
@@ -205,13 +218,50 @@ class Ros2Transport(Transport):
                 return entry[0]
             from ._participant import Participant
 
+            namespace = self._namespace or os.environ.get("ROS_NAMESPACE") or "/"
             try:
-                made = Participant(where.domain, network=where.network, types=types, node=f"scart_{os.getpid()}")
-            except Ros2Error as exc:
+                made = Participant(where.domain, network=where.network, types=types,
+                                   node=self._node_name or f"scart_{os.getpid()}", namespace=namespace)
+            except (Ros2Error, ValueError) as exc:
                 raise TransportError(f"ros2: {exc}") from None
             self._open[where.domain] = [made, where.network, 1]
         log.info("ROS 2 participant on domain %d, %s", where.domain, _shown(where.network))
+        self._become_citizen(made)
         return made
+
+    def attach(self, deployer: Any) -> None:
+        """Let this process's ROS 2 nodes speak for ``deployer``'s tasks (:mod:`._citizen`:
+        their properties its parameters), now or when one is made."""
+        with self._lock:
+            self._deployers.append(deployer)
+            open_now = [entry[0] for entry in self._open.values()]
+        for participant in open_now:
+            self._become_citizen(participant)
+
+    def detach(self, deployer: Any) -> None:
+        """Undo :meth:`attach` (idempotent)."""
+        with self._lock:
+            if deployer in self._deployers:
+                self._deployers.remove(deployer)
+
+    def _attached(self) -> list[Any]:
+        with self._lock:
+            return list(self._deployers)
+
+    def _become_citizen(self, participant: Participant) -> None:
+        from ._citizen import Ros2Citizen
+
+        with self._lock:
+            if not self._deployers or participant.domain_id in self._citizens or participant.node is None:
+                return
+            self._citizens[participant.domain_id] = None  # being made
+        try:
+            citizen = Ros2Citizen(participant, self._attached)
+        except (Ros2Error, ValueError) as exc:
+            log.warning("ROS 2 node %s: no parameter services or /rosout: %s", participant.node.name, exc)
+            citizen = None
+        with self._lock:
+            self._citizens[participant.domain_id] = citizen
 
     def release(self, participant: Participant) -> None:
         """One user less of ``participant``; the last one closes it."""
@@ -223,6 +273,9 @@ class Ros2Transport(Transport):
             if entry[2] > 0:
                 return
             del self._open[participant.domain_id]
+            citizen = self._citizens.pop(participant.domain_id, None)
+        if citizen is not None:
+            citizen.close()
         participant.close()
 
     def participants(self) -> dict[int, Participant]:

@@ -89,3 +89,56 @@ def test_the_youbot_ros2_composite_speaks_joint_states_and_takes_period_and_pose
                    message="joint 1 never went back to the candle pose after the reset")
     finally:
         assert demo.stop() == 0, demo.output()
+
+
+def test_a_deployed_node_is_named_in_the_graph_serves_its_parameters_and_logs(on_domain: int, topic: str,
+                                                                               peer) -> None:
+    from dataflow.transports.ros2 import Participant, QoS
+
+    graph = peer("graph")
+    ns = f"127.0.0.1:{free_port()}"
+    proc, _ = start_scart(["deploy", "support.remote:Pinger", "--period", "0.01", "--listen", ns,
+                           "--ros-name", "pinger_node", "--ros-namespace", "/robot"])
+    try:
+        assert scart("stream", "pinger.output", f"ros2:{topic}/out", "--ns", ns, domain=on_domain).returncode == 0
+        while not any(n["name"] == "pinger_node" and len(n["writers"]) >= 2  # the stream's and /rosout's
+                      for n in graph.next_event("participant")["nodes"]):
+            pass  # (bounded by next_event's deadline) ros_discovery_info, as rmw_dds_common writes it
+        assert next(n for n in graph.events[-1]["nodes"] if n["name"] == "pinger_node")["namespace"] == "/robot"
+        with Participant(on_domain) as ros:
+            logged: list = []
+            ros.subscribe("/rosout", "rcl_interfaces/msg/Log", logged.append,
+                          QoS.buffer(100, latching=True))
+
+            def call(service: str, kind: str, request: dict):  # the first calls wait for DDS discovery
+                client = ros.client(f"/robot/pinger_node/{service}", f"rcl_interfaces/srv/{kind}")
+                return wait_until(lambda: _answer(client, request), timeout=20, message=f"{service} never answered")
+
+            listed = call("list_parameters", "ListParameters", {"prefixes": [], "depth": 0}).result.names
+            assert {"pinger.gain", "pinger.label", "use_sim_time"} <= set(listed), listed
+            value = call("get_parameters", "GetParameters", {"names": ["pinger.gain", "nobody"]}).values
+            assert (value[0].type, value[0].double_value, value[1].type) == (3, 1.0, 0)
+            described = call("describe_parameters", "DescribeParameters", {"names": ["pinger.gain"]}).descriptors[0]
+            assert (described.type, described.description) == (3, "multiplier")
+
+            def set_gain(number: float):
+                return call("set_parameters", "SetParameters", {"parameters": [
+                    {"name": "pinger.gain", "value": {"type": 3, "double_value": number}}]}).results[0]
+
+            assert set_gain(2.5).successful
+            assert scart("prop", "get", "pinger", "gain", "--ns", ns, domain=on_domain).stdout.strip() == "2.5"
+            refused = set_gain(float("inf"))
+            assert not refused.successful and "finite" in refused.reason
+            assert scart("prop", "get", "pinger", "gain", "--ns", ns, domain=on_domain).stdout.strip() == "2.5"
+            wait_until(lambda: any("refused" in m.msg for m in logged), timeout=15, message=f"{logged}")
+            record = next(m for m in logged if "refused" in m.msg)
+            assert record.name == "robot.pinger_node" and record.level == 30 and "pinger.gain" in record.msg
+    finally:
+        assert stop_process(proc) == 0
+
+
+def _answer(client, request: dict):
+    try:
+        return client.call(request, timeout=1.0)
+    except TimeoutError:
+        return None
