@@ -14,7 +14,7 @@ import sys
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["add_arguments", "apply", "attach", "call", "detach", "exit_on_shutdown", "split_params"]
+__all__ = ["add_arguments", "apply", "attach", "call", "detach", "exit_on_shutdown", "split_params", "split_remaps"]
 
 #: A launch-time parameter, as on a ROS command line: ``_TASK/PROPERTY:=VALUE`` (YAML).
 PARAM = re.compile(r"_([A-Za-z][\w/]*):=(.*)\Z", re.S)
@@ -41,11 +41,16 @@ def split_params(items: Iterable[str]) -> tuple[list[str], dict[str, Any]]:
     return rest, params
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
+def add_arguments(parser: argparse.ArgumentParser, calls: bool = False) -> None:
     """``--ros-master URI``, ``--ros-name NAME``, ``--ros-namespace NS`` (with
     ``--insecure``, the security options' flag, the node listens on every interface
-    instead of loopback)."""
+    instead of loopback); with ``calls`` (``scart call``), ``--msgs FILE``."""
     group = parser.add_argument_group("ROS (streams with transport ros1 or ros2)")
+    if calls:
+        group.add_argument("--msgs", action="append", default=[], metavar="FILE",
+                           help="a .srv or .msg file of the service's type and of the types it uses "
+                                "(.../PACKAGE/srv/TYPE.srv; repeatable or comma-separated; ROS_PACKAGE_PATH is "
+                                "searched too)")
     group.add_argument("--ros-master", default=None, metavar="URI",
                        help="the ROS master of this process's ROS 1 node (default $ROS_MASTER_URI, else "
                             "http://localhost:11311/)")
@@ -76,24 +81,61 @@ def take_params(parser: argparse.ArgumentParser, dest: str) -> None:
     parser.set_defaults(take_extras=take)
 
 
-def apply(args: argparse.Namespace, params: dict[str, Any] | None = None) -> None:
-    """Set the process's ROS defaults from ``args`` and the launch-time ``params``
-    (nothing is loaded unless one is given). Raises ``ValueError`` for a bad URI or name."""
+def split_remaps(rules: Iterable[str]) -> tuple[list[str], dict[str, str]]:
+    """``--remap`` rules apart from the ROS names among them (``/FROM:=/TO``, or ``=``: a
+    global or private ROS name, as on a ROS command line), and those as a mapping."""
+    rest, names = [], {}
+    for rule in rules:
+        old, sep, new = rule.partition(":=") if ":=" in rule else rule.partition("=")
+        if sep and old.strip().startswith(("/", "~")):
+            names[old.strip()] = new.strip()
+        else:
+            rest.append(rule)
+    return rest, names
+
+
+def apply(args: argparse.Namespace, params: dict[str, Any] | None = None,
+          remaps: dict[str, str] | None = None) -> None:
+    """Set the process's ROS defaults from ``args``, the launch-time ``params`` and the ROS
+    name ``remaps`` (nothing is loaded unless one is given). Raises ``ValueError`` for a
+    bad URI, name or remap."""
     master, name = getattr(args, "ros_master", None), getattr(args, "ros_name", None)
     namespace = getattr(args, "ros_namespace", None)
     insecure = bool(getattr(args, "insecure", False))
-    if master is None and name is None and namespace is None and not insecure and not params:
+    if master is None and name is None and namespace is None and not insecure and not params and not remaps:
         return
     from dataflow.transports import load
 
     transport = load("ros1")
     configure = getattr(transport, "configure", None)
     if configure is not None:
-        configure(master=master, name=name, namespace=namespace, insecure=insecure or None, params=params or None)
-    if name is not None or namespace is not None:  # the ROS 2 node's too (nothing of Cyclone DDS loaded here)
+        configure(master=master, name=name, namespace=namespace, insecure=insecure or None, params=params or None,
+                  remaps=remaps or None)
+    if name is not None or namespace is not None or remaps:  # the ROS 2 node's too (no Cyclone DDS loaded here)
         configure = getattr(_transport("ros2"), "configure", None)
         if configure is not None:
-            configure(name=name, namespace=namespace)
+            configure(name=name, namespace=namespace, remaps=remaps or None)
+
+
+def _add_types(kind: str, files: list[str]) -> None:
+    """Add the types defined in ``files`` to the process's ``kind`` (``ros1``/``ros2``)
+    transport; raises ``ValueError`` naming a bad file."""
+    if not files:
+        return
+    if kind == "ros2":
+        from dataflow.transports.ros2._transport import add_type_file
+
+        types = _transport("ros2").types
+        for path in files:
+            add_type_file(types, path, ("msg", "srv"))
+        return
+    from dataflow.transports.ros1 import TypeDefinitionError
+
+    for path in files:
+        try:
+            _transport("ros1").types.add_file(path)
+        except TypeDefinitionError as exc:
+            raise ValueError(f"--msgs {exc}") from None
 
 
 def _transport(name: str) -> Any:
@@ -149,6 +191,7 @@ def call(args: argparse.Namespace, json_args: list[Any]) -> Any:
     if len(json_args) > 1 or (json_args and not isinstance(json_args[0], dict)):
         raise ValueError("a ROS service takes one object of its request's fields, e.g. '{data: true}'")
     request = json_args[0] if json_args else {}
+    _add_types(kind, [f.strip() for item in getattr(args, "msgs", None) or [] for f in item.split(",") if f.strip()])
     if kind == "ros2":
         from dataflow.transports.ros2 import call_service as call_ros2
 

@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a ROS service's type (ROS 1: default, asked of the service as rosservice does)")
     from dataflow.cli import _ros as ros_args
 
-    ros_args.add_arguments(parser)
+    ros_args.add_arguments(parser, calls=True)
     add_common(parser)
 
 

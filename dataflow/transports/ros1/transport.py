@@ -78,6 +78,7 @@ class NodeSettings:
     host: str = "127.0.0.1"
     insecure: bool = False
     respawn: bool = False  #: a ``rosnode kill`` restarts the node instead of ending it
+    remaps: tuple[str, ...] = ()  #: ``from:=to`` names (``scart run --remap /from:=/to``)
 
     @property
     def node_name(self) -> str:
@@ -119,12 +120,15 @@ class Ros1Transport(Transport):
     # ---- the process's node ------------------------------------------------------------
     def configure(self, *, master: str | None = None, name: str | None = None, namespace: str | None = None,
                   insecure: bool | None = None, respawn: bool | None = None,
-                  params: dict[str, Any] | None = None) -> None:
+                  params: dict[str, Any] | None = None, remaps: dict[str, str] | None = None) -> None:
         """Set this process's defaults for its ROS node (``--ros-master``, ``--ros-name``,
         ``--ros-namespace``, ``--insecure``, ``respawn``, launch-time ``_TASK/PROP:=value``
-        ``params``); a node already made keeps its own. A process told any of these is a
-        ROS node from its start (:meth:`attach`). Raises ``ValueError`` for a bad master
-        URI or name."""
+        ``params``, graph name ``remaps`` ``{"/from": "/to"}``); a node already made keeps
+        its own. A process told any of these but remaps is a ROS node from its start
+        (:meth:`attach`). Raises ``ValueError`` for a bad master URI, name or remap."""
+        for old, new in (remaps or {}).items():
+            check_name(old, "remapped name")
+            check_name(new, "remapped name")
         if master is not None:
             master_uri_from(master)
         if name and not _BASE_NAME.fullmatch(name):
@@ -139,6 +143,8 @@ class Ros1Transport(Transport):
                 changes.update(insecure=insecure, host="0.0.0.0" if insecure else "127.0.0.1")
             if respawn is not None:
                 changes["respawn"] = respawn
+            if remaps:
+                changes["remaps"] = (*self._defaults.remaps, *(f"{old}:={new}" for old, new in remaps.items()))
             self._defaults = replace(self._defaults, **changes)
 
     def on_shutdown(self, hook: Any) -> None:
@@ -235,7 +241,7 @@ class Ros1Transport(Transport):
             master_uri_from(master)
         respawn = flag(options, "respawn") if "respawn" in options else settings.respawn
         return NodeSettings(master=master, name=name, namespace=options.get("__ns", settings.namespace), host=host,
-                            insecure=insecure, respawn=respawn)
+                            insecure=insecure, respawn=respawn, remaps=settings.remaps)
 
     def acquire(self, options: dict[str, str]) -> Node:
         """This process's node (made now if there is none), for one more user; each
@@ -256,7 +262,7 @@ class Ros1Transport(Transport):
                 return node
             try:
                 node = Node(wanted.node_name, master_uri=wanted.master, host=wanted.host, namespace=wanted.namespace,
-                            types=types, respawn=wanted.respawn)
+                            types=types, respawn=wanted.respawn, remaps=list(wanted.remaps))
             except (OSError, ValueError) as exc:
                 raise TransportError(f"ros1: cannot make the ROS node {wanted.node_name}: {exc}") from None
             made = node

@@ -142,19 +142,26 @@ class Ros2Transport(Transport):
         self._open: dict[int, list[Any]] = {}  # domain -> [Participant, Network, users]
         self._node_name = ""
         self._namespace: str | None = None
+        self._remaps: dict[str, str] = {}  # full topic or service name -> the one used
         self._deployers: list[Any] = []
         self._citizens: dict[int, Any] = {}  # domain -> its participant's Ros2Citizen
 
     # ---- the process's participants ----------------------------------------------------
     def configure(self, *, insecure: bool | None = None, interface: str | None = None,
-                  peers: tuple[str, ...] = (), name: str | None = None, namespace: str | None = None) -> None:
+                  peers: tuple[str, ...] = (), name: str | None = None, namespace: str | None = None,
+                  remaps: Mapping[str, str] | None = None) -> None:
         """Set this process's defaults for ROS 2: its node's ``name`` and ``namespace``
         (``--ros-name``, ``--ros-namespace``; else ``scart_<pid>`` in ``ROS_NAMESPACE``,
         else ``/``), and its network (``scart deploy --insecure``): ``insecure`` opens it
         (multicast discovery on ``interface``, else the one Cyclone picks, and unicast
         ``peers``); False: loopback only; None: as it is. A domain already open keeps its
         node and network until its last user goes. Raises ``ValueError`` for a bad name,
-        namespace, interface or peer."""
+        namespace, interface or peer. ``remaps``: ``{"/from": "/to"}``, topic and service
+        names used in place of others (``scart run --remap /from:=/to``)."""
+        if remaps:
+            checked = {topic_name(old): topic_name(new) for old, new in remaps.items()}
+            with self._lock:
+                self._remaps.update(checked)
         if name is not None or namespace is not None:
             check_node_name(name or "scart", namespace or "/")
             with self._lock:
@@ -228,6 +235,13 @@ class Ros2Transport(Transport):
         log.info("ROS 2 participant on domain %d, %s", where.domain, _shown(where.network))
         self._become_citizen(made)
         return made
+
+    def remapped(self, name: str) -> str:
+        """The full topic or service name used for ``name`` (``--remap``); ``ValueError``
+        for a name ROS 2 refuses."""
+        full = topic_name(name)
+        with self._lock:
+            return self._remaps.get(full, full)
 
     def attach(self, deployer: Any) -> None:
         """Let this process's ROS 2 nodes speak for ``deployer``'s tasks (:mod:`._citizen`:
@@ -332,7 +346,7 @@ class Ros2Transport(Transport):
         conv = usable(*self.conversion(port, options), log)
         participant = self.acquire(self.where(options))
         try:
-            return _TopicStream(self, participant, end, topic_name(topic), conv, options)
+            return _TopicStream(self, participant, end, self.remapped(topic), conv, options)
         except (Ros2Error, ValueError) as exc:
             self.release(participant)
             raise TransportError(f"ros2: {exc}") from None

@@ -54,7 +54,8 @@ class DataflowLaunch(LaunchProvider):
         for ``run``."""
         parser.add_argument("--remap", action="append", default=[], metavar="FROM=TO",
                             help="rename a data-flow task or port at launch (FROM:=TO too; TASK.PORT=NAME for one "
-                                 "task's port; __ns=NAMESPACE puts every task under NAMESPACE/); repeatable")
+                                 "task's port; __ns=NAMESPACE puts every task under NAMESPACE/), or a ROS topic or "
+                                 "service (/FROM:=/TO, as on a ROS command line); repeatable")
         if verb == "run":
             parser.add_argument("--ns", default=None, metavar="HOST:PORT",
                                 help="name service of data-flow tasks and SCA services: where the embedded one "
@@ -77,10 +78,11 @@ class DataflowLaunch(LaunchProvider):
     def settings(self, args: argparse.Namespace, verb: Verb, environ: Mapping[str, str]) -> DataflowSettings:
         """``--ns`` (else ``SCART_NS``), ``--remap``, ``--foxglove*``; ``serve`` for ``run``.
         Raises ``ValueError`` naming the option or variable."""
-        if verb == "run":  # the process's ROS 1 node defaults; a bad URI, name or parameter raises
-            ros_args.apply(args, ros_args.split_params(getattr(args, "ros_params", None) or [])[1])
+        rules, topics = ros_args.split_remaps(getattr(args, "remap", None) or [])  # /topic:=/other: ROS's
+        if verb == "run":  # the process's ROS node defaults; a bad URI, name, parameter or topic raises
+            ros_args.apply(args, ros_args.split_params(getattr(args, "ros_params", None) or [])[1], topics)
             ros_args.exit_on_shutdown("scart")
-        fields: dict[str, object] = {"remap": Remap.parse(getattr(args, "remap", None) or []), "serve": verb == "run",
+        fields: dict[str, object] = {"remap": Remap.parse(rules), "serve": verb == "run",
                                      "foxglove": getattr(args, "foxglove", None),
                                      "foxglove_control": getattr(args, "foxglove_control", None)}
         ns = getattr(args, "ns", None)
