@@ -51,6 +51,10 @@ def add_arguments(parser: argparse.ArgumentParser, calls: bool = False) -> None:
                            help="a .srv or .msg file of the service's type and of the types it uses "
                                 "(.../PACKAGE/srv/TYPE.srv; repeatable or comma-separated; ROS_PACKAGE_PATH is "
                                 "searched too)")
+    else:
+        group.add_argument("--ros-read-only", action="store_true",
+                           help="serve ROS read-only: publish output ports only; no stream into an input port, no "
+                                "ROS service, no parameter set, no shutdown from ROS (which authenticates no one)")
     group.add_argument("--ros-master", default=None, metavar="URI",
                        help="the ROS master of this process's ROS 1 node (default $ROS_MASTER_URI, else "
                             "http://localhost:11311/)")
@@ -102,7 +106,9 @@ def apply(args: argparse.Namespace, params: dict[str, Any] | None = None,
     master, name = getattr(args, "ros_master", None), getattr(args, "ros_name", None)
     namespace = getattr(args, "ros_namespace", None)
     insecure = bool(getattr(args, "insecure", False))
-    if master is None and name is None and namespace is None and not insecure and not params and not remaps:
+    read_only = True if getattr(args, "ros_read_only", False) else None
+    if master is None and name is None and namespace is None and not insecure and not params and not remaps \
+            and not read_only:
         return
     from dataflow.transports import load
 
@@ -110,11 +116,11 @@ def apply(args: argparse.Namespace, params: dict[str, Any] | None = None,
     configure = getattr(transport, "configure", None)
     if configure is not None:
         configure(master=master, name=name, namespace=namespace, insecure=insecure or None, params=params or None,
-                  remaps=remaps or None)
-    if name is not None or namespace is not None or remaps:  # the ROS 2 node's too (no Cyclone DDS loaded here)
+                  remaps=remaps or None, read_only=read_only)
+    if name is not None or namespace is not None or remaps or read_only:  # ROS 2's too (no Cyclone DDS loaded)
         configure = getattr(_transport("ros2"), "configure", None)
         if configure is not None:
-            configure(name=name, namespace=namespace, remaps=remaps or None)
+            configure(name=name, namespace=namespace, remaps=remaps or None, read_only=read_only)
 
 
 def _add_types(kind: str, files: list[str]) -> None:

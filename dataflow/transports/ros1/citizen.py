@@ -133,11 +133,12 @@ class Citizen:
         from .rosout import Rosout
 
         try:
-            self._rosout = Rosout(self.node, lambda: self.clock.now_ns())
+            self._rosout = Rosout(self.node, lambda: self.clock.now_ns(), services=not self.node.read_only)
         except ValueError as exc:  # the node publishes /rosout, or serves a logger service, already
             log.warning("ROS 1 node %s: no /rosout: %s", self.node.caller_id, exc)
         self.node.subscribe_param("~", self._update)
-        self.node.subscribe_param("/use_sim_time", self._sim_time)
+        if not self.node.read_only:  # read-only: nothing from ROS reaches the tasks, their time included
+            self.node.subscribe_param("/use_sim_time", self._sim_time)
         self.node.control.submit(self._sync, delay=SYNC_SECONDS)
 
     def close(self) -> None:
@@ -150,7 +151,7 @@ class Citizen:
             self._rosout.close()
         if not self.node.closed:
             self.node.unsubscribe_param("~")
-            self.node.unsubscribe_param("/use_sim_time")
+            self.node.unsubscribe_param("/use_sim_time")  # (idempotent: read-only never subscribed)
         self._follow(False)
 
     # -- time -----------------------------------------------------------------------------
@@ -211,8 +212,10 @@ class Citizen:
             self._published[key] = value
             return
         try:
+            if self.node.read_only:
+                raise PermissionError("this process serves ROS read-only (--ros-read-only)")
             task.set_property(prop, value)
-        except DataflowError as exc:
+        except (DataflowError, PermissionError) as exc:
             kept = task.get_property(prop)
             log.warning("ROS parameter %s: %r refused: %s; it keeps %r", key, value, exc, kept)
             self._set(key, to_param(kept))

@@ -50,7 +50,9 @@ class Node:
     ``master_timeout``: s per master call; ``master_poll``: s between checks that the
     master still knows the node. ``respawn``: a peer's ``shutdown`` (``rosnode kill``)
     restarts the node (everything unregistered, then registered again at once) instead
-    of closing it. ``env`` stands for ``os.environ`` (tests).
+    of closing it. ``read_only``: the node only publishes: :meth:`subscribe` and
+    :meth:`advertise_service` raise ``PermissionError`` and a peer's ``shutdown`` is
+    refused. ``env`` stands for ``os.environ`` (tests).
 
     The constructor starts the servers and threads and raises ``OSError`` if a port
     cannot be bound, :class:`~.names.RosNameError` for a bad name, remap or master URI,
@@ -72,6 +74,7 @@ class Node:
         master_timeout: float = 3.0,
         master_poll: float = 1.0,
         respawn: bool = False,
+        read_only: bool = False,
         env: Mapping[str, str] | None = None,
     ) -> None:
         env = os.environ if env is None else env
@@ -92,7 +95,7 @@ class Node:
         self._srvs: dict[str, ServiceServer] = {}
         self._worker: Worker | None = None
         self._closed = threading.Event()
-        self.respawn = respawn
+        self.respawn, self.read_only = respawn, read_only
         self.shutdown_reason: str | None = None  #: who asked it to shut down, and why (``CALLER: reason``)
         self._shutdown_hooks: list[Callable[[str, str], None]] = []
         self._params: dict[str, Callable[[str, Any], None]] = {}  # namespace/ -> callback
@@ -159,6 +162,7 @@ class Node:
         With ``raw=True`` the callback gets the message's ROS 1 bytes, and ``type_name``
         may be ``"*"`` (any type, as ``rostopic hz`` subscribes). Raises as :meth:`advertise`.
         """
+        self._writable("subscribe to", topic)
         resolved = self.resolve(topic)
         if type_name == "*" and not raw:
             raise ValueError("type '*' (any type) needs raw=True: there is no type to decode with")
@@ -173,11 +177,16 @@ class Node:
 
         Handlers run one at a time on the node's service thread. Raises as :meth:`advertise`.
         """
+        self._writable("serve", service)
         resolved, srvtype = self.resolve(service), self.types.srv(type_name)
         srv = ServiceServer(self, resolved, srvtype, handler)
         self._add(self._srvs, resolved, srv, "serves")
         self._want(("srv", resolved), (f"rosrpc://{_url_host(self.advertised_host)}:{self.tcpros_port}",))
         return srv
+
+    def _writable(self, verb: str, name: str) -> None:
+        if self.read_only:
+            raise PermissionError(f"node {self.caller_id} is read-only (it publishes only): it does not {verb} {name}")
 
     def call_service(self, service: str, type_name: str, request: object, timeout: float = 5.0) -> object:
         """Call ``service`` with ``request`` and return the response (blocks ≤ ``timeout`` s).
@@ -407,15 +416,20 @@ class Node:
         if sub is not None:
             self.control.submit(sub.update_publishers, uris)
 
-    def request_shutdown(self, caller_id: str, reason: str) -> None:
+    def request_shutdown(self, caller_id: str, reason: str) -> bool:
+        """A peer's ``shutdown`` (the XML-RPC thread); False when refused (read-only)."""
+        if self.read_only:
+            log.warning("ROS 1 node %s: %s asked it to shut down: refused (read-only)", self.caller_id, caller_id)
+            return False
         self.shutdown_reason = f"{caller_id}: {reason or '(no reason)'}"
         if self.respawn:
             log.warning("ROS 1 node %s: %s asked it to shut down (%s): it restarts (respawn)", self.caller_id,
                         caller_id, reason or "no reason")
             self.control.submit(self._restart)
-            return
+            return True
         log.warning("ROS 1 node %s: %s asked it to shut down: %s", self.caller_id, caller_id, reason or "(no reason)")
         self.control.submit(self._shut_down, caller_id, reason)
+        return True
 
     def _shut_down(self, caller_id: str, reason: str) -> None:
         """As rospy's ``signal_shutdown``: unregister everything, close, then tell the hooks."""

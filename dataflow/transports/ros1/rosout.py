@@ -26,19 +26,20 @@ _BYTES = ((logging.CRITICAL, 16), (logging.ERROR, 8), (logging.WARNING, 4), (log
 
 
 class Rosout:
-    """``node``'s log on ``/rosout`` and its logger services (see the module docstring).
-    ``now_ns()`` gives the stamps (the node's clock). Installed when made; thread-safe;
+    """``node``'s log on ``/rosout`` and, with ``services``, its logger services (see the
+    module docstring). ``now_ns()`` gives the stamps (the node's clock). Installed when made; thread-safe;
     :meth:`close` is idempotent. Raises ``ValueError`` when the node publishes ``/rosout``
     or serves a logger service already."""
 
-    def __init__(self, node: Node, now_ns: Callable[[], int] = time.time_ns) -> None:
+    def __init__(self, node: Node, now_ns: Callable[[], int] = time.time_ns, services: bool = True) -> None:
         self.node, self._now_ns = node, now_ns
         self._pub = node.advertise("/rosout", "rosgraph_msgs/Log", latch=True, queue_size=100)
         self._services = []
         try:
-            self._services.append(node.advertise_service("~get_loggers", "roscpp/GetLoggers", self._get_loggers))
-            self._services.append(node.advertise_service("~set_logger_level", "roscpp/SetLoggerLevel",
-                                                         self._set_logger_level))
+            if services:
+                self._services.append(node.advertise_service("~get_loggers", "roscpp/GetLoggers", self._get_loggers))
+                self._services.append(node.advertise_service("~set_logger_level", "roscpp/SetLoggerLevel",
+                                                             self._set_logger_level))
         except BaseException:
             self.close()
             raise

@@ -79,6 +79,7 @@ class NodeSettings:
     insecure: bool = False
     respawn: bool = False  #: a ``rosnode kill`` restarts the node instead of ending it
     remaps: tuple[str, ...] = ()  #: ``from:=to`` names (``scart run --remap /from:=/to``)
+    read_only: bool = False  #: publish only: no input port fed, no service, no parameter set (``--ros-read-only``)
 
     @property
     def node_name(self) -> str:
@@ -120,7 +121,8 @@ class Ros1Transport(Transport):
     # ---- the process's node ------------------------------------------------------------
     def configure(self, *, master: str | None = None, name: str | None = None, namespace: str | None = None,
                   insecure: bool | None = None, respawn: bool | None = None,
-                  params: dict[str, Any] | None = None, remaps: dict[str, str] | None = None) -> None:
+                  params: dict[str, Any] | None = None, remaps: dict[str, str] | None = None,
+                  read_only: bool | None = None) -> None:
         """Set this process's defaults for its ROS node (``--ros-master``, ``--ros-name``,
         ``--ros-namespace``, ``--insecure``, ``respawn``, launch-time ``_TASK/PROP:=value``
         ``params``, graph name ``remaps`` ``{"/from": "/to"}``); a node already made keeps
@@ -145,7 +147,23 @@ class Ros1Transport(Transport):
                 changes["respawn"] = respawn
             if remaps:
                 changes["remaps"] = (*self._defaults.remaps, *(f"{old}:={new}" for old, new in remaps.items()))
+            if read_only is not None:
+                changes["read_only"] = read_only
             self._defaults = replace(self._defaults, **changes)
+
+    @property
+    def read_only(self) -> bool:
+        """Whether this process serves ROS read-only (``--ros-read-only``): it publishes its
+        output ports and nothing from ROS reaches it (no stream into an input port, no
+        service, no parameter set, no ``shutdown``)."""
+        with self._lock:
+            return self._defaults.read_only
+
+    def refuse_input(self, what: str) -> None:
+        """Raise :class:`TransportError` saying ``what`` is refused, when read-only."""
+        if self.read_only:
+            raise TransportError(f"ros1: {what} is refused: this process serves ROS read-only (--ros-read-only: "
+                                 "it publishes only)")
 
     def on_shutdown(self, hook: Any) -> None:
         """Call ``hook(node, caller_id, reason)`` when a peer (``rosnode kill``) has shut this
@@ -241,7 +259,7 @@ class Ros1Transport(Transport):
             master_uri_from(master)
         respawn = flag(options, "respawn") if "respawn" in options else settings.respawn
         return NodeSettings(master=master, name=name, namespace=options.get("__ns", settings.namespace), host=host,
-                            insecure=insecure, respawn=respawn, remaps=settings.remaps)
+                            insecure=insecure, respawn=respawn, remaps=settings.remaps, read_only=settings.read_only)
 
     def acquire(self, options: dict[str, str]) -> Node:
         """This process's node (made now if there is none), for one more user; each
@@ -262,7 +280,8 @@ class Ros1Transport(Transport):
                 return node
             try:
                 node = Node(wanted.node_name, master_uri=wanted.master, host=wanted.host, namespace=wanted.namespace,
-                            types=types, respawn=wanted.respawn, remaps=list(wanted.remaps))
+                            types=types, respawn=wanted.respawn, remaps=list(wanted.remaps),
+                            read_only=wanted.read_only)
             except (OSError, ValueError) as exc:
                 raise TransportError(f"ros1: cannot make the ROS node {wanted.node_name}: {exc}") from None
             made = node
@@ -299,6 +318,9 @@ class Ros1Transport(Transport):
     # ---- streams -----------------------------------------------------------------------
     def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
+        if port.is_input and self.read_only:
+            problems.append(StreamProblem(f"ros1: a stream into port {getattr(port, 'qualname', port.name)} is "
+                                          "refused: this process serves ROS read-only (--ros-read-only)"))
         if problems:
             return problems
         _, found = self.conversion(port, options)
@@ -345,6 +367,8 @@ class Ros1Transport(Transport):
         errors = self._check_options(topic, options)
         if errors:
             raise TransportError("; ".join(errors))
+        if isinstance(end, ReaderEnd):
+            self.refuse_input(f"a stream from {topic} into port {port.qualname}")
         conv = usable(*self.conversion(port, options), log)
         node = self.acquire(options)
         try:

@@ -147,6 +147,7 @@ class ServedService:
     def __init__(self, service: str, type_name: str, call: Callable[..., Any], params: list[Param], returns: Any,
                  *, options: Mapping[str, str] | None = None, label: str = "") -> None:
         self._transport = ros2_transport()
+        self._transport.refuse_input(f"serving the ROS 2 service {service}")
         types: MessageTypes = self._transport.types
         self.label = label or getattr(call, "__qualname__", "a callable")
         problems = check_service(types, type_name, params, returns)

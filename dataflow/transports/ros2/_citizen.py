@@ -94,11 +94,12 @@ def from_value(value: Any) -> Any:
 
 class Ros2Citizen:
     """The deployers' tasks (``deployers()``), as ``participant``'s node's own (see the
-    module docstring). Raises what the participant raises when its services cannot be made."""
+    module docstring; ``read_only``: every set refused). Raises what the participant raises
+    when its services cannot be made."""
 
-    def __init__(self, participant: Any, deployers: Callable[[], list[Any]]) -> None:
+    def __init__(self, participant: Any, deployers: Callable[[], list[Any]], read_only: bool = False) -> None:
         graph = participant.node
-        self._participant, self._deployers = participant, deployers
+        self._participant, self._deployers, self.read_only = participant, deployers, read_only
         base = f"{graph.namespace.rstrip('/')}/{graph.name}"
         self.logger_name = base.strip("/").replace("/", ".")
         self.clock: Clock = WALL
@@ -141,6 +142,8 @@ class Ros2Citizen:
 
     def _set_one(self, name: str, value: Any) -> dict[str, Any]:
         try:
+            if self.read_only:
+                raise ValueError("this process serves ROS read-only (--ros-read-only)")
             wanted = from_value(value)
             if name == SIM_TIME:
                 if not isinstance(wanted, bool):

@@ -143,13 +143,14 @@ class Ros2Transport(Transport):
         self._node_name = ""
         self._namespace: str | None = None
         self._remaps: dict[str, str] = {}  # full topic or service name -> the one used
+        self.read_only = False  #: publish only (``--ros-read-only``): no input stream, service or parameter set
         self._deployers: list[Any] = []
         self._citizens: dict[int, Any] = {}  # domain -> its participant's Ros2Citizen
 
     # ---- the process's participants ----------------------------------------------------
     def configure(self, *, insecure: bool | None = None, interface: str | None = None,
                   peers: tuple[str, ...] = (), name: str | None = None, namespace: str | None = None,
-                  remaps: Mapping[str, str] | None = None) -> None:
+                  remaps: Mapping[str, str] | None = None, read_only: bool | None = None) -> None:
         """Set this process's defaults for ROS 2: its node's ``name`` and ``namespace``
         (``--ros-name``, ``--ros-namespace``; else ``scart_<pid>`` in ``ROS_NAMESPACE``,
         else ``/``), and its network (``scart deploy --insecure``): ``insecure`` opens it
@@ -157,7 +158,10 @@ class Ros2Transport(Transport):
         ``peers``); False: loopback only; None: as it is. A domain already open keeps its
         node and network until its last user goes. Raises ``ValueError`` for a bad name,
         namespace, interface or peer. ``remaps``: ``{"/from": "/to"}``, topic and service
-        names used in place of others (``scart run --remap /from:=/to``)."""
+        names used in place of others (``scart run --remap /from:=/to``). ``read_only``:
+        publish only (``--ros-read-only``)."""
+        if read_only is not None:
+            self.read_only = read_only
         if remaps:
             checked = {topic_name(old): topic_name(new) for old, new in remaps.items()}
             with self._lock:
@@ -236,6 +240,12 @@ class Ros2Transport(Transport):
         self._become_citizen(made)
         return made
 
+    def refuse_input(self, what: str) -> None:
+        """Raise :class:`TransportError` saying ``what`` is refused, when read-only."""
+        if self.read_only:
+            raise TransportError(f"ros2: {what} is refused: this process serves ROS read-only (--ros-read-only: "
+                                 "it publishes only)")
+
     def remapped(self, name: str) -> str:
         """The full topic or service name used for ``name`` (``--remap``); ``ValueError``
         for a name ROS 2 refuses."""
@@ -270,7 +280,7 @@ class Ros2Transport(Transport):
                 return
             self._citizens[participant.domain_id] = None  # being made
         try:
-            citizen = Ros2Citizen(participant, self._attached)
+            citizen = Ros2Citizen(participant, self._attached, self.read_only)
         except (Ros2Error, ValueError) as exc:
             log.warning("ROS 2 node %s: no parameter services or /rosout: %s", participant.node.name, exc)
             citizen = None
@@ -304,6 +314,9 @@ class Ros2Transport(Transport):
         except TransportError as exc:
             return [StreamProblem(str(exc))]
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
+        if port.is_input and self.read_only:
+            problems.append(StreamProblem(f"ros2: a stream into port {getattr(port, 'qualname', port.name)} is "
+                                          "refused: this process serves ROS read-only (--ros-read-only)"))
         if problems:
             return problems
         return self.conversion(port, options)[1]
@@ -343,6 +356,8 @@ class Ros2Transport(Transport):
         errors = self._check_options(topic, options)
         if errors:
             raise TransportError("; ".join(errors))
+        if isinstance(end, ReaderEnd):
+            self.refuse_input(f"a stream from {topic} into port {port.qualname}")
         conv = usable(*self.conversion(port, options), log)
         participant = self.acquire(self.where(options))
         try:

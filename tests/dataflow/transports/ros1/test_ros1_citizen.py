@@ -172,3 +172,25 @@ def test_the_log_goes_to_rosout_and_the_logger_services_change_it(ros: RosMaster
     finally:
         echo.stop()
         stop(proc)
+
+
+def test_a_read_only_node_publishes_and_takes_nothing_from_ros(ros: RosMaster) -> None:
+    proc, ns = deploy(ros, "watched", "--ros-read-only")
+    try:
+        out = scart("stream", "gauge.count", "ros1:/watched/count", ns=ns)
+        assert out.returncode == 0, out.stderr
+        echo = ros.tool("rostopic", "echo", "-n", "1", "/watched/count", timeout=60)
+        assert echo.returncode == 0 and "data: " in echo.stdout, echo.stderr
+        into = scart("stream", "gauge.level", "ros1:/watched/level", ns=ns)
+        assert into.returncode == 1 and "serves ROS read-only" in into.stderr, into.stderr
+        key = "/watched/gauge/ceiling"
+        rosparam(ros, "set", key, "2.0")  # a valid value, refused all the same
+        wait_until(lambda: rosparam(ros, "get", key) == "1.0", timeout=10)
+        assert scart("prop", "get", "gauge", "ceiling", ns=ns).stdout.strip() == "1.0"
+        services = ros.tool("rosservice", "list").stdout.split()
+        assert "/watched/set_logger_level" not in services and "/watched/get_loggers" not in services
+        killed = ros.tool("rosnode", "kill", "/watched")
+        assert "/watched" in nodes(ros) and proc.poll() is None, killed.stdout + killed.stderr
+    finally:
+        said = stop(proc)
+    assert "refused (read-only)" in said, said
