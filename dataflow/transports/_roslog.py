@@ -16,12 +16,13 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
+from types import MappingProxyType
 
 __all__ = ["LEVELS", "MAX_TEXT", "RosLog", "level_name", "loggers", "set_level"]
 
 #: ROS's names of Python's levels (roscpp's and rcl's logger services).
-LEVELS = {"debug": logging.DEBUG, "info": logging.INFO, "warn": logging.WARNING, "error": logging.ERROR,
-          "fatal": logging.CRITICAL}
+LEVELS = MappingProxyType({"debug": logging.DEBUG, "info": logging.INFO, "warn": logging.WARNING,
+                           "error": logging.ERROR, "fatal": logging.CRITICAL})
 MAX_TEXT = 64 * 1024  #: characters of a message published, at most
 MAX_LOGGERS = 1000  #: loggers listed, at most
 

@@ -30,8 +30,9 @@ if TYPE_CHECKING:
     from dataflow.transports.ends import ReaderEnd
 
 __all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
-           "flag", "is_mapping", "latched", "is_model", "is_open", "item_type", "match_params", "model_fields", "operation_call",
-           "operation_signature", "receiver", "resolve_converter", "signature_of", "stamper", "stream_problems", "type_label",
+           "flag", "is_mapping", "is_model", "is_open", "item_type", "latched", "match_params", "model_fields",
+           "operation_call", "operation_signature", "receiver", "resolve_converter", "signature_of", "stamper",
+           "stream_problems", "type_label",
            "unwrap", "usable"]
 
 _C = TypeVar("_C")

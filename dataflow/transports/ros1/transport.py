@@ -6,22 +6,29 @@ ros1:/topic --type T``, ``<scart:stream transport="ros1" .../>`` — an output p
 publishing, an input port fed from it. Not part of ``auto``: ROS carries no links.
 
 **One node per process**, made when the first stream (or service) needs it and closed
-when the last one goes. Its settings come from the process's defaults
-(:meth:`Ros1Transport.configure`: ``scart deploy``/``scart run`` ``--ros-master``,
-``--ros-name``, ``--insecure``) and the first user's options; a later stream that asks for
-another master or name is refused, naming the node there is. The master is ``master``,
-else ``ROS_MASTER_URI``, else ROS's default; while it is down the node waits and retries
-(logging that it waits) and its streams show as ``waiting`` in ``scart links``.
+when the last one goes; a process told it is a ROS node (:meth:`Ros1Transport.configure`:
+``scart deploy``/``scart run`` ``--ros-master``, ``--ros-name``, ``--ros-namespace``,
+launch-time parameters) makes it when its deployer attaches (:meth:`~Ros1Transport.attach`,
+which also makes the node speak for the deployer's tasks: :mod:`.citizen`). Its settings
+come from the process's defaults (those, ``--insecure``, ``--ros-read-only``, ``--remap
+/from:=/to``) and the first user's options; a later stream that asks for another master
+or name is refused, naming the node there is. The master is ``master``, else
+``ROS_MASTER_URI``, else ROS's default; while it is down the node waits and retries
+(logging that it waits) and its streams show as ``waiting`` in ``scart links``. A peer's
+``shutdown`` (``rosnode kill``) ends the node and tells the process
+(:meth:`~Ros1Transport.on_shutdown`: ``scart run`` stops), or, with ``respawn``, restarts it.
 
 **Options** (:data:`OPTIONS`): ``type`` (``pkg/Type``; a plain port's default is its
 ``std_msgs`` type), ``converter`` (``module:function``), ``frame_id`` (a header stamped
-on a model without one), ``latch`` (``true``; also the policy's ``init``), ``queue_size``
-(per subscriber; default the policy's size, 1 for DATA), ``msgs`` (``.msg``/``.srv``
-files, comma-separated), and for the node: ``master``, ``node`` (or ``__name``),
-``__ns``, ``host``, ``insecure``. Conversion is planned and type-checked when the stream
-is made (:mod:`.convert`); a message that does not convert is refused and counted (the
-reader end's ``refuse``), as is a value that fails the port's type or bounds (NaN, out of
-range): ``scart describe`` names the last one under the port.
+on a model without one, on the task's clock), ``latch`` (``true``; also a buffer policy's
+``init``, never DATA's), ``queue_size`` (per subscriber; default the policy's size, 1 for
+DATA), ``msgs`` (``.msg``/``.srv`` files, comma-separated; else ``ROS_PACKAGE_PATH`` is
+searched), and for the node: ``master``, ``node`` (or ``__name``), ``__ns``, ``host``,
+``insecure``, ``respawn``. Conversion is planned and type-checked when the stream is made
+(:mod:`.convert`); a message that does not convert is refused and counted (the reader
+end's ``refuse``), as is a value that fails the port's type or bounds (out of range; NaN
+and inf only for a port asking ``finite=True``): ``scart describe`` names the last one
+under the port.
 
 **Security.** ROS 1 authenticates no one: the node listens on loopback unless told
 ``insecure`` (then on every interface, or ``host``); a stream's :attr:`~Stream.authenticated`

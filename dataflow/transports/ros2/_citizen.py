@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from types import MappingProxyType
 from typing import Any
 
 from dataflow.clock import WALL, Clock, SimClock
@@ -35,12 +36,13 @@ __all__ = ["Ros2Citizen", "from_value", "to_value"]
 
 log = logging.getLogger("dataflow.transports.ros2")
 
-SERVICES = {"get_parameters": "GetParameters", "set_parameters": "SetParameters",
-            "list_parameters": "ListParameters", "describe_parameters": "DescribeParameters",
-            "get_parameter_types": "GetParameterTypes"}
+SERVICES = MappingProxyType({"get_parameters": "GetParameters", "set_parameters": "SetParameters",
+                             "list_parameters": "ListParameters", "describe_parameters": "DescribeParameters",
+                             "get_parameter_types": "GetParameterTypes"})
 #: rcl_interfaces/msg/ParameterType, and the ParameterValue field of each
-_FIELDS = {1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value", 5: "byte_array_value",
-           6: "bool_array_value", 7: "integer_array_value", 8: "double_array_value", 9: "string_array_value"}
+_FIELDS = MappingProxyType({1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value",
+                            5: "byte_array_value", 6: "bool_array_value", 7: "integer_array_value",
+                            8: "double_array_value", 9: "string_array_value"})
 _LEVELS = ((logging.CRITICAL, 50), (logging.ERROR, 40), (logging.WARNING, 30), (logging.INFO, 20))
 ROSOUT_QOS = QoS(100, Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, lifespan=10.0)  # rcl's, a smaller depth
 SIM_TIME = "use_sim_time"
@@ -198,9 +200,11 @@ class Ros2Citizen:
     def _follow(self, simulated: bool) -> None:
         if simulated and self._clock_sub is None:
             clock = SimClock()
-            self._clock_sub = self._participant.subscribe(
-                "/clock", "rosgraph_msgs/msg/Clock", lambda m: clock.set(m.clock.sec * 1_000_000_000 + m.clock.nanosec),
-                QoS(1, Reliability.BEST_EFFORT), raw=True)
+            def tick(message: Any) -> None:
+                clock.set(message.clock.sec * 1_000_000_000 + message.clock.nanosec)
+
+            self._clock_sub = self._participant.subscribe("/clock", "rosgraph_msgs/msg/Clock", tick,
+                                                          QoS(1, Reliability.BEST_EFFORT), raw=True)
             self.clock = clock
         elif not simulated and self._clock_sub is not None:
             self._clock_sub.close()

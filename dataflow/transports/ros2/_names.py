@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["check_node_name", "topic_name", "dds_topic", "ros_topic", "service_topics", "dds_type_name", "ros_type_name"]
+__all__ = ["check_node_name", "topic_name", "dds_topic", "ros_topic", "service_topics", "dds_type_name",
+           "ros_type_name"]
 
 TOPIC_PREFIX = "rt"
 REQUEST_PREFIX = "rq"

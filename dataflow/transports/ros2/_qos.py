@@ -129,9 +129,9 @@ class QoS:
     def __str__(self) -> str:
         words = [f"keep-last {self.depth}", self.reliability.value.replace("_", "-"),
                  self.durability.value.replace("_", "-")]
-        words += [f"{name.replace('_', ' ')} {value:g} s" for name, value in
-                  (("deadline", self.deadline), ("lifespan", self.lifespan), ("liveliness_lease", self.liveliness_lease))
-                  if value is not None]
+        durations = (("deadline", self.deadline), ("lifespan", self.lifespan),
+                     ("liveliness_lease", self.liveliness_lease))
+        words += [f"{name.replace('_', ' ')} {value:g} s" for name, value in durations if value is not None]
         return ", ".join(words)
 
 

@@ -21,11 +21,12 @@ for another network on an open domain is refused.
 a model without one), ``latch`` (``true``: transient-local; for a writer, also a buffer
 policy's ``init``), ``best_effort`` (``true``), ``deadline``, ``lifespan``,
 ``liveliness_lease`` (seconds), ``msgs`` (``.msg`` files named ``.../pkg/msg/Type.msg``,
-comma-separated), and ``domain``, ``insecure``, ``interface``, ``peers``. Conversion is planned and type-checked when the stream is made
-(:mod:`._convert`); a message that does not convert is refused and counted (the reader
-end's ``refuse``, or :attr:`~dataflow.transports.Stream.refused` for a value scart
-publishes), as is a value that fails the port's type or bounds (NaN, out of range):
-``scart describe`` names the last one under the port.
+comma-separated), and ``domain``, ``insecure``, ``interface``, ``peers``. Conversion is
+planned and type-checked when the stream is made (:mod:`._convert`); a message that does
+not convert is refused and counted (the reader end's ``refuse``, or
+:attr:`~dataflow.transports.Stream.refused` for a value scart publishes), as is a value
+that fails the port's type or bounds (out of range; NaN and inf only for a port asking
+``finite=True``): ``scart describe`` names the last one under the port.
 
 **QoS** from the stream's policy, rclpy's defaults unless asked otherwise: DATA →
 keep-last 10 (rclpy's depth); BUFFER(n) and CIRCULAR_BUFFER(n) → keep-last n (at most

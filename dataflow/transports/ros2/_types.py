@@ -71,7 +71,8 @@ STANDARD_SERVICES = MappingProxyType({
                                         "rcl_interfaces/msg/SetParametersResult[] results\n",
     "rcl_interfaces/srv/ListParameters": "uint64 DEPTH_RECURSIVE=0\nstring[] prefixes\nuint64 depth\n---\n"
                                          "rcl_interfaces/msg/ListParametersResult result\n",
-    "rcl_interfaces/srv/DescribeParameters": "string[] names\n---\nrcl_interfaces/msg/ParameterDescriptor[] descriptors\n",
+    "rcl_interfaces/srv/DescribeParameters": "string[] names\n---\n"
+                                             "rcl_interfaces/msg/ParameterDescriptor[] descriptors\n",
     "rcl_interfaces/srv/GetParameterTypes": "string[] names\n---\nuint8[] types\n",
 })
 #: rmw_cyclonedds' cdds_request_header_t {uint64 guid; int64 seq}, as IDL members whose
