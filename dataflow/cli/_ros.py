@@ -14,7 +14,8 @@ import sys
 from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["add_arguments", "apply", "attach", "call", "detach", "exit_on_shutdown", "split_params", "split_remaps"]
+__all__ = ["add_arguments", "apply", "attach", "call", "detach", "exit_on_shutdown", "hold", "split_params",
+           "split_remaps", "unhold"]
 
 #: A launch-time parameter, as on a ROS command line: ``_TASK/PROPERTY:=VALUE`` (YAML).
 PARAM = re.compile(r"_([A-Za-z][\w/]*):=(.*)\Z", re.S)
@@ -154,14 +155,29 @@ def _transport(name: str) -> Any:
 
 
 def attach(deployer: Any) -> None:
-    """Make this process's ROS nodes (ROS 1: when there is one, or it was told to be one;
-    ROS 2: when a stream or service makes one) speak for ``deployer``'s tasks: their
-    properties its parameters, its log on /rosout. Raises ``ValueError`` (a launch-time
-    parameter refused) or the transport's error (no ROS 1 node could be made)."""
+    """Make this process's ROS nodes (now, or when a stream, a service or :func:`hold`
+    makes one) speak for ``deployer``'s tasks: their properties its parameters, its log on
+    /rosout. Raises ``ValueError`` (a launch-time parameter refused)."""
     for name in ("ros1", "ros2"):
         transport = _transport(name)
         if hasattr(transport, "attach"):
             transport.attach(deployer)
+
+
+def hold() -> None:
+    """Make this process's ROS 1 node now, when the process was told it is a ROS node
+    (``--ros-*`` options, launch-time parameters), and keep it until :func:`unhold`. Call
+    once everything of the process's own has started. Raises the transport's error."""
+    hold = getattr(_transport("ros1"), "hold", None)
+    if hold is not None:
+        hold()
+
+
+def unhold() -> None:
+    """Undo :func:`hold` (idempotent)."""
+    unhold = getattr(_transport("ros1"), "unhold", None)
+    if unhold is not None:
+        unhold()
 
 
 def detach(deployer: Any) -> None:

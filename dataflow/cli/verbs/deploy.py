@@ -237,6 +237,10 @@ class _Hosted:
             raise _Failed(f"--connect: {exc}") from None
         if self.zenoh_session is not None:
             self._publish()
+        try:
+            ros_args.hold()  # told it is a ROS node (--ros-*, _TASK/PROP:=VALUE): its node now
+        except DataflowError as exc:
+            raise _Failed(str(exc)) from None
 
     def _publish(self) -> None:
         try:
@@ -273,6 +277,7 @@ class _Hosted:
         self.deployer.stop_all()
         self.deployer.cleanup_all()
         ros_args.detach(self.deployer)
+        ros_args.unhold()
 
 
 def _open_ros2() -> None:

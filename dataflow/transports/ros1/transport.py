@@ -182,28 +182,39 @@ class Ros1Transport(Transport):
     def attach(self, deployer: Any) -> None:
         """Let this process's node speak for ``deployer``'s tasks (:mod:`.citizen`: their
         properties are its parameters), now or when it is made. The launch-time parameters
-        are set on its tasks now (``ValueError`` naming one refused); a process told it is
-        a ROS node (:meth:`configure`) makes its node now (:class:`TransportError` when it
-        cannot), held until :meth:`detach`."""
+        are set on its tasks now (``ValueError`` naming one refused)."""
         from .citizen import apply_launch_params
 
         with self._lock:
-            params, told = dict(self._launch_params), self._told
+            params = dict(self._launch_params)
         apply_launch_params(deployer.tasks(), params)
         with self._lock:
             self._deployers.append(deployer)
             node = self._node
-        if told:
-            self._held.append(self.acquire({}))
-        elif node is not None:
+        if node is not None:
             self._become_citizen(node)
 
     def detach(self, deployer: Any) -> None:
-        """Undo :meth:`attach` (idempotent): the node made for it goes with its last user."""
+        """Undo :meth:`attach` (idempotent)."""
         with self._lock:
-            if deployer not in self._deployers:
+            if deployer in self._deployers:
+                self._deployers.remove(deployer)
+
+    def hold(self) -> None:
+        """When the process was told it is a ROS node (:meth:`configure`), make its node
+        now if no stream or service has (:class:`TransportError` when it cannot), and hold
+        it until :meth:`unhold`: a ``scart run`` or ``scart deploy`` once everything of
+        its own has started (a composite's streams may name the node)."""
+        with self._lock:
+            if not self._told or self._held:
                 return
-            self._deployers.remove(deployer)
+        node = self.acquire({})
+        with self._lock:
+            self._held.append(node)
+
+    def unhold(self) -> None:
+        """Undo :meth:`hold` (idempotent): the node goes with its last user."""
+        with self._lock:
             held = self._held.pop() if self._held else None
         if held is not None:
             self.release(held)

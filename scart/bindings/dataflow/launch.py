@@ -205,9 +205,15 @@ class DataflowLaunched(Launched):
         self.foxglove: Any = None
 
     def start(self) -> None:
-        """Register the services endpoint (never raises), then serve Foxglove."""
+        """Register the services endpoint (never raises), make the ROS node a process told
+        it is one has, then serve Foxglove."""
         if self.announcement is not None:
             self.announcement.start()
+        try:
+            ros_args.hold()  # once the composite's own streams made theirs (they may name it)
+        except Exception as exc:  # noqa: BLE001 - no node could be made: said, all stopped
+            self.stop()
+            raise ScartError(f"--ros-*: {exc}") from None
         spec = self.own.foxglove
         if spec is None:
             return
@@ -222,6 +228,7 @@ class DataflowLaunched(Launched):
         foxglove, self.foxglove = self.foxglove, None
         if foxglove is not None:
             foxglove.stop()
+        ros_args.unhold()
         if self.announcement is not None:
             self.announcement.stop()
 

@@ -194,3 +194,32 @@ def test_a_read_only_node_publishes_and_takes_nothing_from_ros(ros: RosMaster) -
     finally:
         said = stop(proc)
     assert "refused (read-only)" in said, said
+
+
+RESPAWNING = """<?xml version="1.0" encoding="UTF-8"?>
+<composite xmlns="http://docs.oasis-open.org/ns/opencsa/sca/200912" xmlns:scart="urn:scart:1.0"
+           targetNamespace="urn:scart:test" name="Respawning">
+    <component name="gauge">
+        <scart:implementation.task class="support.ros1_tasks:Gauge" period="0.05"/>
+    </component>
+    <scart:stream port="gauge.count" transport="ros1" topic="/phoenix/count" node="phoenix" respawn="true"/>
+</composite>
+"""
+
+
+def test_a_composite_whose_node_respawns_registers_again_after_rosnode_kill(ros: RosMaster, tmp_path: Path) -> None:
+    composite = tmp_path / "respawning.composite"
+    composite.write_text(RESPAWNING)
+    proc = subprocess.Popen([sys.executable, "-m", "scart", "run", str(composite), "--ns", f"127.0.0.1:{free_port()}",
+                             "--ros-master", ros.uri], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=subprocess_env())
+    try:
+        wait_until(lambda: "/phoenix" in nodes(ros), timeout=30, message="the composite's node never registered")
+        killed = ros.tool("rosnode", "kill", "/phoenix")
+        assert killed.returncode == 0, killed.stderr
+        wait_until(lambda: " * /phoenix/count [std_msgs/Int64]" in ros.tool("rosnode", "info", "/phoenix").stdout,
+                   timeout=20, message="the node never registered again")
+        assert proc.poll() is None  # it lives on
+    finally:
+        said = stop(proc)
+    assert "it restarts (respawn)" in said and "restarted, registered again" in said, said
