@@ -7,8 +7,9 @@
 Installing it makes the root logger's level INFO when it was Python's default (WARNING),
 as ROS publishes INFO and above, and keeps the standard error as it was: Python's
 last-resort handler (WARNING and above) is added to a root logger that had no handler.
-:meth:`RosLog.close` undoes both. A record logged while one is being published is
-dropped (no loop); ``publish`` must never block.
+:meth:`RosLog.close` undoes both (the last one, when a process has both ROS nodes). A
+record logged while one is being published is dropped (no loop); ``publish`` must never
+block.
 """
 
 from __future__ import annotations
@@ -82,12 +83,18 @@ class RosLog(logging.Handler):
             self._busy.on = False
 
     def close(self) -> None:
-        """Leave the root logger as it was found (idempotent)."""
+        """Leave the root logger as it was found (idempotent); with another :class:`RosLog`
+        still on it (a process with ROS 1 and ROS 2 nodes), that one will."""
         root = logging.getLogger()
         if self in root.handlers:
             root.removeHandler(self)
-            if self._last_resort is not None:
-                root.removeHandler(self._last_resort)
-            if self._raised and root.level == logging.INFO:
-                root.setLevel(logging.WARNING)
+            heir = next((h for h in root.handlers if isinstance(h, RosLog)), None)
+            if heir is not None:
+                heir._raised = heir._raised or self._raised
+                heir._last_resort = heir._last_resort or self._last_resort
+            else:
+                if self._last_resort is not None:
+                    root.removeHandler(self._last_resort)
+                if self._raised and root.level == logging.INFO:
+                    root.setLevel(logging.WARNING)
         super().close()
