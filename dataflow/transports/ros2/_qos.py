@@ -75,7 +75,8 @@ class QoS:
 
     @classmethod
     def data(cls, *, best_effort: bool = False, latching: bool = False) -> QoS:
-        """The last value only: keep-last 1 (scart's DATA policy)."""
+        """The last value only: keep-last 1 (a stream of scart's DATA policy is keep-last 10,
+        rclpy's default depth: :func:`~._transport.qos_of`)."""
         return cls(1, _reliability(best_effort), _durability(latching))
 
     @classmethod
