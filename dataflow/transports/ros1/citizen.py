@@ -4,9 +4,9 @@ nothing of tasks).
 
 **Parameters.** Each task's properties are the node's private parameters, one namespace
 per task: property ``max_velocity`` of task ``youBotDriver`` of node ``/youbot`` is
-``/youbot/youBotDriver/max_velocity``. When the node is made, a value the parameter
-server holds there already (a launch file's ``<param>``) is taken, through the
-property's own check; then every property is set there. ``rosparam set`` reaches the
+``/youbot/youBotDriver/max_velocity``. When the node is made, every property is set
+there (the tasks' values win over what an earlier run left: a launch-time value is
+``_TASK/PROP:=VALUE``, :func:`apply_launch_params`). ``rosparam set`` reaches the
 task through the property's check (type, bounds, read-only): a refused value is logged
 with the reason (so ``/rosout`` says it) and the parameter set back to the property's
 value, which it keeps. A property changed otherwise (``scart prop set``, the task
@@ -128,8 +128,8 @@ class Citizen:
         return [task for deployer in self._deployers() for task in deployer.tasks()]
 
     def start(self) -> None:
-        """Subscribe to the node's private namespace (its value taken, then every property
-        set, and again after a master restart) and to ``/use_sim_time``. Never blocks."""
+        """Subscribe to the node's private namespace (then every property is set there, and
+        again after a master restart) and to ``/use_sim_time``. Never blocks."""
         from .rosout import Rosout
 
         try:
@@ -198,11 +198,12 @@ class Citizen:
         """A parameter under the namespace changed (or the namespace's whole value came)."""
         if self._closed:
             return
-        if isinstance(value, dict):  # a namespace: its leaves, then everything set again
-            for sub, item in value.items():
-                self._update(f"{key.rstrip('/')}/{sub}", item)
-            if key.rstrip("/") == self.namespace:
+        if isinstance(value, dict):
+            if key.rstrip("/") == self.namespace:  # the node's start, or a new master: the tasks' values win
                 self._publish(force=True)
+                return
+            for sub, item in value.items():  # a task's namespace set at once: its leaves
+                self._update(f"{key.rstrip('/')}/{sub}", item)
             return
         target = self._params().get(key)
         if target is None:

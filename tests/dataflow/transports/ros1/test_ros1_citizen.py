@@ -71,11 +71,11 @@ def rosparam(ros: RosMaster, *args: str) -> str:
 
 
 def test_task_properties_are_the_nodes_parameters(ros: RosMaster) -> None:
+    key = "/params/gauge/ceiling"
+    rosparam(ros, "set", key, "7.0")  # what an earlier run left: the task's value wins
     proc, ns = deploy(ros, "params", "_gauge/ceiling:=0.5")
     try:
-        key = "/params/gauge/ceiling"
-        wait_until(lambda: key in rosparam(ros, "list").split(), timeout=20)
-        assert rosparam(ros, "get", key) == "0.5"  # the launch-time value, through the property's check
+        wait_until(lambda: rosparam(ros, "get", key) == "0.5", timeout=20)  # the launch-time value, checked
         assert rosparam(ros, "get", "/params/gauge/note") == "''"
         rosparam(ros, "set", key, "2.5")
         wait_until(lambda: scart("prop", "get", "gauge", "ceiling", ns=ns).stdout.strip() == "2.5", timeout=10)
