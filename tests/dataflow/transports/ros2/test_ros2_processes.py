@@ -101,10 +101,11 @@ def test_a_deployed_node_is_named_in_the_graph_serves_its_parameters_and_logs(on
                            "--ros-name", "pinger_node", "--ros-namespace", "/robot"])
     try:
         assert scart("stream", "pinger.output", f"ros2:{topic}/out", "--ns", ns, domain=on_domain).returncode == 0
-        while not any(n["name"] == "pinger_node" and len(n["writers"]) >= 2  # the stream's and /rosout's
-                      for n in graph.next_event("participant")["nodes"]):
-            pass  # (bounded by next_event's deadline) ros_discovery_info, as rmw_dds_common writes it
-        assert next(n for n in graph.events[-1]["nodes"] if n["name"] == "pinger_node")["namespace"] == "/robot"
+        for _ in range(500):  # ros_discovery_info as rmw_dds_common writes it (each event within a deadline)
+            nodes = graph.next_event("participant")["nodes"]
+            if any(n["name"] == "pinger_node" and len(n["writers"]) >= 2 for n in nodes):  # the stream's, /rosout's
+                break
+        assert next(n for n in nodes if n["name"] == "pinger_node")["namespace"] == "/robot"
         with Participant(on_domain) as ros:
             logged: list = []
             ros.subscribe("/rosout", "rcl_interfaces/msg/Log", logged.append,
