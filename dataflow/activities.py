@@ -9,7 +9,8 @@
   cycles at absolute deadlines ``t0 + k*period`` (no drift); a cycle that ends after its
   next deadline counts one overrun and the missed deadlines are skipped (no burst of
   catch-up cycles). ``period`` is writable while running (takes effect from the cycle
-  in progress). ``trigger()`` is refused (False), as in RTT.
+  in progress). ``trigger()`` is refused (False), as in RTT. Periods pass on the task's
+  clock (``task.clock``, :mod:`dataflow.clock`): the system's, or a simulation's.
 * :class:`SlaveActivity`: no thread; its owner calls ``step()`` (or ``task.update()``);
   deterministic tests use it.
 
@@ -33,6 +34,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any
 
+from dataflow.clock import WALL, Clock
 from dataflow.threads import Wake
 
 if TYPE_CHECKING:
@@ -303,8 +305,13 @@ class PeriodicActivity(_ThreadedActivity):
         fit_switch_interval(self._period)
         return True
 
+    def _clock(self) -> Clock:
+        task = self.task
+        return task.clock if task is not None else WALL
+
     def _loop(self, run: _Run) -> None:
-        clock = time.monotonic
+        source = self._clock()
+        clock = source.monotonic
         wake = run.wake
         start = clock()
         deadline = start
@@ -313,7 +320,13 @@ class PeriodicActivity(_ThreadedActivity):
             if run.stopping:
                 return
             self._process_ops()
+            if self._clock() is not source:  # the deployer's clock changed (sim time on or off)
+                source = self._clock()
+                clock = source.monotonic
+                start = deadline = clock()
             now = clock()
+            if now < start:  # a simulated time went back (a bag played again): start over from there
+                start = deadline = now
             if self._period_changed:
                 self._period_changed = False
                 deadline = start + self._period
@@ -328,7 +341,7 @@ class PeriodicActivity(_ThreadedActivity):
                     missed = int((now - deadline) / period) + 1
                     deadline += missed * period
                 continue
-            wake.wait(deadline - now)
+            source.wait(wake, deadline)
 
 
 #: The shortest switch interval :func:`fit_switch_interval` sets (s): shorter costs every

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from scart_wire.defaults import DEFAULT_LEASE
 from scart_wire.security import Security
 
+from .clock import WALL, Clock
 from .errors import DeploymentError, NotFoundError
 from .introspection import LinkDescription
 from .policy import ConnPolicy
@@ -117,6 +118,7 @@ class Deployer:
         self._link_names: dict[tuple[str, str], str] = {}  # ("a.out", "b.in") -> name given
         self._link_lock = threading.RLock()  # links are checked, made and named as one step
         self._streams: dict[str, Any] = {}  # name -> a stream (anything with describe() -> LinkDescription)
+        self._clock: Clock = WALL
         self._frames: FrameBuffer | None = None
 
     @property
@@ -138,13 +140,31 @@ class Deployer:
                 task.frames = buffer
 
     def add(self, task: TaskContext) -> TaskContext:
-        """Add ``task``; returns it. Raises ``DeploymentError`` if its name is taken."""
+        """Add ``task`` (it takes this deployer's clock); returns it. Raises
+        ``DeploymentError`` if its name is taken."""
         with self._lock:
             if task.name in self._tasks:
                 raise DeploymentError(f"a task named {task.name!r} is already deployed")
             self._tasks[task.name] = task
             task._tc_frames_from = lambda: self.frames
+            if self._clock is not WALL:
+                task.clock = self._clock
         return task
+
+    @property
+    def clock(self) -> Clock:
+        """The time every task of this deployer lives in (:mod:`dataflow.clock`)."""
+        return self._clock
+
+    def use_clock(self, clock: Clock) -> None:
+        """Make ``clock`` the time of every task here, and of those added later (ROS's
+        ``use_sim_time``: a :class:`~dataflow.clock.SimClock`); running periodic tasks
+        follow it at their next wake-up. Thread-safe."""
+        with self._lock:
+            self._clock = clock
+            tasks = list(self._tasks.values())
+        for task in tasks:
+            task.clock = clock
 
     def task(self, name: str) -> TaskContext:
         """The task called ``name``; raises ``NotFoundError`` listing the deployed names."""

@@ -61,6 +61,7 @@ that raises is logged and never disturbs the writer.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import logging
 import threading
@@ -448,6 +449,9 @@ class InputPort(Port[T]):
         super().__init__(type, name, doc)
         self.event = event
         self.bounds: Bounds | None = Bounds.of(type, ge, gt, le, lt, finite)
+        #: ``finite=True`` was asked for (not only the default): NaN is refused even from
+        #: a transport whose messages may carry it (ROS: :meth:`admit`'s ``nan_ok``).
+        self.asks_finite = finite is True
         self.check = check
         #: What ``check`` checks, in words (its docstring's first line; "" without a check).
         self.check_text = _described(check)
@@ -459,7 +463,7 @@ class InputPort(Port[T]):
 
     def _clone(self) -> InputPort[T]:
         port: InputPort[T] = InputPort(self.type, self.name, self.doc, self.event, check=self.check)
-        port.bounds = self.bounds
+        port.bounds, port.asks_finite = self.bounds, self.asks_finite
         port.attr = self.attr
         return port
 
@@ -485,11 +489,13 @@ class InputPort(Port[T]):
             _rebuild_readers(conn.storage)
         conn.storage.clear()  # unread samples: counted as dropped by the storage
 
-    def admit(self, value: Any) -> Any:
+    def admit(self, value: Any, nan_ok: bool = False) -> Any:
         """``value`` checked against the port's bounds and ``check`` (a value written from
         outside); raises :class:`~dataflow.errors.PortValueError` naming the port, the
-        value and why (its bounds, or the task's reason)."""
-        value = self._within_bounds(value)
+        value and why (its bounds, or the task's reason). ``nan_ok``: NaN and inf are
+        legal values where they came from (a ROS message's float fields), so only a port
+        that asked for ``finite=True`` refuses them (its limits still hold)."""
+        value = self._within_bounds(value, nan_ok and not self.asks_finite)
         if self.check is not None:
             try:
                 self.check(value)
@@ -497,8 +503,11 @@ class InputPort(Port[T]):
                 raise PortValueError(f"{self.qualname}: rejected {value!r:.80}: {exc}") from None
         return value
 
-    def _within_bounds(self, value: Any) -> Any:
+    def _within_bounds(self, value: Any, nan_ok: bool = False) -> Any:
         bounds = self.bounds
+        if nan_ok and bounds is not None:
+            limited = any(v is not None for v in (bounds.ge, bounds.gt, bounds.le, bounds.lt))
+            bounds = dataclasses.replace(bounds, finite=False) if limited else None
         if bounds is None:
             return value
         kind = type(value)

@@ -53,6 +53,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from .activities import Activity, EventActivity
+from .clock import WALL, Clock
 from .errors import NotFoundError
 from .introspection import (
     OperationDescription,
@@ -104,6 +105,9 @@ class TaskContext:
     _port_templates: dict[str, Port[Any]] = {}
     _property_decls: dict[str, Property[Any]] = {}
     _operation_attrs: dict[str, str] = {}
+    #: The time this task lives in (:mod:`dataflow.clock`): the system's unless its deployer
+    #: follows a simulation's (:meth:`Deployer.use_clock`); its periodic activity counts on it.
+    clock: Clock = WALL
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

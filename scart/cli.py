@@ -89,7 +89,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     word = args_list[0] if args_list and not args_list[0].startswith("-") else None
     parser = build_parser(only=word)
     try:
-        args = parser.parse_args(args_list)  # --help prints too
+        args, extras = parser.parse_known_args(args_list)  # --help prints too
+        take = getattr(args, "take_extras", None)  # a verb may take trailing words (ROS's _param:=value)
+        if extras and (take is None or take(args, extras)):
+            parser.parse_args(args_list)  # says what is unrecognised, exits 2
         func = getattr(args, "func", None)
         if func is None:
             parser.print_help(sys.stderr)

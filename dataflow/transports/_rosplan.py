@@ -30,8 +30,9 @@ if TYPE_CHECKING:
     from dataflow.transports.ends import ReaderEnd
 
 __all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
-           "flag", "is_mapping", "is_model", "is_open", "item_type", "match_params", "model_fields", "operation_call",
-           "operation_signature", "receiver", "resolve_converter", "signature_of", "stream_problems", "type_label",
+           "flag", "is_mapping", "is_model", "is_open", "item_type", "latched", "match_params", "model_fields",
+           "operation_call", "operation_signature", "receiver", "resolve_converter", "signature_of", "stamper",
+           "stream_problems", "type_label",
            "unwrap", "usable"]
 
 _C = TypeVar("_C")
@@ -287,6 +288,18 @@ def flag(options: Mapping[str, str], key: str) -> bool:
     raise ValueError(f"option {key}={options[key]!r}: expected true or false")
 
 
+def latched(options: Mapping[str, str], policy: Any) -> bool:
+    """Whether a ROS stream's publisher latches (ROS 1 latch, ROS 2 transient-local): only
+    when asked, as in ROS — the ``latch`` option, or a buffer policy given ``init`` (DATA's
+    own ``init``, its default, is not asking: a restarting subscriber must not get a
+    stale command)."""
+    from dataflow.policy import ConnType
+
+    if "latch" in options:
+        return flag(options, "latch")
+    return bool(policy is not None and policy.init and policy.type is not ConnType.DATA)
+
+
 def stream_problems(transport: str, port: Any, problems: list[ConversionProblem]) -> list[StreamProblem]:
     """A stream's conversion problems as the stream problems ``scart validate`` shows,
     each naming the transport and the port."""
@@ -321,6 +334,18 @@ def receiver(end: ReaderEnd, convert: Callable[[Any], Any], label: str) -> Calla
         end.receive(count[0], time.time_ns(), value)
 
     return on_message
+
+
+def stamper(port: Any) -> Callable[[int], int]:
+    """``wall_ns -> stamp``: what a ROS message's stamp is for a sample ``port`` wrote at
+    ``wall_ns``, on its task's clock (a simulation's, with ``use_sim_time``), read at
+    each sample (:mod:`dataflow.clock`)."""
+    from dataflow.clock import WALL
+
+    task = getattr(port, "task", None)
+    if task is None:
+        return WALL.stamp
+    return lambda wall_ns: task.clock.stamp(wall_ns)
 
 
 class RefusingCarrier:

@@ -39,10 +39,11 @@ class Refused(DataflowError):
     """The sink refuses a link (no such input port, another type, out of room)."""
 
 
-def port_check(port: InputPort) -> Callable[[Any], Any]:
+def port_check(port: InputPort, nan_ok: bool = False) -> Callable[[Any], Any]:
     """The one check of a sample from outside into ``port``: decode (a ``Value``; a
-    transport that converts types gives a Python value), the port's type, its bounds.
-    Raises what refuses the sample."""
+    transport that converts types gives a Python value), the port's type, its bounds
+    (``nan_ok``: NaN and inf are legal where the sample comes from, ROS, so only a port
+    that asked for ``finite=True`` refuses them). Raises what refuses the sample."""
     py_type = port.type
     admit = port.admit
 
@@ -50,7 +51,7 @@ def port_check(port: InputPort) -> Callable[[Any], Any]:
         value = codec.decode(msg) if isinstance(msg, codec.Value) else msg  # a converting transport's value
         if type(value) is not py_type:
             value = registry.validate(py_type, value)
-        return admit(value)
+        return admit(value, nan_ok)
 
     return check
 

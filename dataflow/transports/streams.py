@@ -44,7 +44,7 @@ class PortStream:
         label = f"stream {name}"
         if port.is_input:
             self._connection = conn = port.open_channel(policy, peer=f"{policy.transport}:{policy.topic}")
-            self.reader = ReaderEnd(label, port_check(port), conn.store,
+            self.reader = ReaderEnd(label, port_check(port, nan_ok=self.transport.converts), conn.store,
                                     lambda: conn.dropped, port=port, policy=policy)
             self.reader.storage = conn.storage
             end: Any = self.reader

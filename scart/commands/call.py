@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from dataflow.cli import _ros as ros_args
     from dataflow.cli import _yarp as yarp_args
 
-    ros_args.add_arguments(parser)
+    ros_args.add_arguments(parser, calls=True)
     yarp_args.add_arguments(parser)
     add_common(parser)
 

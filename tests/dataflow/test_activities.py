@@ -246,3 +246,24 @@ def test_a_wake_set_from_many_threads_wakes_its_waiter_and_none_is_lost():
         wake.set()
     thread.join(10)
     assert not thread.is_alive() and len(woken) == rounds
+
+
+def test_a_periodic_task_counts_its_periods_on_its_deployers_clock() -> None:
+    from dataflow import Deployer
+    from dataflow.clock import WALL, SimClock
+
+    clock = SimClock()
+    with Deployer() as deployer:
+        task = deployer.add(Counter("simulated"))
+        assert task.set_activity(PeriodicActivity(0.1))
+        deployer.use_clock(clock)
+        assert task.clock is clock and deployer.add(Counter("later")).clock is clock
+        clock.set(5_000_000_000)  # the simulation is at 5 s
+        assert task.configure() and task.start()
+        wait_until(lambda: task.n == 1, timeout=5)  # the first cycle at once
+        for step in range(1, 21):  # 2 simulated seconds, 50 ms a step, however fast the wall clock goes
+            clock.set(5_001_000_000 + step * 50_000_000)  # (1 ms past: no deadline falls on a step)
+            wait_until(lambda: task.n == 1 + step // 2, timeout=5, message=f"step {step}: {task.n} cycles")
+        assert task.activity.overruns == 0
+        deployer.use_clock(WALL)  # sim time off: the system's clock again, at its next wake-up
+        wait_until(lambda: task.n >= 23, timeout=5)

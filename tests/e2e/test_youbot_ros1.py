@@ -75,3 +75,23 @@ def test_joint_states_period_and_pose_through_ros_tools(demo: tuple[Demo, RosMas
     assert json.loads(_scart(running.ns, "call", "ros1:/youbot/reset", "--ros-master", ros.uri)) == {}
     described = _scart(running.ns, "describe", "youBotDriver")
     assert "ros1:/youbot/pose (std_msgs/Float64MultiArray), connected, UNAUTHENTICATED" in described
+
+
+def test_a_named_remapped_node_with_launch_parameters_ends_on_rosnode_kill(tmp_path: Path) -> None:
+    with rosmaster(tmp_path) as ros:
+        running = Demo("youbot-ros1.composite", ns_address(), "--ros-master", ros.uri, "--ros-name", "youbot",
+                       "--remap", "/joint_states:=/js", "_youBotDriver/max_velocity:=0.5")
+        try:
+            running.wait_line("scart: started", 60)
+            echo = ros.tool("rostopic", "echo", "-n", "1", "/js", timeout=60)  # /joint_states, remapped at launch
+            assert echo.returncode == 0 and "arm_joint_1" in echo.stdout, echo.stderr
+            wait_until(lambda: ros.tool("rosparam", "get", "/youbot/youBotDriver/max_velocity").stdout.strip()
+                       == "0.5", timeout=20, message="the launch-time parameter never reached the server")
+            killed = ros.tool("rosnode", "kill", "/youbot")
+            assert killed.returncode == 0, killed.stderr
+            assert running.proc.wait(30) == 0
+        finally:
+            code = running.stop()
+        out = running.output()
+        assert code == 0 and "scart: the ROS node /youbot was shut down by /rosnode (user request): stopping" in out
+        assert "scart: stopped" in out and "Traceback" not in out

@@ -7,7 +7,7 @@ import threading
 
 from pydantic import BaseModel
 
-from dataflow import FlowStatus, InputPort, OutputPort, TaskContext, operation, register_type
+from dataflow import FlowStatus, InputPort, OutputPort, Property, TaskContext, operation, register_type
 
 
 @register_type("RosTestPoint")
@@ -19,14 +19,27 @@ class Point(BaseModel):
     z: float = 0.0
 
 
+@register_type("RosTestHeat")
+class Heat(BaseModel):
+    """The fields of a sensor_msgs/Temperature but its header (stamped by the stream)."""
+
+    temperature: float = 0.0
+    variance: float = 0.0
+
+
 class Gauge(TaskContext):
     """A bounded input (``level`` in [0, 1]), an int input, a counting output and a point
     output, and operations a ROS service can answer."""
 
     level = InputPort(float, ge=0.0, le=1.0, doc="a level in [0, 1]")
     number = InputPort(int, doc="any int64")
+    pose = InputPort(Point, doc="any point, NaN and inf included (ROS's floats)")
+    strict = InputPort(float, finite=True, doc="a finite number: asks for it")
     count = OutputPort(int, doc="the cycle number")
     point = OutputPort(Point, doc="a point moving along x")
+    heat = OutputPort(Heat, doc="the cycle number as a temperature")
+    ceiling = Property(float, 1.0, doc="a bounded number (a ROS parameter)", ge=0.0, le=10.0)
+    note = Property(str, "", doc="free text (a ROS parameter)")
 
     def __init__(self, name: str = "gauge") -> None:
         super().__init__(name)
@@ -35,6 +48,11 @@ class Gauge(TaskContext):
         self.levels: list[float] = []
         self.numbers: list[int] = []
         self.loggers: list[tuple[str, str]] = []
+
+    @operation
+    def cycle_count(self) -> int:
+        """The cycles run so far."""
+        return self.cycles
 
     @operation
     def seen(self) -> list[float]:
@@ -61,6 +79,7 @@ class Gauge(TaskContext):
         self.cycles += 1
         self.count.write(self.cycles)
         self.point.write(Point(x=self.cycles * 0.5, y=1.0, z=-2.0))
+        self.heat.write(Heat(temperature=float(self.cycles)))
 
     def drain(self) -> None:
         """Read what waits on the inputs (the hook does; a test without an activity may)."""

@@ -42,7 +42,8 @@ HELP = "host data-flow tasks in a served Deployer until Ctrl-C"
 def add_arguments(deploy: argparse.ArgumentParser) -> None:
     """The classes to host and how to serve them."""
     deploy.add_argument("classes", nargs="+", metavar="pkg.mod:Class[@name]",
-                        help="TaskContext classes to host (the current folder is on the import path, as for python -m)")
+                        help="TaskContext classes to host (the current folder is on the import path, as for python "
+                             "-m); also _TASK/PROPERTY:=VALUE, a task's property set at launch as a ROS parameter")
     deploy.add_argument("--name", default=None, help="task name (one class only; default: the class's own)")
     deploy.add_argument("--period", type=float, default=None, help="run each task periodically (s)")
     deploy.add_argument("--listen", default=None, help="HOST:PORT to serve on (default: see above)")
@@ -63,6 +64,7 @@ def add_arguments(deploy: argparse.ArgumentParser) -> None:
                                      "the tasks with liveliness tokens")
     ros_args.add_arguments(deploy)
     yarp_args.add_arguments(deploy)
+    ros_args.take_params(deploy, "classes")
     add_arguments_security(deploy, server=True)
 
 
@@ -148,7 +150,11 @@ def cmd_deploy(args: argparse.Namespace) -> int:
 
     try:
         security = from_args(args)
-        ros_args.apply(args)
+        args.classes, params = ros_args.split_params(args.classes)
+        if not args.classes:
+            raise ValueError("no TaskContext class to host (pkg.mod:Class)")
+        ros_args.apply(args, params)
+        ros_args.exit_on_shutdown("scart deploy")
         yarp_args.apply(args)
         ns, listen = _where(args, security)
     except (DataflowError, ValueError) as exc:
@@ -224,6 +230,7 @@ class _Hosted:
         try:
             for task in _make_tasks(args):
                 self.deployer.add(task)
+            ros_args.attach(self.deployer)  # launch-time parameters set; told so, the ROS node is made
             self.deployer.configure_all()
             if not args.no_start:
                 self.deployer.start_all()
@@ -237,6 +244,10 @@ class _Hosted:
             raise _Failed(f"--connect: {exc}") from None
         if self.zenoh_session is not None:
             self._publish()
+        try:
+            ros_args.hold()  # told it is a ROS node (--ros-*, _TASK/PROP:=VALUE): its node now
+        except DataflowError as exc:
+            raise _Failed(str(exc)) from None
 
     def _publish(self) -> None:
         try:
@@ -275,6 +286,8 @@ class _Hosted:
             self.server.stop()
         self.deployer.stop_all()
         self.deployer.cleanup_all()
+        ros_args.detach(self.deployer)
+        ros_args.unhold()
 
 
 def _open_ros2() -> None:

@@ -2,12 +2,14 @@
 
 The node library depends on the standard library, ``rosbags`` (message types and the ROS 1
 wire format) and numpy (rosbags' arrays) only, and knows nothing of scart's ports: its
-edges are bytes and rosbags message objects. Three modules make it scart's ``ros1``
+edges are bytes and rosbags message objects. Four modules make it scart's ``ros1``
 transport: :mod:`.transport` (:class:`~.transport.Ros1Transport`: streams joining ports to
 topics through one node per process), :mod:`.convert` (a port's type onto a message type:
-std_msgs wrappers, field names, converters; checked when planned) and :mod:`.calls`
+std_msgs wrappers, field names, converters; checked when planned), :mod:`.calls`
 (services both ways: task or SCA operations answering ROS services, ROS services called
-from scart). They are imported only when used.
+from scart) and :mod:`.citizen` (the tasks' properties as the node's parameters,
+``use_sim_time``, the log on ``/rosout`` through :mod:`.rosout`). They are imported only
+when used.
 
 The story — make a node, offer and use topics and services, close it::
 
@@ -25,9 +27,10 @@ The story — make a node, offer and use topics and services, close it::
 
 **Threads.** ``Node(...)`` starts, and :meth:`Node.close` ends (idempotent, from any
 thread): one *io* thread reading every TCPROS socket through a selector (subscriber
-callbacks run there: keep them short); one *XML-RPC* thread serving the node's Slave API;
-one *control* thread for blocking control-plane work (master calls, connecting to
-publishers); and, once a service is advertised, one *service* thread running handlers.
+callbacks run there: keep them short); one *XML-RPC* thread accepting calls to the node's
+Slave API and up to 8 serving them side by side (a slow client holds one); one *control*
+thread for blocking control-plane work (master calls, connecting to publishers); and,
+once a service is advertised, one *service* thread running handlers.
 ``publish()`` sends from the caller's thread when the socket takes the bytes, else queues
 them for the io thread; a slow subscriber's queue is bounded (oldest dropped, counted).
 
@@ -40,11 +43,20 @@ again. :meth:`Node.wait_registered` blocks until the master knows it all.
 **Names.** As rospy: global ``/a``, relative ``a`` (in the node's namespace), private
 ``~a``; remaps ``from:=to``, ``__name:=``, ``__ns:=`` (:mod:`.names`).
 
+**Parameters and lifecycle.** :meth:`Node.get_param`, :meth:`~Node.set_param` and
+:meth:`~Node.subscribe_param` (``paramUpdate``, kept subscribed across master restarts)
+use the master's parameter server. A peer's ``shutdown`` (``rosnode kill``) closes the
+node and calls its :meth:`~Node.add_shutdown_hook` hooks, as rospy's ``on_shutdown``; a
+``respawn`` node registers everything again instead; a ``read_only`` node publishes only
+(it neither subscribes nor serves, and refuses ``shutdown``).
+
 **Types.** :class:`MessageTypes`: rosbags' Noetic store, std_srvs' Empty/Trigger/SetBool,
 and ``.msg``/``.srv`` files or texts the user adds; md5sums and definitions as genmsg.
 
 **Robustness.** Peers are bounded (:class:`Limits`): header size and time, message size,
-connections, XML-RPC request size and time. Malformed headers, oversized messages,
+connections in all and from one address, XML-RPC request size and time; a service
+connection with no request, or a subscriber taking none of what waits for it, for
+``idle_seconds`` is closed. Malformed headers, oversized messages,
 stalled peers, md5sum mismatches, vanished peers and master retries are each counted in
 ``node.counters`` (and the publisher's, subscriber's or service's ``counters``), logged,
 and survived.

@@ -170,6 +170,7 @@ class ServedService:
                  returns: Any, *, converter: str = "", options: dict[str, str] | None = None,
                  label: str = "") -> None:
         self._transport = ros1_transport()
+        self._transport.refuse_input(f"serving the ROS service {service}")
         types: MessageTypes = self._transport.types
         problems = check_service(types, type_name, params, returns, converter)
         if problems:

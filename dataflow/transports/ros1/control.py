@@ -4,7 +4,7 @@
   them, a periodic *tick*. Blocking work lives here, never on the io thread: master
   calls, ``requestTopic`` to publishers, connecting to them.
 * :class:`Registrar` is the tick: it keeps what the node wants registered with the
-  master (publishers, subscribers, services) registered. While the master is down it
+  master (publishers, subscribers, services, parameter subscriptions) registered. While the master is down it
   waits, retrying with backoff (0.1 s doubling to 2 s), and logs that it waits — once,
   then every 30 s. When the master answers again, or polls show that it forgot the node
   (a new rosmaster), it registers everything again.
@@ -105,19 +105,21 @@ class Control:
             self._next_tick = min(self._next_tick, time.monotonic() + delay)
 
 
-Key = tuple[str, str]  # ("pub" | "sub" | "srv", name)
+Key = tuple[str, str]  # ("pub" | "sub" | "srv" | "param", name)
 
 
 class Registrar:
     """What the node wants registered, kept registered (runs on :class:`Control`).
 
-    ``on_publishers(topic, uris)`` receives each ``registerSubscriber`` answer.
+    ``on_publishers(topic, uris)`` receives each ``registerSubscriber`` answer,
+    ``on_param(key, value)`` each ``subscribeParam`` answer (kind ``param``).
     """
 
     def __init__(self, master: Master, caller_api: str, poll: float, counters: Counters,
-                 on_publishers: Callable[[str, list[str]], None]) -> None:
+                 on_publishers: Callable[[str, list[str]], None],
+                 on_param: Callable[[str, Any], None] | None = None) -> None:
         self.master, self.caller_api, self.poll = master, caller_api, poll
-        self.counters, self.on_publishers = counters, on_publishers
+        self.counters, self.on_publishers, self.on_param = counters, on_publishers, on_param
         self._cond = threading.Condition()
         self._desired: dict[Key, tuple[str, ...]] = {}
         self._registered: set[Key] = set()
@@ -161,10 +163,20 @@ class Registrar:
 
     def unregister_all(self, timeout: float) -> None:
         """Unregister everything once, without waiting for a master that is down (closing)."""
+        self._unregister_once(timeout, keep=False)
+
+    def reset(self, timeout: float) -> None:
+        """Unregister everything once (not waiting for a master that is down), keeping what
+        is wanted: the next :meth:`tick` registers it all again (a restart)."""
+        self._unregister_once(timeout, keep=True)
+
+    def _unregister_once(self, timeout: float, keep: bool) -> None:
         with self._cond:
             todo = {k: self._desired[k] for k in self._registered if k in self._desired} | self._stale
-            self._desired.clear()
+            if not keep:
+                self._desired.clear()
             self._registered.clear()
+            self._failed.clear()
             self._stale.clear()
         quick = Master(self.master.uri, self.master.caller_id, timeout)
         for key, args in todo.items():
@@ -211,6 +223,10 @@ class Registrar:
                 self.master.register_publisher(name, args[0], self.caller_api)
             elif kind == "sub":
                 self.on_publishers(name, self.master.register_subscriber(name, args[0], self.caller_api))
+            elif kind == "param":
+                value = self.master.subscribe_param(name, self.caller_api)
+                if self.on_param is not None:
+                    self.on_param(name, value)
             else:
                 self.master.register_service(name, args[0], self.caller_api)
         except MasterUnreachable:
@@ -232,6 +248,8 @@ class Registrar:
             master.unregister_publisher(name, self.caller_api)
         elif kind == "sub":
             master.unregister_subscriber(name, self.caller_api)
+        elif kind == "param":
+            master.unsubscribe_param(name, self.caller_api)
         else:
             master.unregister_service(name, args[0])
 

@@ -92,6 +92,10 @@ class IoLoop:
         """How many connections are open (or not yet closed) on this loop."""
         return len(self._owned)
 
+    def connections(self) -> list[Any]:
+        """The connections open now (the io thread's view)."""
+        return list(self._owned)
+
     def call_soon(self, fn: Callable[..., Any], *args: Any) -> None:
         """Run ``fn(*args)`` on the io thread (thread-safe; never blocks)."""
         self._calls.append((fn, args))
@@ -209,6 +213,11 @@ class Conn:
         self.closed = False
         self.reason = ""
         self.max_queue, self.max_queue_bytes = 1000, 64 << 20
+        #: how it may be idle (:meth:`idle_for`): "" never, "service" (no request for a
+        #: while), "subscriber" (a subscriber taking none of what waits for it)
+        self.idle_kind = ""
+        self.pending = 0  #: requests in hand (a service connection): not idle meanwhile
+        self._moved, self._still_since = -1, 0.0
         self.on_close: Callable[[Conn, str], None] | None = None
         self.stats = Counters("messages_sent", "bytes_sent", "dropped", "messages_received", "bytes_received")
         self._lock = threading.Lock()
@@ -315,6 +324,17 @@ class Conn:
     def _set_events(self) -> None:
         if not self.closed:
             self.loop.modify(self.sock, self, IN | OUT if self._writing else IN)
+
+    def idle_for(self, now: float) -> float:
+        """Seconds this connection has been idle in its :attr:`idle_kind`'s sense (0 when
+        it is not), measured between calls (the io thread's sweep calls it)."""
+        stats = self.stats
+        moved = stats["bytes_sent"] + stats["bytes_received"]
+        idle = (self.idle_kind == "service" and not self.pending) or (self.idle_kind == "subscriber" and self._writing)
+        if moved != self._moved or not idle:
+            self._moved, self._still_since = moved, now
+            return 0.0
+        return now - self._still_since
 
     def _fail_later(self, reason: str) -> None:
         self.loop.call_soon(self.close, reason)
@@ -462,6 +482,7 @@ class InboundConn(Conn):
         super().__init__(loop, sock, peer)
         self.max_header, self.route, self.counters = max_header, route, counters
         self.header: dict[str, str] | None = None
+        self.address = peer.rpartition(":")[0]  #: the peer's address (per-peer limits)
         self.on_data: Callable[[bytes], None] = self._header_data
         self._buf = b""
 

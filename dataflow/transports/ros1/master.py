@@ -129,6 +129,25 @@ class Master:
         """``[[topic, type], ...]`` of every topic the master knows."""
         return self._call("getTopicTypes")
 
+    # -- the parameter server ---------------------------------------------------------
+    def get_param(self, key: str) -> Any:
+        """The value at ``key`` (a namespace: a dict); :class:`MasterError` if unset."""
+        return self._call("getParam", key)
+
+    def set_param(self, key: str, value: Any) -> None:
+        """Set ``key`` (a dict sets a namespace); subscribers but this node are told."""
+        self._call("setParam", key, value)
+
+    def delete_param(self, key: str) -> None:
+        self._call("deleteParam", key)
+
+    def subscribe_param(self, key: str, caller_api: str) -> Any:
+        """Be told of ``key``'s changes (``paramUpdate``); returns its value now (``{}``: unset)."""
+        return self._call("subscribeParam", caller_api, key)
+
+    def unsubscribe_param(self, key: str, caller_api: str) -> int:
+        return int(self._call("unsubscribeParam", caller_api, key))
+
     def get_uri(self) -> str:
         return str(self._call("getUri"))
 

@@ -11,7 +11,9 @@ the response's md5 texts, as genmsg) and the two message types ``pkg/SrvRequest`
 Types come from rosbags' ROS 1 Noetic store, from std_srvs' ``Empty``, ``Trigger`` and
 ``SetBool``, roscpp's ``Empty``, ``GetLoggers`` and ``SetLoggerLevel`` (rosbags has no
 services), and from text or files the user adds
-(:meth:`MessageTypes.add_msg`, :meth:`~MessageTypes.add_srv`, :meth:`~MessageTypes.add_file`).
+(:meth:`MessageTypes.add_msg`, :meth:`~MessageTypes.add_srv`, :meth:`~MessageTypes.add_file`),
+and, for a type asked for and not known, from ``PKG/msg/Type.msg`` or ``PKG/srv/Type.srv``
+in a package found through ``ROS_PACKAGE_PATH``, as rospy finds them.
 A user type keeps its own text (comments too) in its definition; a store type's text is
 written from its fields. Numeric arrays are numpy arrays (rosbags' form);
 :meth:`MsgType.new` builds a message from keywords, lists and nested dicts included.
@@ -22,6 +24,7 @@ Thread-safe: types are registered under a lock; a :class:`MsgType` is immutable.
 from __future__ import annotations
 
 import hashlib
+import os
 import struct
 import threading
 from collections.abc import Iterable
@@ -36,6 +39,7 @@ from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typest
 __all__ = ["FieldDef", "MessageTypes", "MsgType", "SrvType", "TypeDefinitionError", "UnknownTypeError"]
 
 MAX_DEFINITION_BYTES = 1 << 20  #: a .msg/.srv text or file larger than this is refused
+MAX_ROOTS, MAX_DEPTH, MAX_VISITS = 64, 3, 20_000  #: bounds of the search through ROS_PACKAGE_PATH
 SEPARATOR = "=" * 80
 _BASE, _NAME, _ARRAY, _SEQUENCE = 1, 2, 3, 4  # rosbags' Nodetype values
 _ROS1_BUILTIN = MappingProxyType({"builtin_interfaces/msg/Time": "time", "builtin_interfaces/msg/Duration": "duration"})
@@ -193,7 +197,11 @@ class MessageTypes:
     loads rosbags' store (about 0.1 s); nodes may share one.
     """
 
-    def __init__(self, files: Iterable[str | Path] = ()) -> None:
+    def __init__(self, files: Iterable[str | Path] = (), package_path: str | None = None) -> None:
+        #: where unknown types are looked for (``ROS_PACKAGE_PATH`` unless given)
+        self.package_path = [Path(p) for p in (os.environ.get("ROS_PACKAGE_PATH", "") if package_path is None
+                                               else package_path).split(os.pathsep) if p][:MAX_ROOTS]
+        self._looked: set[str] = set()  # types looked for there already (found or not)
         self._store = get_typestore(Stores.ROS1_NOETIC)
         self._defs = _fielddefs(self._store)  # the store's own dict: register() updates it
         self._lock = threading.RLock()
@@ -320,16 +328,31 @@ class MessageTypes:
         with self._lock:
             found = self._srv_cache.get(key)
             if found is None:
-                if key not in self._srvs:
-                    raise UnknownTypeError(f"unknown ROS 1 service type {name!r} (add its .srv file)")
+                if key not in self._srvs and not self._look_up(pkg, typ, "srv"):
+                    raise UnknownTypeError(f"unknown ROS 1 service type {name!r} (add its .srv file, or its "
+                                           "package's folder to ROS_PACKAGE_PATH)")
                 req, resp = self._srvs[key]
                 md5sum = _md5(self._md5_text(req, {}) + self._md5_text(resp, {}))
                 found = SrvType(key, md5sum, self.msg(_ros1_name(req)), self.msg(_ros1_name(resp)))
                 self._srv_cache[key] = found
             return found
 
+    def _look_up(self, pkg: str, typ: str, kind: str) -> bool:
+        """Add ``pkg/typ`` from its ``.msg``/``.srv`` file found through the package path
+        (once per type); True when it was found and added."""
+        key = f"{pkg}/{kind}/{typ}"
+        if not self.package_path or key in self._looked:
+            return False
+        self._looked.add(key)
+        found = find_definition(self.package_path, pkg, typ, kind)
+        if found is None:
+            return False
+        self.add_file(found, pkg)
+        return True
+
     def _check_known(self, store_name: str, asked: str) -> None:
-        """Raise :class:`UnknownTypeError` if ``store_name`` or any type it uses is unknown."""
+        """Raise :class:`UnknownTypeError` if ``store_name`` or any type it uses is unknown
+        (after looking for it through the package path)."""
         todo, seen = [store_name], set()
         while todo:
             current = todo.pop()
@@ -337,8 +360,12 @@ class MessageTypes:
                 continue
             seen.add(current)
             if current not in self._defs:
+                pkg, _, typ = current.partition("/msg/")
+                self._look_up(pkg, typ, "msg")
+            if current not in self._defs:
                 what = "" if current == store_name else f" (used by {asked})"
-                raise UnknownTypeError(f"unknown ROS 1 message type {_ros1_name(current)!r}{what}: add its .msg file")
+                raise UnknownTypeError(f"unknown ROS 1 message type {_ros1_name(current)!r}{what}: add its .msg file, "
+                                       "or its package's folder to ROS_PACKAGE_PATH")
             todo.extend(self._deps(current))
 
     # -- genmsg's texts -------------------------------------------------------------------
@@ -403,6 +430,32 @@ class MessageTypes:
             if dep not in order:
                 order.append(dep)
                 self._all_deps(dep, order)
+
+
+def find_definition(roots: Iterable[Path], pkg: str, typ: str, kind: str) -> Path | None:
+    """``PKG/KIND/TYPE.KIND`` under one of ``roots`` (``ROS_PACKAGE_PATH``'s folders): a root
+    that is the package, a package folder in a root, or one found at most
+    :data:`MAX_DEPTH` folders down (a catkin workspace's ``src``), as rospack finds
+    packages; hidden folders are skipped and the search is bounded (:data:`MAX_VISITS`)."""
+    wanted = Path(kind) / f"{typ}.{kind}"
+    visits = 0
+    for root in roots:
+        level = [root]
+        for _ in range(MAX_DEPTH + 1):
+            deeper = []
+            for folder in level:
+                visits += 1
+                if visits > MAX_VISITS:
+                    return None
+                if folder.name == pkg and (folder / wanted).is_file():
+                    return folder / wanted
+                try:
+                    deeper += [f for f in folder.iterdir() if f.is_dir() and not f.name.startswith(".")
+                               and f.name not in ("msg", "srv")]
+                except OSError:
+                    continue
+            level = deeper
+    return None
 
 
 def _field_def(name: str, desc: tuple) -> FieldDef:

@@ -6,16 +6,18 @@ import logging
 import os
 import socket
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from .control import Control, Registrar
 from .io import Conn, Counters, InboundConn, IoLoop, Listener
-from .master import Master
+from .master import Master, MasterError, MasterUnreachable
 from .msgs import MessageTypes
 from .names import NodeNames, node_names
 from .services import ServiceServer, Worker, call_service
-from .slave import SlaveApi, SlaveServer
+from .rpcserver import RpcServer
+from .slave import SlaveApi
 from .tcpros import Limits, encode_header
 from .topics import Publisher, Subscriber
 
@@ -26,7 +28,7 @@ log = logging.getLogger(__name__)
 NODE_COUNTERS = (
     "malformed_headers", "stalled_peers", "oversized_messages", "md5_mismatches", "peer_disconnects",
     "refused_connections", "connect_failures", "callback_errors", "service_errors", "xmlrpc_bad_requests",
-    "master_retries", "master_reregistrations",
+    "master_retries", "master_reregistrations", "idle_closed", "restarts",
 )
 
 
@@ -46,7 +48,11 @@ class Node:
     is advertised as ``ROS_HOSTNAME``/``ROS_IP``/the hostname). ``types``: a shared
     :class:`MessageTypes` (else one of its own). ``limits``: the bounds on peers.
     ``master_timeout``: s per master call; ``master_poll``: s between checks that the
-    master still knows the node. ``env`` stands for ``os.environ`` (tests).
+    master still knows the node. ``respawn``: a peer's ``shutdown`` (``rosnode kill``)
+    restarts the node (everything unregistered, then registered again at once) instead
+    of closing it. ``read_only``: the node only publishes: :meth:`subscribe` and
+    :meth:`advertise_service` raise ``PermissionError`` and a peer's ``shutdown`` is
+    refused. ``env`` stands for ``os.environ`` (tests).
 
     The constructor starts the servers and threads and raises ``OSError`` if a port
     cannot be bound, :class:`~.names.RosNameError` for a bad name, remap or master URI,
@@ -67,6 +73,8 @@ class Node:
         limits: Limits | None = None,
         master_timeout: float = 3.0,
         master_poll: float = 1.0,
+        respawn: bool = False,
+        read_only: bool = False,
         env: Mapping[str, str] | None = None,
     ) -> None:
         env = os.environ if env is None else env
@@ -87,16 +95,19 @@ class Node:
         self._srvs: dict[str, ServiceServer] = {}
         self._worker: Worker | None = None
         self._closed = threading.Event()
-        self.shutdown_reason: str | None = None
+        self.respawn, self.read_only = respawn, read_only
+        self.shutdown_reason: str | None = None  #: who asked it to shut down, and why (``CALLER: reason``)
+        self._shutdown_hooks: list[Callable[[str, str], None]] = []
+        self._params: dict[str, Callable[[str, Any], None]] = {}  # namespace/ -> callback
         self._start(master_poll)
 
     def _start(self, master_poll: float) -> None:
         self.loop = IoLoop(self.caller_id)
         self._listener: Listener | None = None
-        self._slave: SlaveServer | None = None
+        self._slave: RpcServer | None = None
         try:
             self._listener = Listener(self.loop, self.host, 0, self._accept)
-            self._slave = SlaveServer(SlaveApi(self), self.host, 0, self.counters, self.caller_id,
+            self._slave = RpcServer(SlaveApi(self), self.host, 0, self.counters, self.caller_id,
                                       self.limits.xmlrpc_bytes, self.limits.xmlrpc_seconds)
         except OSError:
             if self._listener is not None:
@@ -104,9 +115,11 @@ class Node:
             raise
         self.tcpros_port: int = self._listener.port
         self.uri: str = f"http://{_url_host(self.advertised_host)}:{self._slave.port}/"
-        self._registrar = Registrar(self.master, self.uri, master_poll, self.counters, self._on_publishers)
+        self._registrar = Registrar(self.master, self.uri, master_poll, self.counters, self._on_publishers,
+                                    self._on_param)
         self.control = Control(self.caller_id, self._registrar.tick)
         self.loop.start()
+        self.loop.call_later(max(0.05, self.limits.idle_seconds / 4), self._sweep_idle)
         self._listener.start()
         self._slave.start()
         self.control.start()
@@ -149,6 +162,7 @@ class Node:
         With ``raw=True`` the callback gets the message's ROS 1 bytes, and ``type_name``
         may be ``"*"`` (any type, as ``rostopic hz`` subscribes). Raises as :meth:`advertise`.
         """
+        self._writable("subscribe to", topic)
         resolved = self.resolve(topic)
         if type_name == "*" and not raw:
             raise ValueError("type '*' (any type) needs raw=True: there is no type to decode with")
@@ -163,11 +177,16 @@ class Node:
 
         Handlers run one at a time on the node's service thread. Raises as :meth:`advertise`.
         """
+        self._writable("serve", service)
         resolved, srvtype = self.resolve(service), self.types.srv(type_name)
         srv = ServiceServer(self, resolved, srvtype, handler)
         self._add(self._srvs, resolved, srv, "serves")
         self._want(("srv", resolved), (f"rosrpc://{_url_host(self.advertised_host)}:{self.tcpros_port}",))
         return srv
+
+    def _writable(self, verb: str, name: str) -> None:
+        if self.read_only:
+            raise PermissionError(f"node {self.caller_id} is read-only (it publishes only): it does not {verb} {name}")
 
     def call_service(self, service: str, type_name: str, request: object, timeout: float = 5.0) -> object:
         """Call ``service`` with ``request`` and return the response (blocks ≤ ``timeout`` s).
@@ -181,6 +200,59 @@ class Node:
         if self.loop.in_loop() and not self.closed:
             raise RuntimeError("call_service from a subscriber callback would block the node's io thread")
         return call_service(self, self.resolve(service), self.types.srv(type_name), request, timeout)
+
+    # -- parameters (the master's parameter server) -----------------------------------------
+    def get_param(self, key: str, default: Any = None) -> Any:
+        """The parameter ``key`` (resolved: ``~x`` is private), ``default`` when unset.
+        Blocks ≤ the master timeout; raises :class:`~.master.MasterUnreachable`."""
+        try:
+            return self.master.get_param(self.resolve(key))
+        except MasterUnreachable:
+            raise
+        except MasterError:
+            return default
+
+    def set_param(self, key: str, value: Any) -> None:
+        """Set the parameter ``key`` (resolved) to ``value`` (an XML-RPC value; a dict sets
+        a namespace). Blocks ≤ the master timeout; raises :class:`~.master.MasterError`."""
+        self.master.set_param(self.resolve(key), value)
+
+    def subscribe_param(self, key: str, callback: Callable[[str, Any], None]) -> str:
+        """Call ``callback(key, value)`` with ``key``'s value (``{}`` when unset; a dict for a
+        namespace) once subscribed, and with each change of ``key`` or a name under it
+        (a peer's ``setParam``: ``rosparam set``), on the control thread, as rospy's
+        parameter cache is kept. Kept subscribed across master restarts. Returns the
+        resolved key; raises ``RosNameError``, ``ValueError`` if subscribed already."""
+        resolved = self.resolve(key)
+        with self._lock:
+            if resolved in self._params:
+                raise ValueError(f"node {self.caller_id} subscribes to parameter {resolved} already")
+            self._params[resolved] = callback
+        self._want(("param", resolved), ())
+        return resolved
+
+    def unsubscribe_param(self, key: str) -> None:
+        """Stop :meth:`subscribe_param`'s callbacks for ``key`` (idempotent)."""
+        resolved = self.resolve(key)
+        with self._lock:
+            if self._params.pop(resolved, None) is None:
+                return
+        if not self._closed.is_set():
+            self._registrar.drop(("param", resolved))
+            self.control.tick_now()
+
+    def param_update(self, key: str, value: Any) -> None:
+        """A ``paramUpdate`` from the master (the XML-RPC thread): each subscription under
+        which ``key`` lies is told, on the control thread."""
+        key = key.rstrip("/") or "/"
+        for sub, callback in list(self._params.items()):
+            if key == sub or key.startswith(sub.rstrip("/") + "/"):
+                self.control.submit(callback, key, value)
+
+    def _on_param(self, key: str, value: Any) -> None:
+        callback = self._params.get(key)
+        if callback is not None:
+            callback(key, value)
 
     def master_for(self, timeout: float) -> Master:
         """A client of this node's master whose calls time out after ``timeout`` s."""
@@ -202,6 +274,12 @@ class Node:
     @property
     def closed(self) -> bool:
         return self._closed.is_set()
+
+    def add_shutdown_hook(self, hook: Callable[[str, str], None]) -> None:
+        """Call ``hook(caller_id, reason)`` when a peer's ``shutdown`` (``rosnode kill``) has
+        closed the node, as ``rospy.on_shutdown`` (on the node's control thread; not with
+        ``respawn``, which restarts instead, nor on :meth:`close`)."""
+        self._shutdown_hooks.append(hook)
 
     def wait_closed(self, timeout: float | None = None) -> bool:
         """Block until the node is closed (by :meth:`close` or a peer's ``shutdown``)."""
@@ -273,15 +351,38 @@ class Node:
 
     # -- the io thread: accepted connections ----------------------------------------------
     def _accept(self, sock: socket.socket, addr: Any) -> None:
-        peer = f"{addr[0]}:{addr[1]}"
-        if self.loop.owned() >= self.limits.max_connections:
+        peer, limits = f"{addr[0]}:{addr[1]}", self.limits
+        open_now = self.loop.owned()
+        full = open_now >= limits.max_connections
+        if not full:
+            from_peer = sum(1 for c in self.loop.connections() if isinstance(c, InboundConn) and c.address == addr[0])
+            full = from_peer >= limits.max_per_peer
+        if full:
             self.counters["refused_connections"] += 1
-            log.warning("ROS 1 node %s: %d connections open: refusing %s", self.caller_id, self.loop.owned(), peer)
+            n = self.counters["refused_connections"]
+            if n & (n - 1) == 0:  # the 1st, 2nd, 4th... refusal: a flood is said, not echoed
+                why = (f"{open_now} connections open" if open_now >= limits.max_connections
+                       else f"{limits.max_per_peer} connections open from {addr[0]}")
+                log.warning("ROS 1 node %s: %s: refusing %s (%d refused so far)", self.caller_id, why, peer, n)
             sock.close()
             return
-        conn = InboundConn(self.loop, sock, peer, self.limits.max_header, self._route, self.counters)
+        conn = InboundConn(self.loop, sock, peer, limits.max_header, self._route, self.counters)
+        conn.address = addr[0]
         self.loop.register(sock, conn)
-        conn.expect_header_within(self.limits.header_timeout)
+        conn.expect_header_within(limits.header_timeout)
+
+    def _sweep_idle(self) -> None:
+        """Close the connections idle past ``Limits.idle_seconds`` (io thread, re-armed)."""
+        if self.closed:
+            return
+        now, bound = time.monotonic(), self.limits.idle_seconds
+        for conn in self.loop.connections():
+            if conn.idle_kind and not conn.closed and conn.idle_for(now) >= bound:
+                self.counters["idle_closed"] += 1
+                log.info("ROS 1 node %s: %s connection %s idle for %.0f s: closed", self.caller_id, conn.idle_kind,
+                         conn.peer, bound)
+                conn.close("idle")
+        self.loop.call_later(max(0.05, bound / 4), self._sweep_idle)
 
     def _route(self, conn: InboundConn, header: dict[str, str]) -> None:
         if "service" in header:
@@ -315,10 +416,36 @@ class Node:
         if sub is not None:
             self.control.submit(sub.update_publishers, uris)
 
-    def request_shutdown(self, caller_id: str, reason: str) -> None:
+    def request_shutdown(self, caller_id: str, reason: str) -> bool:
+        """A peer's ``shutdown`` (the XML-RPC thread); False when refused (read-only)."""
+        if self.read_only:
+            log.warning("ROS 1 node %s: %s asked it to shut down: refused (read-only)", self.caller_id, caller_id)
+            return False
+        self.shutdown_reason = f"{caller_id}: {reason or '(no reason)'}"
+        if self.respawn:
+            log.warning("ROS 1 node %s: %s asked it to shut down (%s): it restarts (respawn)", self.caller_id,
+                        caller_id, reason or "no reason")
+            self.control.submit(self._restart)
+            return True
         log.warning("ROS 1 node %s: %s asked it to shut down: %s", self.caller_id, caller_id, reason or "(no reason)")
-        self.shutdown_reason = f"{caller_id}: {reason}"
-        self.control.submit(self.close)
+        self.control.submit(self._shut_down, caller_id, reason)
+        return True
+
+    def _shut_down(self, caller_id: str, reason: str) -> None:
+        """As rospy's ``signal_shutdown``: unregister everything, close, then tell the hooks."""
+        self.close()
+        for hook in list(self._shutdown_hooks):
+            try:
+                hook(caller_id, reason)
+            except Exception:
+                log.exception("ROS 1 node %s: a shutdown hook failed", self.caller_id)
+
+    def _restart(self) -> None:
+        """Unregister everything, then register it all again at once (the control thread)."""
+        self._registrar.reset(min(1.0, self.master.timeout))
+        self.counters["restarts"] += 1
+        self._registrar.tick()
+        log.warning("ROS 1 node %s: restarted, registered again with %s", self.caller_id, self.master_uri)
 
     def _connections(self) -> list[Conn]:
         parts: list[Any] = [*list(self._pubs.values()), *list(self._subs.values())]

@@ -82,6 +82,10 @@ class Worker:
         self._thread.join(timeout)  # (not from the worker itself)
 
 
+def _answered(conn: Conn) -> None:
+    conn.pending -= 1  # (the io thread)
+
+
 def _error_reply(text: str) -> bytes:
     return b"\x00" + frame(text.encode("utf-8", "replace"))
 
@@ -123,6 +127,7 @@ class ServiceServer:
                              lambda size: self._oversized(conn, size))
         conn.on_data = reader.feed
         conn.on_close = self._gone
+        conn.idle_kind = "service"  # closed when no request comes for long
         with self._lock:
             self._conns.add(conn)
 
@@ -137,8 +142,10 @@ class ServiceServer:
 
     def _request(self, conn: Conn, payload: bytes, persistent: bool) -> None:
         self._counters["requests"] += 1
+        conn.pending += 1  # not idle while its request is in hand (the io thread counts; see _handle)
         if not self._node.worker().submit(self._handle, conn, payload, persistent):
             self._counters["busy"] += 1
+            conn.pending -= 1
             conn.send(_error_reply(f"service [{self.name}] is busy: {MAX_PENDING} requests waiting"), droppable=False)
             conn.close_when_flushed()
 
@@ -155,11 +162,14 @@ class ServiceServer:
 
     # -- the worker thread ----------------------------------------------------------------
     def _handle(self, conn: Conn, payload: bytes, persistent: bool) -> None:
-        if conn.closed:
-            return
-        conn.send(self._answer(payload), droppable=False)
-        if not persistent:
-            conn.close_when_flushed()
+        try:
+            if conn.closed:
+                return
+            conn.send(self._answer(payload), droppable=False)
+            if not persistent:
+                conn.close_when_flushed()
+        finally:
+            self._node.loop.call_soon(_answered, conn)
 
     def _answer(self, payload: bytes) -> bytes:
         try:

@@ -32,6 +32,8 @@ class Limits:
     header_timeout: float = 5.0  #: s an accepted peer has to send its header
     connect_timeout: float = 3.0  #: s to ask a publisher for its topic and shake hands
     max_connections: int = 1000  #: accepted connections open at once (more are refused)
+    max_per_peer: int = 250  #: accepted connections open at once from one address (below max_connections)
+    idle_seconds: float = 120.0  #: s a service connection may wait for a request, or a subscriber take none
     queue_size: int = 100  #: messages a publisher queues per slow subscriber (oldest dropped)
     queue_bytes: int = 32 << 20  #: bytes a publisher queues per slow subscriber
     xmlrpc_bytes: int = 1 << 20  #: bytes of one request to the node's XML-RPC API
@@ -41,6 +43,9 @@ class Limits:
         for name, value in vars(self).items():
             if not (isinstance(value, (int, float)) and value > 0 and value == value and value != float("inf")):
                 raise ValueError(f"Limits.{name} must be a finite number > 0, not {value!r}")
+        if self.max_per_peer > self.max_connections:
+            raise ValueError(f"Limits.max_per_peer ({self.max_per_peer}) must not exceed max_connections "
+                             f"({self.max_connections}): one peer would take them all")
 
 
 class HeaderError(ValueError):

@@ -140,6 +140,7 @@ class Publisher:
         conn.set_nodelay(header.get("tcp_nodelay") == "1")
         conn.peer_id, conn.topic, conn.direction = caller, self.topic, "o"
         conn.max_queue, conn.max_queue_bytes = self._queue
+        conn.idle_kind = "subscriber"  # closed when it takes nothing of what waits for it, for long
         conn.send(encode_header({
             "callerid": self._node.caller_id, "topic": self.topic, "type": self.type.name,
             "md5sum": self.type.md5sum, "message_definition": self.type.definition,

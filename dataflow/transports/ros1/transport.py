@@ -6,22 +6,29 @@ ros1:/topic --type T``, ``<scart:stream transport="ros1" .../>`` — an output p
 publishing, an input port fed from it. Not part of ``auto``: ROS carries no links.
 
 **One node per process**, made when the first stream (or service) needs it and closed
-when the last one goes. Its settings come from the process's defaults
-(:meth:`Ros1Transport.configure`: ``scart deploy``/``scart run`` ``--ros-master``,
-``--ros-name``, ``--insecure``) and the first user's options; a later stream that asks for
-another master or name is refused, naming the node there is. The master is ``master``,
-else ``ROS_MASTER_URI``, else ROS's default; while it is down the node waits and retries
-(logging that it waits) and its streams show as ``waiting`` in ``scart links``.
+when the last one goes; a process told it is a ROS node (:meth:`Ros1Transport.configure`:
+``scart deploy``/``scart run`` ``--ros-master``, ``--ros-name``, ``--ros-namespace``,
+launch-time parameters) makes it when its deployer attaches (:meth:`~Ros1Transport.attach`,
+which also makes the node speak for the deployer's tasks: :mod:`.citizen`). Its settings
+come from the process's defaults (those, ``--insecure``, ``--ros-read-only``, ``--remap
+/from:=/to``) and the first user's options; a later stream that asks for another master
+or name is refused, naming the node there is. The master is ``master``, else
+``ROS_MASTER_URI``, else ROS's default; while it is down the node waits and retries
+(logging that it waits) and its streams show as ``waiting`` in ``scart links``. A peer's
+``shutdown`` (``rosnode kill``) ends the node and tells the process
+(:meth:`~Ros1Transport.on_shutdown`: ``scart run`` stops), or, with ``respawn``, restarts it.
 
 **Options** (:data:`OPTIONS`): ``type`` (``pkg/Type``; a plain port's default is its
 ``std_msgs`` type), ``converter`` (``module:function``), ``frame_id`` (a header stamped
-on a model without one), ``latch`` (``true``; also the policy's ``init``), ``queue_size``
-(per subscriber; default the policy's size, 1 for DATA), ``msgs`` (``.msg``/``.srv``
-files, comma-separated), and for the node: ``master``, ``node`` (or ``__name``),
-``__ns``, ``host``, ``insecure``. Conversion is planned and type-checked when the stream
-is made (:mod:`.convert`); a message that does not convert is refused and counted (the
-reader end's ``refuse``), as is a value that fails the port's type or bounds (NaN, out of
-range): ``scart describe`` names the last one under the port.
+on a model without one, on the task's clock), ``latch`` (``true``; also a buffer policy's
+``init``, never DATA's), ``queue_size`` (per subscriber; default the policy's size, 1 for
+DATA), ``msgs`` (``.msg``/``.srv`` files, comma-separated; else ``ROS_PACKAGE_PATH`` is
+searched), and for the node: ``master``, ``node`` (or ``__name``), ``__ns``, ``host``,
+``insecure``, ``respawn``. Conversion is planned and type-checked when the stream is made
+(:mod:`.convert`); a message that does not convert is refused and counted (the reader
+end's ``refuse``), as is a value that fails the port's type or bounds (out of range; NaN
+and inf only for a port asking ``finite=True``): ``scart describe`` names the last one
+under the port.
 
 **Security.** ROS 1 authenticates no one: the node listens on loopback unless told
 ``insecure`` (then on every interface, or ``host``); a stream's :attr:`~Stream.authenticated`
@@ -45,10 +52,11 @@ from dataflow.policy import ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
-from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
+from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
 from .names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
+    from .citizen import Citizen
     from .convert import Conversion
     from .msgs import MessageTypes
     from .node import Node
@@ -58,7 +66,7 @@ __all__ = ["NODE_OPTIONS", "NodeSettings", "OPTIONS", "Ros1Transport"]
 log = logging.getLogger(__name__)
 
 #: The options that say which node a stream or service uses (the process has one node).
-NODE_OPTIONS = ("master", "node", "__name", "__ns", "host", "insecure")
+NODE_OPTIONS = ("master", "node", "__name", "__ns", "host", "insecure", "respawn")
 #: Every option a ros1 stream takes (another is refused: a typo would otherwise be ignored).
 OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "queue_size", "msgs", *NODE_OPTIONS})
 MAX_QUEUE = 10_000  #: messages waiting for one slow subscriber, at most
@@ -69,13 +77,16 @@ _BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,127}")
 class NodeSettings:
     """How this process's ROS node is made: ``master`` (None: ``ROS_MASTER_URI``, else
     ROS's default), ``name`` ("": ``scart_<pid>``), ``namespace`` (None: ``ROS_NAMESPACE``),
-    ``host`` it listens on (loopback unless ``insecure``)."""
+    ``host`` it listens on (loopback unless ``insecure``), what a ``rosnode kill`` does."""
 
     master: str | None = None
     name: str = ""
     namespace: str | None = None
     host: str = "127.0.0.1"
     insecure: bool = False
+    respawn: bool = False  #: a ``rosnode kill`` restarts the node instead of ending it
+    remaps: tuple[str, ...] = ()  #: ``from:=to`` names (``scart run --remap /from:=/to``)
+    read_only: bool = False  #: publish only: no input port fed, no service, no parameter set (``--ros-read-only``)
 
     @property
     def node_name(self) -> str:
@@ -107,23 +118,137 @@ class Ros1Transport(Transport):
         self._node: Node | None = None
         self._settings: NodeSettings | None = None
         self._users = 0
+        self._shutdown_hooks: list[Any] = []
+        self._told = False  # configure() was given something: the process is a ROS node from its start
+        self._launch_params: dict[str, Any] = {}
+        self._deployers: list[Any] = []
+        self._held: list[Node] = []
+        self._citizen: Citizen | None = None
 
     # ---- the process's node ------------------------------------------------------------
     def configure(self, *, master: str | None = None, name: str | None = None, namespace: str | None = None,
-                  insecure: bool | None = None) -> None:
+                  insecure: bool | None = None, respawn: bool | None = None,
+                  params: dict[str, Any] | None = None, remaps: dict[str, str] | None = None,
+                  read_only: bool | None = None) -> None:
         """Set this process's defaults for its ROS node (``--ros-master``, ``--ros-name``,
-        ``--insecure``); a node already made keeps its own. Raises ``ValueError`` for a
-        bad master URI or name."""
+        ``--ros-namespace``, ``--insecure``, ``respawn``, launch-time ``_TASK/PROP:=value``
+        ``params``, graph name ``remaps`` ``{"/from": "/to"}``); a node already made keeps
+        its own. A process told any of these but remaps is a ROS node from its start
+        (:meth:`attach`). Raises ``ValueError`` for a bad master URI, name or remap."""
+        for old, new in (remaps or {}).items():
+            check_name(old, "remapped name")
+            check_name(new, "remapped name")
         if master is not None:
             master_uri_from(master)
         if name and not _BASE_NAME.fullmatch(name):
             raise ValueError(f"node name {name!r}: a base name (letters, digits and '_', starting with a letter)")
         with self._lock:
+            if any(v is not None for v in (master, name, namespace, insecure, respawn)) or params:
+                self._told = True
+            self._launch_params.update(params or {})
             changes: dict[str, Any] = {k: v for k, v in (("master", master), ("name", name), ("namespace", namespace))
                                        if v is not None}
             if insecure is not None:
                 changes.update(insecure=insecure, host="0.0.0.0" if insecure else "127.0.0.1")
+            if respawn is not None:
+                changes["respawn"] = respawn
+            if remaps:
+                changes["remaps"] = (*self._defaults.remaps, *(f"{old}:={new}" for old, new in remaps.items()))
+            if read_only is not None:
+                changes["read_only"] = read_only
             self._defaults = replace(self._defaults, **changes)
+
+    @property
+    def read_only(self) -> bool:
+        """Whether this process serves ROS read-only (``--ros-read-only``): it publishes its
+        output ports and nothing from ROS reaches it (no stream into an input port, no
+        service, no parameter set, no ``shutdown``)."""
+        with self._lock:
+            return self._defaults.read_only
+
+    def refuse_input(self, what: str) -> None:
+        """Raise :class:`TransportError` saying ``what`` is refused, when read-only."""
+        if self.read_only:
+            raise TransportError(f"ros1: {what} is refused: this process serves ROS read-only (--ros-read-only: "
+                                 "it publishes only)")
+
+    def on_shutdown(self, hook: Any) -> None:
+        """Call ``hook(node, caller_id, reason)`` when a peer (``rosnode kill``) has shut this
+        process's node down, as rospy ends its process then: ``scart run`` and ``scart
+        deploy`` stop. Not called when the node respawns."""
+        with self._lock:
+            self._shutdown_hooks.append(hook)
+
+    def attach(self, deployer: Any) -> None:
+        """Let this process's node speak for ``deployer``'s tasks (:mod:`.citizen`: their
+        properties are its parameters), now or when it is made. The launch-time parameters
+        are set on its tasks now (``ValueError`` naming one refused)."""
+        from .citizen import apply_launch_params
+
+        with self._lock:
+            params = dict(self._launch_params)
+        apply_launch_params(deployer.tasks(), params)
+        with self._lock:
+            self._deployers.append(deployer)
+            node = self._node
+        if node is not None:
+            self._become_citizen(node)
+
+    def detach(self, deployer: Any) -> None:
+        """Undo :meth:`attach` (idempotent)."""
+        with self._lock:
+            if deployer in self._deployers:
+                self._deployers.remove(deployer)
+
+    def hold(self) -> None:
+        """When the process was told it is a ROS node (:meth:`configure`), make its node
+        now if no stream or service has (:class:`TransportError` when it cannot), and hold
+        it until :meth:`unhold`: a ``scart run`` or ``scart deploy`` once everything of
+        its own has started (a composite's streams may name the node)."""
+        with self._lock:
+            if not self._told or self._held:
+                return
+        node = self.acquire({})
+        with self._lock:
+            self._held.append(node)
+
+    def unhold(self) -> None:
+        """Undo :meth:`hold` (idempotent): the node goes with its last user."""
+        with self._lock:
+            held = self._held.pop() if self._held else None
+        if held is not None:
+            self.release(held)
+
+    def _attached(self) -> list[Any]:
+        with self._lock:
+            return list(self._deployers)
+
+    def _become_citizen(self, node: Node) -> None:
+        from .citizen import Citizen
+
+        with self._lock:
+            if self._citizen is not None or not self._deployers or node is not self._node:
+                return
+            citizen = self._citizen = Citizen(node, self._attached)
+        citizen.start()
+
+    def _end_citizen(self) -> None:
+        with self._lock:
+            citizen, self._citizen = self._citizen, None
+        if citizen is not None:
+            citizen.close()
+
+    def _node_shut_down(self, node: Node, caller_id: str, reason: str) -> None:
+        self._end_citizen()
+        with self._lock:
+            hooks = list(self._shutdown_hooks)
+            if node is self._node:
+                self._node, self._settings = None, None  # a later stream makes a new one
+        if not hooks:
+            log.warning("ROS 1 node %s was shut down by %s (%s): its streams and services are down", node.caller_id,
+                        caller_id, reason or "no reason")
+        for hook in hooks:
+            hook(node.caller_id, caller_id, reason)
 
     @property
     def types(self) -> MessageTypes:
@@ -150,8 +275,9 @@ class Ros1Transport(Transport):
         master = options.get("master") or settings.master
         if master is not None:
             master_uri_from(master)
-        return NodeSettings(master=master, name=name,
-                            namespace=options.get("__ns", settings.namespace), host=host, insecure=insecure)
+        respawn = flag(options, "respawn") if "respawn" in options else settings.respawn
+        return NodeSettings(master=master, name=name, namespace=options.get("__ns", settings.namespace), host=host,
+                            insecure=insecure, respawn=respawn, remaps=settings.remaps, read_only=settings.read_only)
 
     def acquire(self, options: dict[str, str]) -> Node:
         """This process's node (made now if there is none), for one more user; each
@@ -172,11 +298,15 @@ class Ros1Transport(Transport):
                 return node
             try:
                 node = Node(wanted.node_name, master_uri=wanted.master, host=wanted.host, namespace=wanted.namespace,
-                            types=types)
+                            types=types, respawn=wanted.respawn, remaps=list(wanted.remaps),
+                            read_only=wanted.read_only)
             except (OSError, ValueError) as exc:
                 raise TransportError(f"ros1: cannot make the ROS node {wanted.node_name}: {exc}") from None
+            made = node
+            node.add_shutdown_hook(lambda caller, reason: self._node_shut_down(made, caller, reason))
             self._node, self._settings, self._users = node, wanted, 1
         log.info("ROS 1 node %s: master %s, listening on %s", node.caller_id, node.master_uri, wanted.host)
+        self._become_citizen(node)
         return node
 
     def _same_node(self, node: Node, wanted: NodeSettings, options: dict[str, str]) -> None:
@@ -185,8 +315,8 @@ class Ros1Transport(Transport):
         asked = [k for k in NODE_OPTIONS if k in options]
         if not asked:
             return
-        if (wanted.node_name, wanted.master, wanted.namespace, wanted.host) != \
-                (have.node_name, have.master, have.namespace, have.host):
+        if (wanted.node_name, wanted.master, wanted.namespace, wanted.host, wanted.respawn) != \
+                (have.node_name, have.master, have.namespace, have.host, have.respawn):
             raise TransportError(f"ros1: this process's ROS node is {node.caller_id} (master {node.master_uri}, "
                                  f"listening on {have.host}); {', '.join(f'{k}={options[k]}' for k in asked)} asks "
                                  "for another: one node per process")
@@ -200,11 +330,15 @@ class Ros1Transport(Transport):
             if self._users > 0:
                 return
             self._node, self._settings = None, None
+        self._end_citizen()
         node.close()
 
     # ---- streams -----------------------------------------------------------------------
     def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
+        if port.is_input and self.read_only:
+            problems.append(StreamProblem(f"ros1: a stream into port {getattr(port, 'qualname', port.name)} is "
+                                          "refused: this process serves ROS read-only (--ros-read-only)"))
         if problems:
             return problems
         _, found = self.conversion(port, options)
@@ -216,7 +350,7 @@ class Ros1Transport(Transport):
         try:
             check_name(topic, "topic name")
             self.node_settings(options)
-            for key in ("latch",):
+            for key in ("latch", "respawn"):
                 if key in options:
                     flag(options, key)
             if "queue_size" in options and not (options["queue_size"].isdigit()
@@ -251,6 +385,8 @@ class Ros1Transport(Transport):
         errors = self._check_options(topic, options)
         if errors:
             raise TransportError("; ".join(errors))
+        if isinstance(end, ReaderEnd):
+            self.refuse_input(f"a stream from {topic} into port {port.qualname}")
         conv = usable(*self.conversion(port, options), log)
         node = self.acquire(options)
         try:
@@ -272,15 +408,15 @@ class _Carrier(RefusingCarrier):
 
     encode = staticmethod(_identity)  # converted in send(), only when someone listens
 
-    def __init__(self, pub: Any, conv: Conversion, label: str) -> None:
+    def __init__(self, pub: Any, conv: Conversion, label: str, stamp: Any) -> None:
         super().__init__(label, log)
         to_ros, to_frame, frame = conv.to_ros, conv.to_frame, pub.type.frame
         assert to_ros is not None
         self._pub = pub
         if to_frame is not None:  # one fixed field: straight to bytes
-            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, sample.t_ns)
+            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, stamp(sample.t_ns))
         else:
-            self._frame = lambda sample: frame(to_ros(sample.value, sample.n, sample.t_ns))
+            self._frame = lambda sample: frame(to_ros(sample.value, sample.n, stamp(sample.t_ns)))
 
     def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
         pub = self._pub
@@ -316,11 +452,11 @@ class _TopicStream(Stream):
 
     def _publish(self, end: WriterEnd, conv: Conversion, options: dict[str, str]) -> None:
         policy = end.policy
-        latch = flag(options, "latch") if "latch" in options else policy.init
+        latch = latched(options, policy)
         size = int(options["queue_size"]) if "queue_size" in options else (
             1 if policy.type is ConnType.DATA else max(1, min(policy.size, MAX_QUEUE)))
         self._pub = self._node.advertise(self.topic, conv.ros_type, latch=latch, queue_size=size)
-        self._carrier = _Carrier(self._pub, conv, end.label)
+        self._carrier = _Carrier(self._pub, conv, end.label, stamper(end.port))
         end.connected("ros1", self._carrier, new_peer=True)
         if latch and not policy.init:  # the last value written is what a late subscriber gets first (init: the end's)
             n, value = end.port.last_sample()
@@ -339,6 +475,8 @@ class _TopicStream(Stream):
     @property
     def waiting(self) -> str:
         node = self._node
+        if node.closed:
+            return f"a ROS node: {node.caller_id} was shut down by {node.shutdown_reason or 'its owner'}"
         if not node.master_reachable:
             return f"the ROS master {node.master_uri}"
         if not node.is_registered("pub" if self._pub is not None else "sub", self.topic):

@@ -28,8 +28,8 @@ type              ``pkg/msg/Type`` → ``pkg::msg::dds_::Type_``, a final IDL st
                   rosbags' definitions of the distro (default Jazzy) or the user's ``.msg``
                   (:class:`MessageTypes`); plain CDR (XCDR1, little-endian), the bytes
                   rosbag2 stores (checked against rosbags' serialiser)
-QoS               :class:`QoS`: DATA → keep-last 1, BUFFER(n) → keep-last n, reliable unless
-                  best-effort, latching → transient-local (as rmw maps ROS 2 QoS)
+QoS               :class:`QoS`: keep-last n, reliable unless best-effort, latching →
+                  transient-local, deadline, lifespan, liveliness lease (as rmw maps ROS 2 QoS)
 user data         ``typehash=RIHS01_...;`` on each endpoint (Iron and later), ``enclave=/;``
                   on the participant, as rmw_cyclonedds announces them
 service           ``/add`` → ``rq/addRequest`` + ``rr/addReply``, types
@@ -45,8 +45,9 @@ tested against an independent peer written from rmw_cyclonedds' sources, not aga
 ROS 2 install (none is on PyPI). ``Participant(node="name", namespace="/ns")`` also
 makes it a ROS 2 node: rmw_dds_common's ``ros_discovery_info`` names the node and its
 readers and writers, which ``ros2 node list``/``node info`` read (``ros2 topic list`` and
-``echo`` need only DDS discovery). Not done: actions, parameters, content filters,
-deadline/lifespan/liveliness QoS, ``wstring``.
+``echo`` need only DDS discovery). Not done: actions, content filters, ``wstring``. The
+transport's node also serves its tasks' properties as parameters (``rcl_interfaces``
+services) and logs to ``/rosout`` (:mod:`._citizen`).
 
 Robustness: a sample that cannot be converted (wrong shape, out of its type's range,
 malformed CDR, refused by an ``accept`` hook) is refused and counted

@@ -147,11 +147,12 @@ class ServedService:
     def __init__(self, service: str, type_name: str, call: Callable[..., Any], params: list[Param], returns: Any,
                  *, options: Mapping[str, str] | None = None, label: str = "") -> None:
         self._transport = ros2_transport()
+        self._transport.refuse_input(f"serving the ROS 2 service {service}")
         types: MessageTypes = self._transport.types
         self.label = label or getattr(call, "__qualname__", "a callable")
         problems = check_service(types, type_name, params, returns)
         try:
-            self.name = topic_name(service)
+            self.name = self._transport.remapped(service)
             where = self._transport.where(options or {})
         except ValueError as exc:
             problems.append(str(exc))
@@ -230,7 +231,8 @@ class ServiceProxy:
                  options: Mapping[str, str] | None = None, timeout: float = 5.0) -> None:
         self._transport = ros2_transport()
         self._transport.types.service(type_name)  # an unknown type: said now
-        self.service, self.type_name, self.returns, self.timeout = topic_name(service), type_name, returns, timeout
+        self.service, self.type_name = self._transport.remapped(service), type_name
+        self.returns, self.timeout = returns, timeout
         self._participant = self._transport.acquire(self._transport.where(options or {}))
         try:
             self._client = self._participant.client(self.service, type_name)

@@ -12,7 +12,6 @@ and ``echo`` see them through DDS discovery alone.
 
 from __future__ import annotations
 
-import re
 import threading
 from typing import Any
 
@@ -21,7 +20,7 @@ from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.topic import Topic
 
-from ._names import topic_name
+from ._names import check_node_name
 from ._network import delete_entity
 from ._qos import QoS
 from ._types import MessageTypes
@@ -30,7 +29,6 @@ __all__ = ["NodeGraph", "DISCOVERY_TOPIC"]
 
 DISCOVERY_TOPIC = "ros_discovery_info"
 _INFO = "rmw_dds_common/msg/ParticipantEntitiesInfo"
-_NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,254}\Z")
 
 
 class NodeGraph:
@@ -40,9 +38,7 @@ class NodeGraph:
     """
 
     def __init__(self, participant: DomainParticipant, types: MessageTypes, name: str, namespace: str) -> None:
-        if not _NODE_NAME.match(name or ""):
-            raise ValueError(f"ROS 2 node name {name!r}: letters, digits and _, not starting with a digit")
-        self.name, self.namespace = name, "/" if namespace in ("", "/") else topic_name(namespace)
+        self.name, self.namespace = check_node_name(name, namespace)
         self._types = types
         self._gid_size = len(types.zero("rmw_dds_common/msg/Gid").data)
         self._gid = self._gid_of(participant)

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["topic_name", "dds_topic", "ros_topic", "service_topics", "dds_type_name", "ros_type_name"]
+__all__ = ["check_node_name", "topic_name", "dds_topic", "ros_topic", "service_topics", "dds_type_name",
+           "ros_type_name"]
 
 TOPIC_PREFIX = "rt"
 REQUEST_PREFIX = "rq"
@@ -27,6 +28,7 @@ REPLY_PREFIX = "rr"
 _MAX_DDS_TOPIC = 255  # rmw's limit on a fully qualified DDS topic name
 _TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _TYPE = re.compile(r"([A-Za-z][A-Za-z0-9_]*)/(msg|srv)/([A-Za-z][A-Za-z0-9_]*)\Z")
+_NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,254}\Z")
 _DDS_TYPE = re.compile(r"([A-Za-z][A-Za-z0-9_]*)::(msg|srv)::dds_::([A-Za-z][A-Za-z0-9_]*)_\Z")
 
 
@@ -47,6 +49,14 @@ def topic_name(name: str) -> str:
     if len(full) + len(TOPIC_PREFIX) > _MAX_DDS_TOPIC:
         raise ValueError(f"ROS 2 name {name!r} is longer than {_MAX_DDS_TOPIC - len(TOPIC_PREFIX)} characters")
     return full
+
+
+def check_node_name(name: str, namespace: str) -> tuple[str, str]:
+    """``(name, namespace)`` as ROS 2 has them (``/`` for the root namespace); raises
+    ``ValueError`` for a name or namespace ROS 2 would refuse."""
+    if not _NODE_NAME.match(name or ""):
+        raise ValueError(f"ROS 2 node name {name!r}: letters, digits and _, not starting with a digit")
+    return name, "/" if namespace in ("", "/") else topic_name(namespace)
 
 
 def dds_topic(name: str) -> str:

@@ -10,9 +10,13 @@ constructor                            history     reliability  durability
 =====================================  ==========  ===========  ===============
 
 ``latching`` is ROS 1's word for what ROS 2 calls transient-local durability: a late
-joining reader gets the writer's last ``depth`` samples. As rmw_cyclonedds does, every
-entity also gets: no auto-dispose, the durability service history equal to the history,
-automatic liveliness, and XCDR1 (plain CDR) as its only data representation.
+joining reader gets the writer's last ``depth`` samples. ``deadline`` (s: a writer
+promises, a reader asks for, a sample at least that often), ``lifespan`` (s: a sample
+older than that is not delivered) and ``liveliness_lease`` (s: a writer not heard of for
+that long is taken as gone; liveliness is automatic) are ROS 2's own, infinite unless
+given (rclpy's defaults). As rmw_cyclonedds does, every entity also gets: no
+auto-dispose, the durability service history equal to the history, and XCDR1 (plain
+CDR) as its only data representation.
 
 DDS's request/offer rules apply between peers: a reliable reader does not match a
 best-effort writer, a transient-local reader does not match a volatile writer.
@@ -29,6 +33,7 @@ from cyclonedds.util import duration
 __all__ = ["QoS", "Reliability", "Durability"]
 
 _MAX_DEPTH = 10_000  # the same bound scart puts on any buffer
+_MAX_SECONDS = 1e6  # deadlines, lifespans and leases beyond this are infinite: give none
 
 
 class Reliability(enum.Enum):
@@ -53,16 +58,25 @@ class QoS:
     depth: int = 1
     reliability: Reliability = Reliability.RELIABLE
     durability: Durability = Durability.VOLATILE
+    deadline: float | None = None
+    lifespan: float | None = None
+    liveliness_lease: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.depth, int) or isinstance(self.depth, bool) or not 1 <= self.depth <= _MAX_DEPTH:
             raise ValueError(f"QoS depth must be an integer in 1..{_MAX_DEPTH}, got {self.depth!r}")
         if not isinstance(self.reliability, Reliability) or not isinstance(self.durability, Durability):
             raise ValueError("QoS reliability and durability are Reliability and Durability values")
+        for name in ("deadline", "lifespan", "liveliness_lease"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                      or not 0 < value < _MAX_SECONDS):
+                raise ValueError(f"QoS {name} must be seconds in (0, {_MAX_SECONDS:g}), got {value!r}")
 
     @classmethod
     def data(cls, *, best_effort: bool = False, latching: bool = False) -> QoS:
-        """The last value only: keep-last 1 (scart's DATA policy)."""
+        """The last value only: keep-last 1 (a stream of scart's DATA policy is keep-last 10,
+        rclpy's default depth: :func:`~._transport.qos_of`)."""
         return cls(1, _reliability(best_effort), _durability(latching))
 
     @classmethod
@@ -100,6 +114,12 @@ class QoS:
                                                   max_instances=-1, max_samples_per_instance=-1)]
         else:
             policies.append(Policy.Durability.Volatile)
+        if self.deadline is not None:
+            policies.append(Policy.Deadline(duration(seconds=self.deadline)))
+        if self.lifespan is not None:
+            policies.append(Policy.Lifespan(duration(seconds=self.lifespan)))
+        if self.liveliness_lease is not None:
+            policies.append(Policy.Liveliness.Automatic(lease_duration=duration(seconds=self.liveliness_lease)))
         if user_data:
             policies.append(Policy.Userdata(data=user_data))
         if reader:
@@ -110,6 +130,9 @@ class QoS:
     def __str__(self) -> str:
         words = [f"keep-last {self.depth}", self.reliability.value.replace("_", "-"),
                  self.durability.value.replace("_", "-")]
+        durations = (("deadline", self.deadline), ("lifespan", self.lifespan),
+                     ("liveliness_lease", self.liveliness_lease))
+        words += [f"{name.replace('_', ' ')} {value:g} s" for name, value in durations if value is not None]
         return ", ".join(words)
 
 

@@ -6,7 +6,9 @@ ros2:/topic --type T``, ``<scart:stream transport="ros2" .../>`` — an output p
 publishing on ``rt/<topic>`` (CDR, DDS type ``pkg::msg::dds_::Type_``), an input port fed
 from it. Not part of ``auto``: DDS carries no links.
 
-**One participant per process and domain** (a ROS 2 node named ``scart_<pid>``), made
+**One participant per process and domain** (a ROS 2 node named ``--ros-name``, else
+``scart_<pid>``, in ``--ros-namespace``, else ``ROS_NAMESPACE``; with the process's tasks'
+properties as its parameters and its log on ``/rosout``, see :mod:`._citizen`), made
 when the first stream (or service) needs it and closed when the last one goes. The
 domain is the ``domain`` option, else ``ROS_DOMAIN_ID``, else 0. The network is loopback
 only (the ``lo`` interface, no multicast, the explicit peer 127.0.0.1) unless the stream
@@ -16,18 +18,21 @@ for another network on an open domain is refused.
 
 **Options** (:data:`OPTIONS`): ``type`` (``pkg/msg/Type``; a plain port's default is its
 ``std_msgs`` type), ``converter`` (``module:function``), ``frame_id`` (a header stamped on
-a model without one), ``latch`` (``true``: transient-local; for a writer, also the
-policy's ``init``), ``best_effort`` (``true``), ``msgs`` (``.msg`` files named
-``.../pkg/msg/Type.msg``, comma-separated), and ``domain``, ``insecure``, ``interface``,
-``peers``. Conversion is planned and type-checked when the stream is made
-(:mod:`._convert`); a message that does not convert is refused and counted (the reader
-end's ``refuse``, or :attr:`~dataflow.transports.Stream.refused` for a value scart
-publishes), as is a value that fails the port's type or bounds (NaN, out of range):
-``scart describe`` names the last one under the port.
+a model without one), ``latch`` (``true``: transient-local; for a writer, also a buffer
+policy's ``init``), ``best_effort`` (``true``), ``deadline``, ``lifespan``,
+``liveliness_lease`` (seconds), ``msgs`` (``.msg`` files named ``.../pkg/msg/Type.msg``,
+comma-separated), and ``domain``, ``insecure``, ``interface``, ``peers``. Conversion is
+planned and type-checked when the stream is made (:mod:`._convert`); a message that does
+not convert is refused and counted (the reader end's ``refuse``, or
+:attr:`~dataflow.transports.Stream.refused` for a value scart publishes), as is a value
+that fails the port's type or bounds (out of range; NaN and inf only for a port asking
+``finite=True``): ``scart describe`` names the last one under the port.
 
-**QoS** from the stream's policy, as rmw maps ROS 2's: DATA → keep-last 1; BUFFER(n) and
-CIRCULAR_BUFFER(n) → keep-last n (at most 10,000); reliable unless ``best_effort``;
-transient-local with ``latch``. The policy-shaped buffer stays the input port's: DDS's
+**QoS** from the stream's policy, rclpy's defaults unless asked otherwise: DATA →
+keep-last 10 (rclpy's depth); BUFFER(n) and CIRCULAR_BUFFER(n) → keep-last n (at most
+10,000); reliable unless ``best_effort``; volatile, transient-local only with ``latch``
+(or a buffer policy given ``init``); ``deadline``, ``lifespan``, ``liveliness_lease``
+(seconds) when given, else infinite; liveliness automatic. The policy-shaped buffer stays the input port's: DDS's
 history is the transit's only. A message carries no scart write number, so a reader
 counts what it refused and what its buffer dropped, not what DDS lost on the way (a
 reliable keep-last reader overwrites what it has not taken).
@@ -51,9 +56,9 @@ from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
-from .._rosplan import RefusingCarrier, flag, receiver, stream_problems, usable
+from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
 from ._errors import NEEDS_DDS, DomainError, Ros2Error
-from ._names import topic_name
+from ._names import check_node_name, topic_name
 from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
 
 if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them (see _dds)
@@ -67,8 +72,10 @@ __all__ = ["OPTIONS", "Ros2Transport", "add_type_file", "qos_of"]
 log = logging.getLogger(__name__)
 
 NETWORK_OPTIONS = frozenset({"domain", "insecure", "interface", "peers"})
+DURATIONS = ("deadline", "lifespan", "liveliness_lease")  #: QoS options in seconds
 #: Every option a ros2 stream takes (another is refused: a typo would otherwise be ignored).
-OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs"}) | NETWORK_OPTIONS
+OPTIONS = frozenset({"type", "converter", "frame_id", "latch", "best_effort", "msgs", *DURATIONS}) | NETWORK_OPTIONS
+DATA_DEPTH = 10  #: keep-last depth of a DATA stream: rclpy's default
 MAX_DEPTH = 10_000  #: keep-last depth, at most (the library's bound)
 MAX_DEFINITION_BYTES = 1 << 20  #: a .msg file larger than this is refused (as ros1's)
 
@@ -82,12 +89,33 @@ def _dds() -> None:
         raise TransportError(NEEDS_DDS) from None
 
 
-def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False) -> QoS:
-    """The ROS 2 QoS of a stream with ``policy`` (see the module docstring)."""
-    from ._qos import QoS
+def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool = False,
+           seconds: Mapping[str, float] | None = None) -> QoS:
+    """The ROS 2 QoS of a stream with ``policy`` (see the module docstring); ``seconds``:
+    ``deadline``, ``lifespan``, ``liveliness_lease`` when given."""
+    from ._qos import QoS, Durability, Reliability
 
-    depth = 1 if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
-    return QoS.buffer(depth, best_effort=best_effort, latching=latch)
+    depth = DATA_DEPTH if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
+    given = seconds or {}
+    return QoS(depth, Reliability.BEST_EFFORT if best_effort else Reliability.RELIABLE,
+               Durability.TRANSIENT_LOCAL if latch else Durability.VOLATILE,
+               deadline=given.get("deadline"), lifespan=given.get("lifespan"),
+               liveliness_lease=given.get("liveliness_lease"))
+
+
+def _seconds(options: Mapping[str, str]) -> dict[str, float]:
+    """The QoS durations ``options`` give (s); raises ``ValueError`` naming a bad one."""
+    out = {}
+    for key in DURATIONS:
+        if key in options:
+            try:
+                value = float(options[key])
+            except ValueError:
+                value = float("nan")
+            if not 0 < value < 1e6:
+                raise ValueError(f"option {key}={options[key]!r}: seconds > 0 (omit it for ROS's infinite)")
+            out[key] = value
+    return out
 
 
 @dataclass(frozen=True)
@@ -113,15 +141,37 @@ class Ros2Transport(Transport):
         self._network = Network.loopback()
         self._types: MessageTypes | None = None
         self._open: dict[int, list[Any]] = {}  # domain -> [Participant, Network, users]
+        self._node_name = ""
+        self._namespace: str | None = None
+        self._remaps: dict[str, str] = {}  # full topic or service name -> the one used
+        self.read_only = False  #: publish only (``--ros-read-only``): no input stream, service or parameter set
+        self._deployers: list[Any] = []
+        self._citizens: dict[int, Any] = {}  # domain -> its participant's Ros2Citizen
 
     # ---- the process's participants ----------------------------------------------------
     def configure(self, *, insecure: bool | None = None, interface: str | None = None,
-                  peers: tuple[str, ...] = ()) -> None:
-        """Set this process's default network for ROS 2 (``scart deploy --insecure``):
-        ``insecure`` opens it (multicast discovery on ``interface``, else the one Cyclone
-        picks, and unicast ``peers``); False: loopback only; None: as it is. A domain already
-        open keeps its network until its last user goes. Raises ``ValueError`` for a bad
-        interface or peer."""
+                  peers: tuple[str, ...] = (), name: str | None = None, namespace: str | None = None,
+                  remaps: Mapping[str, str] | None = None, read_only: bool | None = None) -> None:
+        """Set this process's defaults for ROS 2: its node's ``name`` and ``namespace``
+        (``--ros-name``, ``--ros-namespace``; else ``scart_<pid>`` in ``ROS_NAMESPACE``,
+        else ``/``), and its network (``scart deploy --insecure``): ``insecure`` opens it
+        (multicast discovery on ``interface``, else the one Cyclone picks, and unicast
+        ``peers``); False: loopback only; None: as it is. A domain already open keeps its
+        node and network until its last user goes. Raises ``ValueError`` for a bad name,
+        namespace, interface or peer. ``remaps``: ``{"/from": "/to"}``, topic and service
+        names used in place of others (``scart run --remap /from:=/to``). ``read_only``:
+        publish only (``--ros-read-only``)."""
+        if read_only is not None:
+            self.read_only = read_only
+        if remaps:
+            checked = {topic_name(old): topic_name(new) for old, new in remaps.items()}
+            with self._lock:
+                self._remaps.update(checked)
+        if name is not None or namespace is not None:
+            check_node_name(name or "scart", namespace or "/")
+            with self._lock:
+                self._node_name = name or self._node_name
+                self._namespace = namespace if namespace is not None else self._namespace
         if insecure is None:
             return
         try:
@@ -180,13 +230,63 @@ class Ros2Transport(Transport):
                 return entry[0]
             from ._participant import Participant
 
+            namespace = self._namespace or os.environ.get("ROS_NAMESPACE") or "/"
             try:
-                made = Participant(where.domain, network=where.network, types=types, node=f"scart_{os.getpid()}")
-            except Ros2Error as exc:
+                made = Participant(where.domain, network=where.network, types=types,
+                                   node=self._node_name or f"scart_{os.getpid()}", namespace=namespace)
+            except (Ros2Error, ValueError) as exc:
                 raise TransportError(f"ros2: {exc}") from None
             self._open[where.domain] = [made, where.network, 1]
         log.info("ROS 2 participant on domain %d, %s", where.domain, _shown(where.network))
+        self._become_citizen(made)
         return made
+
+    def refuse_input(self, what: str) -> None:
+        """Raise :class:`TransportError` saying ``what`` is refused, when read-only."""
+        if self.read_only:
+            raise TransportError(f"ros2: {what} is refused: this process serves ROS read-only (--ros-read-only: "
+                                 "it publishes only)")
+
+    def remapped(self, name: str) -> str:
+        """The full topic or service name used for ``name`` (``--remap``); ``ValueError``
+        for a name ROS 2 refuses."""
+        full = topic_name(name)
+        with self._lock:
+            return self._remaps.get(full, full)
+
+    def attach(self, deployer: Any) -> None:
+        """Let this process's ROS 2 nodes speak for ``deployer``'s tasks (:mod:`._citizen`:
+        their properties its parameters), now or when one is made."""
+        with self._lock:
+            self._deployers.append(deployer)
+            open_now = [entry[0] for entry in self._open.values()]
+        for participant in open_now:
+            self._become_citizen(participant)
+
+    def detach(self, deployer: Any) -> None:
+        """Undo :meth:`attach` (idempotent)."""
+        with self._lock:
+            if deployer in self._deployers:
+                self._deployers.remove(deployer)
+
+    def _attached(self) -> list[Any]:
+        with self._lock:
+            return list(self._deployers)
+
+    def _become_citizen(self, participant: Participant) -> None:
+        from ._citizen import Ros2Citizen
+
+        with self._lock:
+            if not self._deployers or participant.domain_id in self._citizens or participant.node is None:
+                return
+            self._citizens[participant.domain_id] = None  # being made
+        try:
+            citizen = Ros2Citizen(participant, self._attached, self.read_only)
+        except (Ros2Error, ValueError) as exc:
+            log.warning("ROS 2 node %s: no parameter services or /rosout: %s", participant.node.name, exc)
+            citizen = None
+        with self._lock:
+            self._citizens[participant.domain_id] = citizen
 
     def release(self, participant: Participant) -> None:
         """One user less of ``participant``; the last one closes it."""
@@ -198,6 +298,9 @@ class Ros2Transport(Transport):
             if entry[2] > 0:
                 return
             del self._open[participant.domain_id]
+            citizen = self._citizens.pop(participant.domain_id, None)
+        if citizen is not None:
+            citizen.close()
         participant.close()
 
     def participants(self) -> dict[int, Participant]:
@@ -212,6 +315,9 @@ class Ros2Transport(Transport):
         except TransportError as exc:
             return [StreamProblem(str(exc))]
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
+        if port.is_input and self.read_only:
+            problems.append(StreamProblem(f"ros2: a stream into port {getattr(port, 'qualname', port.name)} is "
+                                          "refused: this process serves ROS read-only (--ros-read-only)"))
         if problems:
             return problems
         return self.conversion(port, options)[1]
@@ -225,6 +331,7 @@ class Ros2Transport(Transport):
             for key in ("latch", "best_effort"):
                 if key in options:
                     flag(options, key)
+            _seconds(options)
             self._add_msgs(options)
         except ValueError as exc:
             out.append(f"ros2: {exc}")
@@ -250,10 +357,12 @@ class Ros2Transport(Transport):
         errors = self._check_options(topic, options)
         if errors:
             raise TransportError("; ".join(errors))
+        if isinstance(end, ReaderEnd):
+            self.refuse_input(f"a stream from {topic} into port {port.qualname}")
         conv = usable(*self.conversion(port, options), log)
         participant = self.acquire(self.where(options))
         try:
-            return _TopicStream(self, participant, end, topic_name(topic), conv, options)
+            return _TopicStream(self, participant, end, self.remapped(topic), conv, options)
         except (Ros2Error, ValueError) as exc:
             self.release(participant)
             raise TransportError(f"ros2: {exc}") from None
@@ -298,15 +407,16 @@ class _Carrier(RefusingCarrier):
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(): the conversion is this stream's own
 
-    def __init__(self, publisher: Any, conv: Conversion, label: str) -> None:
+    def __init__(self, publisher: Any, conv: Conversion, label: str, stamp: Any) -> None:
         super().__init__(label, log)
         assert conv.to_idl is not None
         self._to_idl = conv.to_idl
         self._publisher = publisher
+        self._stamp = stamp
 
     def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
         try:
-            message = self._to_idl(sample.value, sample.t_ns)
+            message = self._to_idl(sample.value, self._stamp(sample.t_ns))
         except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
             self._refuse(f"sample {sample.n}: {type(exc).__name__}: {exc}")
             return True
@@ -331,20 +441,21 @@ class _TopicStream(Stream):
         self._sub: Any = None
         self._carrier: _Carrier | None = None
         self._closed = False
-        best_effort = flag(options, "best_effort")
+        best_effort, seconds = flag(options, "best_effort"), _seconds(options)
         try:
             if isinstance(end, WriterEnd):
-                latch = flag(options, "latch") if "latch" in options else end.policy.init
-                self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch))
+                latch = latched(options, end.policy)
+                self._publish(end, conv, qos_of(end.policy, best_effort=best_effort, latch=latch, seconds=seconds))
             else:
-                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=flag(options, "latch")))
+                self._subscribe(end, conv, qos_of(end.policy, best_effort=best_effort, latch=flag(options, "latch"),
+                                                  seconds=seconds))
         except BaseException:
             self._close_parts()  # the participant is the caller's to release
             raise
 
     def _publish(self, end: WriterEnd, conv: Conversion, qos: QoS) -> None:
         self._pub = self._participant.publisher(self.topic, conv.ros_type, qos)
-        self._carrier = _Carrier(self._pub, conv, end.label)
+        self._carrier = _Carrier(self._pub, conv, end.label, stamper(end.port))
         end.connected("ros2", self._carrier, new_peer=True)
 
     def _subscribe(self, end: ReaderEnd, conv: Conversion, qos: QoS) -> None:

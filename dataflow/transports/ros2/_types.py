@@ -65,6 +65,15 @@ STANDARD_SERVICES = MappingProxyType({
     "std_srvs/srv/Trigger": "---\nbool success\nstring message\n",
     "std_srvs/srv/SetBool": "bool data\n---\nbool success\nstring message\n",
     "example_interfaces/srv/AddTwoInts": "int64 a\nint64 b\n---\nint64 sum\n",
+    # a node's parameter services (rcl_interfaces), as ros2 param calls them
+    "rcl_interfaces/srv/GetParameters": "string[] names\n---\nrcl_interfaces/msg/ParameterValue[] values\n",
+    "rcl_interfaces/srv/SetParameters": "rcl_interfaces/msg/Parameter[] parameters\n---\n"
+                                        "rcl_interfaces/msg/SetParametersResult[] results\n",
+    "rcl_interfaces/srv/ListParameters": "uint64 DEPTH_RECURSIVE=0\nstring[] prefixes\nuint64 depth\n---\n"
+                                         "rcl_interfaces/msg/ListParametersResult result\n",
+    "rcl_interfaces/srv/DescribeParameters": "string[] names\n---\n"
+                                             "rcl_interfaces/msg/ParameterDescriptor[] descriptors\n",
+    "rcl_interfaces/srv/GetParameterTypes": "string[] names\n---\nuint8[] types\n",
 })
 #: rmw_cyclonedds' cdds_request_header_t {uint64 guid; int64 seq}, as IDL members whose
 #: trailing ``_`` no ROS field name has (so they never clash with a request's fields)

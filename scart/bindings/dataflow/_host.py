@@ -167,6 +167,12 @@ class DataflowHost(Participant):
         are both given and no name service answers at ``ns``."""
         settings = self.host.settings
         own = DataflowSettings.of(settings)
+        from dataflow.cli import _ros
+
+        try:  # the process's ROS node speaks for these tasks (their properties its parameters)
+            _ros.attach(self.deployer)
+        except ValueError as exc:
+            raise DataflowError(str(exc)) from None
         if self.server is not None or not own.serve:
             return  # served already (by a program calling serve()), or not asked to
         if not any(n.kind == TASK_KIND for n in self.host.assembly.nodes.values()) and not \
@@ -217,6 +223,9 @@ class DataflowHost(Participant):
             server, self.server = self.server, None
         if server is not None:
             server.stop()
+        from dataflow.cli import _ros
+
+        _ros.detach(self.deployer)
 
 
 def host_of(host: Host) -> DataflowHost:

@@ -56,7 +56,8 @@ class DataflowLaunch(LaunchProvider):
         for ``run``."""
         parser.add_argument("--remap", action="append", default=[], metavar="FROM=TO",
                             help="rename a data-flow task or port at launch (FROM:=TO too; TASK.PORT=NAME for one "
-                                 "task's port; __ns=NAMESPACE puts every task under NAMESPACE/); repeatable")
+                                 "task's port; __ns=NAMESPACE puts every task under NAMESPACE/), or a ROS topic or "
+                                 "service (/FROM:=/TO, as on a ROS command line); repeatable")
         if verb == "run":
             parser.add_argument("--ns", default=None, metavar="HOST:PORT",
                                 help="name service of data-flow tasks and SCA services: where the embedded one "
@@ -75,6 +76,7 @@ class DataflowLaunch(LaunchProvider):
                                      "the runtime's own)")
             ros_args.add_arguments(parser)
             yarp_args.add_arguments(parser)
+            ros_args.add_params(parser)
         elif verb == "validate":
             parser.add_argument("--ns", default=None, metavar="HOST:PORT",
                                 help=f"name service for --online (default: ${NS_ENV}, else {DEFAULT_NS_ADDRESS})")
@@ -82,10 +84,12 @@ class DataflowLaunch(LaunchProvider):
     def settings(self, args: argparse.Namespace, verb: Verb, environ: Mapping[str, str]) -> DataflowSettings:
         """``--ns`` (else ``SCART_NS``), ``--remap``, ``--foxglove*``; ``serve`` for ``run``.
         Raises ``ValueError`` naming the option or variable."""
-        if verb == "run":
-            ros_args.apply(args)  # the process's ROS 1 node defaults; a bad URI or name raises
+        rules, topics = ros_args.split_remaps(getattr(args, "remap", None) or [])  # /topic:=/other: ROS's
+        if verb == "run":  # the process's ROS node defaults; a bad URI, name, parameter or topic raises
+            ros_args.apply(args, ros_args.split_params(getattr(args, "ros_params", None) or [])[1], topics)
+            ros_args.exit_on_shutdown("scart")
             yarp_args.apply(args)  # the process's YARP name server; a bad address raises
-        fields: dict[str, object] = {"remap": Remap.parse(getattr(args, "remap", None) or []), "serve": verb == "run",
+        fields: dict[str, object] = {"remap": Remap.parse(rules), "serve": verb == "run",
                                      "foxglove": getattr(args, "foxglove", None),
                                      "foxglove_control": getattr(args, "foxglove_control", None)}
         listen = getattr(args, "listen", None)
@@ -214,9 +218,15 @@ class DataflowLaunched(Launched):
         self.foxglove: Any = None
 
     def start(self) -> None:
-        """Register the services endpoint (never raises), then serve Foxglove."""
+        """Register the services endpoint (never raises), make the ROS node a process told
+        it is one has, then serve Foxglove."""
         if self.announcement is not None:
             self.announcement.start()
+        try:
+            ros_args.hold()  # once the composite's own streams made theirs (they may name it)
+        except Exception as exc:  # noqa: BLE001 - no node could be made: said, all stopped
+            self.stop()
+            raise ScartError(f"--ros-*: {exc}") from None
         spec = self.own.foxglove
         if spec is None:
             return
@@ -231,6 +241,7 @@ class DataflowLaunched(Launched):
         foxglove, self.foxglove = self.foxglove, None
         if foxglove is not None:
             foxglove.stop()
+        ros_args.unhold()
         if self.announcement is not None:
             self.announcement.stop()
 

@@ -97,3 +97,20 @@ def test_scart_call_calls_a_rospy_nodes_service(ros: RosMaster) -> None:
         assert json.loads(done.stdout) == {"loggers": [{"name": "scart.test", "level": "info"}]}
     missing = scart("call", "ros1:/nobody/here", "--ros-master", ros.uri)
     assert missing.returncode == 1 and "/nobody/here" in missing.stderr and "Traceback" not in missing.stderr
+
+
+def test_scart_call_takes_a_custom_service_type_from_msgs(ros: RosMaster, tmp_path: Path) -> None:
+    from dataflow.transports.ros1 import MessageTypes, Node
+
+    srv_file = tmp_path / "my_msgs" / "srv" / "AddTwo.srv"
+    srv_file.parent.mkdir(parents=True)
+    srv_file.write_text("int64 a\nint64 b\n---\nint64 sum\n")
+    types = MessageTypes(files=[srv_file])
+    add = types.srv("my_msgs/AddTwo")
+    with Node("adder", master_uri=ros.uri, types=types) as node:
+        node.advertise_service("/adder/add", "my_msgs/AddTwo", lambda req: add.response.new(sum=req.a + req.b))
+        assert node.wait_registered(10)
+        done = scart("call", "ros1:/adder/add", "{a: 2, b: 40}", "--msgs", str(srv_file), "--ros-master", ros.uri)
+        assert done.returncode == 0 and json.loads(done.stdout) == {"sum": 42}, done.stderr
+        unknown = scart("call", "ros1:/adder/add", "{a: 2, b: 40}", "--ros-master", ros.uri)
+        assert unknown.returncode == 1 and "my_msgs/AddTwo" in unknown.stderr and "Traceback" not in unknown.stderr

@@ -265,3 +265,15 @@ def test_rosnode_kill_shuts_the_node_down(ros: RosMaster, types: MessageTypes) -
         done = ros.tool("rosnode", "kill", "/scart")
         assert done.returncode == 0, done.stderr
         assert node.wait_closed(10) and "/rosnode" in (node.shutdown_reason or "")
+
+
+def test_rosnode_kill_restarts_a_respawning_node(ros: RosMaster, types: MessageTypes) -> None:
+    with make_node(ros, types, respawn=True) as node:
+        node.advertise("/t", "std_msgs/Int64")
+        assert node.wait_registered(10)
+        done = ros.tool("rosnode", "kill", "/scart")
+        assert done.returncode == 0, done.stderr
+        wait_until(lambda: node.counters["restarts"] == 1, timeout=10)
+        assert not node.closed and node.wait_registered(10)
+        info = ros.tool("rosnode", "info", "/scart")  # registered again, under the same name and URI
+        assert info.returncode == 0 and " * /t [std_msgs/Int64]" in info.stdout, info.stdout + info.stderr

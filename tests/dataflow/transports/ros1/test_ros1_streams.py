@@ -283,3 +283,24 @@ def _answers(proxy: ServiceProxy) -> bool:
         return True
     except ServiceError:
         return False
+
+
+def test_nan_and_inf_from_ros_pass_unless_the_port_asks_for_finite(ros: RosMaster, deployer: Deployer) -> None:
+    from dataflow.transports.ros1 import Node
+
+    gauge = deployer.add(Gauge("gauge"))
+    pose = stream(deployer, ros, "gauge.pose", "/gauge/pose", ConnPolicy.buffer(10), type="geometry_msgs/Point")
+    strict = stream(deployer, ros, "gauge.strict", "/gauge/strict", ConnPolicy.buffer(10))
+    with Node("peer", master_uri=ros.uri) as peer:
+        points, floats = peer.advertise("/gauge/pose", "geometry_msgs/Point"), peer.advertise("/gauge/strict",
+                                                                                             "std_msgs/Float64")
+        assert points.wait_for_connections(1, timeout=20) and floats.wait_for_connections(1, timeout=20)
+        points.publish(points.type.new(x=float("nan"), y=1.0, z=float("inf")))  # legal ROS floats
+        floats.publish(floats.type.new(data=float("nan")))
+        floats.publish(floats.type.new(data=2.0))
+        wait_until(lambda: listed(deployer, strict.name).samples == 2 and listed(deployer, pose.name).samples == 1,
+                   timeout=10)
+    flow, point = gauge.pose.read()
+    assert flow.name == "NEW_DATA" and point.x != point.x and point.z == float("inf") and point.y == 1.0
+    assert gauge.strict.read()[1] == 2.0 and listed(deployer, strict.name).dropped == 1
+    assert "finite" in note(gauge, "strict").refusal

@@ -188,3 +188,22 @@ def test_limits_refuse_nonsense() -> None:
         Limits(max_message=0)
     with pytest.raises(ValueError, match="header_timeout"):
         Limits(header_timeout=float("nan"))
+
+
+def test_types_are_found_through_ros_package_path(tmp_path) -> None:
+    src = tmp_path / "ws" / "src"
+    msgs = src / "robot_stack" / "my_msgs"  # a package inside a metapackage's folder, as in a catkin workspace
+    (msgs / "msg").mkdir(parents=True)
+    (msgs / "srv").mkdir()
+    (msgs / "package.xml").write_text("<package><name>my_msgs</name></package>")
+    (msgs / "msg" / "Angle.msg").write_text("float64 radians\n")
+    (msgs / "msg" / "Pose2.msg").write_text("float64 x\nfloat64 y\nmy_msgs/Angle theta\n")
+    (msgs / "srv" / "SetPose2.srv").write_text("Pose2 pose\n---\nbool ok\n")
+    types = MessageTypes(package_path=f"{tmp_path / 'elsewhere'}:{src}")
+    pose = types.msg("my_msgs/Pose2")  # and my_msgs/Angle, which it uses
+    assert pose.deserialize(pose.serialize(pose.new(x=1.0, theta={"radians": 0.5}))).theta.radians == 0.5
+    assert "MSG: my_msgs/Angle" in pose.definition
+    assert types.srv("my_msgs/SetPose2").request.name == "my_msgs/SetPose2Request"
+    with pytest.raises(UnknownTypeError, match="ROS_PACKAGE_PATH"):
+        types.msg("my_msgs/Missing")
+    assert MessageTypes(package_path="").package_path == []

@@ -35,6 +35,23 @@ def test_bad_type_names_are_refused() -> None:
         ros_type_name("Float64")
 
 
+def test_a_streams_qos_follows_rclpy_unless_asked_otherwise() -> None:
+    from dataflow import ConnPolicy
+    from dataflow.transports.ros2 import qos_of
+
+    assert qos_of(ConnPolicy.data()) == QoS(10, Reliability.RELIABLE, Durability.VOLATILE)  # rclpy's default
+    assert qos_of(ConnPolicy.buffer(4)) == QoS(4, Reliability.RELIABLE, Durability.VOLATILE)
+    asked = qos_of(ConnPolicy.data(), best_effort=True, latch=True,
+                   seconds={"deadline": 0.5, "lifespan": 2.0, "liveliness_lease": 3.0})
+    assert str(asked) == ("keep-last 10, best-effort, transient-local, deadline 0.5 s, lifespan 2 s, "
+                          "liveliness lease 3 s")
+    cyclone = asked.to_cyclone()
+    assert cyclone[Policy.Deadline].deadline == 500_000_000 and cyclone[Policy.Lifespan].lifespan == 2_000_000_000
+    assert cyclone[Policy.Liveliness] == Policy.Liveliness.Automatic(lease_duration=3_000_000_000)
+    with pytest.raises(ValueError, match="deadline"):
+        QoS(deadline=0.0)
+
+
 def test_qos_named_constructors_follow_the_policies() -> None:
     assert QoS.data() == QoS(1, Reliability.RELIABLE, Durability.VOLATILE)
     assert QoS.buffer(8) == QoS(8, Reliability.RELIABLE, Durability.VOLATILE)

@@ -136,16 +136,21 @@ def test_buffer_n_is_keep_last_n_and_latch_hands_them_to_a_late_joiner(
     assert late.next_event("sample")["data"] == 99
 
 
-def test_data_with_init_keeps_the_last_value_for_a_late_joiner(
+def test_data_is_not_latched_a_late_joiner_gets_no_stale_value(
         domain: int, topic: str, stream_peer, deployer: Deployer) -> None:
     src = deployer.add(Source("src"))
-    deployer.stream("src.count", _ros2(topic, ConnPolicy.data()), {"domain": str(domain)})  # init: latched
+    deployer.stream("src.count", _ros2(topic, ConnPolicy.data()), {"domain": str(domain)})  # volatile, as rclpy's
     for i in range(3):
         src.count.write(i)
-    late = stream_peer("read", topic, "Int64", latched=True)
-    assert late.next_event("sample")["data"] == 2
-    src.count.write(7)
-    assert late.next_event("sample")["data"] == 7  # nothing older came in between
+    late = stream_peer("read", topic, "Int64")
+    written = iter(range(3, 1000))
+
+    def heard() -> bool:
+        src.count.write(next(written))
+        return late.poll("sample", 0.05) is not None
+
+    wait_until(heard, timeout=30, message="the late reader never heard the stream")
+    assert late.events[-1]["data"] >= 3  # never the stale 2, written before it joined
 
 
 def test_best_effort_on_request_and_reliable_readers_then_do_not_match(
@@ -242,3 +247,38 @@ def test_a_sample_larger_than_the_bound_never_reaches_the_process(domain: int, s
         stream_peer("write", "/big", "JointState", [big, {"name": ["small"]}], on=other).next_event("wrote")
         wait_until(lambda: got, timeout=15, message="the small sample never came")
     assert got == [1]
+
+
+def test_use_sim_time_puts_the_tasks_on_clock(domain: int, topic: str, deployer: Deployer) -> None:
+    source = deployer.add(Source("src"))
+    transport = load("ros2")
+    transport.attach(deployer)  # the process's ROS 2 node speaks for these tasks
+    try:
+        deployer.stream("src.count", _ros2(topic), {"domain": str(domain)})
+        node = next(iter(transport.participants().values())).node
+        with Participant(domain) as ros:
+            client = ros.client(f"/{node.name}/set_parameters", "rcl_interfaces/srv/SetParameters")
+
+            def sim_time(on: bool):
+                asked = {"parameters": [{"name": "use_sim_time", "value": {"type": 1, "bool_value": on}}]}
+                return wait_until(lambda: _reply(client, asked), timeout=20, message="no answer").results[0]
+
+            assert sim_time(True).successful and source.clock.simulated  # one clock for every task
+            clock = ros.publisher("/clock", "rosgraph_msgs/msg/Clock", QoS.data(best_effort=True))
+
+            def at(sec: int) -> bool:
+                clock.publish({"clock": {"sec": sec, "nanosec": 5}})
+                return source.clock.now_ns() == sec * 1_000_000_000 + 5
+
+            wait_until(lambda: at(100), timeout=20, message="/clock never reached the task's clock")
+            wait_until(lambda: at(101), timeout=10)  # it follows
+            assert sim_time(False).successful and not source.clock.simulated and deployer.clock is source.clock
+    finally:
+        transport.detach(deployer)
+
+
+def _reply(client, request: dict):
+    try:
+        return client.call(request, timeout=1.0)
+    except TimeoutError:
+        return None

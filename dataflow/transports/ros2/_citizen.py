@@ -1,0 +1,236 @@
+"""The process's tasks as its ROS 2 node's own (the ``ros2`` transport's adapter; the
+participant knows nothing of tasks), as an rclpy node is seen by ROS 2's tools.
+
+**Parameters.** Each task property is a parameter of the node, ``TASK.PROPERTY`` (a
+``/`` in a task's name is a ``.``), served as rclpy serves them, with ``rcl_interfaces``
+types, so that ``ros2 param`` works: ``~/get_parameters``, ``~/set_parameters`` (each
+value through the property's own check: a refused one answers ``successful: false``
+with the reason, and the property keeps its value), ``~/list_parameters``,
+``~/describe_parameters`` (type, the property's doc, its range when it has both ends)
+and ``~/get_parameter_types``. A value ``ParameterValue`` cannot hold (a model, an
+integer beyond 64 bits) is not a parameter. ``use_sim_time`` is one too: true, the
+deployers' tasks follow ``/clock`` (:mod:`dataflow.clock`), as on ROS 1.
+
+**Logging.** Python's log records go to ``/rosout`` (``rcl_interfaces/msg/Log``,
+transient-local as rcl's) under the node's logger name.
+
+Handlers run on the participant's thread; :meth:`Ros2Citizen.close` ends it all
+(idempotent).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from types import MappingProxyType
+from typing import Any
+
+from dataflow.clock import WALL, Clock, SimClock
+from dataflow.errors import DataflowError
+
+from .._roslog import MAX_TEXT, RosLog
+from ._qos import Durability, QoS, Reliability
+
+__all__ = ["Ros2Citizen", "from_value", "to_value"]
+
+log = logging.getLogger("dataflow.transports.ros2")
+
+SERVICES = MappingProxyType({"get_parameters": "GetParameters", "set_parameters": "SetParameters",
+                             "list_parameters": "ListParameters", "describe_parameters": "DescribeParameters",
+                             "get_parameter_types": "GetParameterTypes"})
+#: rcl_interfaces/msg/ParameterType, and the ParameterValue field of each
+_FIELDS = MappingProxyType({1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value",
+                            5: "byte_array_value", 6: "bool_array_value", 7: "integer_array_value",
+                            8: "double_array_value", 9: "string_array_value"})
+_LEVELS = ((logging.CRITICAL, 50), (logging.ERROR, 40), (logging.WARNING, 30), (logging.INFO, 20))
+ROSOUT_QOS = QoS(100, Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, lifespan=10.0)  # rcl's, a smaller depth
+SIM_TIME = "use_sim_time"
+_INT64 = range(-(2**63), 2**63)
+MAX_NAMES = 10_000  #: names one request may ask about
+
+
+def _kind(items: list[Any]) -> int | None:
+    if all(isinstance(i, bool) for i in items):
+        return 6
+    if all(isinstance(i, int) and not isinstance(i, bool) and i in _INT64 for i in items):
+        return 7
+    if all(isinstance(i, (int, float)) and not isinstance(i, bool) for i in items):
+        return 8
+    if all(isinstance(i, str) for i in items):
+        return 9
+    return None
+
+
+def to_value(value: Any) -> dict[str, Any] | None:
+    """``value`` as an ``rcl_interfaces/msg/ParameterValue`` (fields), or None when it
+    cannot be one (an empty list, whose item type is unknown, included)."""
+    if isinstance(value, bool):
+        kind: int | None = 1
+    elif isinstance(value, int):
+        kind = 2 if value in _INT64 else None
+    elif isinstance(value, float):
+        kind = 3
+    elif isinstance(value, str):
+        kind = 4
+    elif isinstance(value, (bytes, bytearray)):
+        return {"type": 5, "byte_array_value": list(value)}
+    elif isinstance(value, (list, tuple)) and value:
+        kind = _kind(list(value))
+        if kind == 8:
+            value = [float(v) for v in value]
+    else:
+        kind = None
+    return None if kind is None else {"type": kind, _FIELDS[kind]: list(value) if kind > 5 else value}
+
+
+def from_value(value: Any) -> Any:
+    """The Python value of an ``rcl_interfaces/msg/ParameterValue``; ``ValueError`` when
+    it is not set."""
+    field = _FIELDS.get(int(value.type))
+    if field is None:
+        raise ValueError("the value is not set (type 0)")
+    got = getattr(value, field)
+    return [v.item() if hasattr(v, "item") else v for v in got] if int(value.type) > 4 else got
+
+
+class Ros2Citizen:
+    """The deployers' tasks (``deployers()``), as ``participant``'s node's own (see the
+    module docstring; ``read_only``: every set refused). Raises what the participant raises
+    when its services cannot be made."""
+
+    def __init__(self, participant: Any, deployers: Callable[[], list[Any]], read_only: bool = False) -> None:
+        graph = participant.node
+        self._participant, self._deployers, self.read_only = participant, deployers, read_only
+        base = f"{graph.namespace.rstrip('/')}/{graph.name}"
+        self.logger_name = base.strip("/").replace("/", ".")
+        self.clock: Clock = WALL
+        self._clock_sub: Any = None
+        self._closed = False
+        self._parts: list[Any] = []
+        try:
+            for service, kind in SERVICES.items():
+                self._parts.append(participant.service(f"{base}/{service}", f"rcl_interfaces/srv/{kind}",
+                                                       getattr(self, f"_{service}")))
+            self._rosout = participant.publisher("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
+            self._parts.append(self._rosout)
+        except BaseException:
+            self.close()
+            raise
+        self._log = RosLog(self._publish_log)
+
+    # -- parameters -----------------------------------------------------------------------
+    def _params(self) -> dict[str, tuple[Any, str]]:
+        return {f"{task.name.replace('/', '.')}.{prop}": (task, prop)
+                for deployer in self._deployers() for task in deployer.tasks() for prop in task.properties()}
+
+    def _current(self, name: str) -> dict[str, Any] | None:
+        if name == SIM_TIME:
+            return {"type": 1, "bool_value": self.clock.simulated}
+        found = self._params().get(name)
+        return None if found is None else to_value(found[0].get_property(found[1]))
+
+    def _names(self) -> list[str]:
+        return [SIM_TIME, *(n for n in self._params() if self._current(n) is not None)]
+
+    def _get_parameters(self, request: Any) -> dict[str, Any]:
+        return {"values": [self._current(str(n)) or {"type": 0} for n in list(request.names)[:MAX_NAMES]]}
+
+    def _get_parameter_types(self, request: Any) -> dict[str, Any]:
+        return {"types": [(self._current(str(n)) or {"type": 0})["type"] for n in list(request.names)[:MAX_NAMES]]}
+
+    def _set_parameters(self, request: Any) -> dict[str, Any]:
+        return {"results": [self._set_one(str(p.name), p.value) for p in list(request.parameters)[:MAX_NAMES]]}
+
+    def _set_one(self, name: str, value: Any) -> dict[str, Any]:
+        try:
+            if self.read_only:
+                raise ValueError("this process serves ROS read-only (--ros-read-only)")
+            wanted = from_value(value)
+            if name == SIM_TIME:
+                if not isinstance(wanted, bool):
+                    raise ValueError("use_sim_time is a bool")
+                self._follow(wanted)
+                return {"successful": True, "reason": ""}
+            found = self._params().get(name)
+            if found is None:
+                return {"successful": False, "reason": f"parameter {name[:200]!r} is not declared"}
+            found[0].set_property(found[1], wanted)
+        except (ValueError, DataflowError) as exc:
+            log.warning("ROS 2 parameter %s: refused: %s", name[:200], exc)
+            return {"successful": False, "reason": str(exc)[:1000]}
+        return {"successful": True, "reason": ""}
+
+    def _list_parameters(self, request: Any) -> dict[str, Any]:
+        prefixes = [str(p) for p in request.prefixes][:MAX_NAMES]
+        depth = int(request.depth)
+        names = []
+        for name in self._names():
+            under = [p for p in prefixes if name == p or name.startswith(p + ".")] if prefixes else [""]
+            if not under:
+                continue
+            rest = name[len(under[0]):].lstrip(".")
+            if depth and rest.count(".") >= depth:
+                continue
+            names.append(name)
+        found = sorted({n.rpartition(".")[0] for n in names if "." in n})
+        return {"result": {"names": names, "prefixes": found}}
+
+    def _describe_parameters(self, request: Any) -> dict[str, Any]:
+        return {"descriptors": [self._descriptor(str(n)) for n in list(request.names)[:MAX_NAMES]]}
+
+    def _descriptor(self, name: str) -> dict[str, Any]:
+        value = self._current(name)
+        out: dict[str, Any] = {"name": name, "type": value["type"] if value else 0}
+        found = self._params().get(name)
+        if name == SIM_TIME:
+            out["description"] = "follow /clock (a simulation's time)"
+        elif found is not None and value is not None:
+            bound = found[0].properties()[found[1]]
+            out["description"] = bound.doc
+            limits = getattr(bound.prop, "bounds", None)
+            low, high = (limits.ge, limits.le) if limits is not None else (None, None)
+            if low is not None and high is not None and value["type"] in (2, 3):
+                key = "integer_range" if value["type"] == 2 else "floating_point_range"
+                cast = int if value["type"] == 2 else float
+                out[key] = [{"from_value": cast(low), "to_value": cast(high), "step": cast(0)}]
+        return out
+
+    # -- time -----------------------------------------------------------------------------
+    def _follow(self, simulated: bool) -> None:
+        if simulated and self._clock_sub is None:
+            clock = SimClock()
+            def tick(message: Any) -> None:
+                clock.set(message.clock.sec * 1_000_000_000 + message.clock.nanosec)
+
+            self._clock_sub = self._participant.subscribe("/clock", "rosgraph_msgs/msg/Clock", tick,
+                                                          QoS(1, Reliability.BEST_EFFORT), raw=True)
+            self.clock = clock
+        elif not simulated and self._clock_sub is not None:
+            self._clock_sub.close()
+            self._clock_sub, self.clock = None, WALL
+        for deployer in self._deployers():
+            if deployer.clock is not self.clock:
+                deployer.use_clock(self.clock)
+
+    # -- logging ----------------------------------------------------------------------------
+    def _publish_log(self, record: logging.LogRecord) -> None:
+        t_ns = self.clock.now_ns() if self.clock.simulated else time.time_ns()
+        self._rosout.publish({
+            "stamp": {"sec": t_ns // 1_000_000_000, "nanosec": t_ns % 1_000_000_000},
+            "level": next((b for lvl, b in _LEVELS if record.levelno >= lvl), 10), "name": self.logger_name,
+            "msg": record.getMessage()[:MAX_TEXT], "file": record.pathname[:1024],
+            "function": record.funcName[:256], "line": max(0, record.lineno)})
+
+    def close(self) -> None:
+        """Stop logging to /rosout, withdraw the services, leave /clock (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        log_handler = getattr(self, "_log", None)
+        if log_handler is not None:
+            log_handler.close()
+        if self._clock_sub is not None:
+            self._follow(False)
+        for part in reversed(self._parts):
+            part.close()
