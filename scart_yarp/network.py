@@ -119,6 +119,7 @@ class Network:
         self._lock = threading.Lock()
         self._closed = False
         self._checked = 0.0
+        self._round = threading.Event()  # set while a control round is queued or running: one at a time
         self._sel.register(self._wake_r, selectors.EVENT_READ, None)
         self._io = threading.Thread(target=self._run, name="scart-yarp-io", daemon=True)
         self._control = _Worker("scart-yarp-control")
@@ -216,6 +217,12 @@ class Network:
 
     def _maintain(self) -> None:
         """The control thread's round: registrations, the connections ports keep."""
+        try:
+            self._maintain_ports()
+        finally:
+            self._round.clear()
+
+    def _maintain_ports(self) -> None:
         now = time.monotonic()
         check = now - self._checked >= CHECK_REGISTERED_EVERY
         if check:
@@ -432,9 +439,11 @@ class Network:
                     self._serve(key.data, events)
             now = time.monotonic()
             self._overdue(now)
-            if now >= next_round:
+            if now >= next_round and not self._round.is_set():  # a slow name server: no rounds pile up
                 next_round = now + MAINTAIN_EVERY
-                self._control.submit(self._maintain)
+                self._round.set()
+                if not self._control.submit(self._maintain):
+                    self._round.clear()
         for conn in list(self._conns.values()):
             conn.close()
 
