@@ -24,7 +24,7 @@ from dataflow.remote import _convert as cv
 from dataflow.remote._proto import df as pb
 from scart_wire.rpc import Abort, abort, peer_key
 from dataflow.transports import frames
-from dataflow.transports.grpc import ServedCarrier, serve_subscription
+from dataflow.transports.grpc import Parts, ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire
 from dataflow.transports.ipc._serve import IpcServer
 from dataflow.transports.served import Served, ServedSet
@@ -116,7 +116,12 @@ class ChannelRpcs:
         try:
             yield frames.report_of(link.end, known=known)
             unreported, reported_at = 0, time.monotonic()
-            for frame in request_iterator:
+            parts = Parts(pb.LinkRequest.FromString)
+            for message in request_iterator:
+                frame = parts.whole(message)
+                if frame is None:  # a part of a large sample
+                    link.end.seen = time.monotonic()
+                    continue
                 unreported += frames.feed(link.end, frame) + 1
                 if frame.closing:
                     link.linger(time.monotonic() + LINGER_S, self._channels_stopping)

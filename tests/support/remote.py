@@ -104,6 +104,65 @@ class Tally(TaskContext):
             self.count += 1
 
 
+class Camera(TaskContext):
+    """Writes a frame of ``size`` bytes on ``frames`` each cycle (its first byte the cycle
+    number, mod 256); ``written()`` counts the writes, ``failed()`` those refused."""
+
+    frames = OutputPort(bytes, doc="one frame per cycle")
+    size = Property(int, 6_220_800, doc="bytes of a frame (1080p RGB by default)")
+
+    def __init__(self, name: str = "camera") -> None:
+        super().__init__(name)
+        self.count = 0
+        self.refused = 0
+
+    @operation
+    def written(self) -> int:
+        """Frames written so far."""
+        return self.count
+
+    @operation
+    def failed(self) -> int:
+        """Writes that returned WRITE_FAILURE."""
+        return self.refused
+
+    def update_hook(self) -> None:
+        self.count += 1
+        frame = bytes([self.count % 256]) + bytes(max(0, self.size - 1))
+        if self.frames.write(frame).name == "WRITE_FAILURE":
+            self.refused += 1
+
+
+class Screen(TaskContext):
+    """Counts the frames arriving on ``frames`` (an event port); ``seen()`` says how many,
+    ``last_size()`` how big the last one was."""
+
+    frames = InputPort(bytes, event=True, doc="counted")
+
+    def __init__(self, name: str = "screen") -> None:
+        super().__init__(name)
+        self.count = 0
+        self.size = 0
+
+    @operation
+    def seen(self) -> int:
+        """Frames read so far."""
+        return self.count
+
+    @operation
+    def last_size(self) -> int:
+        """Bytes of the last frame read."""
+        return self.size
+
+    def update_hook(self) -> None:
+        for _ in range(10_000):
+            flow, frame = self.frames.read()
+            if flow.name != "NEW_DATA":
+                return
+            self.count += 1
+            self.size = len(frame)
+
+
 class Plain(TaskContext):
     """A task whose ``__init__`` has no default name (``scart deploy`` names it after the class)."""
 

@@ -101,20 +101,24 @@ class LinkHello(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., channel: _Optional[str] = ..., after: _Optional[int] = ..., boot_id: _Optional[str] = ..., source: _Optional[str] = ..., type_name: _Optional[str] = ..., name: _Optional[str] = ..., source_ns: _Optional[str] = ...) -> None: ...
 
 class LinkRequest(_message.Message):
-    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "hello", "closing")
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "hello", "closing", "part", "more")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
     BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     HELLO_FIELD_NUMBER: _ClassVar[int]
     CLOSING_FIELD_NUMBER: _ClassVar[int]
+    PART_FIELD_NUMBER: _ClassVar[int]
+    MORE_FIELD_NUMBER: _ClassVar[int]
     heartbeat: bool
     samples: _containers.RepeatedCompositeFieldContainer[Sample]
     dropped: int
     boot_id: str
     hello: LinkHello
     closing: bool
-    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ..., closing: _Optional[bool] = ...) -> None: ...
+    part: bytes
+    more: bool
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ..., closing: _Optional[bool] = ..., part: _Optional[bytes] = ..., more: _Optional[bool] = ...) -> None: ...
 
 class LinkResponse(_message.Message):
     __slots__ = ("last", "lost", "known", "final", "refused", "pending")
@@ -419,18 +423,22 @@ class SubscribeRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
 
 class SubscribeResponse(_message.Message):
-    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "written")
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "written", "part", "more")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
     BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     WRITTEN_FIELD_NUMBER: _ClassVar[int]
+    PART_FIELD_NUMBER: _ClassVar[int]
+    MORE_FIELD_NUMBER: _ClassVar[int]
     heartbeat: bool
     samples: _containers.RepeatedCompositeFieldContainer[Sample]
     dropped: int
     boot_id: str
     written: int
-    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., written: _Optional[int] = ...) -> None: ...
+    part: bytes
+    more: bool
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., written: _Optional[int] = ..., part: _Optional[bytes] = ..., more: _Optional[bool] = ...) -> None: ...
 
 class Sample(_message.Message):
     __slots__ = ("value", "sequence", "source_time_ns")
