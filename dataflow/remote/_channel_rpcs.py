@@ -56,13 +56,16 @@ class ChannelRpcs:
         self._host_id = ipc_wire.host_id()  # ipc serves callers of this host only
 
     def _stop_channels(self) -> None:
+        """Stop serving the sample path. The incoming links' buffers are counted first,
+        and each transport sends its link's source a last report: a source that comes to
+        a restarted sink knows what the old one lost (its buffer included), to the sample."""
         self._channels_stopping.set()
+        self.sinks.close_all()
         with self._ipc_lock:
             ipc, self._ipc = self._ipc, None
         if ipc is not None:
             ipc.stop()
         self.served.close_all()
-        self.sinks.close_all()
 
     def _output(self, task: str, port: str) -> Any:
         p = self.owner.deployer.task(task).port(port)
@@ -94,7 +97,7 @@ class ChannelRpcs:
             yield from serve_subscription(served.end, carrier, self.owner.boot_id,
                                           self._heartbeat_s(request.heartbeat_ms),
                                           lambda: context.is_active() and not self._channels_stopping.is_set(),
-                                          lambda: served.tail)
+                                          served.end.tail_after)
         finally:
             self.served.close(served)
 
@@ -123,6 +126,9 @@ class ChannelRpcs:
                     link.end.seen = time.monotonic()
                     continue
                 unreported += frames.feed(link.end, frame) + 1
+                if link.closed and not frame.closing:  # this deployer stops: the last report
+                    yield frames.report_of(link.end)
+                    return
                 if frame.closing:
                     link.linger(time.monotonic() + LINGER_S, self._channels_stopping)
                     finished = True

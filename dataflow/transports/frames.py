@@ -78,10 +78,11 @@ def encoder(py_type: Any) -> Any:
     return _NUMBER_FRAMES.get(py_type, sample_frame)
 
 
-def heartbeat(boot_id: str = "", dropped: int = 0) -> bytes:
+def heartbeat(boot_id: str = "", dropped: int = 0, sent_last: int = 0) -> bytes:
     """A frame without samples: the writer is alive (and who it is, and ``dropped``: its
-    tail, the samples it could not send since the last one it sent)."""
-    return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, dropped=dropped).SerializeToString()
+    tail, the samples it could not send since ``sent_last``, the last one it sent)."""
+    return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, dropped=dropped,
+                                sent_last=sent_last).SerializeToString()
 
 
 def connected(end: WriterEnd, boot_id: str) -> bytes:
@@ -108,7 +109,7 @@ def feed(end: ReaderEnd, message: Any) -> int:
     if message.heartbeat:
         if type(message) is _Frame and message.written:  # a subscription's first frame (a link's hello says it)
             end.loss.began(message.written, end.init)
-        end.loss.report(message.dropped)
+        end.loss.report(message.dropped, message.sent_last if type(message) is _Frame else 0)
     return stored
 
 

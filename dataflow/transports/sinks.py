@@ -69,11 +69,19 @@ class IncomingLink:
         self.source_ns = source_ns
         self.carriers = 0  #: transports carrying it now
         self.seen = time.monotonic()
+        self.closed = False  #: detached from its port (undone, or this deployer stops): reports what it holds
+        self._after_close = 0  # samples that came once closed: dropped, counted
         self.connection = port.open_channel(policy, peer=source)
         conn = self.connection
         self.end = ReaderEnd(f"link {name or source} into {port.qualname}", port_check(port),
-                             conn.store, lambda: conn.dropped, after=after)
+                             self._store, lambda: conn.dropped + self._after_close, after=after)
         self.end.writer(boot_id)
+
+    def _store(self, n: int, t_ns: int, value: Any) -> bool:
+        if self.closed:
+            self._after_close += 1
+            return False
+        return self.connection.store(n, t_ns, value)
 
     @property
     def pending(self) -> int:
@@ -89,7 +97,9 @@ class IncomingLink:
                 time.sleep(0.01)
 
     def close(self) -> None:
-        """Detach from the port: what the buffer still holds is counted as dropped."""
+        """Detach from the port: what the buffer still holds is counted as dropped, and so
+        is what comes later (idempotent)."""
+        self.closed = True
         self.connection.close()
 
 

@@ -163,6 +163,32 @@ class Screen(TaskContext):
             self.size = len(frame)
 
 
+class Burst(TaskContext):
+    """Writes ``n`` samples of ``size`` bytes at once on ``out`` when asked (``burst(n, size)``)."""
+
+    out = OutputPort(bytes, doc="bursts")
+
+    def __init__(self, name: str = "burst") -> None:
+        super().__init__(name)
+        self.count = 0
+
+    @operation
+    def burst(self, n: int, size: int) -> int:
+        """Write ``n`` samples now; returns how many were refused (WRITE_FAILURE)."""
+        refused = 0
+        for _ in range(n):
+            self.count += 1
+            refused += self.out.write(bytes([self.count % 256]) * size).name == "WRITE_FAILURE"
+        return refused
+
+
+class LoudTally(Tally):
+    """A :class:`Tally` that prints how many it read when it stops: ``tally read N``."""
+
+    def stop_hook(self) -> None:
+        print(f"tally read {self.count}", flush=True)
+
+
 class Plain(TaskContext):
     """A task whose ``__init__`` has no default name (``scart deploy`` names it after the class)."""
 

@@ -143,11 +143,11 @@ class GrpcTransport(Transport):
             first = next(call)
             if first.refused:
                 raise LinkRefused(first.refused)
-            end.report(first.last, first.lost)
-            end.connected(self.name, carrier, new_peer=not first.known)
+            end.connected(self.name, carrier, new_peer=not first.known)  # first: it keeps a restarted
+            end.report(first.last, first.lost, first.pending)  # sink's old counts before the new ones come
             if peer.opened(call.cancel, finish=carrier.finish):
                 for report in call:
-                    end.report(report.last, report.lost)
+                    end.report(report.last, report.lost, report.pending)
                     if report.final:
                         carrier.final.set()
                         break
@@ -217,8 +217,8 @@ class _LinkCarrier:
         yield pb.LinkRequest(hello=hello).SerializeToString()
         while not self._closed:
             if not self._wake.wait(REPORT_ASK_S):
-                if self.end.undelivered():  # the sink reports when it hears from us: ask for the rest
-                    yield HEARTBEAT
+                if self.end.undelivered() or self.end.peer_pending:  # the sink reports when it hears from
+                    yield HEARTBEAT  # us: ask for the rest, and for what its task read since
                 continue
             self._wake.clear()
             while self._queue:
@@ -308,11 +308,12 @@ class ServedCarrier:
 
 
 def serve_subscription(end: WriterEnd, carrier: ServedCarrier, boot_id: str, heartbeat: float, alive: Any,
-                       dropped: Any) -> Iterator[bytes]:
+                       dropped: Callable[[], tuple[int, int]]) -> Iterator[bytes]:
     """The ``Subscribe`` responses for a served writer end (the call's thread), as bytes:
     "connected", then samples as they come (what waits, joined into one message), and a
-    heartbeat after ``heartbeat`` s without one, until ``alive()`` is false (set
-    ``carrier.wake`` to have it looked at at once)."""
+    heartbeat after ``heartbeat`` s without one (with ``dropped()``: the last sample sent
+    and the tail after it), until ``alive()`` is false (set ``carrier.wake`` to have it
+    looked at at once)."""
     end.connected("grpc", carrier, new_peer=True,  # "connected", first: from now on every write comes
                   first=lambda: carrier.first(frames.connected(end, boot_id)))
     last = time.monotonic()
@@ -326,7 +327,8 @@ def serve_subscription(end: WriterEnd, carrier: ServedCarrier, boot_id: str, hea
                 last = time.monotonic()
                 carrier.next_wake = last + carrier.window()
             elif time.monotonic() - last >= heartbeat:
-                yield frames.heartbeat(dropped=dropped())
+                sent_last, tail = dropped()
+                yield frames.heartbeat(dropped=tail, sent_last=sent_last)
                 last = time.monotonic()
     finally:
         end.disconnected()

@@ -70,9 +70,11 @@ class IpcTransport(Transport):
             sock.close()
             raise LinkRefused(report.refused)
         conn = _LinkOut(Hub.acquire(), sock, end)
-        end.report(report.last, report.lost)
-        conn.start()
+        # connected first: a new reader end's first report must not replace the old one's
+        # counts before the writer end has kept them (a restarted sink)
         end.connected(self.name, conn, new_peer=not report.known)
+        end.report(report.last, report.lost, report.pending)
+        conn.start()
         try:
             if peer.opened(conn.close, finish=conn.finish):
                 conn.ended.wait()
@@ -155,7 +157,7 @@ class _LinkOut(Conn):
 
     def message(self, data: bytes) -> None:
         report = pb.LinkResponse.FromString(data)
-        self.end.report(report.last, report.lost)
+        self.end.report(report.last, report.lost, report.pending)
         if report.final:
             self.final.set()
 

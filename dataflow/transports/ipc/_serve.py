@@ -41,6 +41,7 @@ TICKETS_PER_PEER = 64
 TICKET_S = 10.0
 HELLO_S = 2.0
 TICKET_BYTES = 16
+STOP_S = 1.0  #: how long a stop waits for each connection's last report and end, at most
 
 
 @dataclass(frozen=True)
@@ -184,7 +185,12 @@ class IpcServer:
             self._pending.clear()
             self._tickets.clear()
         for conn in conns:
-            conn.close()
+            if isinstance(conn, _LinkIn):
+                conn.stop()
+            else:
+                conn.close()
+        for conn in conns:
+            conn.ended.wait(STOP_S)
         for sock in pending:
             self._listener.forget_pending(sock)
         self._listener.close()
@@ -248,7 +254,7 @@ class _LinkIn(Conn):
         self.link = link
         self.known = known
         self._unreported = 0
-        self._reported: tuple[int, int] = (-1, -1)
+        self._reported: tuple[int, int, int] = (-1, -1, -1)
         self._reported_at = 0.0
         self._closing_at: float | None = None
         self._finished = False
@@ -272,9 +278,18 @@ class _LinkIn(Conn):
             self._report(time.monotonic())
 
     def _report(self, now: float, final: bool = False) -> None:
-        end = self.link.end
-        self.put(frames.report_of(end, final=final, pending=self.link.pending).SerializeToString())
-        self._reported, self._reported_at, self._unreported = (end.last, end.lost), now, 0
+        end, pending = self.link.end, self.link.pending
+        self.put(frames.report_of(end, final=final, pending=pending).SerializeToString())
+        self._reported, self._reported_at, self._unreported = (end.last, end.lost, pending), now, 0
+
+    def stop(self) -> None:
+        """This deployer stops: a last report (the link's buffer counted already, see
+        :meth:`~dataflow.transports.sinks.Sinks.close_all`), then the end (any thread)."""
+        def last_report() -> None:
+            if not self.ended.is_set():
+                self._report(time.monotonic())
+            self.close()
+        self.hub.call_soon(last_report)
 
     def tick(self, now: float) -> None:
         if self._closing_at is not None:
@@ -286,8 +301,8 @@ class _LinkIn(Conn):
             self._closing_at = None
             return
         end = self.link.end
-        if (end.last, end.lost) != self._reported and now - self._reported_at >= REPORT_S:
-            self._report(now)
+        if (end.last, end.lost, self.link.pending) != self._reported and now - self._reported_at >= REPORT_S:
+            self._report(now)  # a change the source would not know: the sink's buffer read too
 
     def ended_hook(self) -> None:
         if self.malformed:
@@ -319,7 +334,8 @@ class _ReaderOut(Conn):
 
     def tick(self, now: float) -> None:
         if now - self.sent_at >= self.heartbeat:
-            self.put(frames.heartbeat(dropped=self.served.tail))
+            sent_last, tail = self.served.end.tail_after()
+            self.put(frames.heartbeat(dropped=tail, sent_last=sent_last))
 
     def ended_hook(self) -> None:
         self.server._unserve(self.served)

@@ -423,12 +423,13 @@ class SubscribeRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
 
 class SubscribeResponse(_message.Message):
-    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "written", "part", "more")
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "written", "sent_last", "part", "more")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
     BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     WRITTEN_FIELD_NUMBER: _ClassVar[int]
+    SENT_LAST_FIELD_NUMBER: _ClassVar[int]
     PART_FIELD_NUMBER: _ClassVar[int]
     MORE_FIELD_NUMBER: _ClassVar[int]
     heartbeat: bool
@@ -436,9 +437,10 @@ class SubscribeResponse(_message.Message):
     dropped: int
     boot_id: str
     written: int
+    sent_last: int
     part: bytes
     more: bool
-    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., written: _Optional[int] = ..., part: _Optional[bytes] = ..., more: _Optional[bool] = ...) -> None: ...
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., written: _Optional[int] = ..., sent_last: _Optional[int] = ..., part: _Optional[bytes] = ..., more: _Optional[bool] = ...) -> None: ...
 
 class Sample(_message.Message):
     __slots__ = ("value", "sequence", "source_time_ns")
