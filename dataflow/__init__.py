@@ -41,6 +41,7 @@ from .policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, 
 from .ports import Connection, InputPort, OutputPort
 from .properties import Property
 from .task import TaskContext, TaskState
+from scart_wire.arrays import Array, ArraySpec
 from scart_wire.types import Encoded, TypeRegistry, UnknownValue, register_type, registry
 
 __all__ = [
@@ -67,6 +68,8 @@ __all__ = [
     "register_type",
     "UnknownValue",
     "Encoded",
+    "Array",
+    "ArraySpec",
     "DataflowError",
     "PortTypeError",
     "NotFoundError",

@@ -73,7 +73,8 @@ def encode(value: Any, py_type: Any = None) -> Value:
 
 def _encode_untyped(value: Any) -> Value:
     kind = type(value)
-    if kind in _PLAIN or isinstance(value, (pydantic.BaseModel, UnknownValue)):
+    if kind in _PLAIN or isinstance(value, (pydantic.BaseModel, UnknownValue)) or \
+            (kind.__name__ == "ndarray" and kind.__module__ == "numpy"):
         enc = registry.encode(value)
         return Value(type_name=enc.type_name, data=enc.data)
     if kind is list or kind is tuple:

@@ -57,6 +57,7 @@ from dataflow.remote.naming import (
     security_probe,
 )
 from scart_wire.security import Security
+from dataflow.transports.limits import check_fits
 from dataflow.transports.streams import PortStream
 
 __all__ = ["DeployerServer"]
@@ -282,6 +283,7 @@ class DeployerServer:
             return True, self.address, note, self.deployer.find_link(self.deployer.link_name(source, sink))
         if name is not None:
             self.deployer.check_link_name(source, sink, name)
+        check_fits(out, f"a link to {sink}")
         try:
             address = self.resolve(sink_task)
         except NotFoundError:

@@ -11,7 +11,11 @@ limit: a sample never leaves to be dropped unseen at the reader.
 
 from __future__ import annotations
 
-__all__ = ["FRAME_ROOM", "MAX_FRAME_BYTES", "MAX_SAMPLE_BYTES", "SampleTooLarge", "check_size"]
+from typing import Any
+
+from dataflow.errors import DeploymentError
+
+__all__ = ["FRAME_ROOM", "MAX_FRAME_BYTES", "MAX_SAMPLE_BYTES", "SampleTooLarge", "check_fits", "check_size"]
 
 MAX_SAMPLE_BYTES = 64 * 1024 * 1024  #: bytes of one sample's value a transport carries, at least
 FRAME_ROOM = 64 * 1024  #: scart's framing around a value (write number, time, type name...), at most
@@ -34,6 +38,20 @@ def check_size(data: bytes, limit: int = MAX_FRAME_BYTES, transport: str = "") -
     if len(data) > limit:
         raise SampleTooLarge(len(data), limit, transport)
     return data
+
+
+def check_fits(port: Any, across: str) -> None:
+    """Refuse, when it is made, a channel of ``port`` (``across``: what it joins) whose
+    type makes every write fail: a fixed-size type (an array of a fixed shape) over the
+    limit. Raises :class:`~dataflow.errors.DeploymentError` saying the size and the limit."""
+    size = getattr(port.type, "fixed_bytes", None)
+    if size is not None and size + _LEAST_FRAMING > MAX_FRAME_BYTES:
+        raise DeploymentError(f"{port.qualname} ({port.type_name}) cannot cross processes ({across}): one sample is "
+                              f"{size} bytes, over the transports' limit of {MAX_FRAME_BYTES} bytes "
+                              f"({_mib(MAX_FRAME_BYTES)}); every write would be refused")
+
+
+_LEAST_FRAMING = 16  #: bytes a frame adds to a value, at least (write number, time, type name)
 
 
 def _mib(n: int) -> str:

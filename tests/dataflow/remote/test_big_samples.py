@@ -16,8 +16,10 @@ from support import wait_until
 from support.cli import run
 from support.remote import address_of, start_scart, stop_process
 
-from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext
-from dataflow.remote import connect
+import numpy as np
+
+from dataflow import Array, ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext
+from dataflow.remote import RemoteError, connect
 from dataflow.transports.limits import MAX_FRAME_BYTES
 
 pytestmark = pytest.mark.integration
@@ -147,3 +149,47 @@ def test_a_1080p_camera_in_one_process_feeds_a_screen_in_another_through_scart_c
         if screen is not None:
             stop_process(screen, signal.SIGKILL)
         stop_process(camera, signal.SIGKILL)
+
+
+IMAGE = Array[np.uint8, (1080, 1920, 3)]
+HUGE = Array[np.uint8, (8192, 8192, 3)]  # 201 MB a sample: over every transport's limit
+
+
+class Eye(TaskContext):
+    image = OutputPort(IMAGE)
+    huge = OutputPort(HUGE)
+
+
+class Viewer(TaskContext):
+    image = InputPort(IMAGE)
+    huge = InputPort(HUGE)
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.got: list = []
+        self.image.add_data_callback(lambda port: self.got.append(port.read()[1]))
+
+
+@pytest.mark.parametrize("transport", ["ipc", "grpc"])
+def test_an_image_port_crosses_processes_as_a_read_only_array_and_a_type_too_large_is_refused_at_connect(
+        transport) -> None:
+    d1, d2 = Deployer(), Deployer()
+    eye = d1.add(Eye("eye"))
+    viewer = d2.add(Viewer("viewer"))
+    s1 = d1.serve("127.0.0.1:0")
+    s2 = d2.serve("127.0.0.1:0", ns=s1.address)
+    try:
+        with connect(s1.address, timeout=5.0) as system:
+            system.connect_ports("eye.image", "viewer.image", ConnPolicy.buffer(2).with_(transport=transport))
+            frame = np.random.default_rng(7).integers(0, 255, (1080, 1920, 3), dtype=np.uint8)
+            wait_until(lambda: eye.image.write(frame).name == "WRITE_SUCCESS" and viewer.got, timeout=10)
+            got = viewer.got[-1]
+            assert got.shape == (1080, 1920, 3) and got.dtype == np.uint8 and np.array_equal(got, frame)
+            assert not got.flags.writeable  # a view of what was received: read-only
+            with pytest.raises(RemoteError, match=r"eye.huge \(ndarray<uint8>\[8192,8192,3\]\) cannot cross "
+                                                      r"processes .*201326617 bytes, over the transports' limit"):
+                system.connect_ports("eye.huge", "viewer.huge", ConnPolicy.data().with_(transport=transport))
+            assert [lk.sink for lk in system.links()] == ["viewer.image"]  # nothing linked
+    finally:
+        s2.stop()
+        s1.stop()
