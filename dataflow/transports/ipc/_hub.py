@@ -350,6 +350,8 @@ class Conn:
                 frame, _, flags, _ = self.sock.recvmsg(CHUNK + 1)
             except (BlockingIOError, InterruptedError):
                 return
+            except ConnectionResetError:  # the peer closed with what this side sent unread: the kernel
+                continue  # says so once, before what the peer sent last (a final report): read that next
             except OSError:
                 frame = b""
             if not frame:
