@@ -27,6 +27,8 @@ from dataflow.transports import frames
 from dataflow.transports.grpc import Parts, ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire
 from dataflow.transports.ipc._serve import IpcServer
+from dataflow.transports.shm import ShmFlavour, carries_large
+from dataflow.transports.shm import available as shm_available
 from dataflow.transports.served import Served, ServedSet
 from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, Refused, Sinks
 
@@ -156,9 +158,13 @@ class ChannelRpcs:
                 raise Abort("FAILED_PRECONDITION", "this deployer's platform has no ipc transport")
             if not request.host_id or request.host_id != self._host_id:
                 raise Abort("FAILED_PRECONDITION", "the caller is on another host: ipc works on one host only")
-            if kind == "out":
-                self._output(request.task, request.port)  # an unknown or input port: refused now, by name
             policy = cv.policy_from_msg(request.policy)
+            if kind == "out":
+                port = self._output(request.task, request.port)  # an unknown or input port: refused now, by name
+                if request.shm and policy.transport == "auto" and not carries_large(port.type):
+                    raise Abort("FAILED_PRECONDITION", f"{port.qualname} carries small samples: ipc, not shm")
+            if request.shm and not shm_available():
+                raise Abort("FAILED_PRECONDITION", "this deployer's platform has no anonymous shared memory (shm)")
             heartbeat = self._heartbeat_s(request.heartbeat_ms) if kind == "out" else 0.0  # readers only
             server = self._ipc_server()
             try:
@@ -172,12 +178,13 @@ class ChannelRpcs:
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
+    def _serve_ipc(self, task: str, port: str, policy: ConnPolicy, who: str, shm: bool) -> Served:
+        return self._serve(task, port, policy, who, "shm" if shm else "ipc")
+
     def _ipc_server(self) -> IpcServer:
         with self._ipc_lock:
             if self._channels_stopping.is_set():
                 raise Abort("UNAVAILABLE", "this deployer is stopping")
             if self._ipc is None:
-                self._ipc = IpcServer(self.owner.boot_id, self.sinks,
-                                      lambda task, port, policy, who: self._serve(task, port, policy, who, "ipc"),
-                                      self.served.close)
+                self._ipc = IpcServer(self.owner.boot_id, self.sinks, self._serve_ipc, self.served.close, ShmFlavour())
             return self._ipc

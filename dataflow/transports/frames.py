@@ -92,10 +92,11 @@ def connected(end: WriterEnd, boot_id: str) -> bytes:
     return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, written=end.port.last_sample()[0]).SerializeToString()
 
 
-def feed(end: ReaderEnd, message: Any) -> int:
+def feed(end: ReaderEnd, message: Any, values: dict[int, Any] | None = None) -> int:
     """Hand the samples of one parsed frame (``SubscribeResponse`` or ``LinkRequest``) to
-    ``end``; returns how many it stored. (Every sample of every channel comes through
-    here: each step is one the hot path needs.)"""
+    ``end``; returns how many it stored. ``values``: the value of a sample whose bytes
+    are elsewhere (shared memory), by its index in the frame. (Every sample of every
+    channel comes through here: each step is one the hot path needs.)"""
     if end.on_frame is not None:
         end.on_frame(message)
     boot_id = message.boot_id
@@ -103,9 +104,14 @@ def feed(end: ReaderEnd, message: Any) -> int:
         end.writer(boot_id)
     stored = 0
     receive = end.receive
-    for s in message.samples:
-        if receive(s.sequence, s.source_time_ns, s.value):
-            stored += 1
+    if values:
+        for i, s in enumerate(message.samples):
+            if receive(s.sequence, s.source_time_ns, values.get(i, s.value)):
+                stored += 1
+    else:
+        for s in message.samples:
+            if receive(s.sequence, s.source_time_ns, s.value):
+                stored += 1
     if message.heartbeat:
         if type(message) is _Frame and message.written:  # a subscription's first frame (a link's hello says it)
             end.loss.began(message.written, end.init)

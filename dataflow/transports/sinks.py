@@ -47,7 +47,8 @@ def port_check(port: InputPort) -> Callable[[Any], Any]:
     admit = port.admit
 
     def check(msg: Any) -> Any:
-        value = codec.decode(msg) if isinstance(msg, codec.Value) else msg  # a converting transport's value
+        value = codec.decode(msg) if isinstance(msg, (codec.Value, codec.Payload)) else msg  # else a converting
+        # transport's value
         if type(value) is not py_type:
             value = registry.validate(py_type, value)
         return admit(value)
