@@ -27,7 +27,7 @@ table); activities own their threads (:mod:`dataflow.activities`). This package 
 imports ``scart``.
 """
 
-from .activities import Activity, EventActivity, PeriodicActivity, SlaveActivity
+from .activities import Activity, EventActivity, PeriodicActivity, SequentialActivity, SlaveActivity
 from .deployer import Deployer
 from .errors import DataflowError, DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 from .introspection import (
@@ -62,6 +62,7 @@ __all__ = [
     "PeriodicActivity",
     "SlaveActivity",
     "EventActivity",
+    "SequentialActivity",
     "Deployer",
     "TypeRegistry",
     "registry",

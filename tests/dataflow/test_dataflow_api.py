@@ -14,7 +14,7 @@ CONTRACT = {
     "UnknownValue", "Encoded", "DataflowError", "PortTypeError", "NotFoundError", "DeploymentError",
     "TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription",
 }
-EXTRA = {"Activity", "Connection", "PropertyValueError", "PortValueError", "Array", "ArraySpec"}
+EXTRA = {"Activity", "Connection", "PropertyValueError", "PortValueError", "Array", "ArraySpec", "SequentialActivity"}
 
 
 def test_exports_exactly():
