@@ -27,7 +27,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Array", "ArraySpec", "DTYPES", "array_spec"]
+__all__ = ["Array", "ArraySpec", "DTYPES", "RAW_IMAGE", "array_spec", "from_message", "image_encoding", "to_message"]
 
 #: The element types an array port may declare (numpy's names), little-endian on the wire.
 DTYPES = ("bool", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64",
@@ -78,6 +78,11 @@ class ArraySpec:
         return f"Array[{self.dtype}, {self.shape!r}]" if self.shape is not None else f"Array[{self.dtype}]"
 
     @property
+    def image(self) -> str | None:
+        """Its image encoding when its arrays are images (``rgb8``...), else None."""
+        return image_encoding(self.dtype, self.shape)
+
+    @property
     def fixed_bytes(self) -> int | None:
         """Bytes of one sample on the wire when the shape is fixed (else None)."""
         if self.shape is None or any(s is None for s in self.shape):
@@ -118,6 +123,8 @@ class ArraySpec:
 
         if not self.mismatch(value):
             return value
+        if isinstance(value, dict):  # a recorded message (scart record, the Foxglove app)
+            value = from_message(value, self)
         try:
             array = np.asarray(value, dtype=self.dtype) if not isinstance(value, np.ndarray) else value
         except (TypeError, ValueError, OverflowError) as exc:
@@ -172,6 +179,60 @@ class ArraySpec:
         return core_schema.no_info_plain_validator_function(
             self.coerce, serialization=core_schema.plain_serializer_function_ser_schema(
                 lambda a: a.tolist(), when_used="json"))
+
+
+#: The encodings of images (``sensor_msgs/Image``'s and ``foxglove.RawImage``'s names), by
+#: element type and channels.
+IMAGE_ENCODINGS = {("uint8", 1): "mono8", ("uint8", 3): "rgb8", ("uint8", 4): "rgba8", ("uint16", 1): "mono16",
+                   ("uint16", 3): "rgb16", ("float32", 1): "32FC1"}
+RAW_IMAGE = "foxglove.RawImage"  #: the schema an image-shaped array is shown and recorded as
+
+
+def image_encoding(dtype: str, shape: tuple[int | None, ...] | None) -> str | None:
+    """The image encoding of arrays of ``dtype`` and ``shape`` (height, width[, channels]),
+    or None when they are not images."""
+    if shape is None or len(shape) not in (2, 3):
+        return None
+    channels = 1 if len(shape) == 2 else shape[2]
+    return IMAGE_ENCODINGS.get((dtype, channels)) if channels is not None else None
+
+
+def to_message(value: Any) -> dict[str, Any]:
+    """An array as a JSON message (what ``scart record`` and the Foxglove app carry): an
+    image as ``foxglove.RawImage`` (width, height, encoding, step, base64 data), any other
+    array as its shape, element type and base64 data."""
+    import base64
+
+    import numpy as np
+
+    data = base64.b64encode(np.ascontiguousarray(value).data).decode("ascii")
+    encoding = image_encoding(value.dtype.name, value.shape)
+    if encoding is None:
+        return {"shape": list(value.shape), "dtype": value.dtype.name, "data": data}
+    height, width = value.shape[:2]
+    return {"timestamp": {"sec": 0, "nsec": 0}, "frame_id": "", "width": width, "height": height,
+            "encoding": encoding, "step": width * (value.shape[2] if value.ndim == 3 else 1) * value.itemsize,
+            "data": data}
+
+
+def from_message(message: Any, spec: ArraySpec) -> Any:
+    """The array a :func:`to_message` message holds, as ``spec``; ``ValueError`` when it
+    does not fit."""
+    import base64
+
+    import numpy as np
+
+    try:
+        data = base64.b64decode(message["data"], validate=True)
+        if "shape" in message:
+            shape = tuple(int(s) for s in message["shape"])
+        else:
+            shape = (int(message["height"]), int(message["width"]))
+            if spec.shape is not None and len(spec.shape) == 3:
+                shape = (*shape, len(data) // max(1, shape[0] * shape[1] * _itemsize(spec.dtype)))
+        return np.frombuffer(data, dtype=spec.dtype).reshape(shape)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"not a message of {spec.name}: {exc}") from None
 
 
 def _itemsize(dtype: str) -> int:

@@ -14,7 +14,9 @@ import subprocess
 import sys
 import time
 
-from dataflow import InputPort, OutputPort, Property, TaskContext, operation
+import numpy as np
+
+from dataflow import Array, FlowStatus, InputPort, OutputPort, Property, TaskContext, operation
 from support import ROOT, TESTS
 
 if str(ROOT / "composites" / "youbot") not in sys.path:  # the youBot model (Echo's status)
@@ -161,6 +163,46 @@ class Screen(TaskContext):
                 return
             self.count += 1
             self.size = len(frame)
+
+
+VGA = Array[np.uint8, (480, 640, 3)]
+
+
+class EyeCam(TaskContext):
+    """Writes a 640x480 RGB image each cycle: every byte the cycle number (mod 256)."""
+
+    image = OutputPort(VGA, doc="one frame per cycle")
+
+    def __init__(self, name: str = "eye") -> None:
+        super().__init__(name)
+        self.count = 0
+
+    def update_hook(self) -> None:
+        self.count += 1
+        self.image.write(np.full((480, 640, 3), self.count % 256, dtype=np.uint8))
+
+
+class Album(TaskContext):
+    """Keeps the first byte of each image arriving on ``image``: ``firsts()``."""
+
+    image = InputPort(VGA, event=True, doc="kept")
+
+    def __init__(self, name: str = "album") -> None:
+        super().__init__(name)
+        self.kept: list[int] = []
+
+    @operation
+    def firsts(self) -> list[int]:
+        """The first byte of each image read, in order."""
+        return list(self.kept)
+
+    def update_hook(self) -> None:
+        for _ in range(1000):
+            flow, image = self.image.read()
+            if flow is not FlowStatus.NEW_DATA:
+                return
+            if int(image.min()) == int(image.max()):  # whole: every byte the same
+                self.kept.append(int(image[0, 0, 0]))
 
 
 class Burst(TaskContext):
