@@ -25,6 +25,7 @@ from __future__ import annotations
 import re
 import struct
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 __all__ = ["Array", "ArraySpec", "DTYPES", "RAW_IMAGE", "array_spec", "from_message", "image_encoding", "to_message"]
@@ -183,8 +184,8 @@ class ArraySpec:
 
 #: The encodings of images (``sensor_msgs/Image``'s and ``foxglove.RawImage``'s names), by
 #: element type and channels.
-IMAGE_ENCODINGS = {("uint8", 1): "mono8", ("uint8", 3): "rgb8", ("uint8", 4): "rgba8", ("uint16", 1): "mono16",
-                   ("uint16", 3): "rgb16", ("float32", 1): "32FC1"}
+IMAGE_ENCODINGS = MappingProxyType({("uint8", 1): "mono8", ("uint8", 3): "rgb8", ("uint8", 4): "rgba8",
+                                    ("uint16", 1): "mono16", ("uint16", 3): "rgb16", ("float32", 1): "32FC1"})
 RAW_IMAGE = "foxglove.RawImage"  #: the schema an image-shaped array is shown and recorded as
 
 
