@@ -27,6 +27,7 @@ from dataflow.transports import frames
 from dataflow.transports.grpc import Parts, ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire
 from dataflow.transports.ipc._serve import IpcServer
+from dataflow.transports.limits import check_fits
 from dataflow.transports.shm import ShmFlavour, carries_large
 from dataflow.transports.shm import available as shm_available
 from dataflow.transports.served import Served, ServedSet
@@ -81,8 +82,10 @@ class ChannelRpcs:
         return min(max(asked_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
 
     def _serve(self, task: str, port: str, policy: ConnPolicy, who: str, transport: str) -> Served:
+        output = self._output(task, port)
+        check_fits(output, "a subscription")  # every sample would be refused: said now
         try:
-            return self.served.open(self._output(task, port), policy, who, transport)
+            return self.served.open(output, policy, who, transport)
         except OverflowError as exc:
             raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
 
@@ -161,6 +164,7 @@ class ChannelRpcs:
             policy = cv.policy_from_msg(request.policy)
             if kind == "out":
                 port = self._output(request.task, request.port)  # an unknown or input port: refused now, by name
+                check_fits(port, "a subscription")
                 if request.shm and policy.transport == "auto" and not carries_large(port.type):
                     raise Abort("FAILED_PRECONDITION", f"{port.qualname} carries small samples: ipc, not shm")
             if request.shm and not shm_available():

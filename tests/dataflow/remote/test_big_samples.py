@@ -190,6 +190,8 @@ def test_an_image_port_crosses_processes_as_a_read_only_array_and_a_type_too_lar
                                                       r"processes .*201326617 bytes, over the transports' limit"):
                 system.connect_ports("eye.huge", "viewer.huge", ConnPolicy.data().with_(transport=transport))
             assert [lk.sink for lk in system.links()] == ["viewer.image"]  # nothing linked
+            with pytest.raises(Exception, match=r"eye.huge .*cannot cross processes \(a subscription\)"):
+                system.component("eye").subscribe("huge", lambda e: None, ConnPolicy.data().with_(transport=transport))
     finally:
         s2.stop()
         s1.stop()

@@ -101,6 +101,21 @@ def test_auto_takes_shared_memory_for_images_and_ipc_for_small_samples_and_a_vie
         wait_until(lambda: carrier.pool.busy == busy - 1, timeout=5, message="the slot never came back")
 
 
+def test_a_subscription_to_an_image_port_takes_shared_memory_and_gets_read_only_views() -> None:
+    with serving() as (system, eye, _, _):
+        got: list = []
+        sub = system.component("eye").subscribe("image", got.append, ConnPolicy.buffer(4))
+        small = system.component("eye").subscribe("count", lambda e: None, ConnPolicy.buffer(4))
+        try:
+            assert (sub.transport, small.transport) == ("shm", "ipc")  # the deployer knows its port's samples
+            wait_until(lambda: eye.image.write(_frame(5)) and got, timeout=10)
+            image = got[0].value
+            assert isinstance(_backing(image), mmap.mmap) and not image.flags.writeable and int(image[1, 2, 0]) == 5
+        finally:
+            small.close()
+            sub.close()
+
+
 def test_a_slow_reader_pins_no_more_slots_than_its_buffer_and_every_write_is_counted() -> None:
     before = _memfds()
     with serving() as (system, eye, viewer, _):
