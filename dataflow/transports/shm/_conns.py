@@ -227,7 +227,10 @@ class SlotReader(Conn):
             except (BlockingIOError, InterruptedError):
                 return
             except ConnectionResetError:  # said once, before what the peer sent last: read that next
-                continue
+                if not self._reset:
+                    self._reset = True
+                    continue
+                frame, anc, flags = b"", [], 0
             except OSError:
                 frame, anc, flags = b"", [], 0
             for level, kind, data in anc:
