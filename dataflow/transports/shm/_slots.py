@@ -38,7 +38,7 @@ class Slot:
     """One slot at the writer: its number, size, memory (a writable ``uint8`` array over
     its mapping) and, until the reader has it, its descriptor."""
 
-    __slots__ = ("id", "size", "memory", "fd", "busy", "_map")
+    __slots__ = ("id", "size", "memory", "fd", "busy", "freed", "_map")
 
     def __init__(self, slot_id: int, size: int) -> None:
         import numpy as np
@@ -55,6 +55,7 @@ class Slot:
         self.fd: int | None = fd
         self.memory = np.frombuffer(self._map, dtype=np.uint8)
         self.busy = False
+        self.freed = 0  # when it was last given back (a pool's count): the latest is the warmest in the caches
 
     def announced(self) -> None:
         """The reader has the descriptor: this side needs only the mapping."""
@@ -83,6 +84,7 @@ class SlotPool:
         self._slots: list[Slot] = []
         self._by_id: dict[int, Slot] = {}
         self._next_id = 1
+        self._freed = 0
         self._closed = False
         self.retired: list[int] = []  #: slots replaced by larger ones, to tell the reader (then cleared)
 
@@ -93,7 +95,7 @@ class SlotPool:
             if self._closed:
                 return None
             free = [s for s in self._slots if not s.busy]
-            fit = min((s for s in free if s.size >= size), key=lambda s: s.size, default=None)
+            fit = max((s for s in free if s.size >= size), key=lambda s: s.freed, default=None)  # the warmest
             if fit is None:
                 want = max(_GRAIN, -(-size // _GRAIN) * _GRAIN)
                 total = sum(s.size for s in self._slots)
@@ -127,6 +129,8 @@ class SlotPool:
                 slot = self._by_id.get(slot_id)
                 if slot is not None:
                     slot.busy = False
+                    self._freed += 1
+                    slot.freed = self._freed
 
     @property
     def busy(self) -> int:
