@@ -300,24 +300,20 @@ def has_rospy() -> bool:
 
 def cyclone_child(role: str, size: int, rate: float, count: int, warmup: float, domain: int) -> None:
     """Bare cyclonedds-python, a stamp and a ``sequence<octet>``, one end of the hop."""
-    from dataclasses import dataclass
-
     from cyclonedds.core import Qos, Policy
     from cyclonedds.domain import DomainParticipant
-    from cyclonedds.idl import IdlStruct
+    from cyclonedds.util import duration
+    from cyclonedds.idl import make_idl_struct
     from cyclonedds.idl import types as t
     from cyclonedds.pub import DataWriter
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
 
-    @dataclass
-    class Blob(IdlStruct, typename="scart_bench::Blob"):
-        stamp: t.int64
-        data: t.sequence[t.uint8]
+    Blob = make_idl_struct("Blob", "scart_bench::Blob", {"stamp": t.int64, "data": t.sequence[t.uint8]})
 
     participant = DomainParticipant(domain)
     topic = Topic(participant, "scart_bench_big", Blob)
-    qos = Qos(Policy.Reliability.Reliable(duration=1), Policy.History.KeepLast(1))
+    qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(1))
     if role == "pub":
         writer = DataWriter(participant, topic, qos=qos)
         wait_until(lambda: writer.get_matched_subscriptions(), 30)
