@@ -327,7 +327,8 @@ def cyclone_child(role: str, size: int, rate: float, count: int, warmup: float, 
     deadline, last, seen = time.monotonic() + count / rate + 120, -1, time.monotonic()
     while len(got) < count and time.monotonic() < deadline:
         for sample in reader.take(N=16):
-            got.append((time.monotonic_ns(), sample.stamp))
+            if hasattr(sample, "stamp"):  # not the writer going away (an InvalidSample)
+                got.append((time.monotonic_ns(), sample.stamp))
         if last != len(got):
             last, seen = len(got), time.monotonic()
         elif got and time.monotonic() - seen > 3.0:
