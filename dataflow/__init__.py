@@ -27,7 +27,7 @@ table); activities own their threads (:mod:`dataflow.activities`). This package 
 imports ``scart``.
 """
 
-from .activities import Activity, EventActivity, PeriodicActivity, SlaveActivity
+from .activities import Activity, EventActivity, PeriodicActivity, SequentialActivity, SlaveActivity
 from .deployer import Deployer
 from .errors import DataflowError, DeploymentError, NotFoundError, PortTypeError, PortValueError, PropertyValueError
 from .introspection import (
@@ -41,6 +41,7 @@ from .policy import BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, 
 from .ports import Connection, InputPort, OutputPort
 from .properties import Property
 from .task import TaskContext, TaskState
+from scart_wire.arrays import Array, ArraySpec
 from scart_wire.types import Encoded, TypeRegistry, UnknownValue, register_type, registry
 
 __all__ = [
@@ -62,12 +63,15 @@ __all__ = [
     "PeriodicActivity",
     "SlaveActivity",
     "EventActivity",
+    "SequentialActivity",
     "Deployer",
     "TypeRegistry",
     "registry",
     "register_type",
     "UnknownValue",
     "Encoded",
+    "Array",
+    "ArraySpec",
     "DataflowError",
     "PortTypeError",
     "NotFoundError",

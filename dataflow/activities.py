@@ -13,6 +13,11 @@
   clock (``task.clock``, :mod:`dataflow.clock`): the system's, or a simulation's.
 * :class:`SlaveActivity`: no thread; its owner calls ``step()`` (or ``task.update()``);
   deterministic tests use it.
+* :class:`SequentialActivity` (RTT's ``SequentialActivity``): no thread of its own; a
+  cycle runs in the thread that triggers it — for an event port, the thread that stored
+  the sample — with no wake-up, so the task sees a sample as soon as a ROS callback
+  would. Its ``update_hook`` then holds that thread (ipc's io thread, a writer's): keep
+  it as short as a callback.
 
 Threads are created in ``start()``, never in ``__init__``; they are daemon threads and
 end when the task stops running. ``stop()`` signals (sets the stop flag and wakes the
@@ -40,7 +45,8 @@ from dataflow.threads import Wake
 if TYPE_CHECKING:
     from .task import TaskContext
 
-__all__ = ["Activity", "PeriodicActivity", "SlaveActivity", "EventActivity", "fit_switch_interval"]
+__all__ = ["Activity", "PeriodicActivity", "SequentialActivity", "SlaveActivity", "EventActivity",
+           "fit_switch_interval"]
 
 log = logging.getLogger(__name__)
 DEFAULT_JOIN_TIMEOUT = 2.0
@@ -121,6 +127,67 @@ class SlaveActivity(Activity):
 
     def trigger(self) -> bool:
         return self.step()
+
+
+class SequentialActivity(Activity):
+    """Runs a cycle in the thread that triggers it (see the module docstring): an event
+    port's sample is handled in the thread that stored it, with no hand-over. One cycle at
+    a time: a trigger while another thread cycles is run by that thread, right after
+    (triggers coalesce, as an event activity's do). ``stop()`` waits (bounded) for a
+    cycle running in another thread; from inside ``update_hook`` it returns at once."""
+
+    kind = "sequential"
+    MAX_ROUNDS = 1000  #: cycles one thread runs for triggers that came meanwhile, at most in a row
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._cycling = threading.Lock()
+        self._pending = False
+        self._owner = 0  # the thread cycling now (its ident), 0 when none
+
+    def start(self) -> bool:
+        """Start, then run one cycle at once (RTT: starting an event-driven task triggers it)."""
+        if not super().start():
+            return False
+        self.trigger()
+        return True
+
+    def trigger(self) -> bool:
+        if not self._active:
+            return False
+        self._cycles_here()
+        return True
+
+    def _on_event(self) -> None:
+        if self._active:
+            self._cycles_here()
+
+    def _cycles_here(self) -> None:
+        """Run the pending cycles in this thread, unless another one runs them."""
+        self._pending = True
+        for _ in range(self.MAX_ROUNDS):
+            if not self._cycling.acquire(blocking=False):
+                return  # the thread cycling sees _pending once its cycle ends
+            try:
+                self._owner = threading.get_ident()
+                while self._pending and self._active:
+                    self._pending = False
+                    self._run_cycle()
+            finally:
+                self._owner = 0
+                self._cycling.release()
+            if not (self._pending and self._active):  # a trigger that came as the lock was let go
+                return
+
+    def stop(self, timeout: float = DEFAULT_JOIN_TIMEOUT) -> bool:
+        self._active = False
+        if self._owner == threading.get_ident():  # from inside update_hook: the cycle ends by itself
+            return True
+        if not self._cycling.acquire(timeout=timeout):
+            log.warning("task %s: a cycle did not end within %.1f s", self.task.name if self.task else "?", timeout)
+            return False
+        self._cycling.release()
+        return True
 
 
 class _Run:

@@ -181,7 +181,13 @@ class DataObject(Storage):
         return _OLD, cell[0]
 
     def clear(self) -> None:
-        self._cell = None
+        cell, self._cell = self._cell, None
+        if cell is not None and len(cell) == 2:  # unread: counted as dropped, as a buffer's clear counts
+            try:
+                cell.pop()
+                self._drops.add()
+            except IndexError:  # a reader took it meanwhile
+                pass
 
     def size(self) -> int:
         cell = self._cell

@@ -14,9 +14,10 @@ constructor                     type             size    init   lock_policy   bu
 
 ``init=True`` hands the output's last written value to a connection made later.
 ``transport`` (RTT's ``ConnPolicy.transport``) says how samples cross processes:
-``"auto"`` (default: the fastest that works — ``ipc`` when both deployers are on one host,
-else ``grpc``), ``"ipc"`` (the same-host fast path; ``"shm"`` is accepted for it), or
-``"grpc"``, or a plug-in's name (:func:`transport_names`: ``"zenoh"``...). A connection
+``"auto"`` (default: the fastest that works — ``shm`` for large samples and ``ipc`` for the
+rest when both deployers are on one host, else ``grpc``), ``"ipc"`` (the same-host socket),
+``"shm"`` (the same-host path with large samples in shared memory), or ``"grpc"``, or a
+plug-in's name (:func:`transport_names`: ``"zenoh"``...). A connection
 inside one process ignores it. ``topic`` (RTT's ``name_id``) makes a *stream*: the port
 joined to a named topic of that transport rather than to another port.
 ``size`` is at most :data:`MAX_BUFFER`, everywhere.
@@ -68,10 +69,9 @@ from types import MappingProxyType
 __all__ = ["ConnType", "LockPolicy", "BufferPolicy", "ConnPolicy", "FlowStatus", "WaitMode", "WriteStatus",
            "MAX_BUFFER", "MAX_WAIT", "TRANSPORTS", "transport_names"]
 
-#: scart's own transport names (``shm`` is taken as ``ipc``: see the module docstring);
-#: plug-ins add theirs (:func:`transport_names`).
-TRANSPORTS = ("auto", "ipc", "grpc")
-_TRANSPORT_ALIASES = MappingProxyType({"shm": "ipc", "": "auto"})
+#: scart's own transport names; plug-ins add theirs (:func:`transport_names`).
+TRANSPORTS = ("auto", "ipc", "shm", "grpc")
+_TRANSPORT_ALIASES = MappingProxyType({"": "auto"})
 
 
 #: The largest BUFFER / CIRCULAR_BUFFER a policy may ask for, in one process and across
@@ -82,12 +82,11 @@ MAX_WAIT = 60.0  #: seconds a waiting writer may be told to wait for a reader, a
 
 
 def transport_names() -> tuple[str, ...]:
-    """Every transport name a policy accepts: ``auto``, scart's own (with ``shm``), then
-    the plug-ins' found through the ``scart.transports`` entry points (see
-    :mod:`dataflow.transports`)."""
+    """Every transport name a policy accepts: ``auto``, scart's own, then the plug-ins'
+    found through the ``scart.transports`` entry points (see :mod:`dataflow.transports`)."""
     from dataflow.transports import names  # entry points: read once, when first needed
 
-    return ("auto", "ipc", "shm", "grpc", *(n for n in names() if n not in TRANSPORTS))
+    return (*TRANSPORTS, *(n for n in names() if n not in TRANSPORTS))
 
 
 def one_of(options: tuple[str, ...]) -> str:

@@ -311,11 +311,9 @@ class OutputPort(Port[T]):
     def _checked(self, value: Any) -> Any:
         try:
             return self._check(value)
-        except TypeError:
-            raise PortTypeError(
-                f"{self.qualname}: cannot write {type(value).__name__} {value!r:.60}; "
-                f"expected {self.type_name}"
-            ) from None
+        except TypeError as exc:
+            shown = str(exc) or f"{type(value).__name__} {value!r:.60}"  # an array type says its dtype and shape
+            raise PortTypeError(f"{self.qualname}: cannot write {shown}; expected {self.type_name}") from None
 
     def last_written_value(self) -> T | None:
         """The last value written (kept also while unconnected), or None if never written."""

@@ -32,11 +32,12 @@ from typing import Any
 import pydantic
 import pydantic_core
 
+from scart_wire.arrays import ArraySpec
 from scart_wire.errors import PortTypeError
 from scart_wire.proto.scart.dataflow.v1.value_pb2 import Value
 from scart_wire.types import UnknownValue, model_json, registry
 
-__all__ = ["FLOAT_LIST", "JSON_TYPE", "NONE_TYPE", "Value", "decode", "encode"]
+__all__ = ["FLOAT_LIST", "JSON_TYPE", "NONE_TYPE", "Payload", "Value", "decode", "encode"]
 
 NONE_TYPE = ""
 JSON_TYPE = "scart.json"
@@ -73,7 +74,8 @@ def encode(value: Any, py_type: Any = None) -> Value:
 
 def _encode_untyped(value: Any) -> Value:
     kind = type(value)
-    if kind in _PLAIN or isinstance(value, (pydantic.BaseModel, UnknownValue)):
+    if kind in _PLAIN or isinstance(value, (pydantic.BaseModel, UnknownValue)) or \
+            (kind.__name__ == "ndarray" and kind.__module__ == "numpy"):
         enc = registry.encode(value)
         return Value(type_name=enc.type_name, data=enc.data)
     if kind is list or kind is tuple:
@@ -108,10 +110,31 @@ def _list_type(value: list[Any] | tuple[Any, ...]) -> Any:
     return None
 
 
-def decode(msg: Value) -> Any:
-    """The Python value of a ``Value`` message (see the module docstring).
+class Payload:
+    """A value's type name and its bytes held elsewhere than in a ``Value`` message: a
+    buffer (shared memory) that a decoded array keeps alive and views without a copy."""
+
+    __slots__ = ("type_name", "data")
+
+    def __init__(self, type_name: str, data: Any) -> None:
+        self.type_name = type_name
+        self.data = data
+
+
+def decode(msg: Value | Payload) -> Any:
+    """The Python value of a ``Value`` message (see the module docstring), or of a
+    :class:`Payload`: an array type's value is then a read-only view of its buffer, any
+    other type's is made of a copy of the bytes.
 
     Raises :class:`~scart_wire.errors.PortTypeError` when the bytes do not fit their type name."""
+    if type(msg) is Payload:
+        spec = registry.python_type(msg.type_name)
+        if isinstance(spec, ArraySpec):
+            try:
+                return spec.decode(msg.data)
+            except ValueError as exc:
+                raise PortTypeError(f"cannot decode {msg.type_name}: {exc}") from None
+        msg = Value(type_name=msg.type_name, data=bytes(msg.data))
     name = msg.type_name
     unpack = _UNPACK.get(name)
     if unpack is not None:  # a number, without the registry's lookups (the hot case)

@@ -15,7 +15,10 @@ name            Python type          wire encoding (``Encoded.data``)
 ``int64[]``     ``list[int]``        packed little-endian int64
 ``string[]``    ``list[str]``        JSON array
 registered      pydantic model       the model's JSON
+``ndarray<..>`` ``Array[dt, shape]``  shape, then raw little-endian data (:mod:`scart_wire.arrays`)
 ==============  ===================  ===========================================
+
+Array types (``ndarray<uint8>[480,640,3]``) need no registration: their name says all.
 
 An unknown type name decodes to :class:`UnknownValue`, a ``dict`` that keeps its
 ``type_name`` — never an error. The registry is thread-safe for lookups; register
@@ -35,6 +38,7 @@ from typing import Any, TypeVar
 import pydantic
 import pydantic_core
 
+from .arrays import ArraySpec, array_spec
 from .errors import PortTypeError
 
 __all__ = ["TypeRegistry", "registry", "register_type", "UnknownValue", "Encoded", "model_json"]
@@ -71,6 +75,12 @@ def model_json(value: pydantic.BaseModel) -> bytes:
     if b"null" not in data:
         return data
     return pydantic_core.to_json(value.model_dump(), inf_nan_mode="constants")
+
+
+def _is_ndarray(value: Any) -> bool:
+    """Whether ``value`` is a numpy array (without importing numpy)."""
+    kind = type(value)
+    return kind.__name__ == "ndarray" and kind.__module__ == "numpy"
 
 
 def _is_model(py_type: Any) -> bool:
@@ -174,11 +184,14 @@ class TypeRegistry:
         name = self._by_type.get(py_type)
         if name is not None:
             return name
+        if isinstance(py_type, ArraySpec):
+            return py_type.name
         return getattr(py_type, "__qualname__", None) or repr(py_type)
 
     def python_type(self, name: str) -> Any | None:
-        """The Python type registered as ``name``, or None."""
-        return self._by_name.get(name)
+        """The Python type registered as ``name`` (or the array type it names), or None."""
+        found = self._by_name.get(name)
+        return found if found is not None else array_spec(name)
 
     def names(self) -> list[str]:
         """Every registered type name (sorted)."""
@@ -207,6 +220,8 @@ class TypeRegistry:
             return _exact_list_check(int)
         if py_type == list[str]:
             return _exact_list_check(str)
+        if isinstance(py_type, ArraySpec):
+            return py_type.check
         if isinstance(py_type, type):
             return _instance_check(py_type)
         adapter = self._adapter(py_type)
@@ -238,6 +253,8 @@ class TypeRegistry:
             return dict(value)
         if isinstance(value, (bytes, bytearray)):
             return base64.b64encode(bytes(value)).decode("ascii")
+        if hasattr(value, "__array__") and hasattr(value, "tolist"):  # a numpy array
+            return value.tolist()
         if isinstance(value, (list, tuple)):
             return [self.to_jsonable(v) for v in value]
         if isinstance(value, dict):
@@ -271,6 +288,8 @@ class TypeRegistry:
             py_type = type(value)
             if py_type is list:
                 py_type = self._guess_list_type(value)
+            elif _is_ndarray(value):  # an array of any shape, of its own element type
+                py_type = ArraySpec(value.dtype.name)
         name = self.type_name(py_type)
         if py_type is float:
             return Encoded(name, struct.pack("<d", value))
@@ -288,6 +307,8 @@ class TypeRegistry:
             return Encoded(name, struct.pack(f"<{len(value)}d", *value))
         if py_type == list[int]:
             return Encoded(name, struct.pack(f"<{len(value)}q", *value))
+        if isinstance(py_type, ArraySpec):
+            return Encoded(name, py_type.encode(py_type.check(value)))
         return Encoded(name, pydantic_core.to_json(self._adapter(py_type).dump_python(value), inf_nan_mode="constants"))
 
     @staticmethod
@@ -327,12 +348,14 @@ class TypeRegistry:
                 return list(struct.unpack(f"<{len(data) // 8}d", data))
             if py_type == list[int]:
                 return list(struct.unpack(f"<{len(data) // 8}q", data))
+            if isinstance(py_type, ArraySpec):
+                return py_type.decode(data)
             if _is_model(py_type):
                 value = py_type.model_validate_json(data)
                 self._models[type_name] = py_type.__pydantic_validator__.validate_json  # built now: the same check
                 return value
             return self._adapter(py_type).validate_json(data)
-        except (struct.error, UnicodeDecodeError, pydantic.ValidationError) as exc:
+        except (struct.error, UnicodeDecodeError, pydantic.ValidationError, ValueError) as exc:
             raise PortTypeError(f"cannot decode {type_name}: {exc}") from None
 
     @staticmethod

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["message_of", "type_schema"]
+__all__ = ["message_of", "schema_name", "type_schema"]
 
 
 def type_schema(type_name: str) -> dict[str, Any]:
@@ -24,11 +24,25 @@ def type_schema(type_name: str) -> dict[str, Any]:
         return {"title": type_name}
 
 
+def schema_name(type_name: str) -> str:
+    """The name of a type's schema in MCAP files and the Foxglove app: an image array's is
+    ``foxglove.RawImage`` (the image panel shows it), any other type's its own name."""
+    from scart_wire.arrays import RAW_IMAGE, array_spec
+
+    spec = array_spec(type_name)
+    return RAW_IMAGE if spec is not None and spec.image else type_name
+
+
 def _schema_of(type_name: str) -> dict[str, Any]:
     """A message's JSON Schema: the type's, a non-object wrapped as ``{"value": ...}``
-    (Foxglove wants objects); ``{"title": name}`` for a type unknown here."""
+    (Foxglove wants objects); ``{"title": name}`` for a type unknown here; an array's,
+    what :func:`message_of` makes of it."""
     from dataflow import registry
+    from scart_wire.arrays import array_spec
 
+    spec = array_spec(type_name)
+    if spec is not None:
+        return _ARRAY_SCHEMA(type_name, image=spec.image is not None)
     schema = type_schema(type_name)
     if registry.python_type(type_name) is not None and schema.get("type") != "object":
         schema = {"title": type_name, "type": "object", "properties": {"value": schema}}
@@ -40,5 +54,23 @@ def message_of(value: Any) -> dict[str, Any]:
     (the shape :func:`_schema_of` describes)."""
     from dataflow import registry
 
+    kind = type(value)
+    if kind.__name__ == "ndarray" and kind.__module__ == "numpy":  # an image or a cloud: base64, not a list
+        from scart_wire.arrays import to_message
+
+        return to_message(value)
     data = registry.to_jsonable(value)
     return data if isinstance(data, dict) else {"value": data}
+
+
+def _ARRAY_SCHEMA(type_name: str, image: bool) -> dict[str, Any]:  # noqa: N802 - a schema maker
+    """The JSON Schema of an array's message (:func:`~scart_wire.arrays.to_message`)."""
+    data = {"type": "string", "contentEncoding": "base64"}
+    if image:
+        stamp = {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}}
+        return {"title": "foxglove.RawImage", "description": type_name, "type": "object",
+                "properties": {"timestamp": stamp, "frame_id": {"type": "string"}, "width": {"type": "integer"},
+                               "height": {"type": "integer"}, "encoding": {"type": "string"},
+                               "step": {"type": "integer"}, "data": data}}
+    return {"title": type_name, "type": "object", "properties": {
+        "shape": {"type": "array", "items": {"type": "integer"}}, "dtype": {"type": "string"}, "data": data}}

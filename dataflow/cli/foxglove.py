@@ -55,7 +55,7 @@ import threading
 from typing import Any
 
 from dataflow.threads import OwnedThread
-from dataflow.cli._jsonschema import _schema_of, message_of, type_schema
+from dataflow.cli._jsonschema import _schema_of, message_of, schema_name, type_schema
 
 __all__ = ["FoxgloveLive", "cmd_foxglove"]
 
@@ -134,7 +134,7 @@ class _Bridge:
     def _channel(self, topic: str, type_name: str, schema: dict[str, Any]) -> Any:
         import foxglove
 
-        return foxglove.Channel(topic, schema=foxglove.Schema(name=type_name, encoding="jsonschema",
+        return foxglove.Channel(topic, schema=foxglove.Schema(name=schema_name(type_name), encoding="jsonschema",
                                                               data=json.dumps(schema).encode()),
                                 message_encoding="json", context=self.context)
 

@@ -119,10 +119,22 @@ def dump(obj: Any) -> str:
 
 
 def jsonable(value: Any) -> Any:
-    """A sample or result as JSON-able data (the type registry's form)."""
+    """A sample or result as JSON-able data (the type registry's form); a numpy array
+    (an image, a point cloud) as a summary: its shape, element type, mean, min and max."""
     from dataflow import registry
 
+    kind = type(value)
+    if kind.__name__ == "ndarray" and kind.__module__ == "numpy":
+        return array_summary(value)
     return registry.to_jsonable(value)
+
+
+def array_summary(value: Any) -> dict[str, Any]:
+    """What ``scart echo`` shows of an array: not its data."""
+    summary: dict[str, Any] = {"shape": list(value.shape), "dtype": value.dtype.name}
+    if value.size and value.dtype.kind in "biuf":
+        summary.update(mean=float(value.mean()), min=value.min().item(), max=value.max().item())
+    return summary
 
 
 def parse_value(text: str) -> Any:

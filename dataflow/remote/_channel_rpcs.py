@@ -24,9 +24,12 @@ from dataflow.remote import _convert as cv
 from dataflow.remote._proto import df as pb
 from scart_wire.rpc import Abort, abort, peer_key
 from dataflow.transports import frames
-from dataflow.transports.grpc import ServedCarrier, serve_subscription
+from dataflow.transports.grpc import Parts, ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire
 from dataflow.transports.ipc._serve import IpcServer
+from dataflow.transports.limits import check_fits
+from dataflow.transports.shm import ShmFlavour, carries_large
+from dataflow.transports.shm import available as shm_available
 from dataflow.transports.served import Served, ServedSet
 from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, Refused, Sinks
 
@@ -56,13 +59,16 @@ class ChannelRpcs:
         self._host_id = ipc_wire.host_id()  # ipc serves callers of this host only
 
     def _stop_channels(self) -> None:
+        """Stop serving the sample path. The incoming links' buffers are counted first,
+        and each transport sends its link's source a last report: a source that comes to
+        a restarted sink knows what the old one lost (its buffer included), to the sample."""
         self._channels_stopping.set()
+        self.sinks.close_all()
         with self._ipc_lock:
             ipc, self._ipc = self._ipc, None
         if ipc is not None:
             ipc.stop()
         self.served.close_all()
-        self.sinks.close_all()
 
     def _output(self, task: str, port: str) -> Any:
         p = self.owner.deployer.task(task).port(port)
@@ -76,8 +82,10 @@ class ChannelRpcs:
         return min(max(asked_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
 
     def _serve(self, task: str, port: str, policy: ConnPolicy, who: str, transport: str) -> Served:
+        output = self._output(task, port)
+        check_fits(output, "a subscription")  # every sample would be refused: said now
         try:
-            return self.served.open(self._output(task, port), policy, who, transport)
+            return self.served.open(output, policy, who, transport)
         except OverflowError as exc:
             raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
 
@@ -94,7 +102,7 @@ class ChannelRpcs:
             yield from serve_subscription(served.end, carrier, self.owner.boot_id,
                                           self._heartbeat_s(request.heartbeat_ms),
                                           lambda: context.is_active() and not self._channels_stopping.is_set(),
-                                          lambda: served.tail)
+                                          served.end.tail_after)
         finally:
             self.served.close(served)
 
@@ -116,8 +124,16 @@ class ChannelRpcs:
         try:
             yield frames.report_of(link.end, known=known)
             unreported, reported_at = 0, time.monotonic()
-            for frame in request_iterator:
+            parts = Parts(pb.LinkRequest.FromString)
+            for message in request_iterator:
+                frame = parts.whole(message)
+                if frame is None:  # a part of a large sample
+                    link.end.seen = time.monotonic()
+                    continue
                 unreported += frames.feed(link.end, frame) + 1
+                if link.closed and not frame.closing:  # this deployer stops: the last report
+                    yield frames.report_of(link.end)
+                    return
                 if frame.closing:
                     link.linger(time.monotonic() + LINGER_S, self._channels_stopping)
                     finished = True
@@ -145,9 +161,14 @@ class ChannelRpcs:
                 raise Abort("FAILED_PRECONDITION", "this deployer's platform has no ipc transport")
             if not request.host_id or request.host_id != self._host_id:
                 raise Abort("FAILED_PRECONDITION", "the caller is on another host: ipc works on one host only")
-            if kind == "out":
-                self._output(request.task, request.port)  # an unknown or input port: refused now, by name
             policy = cv.policy_from_msg(request.policy)
+            if kind == "out":
+                port = self._output(request.task, request.port)  # an unknown or input port: refused now, by name
+                check_fits(port, "a subscription")
+                if request.shm and policy.transport == "auto" and not carries_large(port.type):
+                    raise Abort("FAILED_PRECONDITION", f"{port.qualname} carries small samples: ipc, not shm")
+            if request.shm and not shm_available():
+                raise Abort("FAILED_PRECONDITION", "this deployer's platform has no anonymous shared memory (shm)")
             heartbeat = self._heartbeat_s(request.heartbeat_ms) if kind == "out" else 0.0  # readers only
             server = self._ipc_server()
             try:
@@ -161,12 +182,13 @@ class ChannelRpcs:
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
 
+    def _serve_ipc(self, task: str, port: str, policy: ConnPolicy, who: str, shm: bool) -> Served:
+        return self._serve(task, port, policy, who, "shm" if shm else "ipc")
+
     def _ipc_server(self) -> IpcServer:
         with self._ipc_lock:
             if self._channels_stopping.is_set():
                 raise Abort("UNAVAILABLE", "this deployer is stopping")
             if self._ipc is None:
-                self._ipc = IpcServer(self.owner.boot_id, self.sinks,
-                                      lambda task, port, policy, who: self._serve(task, port, policy, who, "ipc"),
-                                      self.served.close)
+                self._ipc = IpcServer(self.owner.boot_id, self.sinks, self._serve_ipc, self.served.close, ShmFlavour())
             return self._ipc

@@ -38,13 +38,16 @@ from dataflow.transports.sinks import LINGER_S, IncomingLink, Sinks
 if TYPE_CHECKING:
     from dataflow.remote.server import DeployerServer
 
-__all__ = ["LinkKeeper", "PEER_FAILURES", "RemoteLink"]
+__all__ = ["LinkKeeper", "PEER_FAILURES", "RemoteLink", "SOURCE_GONE"]
 
 log = logging.getLogger(__name__)
 
 #: What a peer's failure looks like to a link's thread (it backs off and reconnects).
 PEER_FAILURES = (grpc.RpcError, grpc.FutureCancelledError, errors.RemoteError, NotFoundError, OSError)
 SETTLE_S = 2.0  #: how long making a link waits for its first connection (it then says how it went)
+#: What a link listed by its sink says while its source's deployer is gone (a client
+#: listing every deployer shows the source's own row instead, once it is back).
+SOURCE_GONE = "its source's deployer is gone; the sink waits for it to come back"
 CLOSE_S = LINGER_S + 1.0  #: how long closing a link waits for the sink's last report
 
 
@@ -154,6 +157,24 @@ class RemoteLink:
             (log.warning if state == "refused" else log.info)("link %s: %s", self.name, detail)
         self.state, self.detail, self.refusal = state, detail, refusal
 
+    def stop(self, deadline: float) -> int:
+        """This deployer stops; the link is not undone (the sink keeps it, and has this
+        deployer make it again once back): what was written before the stop is delivered
+        first — sent, and reported by the sink — until ``deadline`` (``time.monotonic()``);
+        then the connection ends. Returns the samples the stop left undelivered (in flight,
+        or not sent), and says how many when any. Idempotent; joins its thread."""
+        upto = self.out.last_sample()[0]
+        if self.end.transport:
+            self.end.flush()
+            while self.end.transport and self.end.undelivered_upto(upto) and time.monotonic() < deadline:
+                self._thread.stopping.wait(0.01)  # reports come every REPORT_S at most: a bounded poll
+        self._thread.stop()
+        detach(self.out, self.end)
+        lost = self.end.unconfirmed
+        if lost:
+            log.warning("link %s: this deployer stops; %d sample(s) written were not delivered", self.name, lost)
+        return lost
+
     def close(self, graceful: bool = True) -> int:
         """Undo the link: with ``graceful``, what waits is delivered first and the sink's
         task may read what its buffer holds (at most :data:`CLOSE_S` s). Returns the
@@ -206,13 +227,25 @@ class LinkKeeper:
         sink = link.port.task
         if not entry.boot_id or entry.boot_id == link.boot_id or sink is None:
             return  # the same process (reconnecting by itself), one that cannot say, or a port gone from its task
+        given = "" if link.name == f"{link.source}->{link.port.qualname}" else link.name  # the default is no name
         request = pb.ConnectPortsRequest(
             source_task=task, source_port=link.source.rpartition(".")[2], sink_task=sink.name,
-            sink_port=link.port.name, policy=policy_to_msg(link.policy), name=link.name, resume=True)
+            sink_port=link.port.name, policy=policy_to_msg(link.policy), name=given, resume=True)
         with self.server.security.channel(entry.address, rpc.channel_options()) as channel:
             df_grpc.DeployerServiceStub(channel).ConnectPorts(request, timeout=self.server.ns_timeout)
         log.info("link %s: its source restarted; made again", link.name)
         self.sinks.finish(link)
+
+    def waiting(self) -> list[LinkDescription]:
+        """The incoming links whose source has been gone :data:`GONE_S` or more (its
+        deployer stopped or died), as ``scart links`` shows them from here: ``waiting``,
+        as a link whose sink is gone shows at its source (the source lists it once back)."""
+        now = time.monotonic()
+        return [LinkDescription(name=link.name or f"{link.source}->{link.port.qualname}", source=link.source,
+                                sink=link.port.qualname, policy=str(link.policy), transport=f"{link.policy.transport}?",
+                                samples=link.end.last, dropped=link.end.lost, kind="link", state="waiting",
+                                detail=SOURCE_GONE)
+                for link in self.sinks.links() if link.carriers == 0 and now - link.seen >= self.GONE_S]
 
     def stop(self) -> None:
         self._thread.stop()

@@ -33,6 +33,7 @@ from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
 from dataflow.remote import _convert as cv
 from dataflow.remote import errors
 from scart_wire import rpc
+from dataflow.remote._links import SOURCE_GONE
 from dataflow.remote._proto import df_grpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._subscription import GrpcSubscription
@@ -202,6 +203,8 @@ class GrpcSystem(System):
     def links(self) -> list[LinkDescription]:
         """Every link of every deployer the name service knows (one ListLinks each), by name."""
         out = [_link_description(lk) for _, reply in self._listings() for lk in reply.links]
+        by_source = {(lk.source, lk.sink) for lk in out if lk.detail != SOURCE_GONE}
+        out = [lk for lk in out if lk.detail != SOURCE_GONE or (lk.source, lk.sink) not in by_source]
         return sorted(out, key=lambda lk: lk.name)
 
     def subscriptions(self) -> list[SubscriptionDescription]:

@@ -33,7 +33,7 @@ from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy, WaitMode
 from dataflow.remote import errors
 from scart_wire import rpc
-from dataflow.remote._links import SETTLE_S, LinkKeeper, RemoteLink
+from dataflow.remote._links import CLOSE_S, SETTLE_S, LinkKeeper, RemoteLink
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import (
     DEPLOYER_ROLES,
@@ -57,6 +57,7 @@ from dataflow.remote.naming import (
     security_probe,
 )
 from scart_wire.security import Security
+from dataflow.transports.limits import check_fits
 from dataflow.transports.streams import PortStream
 
 __all__ = ["DeployerServer"]
@@ -286,6 +287,7 @@ class DeployerServer:
             raise ValueError(f"link {source} -> {sink}: a writer that waits ({policy.wait.value}) holds back only "
                              "a reader in this process, or one on the yarp transport (a stream); links between "
                              "deployers carry no-wait writers")
+        check_fits(out, f"a link to {sink}")
         try:
             address = self.resolve(sink_task)
         except NotFoundError:
@@ -372,10 +374,11 @@ class DeployerServer:
 
     def links(self) -> list[LinkDescription]:
         """The links whose source is one of these tasks (in-process ones, then those to
-        other deployers), then the streams of these tasks."""
+        other deployers), then the streams of these tasks, then the links into these
+        tasks whose source's deployer is gone (``waiting``, until it is back)."""
         with self._lock:
             remote = [link.describe() for link in self._links.values()]
-        return self.deployer.links(remote)
+        return self.deployer.links(remote) + self._keeper.waiting()
 
     def find_link(self, name: str) -> LinkDescription:
         """The link called ``name``; raises ``NotFoundError`` listing some names."""
@@ -446,8 +449,9 @@ class DeployerServer:
             links = list(self._links.values())
             self._links.clear()
         streams = [self.deployer.remove_stream(n) for n, s in self.deployer.streams().items() if isinstance(s, PortStream)]
+        deadline = time.monotonic() + CLOSE_S  # one deadline for them all
         for link in links:
-            link.close(graceful=False)  # the sink keeps it, and makes it again when this deployer is back
+            link.stop(deadline)  # what waits is delivered; the sink keeps it, and makes it again once back
         for stream in streams:
             stream.close()
         self._keeper.stop()

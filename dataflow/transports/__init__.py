@@ -50,7 +50,8 @@ next), True once a connection it carried has ended, and raises what interrupted 
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
 Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
-``grpc``, ``zenoh``, ``ros1``, ``ros2``, ``yarp``) are registered exactly as a third party's would be::
+``shm``, ``grpc``, ``zenoh``, ``ros1``, ``ros2``, ``yarp``) are registered exactly as a third party's would
+be::
 
     [project.entry-points."scart.transports"]
     mine = "my_package.transport:MyTransport"
@@ -89,6 +90,7 @@ NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
 
 #: scart's own transports, used also when its entry points are not installed (a source tree).
 BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
+                            "shm": "dataflow.transports.shm:ShmTransport",
                             "grpc": "dataflow.transports.grpc:GrpcTransport",
                             "zenoh": "dataflow.transports.zenoh:ZenohTransport",
                             "ros1": "dataflow.transports.ros1.transport:Ros1Transport",

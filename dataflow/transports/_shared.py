@@ -57,6 +57,7 @@ class SharedFeed:
         self._boot_id = ""
         self._written = 0  # the last write number the stream carried, or said it will not carry
         self._last: Any = None  # the last sample it carried (a joiner with ``init`` gets it)
+        self._last_value: Any = None  # its value, when its bytes are elsewhere (shared memory)
         self._connected = False  # its first frame came
         self._seen = time.monotonic()
         self._ended = False
@@ -83,7 +84,7 @@ class SharedFeed:
                 if end.init and self._last is not None:
                     frame.samples.append(self._last)
                 end.seen = self._seen
-                frames.feed(end, frame)
+                frames.feed(end, frame, None if self._last_value is None else {0: self._last_value})
         return left
 
     def leave(self, end: ReaderEnd) -> None:
@@ -112,18 +113,19 @@ class SharedFeed:
         for end in tuple(self._ends):
             end.seen = seen
 
-    def feed(self, message: Any) -> None:
-        """Hand a parsed frame to every reader end attached."""
+    def feed(self, message: Any, values: dict[int, Any] | None = None) -> None:
+        """Hand a parsed frame to every reader end attached (``values``: see
+        :func:`~dataflow.transports.frames.feed`)."""
         ends = self._ends
         with self._feeding:
             self._seen = seen = time.monotonic()
-            self._note(message)
+            self._note(message, values)
             with self._lock:
                 attached = tuple(ends)
             for end in attached:
                 if end in ends:  # not left meanwhile
                     end.seen = seen
-                    frames.feed(end, message)
+                    frames.feed(end, message, values)
 
     def ended(self, error: BaseException | None = None) -> None:
         """The stream is over (``error``: why it failed): every end attached is told."""
@@ -136,13 +138,14 @@ class SharedFeed:
                 left.set()
         self.opened.set()
 
-    def _note(self, message: Any) -> None:
+    def _note(self, message: Any, values: dict[int, Any] | None = None) -> None:
         """Keep where the stream is, for a reader end that joins later."""
         self._connected = True
         if message.boot_id:
             self._boot_id = message.boot_id
         if message.samples:
             self._last = message.samples[-1]
+            self._last_value = values.get(len(message.samples) - 1) if values else None
             self._written = max(self._written, self._last.sequence)
         if message.written:
             self._written = max(self._written, message.written)

@@ -150,6 +150,11 @@ class _Ranges:
         """How many numbers kept are greater than ``n``."""
         return sum(last - max(first, n + 1) + 1 for first, last in list(self._ranges) if last > n)
 
+    def between(self, low: int, high: int) -> int:
+        """How many numbers kept are greater than ``low`` and at most ``high``."""
+        return sum(min(last, high) - max(first, low + 1) + 1 for first, last in list(self._ranges)
+                   if last > low and first <= high)
+
     def trim(self, n: int) -> None:
         """Forget the numbers up to ``n``."""
         ranges = self._ranges
@@ -211,7 +216,8 @@ class WriterEnd:
         self._unsent_total = 0
         self._warned = False
         self.peer_last = 0  #: the reader end's last report: the last write number it had ...
-        self.peer_lost = 0  #: ... and what it lost (jumps, refused, its buffer's drops)
+        self.peer_lost = 0  #: ... and what it lost (jumps, refused, its buffer's drops) ...
+        self.peer_pending = 0  #: ... and what its buffer held unread
         self._lost_before = 0  # reports of earlier reader ends (a restarted peer)
         #: Called (in the transport's thread) each time a carrier is attached.
         self.on_connected: Callable[[], None] | None = None
@@ -334,12 +340,13 @@ class WriterEnd:
         """The transport is connected: samples go through ``carrier`` from now on.
         ``new_peer``: a reader end that knows nothing of this channel (a first connection,
         or a restarted peer) — it counts from :attr:`peer_last`, so the misses kept here
-        become its jumps and are forgotten here. ``first``: what the transport sends
+        become its jumps and are forgotten here; what the old one lost is kept. Call it
+        before handing over the new reader end's first :meth:`report`. ``first``: what the transport sends
         before any sample (a "connected" message), with no write slipping in between."""
         with self._lock:  # a write meanwhile finds the lock taken: it waits in the queue, sent after ``first``
-            if new_peer:
-                self._lost_before += self.peer_lost
-                self.peer_lost = 0
+            if new_peer:  # what the old reader end lost, and what its buffer held unread when it went
+                self._lost_before += self.peer_lost + self.peer_pending
+                self.peer_lost = self.peer_pending = 0
                 self._unsent.clear()
             self.transport = transport
             self._carrier = carrier
@@ -418,16 +425,37 @@ class WriterEnd:
         """Samples waiting for room."""
         return len(self._queue) + len(self._inbox)
 
-    def report(self, last: int, lost: int) -> None:
-        """The reader end's count: it has had every write up to ``last`` but ``lost``."""
+    def report(self, last: int, lost: int, pending: int = 0) -> None:
+        """The reader end's count: it has had every write up to ``last`` but ``lost``, and
+        ``pending`` of them wait unread in its buffer (lost too if the reader end goes:
+        a restarted peer's buffer is a new one, see :meth:`connected`)."""
         self.peer_last = max(self.peer_last, last)
         self.peer_lost = lost
+        self.peer_pending = pending
         self._unsent.trim(self.peer_last)
 
     @property
     def tail(self) -> int:
         """Samples not sent since the last one sent (what a reader cannot know yet)."""
         return self._unsent.above(self.last_sent)
+
+    def tail_after(self) -> tuple[int, int]:
+        """``(last sent, tail)``: the write number of the last sample sent, and the samples
+        not sent after it (a heartbeat says both: a reader that has a later sample
+        already ignores the tail, which that sample's jump counted)."""
+        last = self.last_sent
+        return last, self._unsent.above(last)
+
+    @property
+    def unconfirmed(self) -> int:
+        """Writes the reader end has not reported: in flight, waiting here, or not sent
+        since its last report (what a connection ending now leaves unknown or lost)."""
+        return self.undelivered() + self._unsent.above(self.peer_last)
+
+    def undelivered_upto(self, upto: int) -> int:
+        """Writes up to ``upto`` neither reported by the reader end nor counted here as
+        not sent: in flight, or waiting here (a graceful stop waits for these)."""
+        return max(0, upto - self.peer_last - self._unsent.between(self.peer_last, upto))
 
     @property
     def unsent(self) -> int:
@@ -484,8 +512,12 @@ class LossCount:
         self.tail = 0
         return True
 
-    def report(self, tail: int) -> None:
-        """The writer's heartbeat: ``tail`` samples not sent since its last one."""
+    def report(self, tail: int, after: int = 0) -> None:
+        """The writer's heartbeat: ``tail`` samples not sent since its last one sent,
+        ``after`` (its write number; 0: not said). A heartbeat older than a sample received
+        since (``after`` below it) is ignored: that sample's jump counted the tail."""
+        if after and self.last is not None and self.last > after:
+            return
         self.tail = tail
 
     def began(self, written: int, init: bool) -> None:

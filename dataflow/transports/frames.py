@@ -6,6 +6,8 @@ holding that one sample. ``LinkRequest`` numbers its first four fields as
 ``SubscribeResponse`` does, so the same bytes go to a subscriber and to a link; and
 protobuf merges repeated fields of concatenated messages, so frames joined end to end
 are one frame holding their samples in order (a batch costs a ``join``, not a re-encode).
+A frame is at most :data:`~dataflow.transports.limits.MAX_FRAME_BYTES`: a larger sample is
+refused as it is encoded (:class:`~dataflow.transports.limits.SampleTooLarge`), at ``write()``.
 """
 
 from __future__ import annotations
@@ -18,22 +20,27 @@ from scart_wire import codec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from scart_wire.types import registry
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
+from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
 
-__all__ = ["encoder", "feed", "heartbeat", "report_of", "sample_frame"]
+__all__ = ["encoder", "feed", "heartbeat", "report_of", "sample_frame", "varint"]
 
 _Frame = pb.SubscribeResponse
 
 
 def sample_frame(sample: OutSample) -> bytes:
     """``sample`` as an encoded frame (see the module docstring); raises ``TypeError``
-    (a :class:`~dataflow.PortTypeError`) when the value cannot be encoded."""
+    (a :class:`~dataflow.PortTypeError`) when the value cannot be encoded, and
+    :class:`~dataflow.transports.limits.SampleTooLarge` when it is over the limit."""
     frame = _Frame()  # built in place: half the time of nested constructors (the hot path of every write)
     frame.samples.add(sequence=sample.n, source_time_ns=sample.t_ns).value.CopyFrom(
         codec.encode(sample.value, sample.type))
-    return frame.SerializeToString()
+    data = frame.SerializeToString()
+    if len(data) > MAX_FRAME_BYTES:
+        raise SampleTooLarge(len(data))
+    return data
 
 
-def _varint(x: int) -> bytes:
+def varint(x: int) -> bytes:
     """``x`` (0 <= x < 2**64) as a protobuf varint."""
     out = bytearray()
     while x > 0x7F:
@@ -56,7 +63,7 @@ def _number_frame(type_name: str, pack: Any) -> Any:
         value, n, t_ns = sample.value, sample.n, sample.t_ns
         if type(value) is not sample.type or not (0 < n < 1 << 63 and 0 < t_ns < 1 << 63):
             return sample_frame(sample)  # a subclass, or a field the generated code would leave out
-        body = value_field + pack(value) + b"\x10" + _varint(n) + b"\x18" + _varint(t_ns)
+        body = value_field + pack(value) + b"\x10" + varint(n) + b"\x18" + varint(t_ns)
         return b"\x12" + bytes((len(body),)) + body  # SubscribeResponse.samples: one, under 128 bytes
     return number_frame
 
@@ -71,10 +78,11 @@ def encoder(py_type: Any) -> Any:
     return _NUMBER_FRAMES.get(py_type, sample_frame)
 
 
-def heartbeat(boot_id: str = "", dropped: int = 0) -> bytes:
+def heartbeat(boot_id: str = "", dropped: int = 0, sent_last: int = 0) -> bytes:
     """A frame without samples: the writer is alive (and who it is, and ``dropped``: its
-    tail, the samples it could not send since the last one it sent)."""
-    return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, dropped=dropped).SerializeToString()
+    tail, the samples it could not send since ``sent_last``, the last one it sent)."""
+    return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, dropped=dropped,
+                                sent_last=sent_last).SerializeToString()
 
 
 def connected(end: WriterEnd, boot_id: str) -> bytes:
@@ -84,10 +92,11 @@ def connected(end: WriterEnd, boot_id: str) -> bytes:
     return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, written=end.port.last_sample()[0]).SerializeToString()
 
 
-def feed(end: ReaderEnd, message: Any) -> int:
+def feed(end: ReaderEnd, message: Any, values: dict[int, Any] | None = None) -> int:
     """Hand the samples of one parsed frame (``SubscribeResponse`` or ``LinkRequest``) to
-    ``end``; returns how many it stored. (Every sample of every channel comes through
-    here: each step is one the hot path needs.)"""
+    ``end``; returns how many it stored. ``values``: the value of a sample whose bytes
+    are elsewhere (shared memory), by its index in the frame. (Every sample of every
+    channel comes through here: each step is one the hot path needs.)"""
     if end.on_frame is not None:
         end.on_frame(message)
     boot_id = message.boot_id
@@ -95,13 +104,18 @@ def feed(end: ReaderEnd, message: Any) -> int:
         end.writer(boot_id)
     stored = 0
     receive = end.receive
-    for s in message.samples:
-        if receive(s.sequence, s.source_time_ns, s.value):
-            stored += 1
+    if values:
+        for i, s in enumerate(message.samples):
+            if receive(s.sequence, s.source_time_ns, values.get(i, s.value)):
+                stored += 1
+    else:
+        for s in message.samples:
+            if receive(s.sequence, s.source_time_ns, s.value):
+                stored += 1
     if message.heartbeat:
         if type(message) is _Frame and message.written:  # a subscription's first frame (a link's hello says it)
             end.loss.began(message.written, end.init)
-        end.loss.report(message.dropped)
+        end.loss.report(message.dropped, message.sent_last if type(message) is _Frame else 0)
     return stored
 
 

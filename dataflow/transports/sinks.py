@@ -48,7 +48,8 @@ def port_check(port: InputPort, nan_ok: bool = False) -> Callable[[Any], Any]:
     admit = port.admit
 
     def check(msg: Any) -> Any:
-        value = codec.decode(msg) if isinstance(msg, codec.Value) else msg  # a converting transport's value
+        value = codec.decode(msg) if isinstance(msg, (codec.Value, codec.Payload)) else msg  # else a converting
+        # transport's value
         if type(value) is not py_type:
             value = registry.validate(py_type, value)
         return admit(value, nan_ok)
@@ -70,11 +71,19 @@ class IncomingLink:
         self.source_ns = source_ns
         self.carriers = 0  #: transports carrying it now
         self.seen = time.monotonic()
+        self.closed = False  #: detached from its port (undone, or this deployer stops): reports what it holds
+        self._after_close = 0  # samples that came once closed: dropped, counted
         self.connection = port.open_channel(policy, peer=source)
         conn = self.connection
         self.end = ReaderEnd(f"link {name or source} into {port.qualname}", port_check(port),
-                             conn.store, lambda: conn.dropped, after=after)
+                             self._store, lambda: conn.dropped + self._after_close, after=after)
         self.end.writer(boot_id)
+
+    def _store(self, n: int, t_ns: int, value: Any) -> bool:
+        if self.closed:
+            self._after_close += 1
+            return False
+        return self.connection.store(n, t_ns, value)
 
     @property
     def pending(self) -> int:
@@ -90,7 +99,9 @@ class IncomingLink:
                 time.sleep(0.01)
 
     def close(self) -> None:
-        """Detach from the port: what the buffer still holds is counted as dropped."""
+        """Detach from the port: what the buffer still holds is counted as dropped, and so
+        is what comes later (idempotent)."""
+        self.closed = True
         self.connection.close()
 
 

@@ -12,6 +12,7 @@ from dataflow.introspection import LinkDescription, PortStreamDescription
 from dataflow.policy import ConnPolicy
 from dataflow.transports import load
 from dataflow.transports.ends import ReaderEnd, WriterEnd, attach, detach
+from dataflow.transports.limits import check_fits
 from dataflow.transports.sinks import port_check
 
 __all__ = ["PortStream", "STREAM_NAME", "default_name"]
@@ -36,6 +37,7 @@ class PortStream:
         self.policy = policy
         self.options = dict(options)
         self.name = name
+        check_fits(port, f"stream {name}")
         self.transport = load(policy.transport)
         self.topic = policy.topic
         self.writer: WriterEnd | None = None

@@ -13,6 +13,7 @@ from dataflow import (
     InputPort,
     OutputPort,
     PeriodicActivity,
+    SequentialActivity,
     SlaveActivity,
     TaskContext,
     TaskState,
@@ -267,3 +268,74 @@ def test_a_periodic_task_counts_its_periods_on_its_deployers_clock() -> None:
         assert task.activity.overruns == 0
         deployer.use_clock(WALL)  # sim time off: the system's clock again, at its next wake-up
         wait_until(lambda: task.n >= 23, timeout=5)
+
+
+class Reader(TaskContext):
+    """Records, in its update_hook, what it read and in which thread; at most one cycle
+    at a time is checked (``overlaps`` counts the others)."""
+
+    inp = InputPort(int, event=True)
+
+    def __init__(self, name: str = "reader") -> None:
+        super().__init__(name)
+        self.seen: list[tuple[int, str]] = []
+        self.inside = 0
+        self.overlaps = 0
+        self.hold: threading.Event | None = None
+
+    def update_hook(self) -> None:
+        self.inside += 1
+        self.overlaps += self.inside > 1
+        if self.hold is not None:
+            self.hold.wait(5)
+        for _ in range(1000):
+            flow, value = self.inp.read()
+            if flow is not FlowStatus.NEW_DATA:
+                break
+            self.seen.append((value, threading.current_thread().name))
+        self.inside -= 1
+
+
+def test_a_sequential_activity_runs_the_cycle_in_the_writers_thread_before_write_returns():
+    out: OutputPort[int] = OutputPort(int, name="out")
+    reader = Reader()
+    assert reader.set_activity(SequentialActivity())
+    out.connect_to(reader.inp, ConnPolicy.buffer(10))
+    reader.configure()
+    reader.start()
+    try:
+        out.write(1)
+        assert reader.seen == [(1, threading.current_thread().name)]  # no hand-over, no wake-up
+        writer = threading.Thread(target=lambda: out.write(2), name="writer")
+        writer.start()
+        writer.join(5)
+        assert reader.seen[-1] == (2, "writer") and reader.activity.cycles >= 3
+    finally:
+        reader.stop()
+
+
+def test_a_sequential_activity_runs_one_cycle_at_a_time_and_loses_no_trigger():
+    out: OutputPort[int] = OutputPort(int, name="out")
+    reader = Reader()
+    reader.set_activity(SequentialActivity())
+    out.connect_to(reader.inp, ConnPolicy.buffer(100))
+    reader.configure()
+    reader.start()
+    reader.hold = threading.Event()
+    first = threading.Thread(target=lambda: out.write(1), name="first")
+    first.start()
+    wait_until(lambda: reader.inside == 1, timeout=5)
+    for k in range(2, 12):  # while the first writer's thread cycles: these coalesce into its next cycle
+        out.write(k)
+    assert [v for v, _ in reader.seen] == []
+    reader.hold.set()
+    first.join(5)
+    assert [v for v, _ in reader.seen] == list(range(1, 12)) and {t for _, t in reader.seen} == {"first"}
+    assert reader.overlaps == 0
+    reader.hold = threading.Event()  # a stop waits for a cycle running in another thread
+    late = threading.Thread(target=lambda: out.write(99), name="late")
+    late.start()
+    wait_until(lambda: reader.inside == 1, timeout=5)
+    threading.Timer(0.05, reader.hold.set).start()
+    assert reader.stop() and reader.inside == 0
+    late.join(5)

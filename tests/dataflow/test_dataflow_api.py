@@ -14,7 +14,8 @@ CONTRACT = {
     "UnknownValue", "Encoded", "DataflowError", "PortTypeError", "NotFoundError", "DeploymentError",
     "TaskDescription", "PortDescription", "PropertyDescription", "OperationDescription",
 }
-EXTRA = {"Activity", "Connection", "PropertyValueError", "PortValueError", "WaitMode"}
+EXTRA = {"Activity", "Connection", "PropertyValueError", "PortValueError", "WaitMode", "Array", "ArraySpec",
+         "SequentialActivity"}
 
 
 def test_exports_exactly():

@@ -14,7 +14,9 @@ import subprocess
 import sys
 import time
 
-from dataflow import InputPort, OutputPort, Property, TaskContext, operation
+import numpy as np
+
+from dataflow import Array, FlowStatus, InputPort, OutputPort, Property, TaskContext, operation
 from support import ROOT, TESTS
 
 if str(ROOT / "composites" / "youbot") not in sys.path:  # the youBot model (Echo's status)
@@ -102,6 +104,131 @@ class Tally(TaskContext):
             if self.inp.read()[0].name != "NEW_DATA":
                 return
             self.count += 1
+
+
+class Camera(TaskContext):
+    """Writes a frame of ``size`` bytes on ``video`` each cycle (its first byte the cycle
+    number, mod 256); ``written()`` counts the writes, ``failed()`` those refused."""
+
+    video = OutputPort(bytes, doc="one frame per cycle")
+    size = Property(int, 6_220_800, doc="bytes of a frame (1080p RGB by default)")
+
+    def __init__(self, name: str = "camera") -> None:
+        super().__init__(name)
+        self.count = 0
+        self.refused = 0
+
+    @operation
+    def written(self) -> int:
+        """Frames written so far."""
+        return self.count
+
+    @operation
+    def failed(self) -> int:
+        """Writes that returned WRITE_FAILURE."""
+        return self.refused
+
+    def update_hook(self) -> None:
+        self.count += 1
+        frame = bytes([self.count % 256]) + bytes(max(0, self.size - 1))
+        if self.video.write(frame).name == "WRITE_FAILURE":
+            self.refused += 1
+
+
+class Screen(TaskContext):
+    """Counts the frames arriving on ``video`` (an event port); ``seen()`` says how many,
+    ``last_size()`` how big the last one was."""
+
+    video = InputPort(bytes, event=True, doc="counted")
+
+    def __init__(self, name: str = "screen") -> None:
+        super().__init__(name)
+        self.count = 0
+        self.size = 0
+
+    @operation
+    def seen(self) -> int:
+        """Frames read so far."""
+        return self.count
+
+    @operation
+    def last_size(self) -> int:
+        """Bytes of the last frame read."""
+        return self.size
+
+    def update_hook(self) -> None:
+        for _ in range(10_000):
+            flow, frame = self.video.read()
+            if flow.name != "NEW_DATA":
+                return
+            self.count += 1
+            self.size = len(frame)
+
+
+VGA = Array[np.uint8, (480, 640, 3)]
+
+
+class EyeCam(TaskContext):
+    """Writes a 640x480 RGB image each cycle: every byte the cycle number (mod 256)."""
+
+    image = OutputPort(VGA, doc="one frame per cycle")
+
+    def __init__(self, name: str = "eye") -> None:
+        super().__init__(name)
+        self.count = 0
+
+    def update_hook(self) -> None:
+        self.count += 1
+        self.image.write(np.full((480, 640, 3), self.count % 256, dtype=np.uint8))
+
+
+class Album(TaskContext):
+    """Keeps the first byte of each image arriving on ``image``: ``firsts()``."""
+
+    image = InputPort(VGA, event=True, doc="kept")
+
+    def __init__(self, name: str = "album") -> None:
+        super().__init__(name)
+        self.kept: list[int] = []
+
+    @operation
+    def firsts(self) -> list[int]:
+        """The first byte of each image read, in order."""
+        return list(self.kept)
+
+    def update_hook(self) -> None:
+        for _ in range(1000):
+            flow, image = self.image.read()
+            if flow is not FlowStatus.NEW_DATA:
+                return
+            if int(image.min()) == int(image.max()):  # whole: every byte the same
+                self.kept.append(int(image[0, 0, 0]))
+
+
+class Burst(TaskContext):
+    """Writes ``n`` samples of ``size`` bytes at once on ``out`` when asked (``burst(n, size)``)."""
+
+    out = OutputPort(bytes, doc="bursts")
+
+    def __init__(self, name: str = "burst") -> None:
+        super().__init__(name)
+        self.count = 0
+
+    @operation
+    def burst(self, n: int, size: int) -> int:
+        """Write ``n`` samples now; returns how many were refused (WRITE_FAILURE)."""
+        refused = 0
+        for _ in range(n):
+            self.count += 1
+            refused += self.out.write(bytes([self.count % 256]) * size).name == "WRITE_FAILURE"
+        return refused
+
+
+class LoudTally(Tally):
+    """A :class:`Tally` that prints how many it read when it stops: ``tally read N``."""
+
+    def stop_hook(self) -> None:
+        print(f"tally read {self.count}", flush=True)
 
 
 class Plain(TaskContext):

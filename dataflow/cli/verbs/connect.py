@@ -17,8 +17,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--policy", default="data", help="data | buffer:N | circular:N (default data)")
     parser.add_argument("--name", default=None, help="the link's name (default A.out->B.in)")
     parser.add_argument("--transport", default="auto", type=_transport,
-                        help="across processes: auto (default: ipc on one host, else grpc), ipc (same-host fast "
-                             "path; shm is the same), grpc, or an installed plug-in's name")
+                        help="across processes: auto (default: on one host shm for bytes and array ports, ipc "
+                             "for the others, else grpc), ipc (same-host socket), shm (same host, large samples in "
+                             "shared memory), grpc, or an installed plug-in's name")
     add_common(parser)
 
 

@@ -147,7 +147,7 @@ class Recording:
     def __init__(self, fd: int, ports: list[tuple[str, str, str]], limit: int | None) -> None:
         from mcap.writer import Writer
 
-        from dataflow.cli._jsonschema import _schema_of
+        from dataflow.cli._jsonschema import _schema_of, schema_name
 
         self.done = threading.Event()
         self.failure: str | None = None
@@ -160,7 +160,7 @@ class Recording:
         self._writer.start(profile="", library="scart")
         self._channels = {}
         for task, port, type_name in ports:
-            schema_id = self._writer.register_schema(name=type_name, encoding="jsonschema",
+            schema_id = self._writer.register_schema(name=schema_name(type_name), encoding="jsonschema",
                                                      data=json.dumps(_schema_of(type_name)).encode())
             self._channels[f"{task}.{port}"] = self._writer.register_channel(
                 topic=f"{task}.{port}", message_encoding="json", schema_id=schema_id,

@@ -10,6 +10,9 @@ the ``scart.transports`` entry point ``grpc``; rank 100: ``auto``'s fallback).
   port and policy: subscriptions alike share it (:mod:`~dataflow.transports._shared`).
 
 The frames are the same bytes as on ipc, encoded once per write (:mod:`~dataflow.transports.frames`).
+A frame larger than :data:`PART_BYTES` (a sample of up to 64 MiB) goes in parts, each a
+message of its own within gRPC's 4 MiB limit (``part`` and ``more``; :func:`messages_of`,
+:class:`Parts`).
 """
 
 from __future__ import annotations
@@ -18,8 +21,8 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterator
+from typing import Any, Generic, TypeVar
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.remote._convert import policy_to_msg
@@ -28,8 +31,9 @@ from dataflow.transports import Peer, Transport, frames
 from dataflow.transports._shared import SharedFeed, SharedStreams, carry_shared
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 from dataflow.transports.ipc import LinkRefused, link_hello
+from dataflow.transports.limits import MAX_FRAME_BYTES
 
-__all__ = ["GrpcTransport", "LINK_METHOD", "ROOM", "passthrough"]
+__all__ = ["GrpcTransport", "LINK_METHOD", "PART_BYTES", "Parts", "ROOM", "messages_of", "passthrough"]
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +41,7 @@ LINK_METHOD = "/scart.dataflow.v1.DeployerService/Link"
 ROOM = 256  #: frames a gRPC link or subscription holds for its stream's thread, at most ...
 ROOM_BYTES = 4 * 1024 * 1024  #: ... and encoded bytes (then the writer end's own queue, by its policy)
 BATCH_BYTES = 1024 * 1024  #: encoded samples sent in one message, at most
+PART_BYTES = 1024 * 1024  #: a frame larger than this goes in parts of this size (gRPC's messages: 4 MiB at most)
 REPORT_ASK_S = 0.1  #: an idle link with samples not yet confirmed asks the sink for a report this often
 WAKE_SHARE_S = 0.0005  #: a served stream's wake-up window per channel of its port (see ServedCarrier)
 MAX_WAKE_WINDOW_S = 0.02
@@ -46,6 +51,78 @@ HEARTBEAT = pb.LinkRequest(heartbeat=True).SerializeToString()
 def passthrough(data: bytes) -> bytes:
     """A gRPC serializer for frames that are bytes already."""
     return data
+
+
+def messages_of(batch: list[bytes]) -> Iterator[bytes]:
+    """The gRPC messages carrying ``batch`` (encoded frames, oldest first): frames joined
+    end to end up to :data:`BATCH_BYTES` a message (one frame holding their samples), a
+    frame larger than :data:`PART_BYTES` in parts, each a message holding nothing else
+    (protobuf would merge a part joined to a frame)."""
+    joined: list[bytes] = []
+    size = 0
+    for data in batch:
+        if len(data) > PART_BYTES or (joined and size + len(data) > BATCH_BYTES):
+            if joined:
+                yield b"".join(joined)
+                joined, size = [], 0
+            if len(data) > PART_BYTES:
+                yield from _parts_of(data)
+                continue
+        joined.append(data)
+        size += len(data)
+    if joined:
+        yield b"".join(joined)
+
+
+_PART = b"\x72"  # field 14 (part), length-delimited: the same number in LinkRequest and SubscribeResponse
+_MORE = b"\x78\x01"  # field 15 (more) = true
+
+
+def _parts_of(data: bytes) -> Iterator[bytes]:
+    """``data`` as part messages (see :func:`messages_of`): one copy of each part."""
+    view = memoryview(data)
+    for start in range(0, len(data), PART_BYTES):
+        chunk = view[start:start + PART_BYTES]
+        more = _MORE if start + PART_BYTES < len(data) else b""
+        yield b"".join((_PART, frames.varint(len(chunk)), chunk, more))
+
+
+M = TypeVar("M")
+
+
+class Parts(Generic[M]):
+    """A frame sent in parts (:func:`messages_of`), whole again: :meth:`whole` returns each
+    message as it is, or None while the parts of one come; the last part gives the frame
+    parsed with ``parse``. A frame over :data:`~dataflow.transports.limits.MAX_FRAME_BYTES`
+    is dropped whole and counted in :attr:`dropped` (a writer refuses one before it
+    leaves). One receiving thread."""
+
+    def __init__(self, parse: Callable[[bytes], M]) -> None:
+        self._parse = parse
+        self._parts: list[bytes] = []
+        self._size = 0
+        self._skipping = False
+        self.dropped = 0
+
+    def whole(self, message: M) -> M | None:
+        part: bytes = message.part  # type: ignore[attr-defined]  # LinkRequest and SubscribeResponse alike
+        if not part and not self._parts and not self._skipping:
+            return message  # the common case: a message of its own
+        more = message.more  # type: ignore[attr-defined]  # (as above)
+        if not self._skipping:
+            self._parts.append(part)
+            self._size += len(part)
+            if self._size > MAX_FRAME_BYTES:
+                self.dropped += 1
+                self._parts, self._size, self._skipping = [], 0, True
+        if more:
+            return None
+        if self._skipping:
+            self._skipping = False
+            return None
+        data = b"".join(self._parts)
+        self._parts, self._size = [], 0
+        return self._parse(data)
 
 
 class GrpcTransport(Transport):
@@ -66,11 +143,11 @@ class GrpcTransport(Transport):
             first = next(call)
             if first.refused:
                 raise LinkRefused(first.refused)
-            end.report(first.last, first.lost)
-            end.connected(self.name, carrier, new_peer=not first.known)
+            end.connected(self.name, carrier, new_peer=not first.known)  # first: it keeps a restarted
+            end.report(first.last, first.lost, first.pending)  # sink's old counts before the new ones come
             if peer.opened(call.cancel, finish=carrier.finish):
                 for report in call:
-                    end.report(report.last, report.lost)
+                    end.report(report.last, report.lost, report.pending)
                     if report.final:
                         carrier.final.set()
                         break
@@ -100,9 +177,14 @@ class GrpcTransport(Transport):
 def _read(call: Any, feed: SharedFeed) -> None:
     """A shared ``Subscribe`` call's thread: each response to the reader ends, until it ends."""
     error = None
+    parts = Parts(pb.SubscribeResponse.FromString)
     try:
         for message in call:
-            feed.feed(message)
+            whole = parts.whole(message)
+            if whole is None:
+                feed.alive()  # a part of a large sample: the writer is alive
+                continue
+            feed.feed(whole)
     except Exception as exc:  # noqa: BLE001 - every reader end is told, and reconnects
         error = exc
     finally:
@@ -135,8 +217,8 @@ class _LinkCarrier:
         yield pb.LinkRequest(hello=hello).SerializeToString()
         while not self._closed:
             if not self._wake.wait(REPORT_ASK_S):
-                if self.end.undelivered():  # the sink reports when it hears from us: ask for the rest
-                    yield HEARTBEAT
+                if self.end.undelivered() or self.end.peer_pending:  # the sink reports when it hears from
+                    yield HEARTBEAT  # us: ask for the rest, and for what its task read since
                 continue
             self._wake.clear()
             while self._queue:
@@ -146,7 +228,7 @@ class _LinkCarrier:
                     self._size[0] -= len(data)
                     batch.append(data)
                     size += len(data)
-                yield b"".join(batch)
+                yield from messages_of(batch)
                 self.end.flush()  # what waited in the end's own queue comes in now
             if self._closing:
                 yield pb.LinkRequest(closing=True).SerializeToString()
@@ -226,11 +308,12 @@ class ServedCarrier:
 
 
 def serve_subscription(end: WriterEnd, carrier: ServedCarrier, boot_id: str, heartbeat: float, alive: Any,
-                       dropped: Any) -> Iterator[bytes]:
+                       dropped: Callable[[], tuple[int, int]]) -> Iterator[bytes]:
     """The ``Subscribe`` responses for a served writer end (the call's thread), as bytes:
     "connected", then samples as they come (what waits, joined into one message), and a
-    heartbeat after ``heartbeat`` s without one, until ``alive()`` is false (set
-    ``carrier.wake`` to have it looked at at once)."""
+    heartbeat after ``heartbeat`` s without one (with ``dropped()``: the last sample sent
+    and the tail after it), until ``alive()`` is false (set ``carrier.wake`` to have it
+    looked at at once)."""
     end.connected("grpc", carrier, new_peer=True,  # "connected", first: from now on every write comes
                   first=lambda: carrier.first(frames.connected(end, boot_id)))
     last = time.monotonic()
@@ -239,12 +322,13 @@ def serve_subscription(end: WriterEnd, carrier: ServedCarrier, boot_id: str, hea
             wait = max(0.0, carrier.next_wake - time.monotonic()) if carrier.queue else heartbeat
             batch = wait_frames(carrier.queue, carrier.size, carrier.wake, min(wait, heartbeat))
             if batch:
-                yield b"".join(batch)
+                yield from messages_of(batch)
                 end.flush()
                 last = time.monotonic()
                 carrier.next_wake = last + carrier.window()
             elif time.monotonic() - last >= heartbeat:
-                yield frames.heartbeat(dropped=dropped())
+                sent_last, tail = dropped()
+                yield frames.heartbeat(dropped=tail, sent_last=sent_last)
                 last = time.monotonic()
     finally:
         end.disconnected()

@@ -54,14 +54,22 @@ class IpcTransport(Transport):
     name = "ipc"
     rank = 10
 
+    #: What it asks the deployer for (OpenIpcWriterRequest.shm...): a socket alone, here.
+    shm = False
+
     def __init__(self) -> None:
         self._streams = SharedStreams()  # the subscriptions' sockets open, shared by subscriptions alike
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
+        return self._link(end, peer, _LinkOut)
+
+    def _link(self, end: WriterEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, WriterEnd], Any]) -> bool:
+        """:meth:`link`, its connection made by ``conn_class`` (a :class:`_LinkOut`)."""
         hello = link_hello(end, peer)
         request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=policy_msg(end.policy),
-                                          host_id=host_id(), hello=hello)
-        opened = _open(lambda: peer.stub.OpenIpcWriter(request, timeout=peer.timeout), end.policy.transport, peer)
+                                          host_id=host_id(), hello=hello, shm=self.shm)
+        opened = _open(lambda: peer.stub.OpenIpcWriter(request, timeout=peer.timeout), end.policy.transport, peer,
+                       self.name)
         if opened is None:
             return False
         sock, first = opened
@@ -69,10 +77,12 @@ class IpcTransport(Transport):
         if report.refused:
             sock.close()
             raise LinkRefused(report.refused)
-        conn = _LinkOut(Hub.acquire(), sock, end)
-        end.report(report.last, report.lost)
-        conn.start()
+        conn = conn_class(Hub.acquire(), sock, end)
+        # connected first: a new reader end's first report must not replace the old one's
+        # counts before the writer end has kept them (a restarted sink)
         end.connected(self.name, conn, new_peer=not report.known)
+        end.report(report.last, report.lost, report.pending)
+        conn.start()
         try:
             if peer.opened(conn.close, finish=conn.finish):
                 conn.ended.wait()
@@ -85,15 +95,20 @@ class IpcTransport(Transport):
         """Feed ``end`` from the peer's port: one socket, read by the io thread and shared
         by the subscriptions of this system proxy to that port with the same policy (see
         :mod:`~dataflow.transports._shared`)."""
+        return self._subscribe(end, peer, _SubIn)
+
+    def _subscribe(self, end: ReaderEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, SharedFeed, str], Any]) -> bool:
+        """:meth:`subscribe`, its connection made by ``conn_class`` (a :class:`_SubIn`)."""
         request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=policy_msg(peer.policy), host_id=host_id(),
-                                          heartbeat_ms=int(peer.heartbeat * 1000))
+                                          heartbeat_ms=int(peer.heartbeat * 1000), shm=self.shm)
 
         def open_stream(feed: SharedFeed) -> bool:
-            opened = _open(lambda: peer.stub.OpenIpcReader(request, timeout=peer.timeout), peer.transport, peer)
+            opened = _open(lambda: peer.stub.OpenIpcReader(request, timeout=peer.timeout), peer.transport, peer,
+                           self.name)
             if opened is None:
                 return False
             sock, first = opened
-            conn = _SubIn(Hub.acquire(), sock, feed, f"subscription to {peer.where}")
+            conn = conn_class(Hub.acquire(), sock, feed, f"subscription to {peer.where}")
             feed.close = conn.close
             conn.message(first)  # the "connected" heartbeat
             conn.start()
@@ -116,11 +131,11 @@ def link_hello(end: WriterEnd, peer: Peer) -> Any:
                         type_name=end.port.type_name, name=peer.name, source_ns=peer.source_ns)
 
 
-def _open(ask: Callable[[], Any], transport: str, peer: Peer) -> tuple[socket.socket, bytes] | None:
+def _open(ask: Callable[[], Any], transport: str, peer: Peer, name: str = "ipc") -> tuple[socket.socket, bytes] | None:
     """Ask the deployer for a ticket and connect with it: the socket (non-blocking) and the
-    deployer's first message. None when ipc does not work between the two ends and the
-    policy (``auto``) lets another transport do; with ``ipc`` that raises
-    :class:`TransportError` saying why. Other failures of ``ask`` propagate."""
+    deployer's first message. None when the transport ``name`` does not work between the
+    two ends and the policy (``auto``) lets another transport do; with ``name`` named, that
+    raises :class:`TransportError` saying why. Other failures of ``ask`` propagate."""
     import grpc
 
     try:
@@ -134,8 +149,8 @@ def _open(ask: Callable[[], Any], transport: str, peer: Peer) -> tuple[socket.so
             raise IpcUnavailable(exc.details() or exc.code().name) from None
         return connect(reply.ticket.socket, reply.ticket.secret, peer.timeout, peer.cancelled)
     except IpcUnavailable as exc:
-        if transport == "ipc":
-            raise TransportError(f"transport ipc to {peer.where}: {exc}") from None
+        if transport == name:
+            raise TransportError(f"transport {name} to {peer.where}: {exc}") from None
         return None
 
 
@@ -155,7 +170,7 @@ class _LinkOut(Conn):
 
     def message(self, data: bytes) -> None:
         report = pb.LinkResponse.FromString(data)
-        self.end.report(report.last, report.lost)
+        self.end.report(report.last, report.lost, report.pending)
         if report.final:
             self.final.set()
 

@@ -242,6 +242,7 @@ class Conn:
         self._lock = threading.Lock()
         self._blocked = False
         self._closed = False  # ended, as a plain flag for the hot path
+        self._reset = False  # the peer reset the connection (said once by the kernel)
         self._closing = threading.Lock()
 
     def start(self) -> None:
@@ -350,6 +351,11 @@ class Conn:
                 frame, _, flags, _ = self.sock.recvmsg(CHUNK + 1)
             except (BlockingIOError, InterruptedError):
                 return
+            except ConnectionResetError:  # the peer closed with what this side sent unread: the kernel
+                if not self._reset:  # says so once, before what the peer sent last (a final report)
+                    self._reset = True
+                    continue  # read that next
+                frame = b""
             except OSError:
                 frame = b""
             if not frame:

@@ -30,7 +30,7 @@ from dataflow.transports.ipc._wire import WHOLE
 from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, IncomingLink, Refused, Sinks
 from dataflow.transports.served import Served
 
-__all__ = ["IpcServer", "MAX_CONNECTIONS"]
+__all__ = ["Flavour", "IpcServer", "MAX_CONNECTIONS"]
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +41,7 @@ TICKETS_PER_PEER = 64
 TICKET_S = 10.0
 HELLO_S = 2.0
 TICKET_BYTES = 16
+STOP_S = 1.0  #: how long a stop waits for each connection's last report and end, at most
 
 
 @dataclass(frozen=True)
@@ -54,14 +55,30 @@ class _Ticket:
     who: str
 
 
+class Flavour:
+    """The connections of a transport that rides on ipc's socket (``shm``: its large
+    samples in shared memory): what a ticket asking for it (``request.shm``) opens."""
+
+    def link_in(self, hub: Hub, sock: socket.socket, server: IpcServer, link: IncomingLink, known: bool) -> Conn:
+        """A link coming in (default: ipc's own)."""
+        return _LinkIn(hub, sock, server, link, known)
+
+    def reader_out(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> Conn:
+        """A subscription going out (default: ipc's own)."""
+        return _ReaderOut(hub, sock, server, served, heartbeat)
+
+
 class IpcServer:
     """A deployer's ipc socket (see the module docstring). ``sinks`` are the deployer's
-    incoming links; ``serve(task, port, policy, who)`` makes the :class:`Served` writer end
-    of a new subscription, ``unserve(served)`` ends it."""
+    incoming links; ``serve(task, port, policy, who, shm)`` makes the :class:`Served` writer
+    end of a new subscription, ``unserve(served)`` ends it; ``shm``: the connections of
+    tickets that ask for shared memory."""
 
-    def __init__(self, boot_id: str, sinks: Sinks, serve: Callable[[str, str, ConnPolicy, str], Served],
-                 unserve: Callable[[Served], None]) -> None:
+    def __init__(self, boot_id: str, sinks: Sinks, serve: Callable[[str, str, ConnPolicy, str, bool], Served],
+                 unserve: Callable[[Served], None], shm: Flavour | None = None) -> None:
         self.boot_id = boot_id
+        self._plain = Flavour()
+        self._shm = shm  # the shm transport's connections, when it is installed
         self.name = f"scart-{boot_id}-{secrets.token_hex(8)}"
         self.sinks = sinks
         self._serve = serve
@@ -153,12 +170,15 @@ class IpcServer:
         except Refused as exc:
             sock.send(WHOLE + pb.LinkResponse(refused=str(exc)).SerializeToString())  # before the io thread owns it
             raise
-        return _LinkIn(Hub.acquire(), sock, self, link, known)
+        return self._flavour(ticket).link_in(Hub.acquire(), sock, self, link, known)
 
     def _reader_out(self, sock: socket.socket, ticket: _Ticket) -> Conn:
         request = ticket.request
-        served = self._serve(request.task, request.port, ticket.policy, ticket.who)
-        return _ReaderOut(Hub.acquire(), sock, self, served, ticket.heartbeat)
+        served = self._serve(request.task, request.port, ticket.policy, ticket.who, bool(request.shm))
+        return self._flavour(ticket).reader_out(Hub.acquire(), sock, self, served, ticket.heartbeat)
+
+    def _flavour(self, ticket: _Ticket) -> Flavour:
+        return self._shm if ticket.request.shm and self._shm is not None else self._plain
 
     def housekeeping(self, now: float) -> None:
         with self._lock:
@@ -184,7 +204,12 @@ class IpcServer:
             self._pending.clear()
             self._tickets.clear()
         for conn in conns:
-            conn.close()
+            if isinstance(conn, _LinkIn):
+                conn.stop()
+            else:
+                conn.close()
+        for conn in conns:
+            conn.ended.wait(STOP_S)
         for sock in pending:
             self._listener.forget_pending(sock)
         self._listener.close()
@@ -248,7 +273,7 @@ class _LinkIn(Conn):
         self.link = link
         self.known = known
         self._unreported = 0
-        self._reported: tuple[int, int] = (-1, -1)
+        self._reported: tuple[int, int, int] = (-1, -1, -1)
         self._reported_at = 0.0
         self._closing_at: float | None = None
         self._finished = False
@@ -264,7 +289,11 @@ class _LinkIn(Conn):
         except Exception:  # noqa: BLE001 - not a frame: counted with the malformed ones
             self._assembler.dropped += 1
             return
-        self._unreported += frames.feed(self.link.end, frame) + 1
+        self.took(frame)
+
+    def took(self, frame: Any, values: dict[int, Any] | None = None) -> None:
+        """One frame of the link (``values``: see :func:`~dataflow.transports.frames.feed`)."""
+        self._unreported += frames.feed(self.link.end, frame, values) + 1
         if frame.closing:
             self._closing_at = time.monotonic() + LINGER_S
             self.tick(time.monotonic())
@@ -272,9 +301,18 @@ class _LinkIn(Conn):
             self._report(time.monotonic())
 
     def _report(self, now: float, final: bool = False) -> None:
-        end = self.link.end
-        self.put(frames.report_of(end, final=final, pending=self.link.pending).SerializeToString())
-        self._reported, self._reported_at, self._unreported = (end.last, end.lost), now, 0
+        end, pending = self.link.end, self.link.pending
+        self.put(frames.report_of(end, final=final, pending=pending).SerializeToString())
+        self._reported, self._reported_at, self._unreported = (end.last, end.lost, pending), now, 0
+
+    def stop(self) -> None:
+        """This deployer stops: a last report (the link's buffer counted already, see
+        :meth:`~dataflow.transports.sinks.Sinks.close_all`), then the end (any thread)."""
+        def last_report() -> None:
+            if not self.ended.is_set():
+                self._report(time.monotonic())
+            self.close()
+        self.hub.call_soon(last_report)
 
     def tick(self, now: float) -> None:
         if self._closing_at is not None:
@@ -286,8 +324,8 @@ class _LinkIn(Conn):
             self._closing_at = None
             return
         end = self.link.end
-        if (end.last, end.lost) != self._reported and now - self._reported_at >= REPORT_S:
-            self._report(now)
+        if (end.last, end.lost, self.link.pending) != self._reported and now - self._reported_at >= REPORT_S:
+            self._report(now)  # a change the source would not know: the sink's buffer read too
 
     def ended_hook(self) -> None:
         if self.malformed:
@@ -319,7 +357,8 @@ class _ReaderOut(Conn):
 
     def tick(self, now: float) -> None:
         if now - self.sent_at >= self.heartbeat:
-            self.put(frames.heartbeat(dropped=self.served.tail))
+            sent_last, tail = self.served.end.tail_after()
+            self.put(frames.heartbeat(dropped=tail, sent_last=sent_last))
 
     def ended_hook(self) -> None:
         self.server._unserve(self.served)

@@ -3,7 +3,8 @@ datagram per frame.
 
 Each frame starts with one byte: 0 a whole message, 1 a part with more to come, 2 the
 last part; parts are at most :data:`CHUNK` bytes, a message at most :data:`MAX_MESSAGE`
-(gRPC's limit; a larger one is dropped and counted). An abstract socket has no file
+(a sample of 64 MiB and its frame; a writer refuses a larger one at ``write()``, and a
+reader drops and counts one that comes all the same). An abstract socket has no file
 (nothing in ``/dev/shm`` or on disk) and the kernel closes it with its process, even a
 killed one: the other side then sees the end of its stream and reconnects.
 """
@@ -17,11 +18,13 @@ import threading
 import time
 from collections.abc import Iterator
 
+from dataflow.transports.limits import MAX_FRAME_BYTES
+
 __all__ = ["CHUNK", "MAX_MESSAGE", "Reassembler", "available", "connect", "frames_of", "host_id",
            "IpcUnavailable", "messages_in", "shutdown_quietly"]
 
 CHUNK = 64 * 1024  #: bytes of a message in one frame, at most (well inside a socket's buffer)
-MAX_MESSAGE = 4 * 1024 * 1024  #: bytes of one message, at most (as on gRPC)
+MAX_MESSAGE = MAX_FRAME_BYTES  #: bytes of one message, at most (a sample of 64 MiB, framed)
 WHOLE, PART, LAST = b"\x00", b"\x01", b"\x02"
 
 

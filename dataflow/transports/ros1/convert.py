@@ -16,6 +16,13 @@ Three ways, tried in this order:
   ``Int64``, ``Bool``, ``String``, ``Float64MultiArray``, ``Int64MultiArray``
   (:data:`PLAIN`); another message with a ``data`` field of a fitting type works too
   (``std_msgs/Float32``, ``std_msgs/Int32``...).
+* **an array type** (``Array[np.float64, (None, 3)]``, :mod:`scart_wire.arrays`) onto the
+  ``data`` array of a ``std_msgs`` multi-array of its element type (``Float64MultiArray``...,
+  the default; its ``layout`` gives the shape: written from the array's, read back into
+  it), or an image-shaped one (height × width, 1, 3 or 4 channels) onto
+  ``sensor_msgs/Image`` (the default for those; its ``encoding`` must be the array's,
+  ``rgb8``...). The array is copied once, into the message's bytes, when published, and
+  read as a read-only view of the received bytes: numpy from end to end, never a list.
 * **a pydantic model** onto a message **by field names**, recursively. Publishing, every
   field of the model needs a field of that name in the message (the message's others
   keep ROS's defaults, and a ``header`` the model lacks is stamped with the sample's write
@@ -39,6 +46,8 @@ from typing import Any
 
 import numpy
 import pydantic
+
+from scart_wire.arrays import ArraySpec
 
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
                         item_type, model_fields, resolve_converter, type_label, unwrap)
@@ -80,6 +89,8 @@ class Conversion:
 
 def default_type(py_type: Any) -> str | None:
     """The std_msgs type a port of ``py_type`` maps onto without being told, or None."""
+    if isinstance(py_type, ArraySpec):
+        return IMAGE if py_type.image else _MULTI.get(py_type.dtype)
     try:
         return PLAIN.get(py_type)
     except TypeError:  # an unhashable annotation
@@ -103,6 +114,8 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
         return None, [ConversionProblem(str(exc))]
     if converter:
         return _with_converter(types_, py_type, name, outgoing, converter)
+    if isinstance(unwrap(py_type), ArraySpec):
+        return _array_plan(types_, unwrap(py_type), name, outgoing, frame_id)
     try:
         if is_model(py_type):
             fn = _Planner(types_, outgoing, frame_id).top_model(py_type, name)
@@ -125,6 +138,107 @@ def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoin
         return _Planner(types_, outgoing, "").field(unwrap(py_type), fdef, 0)
     except Mismatch as exc:
         raise ValueError(str(exc)) from None
+
+
+# ---- arrays ------------------------------------------------------------------------------
+IMAGE = "sensor_msgs/Image"
+_MULTI = MappingProxyType({"float64": "std_msgs/Float64MultiArray", "float32": "std_msgs/Float32MultiArray",
+                           "int64": "std_msgs/Int64MultiArray", "int32": "std_msgs/Int32MultiArray",
+                           "int16": "std_msgs/Int16MultiArray", "int8": "std_msgs/Int8MultiArray",
+                           "uint64": "std_msgs/UInt64MultiArray", "uint32": "std_msgs/UInt32MultiArray",
+                           "uint16": "std_msgs/UInt16MultiArray", "uint8": "std_msgs/UInt8MultiArray"})
+#: ROS's element types as numpy's (an array port's element type must be the field's own)
+_ELEMENT = MappingProxyType({"byte": "int8", "char": "uint8", "bool": "bool"})
+
+
+def _array_plan(types_: MessageTypes, spec: ArraySpec, name: str, outgoing: bool,
+                frame_id: str) -> tuple[Conversion | None, list[ConversionProblem]]:
+    """An array port onto an image or a multi-array (see the module docstring)."""
+    fields = {f.name: f for f in types_.fields(name)}
+    data = fields.get("data")
+    if name == IMAGE or (data is not None and "encoding" in fields and "step" in fields):
+        if spec.image is None:
+            return None, [ConversionProblem(f"{spec.name} is not an image (height x width, 1, 3 or 4 channels of "
+                                            f"uint8, uint16 or float32): it cannot be a {name}")]
+        if outgoing:
+            return Conversion(name, "image", to_ros=_image_out(types_, spec, name, frame_id)), []
+        return Conversion(name, "image", from_ros=_image_in(spec)), []
+    if data is None or data.array is None or data.is_message or _ELEMENT.get(data.type, data.type) != spec.dtype:
+        found = f"{data.type}[]" if data is not None and data.array is not None else "no data array"
+        return None, [ConversionProblem(f"{spec.name} maps onto a message whose 'data' is an array of {spec.dtype} "
+                                        f"({_MULTI.get(spec.dtype, 'std_msgs/...MultiArray')}), not {name} "
+                                        f"({found})")]
+    layout = "layout" in fields and fields["layout"].type == "std_msgs/MultiArrayLayout"
+    msgtype = types_.msg(name)
+    if outgoing:
+        dim_cls = types_.msg("std_msgs/MultiArrayDimension").cls if layout else None
+        layout_cls = types_.msg("std_msgs/MultiArrayLayout").cls if layout else None
+        cls, count = msgtype.cls, data.array or 0
+        rest = {f: v for f, v in ((f.name, getattr(msgtype.new(), f.name)) for f in fields.values())
+                if f not in ("data", "layout")}
+
+        def to_ros(value: Any, _n: int, _t: int) -> object:
+            flat = value.reshape(-1)  # a view of a contiguous array: the one copy is rosbags'
+            if count and flat.size != count:
+                raise ValueError(f"{flat.size} values for a {data.type}[{count}]")
+            if layout_cls is None:
+                return cls(**rest, data=flat)
+            strides = [int(numpy.prod(value.shape[k:])) for k in range(value.ndim)]
+            dims = [dim_cls(label=f"dim{k}", size=size, stride=stride)  # type: ignore[misc]  # set with layout_cls
+                    for k, (size, stride) in enumerate(zip(value.shape, strides))]
+            return cls(**rest, layout=layout_cls(dim=dims, data_offset=0), data=flat)
+        return Conversion(name, "array", to_ros=to_ros), []
+    return Conversion(name, "array", from_ros=_array_in(spec, layout)), []
+
+
+def _array_in(spec: ArraySpec, layout: bool) -> Callable[[Any], Any]:
+    """A multi-array's data as the port's array: shaped by its layout (else by the
+    port's shape), a read-only view of the received bytes."""
+    def from_ros(msg: Any) -> Any:
+        data = msg.data
+        shape: tuple[int, ...] | None = None
+        if layout and msg.layout.dim:
+            offset = int(msg.layout.data_offset)
+            shape = tuple(int(d.size) for d in msg.layout.dim)
+            data = data[offset:offset + int(numpy.prod(shape))]
+        elif spec.shape is not None and len(spec.shape) != 1:
+            shape = tuple(-1 if s is None else s for s in spec.shape)
+        value = data.reshape(shape) if shape is not None else data
+        value.flags.writeable = False
+        return value
+    return from_ros
+
+
+def _image_out(types_: MessageTypes, spec: ArraySpec, name: str, frame_id: str) -> Callable[[Any, int, int], object]:
+    cls = types_.msg(name).cls
+    header_cls, time_cls = types_.msg("std_msgs/Header").cls, types_.time_class("time")
+    encoding = spec.image
+
+    def to_ros(value: Any, n: int, t_ns: int) -> object:
+        height, width = value.shape[:2]
+        header = header_cls(seq=n & 0xFFFFFFFF, stamp=time_cls(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000),
+                            frame_id=frame_id)
+        return cls(header=header, height=height, width=width, encoding=encoding, is_bigendian=0,
+                   step=value.strides[0] if value.flags.c_contiguous else value[0].nbytes,
+                   data=numpy.ascontiguousarray(value).reshape(-1).view(numpy.uint8))
+    return to_ros
+
+
+def _image_in(spec: ArraySpec) -> Callable[[Any], Any]:
+    channels = 1 if spec.shape is None or len(spec.shape) == 2 else spec.shape[2]
+
+    def from_ros(msg: Any) -> Any:
+        if msg.encoding != spec.image:
+            raise ValueError(f"an image of encoding {msg.encoding!r}, not {spec.image!r} ({spec.name})")
+        height, width, step = int(msg.height), int(msg.width), int(msg.step)
+        rows = msg.data[:height * step].reshape(height, step)  # a view of the received bytes
+        row = width * (channels or 1) * numpy.dtype(spec.dtype).itemsize
+        value = rows[:, :row].view(spec.dtype)
+        value = value.reshape((height, width, channels) if spec.shape is not None and len(spec.shape) == 3
+                              else (height, width))
+        value.flags.writeable = False
+        return value
+    return from_ros
 
 
 # ---- ROS 1 bytes straight -------------------------------------------------------------

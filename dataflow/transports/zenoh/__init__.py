@@ -57,6 +57,8 @@ from dataflow.ports import InputPort, OutputPort
 from dataflow.remote.api import SampleEvent
 from dataflow.transports import Stream, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd, attach, detach
+from dataflow.threads import OwnedThread, Wake
+from dataflow.transports.limits import check_size
 from dataflow.transports.sinks import port_check
 from dataflow.transports.zenoh._keys import (
     DEFAULT_NS, ENCODING_PREFIX, MAX_PAYLOAD, ROOT, SERVED, check_topic, key_of, served_key,
@@ -74,6 +76,9 @@ __all__ = ["DEFAULT_NS", "ROOT", "SERVED", "ZenohInput", "ZenohNames", "ZenohPub
 log = logging.getLogger(__name__)
 
 ATTACHMENT = 24  #: bytes of scart's attachment: publisher id, write number, time (ns), little-endian
+#: A payload larger than this (Zenoh's batch: it would go in fragments) is put by the
+#: publisher's sender thread, which may wait for room: the writer's thread never does.
+INLINE_BYTES = 64 * 1024
 
 
 def _quietly(undeclare: Callable[[], Any], what: str) -> None:
@@ -125,11 +130,8 @@ class _Publisher:
     encoded while no subscriber matches the key (Zenoh tells, at once when one does);
     Zenoh's ``DROP`` congestion control drops at once rather than wait for room."""
 
-    @staticmethod
-    def encode(sample: OutSample) -> OutSample:
-        return sample  # encoded in send(), only when someone listens
-
-    def __init__(self, session: Any, key: str, type_name: str, publisher_id: bytes) -> None:
+    def __init__(self, session: Any, key: str, type_name: str, publisher_id: bytes,
+                 flush: Callable[[], None] = lambda: None) -> None:
         import zenoh
 
         self.key = key
@@ -139,19 +141,73 @@ class _Publisher:
             congestion_control=zenoh.CongestionControl.DROP)
         self._matching = False
         self._listener = self._publisher.declare_matching_listener(self._on_matching)
+        self._flush = flush  # the writer end's: what waited for the sender goes next
+        # large payloads: put by the sender thread on a publisher that waits for room (Zenoh
+        # sends them in fragments, which DROP would lose when its queue is full); bounded
+        # by the session's block/wait_before_close, after which Zenoh closes the link
+        self._large_publisher = session.declare_publisher(
+            key, encoding=zenoh.Encoding.APPLICATION_PROTOBUF.with_schema(ENCODING_PREFIX + type_name),
+            congestion_control=zenoh.CongestionControl.BLOCK)
+        self._large: tuple[bytes, bytes] | None = None  # a large payload for the sender thread, and its stamp
+        self._wake = Wake()
+        self._sender: OwnedThread | None = None
+        self._sender_lock = threading.Lock()
 
     def _on_matching(self, status: Any) -> None:  # Zenoh's thread
         self._matching = bool(status.matching)
 
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
-        if self._matching:
-            stamp = self._id + sample.n.to_bytes(8, "little") + sample.t_ns.to_bytes(8, "little")
-            self._publisher.put(codec.encode(sample.value, sample.type).SerializeToString(), attachment=stamp)
+    def encode(self, sample: OutSample) -> bytes | OutSample:
+        """The sample's payload, only while someone listens (else the sample itself: not
+        encoded); raises :class:`~dataflow.transports.limits.SampleTooLarge` over
+        :data:`MAX_PAYLOAD`, so the writer end refuses it at ``write()`` and counts it."""
+        if not self._matching:
+            return sample
+        return check_size(codec.encode(sample.value, sample.type).SerializeToString(), MAX_PAYLOAD, "zenoh")
+
+    def send(self, sample: OutSample, data: bytes | OutSample) -> bool:  # the writer's thread
+        if type(data) is not bytes:
+            return True
+        stamp = self._id + sample.n.to_bytes(8, "little") + sample.t_ns.to_bytes(8, "little")
+        if len(data) <= INLINE_BYTES:
+            self._publisher.put(data, attachment=stamp)
+            return True
+        if self._large is not None:  # the sender is busy: the writer end keeps it, as its policy says
+            return False
+        self._large = (data, stamp)
+        self._start_sender().set()
         return True
 
+    def _start_sender(self) -> Wake:
+        with self._sender_lock:
+            if self._sender is None:
+                self._sender = OwnedThread(self._send_large, f"scart-zenoh-{self.key}"[:60], wake=self._wake.set)
+                self._sender.start()
+        return self._wake
+
+    def _send_large(self, stopping: threading.Event) -> None:
+        """The sender thread: each large payload put (Zenoh sends it in fragments, waiting
+        for room), then the writer end's next."""
+        while not stopping.is_set():
+            self._wake.wait(1.0)
+            self._wake.clear()
+            large = self._large
+            if large is None:
+                continue
+            try:
+                self._large_publisher.put(large[0], attachment=large[1])
+            except Exception as exc:  # noqa: BLE001 - a closed session: the subscribers count the jump
+                log.info("zenoh %s: a large sample not sent: %s", self.key, exc)
+            self._large = None
+            self._flush()
+
     def close(self) -> None:
+        with self._sender_lock:
+            sender, self._sender = self._sender, None
+        if sender is not None:
+            sender.stop()
         _quietly(self._listener.undeclare, "matching listener")
         _quietly(self._publisher.undeclare, "publisher")
+        _quietly(self._large_publisher.undeclare, "publisher")
 
 
 class ZenohPublisher:
@@ -189,8 +245,8 @@ class ZenohPublisher:
             raise
 
     def _publish(self, session: Any, port: OutputPort, key: str) -> None:
-        carrier = _Publisher(session, key, port.type_name, self._id)
         end = WriterEnd(port, ConnPolicy.data(init=False).with_(mandatory=False), f"zenoh {key}", reports=False)
+        carrier = _Publisher(session, key, port.type_name, self._id, end.flush)
         self._ends.append((end, carrier))
         end.connected("zenoh", carrier, new_peer=True)
         attach(port, end)
@@ -348,7 +404,8 @@ class _TopicStream(Stream):
         self._subscriber: _Subscriber | None = None
         try:
             if isinstance(end, WriterEnd):
-                self._carrier = _Publisher(self._session, topic, end.port.type_name, secrets.randbits(64).to_bytes(8, "little"))
+                self._carrier = _Publisher(self._session, topic, end.port.type_name,
+                                           secrets.randbits(64).to_bytes(8, "little"), end.flush)
                 end.connected("zenoh", self._carrier, new_peer=True)
             else:
                 end.transport = "zenoh"

@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from urllib.parse import quote
 
+from dataflow.transports.limits import MAX_FRAME_BYTES
+
 __all__ = ["DEFAULT_NS", "ENCODING_PREFIX", "MAX_PAYLOAD", "MAX_REPLIES", "ROOT", "SERVED", "check_topic", "key_of",
            "served_key"]
 
@@ -13,7 +15,7 @@ ROOT = "scart"
 SERVED = "scart-served"  #: root of the tokens saying where a component is served
 MAX_REPLIES = 10_000  #: liveliness replies read per lookup, at most
 ENCODING_PREFIX = "scart.dataflow.v1.Value;"
-MAX_PAYLOAD = 4 * 1024 * 1024  #: bytes of one sample a subscriber decodes at most (the gRPC path's limit)
+MAX_PAYLOAD = MAX_FRAME_BYTES  #: bytes of one sample, at most: a writer refuses more, a subscriber decodes no more
 _WORD = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
 
 

@@ -97,7 +97,7 @@ def test_one_host_takes_ipc_and_grpc_when_asked(two) -> None:
     slow = system.component("src").subscribe("out", lambda e: None, ConnPolicy.data().with_(transport="shm"))
     both = system.component("src").subscribe("out", lambda e: None, ConnPolicy.data().with_(transport="grpc"))
     try:
-        assert (fast.transport, slow.transport, both.transport) == ("ipc", "ipc", "grpc")  # shm: the same path
+        assert (fast.transport, slow.transport, both.transport) == ("ipc", "shm", "grpc")  # shm when asked, even small
         src.out.write(7)
         wait_until(lambda: seen == [7], timeout=10)
         assert fast.dropped == 0

@@ -166,7 +166,7 @@ def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> N
     assert "'broken'" in lines["broken:"] and "scart_no_such_module:Transport" in lines["broken:"]
     assert "ModuleNotFoundError" in lines["broken:"]
     # auto: by rank; the broken one skipped (said once), the unranked one not tried
-    assert lines["auto"].split() == ["faulty", "ipc", "grpc"]
+    assert lines["auto"].split() == ["faulty", "shm", "ipc", "grpc"]
     assert "transport 'broken'" in result.stderr and "auto goes without it" in result.stderr
     assert lines["link"] == "True subscription tap opened 2"
     assert lines["subscribe-broken:"] == "TransportError"  # at once, not after the connect timeout
@@ -176,6 +176,6 @@ def test_a_plugin_transport_carries_links_and_subscriptions(tmp_path: Path) -> N
 
 
 def test_scart_own_transports_are_entry_points() -> None:
-    assert {"ipc", "grpc"} <= set(names())
-    assert [t.name for t in candidates("auto")][:2] == ["ipc", "grpc"]
+    assert {"ipc", "shm", "grpc"} <= set(names())
+    assert [t.name for t in candidates("auto")][:3] == ["shm", "ipc", "grpc"]
     assert transport_names()[:4] == ("auto", "ipc", "shm", "grpc")

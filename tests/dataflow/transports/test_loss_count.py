@@ -55,3 +55,14 @@ def test_counting_from_a_given_write() -> None:
     count = LossCount(after=100)  # a link made when its port had written 100 times
     assert feed(count, [([103], None)]) == [103]
     assert count.lost == 2
+
+
+def test_a_heartbeat_older_than_a_sample_received_since_is_not_counted_twice() -> None:
+    """The writer's tick computed its tail (after sample 3, 4 and 5 not sent), then its
+    writer thread sent 6 before the heartbeat left: 6's jump counted 4 and 5 already."""
+    count = LossCount()
+    assert feed(count, [([1, 2, 3], None), ([6], None)]) == [1, 2, 3, 6]
+    count.report(2, after=3)  # stale: it speaks of the writes after 3, and 6 came since
+    assert count.lost == 2
+    count.report(1, after=6)  # a fresh one: 7 not sent
+    assert count.lost == 3

@@ -57,18 +57,20 @@ TRANSITION_CLEANUP: Transition
 TRANSITION_RECOVER: Transition
 
 class OpenIpcWriterRequest(_message.Message):
-    __slots__ = ("task", "port", "policy", "host_id", "hello")
+    __slots__ = ("task", "port", "policy", "host_id", "hello", "shm")
     TASK_FIELD_NUMBER: _ClassVar[int]
     PORT_FIELD_NUMBER: _ClassVar[int]
     POLICY_FIELD_NUMBER: _ClassVar[int]
     HOST_ID_FIELD_NUMBER: _ClassVar[int]
     HELLO_FIELD_NUMBER: _ClassVar[int]
+    SHM_FIELD_NUMBER: _ClassVar[int]
     task: str
     port: str
     policy: ConnPolicy
     host_id: str
     hello: LinkHello
-    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ...) -> None: ...
+    shm: bool
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ..., shm: _Optional[bool] = ...) -> None: ...
 
 class OpenIpcWriterResponse(_message.Message):
     __slots__ = ("ticket",)
@@ -101,50 +103,60 @@ class LinkHello(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., channel: _Optional[str] = ..., after: _Optional[int] = ..., boot_id: _Optional[str] = ..., source: _Optional[str] = ..., type_name: _Optional[str] = ..., name: _Optional[str] = ..., source_ns: _Optional[str] = ...) -> None: ...
 
 class LinkRequest(_message.Message):
-    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "hello", "closing")
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "hello", "closing", "part", "more", "slots")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
     BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     HELLO_FIELD_NUMBER: _ClassVar[int]
     CLOSING_FIELD_NUMBER: _ClassVar[int]
+    PART_FIELD_NUMBER: _ClassVar[int]
+    MORE_FIELD_NUMBER: _ClassVar[int]
+    SLOTS_FIELD_NUMBER: _ClassVar[int]
     heartbeat: bool
     samples: _containers.RepeatedCompositeFieldContainer[Sample]
     dropped: int
     boot_id: str
     hello: LinkHello
     closing: bool
-    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ..., closing: _Optional[bool] = ...) -> None: ...
+    part: bytes
+    more: bool
+    slots: _containers.RepeatedCompositeFieldContainer[ShmSlot]
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., hello: _Optional[_Union[LinkHello, _Mapping]] = ..., closing: _Optional[bool] = ..., part: _Optional[bytes] = ..., more: _Optional[bool] = ..., slots: _Optional[_Iterable[_Union[ShmSlot, _Mapping]]] = ...) -> None: ...
 
 class LinkResponse(_message.Message):
-    __slots__ = ("last", "lost", "known", "final", "refused", "pending")
+    __slots__ = ("last", "lost", "known", "final", "refused", "pending", "released")
     LAST_FIELD_NUMBER: _ClassVar[int]
     LOST_FIELD_NUMBER: _ClassVar[int]
     KNOWN_FIELD_NUMBER: _ClassVar[int]
     FINAL_FIELD_NUMBER: _ClassVar[int]
     REFUSED_FIELD_NUMBER: _ClassVar[int]
     PENDING_FIELD_NUMBER: _ClassVar[int]
+    RELEASED_FIELD_NUMBER: _ClassVar[int]
     last: int
     lost: int
     known: bool
     final: bool
     refused: str
     pending: int
-    def __init__(self, last: _Optional[int] = ..., lost: _Optional[int] = ..., known: _Optional[bool] = ..., final: _Optional[bool] = ..., refused: _Optional[str] = ..., pending: _Optional[int] = ...) -> None: ...
+    released: _containers.RepeatedScalarFieldContainer[int]
+    def __init__(self, last: _Optional[int] = ..., lost: _Optional[int] = ..., known: _Optional[bool] = ..., final: _Optional[bool] = ..., refused: _Optional[str] = ..., pending: _Optional[int] = ..., released: _Optional[_Iterable[int]] = ...) -> None: ...
 
 class OpenIpcReaderRequest(_message.Message):
-    __slots__ = ("task", "port", "policy", "host_id", "heartbeat_ms")
+    __slots__ = ("task", "port", "policy", "host_id", "heartbeat_ms", "shm")
     TASK_FIELD_NUMBER: _ClassVar[int]
     PORT_FIELD_NUMBER: _ClassVar[int]
     POLICY_FIELD_NUMBER: _ClassVar[int]
     HOST_ID_FIELD_NUMBER: _ClassVar[int]
     HEARTBEAT_MS_FIELD_NUMBER: _ClassVar[int]
+    SHM_FIELD_NUMBER: _ClassVar[int]
     task: str
     port: str
     policy: ConnPolicy
     host_id: str
     heartbeat_ms: int
-    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
+    shm: bool
+    def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., host_id: _Optional[str] = ..., heartbeat_ms: _Optional[int] = ..., shm: _Optional[bool] = ...) -> None: ...
 
 class OpenIpcReaderResponse(_message.Message):
     __slots__ = ("ticket",)
@@ -419,28 +431,48 @@ class SubscribeRequest(_message.Message):
     def __init__(self, task: _Optional[str] = ..., port: _Optional[str] = ..., policy: _Optional[_Union[ConnPolicy, _Mapping]] = ..., heartbeat_ms: _Optional[int] = ...) -> None: ...
 
 class SubscribeResponse(_message.Message):
-    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "written")
+    __slots__ = ("heartbeat", "samples", "dropped", "boot_id", "written", "sent_last", "part", "more", "slots")
     HEARTBEAT_FIELD_NUMBER: _ClassVar[int]
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     DROPPED_FIELD_NUMBER: _ClassVar[int]
     BOOT_ID_FIELD_NUMBER: _ClassVar[int]
     WRITTEN_FIELD_NUMBER: _ClassVar[int]
+    SENT_LAST_FIELD_NUMBER: _ClassVar[int]
+    PART_FIELD_NUMBER: _ClassVar[int]
+    MORE_FIELD_NUMBER: _ClassVar[int]
+    SLOTS_FIELD_NUMBER: _ClassVar[int]
     heartbeat: bool
     samples: _containers.RepeatedCompositeFieldContainer[Sample]
     dropped: int
     boot_id: str
     written: int
-    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., written: _Optional[int] = ...) -> None: ...
+    sent_last: int
+    part: bytes
+    more: bool
+    slots: _containers.RepeatedCompositeFieldContainer[ShmSlot]
+    def __init__(self, heartbeat: _Optional[bool] = ..., samples: _Optional[_Iterable[_Union[Sample, _Mapping]]] = ..., dropped: _Optional[int] = ..., boot_id: _Optional[str] = ..., written: _Optional[int] = ..., sent_last: _Optional[int] = ..., part: _Optional[bytes] = ..., more: _Optional[bool] = ..., slots: _Optional[_Iterable[_Union[ShmSlot, _Mapping]]] = ...) -> None: ...
 
 class Sample(_message.Message):
-    __slots__ = ("value", "sequence", "source_time_ns")
+    __slots__ = ("value", "sequence", "source_time_ns", "slot", "slot_size")
     VALUE_FIELD_NUMBER: _ClassVar[int]
     SEQUENCE_FIELD_NUMBER: _ClassVar[int]
     SOURCE_TIME_NS_FIELD_NUMBER: _ClassVar[int]
+    SLOT_FIELD_NUMBER: _ClassVar[int]
+    SLOT_SIZE_FIELD_NUMBER: _ClassVar[int]
     value: _value_pb2.Value
     sequence: int
     source_time_ns: int
-    def __init__(self, value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., sequence: _Optional[int] = ..., source_time_ns: _Optional[int] = ...) -> None: ...
+    slot: int
+    slot_size: int
+    def __init__(self, value: _Optional[_Union[_value_pb2.Value, _Mapping]] = ..., sequence: _Optional[int] = ..., source_time_ns: _Optional[int] = ..., slot: _Optional[int] = ..., slot_size: _Optional[int] = ...) -> None: ...
+
+class ShmSlot(_message.Message):
+    __slots__ = ("id", "size")
+    ID_FIELD_NUMBER: _ClassVar[int]
+    SIZE_FIELD_NUMBER: _ClassVar[int]
+    id: int
+    size: int
+    def __init__(self, id: _Optional[int] = ..., size: _Optional[int] = ...) -> None: ...
 
 class CallOperationRequest(_message.Message):
     __slots__ = ("task", "operation", "args", "json_args", "use_json")
