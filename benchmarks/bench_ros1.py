@@ -285,8 +285,8 @@ def main() -> int:
         script = Path(tmp) / "rospy_peer.py"
         script.write_text(ROSPY_PEER)
         bench = Bench(Path(tmp), script)
-        bench.start_master()
-        try:
+        try:  # a master that does not answer in time is stopped too
+            bench.start_master()
             for _ in range(rounds):
                 for rate in (1000.0,) if args.smoke else (1000.0, 100.0):
                     for pub, sub in hops:

@@ -100,6 +100,7 @@ class Yarp:
                                        env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                        start_new_session=True)
         if not wait_until(lambda: self.registered("/root"), timeout=30, interval=0.05):
+            self.stop()
             raise SystemExit("yarpserver did not start")
 
     def registered(self, name: str) -> bool:
@@ -112,7 +113,11 @@ class Yarp:
 
     def stop(self) -> None:
         self.server.terminate()
-        self.server.wait(timeout=10)
+        try:
+            self.server.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.server.kill()
+            self.server.wait(timeout=10)
 
 
 def _lines(proc: subprocess.Popen[str], got: list[tuple[int, int]], ready: threading.Event) -> None:
@@ -227,11 +232,12 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / "rospy_peer.py"
         script.write_text(ROSPY_PEER)
-        yarp = Yarp(Path(tmp))
         ros = Bench(Path(tmp), script)
-        if rospy:
-            ros.start_master()
-        try:
+        yarp: Yarp | None = None
+        try:  # whatever fails, the servers started are stopped
+            yarp = Yarp(Path(tmp))
+            if rospy:
+                ros.start_master()
             for _ in range(rounds):
                 for rate in (1000.0,) if args.smoke else (1000.0, 100.0):
                     for pub, sub in hops:
@@ -243,9 +249,9 @@ def main() -> int:
                             got = yarp_hop(yarp, pub, sub, rate, seconds, warmup)
                         samples.setdefault((rate, pub, sub), []).extend(got)
         finally:
-            if rospy:
-                ros.stop_master()
-            yarp.stop()
+            ros.stop_master()
+            if yarp is not None:
+                yarp.stop()
     print_table(samples, rounds, seconds, warmup)
     return 0
 

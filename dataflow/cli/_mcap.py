@@ -39,6 +39,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+from dataflow.transports.limits import MAX_FRAME_BYTES
+
 __all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "MAX_RATIO", "MAX_READ_SECONDS", "Budget",
            "McapError", "McapScan", "Sink", "decode_json", "open_output", "output_problem"]
 
@@ -184,7 +186,8 @@ class McapScan:
         records = _records()
         declared = chunk.uncompressed_size
         budget = self._budget
-        if declared > max(1 << 20, budget.ratio * len(chunk.data)):
+        if declared > max(MAX_FRAME_BYTES, budget.ratio * len(chunk.data)):  # one sample may be that big, however
+            # well it compresses (a black camera frame); a bomb of many small ones stops at the messages budget
             raise McapError(f"the chunk at byte {pos} declares {declared} bytes from {len(chunk.data)} compressed "
                             f"({declared // max(1, len(chunk.data))}:1): more than scart expands ({budget.ratio}:1)")
         if self.expanded + declared > budget.expansion:

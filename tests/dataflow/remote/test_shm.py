@@ -95,10 +95,12 @@ def test_auto_takes_shared_memory_for_images_and_ipc_for_small_samples_and_a_vie
             del got
         assert int(held.min()) == int(held.max()) == 1  # the held one was never written over
         carrier = next(link for link in source._links.values() if link.name == "img").end._carrier  # noqa: SLF001
-        busy = carrier.pool.busy
+        # the others' releases come back asynchronously: wait until only the held one and the
+        # last one read (which the buffer keeps, for a read finding nothing new) are out
+        wait_until(lambda: carrier.pool.busy == 2, timeout=5, message=f"{carrier.pool.busy} slots out, not 2")
         del held
         gc.collect()
-        wait_until(lambda: carrier.pool.busy == busy - 1, timeout=5, message="the slot never came back")
+        wait_until(lambda: carrier.pool.busy == 1, timeout=5, message="the slot never came back")
 
 
 def test_a_subscription_to_an_image_port_takes_shared_memory_and_gets_read_only_views() -> None:
