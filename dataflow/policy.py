@@ -32,7 +32,10 @@ refused and counted. The reader's buffering is the connection type: YARP's
 *single-buffer* is ``BUFFER(1)`` (:meth:`ConnPolicy.single_buffer`), *double-buffer*
 ``BUFFER(2)``, *triple-buffer* (YARP's default: the newest sample always) ``DATA``. A
 waiting writer with a single or double buffer delivers every sample, slowed to its
-slowest reader; a ``DATA`` reader always has room, so its writer never waits.
+slowest reader; a ``DATA`` reader always has room, so its writer never waits. Across
+deployers a link over ``ipc``/``shm`` holds its writer back by its reader's reports
+(:mod:`dataflow.transports.flow`), a stream on ``yarp`` by YARP's acknowledgements; a
+transport that cannot (``grpc``) refuses such a link at connect.
 
 ==============================  =========================  =================================
 YARP                            RTT                        ``ConnPolicy``

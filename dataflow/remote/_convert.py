@@ -23,12 +23,8 @@ _CONN_FROM_MSG = MappingProxyType({v: k for k, v in _CONN_TO_MSG.items()})
 
 
 def policy_to_msg(policy: ConnPolicy) -> Any:
-    """ConnPolicy → ``scart.dataflow.v1.ConnPolicy``. Raises ``ValueError`` for a writer
-    that waits (:class:`~dataflow.policy.WaitMode`): the control plane's channels carry
-    no-wait writers, and a wait is said, never dropped on the way."""
-    if policy.wait is not WaitMode.NO_WAIT:
-        raise ValueError(f"policy {policy}: a writer that waits holds back only a reader in its own process, or one "
-                         "on the yarp transport; channels between deployers carry no-wait writers")
+    """ConnPolicy → ``scart.dataflow.v1.ConnPolicy``."""
+    waits = policy.wait is not WaitMode.NO_WAIT
     return pb.ConnPolicy(
         type=_CONN_TO_MSG[policy.type],
         size=policy.size,
@@ -38,6 +34,8 @@ def policy_to_msg(policy: ConnPolicy) -> Any:
         mandatory=policy.mandatory,
         transport=policy.transport,
         topic=policy.topic,
+        wait=policy.wait.value if waits else "",
+        wait_timeout=policy.wait_timeout if waits else 0.0,
     )
 
 
@@ -64,7 +62,16 @@ def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
         mandatory=msg.mandatory if msg.HasField("mandatory") else True,
         transport=msg.transport[:MAX_NAME + 1],  # unknown or too long: ValueError naming the known ones
         topic=msg.topic[:MAX_TOPIC + 1],
+        wait=_wait(msg.wait),
+        wait_timeout=msg.wait_timeout or 1.0,  # NaN or out of range: ValueError naming the field
     )
+
+
+def _wait(text: str) -> WaitMode:
+    try:
+        return WaitMode(text) if text else WaitMode.NO_WAIT
+    except ValueError:
+        raise ValueError(f"policy.wait {text[:40]!r} is not one of {', '.join(m.value for m in WaitMode)}") from None
 
 
 def _member(enum: Any, field: str, name: str, default: Any) -> Any:

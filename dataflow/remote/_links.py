@@ -24,6 +24,7 @@ import grpc
 from dataflow.errors import DeploymentError, NotFoundError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy
+from dataflow.transports.flow import waits
 from dataflow.remote import errors
 from scart_wire import rpc
 from dataflow.remote._convert import policy_to_msg
@@ -145,6 +146,9 @@ class RemoteLink:
             log.info("link %s: the sink's deployer went away; reconnecting", self.name)
 
     def _attempt(self, transport: Any, peer: Peer) -> bool:
+        if waits(self.policy) and not transport.waits:  # auto goes on; a named one is refused at connect
+            self.detail = f"{transport.name} carries no writer that waits ({self.policy.wait.value})"
+            return False
         self.detail = f"connecting over {transport.name}"
         return transport.link(self.end, peer)
 

@@ -29,7 +29,7 @@ from dataflow.introspection import (
     LinkDescription, OperationDescription, PortDescription, PortStreamDescription, PropertyDescription,
     SubscriptionDescription, TaskDescription,
 )
-from dataflow.policy import ConnPolicy, FlowStatus, WriteStatus
+from dataflow.policy import ConnPolicy, FlowStatus, WaitMode, WriteStatus
 from dataflow.remote import _convert as cv
 from dataflow.remote import errors
 from scart_wire import rpc
@@ -383,7 +383,9 @@ class GrpcComponentProxy(ComponentProxy):
         period: float | None = None,
         on_gap: Callable[[GapEvent], None] | None = None,
     ) -> GrpcSubscription:
-        cv.policy_to_msg(policy)  # raises now for a policy no channel carries (a waiting writer)
+        if policy.wait is not WaitMode.NO_WAIT:  # said, never dropped on the way
+            raise ValueError(f"policy {policy}: a subscription's writer never waits for it (a link's may: "
+                             "connect the port to an input port)")
         self.read_sample(port)  # raises now for an unknown port or an input port
         with self._lock:
             self._seen.pop(port, None)

@@ -30,7 +30,9 @@ from grpc_health.v1 import health_pb2
 from dataflow.deployer import Deployer, same_policy
 from dataflow.errors import CONNECT_DIRECTION, CONNECT_TYPE, DeploymentError, NotFoundError, PortTypeError
 from dataflow.introspection import LinkDescription
-from dataflow.policy import ConnPolicy, WaitMode
+from dataflow.policy import ConnPolicy
+from dataflow.transports import load, names
+from dataflow.transports.flow import waits
 from dataflow.remote import errors
 from scart_wire import rpc
 from dataflow.remote._links import CLOSE_S, SETTLE_S, LinkKeeper, RemoteLink
@@ -283,10 +285,9 @@ class DeployerServer:
             return True, self.address, note, self.deployer.find_link(self.deployer.link_name(source, sink))
         if name is not None:
             self.deployer.check_link_name(source, sink, name)
-        if policy.wait is not WaitMode.NO_WAIT:  # said, never dropped on the way
-            raise ValueError(f"link {source} -> {sink}: a writer that waits ({policy.wait.value}) holds back only "
-                             "a reader in this process, or one on the yarp transport (a stream); links between "
-                             "deployers carry no-wait writers")
+        if waits(policy) and policy.transport != "auto" and not load(policy.transport).waits:  # said, not dropped
+            raise ValueError(f"link {source} -> {sink}: transport {policy.transport} carries no writer that waits "
+                             f"({policy.wait.value}); {', '.join(n for n in names() if _waits(n))} do")
         check_fits(out, f"a link to {sink}")
         try:
             address = self.resolve(sink_task)
@@ -483,3 +484,11 @@ def _changes(old: ConnPolicy, new: ConnPolicy, old_name: str, new_name: str) -> 
     if old_name != new_name:
         notes.append(f"renamed from {old_name} to {new_name}")
     return "; ".join(notes) or "connected again"
+
+
+def _waits(name: str) -> bool:
+    """Transport ``name`` holds a waiting writer back on a link (loaded; False if it cannot be)."""
+    try:
+        return load(name).waits
+    except Exception:  # noqa: BLE001 - a transport that cannot be loaded carries nothing
+        return False

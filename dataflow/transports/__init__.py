@@ -228,6 +228,10 @@ class Transport(ABC):
     topics: bool = False
     #: It carries its own message types (a port's type is mapped onto them: ROS).
     converts: bool = False
+    #: Its links hold a waiting writer back (``ConnPolicy.wait``, YARP's flow control: its
+    #: reader ends report at once after each sample and each read that frees room; see
+    #: :mod:`.flow`). A link whose writer waits is carried only by such a transport.
+    waits: bool = False
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         """Carry ``end``'s samples to the input port ``peer.where`` until the connection

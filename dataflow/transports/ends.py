@@ -27,6 +27,7 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 from dataflow.policy import ConnPolicy, ConnType
+from dataflow.transports.flow import WriterFlow, waits
 
 __all__ = ["Carrier", "Fanout", "LossCount", "OutSample", "ReaderEnd", "WriterEnd", "attach", "detach"]
 
@@ -221,8 +222,28 @@ class WriterEnd:
         self._lost_before = 0  # reports of earlier reader ends (a restarted peer)
         #: Called (in the transport's thread) each time a carrier is attached.
         self.on_connected: Callable[[], None] | None = None
+        #: A link whose writer waits (``policy.wait``, YARP's flow control): what it knows
+        #: of its reader's room; its :meth:`offer` then waits (see :mod:`.flow`).
+        self.flow = WriterFlow(policy) if reports and waits(policy) else None
+        if self.flow is not None:
+            self.offer = self._offer_waiting  # type: ignore[method-assign]  # a waiting writer's own offer
 
     # ---- the writer's thread ------------------------------------------------------------
+    def _offer_waiting(self, sample: OutSample) -> bool:
+        """:meth:`offer` for a writer that waits: first for its reader's room, then (for
+        ``WAIT_AFTER``) for its report that the sample arrived; either bounded by the
+        policy's ``wait_timeout``, after which the sample is refused and counted."""
+        flow = self.flow
+        assert flow is not None
+        if self._carrier is not None and not flow.before():
+            self._miss(sample.n)
+            return False
+        if not WriterEnd.offer(self, sample):  # the class's, never waiting
+            return False
+        flow.sent(sample.n)  # sent now, or queued to leave when the socket has room: in flight either way
+        flow.after(sample.n)
+        return True
+
     def offer(self, sample: OutSample) -> bool:
         """Send or keep ``sample`` (see the class); False when it will not leave."""
         carrier = self._carrier
@@ -348,6 +369,8 @@ class WriterEnd:
                 self._lost_before += self.peer_lost + self.peer_pending
                 self.peer_lost = self.peer_pending = 0
                 self._unsent.clear()
+                if self.flow is not None:
+                    self.flow.reset()
             self.transport = transport
             self._carrier = carrier
             if first is not None:
@@ -433,6 +456,8 @@ class WriterEnd:
         self.peer_lost = lost
         self.peer_pending = pending
         self._unsent.trim(self.peer_last)
+        if self.flow is not None:
+            self.flow.reported(last, pending)
 
     @property
     def tail(self) -> int:

@@ -22,7 +22,9 @@ from scart_wire import codec
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy
 from dataflow.ports import InputPort
+from dataflow.buffers import WaitingStorage
 from dataflow.transports.ends import ReaderEnd
+from dataflow.transports.flow import waits
 from scart_wire.types import registry
 
 __all__ = ["IncomingLink", "LINGER_S", "REPORT_EVERY", "REPORT_S", "Refused", "Sinks", "port_check"]
@@ -75,9 +77,20 @@ class IncomingLink:
         self._after_close = 0  # samples that came once closed: dropped, counted
         self.connection = port.open_channel(policy, peer=source)
         conn = self.connection
+        #: Called (in the reader's thread) when a read frees room in the buffer of a link
+        #: whose writer waits: its transport reports at once (see :mod:`.flow`).
+        self.on_room: Callable[[], None] | None = None
+        self.waits = waits(policy)
+        if isinstance(conn.storage, WaitingStorage):
+            conn.storage.on_room(self._room)
         self.end = ReaderEnd(f"link {name or source} into {port.qualname}", port_check(port),
                              self._store, lambda: conn.dropped + self._after_close, after=after)
         self.end.writer(boot_id)
+
+    def _room(self) -> None:
+        on_room = self.on_room
+        if on_room is not None:
+            on_room()
 
     def _store(self, n: int, t_ns: int, value: Any) -> bool:
         if self.closed:

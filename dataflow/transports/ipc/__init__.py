@@ -53,6 +53,7 @@ class IpcTransport(Transport):
 
     name = "ipc"
     rank = 10
+    waits = True
 
     #: What it asks the deployer for (OpenIpcWriterRequest.shm...): a socket alone, here.
     shm = False

@@ -281,6 +281,8 @@ class _LinkIn(Conn):
 
     def start(self) -> None:
         self.put(frames.report_of(self.link.end, known=self.known).SerializeToString())  # the first message: accepted
+        if self.link.waits:  # a read that frees room is reported at once: the writer waits for it
+            self.link.on_room = self._on_room
         super().start()
 
     def message(self, data: bytes) -> None:
@@ -297,7 +299,7 @@ class _LinkIn(Conn):
         if frame.closing:
             self._closing_at = time.monotonic() + LINGER_S
             self.tick(time.monotonic())
-        elif self._unreported >= REPORT_EVERY:
+        elif self._unreported >= REPORT_EVERY or self.link.waits:  # a waiting writer: each sample reported
             self._report(time.monotonic())
 
     def _report(self, now: float, final: bool = False) -> None:
@@ -327,7 +329,13 @@ class _LinkIn(Conn):
         if (end.last, end.lost, self.link.pending) != self._reported and now - self._reported_at >= REPORT_S:
             self._report(now)  # a change the source would not know: the sink's buffer read too
 
+    def _on_room(self) -> None:
+        """The task read a sample of a link whose writer waits (its thread): report now."""
+        self.hub.call_soon(lambda: None if self.ended.is_set() else self._report(time.monotonic()))
+
     def ended_hook(self) -> None:
+        if self.link.on_room == self._on_room:  # a newer connection of the link keeps its own
+            self.link.on_room = None
         if self.malformed:
             log.warning("ipc: %d malformed or oversized frame(s) for %s dropped", self.malformed, self.label)
         if not self._finished:

@@ -241,36 +241,3 @@ def test_a_link_of_another_type_is_refused_at_connect_naming_both_types() -> Non
         s2.stop()
         s1.stop()
 
-
-def test_a_waiting_writer_is_refused_where_a_channel_cannot_hold_it_back() -> None:
-    """Flow control (``ConnPolicy.wait``) holds writers back in one process and on yarp;
-    a link or a subscription between deployers carries no-wait writers, and says so at
-    connect rather than dropping the wait on the way."""
-    from dataflow import WaitMode
-
-    ns = serve_nameserver("127.0.0.1:0")
-    d1, d2 = Deployer(), Deployer()
-    d1.add(Counter("src"))
-    d2.add(Collector("far"))
-    servers = []
-    waiting = ConnPolicy.single_buffer(WaitMode.WAIT_BEFORE)
-    try:
-        for d in (d1, d2):
-            d.configure_all()
-            d.start_all()
-            servers.append(d.serve("127.0.0.1:0", ns=ns.address))
-        with connect(ns.address) as system:
-            with pytest.raises(ValueError, match="a writer that waits holds back only a reader in its own process"):
-                system.connect_ports("src.out", "far.inp", waiting)
-            with pytest.raises(ValueError, match="channels between deployers carry no-wait writers"):
-                system.component("src").subscribe("out", lambda *_: None, policy=waiting)
-            assert system.links() == []
-        with pytest.raises(ValueError, match=r"link src.out -> far.inp: a writer that waits \(wait-before\)"):
-            servers[0].connect_ports("src", "out", "far", "inp", waiting)
-    finally:
-        for server in servers:
-            server.stop()
-        ns.stop()
-        for d in (d1, d2):
-            d.stop_all()
-            d.cleanup_all()

@@ -175,7 +175,7 @@ class IpcTicket(_message.Message):
     def __init__(self, socket: _Optional[str] = ..., secret: _Optional[bytes] = ..., boot_id: _Optional[str] = ...) -> None: ...
 
 class ConnPolicy(_message.Message):
-    __slots__ = ("type", "size", "init", "lock_policy", "buffer_policy", "mandatory", "transport", "topic")
+    __slots__ = ("type", "size", "init", "lock_policy", "buffer_policy", "mandatory", "transport", "topic", "wait", "wait_timeout")
     TYPE_FIELD_NUMBER: _ClassVar[int]
     SIZE_FIELD_NUMBER: _ClassVar[int]
     INIT_FIELD_NUMBER: _ClassVar[int]
@@ -184,6 +184,8 @@ class ConnPolicy(_message.Message):
     MANDATORY_FIELD_NUMBER: _ClassVar[int]
     TRANSPORT_FIELD_NUMBER: _ClassVar[int]
     TOPIC_FIELD_NUMBER: _ClassVar[int]
+    WAIT_FIELD_NUMBER: _ClassVar[int]
+    WAIT_TIMEOUT_FIELD_NUMBER: _ClassVar[int]
     type: ConnType
     size: int
     init: bool
@@ -192,7 +194,9 @@ class ConnPolicy(_message.Message):
     mandatory: bool
     transport: str
     topic: str
-    def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ..., transport: _Optional[str] = ..., topic: _Optional[str] = ...) -> None: ...
+    wait: str
+    wait_timeout: float
+    def __init__(self, type: _Optional[_Union[ConnType, str]] = ..., size: _Optional[int] = ..., init: _Optional[bool] = ..., lock_policy: _Optional[str] = ..., buffer_policy: _Optional[str] = ..., mandatory: _Optional[bool] = ..., transport: _Optional[str] = ..., topic: _Optional[str] = ..., wait: _Optional[str] = ..., wait_timeout: _Optional[float] = ...) -> None: ...
 
 class TaskSummary(_message.Message):
     __slots__ = ("name", "state", "activity", "period", "cycles", "overruns", "last_cycle")
