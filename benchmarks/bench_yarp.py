@@ -90,9 +90,7 @@ class Yarp:
     """A ``yarpserver`` of the bench's own (own configuration folder, a free port)."""
 
     def __init__(self, folder: Path) -> None:
-        from bench_ros1 import _free_port
-
-        self.port = _free_port()
+        self.port = _server_port()
         self.address = f"127.0.0.1:{self.port}"
         self.env = dict(os.environ, YARP_CONFIG_HOME=str(folder / "yarp"))
         subprocess.run(["yarp", "conf", "127.0.0.1", str(self.port)], env=self.env, capture_output=True, check=True)
@@ -118,6 +116,27 @@ class Yarp:
         except subprocess.TimeoutExpired:
             self.server.kill()
             self.server.wait(timeout=10)
+
+
+def _server_port() -> int:
+    """A port for yarpserver below the kernel's ephemeral range (32768 on Linux), free with
+    the 50 after it: yarpserver hands its tools the ports after its own without asking."""
+    import random
+    import socket
+
+    def free(port: int) -> bool:
+        with socket.socket() as sock:
+            try:
+                sock.bind(("127.0.0.1", port))
+                return True
+            except OSError:
+                return False
+
+    for _ in range(200):  # bounded: random tries
+        port = random.randrange(20_000, 32_000)
+        if all(free(p) for p in range(port, port + 51)):
+            return port
+    raise SystemExit("no run of 51 free ports for yarpserver")
 
 
 def _lines(proc: subprocess.Popen[str], got: list[tuple[int, int]], ready: threading.Event) -> None:

@@ -66,7 +66,7 @@ class RemoteLink:
         self.policy = policy
         self.name = name
         self.channel = f"{server.boot_id}/{serial}"
-        self.end = WriterEnd(out, policy, f"link {name}")
+        self.end = WriterEnd(out, policy, f"link {name}", held=True)
         if resume:
             self.end.start = 0
         self.state = "waiting"

@@ -187,7 +187,7 @@ class WriterEnd:
     """
 
     def __init__(self, port: Any, policy: ConnPolicy, label: str, *, reports: bool = True,
-                 byte_budget: int | None = None) -> None:
+                 byte_budget: int | None = None, held: bool = False) -> None:
         self.port = port
         self.policy = policy
         self.label = label
@@ -222,9 +222,11 @@ class WriterEnd:
         self._lost_before = 0  # reports of earlier reader ends (a restarted peer)
         #: Called (in the transport's thread) each time a carrier is attached.
         self.on_connected: Callable[[], None] | None = None
-        #: A link whose writer waits (``policy.wait``, YARP's flow control): what it knows
-        #: of its reader's room; its :meth:`offer` then waits (see :mod:`.flow`).
-        self.flow = WriterFlow(policy) if reports and waits(policy) else None
+        #: ``held``: a link whose reader end reports its room (a transport with ``waits``):
+        #: when its writer waits (``policy.wait``, YARP's flow control), what it knows of
+        #: that room, and its :meth:`offer` then waits (see :mod:`.flow`). A stream's
+        #: transport holds its writer back itself, if at all.
+        self.flow = WriterFlow(policy) if held and waits(policy) else None
         if self.flow is not None:
             self.offer = self._offer_waiting  # type: ignore[method-assign]  # a waiting writer's own offer
 

@@ -11,19 +11,50 @@ from __future__ import annotations
 
 import contextlib
 import os
+import random
 import shutil
+import socket
 import signal
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from support import free_port, wait_until
+from support import wait_until
 from support.ros1 import Proc
 
 YARPSERVER, YARP = shutil.which("yarpserver"), shutil.which("yarp")
 HOW = ("YARP's yarpserver and yarp are not on PATH: build them with the steering repository's "
        "shared/yarp/build.sh (YARP 3.5.0 from PyPI's yarp-middleware sdist) and put its bin/ on PATH")
+
+
+def server_port() -> int:
+    """A port for ``yarpserver`` below the kernel's ephemeral range, free with the 50 after
+    it: yarpserver gives YARP's tools the ports after its own without asking the kernel, so
+    they must not be where the kernel hands out ports to everyone (scart's included)."""
+    low = ephemeral_low()
+    for _ in range(200):  # bounded: random tries
+        port = random.randrange(max(1024, low - 12_000), low - 60)
+        if all(_free(p) for p in range(port, port + 51)):
+            return port
+    raise RuntimeError("no run of 51 free ports below the ephemeral range")
+
+
+def ephemeral_low() -> int:
+    """The first port of the kernel's ephemeral range (Linux: 32768 unless set)."""
+    try:
+        return int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32768
+
+
+def _free(port: int) -> bool:
+    with socket.socket() as sock:
+        try:
+            sock.bind(("127.0.0.1", port))
+            return True
+        except OSError:
+            return False
 
 
 def require_yarp() -> None:
@@ -41,7 +72,7 @@ class YarpServer:
 
     def __init__(self, home: Path) -> None:
         home.mkdir(parents=True, exist_ok=True)
-        self.port = free_port()
+        self.port = server_port()
         self.address = f"127.0.0.1:{self.port}"
         self.env = dict(os.environ, YARP_CONFIG_HOME=str(home))
         for var in ("YARP_NAMESPACE", "YARP_ROBOT_NAME", "XDG_CONFIG_HOME"):
