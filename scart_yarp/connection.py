@@ -27,7 +27,7 @@ __all__ = ["Connection"]
 
 log = logging.getLogger("scart_yarp")
 
-RECV_CHUNK = 1 << 18
+RECV_CHUNK = 1 << 16  #: bytes asked of one recv: under malloc's mmap threshold (a bigger one maps and unmaps each time)
 
 
 class Connection:

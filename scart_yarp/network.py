@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import ipaddress
 import logging
-import selectors
 import socket
 import threading
 import time
@@ -35,6 +34,7 @@ from typing import Any
 
 from .connection import Connection
 from .names import NameClient, NameServerError, check_name
+from .poll import READ, WRITE, Poll
 from .port import Incoming, Port, PortLimits
 from .dgram import DatagramReader
 from .wire import Frame, ProtocolError, yarp_number
@@ -111,7 +111,7 @@ class Network:
         self._wanted: dict[str, dict[str, str]] = {}  # port -> {peer: carrier} it keeps connected
         self._rpc: dict[str, _Worker] = {}
         self._conns: dict[int, Connection] = {}
-        self._sel = selectors.DefaultSelector()
+        self._sel = Poll()
         self._wake_r, self._wake_w = socket.socketpair()
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
@@ -120,7 +120,7 @@ class Network:
         self._closed = False
         self._checked = 0.0
         self._round = threading.Event()  # set while a control round is queued or running: one at a time
-        self._sel.register(self._wake_r, selectors.EVENT_READ, None)
+        self._sel.register(self._wake_r, READ, None)
         self._io = threading.Thread(target=self._run, name="scart-yarp-io", daemon=True)
         self._control = _Worker("scart-yarp-control")
         self._io.start()
@@ -179,7 +179,7 @@ class Network:
 
     def _listen(self, port: Port) -> None:
         if not port.closed:
-            self._sel.register(port.listener, selectors.EVENT_READ, port)
+            self._sel.register(port.listener, READ, port)
 
     def _unlisten(self, port: Port) -> None:
         try:
@@ -360,7 +360,7 @@ class Network:
         dgram.dgram = DatagramReader(conn.peer, port.limits.message)
         port.accepted(dgram)
         self._conns[udp.fileno()] = dgram
-        self._sel.register(udp, selectors.EVENT_READ, dgram)
+        self._sel.register(udp, READ, dgram)
 
     def watch(self, conn: Connection) -> None:
         """Read ``conn`` in the io thread from now on."""
@@ -368,14 +368,14 @@ class Network:
             if conn.closed:
                 return
             self._conns[conn.sock.fileno()] = conn
-            self._sel.register(conn.sock, selectors.EVENT_READ, conn)
+            self._sel.register(conn.sock, READ, conn)
         self._call(add)
 
     def watch_write(self, conn: Connection) -> None:
         """``conn`` has bytes waiting for room: the io thread sends them when it has."""
         def want() -> None:
             if not conn.closed and not conn.paused and conn.sock.fileno() in self._conns:
-                self._events(conn, selectors.EVENT_READ | selectors.EVENT_WRITE)
+                self._events(conn, READ | WRITE)
         self._call(want)
 
     def drop(self, conn: Connection, why: str, flush: bool = False) -> None:
@@ -428,17 +428,19 @@ class Network:
 
     # ---- the io thread ------------------------------------------------------------------
     def _run(self) -> None:
-        next_round = 0.0
+        next_round = next_check = 0.0
         while not self._closed:
-            for key, events in self._sel.select(timeout=0.5):
-                if key.data is None:
+            for data, events in self._sel.select(0.5):
+                if data is None:
                     self._woken()
-                elif isinstance(key.data, Port):
-                    self._accept(key.data)
+                elif type(data) is Connection:
+                    self._serve(data, events)
                 else:
-                    self._serve(key.data, events)
+                    self._accept(data)
             now = time.monotonic()
-            self._overdue(now)
+            if now >= next_check:  # not on every message's wake-up: a deadline is seconds long
+                next_check = now + 0.25
+                self._overdue(now)
             if now >= next_round and not self._round.is_set():  # a slow name server: no rounds pile up
                 next_round = now + MAINTAIN_EVERY
                 self._round.set()
@@ -472,7 +474,7 @@ class Network:
                 continue
             port.accepted(conn)
             self._conns[sock.fileno()] = conn
-            self._sel.register(sock, selectors.EVENT_READ, conn)
+            self._sel.register(sock, READ, conn)
             self._evict_strangers(port)
 
     def _evict_strangers(self, port: Port) -> None:
@@ -501,7 +503,7 @@ class Network:
         port.say(text)
 
     def _serve(self, conn: Connection, events: int) -> None:
-        if events & selectors.EVENT_WRITE:
+        if events & WRITE:
             try:
                 done = conn.writable()
             except OSError as exc:
@@ -511,9 +513,9 @@ class Network:
                 if conn.closing:
                     self._forget(conn, "")
                     return
-                self._events(conn, selectors.EVENT_READ)
+                self._events(conn, READ)
             conn.port.progressed()
-        if events & selectors.EVENT_READ and not conn.closed:
+        if events & READ and not conn.closed:
             self._read(conn)
 
     def _read(self, conn: Connection) -> None:
@@ -566,7 +568,7 @@ class Network:
                     conn.held.popleft()
                 if not conn.held:
                     conn.paused = False
-                    events = selectors.EVENT_READ | (selectors.EVENT_WRITE if conn.sending else 0)
+                    events = READ | (WRITE if conn.sending else 0)
                     self._sel.register(conn.sock, events, conn)
         self._call(again)
 

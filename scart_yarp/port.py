@@ -107,6 +107,11 @@ class Port:
 
     # ---- writing ------------------------------------------------------------------------
     @property
+    def has_outputs(self) -> bool:
+        """It writes to at least one reader now (no lock: a hint for the hot path)."""
+        return bool(self._outputs)
+
+    @property
     def outputs(self) -> dict[str, Connection]:
         with self._lock:
             return dict(self._outputs)

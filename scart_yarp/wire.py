@@ -173,7 +173,38 @@ class IncomingParser:
 
     def feed(self, data: bytes) -> list[Frame]:
         """Take ``data``; every whole message now read, in order."""
+        if not self._buf and self._need == 0 and self.sender and not self.carrier.startswith("text"):
+            frames, used = self._whole(data)  # the common case: whole messages, read where they are
+            if used == len(data):
+                return frames
+            data = data[used:]
+            self._buf += data
+            return frames + self._more()
         self._buf += data
+        return self._more()
+
+    def _whole(self, data: bytes) -> tuple[list[Frame], int]:
+        """The whole binary messages at the start of ``data``, read in place, and how many
+        bytes they took (a partial one is left for the buffer)."""
+        frames: list[Frame] = []
+        pos, size = 0, len(data)
+        while size - pos >= 18:
+            if data[pos:pos + 2] != b"YA" or data[pos + 6:pos + 8] != b"RP" or _I32.unpack_from(data, pos + 2)[0] != 10:
+                break  # not an index: the slow path says what is wrong
+            blocks = data[pos + 8] + data[pos + 9]
+            start = pos + 18 + 4 * blocks
+            if size < start:
+                break
+            lengths = struct.unpack_from(f"<{blocks}i", data, pos + 18)
+            total = sum(lengths)
+            if any(n < 0 for n in lengths) or total > self.max_message or size - start < total:
+                break
+            frames.append(_command(data, start, start + total))
+            pos = start + total
+        return frames, pos
+
+    def _more(self) -> list[Frame]:
+        """Every whole message the buffer holds now."""
         frames: list[Frame] = []
         while True:
             if not self.sender:
@@ -261,16 +292,17 @@ class IncomingParser:
         return _command(body)
 
 
-def _command(body: bytes) -> Frame:
-    """Split a binary message into its port command and the bottle after it."""
-    if len(body) < 8 or body[4:5] != b"~":
+def _command(data: bytes, start: int = 0, end: int | None = None) -> Frame:
+    """Split the binary message ``data[start:end]`` into its port command and the bottle
+    after it (the bottle's bytes copied once)."""
+    end = len(data) if end is None else end
+    if end - start < 8 or data[start + 4:start + 5] != b"~":
         raise ProtocolError("a message without a port command")
-    key = chr(body[5])
-    (n,) = _I32.unpack_from(body)
+    key = chr(data[start + 5])
+    (n,) = _I32.unpack_from(data, start)
     if key != "\0":
-        return Frame(key, "", body[8:])
-    if not 0 <= n <= len(body) - 8:
-        raise ProtocolError(f"a port command of {n} bytes in a message of {len(body)}")
-    text = body[8:8 + n].split(b"\0", 1)[0].decode("utf-8", errors="replace")
-    return Frame(text[:1] or "\0", text, body[8 + n:])
-
+        return Frame(key, "", data[start + 8:end])
+    if not 0 <= n <= end - start - 8:
+        raise ProtocolError(f"a port command of {n} bytes in a message of {end - start}")
+    text = data[start + 8:start + 8 + n].split(b"\0", 1)[0].decode("utf-8", errors="replace")
+    return Frame(text[:1] or "\0", text, data[start + 8 + n:end])

@@ -211,7 +211,7 @@ class _Carrier:
         return sample  # converted in send(), only when a reader is connected
 
     def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
-        if not self._port.outputs:
+        if not self._port.has_outputs:
             return True
         try:
             data = sample.encoded(self._encode)
