@@ -33,7 +33,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .connection import Connection
-from .names import NameClient, NameServerError, check_name
+from .names import NameClient, check_name
 from .poll import READ, WRITE, Poll
 from .port import Incoming, Port, PortLimits
 from .dgram import DatagramReader

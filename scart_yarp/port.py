@@ -103,7 +103,6 @@ class Port:
         self._inputs: list[Connection] = []
         self._lock = threading.Lock()
         self._done = threading.Condition(self._lock)  # notified when a write is sent or acknowledged
-        self._cached: dict[str, list[bytes]] = {}
 
     # ---- writing ------------------------------------------------------------------------
     @property

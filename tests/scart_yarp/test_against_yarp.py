@@ -9,7 +9,6 @@ import logging
 import resource
 import socket
 import struct
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
