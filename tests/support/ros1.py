@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from support import TESTS, free_port, wait_until
+from support import TESTS, free_port, stop_group, wait_until
 
 ROSMASTER = shutil.which("rosmaster")
 SYSTEM_PYTHON = "/usr/bin/python3"  # Debian's python3-rospy lives in the system Python
@@ -71,16 +71,9 @@ class RosMaster:
             return False
 
     def stop(self) -> None:
-        if self.proc is None:
-            return
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(self.proc.pid, signal.SIGTERM)
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            self.proc.wait(timeout=10)
-        self.proc = None
+        if self.proc is not None:
+            stop_group(self.proc)
+            self.proc = None
 
     def tool(self, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess[str]:
         """Run a ROS command line tool (``rostopic``, ``rosnode``, ...) to completion."""

@@ -14,13 +14,12 @@ import os
 import random
 import shutil
 import socket
-import signal
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from support import wait_until
+from support import stop_group, wait_until
 from support.ros1 import Proc
 
 YARPSERVER, YARP = shutil.which("yarpserver"), shutil.which("yarp")
@@ -89,16 +88,9 @@ class YarpServer:
                    interval=0.05, message=f"yarpserver on port {self.port} did not answer")
 
     def stop(self) -> None:
-        if self.proc is None:
-            return
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(self.proc.pid, signal.SIGTERM)
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            self.proc.wait(timeout=10)
-        self.proc = None
+        if self.proc is not None:
+            stop_group(self.proc)
+            self.proc = None
 
     def tool(self, *args: str, stdin: str | None = None, timeout: float = 30.0) -> subprocess.CompletedProcess[str]:
         """Run ``yarp ARGS`` to completion (``stdin`` fed to it)."""
