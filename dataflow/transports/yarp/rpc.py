@@ -40,8 +40,9 @@ def check_port_name(name: str) -> str:
 def call_rpc(port: str, values: list[Any], server: str | None = None, timeout: float = 5.0) -> list[Any]:
     """Call the YARP RPC port ``port`` with the bottle ``values``, as ``yarp rpc`` does; the
     reply as plain data (a vocab as its text). ``server``: the name server ``HOST:PORT``
-    (default YARP's configuration). Raises ``ValueError`` saying what went wrong."""
-    from scart_yarp import NameClient, parse_address, rpc_call
+    (default YARP's configuration). Raises ``ValueError`` saying what went wrong — also for
+    a reply that starts with the vocab ``fail``, YARP's convention for a refused command."""
+    from scart_yarp import NameClient, Vocab, parse_address, rpc_call
     from scart_yarp.bottle import BottleError
 
     try:
@@ -49,6 +50,9 @@ def call_rpc(port: str, values: list[Any], server: str | None = None, timeout: f
         reply = rpc_call(names, port, values)
     except (OSError, BottleError) as exc:
         raise ValueError(f"yarp:{port}: {exc}") from None
+    if reply and reply[0] == Vocab("fail"):
+        why = " ".join(str(_plain(v)) for v in reply[1:])[:1000]
+        raise ValueError(f"yarp:{port} answered [fail]{' ' + why if why else ''}")
     return [_plain(v) for v in reply]
 
 

@@ -130,6 +130,8 @@ def test_yarp_rpc_and_scart_call_reach_a_task_and_an_sca_service(tmp_path: Path,
             assert rt.service("counter/Counting").count() == 1  # "add 2 x" was refused before the call
             assert main(["call", "yarp:/counter", "add", "40", "2", "--yarp-server", yarp.address, "--json"]) == 0
             assert json.loads(capsys.readouterr().out) == [42]
+            assert main(["call", "yarp:/counter", "add", "2", "x", "--yarp-server", yarp.address]) == 1
+            assert "yarp:/counter answered [fail] " in capsys.readouterr().err  # a refusal is no result
             assert main(["call", "yarp:/nowhere", "x", "--yarp-server", yarp.address]) == 1
             assert "no YARP port /nowhere is registered" in capsys.readouterr().err
         assert not yarp.registered("/scart/rover/rpc") and not yarp.registered("/counter")
