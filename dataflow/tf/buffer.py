@@ -513,16 +513,29 @@ def _walk(chain: list[Link], t: int, ext: int, bisect: Callable[..., int] = bise
     """The transform from the first frame of ``chain`` up to the parent of its last, at
     ``t`` (None for an empty chain: the identity). The hot path of every lookup, written
     out in plain floats: per frame one bisection, one entry read at once, one angle (see
-    :mod:`dataflow.tf._cache`), then the composition. Raises :class:`_Miss` for a frame
-    with nothing at ``t``."""
+    :mod:`dataflow.tf._cache`), then the composition. Frames published together (a
+    robot's joints, in one message) keep the same stamps: where the frame below found
+    ``t``, at the same place in its history and at the same stamp, the next one's is too,
+    without a bisection. Raises :class:`_Miss` for a frame with nothing at ``t``."""
     first = True
     ox = oy = oz = ax = ay = az = aw = 0.0
+    at = -1  # where the frame below found t, counted from its oldest entry kept
+    stamp = None  # the stamp there, and t's nanoseconds after it
+    u = -1.0
     for stamps, values, frame in chain:
         if stamps is None:  # static
             x, y, z, qx, qy, qz, qw = frame.fixed
         else:
-            i = bisect(stamps, t, h := frame.head) - 1
-            u = float(t - stamps[i]) if i >= h else -1.0  # -1: before the oldest stamp kept
+            h = frame.head
+            i = at + h
+            if not (h <= i < len(stamps) and stamps[i] == stamp):  # else: where the frame below found t
+                i = bisect(stamps, t, h) - 1
+                at = i - h
+                if i >= h:
+                    stamp = stamps[i]
+                    u = float(t - stamp)
+                else:
+                    u = -1.0  # before the oldest stamp kept
             if u > 0.0:
                 x, y, z, qx, qy, qz, qw, vx, vy, vz, px, py, pz, pw, w, lim = read(values, i * size)
                 if u < lim:  # between two stamps: the hot case
@@ -535,7 +548,7 @@ def _walk(chain: list[Link], t: int, ext: int, bisect: Callable[..., int] = bise
                     x += u * vx
                     y += u * vy
                     z += u * vz
-                else:  # after the newest stamp
+                else:  # after the newest stamp (or this frame's next stamp comes first)
                     x, y, z, qx, qy, qz, qw = _outside(frame, t, ext)
             elif u == 0.0:  # at a stamp (at the newest: time 0)
                 x, y, z, qx, qy, qz, qw = read7(values, i * size)
@@ -558,8 +571,8 @@ def _walk(chain: list[Link], t: int, ext: int, bisect: Callable[..., int] = bise
 
 
 def _outside(frame: Frame, t: int, ext: int) -> Values:
-    """A frame's transform at a time outside its span (as :meth:`Frame.at` says); raises
-    :class:`_Miss` for none."""
+    """A frame's transform at a time outside its span, or after a stamp the frame below
+    does not have (as :meth:`Frame.at` says); raises :class:`_Miss` for none."""
     got = frame.at(t, ext)
     if got is None:
         raise _Miss(frame)

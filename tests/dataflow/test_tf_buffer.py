@@ -269,6 +269,32 @@ def test_a_long_history_answers_as_tf2_after_the_oldest_are_dropped() -> None:
             frames.lookup(parent, child, time_ns=kept[0] - 1)
 
 
+def test_frames_at_their_own_stamps_compose_as_each_alone() -> None:
+    """Frames published together share their stamps, and a lookup uses it; a frame with a
+    stamp more than the one below it, or with stamps all its own, is looked up right: the
+    chain is what each frame looked up alone composes to."""
+    rng = random.Random(3)
+    frames = FrameBuffer()
+    q = {name: unit(rng) for name in "bcde"}
+    for k in range(200):
+        stamp = 100 * S + k * S // 100
+        batch = []
+        for child, parent, at in (("e", "d", stamp), ("d", "c", stamp), ("c", "b", stamp), ("b", "a", stamp + 1_234_567)):
+            q[child] = unit(rng, q[child])
+            batch.append(Transform(parent, child, (rng.uniform(-1, 1), 0.5, 0.0), q[child], at))
+        if k == 190:  # c has a stamp more, 5 ms after one it shares with d and e
+            batch.append(Transform("b", "c", (0.0, 0.0, 0.0), unit(rng), stamp + 5_000_000))
+        frames.publish(batch)
+    times = [100 * S + rng.randrange(S // 50, 198 * S // 100) for _ in range(200)]
+    times += [100 * S + 190 * S // 100 + rng.randrange(0, S // 100) for _ in range(50)]  # around c's stamp more
+    for t in times:
+        alone = frames.lookup("a", "b", time_ns=t)
+        for child, parent in (("c", "b"), ("d", "c"), ("e", "d")):
+            alone = alone * frames.lookup(parent, child, time_ns=t)
+        chain = frames.lookup("a", "e", time_ns=t)
+        assert close(chain.translation, alone.translation, 1e-12) and close(chain.rotation, alone.rotation, 1e-12)
+
+
 def test_a_tree_keeps_about_a_hundred_and_fifty_bytes_per_transform() -> None:
     """What a tree holds per transform kept (the stamp, the transform, what its
     interpolation needs): flat arrays, not an object per transform."""
