@@ -102,11 +102,14 @@ class Frame:
             return STORED
         stamps = self.stamps
         n = len(stamps)
-        if not n or stamp > stamps[-1]:
+        if not n or stamp > stamps[-1]:  # the newest: the hot case
+            if n:  # the entry before, newest until now, gets its constants towards this one
+                last = self.transform(n - 1)
+                del self.values[7 - WIDTH:]
+                self.values.extend(_toward(last, values, stamp - stamps[-1]) + values + _NEWEST)
+            else:
+                self.values.extend(values + _NEWEST)
             stamps.append(stamp)
-            self.values.extend(values + _NEWEST)
-            if n:
-                self._relink(n - 1)
         else:
             if stamp + keep_ns < stamps[-1]:
                 return OLD

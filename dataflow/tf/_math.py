@@ -59,14 +59,16 @@ def invert(t: Vec, q: Quat) -> tuple[Vec, Quat]:
     return (-x, -y, -z), qi
 
 
-def _half_angle(q0: Quat, q1: Quat) -> tuple[float, float]:
+def _half_angle(q0: Quat, q1: Quat) -> tuple[float, float, float]:
     """tf2's half angle between two rotations (``acos`` of their dot product over their
-    norms, the shortest way), and the dot product (negative: ``q1`` is taken negated)."""
+    norms, the shortest way), its cosine, and the dot product (negative: ``q1`` is taken
+    negated)."""
     x0, y0, z0, w0 = q0
     x1, y1, z1, w1 = q1
     dot = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
     norms = math.sqrt((x0 * x0 + y0 * y0 + z0 * z0 + w0 * w0) * (x1 * x1 + y1 * y1 + z1 * z1 + w1 * w1))
-    return math.acos(min(1.0, abs(dot) / norms)), dot
+    cos = min(1.0, abs(dot) / norms)
+    return math.acos(cos), cos, dot
 
 
 def arc(q0: Quat, q1: Quat) -> tuple[float, Quat]:
@@ -76,18 +78,18 @@ def arc(q0: Quat, q1: Quat) -> tuple[float, Quat]:
     theta) p`` is :func:`slerp`'s ``(sin((1 - r) theta) q0 + sin(r theta) q1) / sin(theta)``
     rewritten (the same function of ``theta``, to the rounding), with one angle to take per
     lookup instead of two. A zero angle gives ``(0, (0, 0, 0, 0))``: ``q0`` is kept, as tf2's."""
-    theta, dot = _half_angle(q0, q1)
+    theta, cos, dot = _half_angle(q0, q1)
     if theta == 0.0:
         return 0.0, (0.0, 0.0, 0.0, 0.0)
     sin = math.sin(theta)
-    d, c = (-1.0 if dot < 0 else 1.0) / sin, math.cos(theta) / sin
+    d, c = (-1.0 if dot < 0 else 1.0) / sin, cos / sin
     return theta, (q1[0] * d - q0[0] * c, q1[1] * d - q0[1] * c, q1[2] * d - q0[2] * c, q1[3] * d - q0[3] * c)
 
 
 def slerp(q0: Quat, q1: Quat, ratio: float) -> Quat:
     """Spherical linear interpolation from ``q0`` (ratio 0) to ``q1`` (ratio 1), as tf2's
     ``Quaternion::slerp``, step for step (what the buffer's :func:`arc` form is tested against)."""
-    theta, dot = _half_angle(q0, q1)
+    theta, _, dot = _half_angle(q0, q1)
     if theta == 0.0:
         return q0
     d = 1.0 / math.sin(theta)
