@@ -7,8 +7,8 @@ seconds before its newest (10 s by default, as tf2); a static one holds for all 
 
 :meth:`FrameBuffer.lookup` walks from each frame up to their common ancestor, as tf2
 does, and composes the chain: between two stamps a translation is interpolated
-linearly and a rotation by slerp, both exactly as tf2's ``TimeCache`` does, so the two
-agree to the last bits. Time 0 means the newest time every frame on the path has
+linearly and a rotation by slerp, tf2's ``TimeCache`` formulas (the slerp rewritten with
+one angle), so the two agree to the rounding (1e-15). Time 0 means the newest time every frame on the path has
 (tf2's latest common time). A time outside what a frame keeps raises
 :class:`~dataflow.tf.ExtrapolationError` naming both frames, the time asked and the
 span held, unless ``extrapolate`` allows that many seconds beyond it. Two frames with
