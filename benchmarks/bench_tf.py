@@ -13,6 +13,9 @@ rounds of the time per lookup:
 
 * ``tf2_ros``: ``tf2_ros.Buffer.lookup_transform`` in the system Python (the baseline);
 * ``scart``: ``FrameBuffer.lookup`` (plain floats);
+* ``scart, own stamps``: the same chain, but each frame published on its own, 1 ms after
+  the one below it (so a lookup cannot take the stamp the frame below found: a bisection
+  per frame, as a chain of separate publishers costs);
 * ``scart, time 0``: the newest common time, as most lookups are;
 * ``numpy``: the same walk composed with numpy 4x4 matrices (interpolation done the same
   way): why the buffer uses plain floats.
@@ -128,11 +131,15 @@ exec(SHARED, _SHARED)  # the same definitions on both sides
 joint, times = _SHARED["joint"], _SHARED["times"]
 
 
-def build_chain(stamps: int) -> FrameBuffer:
+def build_chain(stamps: int, skew_ns: int = 0) -> FrameBuffer:
+    """The chain, each stamp's transforms in one message (``skew_ns``: frame k published
+    on its own, k times that later)."""
     buffer = FrameBuffer(10.0)
     for i in range(stamps):
-        buffer.publish([Transform(f"f{k - 1}", f"f{k}", *joint(k, i), FIRST_NS + i * STEP_NS)
-                        for k in range(1, CHAIN + 1)])
+        batch = [Transform(f"f{k - 1}", f"f{k}", *joint(k, i), FIRST_NS + i * STEP_NS + k * skew_ns)
+                 for k in range(1, CHAIN + 1)]
+        for message in ([batch] if not skew_ns else [[t] for t in batch]):
+            buffer.publish(message)
     return buffer
 
 
@@ -249,16 +256,21 @@ def main() -> None:
 
     tf2 = Tf2()
     try:
-        buffer = build_chain(stamps)
+        buffer, skewed = build_chain(stamps), build_chain(stamps, 1_000_000)
         asked_ns = times(stamps, n)
         asked = [t / 1e9 for t in asked_ns]
-        rows: dict[str, list[float]] = {"tf2_ros": [], "scart": [], "scart, time 0": [], "numpy": []}
+        span, first = (stamps - 1) * STEP_NS, FIRST_NS + CHAIN * 1_000_000
+        later = [(first + (t - FIRST_NS) * (span - (CHAIN - 1) * 1_000_000) // span) / 1e9
+                 for t in asked_ns]  # within every skewed frame's span
+        rows: dict[str, list[float]] = {"tf2_ros": [], "scart": [], "scart, own stamps": [], "scart, time 0": [],
+                                        "numpy": []}
         if tf2.proc is not None:
             tf2.ask(do="chain", stamps=stamps, n=n)
         for _ in range(rounds):
             if tf2.proc is not None:
                 rows["tf2_ros"].append(tf2.ask(do="round")["us"])
             rows["scart"].append(time_scart(buffer, asked))
+            rows["scart, own stamps"].append(time_scart(skewed, later))
             rows["scart, time 0"].append(time_scart_latest(buffer, n))
         rows["numpy"].append(time_numpy(buffer, asked_ns[: max(200, n // 20)]))
         agree = ""

@@ -4,14 +4,15 @@ Plain floats measure faster than numpy for one 3-vector or one quaternion at a t
 (numpy's per-call overhead is larger than the arithmetic). :func:`slerp` is tf2's
 ``Quaternion::slerp`` step for step (half the shortest-path angle from ``acos``, the far
 side taken when the dot product is negative, the first quaternion kept when the angle
-is zero), so interpolated rotations agree with tf2's to the last bits.
+is zero); the buffer interpolates with :func:`arc`, the same function rewritten, so its
+rotations agree with tf2's to the rounding (~1e-16).
 """
 
 from __future__ import annotations
 
 import math
 
-__all__ = ["QUATERNION_TOLERANCE", "Quat", "Vec", "axis_angle", "compose", "conjugate", "interval", "invert",
+__all__ = ["QUATERNION_TOLERANCE", "Quat", "Vec", "arc", "axis_angle", "compose", "conjugate", "invert",
            "multiply", "rotate", "rpy", "from_rpy", "slerp"]
 
 Vec = tuple[float, float, float]
@@ -58,28 +59,41 @@ def invert(t: Vec, q: Quat) -> tuple[Vec, Quat]:
     return (-x, -y, -z), qi
 
 
-def interval(q0: Quat, q1: Quat) -> tuple[float, float, float]:
-    """What :func:`slerp` between ``q0`` and ``q1`` needs besides the ratio, computed once
-    per pair of stamps: tf2's half angle, and the weights' common factor ``1/sin`` for
-    ``q0`` and (negated when the dot product is negative: the short way) for ``q1``.
-    A zero angle gives ``(0, 0, 0)``: the interpolation keeps ``q0``, as tf2's does."""
+def _half_angle(q0: Quat, q1: Quat) -> tuple[float, float, float]:
+    """tf2's half angle between two rotations (``acos`` of their dot product over their
+    norms, the shortest way), its cosine, and the dot product (negative: ``q1`` is taken
+    negated)."""
     x0, y0, z0, w0 = q0
     x1, y1, z1, w1 = q1
     dot = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
     norms = math.sqrt((x0 * x0 + y0 * y0 + z0 * z0 + w0 * w0) * (x1 * x1 + y1 * y1 + z1 * z1 + w1 * w1))
-    theta = math.acos(min(1.0, abs(dot) / norms))
+    cos = min(1.0, abs(dot) / norms)
+    return math.acos(cos), cos, dot
+
+
+def arc(q0: Quat, q1: Quat) -> tuple[float, Quat]:
+    """What slerp from ``q0`` towards ``q1`` needs besides the ratio, computed once per pair
+    of stamps: tf2's half angle ``theta`` and the unit quaternion ``p`` orthogonal to ``q0``
+    in the plane of the two (``q1`` taken the short way). Then ``cos(r theta) q0 + sin(r
+    theta) p`` is :func:`slerp`'s ``(sin((1 - r) theta) q0 + sin(r theta) q1) / sin(theta)``
+    rewritten (the same function of ``theta``, to the rounding), with one angle to take per
+    lookup instead of two. A zero angle gives ``(0, (0, 0, 0, 0))``: ``q0`` is kept, as tf2's."""
+    theta, cos, dot = _half_angle(q0, q1)
     if theta == 0.0:
-        return 0.0, 0.0, 0.0
-    d = 1.0 / math.sin(theta)
-    return theta, d, -d if dot < 0 else d
+        return 0.0, (0.0, 0.0, 0.0, 0.0)
+    sin = math.sin(theta)
+    d, c = (-1.0 if dot < 0 else 1.0) / sin, cos / sin
+    return theta, (q1[0] * d - q0[0] * c, q1[1] * d - q0[1] * c, q1[2] * d - q0[2] * c, q1[3] * d - q0[3] * c)
 
 
 def slerp(q0: Quat, q1: Quat, ratio: float) -> Quat:
-    """Spherical linear interpolation from ``q0`` (ratio 0) to ``q1`` (ratio 1), as tf2's."""
-    theta, d0, d1 = interval(q0, q1)
+    """Spherical linear interpolation from ``q0`` (ratio 0) to ``q1`` (ratio 1), as tf2's
+    ``Quaternion::slerp``, step for step (what the buffer's :func:`arc` form is tested against)."""
+    theta, _, dot = _half_angle(q0, q1)
     if theta == 0.0:
         return q0
-    s0, s1 = math.sin((1.0 - ratio) * theta) * d0, math.sin(ratio * theta) * d1
+    d = 1.0 / math.sin(theta)
+    s0, s1 = math.sin((1.0 - ratio) * theta) * d, math.sin(ratio * theta) * (-d if dot < 0 else d)
     return (q0[0] * s0 + q1[0] * s1, q0[1] * s0 + q1[1] * s1, q0[2] * s0 + q1[2] * s1, q0[3] * s0 + q1[3] * s1)
 
 

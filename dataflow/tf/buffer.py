@@ -7,8 +7,8 @@ seconds before its newest (10 s by default, as tf2); a static one holds for all 
 
 :meth:`FrameBuffer.lookup` walks from each frame up to their common ancestor, as tf2
 does, and composes the chain: between two stamps a translation is interpolated
-linearly and a rotation by slerp, both exactly as tf2's ``TimeCache`` does, so the two
-agree to the last bits. Time 0 means the newest time every frame on the path has
+linearly and a rotation by slerp, tf2's ``TimeCache`` formulas (the slerp rewritten with
+one angle), so the two agree to the rounding (1e-15). Time 0 means the newest time every frame on the path has
 (tf2's latest common time). A time outside what a frame keeps raises
 :class:`~dataflow.tf.ExtrapolationError` naming both frames, the time asked and the
 span held, unless ``extrapolate`` allows that many seconds beyond it. Two frames with
@@ -34,12 +34,13 @@ import math
 import re
 import threading
 import time
-from bisect import bisect_left
+from array import array
+from bisect import bisect_right
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import overload
 
-from ._cache import DUPLICATE, OLD, Frame, Values
+from ._cache import DUPLICATE, ENTRY, OLD, TRANSFORM, Frame, Values
 from ._math import QUATERNION_TOLERANCE
 from .transform import (ConnectivityError, ExtrapolationError, FrameTreeError, Transform, TransformError,
                         TransformValueError, UnknownFrameError, seconds)
@@ -77,22 +78,22 @@ class FrameInfo:
     received: int
 
 
-Link = tuple["list[int] | None", "list[tuple[float, ...]]", Frame]
+Link = tuple["list[int] | None", "array[float]", Frame]
 
 
 class _Path:
     """The frames from the source, and from the target, up to their common ancestor
-    (excluded), each as ``(stamps, data, frame)`` (``stamps`` None for a static frame:
-    what :func:`_walk` reads), and the dynamic ones among them (for the latest common
-    time). Remembered until the tree changes shape or a frame changes kind."""
+    (excluded), each as ``(stamps, values, frame)`` (``stamps`` None for a static frame:
+    what :func:`_walk` reads), and the stamps of the dynamic ones among them (for the
+    latest common time). Remembered until the tree changes shape or a frame changes kind."""
 
     __slots__ = ("dynamic", "source", "source_name", "target", "target_name")
 
     def __init__(self, target_name: str, source_name: str, source: list[Frame], target: list[Frame]) -> None:
         self.target_name, self.source_name = target_name, source_name
-        self.source: list[Link] = [(None if f.static else f.stamps, f.data, f) for f in source]
-        self.target: list[Link] = [(None if f.static else f.stamps, f.data, f) for f in target]
-        self.dynamic = [f for f in (*source, *target) if not f.static]
+        self.source: list[Link] = [(None if f.static else f.stamps, f.values, f) for f in source]
+        self.target: list[Link] = [(None if f.static else f.stamps, f.values, f) for f in target]
+        self.dynamic = [f.stamps for f in (*source, *target) if not f.static]
 
 
 class _Miss(Exception):
@@ -138,6 +139,7 @@ class FrameBuffer:
         self._listeners: tuple[tuple[Listener, str], ...] = ()
         self._refused: dict[str, int] = {}
         self._said: set[str] = set()
+        self._stamp = 0  # the stamp stored last: the next transforms at the same time keep this one int
         self.max_frames, self.max_kept = max_frames, max_kept
         self.cache_time = cache_time
 
@@ -206,6 +208,10 @@ class FrameBuffer:
         if frame.static != static:
             frame.reset(static)
             self._paths.clear()
+        if stamp == self._stamp:  # a message's transforms share their stamp: so do the frames' histories
+            stamp = self._stamp
+        else:
+            self._stamp = stamp
         outcome = frame.insert(stamp, values, self._keep_ns, self.max_kept)
         if outcome == OLD:
             self._refuse(TransformError(f"frame {child!r} at {seconds(stamp)} s: older than the "
@@ -292,17 +298,22 @@ class FrameBuffer:
                 t = round(time * 1e9)
             except (ValueError, OverflowError):  # NaN, infinite
                 t = _ns(time)
-            with self._lock:
+            self._lock.acquire()  # not `with`: half its cost, on every lookup
+            try:
                 path = self._paths.get((target, source))  # type: ignore[arg-type]  # a float source finds none
                 if path is not None:
                     if t == 0 and path.dynamic:
-                        t = min(f.stamps[-1] for f in path.dynamic)
+                        t = min([stamps[-1] for stamps in path.dynamic])
                     try:
                         s = _walk(path.source, t, 0)
+                        if s is not None and not path.target:  # the target is an ancestor of the source
+                            return Transform(path.target_name, path.source_name, s[0], s[1], t)
                         g = _walk(path.target, t, 0) if path.target else None
                     except _Miss as miss:
                         raise self._extrapolation(path.target_name, path.source_name, t, 0, miss.frame) from None
                     return _combine(path.target_name, path.source_name, t, s, g)
+            finally:
+                self._lock.release()
         ext = _ns(extrapolate)
         if ext < 0:
             raise ValueError(f"extrapolate={extrapolate!r}: seconds, 0 or more")
@@ -359,7 +370,7 @@ class FrameBuffer:
                     return self._identity(_strip(target), t)
                 path = self._path(target, source, t)
             if t == 0 and path.dynamic:
-                t = min(f.stamps[-1] for f in path.dynamic)
+                t = min([stamps[-1] for stamps in path.dynamic])
             try:
                 s = _walk(path.source, t, ext)
                 g = _walk(path.target, t, ext) if path.target else None
@@ -423,9 +434,9 @@ class FrameBuffer:
             for name in sorted(self._frames):
                 f = self._frames[name]
                 oldest, newest = f.span()
-                rate = (len(f.stamps) - 1) / ((newest - oldest) / 1e9) if newest > oldest else 0.0
-                out.append(FrameInfo(name, f.parent, f.static, f.authority, len(f.stamps), oldest, newest, rate,
-                                     f.received))
+                kept = f.kept()
+                rate = (kept - 1) / ((newest - oldest) / 1e9) if newest > oldest else 0.0
+                out.append(FrameInfo(name, f.parent, f.static, f.authority, kept, oldest, newest, rate, f.received))
             return out
 
     def roots(self) -> list[str]:
@@ -436,9 +447,9 @@ class FrameBuffer:
     def statics(self, excluding: str = "") -> list[Transform]:
         """Every static transform held (but those last published by ``excluding``, when given)."""
         with self._lock:
-            return [Transform(f.parent, f.name, tuple(f.data[0][:3]), tuple(f.data[0][3:7]), f.stamps[0])  # type: ignore[arg-type]  # 3 and 4 floats
-                    for f in self._frames.values() if f.static and f.data and not (excluding and
-                                                                                   f.authority == excluding)]
+            return [Transform(f.parent, f.name, f.fixed[:3], f.fixed[3:], f.fixed_stamp)  # type: ignore[arg-type]  # 3 and 4 floats
+                    for f in self._frames.values() if f.static and f.fixed and not (excluding and
+                                                                                    f.authority == excluding)]
 
     def _names_text(self, limit: int = 20) -> str:
         names = sorted({*self._frames, *self._roots})
@@ -500,50 +511,77 @@ def _call(listener: Listener, stored: list[Transform], static: bool, origin: str
 Acc = tuple[tuple[float, float, float], tuple[float, float, float, float]]
 
 
-def _walk(chain: list[Link], t: int, ext: int, bisect: Callable[[list[int], int], int] = bisect_left) -> Acc | None:
+def _walk(chain: list[Link], t: int, ext: int, bisect: Callable[..., int] = bisect_right,
+          read: Callable[[array[float], int], tuple[float, ...]] = ENTRY.unpack_from,
+          read7: Callable[[array[float], int], tuple[float, ...]] = TRANSFORM.unpack_from, size: int = ENTRY.size,
+          sin: Callable[[float], float] = math.sin, cos: Callable[[float], float] = math.cos) -> Acc | None:
     """The transform from the first frame of ``chain`` up to the parent of its last, at
     ``t`` (None for an empty chain: the identity). The hot path of every lookup, written
-    out in plain floats. Raises :class:`_Miss` for a frame with nothing at ``t``."""
-    sin = math.sin
+    out in plain floats: per frame one bisection, one entry read at once, one angle (see
+    :mod:`dataflow.tf._cache`), then the composition. Frames published together (a
+    robot's joints, in one message) keep the same stamps: where the frame below found
+    ``t``, at the same place in its history and at the same stamp, the next one's is too,
+    without a bisection. Raises :class:`_Miss` for a frame with nothing at ``t``."""
     first = True
-    vx = vy = vz = ax = ay = az = aw = 0.0
-    for stamps, data, frame in chain:
+    ox = oy = oz = ax = ay = az = aw = 0.0
+    at = -1  # where the frame below found t, counted from its oldest entry kept
+    stamp = None  # the stamp there, and t's nanoseconds after it
+    u = -1.0
+    for stamps, values, frame in chain:
         if stamps is None:  # static
-            tx, ty, tz, qx, qy, qz, qw = data[0][:7]
+            x, y, z, qx, qy, qz, qw = frame.fixed
         else:
-            i = bisect(stamps, t)
-            try:
-                t1 = stamps[i] if i else None
-            except IndexError:
-                t1 = None
-            if t1 == t:
-                tx, ty, tz, qx, qy, qz, qw = data[i][:7]
-            elif t1 is not None:  # between two stamps: the hot case
-                x0, y0, z0, qx0, qy0, qz0, qw0, th, d0, d1, inv, x1, y1, z1, qx1, qy1, qz1, qw1 = data[i - 1]
-                r = (t - stamps[i - 1]) * inv
-                s = 1.0 - r
-                if th != 0.0:
-                    s0, s1 = sin(s * th) * d0, sin(r * th) * d1
-                    qx, qy, qz, qw = qx0 * s0 + qx1 * s1, qy0 * s0 + qy1 * s1, qz0 * s0 + qz1 * s1, qw0 * s0 + qw1 * s1
+            h = frame.head
+            i = at + h
+            if not (h <= i < len(stamps) and stamps[i] == stamp):  # else: where the frame below found t
+                i = bisect(stamps, t, h) - 1
+                at = i - h
+                if i >= h:
+                    stamp = stamps[i]
+                    u = float(t - stamp)
                 else:
-                    qx, qy, qz, qw = qx0, qy0, qz0, qw0
-                tx, ty, tz = s * x0 + r * x1, s * y0 + r * y1, s * z0 + r * z1
+                    u = -1.0  # before the oldest stamp kept
+            if u > 0.0:
+                x, y, z, qx, qy, qz, qw, vx, vy, vz, px, py, pz, pw, w, lim = read(values, i * size)
+                if u < lim:  # between two stamps: the hot case
+                    a = u * w
+                    c, s = cos(a), sin(a)
+                    qx = c * qx + s * px  # one statement each: no tuple made and taken apart
+                    qy = c * qy + s * py
+                    qz = c * qz + s * pz
+                    qw = c * qw + s * pw
+                    x += u * vx
+                    y += u * vy
+                    z += u * vz
+                else:  # after the newest stamp (or this frame's next stamp comes first)
+                    x, y, z, qx, qy, qz, qw = _outside(frame, t, ext)
+            elif u == 0.0:  # at a stamp (at the newest: time 0)
+                x, y, z, qx, qy, qz, qw = read7(values, i * size)
             else:
-                got = frame.at(t, ext)
-                if got is None:
-                    raise _Miss(frame)
-                tx, ty, tz, qx, qy, qz, qw = got
+                x, y, z, qx, qy, qz, qw = _outside(frame, t, ext)
         if first:
-            vx, vy, vz, ax, ay, az, aw = tx, ty, tz, qx, qy, qz, qw
+            ox, oy, oz, ax, ay, az, aw = x, y, z, qx, qy, qz, qw
             first = False
             continue
         # the parent's transform applied to what is accumulated: rotate and translate, then multiply
-        cx, cy, cz = 2.0 * (qy * vz - qz * vy), 2.0 * (qz * vx - qx * vz), 2.0 * (qx * vy - qy * vx)
-        vx, vy, vz = vx + qw * cx + qy * cz - qz * cy + tx, vy + qw * cy + qz * cx - qx * cz + ty, \
-            vz + qw * cz + qx * cy - qy * cx + tz
-        ax, ay, az, aw = qw * ax + qx * aw + qy * az - qz * ay, qw * ay - qx * az + qy * aw + qz * ax, \
-            qw * az + qx * ay - qy * ax + qz * aw, qw * aw - qx * ax - qy * ay - qz * az
-    return None if first else ((vx, vy, vz), (ax, ay, az, aw))
+        cx, cy, cz = 2.0 * (qy * oz - qz * oy), 2.0 * (qz * ox - qx * oz), 2.0 * (qx * oy - qy * ox)
+        ox, oy, oz = ox + qw * cx + qy * cz - qz * cy + x, oy + qw * cy + qz * cx - qx * cz + y, \
+            oz + qw * cz + qx * cy - qy * cx + z
+        bx = qw * ax + qx * aw + qy * az - qz * ay
+        by = qw * ay - qx * az + qy * aw + qz * ax
+        bz = qw * az + qx * ay - qy * ax + qz * aw
+        aw = qw * aw - qx * ax - qy * ay - qz * az
+        ax, ay, az = bx, by, bz
+    return None if first else ((ox, oy, oz), (ax, ay, az, aw))
+
+
+def _outside(frame: Frame, t: int, ext: int) -> Values:
+    """A frame's transform at a time outside its span, or after a stamp the frame below
+    does not have (as :meth:`Frame.at` says); raises :class:`_Miss` for none."""
+    got = frame.at(t, ext)
+    if got is None:
+        raise _Miss(frame)
+    return got
 
 
 def _combine(target: str, source: str, t: int, s: Acc | None, g: Acc | None) -> Transform:

@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import logging
 import math
+import random
 import threading
+import tracemalloc
 
 import pytest
 
 from dataflow import Deployer, TaskContext
 from dataflow.tf import (ConnectivityError, ExtrapolationError, FrameBuffer, FrameTreeError, Transform,
                          TransformValueError, UnknownFrameError)
-from dataflow.tf._math import axis_angle, from_rpy, multiply, rpy, slerp
+from dataflow.tf._math import arc, axis_angle, from_rpy, multiply, rpy, slerp
 
 S = 1_000_000_000  # ns per s
 
@@ -205,3 +207,106 @@ def test_the_math_agrees_with_itself() -> None:
     assert slerp(yaw(0.5), yaw(0.5), 0.3) == yaw(0.5)
     t = Transform.from_rpy("a", "b", (1.0, 2.0, 3.0), (0.0, 0.0, math.pi / 2))
     assert close((t * t.inverse()).translation, (0.0, 0.0, 0.0)) and close(t.rpy, (0.0, 0.0, math.pi / 2))
+
+
+def unit(rng: random.Random, near: tuple[float, ...] | None = None, step: float = 0.2) -> tuple[float, ...]:
+    """A random unit quaternion (near ``near``, within about ``step``), its sign drawn too."""
+    q = [rng.gauss(0.0, 1.0) for _ in range(4)] if near is None else [c + rng.uniform(-step, step) for c in near]
+    n = math.sqrt(sum(c * c for c in q)) * rng.choice((1.0, -1.0))  # q and -q: one rotation, slerp goes the short way
+    return tuple(c / n for c in q)
+
+
+def test_arc_is_tf2s_slerp_rewritten() -> None:
+    """The buffer interpolates with :func:`arc`'s ``cos(r θ) q0 + sin(r θ) p``; tf2's
+    ``Quaternion::slerp`` (``slerp``, step for step) is the judge, the far side, an angle
+    of zero and ratios beyond [0, 1] (extrapolation) included."""
+    rng = random.Random(7)
+    pairs = [(yaw(0.3), yaw(0.3)), (yaw(0.3), tuple(-c for c in yaw(0.3)))]
+    for _ in range(200):
+        q0 = unit(rng)
+        pairs.append((q0, unit(rng, q0, rng.choice((1e-6, 0.01, 0.5, 2.0)))))
+    for q0, q1 in pairs:
+        theta, p = arc(q0, q1)
+        for r in (0.0, 0.25, 0.5, 0.999, 1.0, -0.5, 1.5):
+            got = tuple(math.cos(r * theta) * a + math.sin(r * theta) * b for a, b in zip(q0, p, strict=True))
+            assert close(got, slerp(q0, q1, r), 1e-14), (q0, q1, r)
+
+
+def test_a_long_history_answers_as_tf2_after_the_oldest_are_dropped() -> None:
+    """Transforms dropped from the front (by count and by age), stamps arriving out of
+    order, a value replaced: a lookup between two stamps is still tf2's lerp and slerp of
+    the two kept around it, at a stamp exactly the stored value, before the oldest an error."""
+    rng = random.Random(11)
+    frames = FrameBuffer(cache_time=1.0, max_kept=60)
+    truth: dict[str, dict[int, tuple[tuple[float, ...], tuple[float, ...]]]] = {"b": {}, "c": {}}
+    q = {"b": unit(rng), "c": unit(rng)}
+
+    def publish(child: str, parent: str, stamp: int) -> None:
+        q[child] = unit(rng, q[child])
+        xyz = (rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1))
+        frames.publish(Transform(parent, child, xyz, q[child], stamp))
+        truth[child][stamp] = (xyz, q[child])
+
+    for k in range(400):  # b at 100 Hz (60 kept: the count bites), c at 25 Hz (1 s kept: the age bites)
+        publish("b", "a", 100 * S + k * S // 100 + (S // 100 if k % 7 == 3 else 0) - (S // 100 if k % 7 == 4 else 0))
+        if k % 4 == 0:
+            publish("c", "b", 100 * S + k * S // 100)
+        if k == 390:
+            publish("b", "a", 100 * S + 385 * S // 100)  # another value at a stamp held: replaces it
+    for child, parent in (("b", "a"), ("c", "b")):
+        kept = sorted(truth[child])[-60:] if child == "b" else [s for s in truth[child] if s >= max(truth[child]) - S]
+        info = next(f for f in frames.frames() if f.name == child)
+        assert (info.kept, info.oldest_ns, info.newest_ns) == (len(kept), kept[0], kept[-1])
+        for s0, s1 in zip(kept, kept[1:]):
+            t = s0 + rng.randrange(1, s1 - s0)
+            r = (t - s0) / (s1 - s0)
+            (x0, q0), (x1, q1) = truth[child][s0], truth[child][s1]
+            got = frames.lookup(parent, child, time_ns=t)
+            assert close(got.translation, tuple((1 - r) * a + r * b for a, b in zip(x0, x1, strict=True)))
+            assert close(got.rotation, slerp(q0, q1, r))
+            assert frames.lookup(parent, child, time_ns=s0).rotation == q0
+        with pytest.raises(ExtrapolationError, match="before its oldest"):
+            frames.lookup(parent, child, time_ns=kept[0] - 1)
+
+
+def test_frames_at_their_own_stamps_compose_as_each_alone() -> None:
+    """Frames published together share their stamps, and a lookup uses it; a frame with a
+    stamp more than the one below it, or with stamps all its own, is looked up right: the
+    chain is what each frame looked up alone composes to."""
+    rng = random.Random(3)
+    frames = FrameBuffer()
+    q = {name: unit(rng) for name in "bcde"}
+    for k in range(200):
+        stamp = 100 * S + k * S // 100
+        batch = []
+        for child, parent, at in (("e", "d", stamp), ("d", "c", stamp), ("c", "b", stamp), ("b", "a", stamp + 1_234_567)):
+            q[child] = unit(rng, q[child])
+            batch.append(Transform(parent, child, (rng.uniform(-1, 1), 0.5, 0.0), q[child], at))
+        if k == 190:  # c has a stamp more, 5 ms after one it shares with d and e
+            batch.append(Transform("b", "c", (0.0, 0.0, 0.0), unit(rng), stamp + 5_000_000))
+        frames.publish(batch)
+    times = [100 * S + rng.randrange(S // 50, 198 * S // 100) for _ in range(200)]
+    times += [100 * S + 190 * S // 100 + rng.randrange(0, S // 100) for _ in range(50)]  # around c's stamp more
+    for t in times:
+        alone = frames.lookup("a", "b", time_ns=t)
+        for child, parent in (("c", "b"), ("d", "c"), ("e", "d")):
+            alone = alone * frames.lookup(parent, child, time_ns=t)
+        chain = frames.lookup("a", "e", time_ns=t)
+        assert close(chain.translation, alone.translation, 1e-12) and close(chain.rotation, alone.rotation, 1e-12)
+
+
+def test_a_tree_keeps_about_a_hundred_and_fifty_bytes_per_transform() -> None:
+    """What a tree holds per transform kept (the stamp, the transform, what its
+    interpolation needs): flat arrays, not an object per transform."""
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        frames = FrameBuffer()
+        for i in range(500):  # 10 frames at 100 Hz for 5 s, each stamp's transforms in one message
+            frames.publish([Transform(f"g{k - 1}" if k else "root", f"g{k}", (0.1 * k, 0.001 * i, 0.0),
+                                      yaw(0.01 * i + k), 100 * S + i * S // 100) for k in range(10)])
+        size = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    kept = sum(f.kept for f in frames.frames())
+    assert kept == 5000 and size / kept < 170, size / kept
