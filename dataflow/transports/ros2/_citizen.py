@@ -12,7 +12,16 @@ integer beyond 64 bits) is not a parameter. ``use_sim_time`` is one too: true, t
 deployers' tasks follow ``/clock`` (:mod:`dataflow.clock`), as on ROS 1.
 
 **Logging.** Python's log records go to ``/rosout`` (``rcl_interfaces/msg/Log``,
-transient-local as rcl's) under the node's logger name.
+transient-local as rcl's) under the node's logger name. The node serves
+``~/get_logger_levels`` and ``~/set_logger_levels`` as rclpy does since Iron
+(``rcl_interfaces/msg/LoggerLevel``: rcutils' numbers, which are Python's: 0 unset, 10
+debug ... 50 fatal) over Python's loggers (existing ones only; the node's own logger
+name, or ``""``, is the root logger, which every record passes), which change what a
+logger publishes.
+
+**Read-only** (``--ros-read-only``): the parameters are served to be read, every set is
+refused (``successful: false``, the property keeps its value), and, as on ROS 1, the
+logger services are not offered and ``/clock`` is never followed.
 
 Handlers run on the participant's thread; :meth:`Ros2Citizen.close` ends it all
 (idempotent).
@@ -29,7 +38,7 @@ from typing import Any
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
-from .._roslog import MAX_TEXT, RosLog
+from .._roslog import MAX_TEXT, RosLog, level_of, set_level_number
 from ._qos import Durability, QoS, Reliability
 
 __all__ = ["Ros2Citizen", "from_value", "to_value"]
@@ -39,6 +48,7 @@ log = logging.getLogger("dataflow.transports.ros2")
 SERVICES = MappingProxyType({"get_parameters": "GetParameters", "set_parameters": "SetParameters",
                              "list_parameters": "ListParameters", "describe_parameters": "DescribeParameters",
                              "get_parameter_types": "GetParameterTypes"})
+LOGGER_SERVICES = MappingProxyType({"get_logger_levels": "GetLoggerLevels", "set_logger_levels": "SetLoggerLevels"})
 #: rcl_interfaces/msg/ParameterType, and the ParameterValue field of each
 _FIELDS = MappingProxyType({1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value",
                             5: "byte_array_value", 6: "bool_array_value", 7: "integer_array_value",
@@ -108,8 +118,9 @@ class Ros2Citizen:
         self._clock_sub: Any = None
         self._closed = False
         self._parts: list[Any] = []
+        services = SERVICES if read_only else {**SERVICES, **LOGGER_SERVICES}
         try:
-            for service, kind in SERVICES.items():
+            for service, kind in services.items():
                 self._parts.append(participant.service(f"{base}/{service}", f"rcl_interfaces/srv/{kind}",
                                                        getattr(self, f"_{service}")))
             self._rosout = participant.publisher("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
@@ -195,6 +206,25 @@ class Ros2Citizen:
                 cast = int if value["type"] == 2 else float
                 out[key] = [{"from_value": cast(low), "to_value": cast(high), "step": cast(0)}]
         return out
+
+    # -- loggers ----------------------------------------------------------------------------
+    def _python_logger(self, name: str) -> str:
+        return "" if name == self.logger_name else name  # every record is published under the node's name
+
+    def _get_logger_levels(self, request: Any) -> dict[str, Any]:
+        names = [str(n) for n in list(request.names)[:MAX_NAMES]]
+        return {"levels": [{"name": n, "level": level_of(self._python_logger(n))} for n in names]}
+
+    def _set_logger_levels(self, request: Any) -> dict[str, Any]:
+        return {"results": [self._set_level(str(asked.name), int(asked.level))
+                            for asked in list(request.levels)[:MAX_NAMES]]}
+
+    def _set_level(self, name: str, level: int) -> dict[str, Any]:
+        try:
+            set_level_number(self._python_logger(name), level)
+        except ValueError as exc:
+            return {"successful": False, "reason": str(exc)[:1000]}
+        return {"successful": True, "reason": ""}
 
     # -- time -----------------------------------------------------------------------------
     def _follow(self, simulated: bool) -> None:

@@ -80,6 +80,10 @@ STANDARD_SERVICES = MappingProxyType({
     "rcl_interfaces/srv/DescribeParameters": "string[] names\n---\n"
                                              "rcl_interfaces/msg/ParameterDescriptor[] descriptors\n",
     "rcl_interfaces/srv/GetParameterTypes": "string[] names\n---\nuint8[] types\n",
+    # and its logger services (rclpy's since Iron)
+    "rcl_interfaces/srv/GetLoggerLevels": "string[] names\n---\nrcl_interfaces/msg/LoggerLevel[] levels\n",
+    "rcl_interfaces/srv/SetLoggerLevels": "rcl_interfaces/msg/LoggerLevel[] levels\n---\n"
+                                          "rcl_interfaces/msg/SetLoggerLevelsResult[] results\n",
 })
 #: rmw_cyclonedds' cdds_request_header_t {uint64 guid; int64 seq}, as IDL members whose
 #: trailing ``_`` no ROS field name has (so they never clash with a request's fields)
