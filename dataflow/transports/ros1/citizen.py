@@ -6,7 +6,8 @@ nothing of tasks).
 per task: property ``max_velocity`` of task ``youBotDriver`` of node ``/youbot`` is
 ``/youbot/youBotDriver/max_velocity``. When the node is made, every property is set
 there (the tasks' values win over what an earlier run left: a launch-time value is
-``_TASK/PROP:=VALUE``, :func:`apply_launch_params`). ``rosparam set`` reaches the
+``_TASK/PROP:=VALUE``, or ``_PROP:=VALUE`` when one task has ``PROP``,
+:func:`apply_launch_params`). ``rosparam set`` reaches the
 task through the property's check (type, bounds, read-only): a refused value is logged
 with the reason (so ``/rosout`` says it) and the parameter set back to the property's
 value, which it keeps. A property changed otherwise (``scart prop set``, the task
@@ -90,17 +91,35 @@ def _find(tasks: list[Any], path: str) -> tuple[Any, str] | None:
     return None
 
 
+def _launch_target(tasks: list[Any], path: str) -> tuple[Any, str]:
+    """``(task, property)`` a launch-time parameter names: ``TASK/PROP``, or a plain
+    ``PROP`` (a private parameter, as ROS takes it) that exactly one task has. Raises
+    ``ValueError`` saying why there is none, naming the tasks that have it when several do."""
+    if "/" not in path:
+        having = [t.name for t in tasks if path in t.properties()]
+        if len(having) == 1:
+            return next(t for t in tasks if t.name == having[0]), path
+        if having:
+            raise ValueError(f"ROS parameter _{path}: the tasks {', '.join(having)} have that property: name one "
+                             f"(_{having[0]}/{path}:=VALUE)")
+        raise ValueError(f"ROS parameter _{path}: no task has that property (the tasks are "
+                         f"{', '.join(t.name for t in tasks) or 'none'}; _TASK/PROPERTY:=VALUE names one)")
+    found = _find(tasks, path)
+    if found is None:
+        name, _, prop = path.rpartition("/")
+        task = next((t for t in tasks if t.name == name), None)
+        known = (f"task {name} has the properties {', '.join(sorted(task.properties())) or 'none'}" if task
+                 else f"the tasks are {', '.join(t.name for t in tasks) or 'none'}")
+        raise ValueError(f"ROS parameter _{path}: no such task property ({known})")
+    return found
+
+
 def apply_launch_params(tasks: list[Any], params: Mapping[str, Any]) -> None:
-    """Set launch-time parameters (``_TASK/PROP:=value``) on the tasks' properties, each
-    through its check. Raises ``ValueError`` naming the parameter and why."""
+    """Set launch-time parameters on the tasks' properties, each through its check:
+    ``_TASK/PROP:=value``, or ``_PROP:=value`` when exactly one task has ``PROP``. Raises
+    ``ValueError`` naming the parameter and why."""
     for path, value in params.items():
-        found = _find(tasks, path)
-        if found is None:
-            name, _, prop = path.rpartition("/")
-            task = next((t for t in tasks if t.name == name), None)
-            known = (f"task {name} has the properties {', '.join(sorted(task.properties())) or 'none'}" if task
-                     else f"the tasks are {', '.join(t.name for t in tasks) or 'none'}")
-            raise ValueError(f"ROS parameter _{path}: no such task property ({known})")
+        found = _launch_target(tasks, path)
         try:
             found[0].set_property(found[1], value)
         except DataflowError as exc:
