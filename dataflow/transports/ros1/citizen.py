@@ -14,9 +14,11 @@ value, which it keeps. A property changed otherwise (``scart prop set``, the tas
 itself) is set on the server within a second. A value XML-RPC cannot carry (bytes, an
 integer beyond 32 bits) is not a parameter. After a master restart, all are set again.
 
-**Time.** With the parameter ``/use_sim_time`` true (read at start, and followed), the
-node subscribes to ``/clock`` and every task of the deployers lives in that time
-(:class:`~dataflow.clock.SimClock`, :meth:`Deployer.use_clock`): periodic tasks tick on
+**Time.** With the parameter ``/use_sim_time`` true (read at start, and followed), or
+the node's own launch-time ``_use_sim_time:=true`` (``sim_time``), the node subscribes
+to ``/clock`` and every task of the deployers lives in that time (one
+:class:`~dataflow.clock.SimClock`, which the ROS 2 node's ``/clock`` feeds too when it
+follows one, :meth:`Deployer.use_clock`): periodic tasks tick on
 it (``rosbag play --clock -r 2`` runs them twice as fast, a paused bag pauses them) and
 the stamps scart puts on messages come from it. Without it, nothing changes.
 
@@ -133,8 +135,9 @@ class Citizen:
     """The tasks of the deployers ``deployers()`` returns, as ``node``'s own (see the
     module docstring)."""
 
-    def __init__(self, node: Node, deployers: Callable[[], list[Any]]) -> None:
+    def __init__(self, node: Node, deployers: Callable[[], list[Any]], sim_time: bool = False) -> None:
         self.node, self._deployers = node, deployers
+        self._sim_at_start = sim_time
         self.namespace = node.resolve("~")
         self.clock: Clock = WALL
         self._clock_sub: Any = None
@@ -158,6 +161,8 @@ class Citizen:
         self.node.subscribe_param("~", self._update)
         if not self.node.read_only:  # read-only: nothing from ROS reaches the tasks, their time included
             self.node.subscribe_param("/use_sim_time", self._sim_time)
+            if self._sim_at_start:
+                self.node.control.submit(lambda: self._sim_time("/use_sim_time", True))
         self.node.control.submit(self._sync, delay=SYNC_SECONDS)
 
     def close(self) -> None:
@@ -175,25 +180,35 @@ class Citizen:
 
     # -- time -----------------------------------------------------------------------------
     def _sim_time(self, _key: str, value: Any) -> None:
-        self._follow((value is True or value == "true") and not self._closed)
+        self._follow((self._sim_at_start or value is True or value == "true") and not self._closed)
 
     def _follow(self, simulated: bool) -> None:
-        """Follow ``/clock`` (or stop) and give the deployers' tasks that clock."""
+        """Follow ``/clock`` (or stop) and give the deployers' tasks that clock (the one
+        they have already when the ROS 2 node follows its ``/clock`` too), or put them back
+        on the system's when it was this one."""
         if simulated and self._clock_sub is None:
-            clock = SimClock()
+            clock = SimClock.among(d.clock for d in self._deployers())
             self._clock_sub = self.node.subscribe("/clock", "rosgraph_msgs/Clock", lambda data: clock.set(
                 _ns(*_CLOCK.unpack_from(data))) if len(data) == 8 else None, raw=True)
             self.clock = clock
             log.info("ROS 1 node %s: use_sim_time: the tasks follow /clock", self.node.caller_id)
         elif not simulated and self._clock_sub is not None:
             self._clock_sub.close()
-            self._clock_sub, self.clock = None, WALL
+            old, self._clock_sub, self.clock = self.clock, None, WALL
+            for deployer in self._deployers():
+                if deployer.clock is old:
+                    deployer.use_clock(WALL)
             log.info("ROS 1 node %s: use_sim_time off: the tasks follow the system's clock", self.node.caller_id)
         self._give_clock()
 
     def _give_clock(self) -> None:
+        """Following ``/clock``, put the deployers not on a simulated clock on it (one
+        attached since, too); otherwise leave their clocks alone (the ROS 2 node may
+        follow its own ``/clock``)."""
+        if not self.clock.simulated:
+            return
         for deployer in self._deployers():
-            if deployer.clock is not self.clock:
+            if not deployer.clock.simulated:
                 deployer.use_clock(self.clock)
 
     # -- the control thread ---------------------------------------------------------------

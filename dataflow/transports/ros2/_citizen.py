@@ -9,7 +9,9 @@ with the reason, and the property keeps its value), ``~/list_parameters``,
 ``~/describe_parameters`` (type, the property's doc, its range when it has both ends)
 and ``~/get_parameter_types``. A value ``ParameterValue`` cannot hold (a model, an
 integer beyond 64 bits) is not a parameter. ``use_sim_time`` is one too: true, the
-deployers' tasks follow ``/clock`` (:mod:`dataflow.clock`), as on ROS 1.
+deployers' tasks follow ``/clock`` (:mod:`dataflow.clock`), as on ROS 1; it may be true
+from the start (``sim_time``: a launch-time ``_use_sim_time:=true``, or the process's
+node options, :meth:`Ros2Transport.configure`).
 
 **Logging.** Python's log records go to ``/rosout`` (``rcl_interfaces/msg/Log``,
 transient-local as rcl's) under the node's logger name. The node serves
@@ -106,10 +108,15 @@ def from_value(value: Any) -> Any:
 
 class Ros2Citizen:
     """The deployers' tasks (``deployers()``), as ``participant``'s node's own (see the
-    module docstring; ``read_only``: every set refused). Raises what the participant raises
-    when its services cannot be made."""
+    module docstring; ``read_only``: every set refused; ``sim_time``: follow ``/clock``
+    from the start). Raises what the participant raises when its services cannot be made,
+    ``ValueError`` for ``sim_time`` with ``read_only``."""
 
-    def __init__(self, participant: Any, deployers: Callable[[], list[Any]], read_only: bool = False) -> None:
+    def __init__(self, participant: Any, deployers: Callable[[], list[Any]], read_only: bool = False,
+                 sim_time: bool = False) -> None:
+        if sim_time and read_only:
+            raise ValueError("use_sim_time is refused: this process serves ROS read-only (--ros-read-only: /clock "
+                             "comes from ROS)")
         graph = participant.node
         self._participant, self._deployers, self.read_only = participant, deployers, read_only
         base = f"{graph.namespace.rstrip('/')}/{graph.name}"
@@ -125,6 +132,8 @@ class Ros2Citizen:
                                                        getattr(self, f"_{service}")))
             self._rosout = participant.publisher("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
             self._parts.append(self._rosout)
+            if sim_time:
+                self._follow(True)
         except BaseException:
             self.close()
             raise
@@ -228,8 +237,13 @@ class Ros2Citizen:
 
     # -- time -----------------------------------------------------------------------------
     def _follow(self, simulated: bool) -> None:
+        """Follow ``/clock`` (or stop): the deployers' tasks on a simulated clock (the one
+        they have already when the ROS 1 node follows its ``/clock`` too), or back on the
+        system's when it was this one."""
+        deployers = self._deployers()
         if simulated and self._clock_sub is None:
-            clock = SimClock()
+            clock = SimClock.among(d.clock for d in deployers)
+
             def tick(message: Any) -> None:
                 clock.set(message.clock.sec * 1_000_000_000 + message.clock.nanosec)
 
@@ -238,9 +252,12 @@ class Ros2Citizen:
             self.clock = clock
         elif not simulated and self._clock_sub is not None:
             self._clock_sub.close()
-            self._clock_sub, self.clock = None, WALL
-        for deployer in self._deployers():
-            if deployer.clock is not self.clock:
+            old, self._clock_sub, self.clock = self.clock, None, WALL
+            for deployer in deployers:
+                if deployer.clock is old:
+                    deployer.use_clock(WALL)
+        for deployer in deployers:
+            if self.clock.simulated and not deployer.clock.simulated:
                 deployer.use_clock(self.clock)
 
     # -- logging ----------------------------------------------------------------------------

@@ -118,6 +118,16 @@ def test_a_plain_private_parameter_no_task_has_is_refused() -> None:
         apply_launch_params([Gauge()], {"nothing": 1})
 
 
+def test_use_sim_time_at_launch_makes_the_node_follow_clock(ros: RosMaster) -> None:
+    proc, _ = deploy(ros, "clocked", "_use_sim_time:=true")
+    try:
+        wait_until(lambda: " * /clock [" in ros.tool("rosnode", "info", "/clocked").stdout, timeout=20,
+                   message="the node does not follow /clock")
+        assert ros.tool("rosparam", "get", "/use_sim_time").returncode != 0  # the node's own, not the global one
+    finally:
+        stop(proc)
+
+
 def bag_of(path: Path, start_s: int, seconds: float, period: float = 0.05) -> Path:
     """A ROS 1 bag of ``seconds`` of std_msgs/String on /chatter from ``start_s`` (its time)."""
     from rosbags.rosbag1 import Writer

@@ -1,11 +1,12 @@
 """scart's ROS 2 node as a citizen, judged as ``ros2`` would judge it: a Cyclone DDS client
 with ``rcl_interfaces`` types calls the logger and parameter services of a ``scart deploy``
-subprocess on this run's domain and reads its ``/rosout``."""
+subprocess on this run's domain, reads its ``/rosout``, and drives its time on ``/clock``."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -25,8 +26,11 @@ LOGGER = "dataflow.transports.ros2"  # the logger of a refused parameter's warni
 
 @pytest.fixture
 def on_domain(domain: int, monkeypatch: pytest.MonkeyPatch) -> int:
-    """Subprocesses started by the test join this run's domain (ROS_DOMAIN_ID)."""
+    """Subprocesses started by the test join this run's domain (ROS_DOMAIN_ID); the ROS 1
+    node that ``--ros-name`` makes too finds no master (a closed port, not a roscore of the
+    host's)."""
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    monkeypatch.setenv("ROS_MASTER_URI", f"http://127.0.0.1:{free_port()}/")
     return domain
 
 
@@ -109,6 +113,26 @@ def test_the_logger_services_change_what_a_logger_publishes_on_rosout(deployed) 
     assert node.prop("pinger", "gain") == "1.0"
 
 
+def test_use_sim_time_given_at_launch_puts_the_tasks_on_clock(deployed) -> None:
+    node = deployed("clocked", "support.ros1_tasks:Gauge",  # --ros-name: a ROS 1 node too, following its /clock
+                    ["gauge.heat", "--type", "sensor_msgs/msg/Temperature"], "_use_sim_time:=true")
+    value = node.call("get_parameters", "GetParameters", {"names": ["use_sim_time"]}).values[0]
+    assert (value.type, value.bool_value) == (1, True)  # read at start: no set_parameters asked
+    stamps: list[int] = []
+    node.ros.subscribe(node.topic, "sensor_msgs/msg/Temperature", lambda m: stamps.append(m.header.stamp.sec),
+                       QoS.buffer(100))
+    clock = node.ros.publisher("/clock", "rosgraph_msgs/msg/Clock", QoS.data(best_effort=True))
+    wait_until(lambda: clock.matched(), timeout=20, message="the node never subscribed to /clock")
+    before = int(scart("call", "gauge.cycle_count", "--ns", node.ns, domain=node.domain).stdout)
+    for i in range(301):  # 3 s of the simulation's time in about 1.5 s: periods of 0.05 s pass in it
+        clock.publish({"clock": {"sec": 5000 + i // 100, "nanosec": (i % 100) * 10_000_000}})
+        time.sleep(0.005)
+    ran = int(scart("call", "gauge.cycle_count", "--ns", node.ns, domain=node.domain).stdout) - before
+    assert 45 <= ran <= 63, f"{ran} cycles of 0.05 s in 3 simulated seconds (the wall clock would give ~30)"
+    wait_until(lambda: stamps and stamps[-1] >= 5002, timeout=10, message=f"stamps {stamps[-5:]}")
+    assert all(5000 <= s <= 5003 for s in stamps[-20:]), stamps[-20:]  # stamped in the simulation's time
+
+
 def test_a_read_only_node_serves_its_parameters_to_read_and_refuses_every_set(deployed) -> None:
     node = deployed("watched", "support.remote:Pinger", ["pinger.output"], "--ros-read-only")
     listed = node.call("list_parameters", "ListParameters", {"prefixes": [], "depth": 0}).result.names
@@ -122,6 +146,12 @@ def test_a_read_only_node_serves_its_parameters_to_read_and_refuses_every_set(de
     assert not node.set_param("use_sim_time", {"type": 1, "bool_value": True}).successful  # no /clock from ROS
     assert node.prop("pinger", "gain") == "1.0"
     assert not node.client("set_logger_levels", "SetLoggerLevels").service_ready()  # not offered (as on ROS 1)
+
+
+def test_use_sim_time_at_launch_is_refused_when_read_only(on_domain: int) -> None:
+    done = scart("deploy", "support.remote:Pinger", "_use_sim_time:=true", "--ros-read-only",
+                 "--listen", f"127.0.0.1:{free_port()}", domain=on_domain)
+    assert done.returncode != 0 and "use_sim_time is refused" in done.stderr, done.stderr
 
 
 def _answer(client, request: dict):
