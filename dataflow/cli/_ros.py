@@ -20,6 +20,7 @@ __all__ = ["add_arguments", "apply", "attach", "call", "detach", "exit_on_shutdo
 #: A launch-time parameter, as on a ROS command line: ``_TASK/PROPERTY:=VALUE`` (YAML).
 PARAM = re.compile(r"_([A-Za-z][\w/]*):=(.*)\Z", re.S)
 MAX_PARAMS = 256
+SIM_TIME = "use_sim_time"  #: the node's own launch-time parameter (the others are task properties)
 
 
 def split_params(items: Iterable[str]) -> tuple[list[str], dict[str, Any]]:
@@ -71,7 +72,8 @@ def add_params(parser: argparse.ArgumentParser, dest: str = "ros_params") -> Non
     ``take_extras``)."""
     parser.add_argument(dest, nargs="*", default=[], metavar="_TASK/PROPERTY:=VALUE",
                         help="set a task's property at launch, as a ROS node's private parameter (its ROS 1 "
-                             "parameter ~TASK/PROPERTY; the value is YAML)")
+                             "parameter ~TASK/PROPERTY; the value is YAML); _PROPERTY:=VALUE when one task "
+                             "has it; _use_sim_time:=true: the node follows /clock from its start")
     take_params(parser, dest)
 
 
@@ -99,17 +101,31 @@ def split_remaps(rules: Iterable[str]) -> tuple[list[str], dict[str, str]]:
     return rest, names
 
 
+def _sim_time(params: dict[str, Any]) -> bool | None:
+    """Take the node's own launch-time ``_use_sim_time:=BOOL`` out of ``params`` (None when
+    not given); raises ``ValueError`` for a value that is no bool."""
+    if SIM_TIME not in params:
+        return None
+    value = params.pop(SIM_TIME)
+    if not isinstance(value, bool):
+        raise ValueError(f"ROS parameter _{SIM_TIME}:={value!r}: true or false")
+    return value
+
+
 def apply(args: argparse.Namespace, params: dict[str, Any] | None = None,
           remaps: dict[str, str] | None = None) -> None:
-    """Set the process's ROS defaults from ``args``, the launch-time ``params`` and the ROS
-    name ``remaps`` (nothing is loaded unless one is given). Raises ``ValueError`` for a
-    bad URI, name or remap."""
+    """Set the process's ROS defaults from ``args``, the launch-time ``params`` (the node's
+    own ``use_sim_time`` among them, for ROS 1 and ROS 2; the rest task properties) and
+    the ROS name ``remaps`` (nothing is loaded unless one is given). Raises ``ValueError``
+    for a bad URI, name, remap or ``use_sim_time``."""
     master, name = getattr(args, "ros_master", None), getattr(args, "ros_name", None)
     namespace = getattr(args, "ros_namespace", None)
     insecure = bool(getattr(args, "insecure", False))
     read_only = True if getattr(args, "ros_read_only", False) else None
+    params = dict(params or {})
+    sim_time = _sim_time(params)
     if master is None and name is None and namespace is None and not insecure and not params and not remaps \
-            and not read_only:
+            and not read_only and sim_time is None:
         return
     from dataflow.transports import load
 
@@ -117,11 +133,12 @@ def apply(args: argparse.Namespace, params: dict[str, Any] | None = None,
     configure = getattr(transport, "configure", None)
     if configure is not None:
         configure(master=master, name=name, namespace=namespace, insecure=insecure or None, params=params or None,
-                  remaps=remaps or None, read_only=read_only)
-    if name is not None or namespace is not None or remaps or read_only:  # ROS 2's too (no Cyclone DDS loaded)
-        configure = getattr(_transport("ros2"), "configure", None)
+                  remaps=remaps or None, read_only=read_only, use_sim_time=sim_time)
+    if name is not None or namespace is not None or remaps or read_only or sim_time is not None:  # ROS 2's too
+        configure = getattr(_transport("ros2"), "configure", None)  # (no Cyclone DDS loaded)
         if configure is not None:
-            configure(name=name, namespace=namespace, remaps=remaps or None, read_only=read_only)
+            configure(name=name, namespace=namespace, remaps=remaps or None, read_only=read_only,
+                      use_sim_time=sim_time)
 
 
 def _add_types(kind: str, files: list[str]) -> None:

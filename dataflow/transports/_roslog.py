@@ -2,7 +2,8 @@
 :class:`RosLog`, a ``logging.Handler`` on the root logger handing each record to a
 ``publish(record)`` of the transport's own (a ``rosgraph_msgs/Log`` or an
 ``rcl_interfaces/msg/Log``), and the loggers as ROS's logger services see them
-(:func:`loggers`, :func:`set_level`). ROS-agnostic: no transport, no message library.
+(:func:`loggers`, :func:`set_level`; ROS 2's numbered levels, :func:`level_of`,
+:func:`set_level_number`). ROS-agnostic: no transport, no message library.
 
 Installing it makes the root logger's level INFO when it was Python's default (WARNING),
 as ROS publishes INFO and above, and keeps the standard error as it was: Python's
@@ -19,7 +20,7 @@ import threading
 from collections.abc import Callable
 from types import MappingProxyType
 
-__all__ = ["LEVELS", "MAX_TEXT", "RosLog", "level_name", "loggers", "set_level"]
+__all__ = ["LEVELS", "MAX_TEXT", "RosLog", "level_name", "level_of", "loggers", "set_level", "set_level_number"]
 
 #: ROS's names of Python's levels (roscpp's and rcl's logger services).
 LEVELS = MappingProxyType({"debug": logging.DEBUG, "info": logging.INFO, "warn": logging.WARNING,
@@ -46,12 +47,42 @@ def set_level(name: str, level: str) -> None:
     value = LEVELS.get(str(level).lower())
     if value is None:
         raise ValueError(f"no level {str(level)[:40]!r}: one of {', '.join(LEVELS)}")
-    if name in ("", "root"):
-        logging.getLogger().setLevel(value)
-    elif isinstance(logging.Logger.manager.loggerDict.get(name), logging.Logger):
-        logging.getLogger(name).setLevel(value)
-    else:
+    found = _existing(name)
+    if found is None:
         raise ValueError(f"no logger {name[:200]!r} (get_loggers lists them)")
+    found.setLevel(value)
+
+
+#: rcutils' severities (ROS 2's ``rcl_interfaces/msg/LoggerLevel``), Python's numbers too;
+#: 0 is unset (Python's NOTSET: the logger follows its parent)
+LEVEL_NUMBERS = frozenset({logging.NOTSET, logging.DEBUG, logging.INFO, logging.WARNING, logging.ERROR,
+                           logging.CRITICAL})
+
+
+def _existing(name: str) -> logging.Logger | None:
+    """The logger ``name`` (``""``/``root``: the root logger) if it exists, else None."""
+    if name in ("", "root"):
+        return logging.getLogger()
+    found = logging.Logger.manager.loggerDict.get(name)
+    return found if isinstance(found, logging.Logger) else None
+
+
+def level_of(name: str) -> int:
+    """The level set on the logger ``name`` (``root``: the root logger), as ROS 2 numbers
+    them: 0 when none is set or the logger does not exist (rcutils' unset)."""
+    found = _existing(name)
+    return found.level if found is not None else logging.NOTSET
+
+
+def set_level_number(name: str, level: int) -> None:
+    """Set the level of the logger ``name`` to ROS 2's ``level`` (0 unset, 10 debug ... 50
+    fatal). Only a logger that exists; raises ``ValueError`` saying why."""
+    if level not in LEVEL_NUMBERS:
+        raise ValueError(f"invalid logger level {level}: one of {', '.join(map(str, sorted(LEVEL_NUMBERS)))}")
+    found = _existing(name)
+    if found is None:
+        raise ValueError(f"no logger {name[:200]!r} (only existing loggers can be set)")
+    found.setLevel(level)
 
 
 class RosLog(logging.Handler):

@@ -6,16 +6,19 @@ nothing of tasks).
 per task: property ``max_velocity`` of task ``youBotDriver`` of node ``/youbot`` is
 ``/youbot/youBotDriver/max_velocity``. When the node is made, every property is set
 there (the tasks' values win over what an earlier run left: a launch-time value is
-``_TASK/PROP:=VALUE``, :func:`apply_launch_params`). ``rosparam set`` reaches the
+``_TASK/PROP:=VALUE``, or ``_PROP:=VALUE`` when one task has ``PROP``,
+:func:`apply_launch_params`). ``rosparam set`` reaches the
 task through the property's check (type, bounds, read-only): a refused value is logged
 with the reason (so ``/rosout`` says it) and the parameter set back to the property's
 value, which it keeps. A property changed otherwise (``scart prop set``, the task
 itself) is set on the server within a second. A value XML-RPC cannot carry (bytes, an
 integer beyond 32 bits) is not a parameter. After a master restart, all are set again.
 
-**Time.** With the parameter ``/use_sim_time`` true (read at start, and followed), the
-node subscribes to ``/clock`` and every task of the deployers lives in that time
-(:class:`~dataflow.clock.SimClock`, :meth:`Deployer.use_clock`): periodic tasks tick on
+**Time.** With the parameter ``/use_sim_time`` true (read at start, and followed), or
+the node's own launch-time ``_use_sim_time:=true`` (``sim_time``), the node subscribes
+to ``/clock`` and every task of the deployers lives in that time (one
+:class:`~dataflow.clock.SimClock`, which the ROS 2 node's ``/clock`` feeds too when it
+follows one, :meth:`Deployer.use_clock`): periodic tasks tick on
 it (``rosbag play --clock -r 2`` runs them twice as fast, a paused bag pauses them) and
 the stamps scart puts on messages come from it. Without it, nothing changes.
 
@@ -90,17 +93,35 @@ def _find(tasks: list[Any], path: str) -> tuple[Any, str] | None:
     return None
 
 
+def _launch_target(tasks: list[Any], path: str) -> tuple[Any, str]:
+    """``(task, property)`` a launch-time parameter names: ``TASK/PROP``, or a plain
+    ``PROP`` (a private parameter, as ROS takes it) that exactly one task has. Raises
+    ``ValueError`` saying why there is none, naming the tasks that have it when several do."""
+    if "/" not in path:
+        having = [t.name for t in tasks if path in t.properties()]
+        if len(having) == 1:
+            return next(t for t in tasks if t.name == having[0]), path
+        if having:
+            raise ValueError(f"ROS parameter _{path}: the tasks {', '.join(having)} have that property: name one "
+                             f"(_{having[0]}/{path}:=VALUE)")
+        raise ValueError(f"ROS parameter _{path}: no task has that property (the tasks are "
+                         f"{', '.join(t.name for t in tasks) or 'none'}; _TASK/PROPERTY:=VALUE names one)")
+    found = _find(tasks, path)
+    if found is None:
+        name, _, prop = path.rpartition("/")
+        task = next((t for t in tasks if t.name == name), None)
+        known = (f"task {name} has the properties {', '.join(sorted(task.properties())) or 'none'}" if task
+                 else f"the tasks are {', '.join(t.name for t in tasks) or 'none'}")
+        raise ValueError(f"ROS parameter _{path}: no such task property ({known})")
+    return found
+
+
 def apply_launch_params(tasks: list[Any], params: Mapping[str, Any]) -> None:
-    """Set launch-time parameters (``_TASK/PROP:=value``) on the tasks' properties, each
-    through its check. Raises ``ValueError`` naming the parameter and why."""
+    """Set launch-time parameters on the tasks' properties, each through its check:
+    ``_TASK/PROP:=value``, or ``_PROP:=value`` when exactly one task has ``PROP``. Raises
+    ``ValueError`` naming the parameter and why."""
     for path, value in params.items():
-        found = _find(tasks, path)
-        if found is None:
-            name, _, prop = path.rpartition("/")
-            task = next((t for t in tasks if t.name == name), None)
-            known = (f"task {name} has the properties {', '.join(sorted(task.properties())) or 'none'}" if task
-                     else f"the tasks are {', '.join(t.name for t in tasks) or 'none'}")
-            raise ValueError(f"ROS parameter _{path}: no such task property ({known})")
+        found = _launch_target(tasks, path)
         try:
             found[0].set_property(found[1], value)
         except DataflowError as exc:
@@ -114,8 +135,9 @@ class Citizen:
     """The tasks of the deployers ``deployers()`` returns, as ``node``'s own (see the
     module docstring)."""
 
-    def __init__(self, node: Node, deployers: Callable[[], list[Any]]) -> None:
+    def __init__(self, node: Node, deployers: Callable[[], list[Any]], sim_time: bool = False) -> None:
         self.node, self._deployers = node, deployers
+        self._sim_at_start = sim_time
         self.namespace = node.resolve("~")
         self.clock: Clock = WALL
         self._clock_sub: Any = None
@@ -139,6 +161,8 @@ class Citizen:
         self.node.subscribe_param("~", self._update)
         if not self.node.read_only:  # read-only: nothing from ROS reaches the tasks, their time included
             self.node.subscribe_param("/use_sim_time", self._sim_time)
+            if self._sim_at_start:
+                self.node.control.submit(lambda: self._sim_time("/use_sim_time", True))
         self.node.control.submit(self._sync, delay=SYNC_SECONDS)
 
     def close(self) -> None:
@@ -156,25 +180,35 @@ class Citizen:
 
     # -- time -----------------------------------------------------------------------------
     def _sim_time(self, _key: str, value: Any) -> None:
-        self._follow((value is True or value == "true") and not self._closed)
+        self._follow((self._sim_at_start or value is True or value == "true") and not self._closed)
 
     def _follow(self, simulated: bool) -> None:
-        """Follow ``/clock`` (or stop) and give the deployers' tasks that clock."""
+        """Follow ``/clock`` (or stop) and give the deployers' tasks that clock (the one
+        they have already when the ROS 2 node follows its ``/clock`` too), or put them back
+        on the system's when it was this one."""
         if simulated and self._clock_sub is None:
-            clock = SimClock()
+            clock = SimClock.among(d.clock for d in self._deployers())
             self._clock_sub = self.node.subscribe("/clock", "rosgraph_msgs/Clock", lambda data: clock.set(
                 _ns(*_CLOCK.unpack_from(data))) if len(data) == 8 else None, raw=True)
             self.clock = clock
             log.info("ROS 1 node %s: use_sim_time: the tasks follow /clock", self.node.caller_id)
         elif not simulated and self._clock_sub is not None:
             self._clock_sub.close()
-            self._clock_sub, self.clock = None, WALL
+            old, self._clock_sub, self.clock = self.clock, None, WALL
+            for deployer in self._deployers():
+                if deployer.clock is old:
+                    deployer.use_clock(WALL)
             log.info("ROS 1 node %s: use_sim_time off: the tasks follow the system's clock", self.node.caller_id)
         self._give_clock()
 
     def _give_clock(self) -> None:
+        """Following ``/clock``, put the deployers not on a simulated clock on it (one
+        attached since, too); otherwise leave their clocks alone (the ROS 2 node may
+        follow its own ``/clock``)."""
+        if not self.clock.simulated:
+            return
         for deployer in self._deployers():
-            if deployer.clock is not self.clock:
+            if not deployer.clock.simulated:
                 deployer.use_clock(self.clock)
 
     # -- the control thread ---------------------------------------------------------------

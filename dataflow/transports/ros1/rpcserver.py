@@ -115,43 +115,57 @@ class _PooledServer(SimpleXMLRPCServer):
 
 
 class _Workers:
-    """At most ``size`` owned threads serving queued connections (started as needed)."""
+    """At most ``size`` owned threads serving queued connections (started as needed), at
+    most half of them (and half of the queue) for one peer address."""
 
     def __init__(self, server: _PooledServer, name: str, size: int, waiting: int, counters: Counters) -> None:
         self._server, self._name, self._size, self._waiting = server, name, size, waiting
+        self._per_peer, self._waiting_per_peer = max(1, size // 2), max(1, waiting // 2)
         self._counters = counters
         self._cond = threading.Condition()
         self._queue: collections.deque[tuple[Any, Any]] = collections.deque()
         self._threads: list[OwnedThread] = []
         self._idle = 0
-        self._active: set[Any] = set()
+        self._active: dict[Any, str] = {}  # request being served -> its peer's address
+        self._serving: collections.Counter[str] = collections.Counter()  # peer address -> requests served now
         self._closing = False
 
     def submit(self, request: Any, address: Any) -> bool:
-        """Queue a connection; False when closing or the queue is full (the caller closes it)."""
+        """Queue a connection; False when closing, the queue is full, or its peer has half
+        of it already (the caller closes it)."""
         with self._cond:
-            if self._closing or len(self._queue) >= self._waiting:
+            peer = address[0]
+            if self._closing or len(self._queue) >= self._waiting or \
+                    sum(1 for _, a in self._queue if a[0] == peer) >= self._waiting_per_peer:
                 self._counters["xmlrpc_bad_requests"] += not self._closing
                 return False
             self._queue.append((request, address))
-            if self._idle == 0 and len(self._threads) < self._size:
+            if self._idle < len(self._queue) and len(self._threads) < self._size:
                 thread = OwnedThread(self._work, f"{self._name}-{len(self._threads) + 1}")
                 self._threads.append(thread)
                 thread.start()
-            else:
-                self._cond.notify()
+            self._cond.notify_all()  # (an idle worker may wait for its peer's turn: each looks)
         return True
+
+    def _take(self) -> tuple[Any, Any] | None:
+        """The first queued connection whose peer has fewer than its share being served."""
+        for job in self._queue:
+            if self._serving[job[1][0]] < self._per_peer:
+                self._queue.remove(job)
+                return job
+        return None
 
     def _next(self) -> tuple[Any, Any] | None:
         with self._cond:
             self._idle += 1
-            while not self._queue and not self._closing:
+            job = None
+            while not self._closing and (job := self._take()) is None:
                 self._cond.wait()
             self._idle -= 1
-            if self._closing:
+            if self._closing or job is None:
                 return None
-            job = self._queue.popleft()
-            self._active.add(job[0])
+            self._active[job[0]] = job[1][0]
+            self._serving[job[1][0]] += 1
             return job
 
     def _work(self, _stopping: threading.Event) -> None:
@@ -163,9 +177,18 @@ class _Workers:
             except Exception:  # noqa: BLE001 - one request's failure never ends the worker
                 server.handle_error(request, address)
             finally:
-                with self._cond:
-                    self._active.discard(request)
+                self._done(request)
                 server.shutdown_request(request)
+
+    def _done(self, request: Any) -> None:
+        with self._cond:
+            peer = self._active.pop(request, None)
+            if peer is not None:
+                self._serving[peer] -= 1
+                if self._serving[peer] <= 0:
+                    del self._serving[peer]
+                if self._queue:
+                    self._cond.notify_all()  # a connection of that peer may now be served
 
     def close(self, timeout: float) -> None:
         """Drop what waits, cut what is being served, end the threads (idempotent)."""

@@ -121,6 +121,7 @@ class Ros1Transport(Transport):
         self._shutdown_hooks: list[Any] = []
         self._told = False  # configure() was given something: the process is a ROS node from its start
         self._launch_params: dict[str, Any] = {}
+        self._sim_time = False  # a launch-time _use_sim_time:=true: the node follows /clock from its start
         self._deployers: list[Any] = []
         self._held: list[Node] = []
         self._citizen: Citizen | None = None
@@ -129,12 +130,15 @@ class Ros1Transport(Transport):
     def configure(self, *, master: str | None = None, name: str | None = None, namespace: str | None = None,
                   insecure: bool | None = None, respawn: bool | None = None,
                   params: dict[str, Any] | None = None, remaps: dict[str, str] | None = None,
-                  read_only: bool | None = None) -> None:
+                  read_only: bool | None = None, use_sim_time: bool | None = None) -> None:
         """Set this process's defaults for its ROS node (``--ros-master``, ``--ros-name``,
         ``--ros-namespace``, ``--insecure``, ``respawn``, launch-time ``_TASK/PROP:=value``
         ``params``, graph name ``remaps`` ``{"/from": "/to"}``); a node already made keeps
-        its own. A process told any of these but remaps is a ROS node from its start
-        (:meth:`attach`). Raises ``ValueError`` for a bad master URI, name or remap."""
+        its own. A process told any of these but remaps and ``use_sim_time`` is a ROS node
+        from its start (:meth:`attach`). ``use_sim_time`` (``_use_sim_time:=true``): the
+        node follows ``/clock`` from its start, whatever ``/use_sim_time`` says. Raises
+        ``ValueError`` for a bad master URI, name or remap, or ``use_sim_time`` when
+        read-only."""
         for old, new in (remaps or {}).items():
             check_name(old, "remapped name")
             check_name(new, "remapped name")
@@ -143,6 +147,11 @@ class Ros1Transport(Transport):
         if name and not _BASE_NAME.fullmatch(name):
             raise ValueError(f"node name {name!r}: a base name (letters, digits and '_', starting with a letter)")
         with self._lock:
+            if (use_sim_time if use_sim_time is not None else self._sim_time) and \
+                    (read_only if read_only is not None else self._defaults.read_only):
+                raise ValueError("use_sim_time is refused: this process serves ROS read-only (--ros-read-only "
+                                 "takes nothing from ROS, /clock included)")
+            self._sim_time = self._sim_time if use_sim_time is None else use_sim_time
             if any(v is not None for v in (master, name, namespace, insecure, respawn)) or params:
                 self._told = True
             self._launch_params.update(params or {})
@@ -229,7 +238,7 @@ class Ros1Transport(Transport):
         with self._lock:
             if self._citizen is not None or not self._deployers or node is not self._node:
                 return
-            citizen = self._citizen = Citizen(node, self._attached)
+            citizen = self._citizen = Citizen(node, self._attached, sim_time=self._sim_time)
         citizen.start()
 
     def _end_citizen(self) -> None:

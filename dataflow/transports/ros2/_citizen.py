@@ -9,10 +9,21 @@ with the reason, and the property keeps its value), ``~/list_parameters``,
 ``~/describe_parameters`` (type, the property's doc, its range when it has both ends)
 and ``~/get_parameter_types``. A value ``ParameterValue`` cannot hold (a model, an
 integer beyond 64 bits) is not a parameter. ``use_sim_time`` is one too: true, the
-deployers' tasks follow ``/clock`` (:mod:`dataflow.clock`), as on ROS 1.
+deployers' tasks follow ``/clock`` (:mod:`dataflow.clock`), as on ROS 1; it may be true
+from the start (``sim_time``: a launch-time ``_use_sim_time:=true``, or the process's
+node options, :meth:`Ros2Transport.configure`).
 
 **Logging.** Python's log records go to ``/rosout`` (``rcl_interfaces/msg/Log``,
-transient-local as rcl's) under the node's logger name.
+transient-local as rcl's) under the node's logger name. The node serves
+``~/get_logger_levels`` and ``~/set_logger_levels`` as rclpy does since Iron
+(``rcl_interfaces/msg/LoggerLevel``: rcutils' numbers, which are Python's: 0 unset, 10
+debug ... 50 fatal) over Python's loggers (existing ones only; the node's own logger
+name, or ``""``, is the root logger, which every record passes), which change what a
+logger publishes.
+
+**Read-only** (``--ros-read-only``): the parameters are served to be read, every set is
+refused (``successful: false``, the property keeps its value), and, as on ROS 1, the
+logger services are not offered and ``/clock`` is never followed.
 
 Handlers run on the participant's thread; :meth:`Ros2Citizen.close` ends it all
 (idempotent).
@@ -29,7 +40,7 @@ from typing import Any
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
-from .._roslog import MAX_TEXT, RosLog
+from .._roslog import MAX_TEXT, RosLog, level_of, set_level_number
 from ._qos import Durability, QoS, Reliability
 
 __all__ = ["Ros2Citizen", "from_value", "to_value"]
@@ -39,6 +50,7 @@ log = logging.getLogger("dataflow.transports.ros2")
 SERVICES = MappingProxyType({"get_parameters": "GetParameters", "set_parameters": "SetParameters",
                              "list_parameters": "ListParameters", "describe_parameters": "DescribeParameters",
                              "get_parameter_types": "GetParameterTypes"})
+LOGGER_SERVICES = MappingProxyType({"get_logger_levels": "GetLoggerLevels", "set_logger_levels": "SetLoggerLevels"})
 #: rcl_interfaces/msg/ParameterType, and the ParameterValue field of each
 _FIELDS = MappingProxyType({1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value",
                             5: "byte_array_value", 6: "bool_array_value", 7: "integer_array_value",
@@ -96,10 +108,15 @@ def from_value(value: Any) -> Any:
 
 class Ros2Citizen:
     """The deployers' tasks (``deployers()``), as ``participant``'s node's own (see the
-    module docstring; ``read_only``: every set refused). Raises what the participant raises
-    when its services cannot be made."""
+    module docstring; ``read_only``: every set refused; ``sim_time``: follow ``/clock``
+    from the start). Raises what the participant raises when its services cannot be made,
+    ``ValueError`` for ``sim_time`` with ``read_only``."""
 
-    def __init__(self, participant: Any, deployers: Callable[[], list[Any]], read_only: bool = False) -> None:
+    def __init__(self, participant: Any, deployers: Callable[[], list[Any]], read_only: bool = False,
+                 sim_time: bool = False) -> None:
+        if sim_time and read_only:
+            raise ValueError("use_sim_time is refused: this process serves ROS read-only (--ros-read-only: /clock "
+                             "comes from ROS)")
         graph = participant.node
         self._participant, self._deployers, self.read_only = participant, deployers, read_only
         base = f"{graph.namespace.rstrip('/')}/{graph.name}"
@@ -108,12 +125,15 @@ class Ros2Citizen:
         self._clock_sub: Any = None
         self._closed = False
         self._parts: list[Any] = []
+        services = SERVICES if read_only else {**SERVICES, **LOGGER_SERVICES}
         try:
-            for service, kind in SERVICES.items():
+            for service, kind in services.items():
                 self._parts.append(participant.service(f"{base}/{service}", f"rcl_interfaces/srv/{kind}",
                                                        getattr(self, f"_{service}")))
             self._rosout = participant.publisher("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
             self._parts.append(self._rosout)
+            if sim_time:
+                self._follow(True)
         except BaseException:
             self.close()
             raise
@@ -196,10 +216,34 @@ class Ros2Citizen:
                 out[key] = [{"from_value": cast(low), "to_value": cast(high), "step": cast(0)}]
         return out
 
+    # -- loggers ----------------------------------------------------------------------------
+    def _python_logger(self, name: str) -> str:
+        return "" if name == self.logger_name else name  # every record is published under the node's name
+
+    def _get_logger_levels(self, request: Any) -> dict[str, Any]:
+        names = [str(n) for n in list(request.names)[:MAX_NAMES]]
+        return {"levels": [{"name": n, "level": level_of(self._python_logger(n))} for n in names]}
+
+    def _set_logger_levels(self, request: Any) -> dict[str, Any]:
+        return {"results": [self._set_level(str(asked.name), int(asked.level))
+                            for asked in list(request.levels)[:MAX_NAMES]]}
+
+    def _set_level(self, name: str, level: int) -> dict[str, Any]:
+        try:
+            set_level_number(self._python_logger(name), level)
+        except ValueError as exc:
+            return {"successful": False, "reason": str(exc)[:1000]}
+        return {"successful": True, "reason": ""}
+
     # -- time -----------------------------------------------------------------------------
     def _follow(self, simulated: bool) -> None:
+        """Follow ``/clock`` (or stop): the deployers' tasks on a simulated clock (the one
+        they have already when the ROS 1 node follows its ``/clock`` too), or back on the
+        system's when it was this one."""
+        deployers = self._deployers()
         if simulated and self._clock_sub is None:
-            clock = SimClock()
+            clock = SimClock.among(d.clock for d in deployers)
+
             def tick(message: Any) -> None:
                 clock.set(message.clock.sec * 1_000_000_000 + message.clock.nanosec)
 
@@ -208,9 +252,12 @@ class Ros2Citizen:
             self.clock = clock
         elif not simulated and self._clock_sub is not None:
             self._clock_sub.close()
-            self._clock_sub, self.clock = None, WALL
-        for deployer in self._deployers():
-            if deployer.clock is not self.clock:
+            old, self._clock_sub, self.clock = self.clock, None, WALL
+            for deployer in deployers:
+                if deployer.clock is old:
+                    deployer.use_clock(WALL)
+        for deployer in deployers:
+            if self.clock.simulated and not deployer.clock.simulated:
                 deployer.use_clock(self.clock)
 
     # -- logging ----------------------------------------------------------------------------

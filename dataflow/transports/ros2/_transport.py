@@ -145,13 +145,15 @@ class Ros2Transport(Transport):
         self._namespace: str | None = None
         self._remaps: dict[str, str] = {}  # full topic or service name -> the one used
         self.read_only = False  #: publish only (``--ros-read-only``): no input stream, service or parameter set
+        self.use_sim_time = False  #: the node's ``use_sim_time`` at its start (``_use_sim_time:=true``)
         self._deployers: list[Any] = []
         self._citizens: dict[int, Any] = {}  # domain -> its participant's Ros2Citizen
 
     # ---- the process's participants ----------------------------------------------------
     def configure(self, *, insecure: bool | None = None, interface: str | None = None,
                   peers: tuple[str, ...] = (), name: str | None = None, namespace: str | None = None,
-                  remaps: Mapping[str, str] | None = None, read_only: bool | None = None) -> None:
+                  remaps: Mapping[str, str] | None = None, read_only: bool | None = None,
+                  use_sim_time: bool | None = None) -> None:
         """Set this process's defaults for ROS 2: its node's ``name`` and ``namespace``
         (``--ros-name``, ``--ros-namespace``; else ``scart_<pid>`` in ``ROS_NAMESPACE``,
         else ``/``), and its network (``scart deploy --insecure``): ``insecure`` opens it
@@ -160,9 +162,17 @@ class Ros2Transport(Transport):
         node and network until its last user goes. Raises ``ValueError`` for a bad name,
         namespace, interface or peer. ``remaps``: ``{"/from": "/to"}``, topic and service
         names used in place of others (``scart run --remap /from:=/to``). ``read_only``:
-        publish only (``--ros-read-only``)."""
+        publish only (``--ros-read-only``). ``use_sim_time``: the node's parameter at its
+        start (a launch-time ``_use_sim_time:=true``): its tasks follow ``/clock`` from then
+        (``ValueError`` with ``read_only``, which takes nothing from ROS)."""
+        if (use_sim_time if use_sim_time is not None else self.use_sim_time) and \
+                (read_only if read_only is not None else self.read_only):
+            raise ValueError("use_sim_time is refused: this process serves ROS read-only (--ros-read-only takes "
+                             "nothing from ROS, /clock included)")
         if read_only is not None:
             self.read_only = read_only
+        if use_sim_time is not None:
+            self.use_sim_time = use_sim_time
         if remaps:
             checked = {topic_name(old): topic_name(new) for old, new in remaps.items()}
             with self._lock:
@@ -281,7 +291,7 @@ class Ros2Transport(Transport):
                 return
             self._citizens[participant.domain_id] = None  # being made
         try:
-            citizen = Ros2Citizen(participant, self._attached, self.read_only)
+            citizen = Ros2Citizen(participant, self._attached, self.read_only, self.use_sim_time)
         except (Ros2Error, ValueError) as exc:
             log.warning("ROS 2 node %s: no parameter services or /rosout: %s", participant.node.name, exc)
             citizen = None

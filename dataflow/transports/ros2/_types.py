@@ -1,7 +1,10 @@
 """ROS 2 message definitions (rosbags) made into Cyclone DDS IDL types, and conversions.
 
 A ROS 2 type ``pkg/msg/Type`` comes from rosbags' store of a ROS 2 distro (Humble, Iron,
-Jazzy, Kilted) or from a ``.msg``/``.srv`` definition the user adds. It becomes a
+Jazzy, Kilted), from a ``.msg``/``.srv`` definition the user adds, or from one found in an
+installed ROS 2 package: ``PREFIX/share/PKG/msg/Type.msg`` (``srv/Type.srv``) under the
+prefixes of ``AMENT_PREFIX_PATH``, as ament lays packages out (looked for once per type,
+in at most :data:`MAX_PREFIXES` prefixes, no folder walked). It becomes a
 cyclonedds ``IdlStruct`` named ``pkg::msg::dds_::Type_``, final (XCDR1, plain CDR), whose
 members are the message's fields in order: the same bytes rmw_cyclonedds puts on the wire
 (the test suite checks them against rosbags' own CDR serialiser, which is what rosbag2
@@ -37,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import numbers
 import operator
+import os
 import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -58,6 +62,8 @@ __all__ = ["MessageTypes", "DISTROS", "message_to_dict"]
 DISTROS = MappingProxyType({"humble": Stores.ROS2_HUMBLE, "iron": Stores.ROS2_IRON, "jazzy": Stores.ROS2_JAZZY,
            "kilted": Stores.ROS2_KILTED})
 _HASHED = frozenset({"iron", "jazzy", "kilted"})  # rmw puts RIHS01 type hashes in user data since Iron
+MAX_PREFIXES = 64  #: AMENT_PREFIX_PATH's prefixes looked in, at most
+MAX_FILE_BYTES = 1 << 20  #: a definition file found there larger than this is refused
 
 #: a few standard service definitions, so that they work without a .srv file
 STANDARD_SERVICES = MappingProxyType({
@@ -74,6 +80,10 @@ STANDARD_SERVICES = MappingProxyType({
     "rcl_interfaces/srv/DescribeParameters": "string[] names\n---\n"
                                              "rcl_interfaces/msg/ParameterDescriptor[] descriptors\n",
     "rcl_interfaces/srv/GetParameterTypes": "string[] names\n---\nuint8[] types\n",
+    # and its logger services (rclpy's since Iron)
+    "rcl_interfaces/srv/GetLoggerLevels": "string[] names\n---\nrcl_interfaces/msg/LoggerLevel[] levels\n",
+    "rcl_interfaces/srv/SetLoggerLevels": "rcl_interfaces/msg/LoggerLevel[] levels\n---\n"
+                                          "rcl_interfaces/msg/SetLoggerLevelsResult[] results\n",
 })
 #: rmw_cyclonedds' cdds_request_header_t {uint64 guid; int64 seq}, as IDL members whose
 #: trailing ``_`` no ROS field name has (so they never clash with a request's fields)
@@ -106,13 +116,19 @@ class MessageTypes:
     """ROS 2 message definitions of one distro plus the user's, as Cyclone DDS IDL types.
 
     ``distro`` is ``humble``, ``iron``, ``jazzy`` (default) or ``kilted``; raises
-    ``ValueError`` for another. Thread-safe; types are built on first use and cached.
+    ``ValueError`` for another. ``prefix_path``: where unknown types are looked for (the
+    module docstring; ``os.pathsep``-separated, default ``AMENT_PREFIX_PATH``). Thread-safe;
+    types are built on first use and cached.
     """
 
-    def __init__(self, distro: str = "jazzy") -> None:
+    def __init__(self, distro: str = "jazzy", prefix_path: str | None = None) -> None:
         if distro not in DISTROS:
             raise ValueError(f"unknown ROS 2 distro {distro!r}: one of {', '.join(DISTROS)}")
         self.distro = distro
+        text = os.environ.get("AMENT_PREFIX_PATH", "") if prefix_path is None else prefix_path
+        #: the install prefixes whose ``share/PKG/msg|srv`` folders unknown types are looked for in
+        self.prefixes = tuple(Path(p) for p in text.split(os.pathsep) if p)[:MAX_PREFIXES]
+        self._looked: set[str] = set()  # types looked for there already (found or not)
         self._store = get_typestore(DISTROS[distro])
         self._lock = threading.RLock()
         self._structs: dict[str, _Struct] = {}
@@ -202,8 +218,37 @@ class MessageTypes:
             if name not in self._services and name in STANDARD_SERVICES:
                 self.add_srv(name, STANDARD_SERVICES[name])
             if name not in self._services:
-                raise UnknownTypeError(f"unknown ROS 2 service type {name!r}: add its .srv with add_srv")
+                self._look_up(name)
+            if name not in self._services:
+                raise UnknownTypeError(f"unknown ROS 2 service type {name!r}: add its .srv with add_srv (or its "
+                                       "package's install prefix to AMENT_PREFIX_PATH)")
             return self._services[name]
+
+    def _look_up(self, name: str) -> None:
+        """Add ``pkg/msg/Type`` (``pkg/srv/Type``) from its file under :attr:`prefixes`
+        when there is one (once per type). A file found there that is not a definition
+        raises ``UnknownTypeError`` naming it."""
+        with self._lock:
+            if name in self._looked or not self.prefixes:
+                return
+            self._looked.add(name)
+            try:
+                package, kind, short = split_type_name(name)
+            except ValueError:
+                return
+            if kind not in ("msg", "srv"):
+                return
+            for prefix in self.prefixes:
+                file = prefix / "share" / package / kind / f"{short}.{kind}"
+                try:
+                    if not file.is_file():
+                        continue
+                    if file.stat().st_size > MAX_FILE_BYTES:
+                        raise ValueError(f"larger than {MAX_FILE_BYTES} bytes")
+                    (self.add_srv_file if kind == "srv" else self.add_msg_file)(file, name)
+                except (OSError, UnicodeDecodeError, ValueError) as exc:
+                    raise UnknownTypeError(f"ROS 2 type {name!r}: {file}: {exc}") from None
+                return
 
     def type_hash(self, name: str) -> str | None:
         """The RIHS01 type hash rmw announces for ``name`` (Iron and later), else None."""
@@ -251,8 +296,11 @@ class MessageTypes:
     def _fields(self, name: str) -> list[tuple[str, Any]]:
         definition = self._store.fielddefs.get(name)
         if definition is None:
-            raise UnknownTypeError(
-                f"unknown ROS 2 message type {name!r} (ROS 2 {self.distro}): add its .msg with add_msg")
+            self._look_up(name)
+            definition = self._store.fielddefs.get(name)
+        if definition is None:
+            raise UnknownTypeError(f"unknown ROS 2 message type {name!r} (ROS 2 {self.distro}): add its .msg with "
+                                   "add_msg (or its package's install prefix to AMENT_PREFIX_PATH)")
         return list(definition[1])
 
     def _struct(self, name: str) -> _Struct:

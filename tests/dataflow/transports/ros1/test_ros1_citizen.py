@@ -97,6 +97,37 @@ def test_a_refused_launch_time_parameter_fails_the_launch(ros: RosMaster) -> Non
     assert "ROS parameter _gauge/ceiling:=50: refused: gauge.ceiling" in done.stderr, done.stderr
 
 
+def test_a_plain_private_parameter_at_launch_sets_the_one_task_that_has_it(ros: RosMaster) -> None:
+    proc, ns = deploy(ros, "plain", "_ceiling:=0.5")
+    try:
+        wait_until(lambda: rosparam(ros, "get", "/plain/gauge/ceiling") == "0.5", timeout=20)
+    finally:
+        stop(proc)
+    two = subprocess.run([sys.executable, "-m", "scart", "deploy", "support.ros1_tasks:Gauge@left",
+                          "support.ros1_tasks:Gauge@right", "_ceiling:=0.5", "--ns", f"127.0.0.1:{free_port()}",
+                          "--ros-master", ros.uri], capture_output=True, text=True, timeout=60, env=subprocess_env())
+    assert two.returncode == 1
+    assert "ROS parameter _ceiling: the tasks left, right have that property: name one" in two.stderr, two.stderr
+
+
+def test_a_plain_private_parameter_no_task_has_is_refused() -> None:
+    from dataflow.transports.ros1.citizen import apply_launch_params
+    from support.ros1_tasks import Gauge
+
+    with pytest.raises(ValueError, match=r"_nothing: no task has that property \(the tasks are gauge"):
+        apply_launch_params([Gauge()], {"nothing": 1})
+
+
+def test_use_sim_time_at_launch_makes_the_node_follow_clock(ros: RosMaster) -> None:
+    proc, _ = deploy(ros, "clocked", "_use_sim_time:=true")
+    try:
+        wait_until(lambda: " * /clock [" in ros.tool("rosnode", "info", "/clocked").stdout, timeout=20,
+                   message="the node does not follow /clock")
+        assert ros.tool("rosparam", "get", "/use_sim_time").returncode != 0  # the node's own, not the global one
+    finally:
+        stop(proc)
+
+
 def bag_of(path: Path, start_s: int, seconds: float, period: float = 0.05) -> Path:
     """A ROS 1 bag of ``seconds`` of std_msgs/String on /chatter from ``start_s`` (its time)."""
     from rosbags.rosbag1 import Writer

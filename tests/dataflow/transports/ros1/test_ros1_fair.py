@@ -77,6 +77,27 @@ def test_three_slow_xmlrpc_clients_leave_rostopic_echo_answered(ros: RosMaster, 
                 sock.close()
 
 
+def test_eight_slow_xmlrpc_clients_of_one_peer_leave_another_peers_echo_answered(ros: RosMaster,
+                                                                                types: MessageTypes) -> None:
+    with Node("shared", master_uri=ros.uri, types=types, limits=Limits(xmlrpc_seconds=60)) as node:
+        pub = node.advertise("/shared", "std_msgs/String", latch=True)
+        pub.publish(pub.type.new(data="half the pool is yours"))
+        assert node.wait_registered(10)
+        port = int(node.uri.rsplit(":", 1)[1].strip("/"))
+        slow = [socket.create_connection(("127.0.0.1", port), timeout=10, source_address=("127.0.0.2", 0))
+                for _ in range(8)]  # as many as the pool has workers, all from one peer address
+        try:
+            for sock in slow:
+                sock.sendall(b"POST / HTTP/1.0\r\nContent-Length: 500\r\n\r\n<?xml")
+            echo = ros.tool("rostopic", "echo", "-n", "1", "/shared", timeout=50)  # its requestTopic: 127.0.0.1
+            assert echo.returncode == 0, echo.stderr
+            assert 'data: "half the pool is yours"' in echo.stdout
+            assert all(still_open(sock) for sock in slow), "the slow clients were cut, not made to wait their turn"
+        finally:
+            for sock in slow:
+                sock.close()
+
+
 def test_a_thousand_idle_connections_from_one_peer_leave_another_peer_in(ros: RosMaster, types: MessageTypes) -> None:
     with Node("crowded", master_uri=ros.uri, types=types) as node:
         pub = node.advertise("/crowded", "std_msgs/String", latch=True)

@@ -163,6 +163,31 @@ def cli_subscribe(domain: int, dds_topic: str, publish: Callable[[], object]) ->
     return out, err
 
 
+def cli_read(domain: int, dds_topic: str, until: str, timeout: float = 30.0) -> str:
+    """``cyclonedds subscribe`` of ``dds_topic`` (a type it learns from DDS) until its output
+    holds ``until`` (else AssertionError after ``timeout`` s); that output."""
+    proc = subprocess.Popen([cyclonedds_cli(), "subscribe", "--id", str(domain), "--runtime", "1",
+                             "--suppress-progress-bar", "--color", "none", dds_topic],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=loopback_env({"COLUMNS": "400"}))
+    out, deadline = b"", time.monotonic() + timeout
+    try:
+        assert proc.stdout is not None
+        with selectors.DefaultSelector() as sel:
+            sel.register(proc.stdout.fileno(), selectors.EVENT_READ)
+            while until.encode() not in out and (left := deadline - time.monotonic()) > 0:
+                if not sel.select(timeout=left):
+                    break
+                chunk = os.read(proc.stdout.fileno(), 65536)
+                if not chunk:
+                    break
+                out += chunk
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=30)
+    assert until.encode() in out, (out.decode(errors="replace"), err.decode(errors="replace"))
+    return out.decode(errors="replace")
+
+
 def cyclonedds_cli() -> str:
     """The ``cyclonedds`` command beside this Python (the venv's)."""
     candidate = Path(sys.executable).parent / "cyclonedds"

@@ -7,6 +7,7 @@ this run's domain."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -134,6 +135,27 @@ def test_a_deployed_node_is_named_in_the_graph_serves_its_parameters_and_logs(on
             wait_until(lambda: any("refused" in m.msg for m in logged), timeout=15, message=f"{logged}")
             record = next(m for m in logged if "refused" in m.msg)
             assert record.name == "robot.pinger_node" and record.level == 30 and "pinger.gain" in record.msg
+    finally:
+        assert stop_process(proc) == 0
+
+
+def test_a_type_of_an_installed_package_is_found_through_ament_prefix_path(
+        on_domain: int, topic: str, tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from conftest import cli_read
+
+    share = tmp_path / "install" / "share" / "lab_msgs" / "msg"  # as colcon installs a package
+    share.mkdir(parents=True)
+    (share / "Count.msg").write_text("int64 data\nUnit unit  # a type of the same package, found too\n")
+    (share / "Unit.msg").write_text("string name\n")
+    monkeypatch.setenv("AMENT_PREFIX_PATH", f"{tmp_path / 'nothing'}{os.pathsep}{tmp_path / 'install'}")
+    ns = f"127.0.0.1:{free_port()}"
+    proc, _ = start_scart(["deploy", "support.remote:Pinger", "--period", "0.01", "--listen", ns])
+    try:
+        made = scart("stream", "pinger.ticks", f"ros2:{topic}", "--type", "lab_msgs/msg/Count", "--ns", ns,
+                     domain=on_domain)
+        assert made.returncode == 0, made.stderr
+        out = cli_read(on_domain, "rt" + topic, until="Count_(data=")  # the tool learns the type from DDS
+        assert "unit=Unit_(name='')" in out, out
     finally:
         assert stop_process(proc) == 0
 

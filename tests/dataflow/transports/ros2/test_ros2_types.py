@@ -162,3 +162,23 @@ def test_a_msg_file_names_itself_by_its_path(tmp_path) -> None:
     srv.write_text("bool now\n---\nbool stopped\n", encoding="utf-8")
     assert types.add_srv_file(srv) == "my_robot/srv/Stop"
     assert types.zero("my_robot/srv/Stop_Response").stopped is False
+
+
+def test_types_are_found_through_ament_prefix_path(tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
+    share = tmp_path / "install" / "share" / "lab_msgs"  # as colcon installs a package
+    (share / "msg").mkdir(parents=True)
+    (share / "srv").mkdir()
+    (share / "msg" / "Angle.msg").write_text("float64 radians\n")
+    (share / "msg" / "Pose2.msg").write_text("float64 x\nfloat64 y\nAngle theta\n")
+    (share / "srv" / "SetPose2.srv").write_text("Pose2 pose\n---\nbool ok\n")
+    (share / "msg" / "Broken.msg").write_text("float64[ x\n")
+    monkeypatch.setenv("AMENT_PREFIX_PATH", f"{tmp_path / 'elsewhere'}:{tmp_path / 'install'}")
+    types = MessageTypes()
+    pose = types.deserialize("lab_msgs/msg/Pose2", types.serialize("lab_msgs/msg/Pose2", {"theta": {"radians": 0.5}}))
+    assert pose.theta.radians == 0.5  # and lab_msgs/msg/Angle, which it uses
+    assert types.service("lab_msgs/srv/SetPose2") == ("lab_msgs/srv/SetPose2_Request", "lab_msgs/srv/SetPose2_Response")
+    with pytest.raises(UnknownTypeError, match="AMENT_PREFIX_PATH"):
+        types.fields("lab_msgs/msg/Missing")
+    with pytest.raises(UnknownTypeError, match="Broken.msg: lab_msgs/msg/Broken: bad definition"):
+        types.fields("lab_msgs/msg/Broken")
+    assert MessageTypes(prefix_path="").prefixes == ()
