@@ -67,6 +67,7 @@ import numpy as np  # noqa: E402
 from dataflow import (  # noqa: E402
     Array, ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, SequentialActivity, TaskContext,
 )
+from dataflow.activities import freeze_heap  # noqa: E402
 
 SIZES = {"1 MiB": 1 << 20, "6.2 MB": 6_220_800, "24.9 MB": 24_883_200}
 RATE = 30.0
@@ -120,6 +121,7 @@ def sink_child(name: str, kind: str, size: int, count: int, warmup: float, seque
     if topic:
         deployer.stream(f"{name}.inp", ConnPolicy.buffer(4).with_(transport="ros2", topic=topic), ros2_options())
     server = deployer.serve("127.0.0.1:0", ns=os.environ.get("BENCH_NS") or None)
+    freeze_heap()  # as scart deploy does once its tasks run
     print("ready", server.address, flush=True)
     last, seen = -1, time.monotonic()
     deadline = time.monotonic() + 600
@@ -172,6 +174,7 @@ def source_child(ns: str, sinks: list[str], kind: str, transport: str, size: int
             if transport != "ros2" and not wait_until(
                     lambda: sum(not lk.transport.endswith("?") for lk in system.links()) == len(sinks), 20):
                 raise SystemExit(f"the links did not come up over {transport}: {system.links()}")
+            freeze_heap()  # as scart deploy does once its tasks run
             on_time, period = [0], 1.0 / rate
             start = time.perf_counter()
 
