@@ -23,6 +23,8 @@ Three ways, tried in this order:
   ``sensor_msgs/Image`` (the default for those; its ``encoding`` must be the array's,
   ``rgb8``...). The array is copied once, into the message's bytes, when published, and
   read as a read-only view of the received bytes: numpy from end to end, never a list.
+* **one of rosbags' ROS 1 message classes** (:mod:`scart_wire.rosmsgs`) onto its own type,
+  the messages as they are (numpy fields and all).
 * **a pydantic model** onto a message **by field names**, recursively. Publishing, every
   field of the model needs a field of that name in the message (the message's others
   keep ROS's defaults, and a ``header`` the model lacks is stamped with the sample's write
@@ -48,6 +50,7 @@ import numpy
 import pydantic
 
 from scart_wire.arrays import ArraySpec
+from scart_wire.rosmsgs import is_message_class, message_type_name
 
 from .._rosarrays import ELEMENT, MULTI, array_in, flat_data, image_data, image_in, layout_dims
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
@@ -104,6 +107,8 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
     ``ros_type`` None: the default of a plain type — and the problems found (a Conversion
     only when there is no error). ``converter``: ``module:function``; ``frame_id``: the
     ``header.frame_id`` stamped on models without a header."""
+    if is_message_class(unwrap(py_type)):
+        return _message_plan(types_, unwrap(py_type), ros_type)
     name = ros_type or default_type(py_type)
     if not name:
         return None, [ConversionProblem(f"a port of type {type_label(py_type)} has no default ROS type: give the "
@@ -139,6 +144,22 @@ def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoin
         return _Planner(types_, outgoing, "").field(unwrap(py_type), fdef, 0)
     except Mismatch as exc:
         raise ValueError(str(exc)) from None
+
+
+# ---- rosbags' own messages ------------------------------------------------------------------
+def _message_plan(types_: MessageTypes, cls: Any, ros_type: str | None) -> tuple[Conversion | None,
+                                                                               list[ConversionProblem]]:
+    """A port typed with one of rosbags' ROS 1 message classes: its messages as they are
+    (arrays and all); the topic's type is the class's own."""
+    name = ros_type or cls.__msgtype__.replace("/msg/", "/")
+    try:
+        own = types_.msg(name).cls
+    except UnknownTypeError as exc:
+        return None, [ConversionProblem(str(exc))]
+    if own is not cls:
+        return None, [ConversionProblem(f"port type {message_type_name(cls)} is not ROS 1's {name} "
+                                        f"({message_type_name(own) if is_message_class(own) else own!r})")]
+    return Conversion(name, "message", to_ros=lambda value, _n, _t: value, from_ros=lambda msg: msg), []
 
 
 # ---- arrays ------------------------------------------------------------------------------

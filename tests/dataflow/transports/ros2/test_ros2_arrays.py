@@ -8,11 +8,14 @@ from __future__ import annotations
 
 import hashlib
 import tracemalloc
+from typing import Any
 
 import numpy as np
 import pytest
 
 pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pip install 'scart[ros2]')")
+
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from dataflow import Array, ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.transports import load  # noqa: E402
@@ -147,3 +150,54 @@ def test_a_6mb_image_and_a_multi_array_from_an_independent_peer_arrive_as_read_o
     assert grid.shape == (2, 4) and np.array_equal(grid, np.arange(8.0).reshape(2, 4)) and not grid.flags.writeable
     (listed,) = [lk for lk in deployer.links() if lk.sink == "viewer.image"]
     assert (listed.samples, listed.dropped) == (1, 0)
+
+
+ROS2 = get_typestore(Stores.ROS2_JAZZY)
+BagImage = ROS2.types["sensor_msgs/msg/Image"]
+
+
+def image(height: int, width: int, seed: int) -> Any:
+    """A rosbags Image of the peer's pattern() bytes."""
+    header = ROS2.types["std_msgs/msg/Header"](stamp=ROS2.types["builtin_interfaces/msg/Time"](sec=1, nanosec=2),
+                                               frame_id="camera")
+    return BagImage(header=header, height=height, width=width, encoding="rgb8", is_bigendian=0, step=width * 3,
+                    data=pattern(height * width * 3, seed))
+
+
+class BagCamera(TaskContext):
+    image = OutputPort(BagImage)
+
+
+class BagViewer(TaskContext):
+    image = InputPort(BagImage)
+
+    def newest(self) -> list[Any]:
+        flow, value = self.image.read()
+        return [value] if flow is FlowStatus.NEW_DATA else []
+
+
+@pytest.mark.integration
+def test_a_rosbags_image_port_is_a_ros2_topic_both_ways(domain: int, topic: str, stream_peer) -> None:
+    deployer = Deployer()
+    cam, viewer = deployer.add(BagCamera("cam")), deployer.add(BagViewer("viewer"))
+    try:
+        deployer.stream("cam.image", ConnPolicy.data().with_(transport="ros2", topic=topic + "/out"),
+                        {"domain": str(domain)})
+        deployer.stream("viewer.image", ConnPolicy.buffer(2).with_(transport="ros2", topic=topic + "/in"),
+                        {"domain": str(domain)})
+        reader = stream_peer("read", topic + "/out", "Image")
+        sent = image(480, 640, 3)
+        wait_until(lambda: cam.image.write(sent) and reader.poll("sample", timeout=0.5), timeout=20,
+                   message="the peer never read the image")
+        got = reader.events[-1]
+        assert (got["height"], got["width"], got["encoding"], got["frame_id"]) == (480, 640, "rgb8", "camera")
+        assert got["sha256"] == hashlib.sha256(sent.data.tobytes()).hexdigest()
+        stream_peer("write", topic + "/in", "Image",
+                    [{"height": 48, "width": 64, "encoding": "rgb8", "channels": 3, "seed": 3}]).next_event("acked")
+        (back,) = wait_until(viewer.newest, timeout=20, message="the peer's image never arrived")
+        assert type(back) is type(sent) and (back.height, back.width) == (48, 64)
+        assert np.array_equal(back.data, image(48, 64, 3).data) and isinstance(back.data, np.ndarray)
+    finally:
+        for name in list(deployer.streams()):
+            deployer.unstream(name)
+    assert load("ros2").participants() == {}
