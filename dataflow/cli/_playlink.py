@@ -20,6 +20,7 @@ from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy
 from dataflow.ports import OutputPort
 from dataflow.task import TaskContext
+from scart_wire import rosmsgs
 from scart_wire.arrays import array_spec
 from scart_wire.types import registry
 
@@ -31,9 +32,9 @@ SETTLE_S = 5.0  #: how long the first connection may take
 
 
 def on_data_plane(type_name: str) -> bool:
-    """Whether samples of a port of ``type_name`` go through a :class:`PlayLink`: arrays
-    and ``bytes``, the types of large samples (as ``auto`` picks ``shm`` for them)."""
-    return type_name == "bytes" or array_spec(type_name) is not None
+    """Whether samples of a port of ``type_name`` go through a :class:`PlayLink`: arrays,
+    ``bytes`` and rosbags' messages, the types of large samples (images, clouds)."""
+    return type_name == "bytes" or array_spec(type_name) is not None or type_name.startswith(rosmsgs.PREFIX)
 
 
 class _Source:
