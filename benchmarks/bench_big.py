@@ -19,8 +19,14 @@ task reads it (an event port's ``update_hook``). Alternating in each round:
 - **bare Cyclone DDS**: an ``IdlStruct`` of a stamp and a ``sequence<octet>``,
   cyclonedds-python both ends (1 MiB and 6.2 MB only: its Python serialiser takes a
   second for 25 MB), skipped without ``scart[ros2]``;
+- **scart, ros2 stream**: the array port published as a ROS 2 topic
+  (``std_msgs/msg/UInt8MultiArray``, CDR made by rosbags and written as bytes) and an
+  input port of the other process fed from it, skipped without ``scart[ros2]``;
 - **one copy**: ``bytearray(sample)`` of a sample of random bytes, in this process, at
   30 Hz as the hops (the floor a hop cannot beat in Python: the issue's 0.55 ms at 6.2 MB).
+
+**ROS 2's codec**: one 1080p RGB ``sensor_msgs/msg/Image`` to and from its CDR bytes,
+scart's way (rosbags) against Cyclone DDS's Python serialiser, and one copy.
 
 **The goals** (issue 35), from the same run:
 
@@ -61,6 +67,7 @@ import numpy as np  # noqa: E402
 from dataflow import (  # noqa: E402
     Array, ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, SequentialActivity, TaskContext,
 )
+from dataflow.activities import freeze_heap  # noqa: E402
 
 SIZES = {"1 MiB": 1 << 20, "6.2 MB": 6_220_800, "24.9 MB": 24_883_200}
 RATE = 30.0
@@ -68,6 +75,9 @@ RATE = 30.0
 SCART_HOPS = (("scart, default", "array", "auto"), ("scart, default, bytes port", "bytes", "auto"),
               ("scart, shm", "array", "shm"), ("scart, ipc", "array", "ipc"), ("scart, grpc", "array", "grpc"))
 SYSTEM_PYTHON = "/usr/bin/python3"
+ROS2_TOPIC = "/scart_bench_big"
+#: the ROS 2 stream hop (an array port published as a std_msgs/msg/UInt8MultiArray), with scart[ros2]
+ROS2_HOP = ("scart, ros2 stream (UInt8MultiArray)", "array", "ros2")
 STAMP = 8  # bytes of the stamp at the head of each sample
 
 
@@ -82,10 +92,11 @@ def _stamp_of(value: Any) -> int:
     return int.from_bytes(bytes(memoryview(value)[:STAMP]), "little")
 
 
-def sink_child(name: str, kind: str, size: int, count: int, warmup: float, sequential: bool) -> None:
-    """A subscriber process: serve a sink task ``name`` (an event port of the kind), say
-    where, and once ``count`` samples came (or 3 s of nothing) print the latencies (ns)
-    and how many it read; serve on until stdin closes."""
+def sink_child(name: str, kind: str, size: int, count: int, warmup: float, sequential: bool, topic: str = "") -> None:
+    """A subscriber process: serve a sink task ``name`` (an event port of the kind; fed
+    from the ROS 2 ``topic`` when one is given), say where, and once ``count`` samples came
+    (or 3 s of nothing) print the latencies (ns) and how many it read; serve on until
+    stdin closes."""
 
     class Sink(TaskContext):
         inp = InputPort(_port_type(kind, size), event=True)
@@ -107,7 +118,10 @@ def sink_child(name: str, kind: str, size: int, count: int, warmup: float, seque
         sink.set_activity(SequentialActivity())
     deployer.configure_all()
     deployer.start_all()
+    if topic:
+        deployer.stream(f"{name}.inp", ConnPolicy.buffer(4).with_(transport="ros2", topic=topic), ros2_options())
     server = deployer.serve("127.0.0.1:0", ns=os.environ.get("BENCH_NS") or None)
+    freeze_heap()  # as scart deploy does once its tasks run
     print("ready", server.address, flush=True)
     last, seen = -1, time.monotonic()
     deadline = time.monotonic() + 600
@@ -123,7 +137,14 @@ def sink_child(name: str, kind: str, size: int, count: int, warmup: float, seque
     print(json.dumps({"latencies": latencies, "read": len(reads)}), flush=True)
     sys.stdin.read()  # until the parent closes it
     server.stop()
+    for stream in list(deployer.streams()):
+        deployer.unstream(stream)
     deployer.stop_all()
+
+
+def ros2_options() -> dict[str, str]:
+    """The ROS 2 streams' options of this run (its DDS domain)."""
+    return {"domain": os.environ.get("BENCH_DOMAIN", "0")}
 
 
 def source_child(ns: str, sinks: list[str], kind: str, transport: str, size: int, rate: float, count: int,
@@ -142,11 +163,18 @@ def source_child(ns: str, sinks: list[str], kind: str, transport: str, size: int
     frames = [np.random.default_rng(k).integers(0, 255, size, dtype=np.uint8) for k in range(3)] if kind != "int" else []
     try:
         with connect(ns, timeout=5.0) as system:
-            for k, sink in enumerate(sinks):
+            if transport == "ros2":  # a ROS 2 topic between the two: the stream's reader matched, or nothing is read
+                deployer.stream("src.out", ConnPolicy.parse(policy).with_(transport="ros2", topic=ROS2_TOPIC),
+                                ros2_options())
+                if not wait_until(lambda: any(p.matched() for p in _ros2_publishers()), 20):
+                    raise SystemExit("the ROS 2 stream's reader never matched")
+            for k, sink in enumerate(sinks if transport != "ros2" else ()):
                 system.connect_ports("src.out", f"{sink}.inp", ConnPolicy.parse(policy).with_(transport=transport),
                                      name=f"hop{k}")
-            if not wait_until(lambda: sum(not lk.transport.endswith("?") for lk in system.links()) == len(sinks), 20):
+            if transport != "ros2" and not wait_until(
+                    lambda: sum(not lk.transport.endswith("?") for lk in system.links()) == len(sinks), 20):
                 raise SystemExit(f"the links did not come up over {transport}: {system.links()}")
+            freeze_heap()  # as scart deploy does once its tasks run
             on_time, period = [0], 1.0 / rate
             start = time.perf_counter()
 
@@ -166,20 +194,31 @@ def source_child(ns: str, sinks: list[str], kind: str, transport: str, size: int
         print(json.dumps({"on_time": on_time[0], "written": count, "links": links}), flush=True)
     finally:
         server.stop()
+        for stream in list(deployer.streams()):
+            deployer.unstream(stream)
+
+
+def _ros2_publishers() -> list[Any]:
+    from dataflow.transports import load
+
+    return [e for p in load("ros2").participants().values() for e in p._endpoints if hasattr(e, "publish")]
 
 
 def scart_hop(kind: str, transport: str, size: int, rate: float, count: int, warmup: float, readers: int = 1,
               policy: str = "buffer:4", sequential: bool = False) -> dict[str, Any]:
     """One scart hop (``readers`` sink processes): each reader's latencies (µs) and read
     count, the writer's on-time writes, and the links' counts."""
+    import random
+
     sinks: list[subprocess.Popen[str]] = []
+    domain = str(random.randint(1, 200))  # (ros2 only) a DDS domain of this hop's own
     try:
         ns = ""
         for k in range(readers):
-            env = dict(os.environ, BENCH_NS=ns)
+            env = dict(os.environ, BENCH_NS=ns, BENCH_DOMAIN=domain)
             proc = subprocess.Popen([sys.executable, __file__, "--sink", f"hop{k}", kind, str(size), str(count),
-                                     str(warmup), str(int(sequential))], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                    text=True, env=env)
+                                     str(warmup), str(int(sequential)), ROS2_TOPIC if transport == "ros2" else ""],
+                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
             sinks.append(proc)
             assert proc.stdout is not None
             line = proc.stdout.readline().split()
@@ -188,7 +227,8 @@ def scart_hop(kind: str, transport: str, size: int, rate: float, count: int, war
             ns = ns or line[1]
         done = subprocess.run([sys.executable, __file__, "--source", ns, ",".join(f"hop{k}" for k in range(readers)),
                                kind, transport, str(size), str(rate), str(count), policy],
-                              capture_output=True, text=True, timeout=count / rate + 180)
+                              capture_output=True, text=True, timeout=count / rate + 180,
+                              env=dict(os.environ, BENCH_DOMAIN=domain))
         if done.returncode != 0:
             raise RuntimeError(f"the scart source failed: {done.stderr[-2000:]}")
         source = json.loads(done.stdout.strip().splitlines()[-1])
@@ -407,18 +447,49 @@ def codec_rows(count: int) -> dict[str, float]:
     return {k: pct(v, 0.5) for k, v in times.items()}
 
 
+def ros2_codec_rows(count: int) -> dict[str, float]:
+    """Median ms to make and to read one 1080p RGB ``sensor_msgs/msg/Image`` sample's CDR
+    bytes: scart's ROS 2 array conversion (rosbags' CDR, written and taken as bytes) and
+    Cyclone DDS's own Python serialiser (an IDL ``sequence<uint8>``), at 30 Hz."""
+    from dataflow.transports.ros2 import MessageTypes
+    from dataflow.transports.ros2._convert import plan
+
+    types, spec = MessageTypes(), Array[np.uint8, (1080, 1920, 3)]
+    out, back = plan(types, spec, None, outgoing=True)[0], plan(types, spec, None, outgoing=False)[0]
+    assert out is not None and out.to_cdr is not None and back is not None and back.from_cdr is not None
+    frame = np.random.default_rng(0).integers(0, 255, (1080, 1920, 3), dtype=np.uint8)
+    data = bytes(out.to_cdr(frame, 0))
+    idl = types.idl_type("sensor_msgs/msg/Image")
+    sample = idl.deserialize(data)
+    times: dict[str, list[float]] = {}
+
+    def timed(label: str, fn: Any) -> Any:
+        def step(_: int) -> None:
+            t0 = time.perf_counter()
+            fn()
+            times.setdefault(label, []).append((time.perf_counter() - t0) * 1e3)
+        return step
+
+    paced(count, RATE, timed("scart: write (rosbags CDR)", lambda: out.to_cdr(frame, 0)))
+    paced(count, RATE, timed("scart: read (rosbags CDR)", lambda: back.from_cdr(data)))
+    paced(max(3, count // 10), RATE, timed("Cyclone DDS Python: serialise", lambda: sample.serialize(use_version_2=False)))
+    paced(max(3, count // 10), RATE, timed("Cyclone DDS Python: deserialise", lambda: idl.deserialize(data)))
+    paced(count, RATE, timed("one bytearray copy", lambda: bytearray(data)))
+    return {k: pct(v, 0.5) for k, v in times.items()}
+
+
 # ---- the run -------------------------------------------------------------------------------
 def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one round of 3 s hops")
     parser.add_argument("--smoke", action="store_true", help="one short round (proves every path works)")
-    parser.add_argument("--sink", nargs=6, help=argparse.SUPPRESS)
+    parser.add_argument("--sink", nargs=7, help=argparse.SUPPRESS)
     parser.add_argument("--source", nargs=8, help=argparse.SUPPRESS)
     parser.add_argument("--cyclone", nargs=6, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.sink:
-        name, kind, size, count, warmup, sequential = args.sink
-        sink_child(name, kind, int(size), int(count), float(warmup), sequential == "1")
+        name, kind, size, count, warmup, sequential, topic = args.sink
+        sink_child(name, kind, int(size), int(count), float(warmup), sequential == "1", topic)
         return 0
     if args.source:
         ns, sinks, kind, transport, size, rate, count, policy = args.source
@@ -464,6 +535,10 @@ def run(rounds: int, seconds: float, warmup: float, smoke: bool) -> None:
                     if cyclone and size <= SIZES["6.2 MB"] and not smoke:
                         rows.setdefault((size_label, "bare Cyclone DDS, sequence<octet>"), []).extend(
                             cyclone_hop(size, RATE, count, warmup))
+                    if cyclone and (size == SIZES["6.2 MB"] or not smoke):
+                        label, kind, transport = ROS2_HOP
+                        rows.setdefault((size_label, label), []).extend(
+                            scart_hop(kind, transport, size, RATE, count, warmup)["latencies"])
                     rows.setdefault((size_label, "one bytearray copy"), []).extend(one_copy(size, count))
             fan_count = int(60.0 * (seconds + warmup))
             extra["fan"] = scart_hop("array", "auto", SIZES["6.2 MB"], 60.0, fan_count, warmup, readers=3,
@@ -478,6 +553,8 @@ def run(rounds: int, seconds: float, warmup: float, smoke: bool) -> None:
             if peer is not None:
                 peer.__exit__()
     extra["codec"] = codec_rows(200 if smoke else 1000)
+    if cyclone:
+        extra["ros2_codec"] = ros2_codec_rows(3 if smoke else 30)
     print_tables(rows, extra, rounds, seconds, warmup)
 
 
@@ -493,6 +570,13 @@ def print_tables(rows: dict[tuple[str, str], list[float]], extra: dict[str, Any]
         ratio = (lambda base: f"{pct(values, 0.5) / pct(base, 0.5):.2f}×" if base else "—")
         print(f"| {size} | {hop} | {len(values)} | {pct(values, 0.5) / 1e3:.3f} | {pct(values, 0.99) / 1e3:.3f} | "
               f"{ratio(rospy)} | {ratio(copy)} |")
+    ros2_codec = extra.get("ros2_codec")
+    if ros2_codec:
+        print("\nROS 2: one 1080p RGB sensor_msgs/msg/Image (6.2 MB) to and from its CDR bytes, median at 30 Hz\n")
+        print("| step | ms | / one copy |")
+        print("|---|---|---|")
+        for label, ms in ros2_codec.items():
+            print(f"| {label} | {ms:.3f} | {ms / ros2_codec['one bytearray copy']:.1f}× |")
     print("\n| goal (issue 35) | measured | met |")
     print("|---|---|---|")
 

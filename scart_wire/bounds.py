@@ -31,6 +31,7 @@ from typing import Annotated, Any
 
 import pydantic
 
+from . import rosmsgs
 from .errors import PortTypeError, PortValueError
 
 __all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "non_finite",
@@ -96,6 +97,8 @@ def _may_hold_floats(hint: Any, depth: int = 0) -> bool:
         return any(_may_hold_floats(a, depth + 1) for a in typing.get_args(hint) if a is not Ellipsis) \
             or not typing.get_args(hint)
     if isinstance(hint, type):
+        if rosmsgs.is_message_class(hint):  # ROS's own: a NaN means what ROS says (an invalid point), as in arrays
+            return False
         if issubclass(hint, pydantic.BaseModel):
             annotations: list[Any] = [f.annotation for f in hint.model_fields.values()]  # any type form
             return any(_may_hold_floats(a, depth + 1) for a in annotations)

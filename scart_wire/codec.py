@@ -32,6 +32,7 @@ from typing import Any
 import pydantic
 import pydantic_core
 
+from scart_wire import rosmsgs
 from scart_wire.arrays import ArraySpec
 from scart_wire.errors import PortTypeError
 from scart_wire.proto.scart.dataflow.v1.value_pb2 import Value
@@ -128,10 +129,10 @@ def decode(msg: Value | Payload) -> Any:
 
     Raises :class:`~scart_wire.errors.PortTypeError` when the bytes do not fit their type name."""
     if type(msg) is Payload:
-        spec = registry.python_type(msg.type_name)
-        if isinstance(spec, ArraySpec):
-            try:
-                return spec.decode(msg.data)
+        spec: Any = registry.python_type(msg.type_name)
+        if isinstance(spec, ArraySpec) or rosmsgs.is_message_class(spec):
+            try:  # a view of the buffer: no copy
+                return spec.decode(msg.data) if isinstance(spec, ArraySpec) else rosmsgs.decode(spec, msg.data)
             except ValueError as exc:
                 raise PortTypeError(f"cannot decode {msg.type_name}: {exc}") from None
         msg = Value(type_name=msg.type_name, data=bytes(msg.data))

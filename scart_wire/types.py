@@ -38,6 +38,7 @@ from typing import Any, TypeVar
 import pydantic
 import pydantic_core
 
+from . import rosmsgs
 from .arrays import ArraySpec, array_spec
 from .errors import PortTypeError
 
@@ -186,12 +187,16 @@ class TypeRegistry:
             return name
         if isinstance(py_type, ArraySpec):
             return py_type.name
+        if rosmsgs.is_message_class(py_type):
+            return rosmsgs.message_type_name(py_type)
         return getattr(py_type, "__qualname__", None) or repr(py_type)
 
     def python_type(self, name: str) -> Any | None:
         """The Python type registered as ``name`` (or the array type it names), or None."""
         found = self._by_name.get(name)
-        return found if found is not None else array_spec(name)
+        if found is not None:
+            return found
+        return rosmsgs.message_class(name) if name.startswith(rosmsgs.PREFIX) else array_spec(name)
 
     def names(self) -> list[str]:
         """Every registered type name (sorted)."""
@@ -236,6 +241,8 @@ class TypeRegistry:
 
     def validate(self, py_type: Any, value: Any) -> Any:
         """Coerce ``value`` to ``py_type`` (pydantic lax mode) or raise ``PortTypeError``."""
+        if rosmsgs.is_message_class(py_type):
+            return value if isinstance(value, py_type) else self.from_jsonable(py_type, value)
         try:
             return self._adapter(py_type).validate_python(value)
         except pydantic.ValidationError as exc:
@@ -259,6 +266,8 @@ class TypeRegistry:
             return [self.to_jsonable(v) for v in value]
         if isinstance(value, dict):
             return {str(k): self.to_jsonable(v) for k, v in value.items()}
+        if rosmsgs.is_message_class(type(value)):
+            return rosmsgs.to_jsonable(value)
         return value
 
     def from_jsonable(self, py_type_or_name: Any, obj: Any) -> Any:
@@ -277,6 +286,11 @@ class TypeRegistry:
                 return base64.b64decode(obj, validate=True)
             except ValueError:
                 raise PortTypeError(f"expected base64 text for bytes, got {obj!r:.60}") from None
+        if rosmsgs.is_message_class(py_type):
+            try:
+                return rosmsgs.from_jsonable(py_type, obj)
+            except (ValueError, TypeError) as exc:
+                raise PortTypeError(f"expected {self.type_name(py_type)}: {exc}") from None
         return self.validate(py_type, obj)
 
     # -- wire ----------------------------------------------------------------
@@ -309,6 +323,13 @@ class TypeRegistry:
             return Encoded(name, struct.pack(f"<{len(value)}q", *value))
         if isinstance(py_type, ArraySpec):
             return Encoded(name, py_type.encode(py_type.check(value)))
+        if rosmsgs.is_message_class(py_type):
+            if type(value) is not py_type:
+                raise PortTypeError(f"expected {name}, got {type(value).__name__}")
+            try:
+                return Encoded(name, rosmsgs.encode(value))
+            except ValueError as exc:
+                raise PortTypeError(f"cannot encode {name}: {exc}") from None
         return Encoded(name, pydantic_core.to_json(self._adapter(py_type).dump_python(value), inf_nan_mode="constants"))
 
     @staticmethod
@@ -350,6 +371,8 @@ class TypeRegistry:
                 return list(struct.unpack(f"<{len(data) // 8}q", data))
             if isinstance(py_type, ArraySpec):
                 return py_type.decode(data)
+            if rosmsgs.is_message_class(py_type):
+                return rosmsgs.decode(py_type, data)
             if _is_model(py_type):
                 value = py_type.model_validate_json(data)
                 self._models[type_name] = py_type.__pydantic_validator__.validate_json  # built now: the same check

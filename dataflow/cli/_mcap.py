@@ -45,8 +45,9 @@ __all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "MAX_RATIO"
            "McapError", "McapScan", "Sink", "decode_json", "open_output", "output_problem"]
 
 MAGIC = b"\x89MCAP0\r\n"
-MAX_MESSAGE_BYTES = 4 << 20
 MAX_CHUNK_BYTES = 64 << 20  #: a chunk's uncompressed size, at most
+#: A message's size, at most: a chunk's (a recorded 1080p RGB frame is 8.3 MB of JSON).
+MAX_MESSAGE_BYTES = MAX_CHUNK_BYTES
 MAX_RECORD_BYTES = MAX_CHUNK_BYTES + (1 << 20)  #: a record of the file (a chunk and its header), at most
 MAX_JSON_DEPTH = 64
 MAX_RATIO = 1000  #: bytes decompressed per byte of the file, at most (a chunk, and all of them together)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import grpc
 
@@ -38,8 +38,9 @@ from dataflow.transports.sinks import LINGER_S, IncomingLink, Sinks
 
 if TYPE_CHECKING:
     from dataflow.remote.server import DeployerServer
+    from scart_wire.security import Security
 
-__all__ = ["LinkKeeper", "PEER_FAILURES", "RemoteLink", "SOURCE_GONE"]
+__all__ = ["LinkKeeper", "LinkSource", "PEER_FAILURES", "RemoteLink", "SOURCE_GONE"]
 
 log = logging.getLogger(__name__)
 
@@ -52,12 +53,24 @@ SOURCE_GONE = "its source's deployer is gone; the sink waits for it to come back
 CLOSE_S = LINGER_S + 1.0  #: how long closing a link waits for the sink's last report
 
 
+class LinkSource(Protocol):
+    """What a link asks of the side of its source: a deployer's server, or ``scart play``'s
+    process (``boot_id``: its process's, for the sink; ``resolve``: a task's address)."""
+
+    boot_id: str
+    security: Security
+    ns_timeout: float
+    ns_address: str
+
+    def resolve(self, component: str) -> str: ...
+
+
 class RemoteLink:
     """An output port of this deployer feeding an input port of another (see the module
     docstring). ``resume``: count every write of this process (the link is made again
     after this deployer restarted), not only those after the link was made."""
 
-    def __init__(self, server: DeployerServer, out: Any, sink_task: str, sink_port: str, policy: ConnPolicy,
+    def __init__(self, server: LinkSource, out: Any, sink_task: str, sink_port: str, policy: ConnPolicy,
                  name: str, serial: int, *, resume: bool = False) -> None:
         self.server = server
         self.out = out

@@ -43,6 +43,12 @@ WRITER_IDLE_S = 60.0  #: a remote writer unused this long is reclaimed (its clie
 WRITERS_PER_PORT = 2_048  #: remote writers open on one input port, at most
 WRITERS_PER_PEER = 2_048  #: remote writers one peer may have open, at most
 MAX_WRITERS = 8_192  #: remote writers open on one deployer, at most
+#: A port's last value larger than this (encoded) is left out of DescribeTask, whose reply
+#: must stay under gRPC's 4 MiB: a camera's frame is read by subscribing (shm, on one host).
+MAX_DESCRIBED_VALUE = 512 << 10
+#: A port's last value larger than this (encoded) is refused by ReadPort (RESOURCE_EXHAUSTED,
+#: saying so) rather than failing at gRPC's 4 MiB bound with no word of why.
+MAX_READ_VALUE = (4 << 20) - (64 << 10)
 
 _TRANSITIONS = MappingProxyType({
     pb.Transition.Value("TRANSITION_CONFIGURE"): "configure",
@@ -289,8 +295,10 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                     port = task.port(p.name)
                     last = port.last_written_value()
                     if last is not None:
-                        info.last_value.CopyFrom(codec.encode(last, port.type))
-                        info.has_last_value = True
+                        value = codec.encode(last, port.type)
+                        if value.ByteSize() <= MAX_DESCRIBED_VALUE:
+                            info.last_value.CopyFrom(value)
+                            info.has_last_value = True
                 ports.append(info)
             props = [
                 pb.PropertyInfo(name=p.name, type_name=p.type_name, json_value=json.dumps(p.value), doc=p.doc,
@@ -400,8 +408,12 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
                 if seen.written != written:  # a write since the last read: stamp it now
                     seen.written, seen.stamp = written, time.time_ns()
                 stamp = seen.stamp
+            encoded = codec.encode(value, port.type)
+            if encoded.ByteSize() > MAX_READ_VALUE:
+                raise Abort("RESOURCE_EXHAUSTED", f"{request.task}.{port.name}'s last value is {encoded.ByteSize()} "
+                            f"bytes, more than a read carries ({MAX_READ_VALUE}): subscribe to it")
             return pb.ReadPortResponse(
-                flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=codec.encode(value, port.type),
+                flow_status=cv.flow_to_msg(FlowStatus.NEW_DATA), value=encoded,
                 sequence=written, source_time_ns=stamp, boot_id=self.owner.boot_id,
             )
         except Exception as exc:  # noqa: BLE001

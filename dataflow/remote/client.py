@@ -386,7 +386,11 @@ class GrpcComponentProxy(ComponentProxy):
         if policy.wait is not WaitMode.NO_WAIT:  # said, never dropped on the way
             raise ValueError(f"policy {policy}: a subscription's writer never waits for it (a link's may: "
                              "connect the port to an input port)")
-        self.read_sample(port)  # raises now for an unknown port or an input port
+        try:
+            self.read_sample(port)  # raises now for an unknown port or an input port
+        except errors.RemoteError as exc:
+            if exc.code != "RESOURCE_EXHAUSTED":  # a value too large to read: the port is there
+                raise
         with self._lock:
             self._seen.pop(port, None)
         return GrpcSubscription(self, port, observer, policy, period, on_gap)

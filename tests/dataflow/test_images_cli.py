@@ -70,6 +70,31 @@ def test_record_keeps_an_image_as_a_raw_image_and_play_writes_it_back(eye, tmp_p
         stop_process(album, signal.SIGKILL)
 
 
+def test_a_recorded_1080p_frame_is_played_back_whole_over_the_data_plane(tmp_path) -> None:
+    """A 6.2 MB frame is 8.3 MB of JSON in the file, over the control plane's 4 MiB: play
+    writes such a port's samples through a link of its own (shm on one host)."""
+    cam, line = start_scart(["deploy", "support.remote:HdCam", "--name", "hdcam", "--period", "0.2",
+                             "--listen", "127.0.0.1:0"])
+    album = None
+    try:
+        ns = address_of(line)
+        out = tmp_path / "hd.mcap"
+        result = run("record", "hdcam.image", "-o", str(out), "-n", "2", "--ns", ns)
+        assert result.returncode == 0, result.stderr
+        album, _ = start_scart(["deploy", "support.remote:HdAlbum", "--name", "album", "--ns", ns])
+        result = run("play", str(out), "--rate", "5", "--remap", "hdcam.image:=album.image", "--ns", ns)
+        assert result.returncode == 0, result.stderr
+        assert "played 2 sample(s)" in result.stdout, result.stdout
+        with connect(ns, timeout=5.0) as system:
+            kept = wait_until(lambda: system.component("album").call("firsts"), timeout=10)
+            assert len(kept) == 2 and kept[1] == (kept[0] + 1) % 256  # two whole frames, in order
+            assert not [lk for lk in system.links() if lk.sink == "album.image"]  # play's link went with it
+    finally:
+        for proc in (album, cam):
+            if proc is not None:
+                stop_process(proc, signal.SIGKILL)
+
+
 def test_foxglove_shows_an_image_port_as_a_raw_image(eye) -> None:
     proc = subprocess.Popen([sys.executable, "-m", "scart", "foxglove", "--port", "0", "--ns", eye, "--duration", "60"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=subprocess_env(), bufsize=0)

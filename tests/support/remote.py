@@ -205,6 +205,29 @@ class Album(TaskContext):
                 self.kept.append(int(image[0, 0, 0]))
 
 
+FULL_HD = Array[np.uint8, (1080, 1920, 3)]
+
+
+class HdCam(TaskContext):
+    """Writes a 1080p RGB image (6.2 MB) each cycle: every byte the cycle number (mod 256)."""
+
+    image = OutputPort(FULL_HD, doc="one frame per cycle")
+
+    def __init__(self, name: str = "hdcam") -> None:
+        super().__init__(name)
+        self.count = 0
+
+    def update_hook(self) -> None:
+        self.count += 1
+        self.image.write(np.full((1080, 1920, 3), self.count % 256, dtype=np.uint8))
+
+
+class HdAlbum(Album):
+    """An :class:`Album` of 1080p RGB images."""
+
+    image = InputPort(FULL_HD, event=True, doc="kept")
+
+
 class Burst(TaskContext):
     """Writes ``n`` samples of ``size`` bytes at once on ``out`` when asked (``burst(n, size)``)."""
 

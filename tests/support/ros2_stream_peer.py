@@ -13,15 +13,18 @@ prints each sample of ``rt<TOPIC>`` (``{"event": "sample", ...fields}``).
 
 ``python ros2_stream_peer.py write DOMAIN TOPIC TYPE JSON [--seconds S]`` waits for a
 reader, writes each value of the JSON list (a number for Float64/Int64, an object of
-fields for JointState, a list for Float64MultiArray; ``{"$repeat": [item, n]}`` stands for
-``n`` items), 20 ms apart, prints ``wrote``, then
+fields for JointState, a list (or ``{"data", "dim"}``) for a multi-array, ``{"height",
+"width", "encoding", "channels", "seed"}`` for an Image of :func:`pattern` bytes;
+``{"$repeat": [item, n]}`` stands for ``n`` items), 20 ms apart, prints ``wrote``, then
 waits for the readers to acknowledge them. ``TYPE``: ``Float64``, ``Int64``,
-``JointState``, ``Float64MultiArray``.
+``JointState``, ``Float64MultiArray``, ``Float32MultiArray``, ``Image`` (an image read is
+printed as its fields and the SHA-256 of its data, not its bytes).
 """
 
 # (no "from __future__ import annotations": cyclonedds reads the annotations as objects)
 
 import argparse
+import hashlib
 import json
 import sys
 import time
@@ -63,7 +66,32 @@ class Float64MultiArray_(IdlStruct, typename="std_msgs::msg::dds_::Float64MultiA
     data: t.sequence[t.float64]
 
 
-TYPES = {"Float64": Float64_, "Int64": Int64_, "JointState": JointState_, "Float64MultiArray": Float64MultiArray_}
+@dataclass
+class Float32MultiArray_(IdlStruct, typename="std_msgs::msg::dds_::Float32MultiArray_"):
+    layout: MultiArrayLayout_
+    data: t.sequence[t.float32]
+
+
+@dataclass
+class Image_(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
+    header: Header_
+    height: t.uint32
+    width: t.uint32
+    encoding: str
+    is_bigendian: t.uint8
+    step: t.uint32
+    data: t.sequence[t.uint8]
+
+
+TYPES = {"Float64": Float64_, "Int64": Int64_, "JointState": JointState_, "Float64MultiArray": Float64MultiArray_,
+         "Float32MultiArray": Float32MultiArray_, "Image": Image_}
+ARRAYS = (Float64MultiArray_, Float32MultiArray_)
+
+
+def pattern(size: int, seed: int) -> bytes:
+    """``size`` bytes that the test makes too: byte i is (i * seed + seed) % 251."""
+    return bytes((i * seed + seed) % 251 for i in range(251)) * (size // 251) + \
+        bytes((i * seed + seed) % 251 for i in range(size % 251))
 
 
 def qos(depth: int, latched: bool) -> Qos:
@@ -76,7 +104,14 @@ def fields(sample: object) -> dict:
         return {"sec": sample.header.stamp.sec, "nanosec": sample.header.stamp.nanosec,
                 "frame_id": sample.header.frame_id, "name": list(sample.name), "position": list(sample.position),
                 "velocity": list(sample.velocity), "effort": list(sample.effort)}
-    return {"data": list(sample.data) if isinstance(sample, Float64MultiArray_) else sample.data}
+    if isinstance(sample, Image_):
+        return {"height": sample.height, "width": sample.width, "encoding": sample.encoding, "step": sample.step,
+                "is_bigendian": sample.is_bigendian, "frame_id": sample.header.frame_id, "bytes": len(sample.data),
+                "sha256": hashlib.sha256(bytes(sample.data)).hexdigest()}
+    if isinstance(sample, ARRAYS):
+        return {"data": list(sample.data), "dim": [[d.label, d.size, d.stride] for d in sample.layout.dim],
+                "data_offset": sample.layout.data_offset}
+    return {"data": sample.data}
 
 
 def read(dp: DomainParticipant, topic: Topic, args: argparse.Namespace) -> None:
@@ -108,8 +143,16 @@ def make(cls: type, value: object) -> object:
         v = dict(value)
         header = Header_(stamp=Time_(sec=v.pop("sec", 0), nanosec=v.pop("nanosec", 0)), frame_id=v.pop("frame_id", ""))
         return JointState_(header=header, **{k: v.get(k, []) for k in ("name", "position", "velocity", "effort")})
-    if cls is Float64MultiArray_:
-        return Float64MultiArray_(layout=MultiArrayLayout_(dim=[], data_offset=0), data=list(value))
+    if cls in ARRAYS:  # a list, or {"data": [...], "dim": [[label, size, stride], ...]}
+        v = value if isinstance(value, dict) else {"data": value}
+        dims = [MultiArrayDimension_(label=a, size=b, stride=c) for a, b, c in v.get("dim", [])]
+        return cls(layout=MultiArrayLayout_(dim=dims, data_offset=0), data=list(v["data"]))
+    if cls is Image_:  # {"height", "width", "encoding", "channels", "seed"}: pattern() bytes
+        v = dict(value)
+        step = v["width"] * v["channels"]
+        return Image_(header=Header_(stamp=Time_(sec=1, nanosec=2), frame_id="camera"), height=v["height"],
+                      width=v["width"], encoding=v["encoding"], is_bigendian=0, step=step,
+                      data=pattern(step * v["height"], v["seed"]))
     return cls(data=value)
 
 

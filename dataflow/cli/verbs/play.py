@@ -8,7 +8,12 @@ port may be named ``/COMP/PORT`` too. A pause longer than ``--max-gap`` seconds 
 file (default :data:`DEFAULT_MAX_GAP`) is shortened to it, and said. The file is read
 with the bounds of :mod:`dataflow.cli._mcap`: a message that is too large, not JSON or
 nested too deeply is skipped and counted, a malformed or truncated file is said in one
-line. The exit code is 1 when anything was not played (skipped, refused, a bad file)."""
+line. The exit code is 1 when anything was not played (skipped, refused, a bad file).
+
+The samples of an array or ``bytes`` port (a camera's frames, over the control plane's
+4 MiB once large) go through a link of play's own from its process to the port, as a link
+between deployers does (:mod:`dataflow.cli._playlink`: shm on one host); every other
+sample is written through the control plane."""
 
 from __future__ import annotations
 
@@ -20,6 +25,7 @@ import time
 from typing import Any
 
 from dataflow.cli.output import add_common, dump, err, out, stopped_by_signals, with_system
+from dataflow.errors import DataflowError
 from dataflow.remote.api import split_port
 
 HELP = "replay an MCAP file into input ports"
@@ -112,6 +118,7 @@ def _play(args: argparse.Namespace) -> int:
     pace = _Pace(args.rate, args.max_gap, args.file)
     scan = McapScan(args.file)
     proxies: dict[str, Any] = {}
+    args.links = {}  # target -> its PlayLink, or None: through the control plane
     done = threading.Event()
     problem = ""
     with stopped_by_signals(done):
@@ -131,6 +138,8 @@ def _play(args: argparse.Namespace) -> int:
                 _write(args, proxies, topic, data, tally, said)
         except McapError as exc:
             problem = str(exc)
+        finally:
+            _close_links(args, tally)
     return _report(args, tally, seen, scan, pace, problem)
 
 
@@ -154,18 +163,49 @@ def _write(args: argparse.Namespace, proxies: dict[str, Any], topic: str, data: 
         proxies[task] = args.system.component(task)
     value = data["value"] if set(data) == {"value"} else data
     try:
-        status = proxies[task].write_json(port, value)
-    except (ValueError, TypeError) as exc:  # refused by the port or the task: counted, said once per port
+        link = _link_for(args, proxies[task], target)
+        status = link.write(value) if link is not None else proxies[task].write_json(port, value).name
+    except (ValueError, TypeError, DataflowError) as exc:  # refused by the port or the task: counted, said once
         if target not in said:
             err(f"play: {target}: {exc}")
             said.add(target)
         tally["refused"] += 1
         return
-    if status.name != "WRITE_SUCCESS":
-        err(f"play: {target}: {status.name}")
+    if status != "WRITE_SUCCESS":
+        err(f"play: {target}: {status}")
         tally["refused"] += 1
         return
     tally["written"] += 1
+
+
+def _link_for(args: argparse.Namespace, proxy: Any, target: str) -> Any:
+    """The :class:`~dataflow.cli._playlink.PlayLink` that carries ``target``'s samples (made
+    at its first sample), or None when the control plane does (a port of another type
+    than an array or ``bytes``). Raises ``DataflowError`` when the link cannot be made."""
+    if target in args.links:
+        return args.links[target]
+    from dataflow.cli._playlink import PlayLink, on_data_plane
+
+    task, port = split_port(target)
+    found = proxy.ports().get(port)
+    type_name = found.type_name if found is not None else ""
+    args.links[target] = None
+    if on_data_plane(type_name):
+        args.links[target] = PlayLink(args.system, task, port, type_name, len(args.links))
+    return args.links[target]
+
+
+def _close_links(args: argparse.Namespace, tally: dict[str, int]) -> None:
+    """Undo play's links once what they carry is delivered; what a sink did not take
+    (its buffer full) moves from written to refused, and is said."""
+    for target, link in getattr(args, "links", {}).items():
+        if link is None:
+            continue
+        lost = min(link.close(), tally["written"])
+        if lost:
+            err(f"play: {target}: {lost} sample(s) not delivered (the port's buffer was full)")
+            tally["written"] -= lost
+            tally["refused"] += lost
 
 
 def _report(args: argparse.Namespace, tally: dict[str, int], seen: set[str], scan: Any, pace: _Pace,

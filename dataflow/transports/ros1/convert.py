@@ -23,6 +23,8 @@ Three ways, tried in this order:
   ``sensor_msgs/Image`` (the default for those; its ``encoding`` must be the array's,
   ``rgb8``...). The array is copied once, into the message's bytes, when published, and
   read as a read-only view of the received bytes: numpy from end to end, never a list.
+* **one of rosbags' ROS 1 message classes** (:mod:`scart_wire.rosmsgs`) onto its own type,
+  the messages as they are (numpy fields and all).
 * **a pydantic model** onto a message **by field names**, recursively. Publishing, every
   field of the model needs a field of that name in the message (the message's others
   keep ROS's defaults, and a ``header`` the model lacks is stamped with the sample's write
@@ -48,7 +50,9 @@ import numpy
 import pydantic
 
 from scart_wire.arrays import ArraySpec
+from scart_wire.rosmsgs import is_message_class, message_type_name
 
+from .._rosarrays import ELEMENT, MULTI, array_in, flat_data, image_data, image_in, layout_dims
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
                         item_type, model_fields, resolve_converter, type_label, unwrap)
 from .msgs import FieldDef, MessageTypes, UnknownTypeError
@@ -103,6 +107,8 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
     ``ros_type`` None: the default of a plain type — and the problems found (a Conversion
     only when there is no error). ``converter``: ``module:function``; ``frame_id``: the
     ``header.frame_id`` stamped on models without a header."""
+    if is_message_class(unwrap(py_type)):
+        return _message_plan(types_, unwrap(py_type), ros_type)
     name = ros_type or default_type(py_type)
     if not name:
         return None, [ConversionProblem(f"a port of type {type_label(py_type)} has no default ROS type: give the "
@@ -140,15 +146,25 @@ def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoin
         raise ValueError(str(exc)) from None
 
 
+# ---- rosbags' own messages ------------------------------------------------------------------
+def _message_plan(types_: MessageTypes, cls: Any, ros_type: str | None) -> tuple[Conversion | None,
+                                                                               list[ConversionProblem]]:
+    """A port typed with one of rosbags' ROS 1 message classes: its messages as they are
+    (arrays and all); the topic's type is the class's own."""
+    name = ros_type or cls.__msgtype__.replace("/msg/", "/")
+    try:
+        own = types_.msg(name).cls
+    except UnknownTypeError as exc:
+        return None, [ConversionProblem(str(exc))]
+    if own is not cls:
+        return None, [ConversionProblem(f"port type {message_type_name(cls)} is not ROS 1's {name} "
+                                        f"({message_type_name(own) if is_message_class(own) else own!r})")]
+    return Conversion(name, "message", to_ros=lambda value, _n, _t: value, from_ros=lambda msg: msg), []
+
+
 # ---- arrays ------------------------------------------------------------------------------
 IMAGE = "sensor_msgs/Image"
-_MULTI = MappingProxyType({"float64": "std_msgs/Float64MultiArray", "float32": "std_msgs/Float32MultiArray",
-                           "int64": "std_msgs/Int64MultiArray", "int32": "std_msgs/Int32MultiArray",
-                           "int16": "std_msgs/Int16MultiArray", "int8": "std_msgs/Int8MultiArray",
-                           "uint64": "std_msgs/UInt64MultiArray", "uint32": "std_msgs/UInt32MultiArray",
-                           "uint16": "std_msgs/UInt16MultiArray", "uint8": "std_msgs/UInt8MultiArray"})
-#: ROS's element types as numpy's (an array port's element type must be the field's own)
-_ELEMENT = MappingProxyType({"byte": "int8", "char": "uint8", "bool": "bool"})
+_MULTI = MappingProxyType({dtype: f"std_msgs/{short}" for dtype, short in MULTI.items()})
 
 
 def _array_plan(types_: MessageTypes, spec: ArraySpec, name: str, outgoing: bool,
@@ -162,8 +178,8 @@ def _array_plan(types_: MessageTypes, spec: ArraySpec, name: str, outgoing: bool
                                             f"uint8, uint16 or float32): it cannot be a {name}")]
         if outgoing:
             return Conversion(name, "image", to_ros=_image_out(types_, spec, name, frame_id)), []
-        return Conversion(name, "image", from_ros=_image_in(spec)), []
-    if data is None or data.array is None or data.is_message or _ELEMENT.get(data.type, data.type) != spec.dtype:
+        return Conversion(name, "image", from_ros=image_in(spec)), []
+    if data is None or data.array is None or data.is_message or ELEMENT.get(data.type, data.type) != spec.dtype:
         found = f"{data.type}[]" if data is not None and data.array is not None else "no data array"
         return None, [ConversionProblem(f"{spec.name} maps onto a message whose 'data' is an array of {spec.dtype} "
                                         f"({_MULTI.get(spec.dtype, 'std_msgs/...MultiArray')}), not {name} "
@@ -173,40 +189,19 @@ def _array_plan(types_: MessageTypes, spec: ArraySpec, name: str, outgoing: bool
     if outgoing:
         dim_cls = types_.msg("std_msgs/MultiArrayDimension").cls if layout else None
         layout_cls = types_.msg("std_msgs/MultiArrayLayout").cls if layout else None
-        cls, count = msgtype.cls, data.array or 0
+        cls, count, label = msgtype.cls, data.array or 0, data.type
         rest = {f: v for f, v in ((f.name, getattr(msgtype.new(), f.name)) for f in fields.values())
                 if f not in ("data", "layout")}
 
         def to_ros(value: Any, _n: int, _t: int) -> object:
-            flat = value.reshape(-1)  # a view of a contiguous array: the one copy is rosbags'
-            if count and flat.size != count:
-                raise ValueError(f"{flat.size} values for a {data.type}[{count}]")
+            flat = flat_data(value, count, label)  # a view: the one copy is rosbags'
             if layout_cls is None:
                 return cls(**rest, data=flat)
-            strides = [int(numpy.prod(value.shape[k:])) for k in range(value.ndim)]
             dims = [dim_cls(label=f"dim{k}", size=size, stride=stride)  # type: ignore[misc]  # set with layout_cls
-                    for k, (size, stride) in enumerate(zip(value.shape, strides))]
+                    for k, (size, stride) in enumerate(layout_dims(value))]
             return cls(**rest, layout=layout_cls(dim=dims, data_offset=0), data=flat)
         return Conversion(name, "array", to_ros=to_ros), []
-    return Conversion(name, "array", from_ros=_array_in(spec, layout)), []
-
-
-def _array_in(spec: ArraySpec, layout: bool) -> Callable[[Any], Any]:
-    """A multi-array's data as the port's array: shaped by its layout (else by the
-    port's shape), a read-only view of the received bytes."""
-    def from_ros(msg: Any) -> Any:
-        data = msg.data
-        shape: tuple[int, ...] | None = None
-        if layout and msg.layout.dim:
-            offset = int(msg.layout.data_offset)
-            shape = tuple(int(d.size) for d in msg.layout.dim)
-            data = data[offset:offset + int(numpy.prod(shape))]
-        elif spec.shape is not None and len(spec.shape) != 1:
-            shape = tuple(-1 if s is None else s for s in spec.shape)
-        value = data.reshape(shape) if shape is not None else data
-        value.flags.writeable = False
-        return value
-    return from_ros
+    return Conversion(name, "array", from_ros=array_in(spec, layout)), []
 
 
 def _image_out(types_: MessageTypes, spec: ArraySpec, name: str, frame_id: str) -> Callable[[Any, int, int], object]:
@@ -218,27 +213,9 @@ def _image_out(types_: MessageTypes, spec: ArraySpec, name: str, frame_id: str) 
         height, width = value.shape[:2]
         header = header_cls(seq=n & 0xFFFFFFFF, stamp=time_cls(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000),
                             frame_id=frame_id)
-        return cls(header=header, height=height, width=width, encoding=encoding, is_bigendian=0,
-                   step=value.strides[0] if value.flags.c_contiguous else value[0].nbytes,
-                   data=numpy.ascontiguousarray(value).reshape(-1).view(numpy.uint8))
+        step, data = image_data(value)
+        return cls(header=header, height=height, width=width, encoding=encoding, is_bigendian=0, step=step, data=data)
     return to_ros
-
-
-def _image_in(spec: ArraySpec) -> Callable[[Any], Any]:
-    channels = 1 if spec.shape is None or len(spec.shape) == 2 else spec.shape[2]
-
-    def from_ros(msg: Any) -> Any:
-        if msg.encoding != spec.image:
-            raise ValueError(f"an image of encoding {msg.encoding!r}, not {spec.image!r} ({spec.name})")
-        height, width, step = int(msg.height), int(msg.width), int(msg.step)
-        rows = msg.data[:height * step].reshape(height, step)  # a view of the received bytes
-        row = width * (channels or 1) * numpy.dtype(spec.dtype).itemsize
-        value = rows[:, :row].view(spec.dtype)
-        value = value.reshape((height, width, channels) if spec.shape is not None and len(spec.shape) == 3
-                              else (height, width))
-        value.flags.writeable = False
-        return value
-    return from_ros
 
 
 # ---- ROS 1 bytes straight -------------------------------------------------------------

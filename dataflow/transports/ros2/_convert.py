@@ -18,6 +18,12 @@ Three ways, tried in this order:
   ``std_msgs/msg/Float64``, ``Int64``, ``Bool``, ``String``, ``Float64MultiArray``,
   ``Int64MultiArray``, ``UInt8MultiArray`` (:data:`PLAIN`); ``std_msgs/msg/Float32``,
   ``Int32``... work too.
+* **an array type** (``Array[np.uint8, (480, 640, 3)]``, :mod:`scart_wire.arrays`) onto
+  ``sensor_msgs/msg/Image`` when image-shaped, else the ``std_msgs`` multi-array of its
+  element type, its shape in the layout (:mod:`._arrays`): as CDR bytes made and read by
+  rosbags, the array copied once publishing and a read-only view of the bytes reading.
+* **one of rosbags' ROS 2 message classes** (:mod:`scart_wire.rosmsgs`) onto its own type,
+  the messages as they are (CDR by rosbags: arrays copied once out, views in).
 * **a pydantic model** onto a message **by field names**, recursively (nested models in
   nested messages, lists in sequences). Publishing, every field of the model needs a
   field of that name in the message (the message's others are ROS's zero, and a
@@ -45,6 +51,10 @@ from rosbags.typesys.base import Nodetype
 
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
                         item_type, model_fields, resolve_converter, type_label, unwrap)
+from scart_wire.arrays import ArraySpec
+from scart_wire.rosmsgs import is_message_class, message_type_name
+
+from ._arrays import default_array_type, plan_array
 from ._errors import UnknownTypeError
 from ._names import split_type_name
 from ._types import MessageTypes
@@ -77,6 +87,9 @@ class Conversion:
     via: str
     to_idl: Callable[[Any, int], Any] | None = None
     from_idl: Callable[[Any], Any] | None = None
+    #: The same, to and from the sample's CDR bytes (arrays: no IDL instance is made).
+    to_cdr: Callable[[Any, int], Any] | None = None
+    from_cdr: Callable[[bytes], Any] | None = None
 
 
 def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool, converter: str = "",
@@ -85,7 +98,11 @@ def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool
     ``ros_type`` None: the default of a plain type — and the problems found (a Conversion
     only when there is no error). ``converter``: ``module:function``; ``frame_id``: the
     ``header.frame_id`` stamped on models without a header."""
-    name = ros_type or (PLAIN.get(py_type) if _hashable(py_type) else None)
+    spec = unwrap(py_type)
+    if is_message_class(spec):
+        return _message_plan(types, spec, ros_type)
+    name = ros_type or (default_array_type(spec) if isinstance(spec, ArraySpec)
+                        else PLAIN.get(py_type) if _hashable(py_type) else None)
     if not name:
         return None, [ConversionProblem(f"a port of type {type_label(py_type)} has no default ROS 2 type: give the "
                                         "topic's type (e.g. type=\"sensor_msgs/msg/JointState\") and, unless its "
@@ -98,6 +115,12 @@ def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool
         return None, [ConversionProblem(str(exc))]
     if converter:
         return _with_converter(types, py_type, name, outgoing, converter)
+    if isinstance(spec, ArraySpec):
+        planned = plan_array(types, spec, name, outgoing, frame_id)
+        if isinstance(planned, ConversionProblem):
+            return None, [planned]
+        via, fn = planned
+        return (Conversion(name, via, to_cdr=fn) if outgoing else Conversion(name, via, from_cdr=fn)), []
     planner = _Planner(types, outgoing)
     try:
         if is_model(py_type):
@@ -126,6 +149,25 @@ def _stamped(types: MessageTypes, name: str, fields_of: Callable[[Any], dict[str
         return types.to_idl(name, fields)
 
     return to_idl
+
+
+def _message_plan(types: MessageTypes, cls: type, ros_type: str | None) -> tuple[Conversion | None,
+                                                                                list[ConversionProblem]]:
+    """A port typed with one of rosbags' ROS 2 message classes: its messages as they are,
+    as CDR made and read by rosbags (arrays copied once out, views in); the topic's type is
+    the class's own, of the stream's distro."""
+    name = ros_type or cls.__msgtype__  # type: ignore[attr-defined]  # a message class
+    label = message_type_name(cls)
+    try:
+        own = types.message_class(name)
+    except UnknownTypeError as exc:
+        return None, [ConversionProblem(str(exc))]
+    if own is not cls:
+        return None, [ConversionProblem(f"port type {label} is not the {name} of ROS 2 {types.distro} "
+                                        f"({message_type_name(own) if is_message_class(own) else own!r}): give the "
+                                        "topic's own type, of that distro")]
+    return Conversion(name, "message", to_cdr=lambda value, _t_ns: types.to_cdr(name, value),
+                      from_cdr=lambda data: types.from_cdr(name, data)), []
 
 
 # ---- converters -----------------------------------------------------------------------

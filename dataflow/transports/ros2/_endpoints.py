@@ -23,13 +23,14 @@ from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.util import duration
+from cyclonedds._clayer import ddspy_take, ddspy_write  # type: ignore[import-not-found]  # its C layer ships no stub
 
 from dataflow.threads import OwnedThread
 
 from ._errors import ConversionError
 from ._network import delete_entity
 
-__all__ = ["Publisher", "Subscription", "PublisherStats", "SubscriptionStats", "Dispatcher"]
+__all__ = ["Publisher", "Subscription", "PublisherStats", "SubscriptionStats", "Dispatcher", "write_cdr"]
 
 LOG = logging.getLogger("dataflow.transports.ros2")
 _BATCH = 256  # samples one reader may deliver per wake before the others get their turn
@@ -65,9 +66,10 @@ class Publisher:
     """
 
     def __init__(self, writer: DataWriter, convert: Callable[[Any], Any], topic: str, type_name: str,
-                 accept: Accept | None) -> None:
+                 accept: Accept | None, cdr: bool = False) -> None:
         self.topic, self.type_name = topic, type_name
         self._writer, self._convert, self._accept = writer, convert, accept
+        self._write = (lambda data: write_cdr(writer, data)) if cdr else writer.write
         self._lock = threading.Lock()
         self._published = self._refused = 0
         self._last_refusal: str | None = None
@@ -86,7 +88,7 @@ class Publisher:
             if self._accept is not None and not self._accept(message):
                 return self._refuse("refused by the accept hook")
             sample = self._convert(message)
-            self._writer.write(sample)
+            self._write(sample)
         except ConversionError as exc:
             return self._refuse(str(exc))
         except DDSException as exc:
@@ -133,16 +135,39 @@ class Publisher:
         delete_entity(self._writer)
 
 
+def write_cdr(writer: DataWriter, data: Any) -> None:
+    """Write CDR bytes (a buffer, its length a multiple of 4) as one sample of
+    ``writer``'s type, with no serialiser of Cyclone's Python side: the bytes-level call
+    its ``DataWriter.write`` makes after serialising. Raises ``DDSException``."""
+    ret = ddspy_write(writer._ref, data)
+    if ret < 0:
+        raise DDSException(ret, f"Occurred while writing sample in {writer!r}")
+
+
+def _take_cdr(reader: DataReader) -> list[tuple[bytes, Any]]:
+    """Take one sample of ``reader`` as its CDR bytes and sample info, with no
+    deserialiser of Cyclone's Python side (the bytes-level call ``DataReader.take``
+    makes). Raises ``DDSException``."""
+    taken = ddspy_take(reader._ref, _ANY, 1)
+    if isinstance(taken, int):
+        raise DDSException(taken, f"Occurred while taking data in {reader!r}")
+    return list(taken)
+
+
 class Subscription:
     """Delivers the messages of one ROS 2 topic to ``callback`` on the participant's
-    dispatcher thread (made by ``Participant.subscribe``)."""
+    dispatcher thread (made by ``Participant.subscribe``). With ``cdr``, ``convert`` is
+    given each sample's CDR bytes instead of Cyclone's deserialised instance."""
 
     def __init__(self, reader: DataReader, convert: Callable[[Any], Any], callback: Callable[[Any], Any],
-                 topic: str, type_name: str, accept: Accept | None, dispatcher: Dispatcher) -> None:
+                 topic: str, type_name: str, accept: Accept | None, dispatcher: Dispatcher, cdr: bool = False) -> None:
         self.topic, self.type_name = topic, type_name
         self._reader, self._convert, self._callback, self._accept = reader, convert, callback, accept
         self._dispatcher = dispatcher
         self._condition = ReadCondition(reader, _ANY)
+        self._take: Callable[[], list[tuple[Any, Any]]] = (
+            (lambda: _take_cdr(reader)) if cdr else
+            (lambda: [(s, s.sample_info) for s in reader.take(N=1, condition=self._condition)]))
         self._received = self._delivered = self._refused = self._errors = 0
         self._last_refusal: str | None = None
         self._closed = False
@@ -157,7 +182,7 @@ class Subscription:
             if self._closed:
                 return
             try:
-                taken = self._reader.take(N=1, condition=self._condition)
+                taken = self._take()
             except DDSException:
                 return
             except Exception as exc:  # the sample could not be deserialised: it is gone, count it
@@ -165,9 +190,10 @@ class Subscription:
                 continue
             if not taken:
                 return
-            if taken[0].sample_info.valid_data:
+            sample, info = taken[0]
+            if info.valid_data:
                 self._received += 1
-                self._deliver(taken[0])
+                self._deliver(sample)
 
     def _deliver(self, sample: Any) -> None:
         try:

@@ -14,6 +14,12 @@ configuration made by :class:`Network`:
   on that network can then read and write the topics: DDS without DDS Security
   authenticates no one.
 
+On loopback, whose MTU is 64 KiB, Cyclone sends large samples in 64 KB datagrams rather
+than its default 14.7 KB ones of 1344-byte fragments, and asks for a socket receive buffer
+of up to 8 MB: a 6 MB image then crosses in about 8 ms instead of 100 (measured by
+``benchmarks/bench_big.py``). On a real network Cyclone's defaults stay, which do not
+rely on IP fragmentation.
+
 Either way a sample larger than ``max_sample_bytes`` (64 MiB, ROS 1's bound too) is
 dropped by Cyclone in both directions, with a warning on its log: an outside peer cannot
 make this process hold a larger one.
@@ -36,6 +42,7 @@ __all__ = ["Network", "resolve_domain_id", "MAX_DOMAIN_ID", "MAX_SAMPLE_BYTES"]
 
 MAX_DOMAIN_ID = 232
 MAX_SAMPLE_BYTES = 64 << 20  #: serialised bytes of one sample, at most, either way
+LOOPBACK_MESSAGE_BYTES = 65500  #: one datagram on loopback, at most (Cyclone's default: 14720)
 _ADDRESS = re.compile(r"[A-Za-z0-9_.:\-\[\]%]{1,255}\Z")  # host names, IPv4/IPv6 literals, interface names
 
 
@@ -76,9 +83,12 @@ class Network:
 
     def config_xml(self) -> str:
         """This configuration as Cyclone DDS XML (what ``CYCLONEDDS_URI`` may hold too)."""
+        sizes = receive = ""
         if self.loopback_only:
             interface, multicast = '<NetworkInterface address="127.0.0.1"/>', False
             peers: tuple[str, ...] = ("127.0.0.1",)
+            sizes = f"<MaxMessageSize>{LOOPBACK_MESSAGE_BYTES}B</MaxMessageSize><FragmentSize>64000B</FragmentSize>"
+            receive = '<SocketReceiveBufferSize max="8MB"/>'
         else:
             attr = "address" if self.interface and self.interface[0].isdigit() else "name"
             interface = f'<NetworkInterface {attr}="{self.interface}"/>' if self.interface else \
@@ -88,8 +98,8 @@ class Network:
         return (
             '<CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any"><General>'
             f"<Interfaces>{interface}</Interfaces>"
-            f"<AllowMulticast>{'true' if multicast else 'false'}</AllowMulticast></General>"
-            f"<Internal><MaxSampleSize>{self.max_sample_bytes}B</MaxSampleSize></Internal>"
+            f"<AllowMulticast>{'true' if multicast else 'false'}</AllowMulticast>{sizes}</General>"
+            f"<Internal>{receive}<MaxSampleSize>{self.max_sample_bytes}B</MaxSampleSize></Internal>"
             "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
             f"<MaxAutoParticipantIndex>{self.max_participants - 1}</MaxAutoParticipantIndex>"
             + (f"<Peers>{peer_xml}</Peers>" if peer_xml else "")

@@ -79,11 +79,14 @@ class Participant:
 
     # ------------------------------------------------------------------ topics
     def publisher(self, topic: str, type_name: str, qos: QoS | None = None, *,
-                  accept: Accept | None = None) -> Publisher:
+                  accept: Accept | None = None, cdr: bool = False) -> Publisher:
         """A publisher of ``type_name`` (``pkg/msg/Type``) on ROS 2 topic ``topic``.
 
         ``accept(message) -> bool`` may refuse a message before it is converted (e.g. a
-        NaN). Raises ``ValueError`` for a bad topic name, :class:`UnknownTypeError`.
+        NaN). With ``cdr``, ``publish`` takes a rosbags message of the type (serialised
+        by rosbags: its arrays copied once) or CDR bytes already made, and writes the
+        bytes as they are (the fast way for large arrays). Raises ``ValueError`` for a
+        bad topic name, :class:`UnknownTypeError`.
         """
         qos = qos or QoS.data()
         dds_name, idl = dds_topic(topic), self.types.idl_type(type_name)
@@ -92,24 +95,34 @@ class Participant:
             self._check_open()
             writer = DataWriter(self._dp, self._topic(dds_name, idl), qos=qos.to_cyclone(user_data))
             types = self.types
-            endpoint = Publisher(writer, lambda m: types.to_idl(type_name, m), topic_name(topic), type_name, accept)
+            convert = (lambda m: m if isinstance(m, (bytes, bytearray, memoryview)) else types.to_cdr(type_name, m)) \
+                if cdr else (lambda m: types.to_idl(type_name, m))
+            endpoint = Publisher(writer, convert, topic_name(topic), type_name, accept, cdr)
             self._endpoints.append(endpoint)
         self._announce(endpoint, writers=(writer,))
         return endpoint
 
     def subscribe(self, topic: str, type_name: str, callback: Callable[[Any], Any], qos: QoS | None = None, *,
-                  accept: Accept | None = None, as_dict: bool = False, raw: bool = False) -> Subscription:
+                  accept: Accept | None = None, as_dict: bool = False, raw: bool = False,
+                  cdr: bool = False) -> Subscription:
         """Call ``callback(message)`` on this participant's thread for every message of
         ``type_name`` on ``topic``: a rosbags message, a plain dict if ``as_dict``, or the
         instance of the IDL type (:meth:`MessageTypes.idl_type`) as Cyclone made it if
-        ``raw`` (no conversion at all: the fastest).
+        ``raw`` (no conversion at all). With ``cdr`` the bytes received are read by rosbags
+        instead of Cyclone's Python deserialiser (the fast way for large arrays: a rosbags
+        message whose arrays are read-only views of the bytes), or given as they are if
+        ``raw`` too.
 
         ``accept(message) -> bool`` may refuse one (counted). Raises as :meth:`publisher`.
         """
         qos = qos or QoS.data()
         dds_name, idl = dds_topic(topic), self.types.idl_type(type_name)
         types = self.types
-        if raw:
+        if cdr and not raw:
+            def convert(sample: Any) -> Any:
+                message = types.from_cdr(type_name, sample)
+                return message_to_dict(message) if as_dict else message
+        elif raw:
             def convert(sample: Any) -> Any:
                 return sample
         elif as_dict:
@@ -123,7 +136,7 @@ class Participant:
             reader = DataReader(self._dp, self._topic(dds_name, idl),
                                 qos=qos.to_cyclone(self._type_hash_data(type_name), reader=True))
             endpoint = Subscription(reader, convert, callback, topic_name(topic), type_name, accept,
-                                    self._dispatcher)
+                                    self._dispatcher, cdr)
             self._endpoints.append(endpoint)
         self._announce(endpoint, readers=(reader,))
         return endpoint

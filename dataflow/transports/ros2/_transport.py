@@ -419,8 +419,9 @@ class _Carrier(RefusingCarrier):
 
     def __init__(self, publisher: Any, conv: Conversion, label: str, stamp: Any) -> None:
         super().__init__(label, log)
-        assert conv.to_idl is not None
-        self._to_idl = conv.to_idl
+        to_message = conv.to_cdr or conv.to_idl
+        assert to_message is not None
+        self._to_idl = to_message
         self._publisher = publisher
         self._stamp = stamp
 
@@ -464,16 +465,16 @@ class _TopicStream(Stream):
             raise
 
     def _publish(self, end: WriterEnd, conv: Conversion, qos: QoS) -> None:
-        self._pub = self._participant.publisher(self.topic, conv.ros_type, qos)
+        self._pub = self._participant.publisher(self.topic, conv.ros_type, qos, cdr=conv.to_cdr is not None)
         self._carrier = _Carrier(self._pub, conv, end.label, stamper(end.port))
         end.connected("ros2", self._carrier, new_peer=True)
 
     def _subscribe(self, end: ReaderEnd, conv: Conversion, qos: QoS) -> None:
-        from_idl, label = conv.from_idl, conv.ros_type
-        assert from_idl is not None
+        from_message, label = conv.from_cdr or conv.from_idl, conv.ros_type
+        assert from_message is not None
         end.transport = "ros2"  # the participant's thread calls the receiver, one message at a time
-        self._sub = self._participant.subscribe(self.topic, conv.ros_type, receiver(end, from_idl, label), qos,
-                                                raw=True)
+        self._sub = self._participant.subscribe(self.topic, conv.ros_type, receiver(end, from_message, label), qos,
+                                                raw=True, cdr=conv.from_cdr is not None)
         self._sub.refused_hook = lambda why: end.refuse(f"a malformed {label}: {why}")
 
     # ---- what it says ------------------------------------------------------------------

@@ -41,6 +41,8 @@ import dataclasses
 import numbers
 import operator
 import os
+import struct
+import sys
 import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -385,6 +387,35 @@ class MessageTypes:
         except Exception as exc:  # cyclonedds raises bare exceptions on bad bytes
             raise ConversionError(f"{name}: malformed CDR: {exc}") from None
         return self.from_idl(name, obj)
+
+    # ----------------------------------------------------------------- CDR by rosbags
+    def to_cdr(self, name: str, message: Any) -> bytearray:
+        """A rosbags message of ``name`` as rmw's CDR bytes, by rosbags' serialiser: each
+        numpy array field copied once, straight into the bytes (Cyclone's Python
+        serialiser packs a ``uint8[]`` value by value: 0.2 s for 6 MB). Padded to 4 bytes,
+        as Cyclone's writer pads. Raises :class:`ConversionError` for a message that is
+        not one of ``name`` or a value its field cannot hold."""
+        if getattr(message, "__msgtype__", None) != name:
+            raise ConversionError(f"expected a {name} message, got {type(message).__name__}")
+        try:
+            msgdef = self._store.get_msgdef(name)
+            size = 4 + msgdef.getsize_cdr(0, message, self._store)
+            data = bytearray((size + 3) & ~3)
+            data[1] = sys.byteorder == "little"  # the encapsulation: plain CDR, this host's order
+            serialize = msgdef.serialize_cdr_le if sys.byteorder == "little" else msgdef.serialize_cdr_be
+            serialize(memoryview(data)[4:], 0, message, self._store)
+        except (struct.error, TypeError, ValueError, AttributeError, OverflowError) as exc:
+            raise ConversionError(f"{name}: {type(exc).__name__}: {exc}") from None
+        return data
+
+    def from_cdr(self, name: str, data: bytes) -> Any:
+        """The rosbags message of ``name`` in CDR ``data``, by rosbags' deserialiser: its
+        numpy array fields are read-only views of ``data`` (no copy). Raises
+        :class:`ConversionError` for malformed bytes."""
+        try:
+            return self._store.deserialize_cdr(memoryview(data), name)  # (a slice of bytes would copy them)
+        except Exception as exc:  # rosbags' SerdeError, or what a truncated buffer raises
+            raise ConversionError(f"{name}: malformed CDR: {exc}") from None
 
     def _to_conv(self, desc: Any, where: str) -> _Conv:
         kind, detail = desc

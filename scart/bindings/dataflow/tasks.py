@@ -5,8 +5,11 @@
 runtime, :func:`~scart.bindings.dataflow.deployer_of`):
 
 * the task is created with the component's name (its path "Outer/Inner" when nested);
-  ``period`` (seconds, > 0) gives it a ``PeriodicActivity``; without it the task keeps
-  its own default activity (event-driven);
+  ``period`` (seconds, > 0) gives it a ``PeriodicActivity``; ``activity="sequential"`` a
+  ``SequentialActivity`` (its cycle runs in the thread that stores an event port's sample,
+  with no wake-up); without either the task keeps its own default activity (event-driven;
+  ``activity="event"`` says so). An unknown activity, or a period with another activity
+  than ``periodic``, is refused at load;
 * ``<property name="gain">2.5</property>`` sets the task's dataflow ``Property`` of that
   name; values are parsed and validated at load time against the Property's type,
   bounds and ``check`` (a read-only property refuses any value), problems reported as
@@ -55,7 +58,7 @@ from typing import Any
 import pydantic
 from pydantic_core import core_schema
 
-from dataflow import ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, TaskContext
+from dataflow import Activity, ConnPolicy, DataflowError, PeriodicActivity, PortTypeError, SequentialActivity, TaskContext
 from scart.errors import SCART_IMPORT, RuntimeStateError, ScartError, Severity
 from scart.bindings.dataflow._checks import property_problems, remap_problems, remote_end
 from scart.bindings.dataflow._host import TASK_KIND, DataflowHost, PortInfo, Watcher, class_ports, host_of
@@ -69,7 +72,7 @@ from scart.spi import (
 log = logging.getLogger("scart.dataflow")
 
 #: Problem codes of this module.
-TASK_NOT_A_TASK = "SCART-T001"  # implementation.task class is not a TaskContext / bad period
+TASK_NOT_A_TASK = "SCART-T001"  # implementation.task class is not a TaskContext / bad period or activity
 TASK_CONNECT = "SCART-T002"  # scart:connect names no component/port, wrong direction, bad policy
 TASK_CONNECT_TYPE = "SCART-T003"  # scart:connect between ports of different types
 
@@ -100,6 +103,26 @@ def _period(impl: Implementation) -> float | None:
     if period < MIN_PERIOD_S:  # a busy loop, not a period
         raise ImplementationProblem(TASK_NOT_A_TASK, f"period {raw!r}: at least {MIN_PERIOD_S} s")
     return period
+
+
+#: The activities ``activity="..."`` names (``periodic`` needs a ``period``).
+ACTIVITIES = ("event", "sequential", "periodic")
+
+
+def _activity(impl: Implementation) -> Callable[[], Activity] | None:
+    """What makes the task's activity from ``period`` and ``activity`` (None: the task's
+    own default); raises ``ImplementationProblem`` for an unknown one or a mismatch."""
+    period = _period(impl)
+    kind = impl.attributes.get("activity", "periodic" if period is not None else "event")
+    if kind not in ACTIVITIES:
+        raise ImplementationProblem(TASK_NOT_A_TASK, f"activity {kind!r}: expected one of {', '.join(ACTIVITIES)}")
+    if (kind == "periodic") != (period is not None):
+        raise ImplementationProblem(TASK_NOT_A_TASK, f"activity {kind!r} with period {impl.attributes.get('period')!r}: "
+                                    "a period goes with activity \"periodic\" (or no activity) only, and "
+                                    "\"periodic\" needs one")
+    if period is not None:
+        return lambda: PeriodicActivity(period)
+    return SequentialActivity if kind == "sequential" else None
 
 
 @functools.lru_cache(maxsize=1024)
@@ -156,7 +179,7 @@ class TaskImplementation(ImplementationProvider):
             props[name] = (spec, _checked_type(prop))
         ctype = ComponentType(cls, {cls.__name__: task_interface(cls)}, {}, props, (), (), (), (), "composite", True)
         try:
-            _period(impl)
+            _activity(impl)
         except ImplementationProblem as exc:
             exc.partial = ctype  # the assembler still checks the rest
             raise
@@ -207,9 +230,9 @@ class TaskManager(ComponentManager):
                 task.rename_port(name, remap.port(self.node.path, name))
         except ValueError as exc:  # two ports remapped onto one name
             raise ScartError(f"task {task.name}: --remap: {exc}") from None
-        period = _period(impl)
-        if period is not None:
-            task.set_activity(PeriodicActivity(period))
+        make_activity = _activity(impl)
+        if make_activity is not None:
+            task.set_activity(make_activity())
         for name, value in self.node.properties.items():
             if value is not DEFAULT:
                 task.set_property(name, value)

@@ -10,7 +10,7 @@ from support import ROOT, wait_until
 from support.sca import composite, line_of, write
 
 import scart
-from dataflow import PeriodicActivity, TaskState
+from dataflow import PeriodicActivity, SequentialActivity, TaskState
 from scart.bindings.dataflow import DataflowSettings, host_of
 
 
@@ -189,6 +189,11 @@ def test_task_property_errors_at_load(tmp_path: Path, prop: str, words: list[str
         ('<scart:implementation.task class="tasks:NotATask"/>', ["not a dataflow.TaskContext"]),
         ('<scart:implementation.task class="tasks:Missing"/>', ["cannot import"]),
         ('<scart:implementation.task class="tasks:Source" period="-1"/>', ["period"]),
+        ('<scart:implementation.task class="tasks:Source" activity="sequentiel"/>',
+         ["'sequentiel'"]),
+        ('<scart:implementation.task class="tasks:Source" activity="sequential" period="0.1"/>',
+         ["a period goes with activity \"periodic\""]),
+        ('<scart:implementation.task class="tasks:Source" activity="periodic"/>', ["\"periodic\" needs one"]),
     ],
 )
 def test_task_implementation_errors(tmp_path: Path, impl: str, words: list[str]) -> None:
@@ -198,6 +203,24 @@ def test_task_implementation_errors(tmp_path: Path, impl: str, words: list[str])
         scart.Runtime.from_file(path)
     assert err.value.line == line_of(text, "implementation.task")
     assert any(w in str(err.value) for w in words), str(err.value)
+
+
+def test_a_sequential_task_runs_its_cycle_in_the_thread_that_stores_the_sample(tmp_path: Path) -> None:
+    """activity="sequential": RTT's SequentialActivity, no wake-up: the writer's own
+    thread has run the sink's update_hook by the time write() returns."""
+    path = make(tmp_path, """
+    <component name="src"><scart:implementation.task class="tasks:Source"/></component>
+    <component name="sink"><scart:implementation.task class="tasks:Sink" activity="sequential"/></component>
+    <component name="woken"><scart:implementation.task class="tasks:Sink" activity="event"/></component>
+    <scart:connect from="src.out" to="sink.inp" policy="buffer:8"/>
+""")
+    with scart.Runtime.from_file(path) as rt:
+        deployer = host_of(rt).deployer
+        src, sink = deployer.task("src"), deployer.task("sink")
+        assert isinstance(sink.activity, SequentialActivity) and deployer.task("woken").activity.kind == "event"
+        for value in (1.0, 2.0, 3.0):
+            src.out.write(value)
+            assert sink.got[-1] == value  # no wait: the cycle ran inside write()
 
 
 def test_bridge_composites_validate() -> None:

@@ -98,6 +98,8 @@ def test_the_default_network_is_loopback_only() -> None:
     assert '<Peers><Peer address="127.0.0.1"/></Peers>' in xml
     assert "<MaxAutoParticipantIndex>31</MaxAutoParticipantIndex>" in xml
     assert xml.count("address=") == 2  # nothing but 127.0.0.1
+    # large samples in 64 KB datagrams on loopback (its MTU: no IP fragments), Cyclone's default elsewhere
+    assert "<MaxMessageSize>65500B</MaxMessageSize>" in xml and "MaxMessageSize" not in Network.open().config_xml()
 
 
 def test_the_network_switch_opens_it_and_checks_what_it_is_given() -> None:
