@@ -128,7 +128,8 @@ def test_rosbag_records_a_stream(ros: RosMaster, deployer: Deployer, tmp_path: P
 def test_a_rospy_node_publishes_to_scart_and_subscribes_from_it(ros: RosMaster, deployer: Deployer) -> None:
     require_rospy()
     gauge = running_gauge(deployer, rate=100.0)
-    connected(deployer, stream(deployer, ros, "gauge.number", "/rospy/numbers").name)
+    # every number is asked for: a buffer, not the latest value (two may land in one cycle)
+    connected(deployer, stream(deployer, ros, "gauge.number", "/rospy/numbers", ConnPolicy.buffer(16)).name)
     connected(deployer, stream(deployer, ros, "gauge.count", "/gauge/count").name)
     sub = ros.rospy("sub", "/gauge/count", "3")
     pub = ros.rospy("pub", "/rospy/numbers", "5", "50")
