@@ -1,0 +1,98 @@
+"""The shape of the data-flow extension, and what the examples may import.
+
+* the examples (``composites/``) import public modules only: no ``_``-prefixed module,
+  and of an extension package (``scart.bindings``) only its settings module — the rest of
+  an extension is reached through the composite's XML;
+* the data-flow extension has one module per composite element, named after it;
+* the bridge is split into its spec, its checks and its runtime: the spec imports
+  neither, and the checks load nothing of the runtime (an ``activate`` may, lazily).
+"""
+
+from __future__ import annotations
+
+import ast
+from importlib.metadata import entry_points
+from pathlib import Path
+
+import pytest
+
+from support import ROOT
+
+EXTENSION = "scart.bindings.dataflow"
+BRIDGE = ROOT / "scart" / "bindings" / "dataflow" / "bridge"
+
+
+def _imports(path: Path, *, top_level_only: bool = False) -> list[str]:
+    """The modules ``path`` imports (relative ones resolved against its package; lazy
+    ones too unless ``top_level_only``)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    package = ".".join(path.relative_to(ROOT).parent.parts)
+    nodes = tree.body if top_level_only else list(ast.walk(tree))
+    names: list[str] = []
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level:
+            base = ".".join(package.split(".")[:len(package.split(".")) - node.level + 1])
+            names.append(f"{base}.{node.module}" if node.module else base)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.append(node.module)
+    return names
+
+
+def _examples() -> list[Path]:
+    return sorted((ROOT / "composites").rglob("*.py"))
+
+
+def _private(module: str) -> bool:
+    return any(part.startswith("_") for part in module.split(".") if part != "__future__")
+
+
+def test_the_examples_import_no_private_module() -> None:
+    offenders = {f"{p.relative_to(ROOT)}: {m}" for p in _examples() for m in _imports(p) if _private(m)}
+    assert not offenders
+
+
+def test_the_examples_import_of_an_extension_only_its_settings() -> None:
+    offenders = {f"{p.relative_to(ROOT)}: {m}" for p in _examples() for m in _imports(p)
+                 if m.split(".")[:2] == ["scart", "bindings"] and not (len(m.split(".")) == 4 and m.endswith(".settings"))}
+    assert not offenders
+
+
+def test_the_rules_above_see_a_private_import() -> None:
+    """The check itself: what it would refuse."""
+    assert _private("dataflow.transports.ros2._calls") and _private("scart.bindings.dataflow._host")
+    assert not _private("scart.bindings.dataflow.settings") and not _private("__future__")
+
+
+def _module_of_element(name: str) -> str:
+    """``implementation.task`` → ``task``, ``binding.dataflow`` → ``binding``, ``connect`` → ``connect``."""
+    if name.startswith("implementation."):
+        return name.removeprefix("implementation.")
+    return "binding" if name.startswith("binding.") else name
+
+
+ELEMENTS = sorted(e.name for e in entry_points(group="scart.extensions") if e.value.startswith(EXTENSION))
+
+
+def test_the_extension_has_elements() -> None:
+    assert {"implementation.task", "connect", "bridge", "stream", "rosservice", "yarprpc", "frames"} <= set(ELEMENTS)
+
+
+@pytest.mark.parametrize("name", ELEMENTS)
+def test_each_composite_element_has_a_module_of_its_own(name: str) -> None:
+    (ep,) = [e for e in entry_points(group="scart.extensions") if e.name == name]
+    module = ep.load().__module__
+    home = f"{EXTENSION}.{_module_of_element(name)}"
+    assert module == home or module.startswith(home + "."), (name, module)
+
+
+def test_the_bridge_spec_imports_neither_its_checks_nor_its_runtime() -> None:
+    assert [m for m in _imports(BRIDGE / "_spec.py") if m.startswith(f"{EXTENSION}.bridge.")] == []
+
+
+@pytest.mark.parametrize("checks", ["_resolve.py", "_element.py"])
+def test_the_bridge_checks_load_nothing_of_its_runtime(checks: str) -> None:
+    runtime = {f"{EXTENSION}.bridge._runtime", f"{EXTENSION}.bridge._task"}
+    assert not runtime & set(_imports(BRIDGE / checks, top_level_only=True))
+
