@@ -5,12 +5,15 @@
   an extension is reached through the composite's XML;
 * the data-flow extension has one module per composite element, named after it;
 * the bridge is split into its spec, its checks and its runtime: the spec imports
-  neither, and the checks load nothing of the runtime (an ``activate`` may, lazily).
+  neither, and the checks load nothing of the runtime (an ``activate`` may, lazily);
+* the youBot monitor (``scart_monitor``) is part of the package, page included, knows
+  nothing of scart or ``dataflow``, and the examples keep no copy of it.
 """
 
 from __future__ import annotations
 
 import ast
+import tomllib
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -96,3 +99,26 @@ def test_the_bridge_checks_load_nothing_of_its_runtime(checks: str) -> None:
     runtime = {f"{EXTENSION}.bridge._runtime", f"{EXTENSION}.bridge._task"}
     assert not runtime & set(_imports(BRIDGE / checks, top_level_only=True))
 
+
+MONITOR = ROOT / "scart_monitor"
+
+
+def test_the_monitor_knows_nothing_of_scart_or_dataflow() -> None:
+    offenders = {f"{p.relative_to(ROOT)}: {m}" for p in sorted(MONITOR.rglob("*.py")) for m in _imports(p)
+                 if m.split(".")[0] in ("scart", "dataflow")}
+    assert not offenders
+
+
+def test_the_wheel_ships_the_monitor_and_its_page() -> None:
+    """The package list takes ``scart_monitor``, and its package data every file of the page."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
+    assert "scart_monitor*" in config["packages"]["find"]["include"]
+    shipped = config["package-data"]["*"]
+    page = sorted((MONITOR / "static").iterdir())
+    assert page and all(f"*{f.suffix}" in shipped for f in page), page
+
+
+def test_the_examples_keep_no_copy_of_the_monitor() -> None:
+    assert not (ROOT / "composites" / "youbot" / "monitor").exists()
+    component = (ROOT / "composites" / "youbot" / "monitor_component.py")
+    assert "scart_monitor" in _imports(component)
