@@ -27,15 +27,21 @@ import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from dataflow import ConnPolicy, DataflowError, PortTypeError
+from dataflow import ConnPolicy, DataflowError, Deployer, InputPort, PortTypeError
 from scart.bindings.dataflow._checks import remote_end
 from scart.bindings.dataflow._host import TASK_KIND, PortInfo, Watcher, class_ports, host_of
 from scart.bindings.dataflow._plan import ZenohEnd, parse_policy, parse_zenoh
 from scart.bindings.dataflow.settings import DataflowSettings, Remap
 from scart.errors import Severity
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
+
+if TYPE_CHECKING:
+    from dataflow.introspection import LinkDescription
+    from dataflow.remote.naming import NameClient
+    from dataflow.transports.zenoh import ZenohInput
+    from scart.bindings.dataflow._host import DataflowHost
 
 __all__ = ["TASK_CONNECT", "TASK_CONNECT_TYPE", "ConnectElement", "ConnectParticipant", "Link", "bridge_ends",
            "connect_present", "links_of", "runtime_links"]
@@ -223,11 +229,11 @@ class ConnectParticipant(Participant):
         self._local = local or (lambda name: name in tasks)  # is this task (as it runs) in this runtime?
         self._remote = [lk for lk in links if not self._is_local(lk) and lk.zenoh is None]
         self._on_zenoh = [lk for lk in links if lk.zenoh is not None]
-        self._sessions: dict[str, Any] = {}  # Zenoh endpoint -> session
-        self._inputs: list[Any] = []  # ZenohInput of each link read from Zenoh
+        self._sessions: dict[str, Any] = {}  # Zenoh endpoint -> session (Zenoh's own type)
+        self._inputs: list[ZenohInput] = []  # one for each link read from Zenoh
         self._made: dict[Link, str] = {}  # link -> boot id of the remote end it was made with
         self._watcher: Watcher | None = None
-        self._clients: dict[str, Any] = {}
+        self._clients: dict[str, NameClient] = {}
         self._waiting_logged: set[Link] = set()
         self._link_ns: dict[Link, str] = {}  # the name service each made link was made through
         from scart.bindings.dataflow.external import externals
@@ -254,7 +260,7 @@ class ConnectParticipant(Participant):
             self._watcher = Watcher("scart-connect", self._step, interval=0.25)
             self._watcher.start()
 
-    def _read_zenoh(self, link: Link, deployer: Any) -> None:
+    def _read_zenoh(self, link: Link, deployer: Deployer) -> None:
         """Feed the link's input port from the source's Zenoh key (samples come whenever the
         source publishes; Zenoh matches them when it appears)."""
         from dataflow.transports.zenoh import ZenohInput
@@ -263,7 +269,7 @@ class ConnectParticipant(Participant):
         assert zenoh is not None
         comp, port = link.sink
         target = deployer.task(comp).ports().get(port) if comp in deployer.names() else None
-        if target is None or not target.is_input:
+        if not isinstance(target, InputPort):  # InputPort is the one port with is_input
             raise DataflowError(f"connect {link.text} ({link.where}): {comp}.{port} is no input port of this runtime")
         try:
             session = self._sessions.get(zenoh.endpoint)
@@ -279,7 +285,7 @@ class ConnectParticipant(Participant):
             raise DataflowError(f"connect {link.text} ({link.where}): Zenoh {zenoh.endpoint}: {exc}") from exc
         log.info("connect %s: reading %s.%s from Zenoh %s", link.text, *link.source, zenoh.endpoint)
 
-    def _client(self, ns: str) -> Any:
+    def _client(self, ns: str) -> NameClient:
         from dataflow.remote.naming import NameClient
 
         if ns not in self._clients:
@@ -335,7 +341,7 @@ class ConnectParticipant(Participant):
         finally:
             system.close()
 
-    def _connect(self, host: Any, link: Link, ns: str) -> None:
+    def _connect(self, host: DataflowHost, link: Link, ns: str) -> None:
         from dataflow.remote.client import GrpcSystem
 
         if host.server is None:
@@ -376,8 +382,8 @@ class ConnectParticipant(Participant):
 class _Described:
     """A Zenoh-fed input as the deployer lists it (its stream name kept)."""
 
-    def __init__(self, feed: Any, name: str) -> None:
+    def __init__(self, feed: ZenohInput, name: str) -> None:
         self.feed, self.name = feed, name
 
-    def describe(self) -> Any:
+    def describe(self) -> LinkDescription:
         return self.feed.describe(self.name)
