@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import ast
 import tomllib
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -20,27 +19,10 @@ from pathlib import Path
 import pytest
 
 from support import ROOT
+from support.imports import imports_of as _imports
 
 EXTENSION = "scart.bindings.dataflow"
 BRIDGE = ROOT / "scart" / "bindings" / "dataflow" / "bridge"
-
-
-def _imports(path: Path, *, top_level_only: bool = False) -> list[str]:
-    """The modules ``path`` imports (relative ones resolved against its package; lazy
-    ones too unless ``top_level_only``)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    package = ".".join(path.relative_to(ROOT).parent.parts)
-    nodes = tree.body if top_level_only else list(ast.walk(tree))
-    names: list[str] = []
-    for node in nodes:
-        if isinstance(node, ast.Import):
-            names += [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level:
-            base = ".".join(package.split(".")[:len(package.split(".")) - node.level + 1])
-            names.append(f"{base}.{node.module}" if node.module else base)
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            names.append(node.module)
-    return names
 
 
 def _examples() -> list[Path]:
