@@ -33,9 +33,9 @@ if str(ROOT) not in sys.path:
 
 from _common import pct, wait_until
 
-from composites.youbot.monitor import MonitorServer
-from composites.youbot.monitor.demo import SyntheticArm
-from composites.youbot.monitor.server import MAX_SSE_CLIENTS
+from scart_monitor import MonitorServer
+from scart_monitor.demo import SyntheticArm
+from scart_monitor.server import MAX_SSE_CLIENTS
 
 
 class Streams:

@@ -28,8 +28,8 @@ from _common import pct  # noqa: E402
 from bench_monitor_sse import Streams, open_streams  # noqa: E402
 from grpc_health.v1 import health_pb2, health_pb2_grpc  # noqa: E402
 
-from composites.youbot.monitor import MonitorServer  # noqa: E402
-from composites.youbot.monitor.demo import SyntheticArm  # noqa: E402
+from scart_monitor import MonitorServer  # noqa: E402
+from scart_monitor.demo import SyntheticArm  # noqa: E402
 from dataflow import Deployer  # noqa: E402
 from dataflow.remote._proto import df as pb  # noqa: E402
 from dataflow.remote._proto import df_grpc  # noqa: E402

@@ -17,7 +17,7 @@ from scart.properties import TypeRef, compatible, python_family
 from scart.scdl import SCA_NAMESPACES as _SCA_NAMESPACES
 
 if TYPE_CHECKING:
-    from scart.assembly import _Assembler
+    from scart.assembly._components import Components
 
 __all__ = ["SideFile", "composite_reference_defaults"]
 
@@ -28,7 +28,7 @@ class SideFile:
     multiplicities and give references default targets (``binding.sca`` ``@uri``) or
     bindings. Names the class does not declare are problems (SCART-C007)."""
 
-    def __init__(self, model: ComponentTypeFile, ctype: ComponentType, assembler: _Assembler) -> None:
+    def __init__(self, model: ComponentTypeFile, ctype: ComponentType, assembler: Components) -> None:
         self.types: dict[str, TypeRef] = {}
         self.defaults: dict[str, list[str] | None] = {}
         self.required: set[str] = set()

@@ -18,7 +18,7 @@ from typing import Protocol
 import scart
 from dataflow import ConnPolicy
 from dataflow.remote import SampleEvent, connect
-from scart.bindings.dataflow import DataflowSettings
+from scart.bindings.dataflow.settings import DataflowSettings
 
 
 @scart.interface

@@ -35,7 +35,7 @@ from typing import Any, Protocol
 import scart
 from arm_summary import ArmSummaryReader
 from interfaces import Moving, RetrievingStatus, SettingPeriod
-from monitor import MonitorServer
+from scart_monitor import MonitorServer
 from youbot_arm import GripperPosition
 from youbot_model import ERROR_BITS, JOINT_LIMITS
 

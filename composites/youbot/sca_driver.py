@@ -37,7 +37,7 @@ from typing import Any
 import scart
 from dataflow import ConnPolicy, WriteStatus
 from dataflow.remote import ClosedError, RemoteTimeoutError, System, UnavailableError, connect
-from scart.bindings.dataflow import DataflowSettings
+from scart.bindings.dataflow.settings import DataflowSettings
 from interfaces import RetrievingStatus, SendingCommands, SettingPeriod
 from proxy_core import DriverProxyCore
 

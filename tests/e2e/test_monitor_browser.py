@@ -14,8 +14,8 @@ from collections.abc import Iterator
 import pytest
 from support.browser import BrowserPage, expect, needs_chromium, open_page
 
-from composites.youbot.monitor import MonitorServer
-from composites.youbot.monitor.demo import POSES, SyntheticArm
+from scart_monitor import MonitorServer
+from scart_monitor.demo import POSES, SyntheticArm
 
 pytestmark = needs_chromium
 TIMEOUT_MS = 30_000

@@ -19,9 +19,9 @@ from typing import Any
 import pytest
 from support import wait_until
 
-from composites.youbot.monitor import MonitorBackend, MonitorServer
-from composites.youbot.monitor.demo import DEMO_FLAG_NAMES
-from composites.youbot.monitor.hub import StatusHub, flag_names
+from scart_monitor import MonitorBackend, MonitorServer
+from scart_monitor.demo import DEMO_FLAG_NAMES
+from scart_monitor.hub import StatusHub, flag_names
 
 
 class FakeBackend:
@@ -230,7 +230,7 @@ def test_publish_never_blocks_on_a_stalled_reader(server: MonitorServer) -> None
 
 
 def test_public_api(backend: FakeBackend) -> None:
-    import composites.youbot.monitor as monitor
+    import scart_monitor as monitor
 
     assert monitor.__all__ == ["MonitorBackend", "MonitorServer"]
     assert isinstance(backend, MonitorBackend)  # the Protocol is runtime-checkable
@@ -459,7 +459,7 @@ def test_token_mode_commands_need_the_token_and_it_is_never_logged(
     try:
         assert server.page_url == server.url + "?token=launch-Secret_1"
         assert "launch-Secret_1" not in server.url and "launch-Secret_1" not in repr(server)
-        with caplog.at_level(logging.DEBUG, logger="composites.youbot.monitor"):
+        with caplog.at_level(logging.DEBUG, logger="scart_monitor"):
             assert get(server.page_url)[0] == 200  # GETs stay open
             assert get(server.url + "api/state")[0] == 200
             body = b'{"seconds": 0.02}'

@@ -37,6 +37,7 @@ import scart
 import scart_wire
 import scart_yarp
 from support import DATA, ROOT
+from support.imports import imports_of as _imports
 
 CALCULATOR = ROOT / "composites" / "calculator" / "calculator.composite"
 HEAVY = ("grpc", "google.protobuf", "grpc_tools")
@@ -84,23 +85,6 @@ def test_the_runtime_loads_a_transport_only_when_the_composite_uses_it(tmp_path:
     assert heavy(loaded_after(validate)) == []  # its check needs no transport either
     run = f"import scart\nwith scart.Runtime.from_file({str(remote)!r}) as rt:\n    assert rt.addresses()"
     assert "grpc" in loaded_after(run)
-
-
-def _imports(path: Path) -> list[str]:
-    """Every module named by an import statement of ``path`` (relative ones resolved; lazy
-    and annotation-only ones too)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    package = ".".join(path.relative_to(ROOT).parent.parts)
-    names = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names += [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level:
-            base = ".".join(package.split(".")[:len(package.split(".")) - node.level + 1])
-            names.append(f"{base}.{node.module}" if node.module else base)
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            names.append(node.module)
-    return names
 
 
 def _sources(package: str) -> list[Path]:

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from composites.youbot.monitor import MonitorServer
-from composites.youbot.monitor.server import REQUEST_DEADLINE_S
+from scart_monitor import MonitorServer
+from scart_monitor.server import REQUEST_DEADLINE_S
 from support import wait_until
 from support.users import run_as, second_user
 from support.youbot import start_serving

@@ -2,7 +2,8 @@
 ports, the repository's folders; and, in submodules, SCA components (:mod:`support.sca`),
 data-flow tasks and processes (:mod:`support.remote`), the command line
 (:mod:`support.cli`), binding.grpc fixtures (:mod:`support.grpc_binding`), the youBot demo
-(:mod:`support.youbot`) and the browser (:mod:`support.browser`)."""
+(:mod:`support.youbot`), the browser (:mod:`support.browser`) and the imports of a source
+file (:mod:`support.imports`)."""
 
 from __future__ import annotations
 

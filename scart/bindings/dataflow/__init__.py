@@ -1,15 +1,25 @@
 """The data-flow extension: Orocos-style tasks inside a composite, and SCA meeting ports.
 
-Three kinds, one runtime-wide :class:`~scart.bindings.dataflow._host.DataflowHost` (the
-runtime's :class:`dataflow.Deployer`, its gRPC server and name service):
+One module per composite element, over one runtime-wide
+:class:`~scart.bindings.dataflow._host.DataflowHost` (the runtime's
+:class:`dataflow.Deployer`, its gRPC server and name service):
 
 * ``<scart:implementation.task class="pkg.mod:Task" period="0.01"/>`` —
-  :class:`TaskImplementation` (:mod:`scart.bindings.dataflow.tasks`);
-* ``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` — :class:`ConnectElement`;
+  :class:`TaskImplementation` (:mod:`~scart.bindings.dataflow.task`);
+* ``<scart:connect from="a.out" to="b.in" policy="buffer:8"/>`` — :class:`ConnectElement`
+  (:mod:`~scart.bindings.dataflow.connect`);
 * ``<scart:binding.dataflow component="task"/>`` on a reference or a service —
-  :class:`DataflowBinding` (:mod:`scart.bindings.dataflow.binding`);
+  :class:`DataflowBinding` (:mod:`~scart.bindings.dataflow.binding`);
 * ``<scart:bridge name="b">`` with ``<scart:input>`` s and one ``<scart:output>`` — many
-  ports, converted, built into one typed output (:mod:`scart.bindings.dataflow.bridge`).
+  ports, converted, built into one typed output (:mod:`~scart.bindings.dataflow.bridge`);
+* ``<scart:stream>`` (:mod:`~scart.bindings.dataflow.stream`), ``<scart:external>``
+  (:mod:`~scart.bindings.dataflow.external`), ``<scart:rosservice>``
+  (:mod:`~scart.bindings.dataflow.rosservice`), ``<scart:yarprpc>``
+  (:mod:`~scart.bindings.dataflow.yarprpc`) and ``<scart:frames>``
+  (:mod:`~scart.bindings.dataflow.frames`).
+
+The ``_``-prefixed modules are the elements' shared helpers, never imported from outside
+the extension.
 
 Its settings are its own: a :class:`DataflowSettings` (name service, serving, remapping:
 :mod:`scart.bindings.dataflow.settings`) carried in ``scart.Settings.extensions``; what
@@ -29,7 +39,8 @@ from scart.bindings.dataflow.bridge import BridgeElement, BridgeTask
 from scart.bindings.dataflow.binding import DataflowBinding, DataflowReferenceBinding, DataflowServiceBinding, bindings_of
 from scart.bindings.dataflow.launch import DataflowLaunch
 from scart.bindings.dataflow.settings import DataflowSettings, Remap
-from scart.bindings.dataflow.tasks import ConnectElement, ConnectParticipant, Link, TaskImplementation, TaskManager, task_interface
+from scart.bindings.dataflow.connect import ConnectElement, ConnectParticipant, Link
+from scart.bindings.dataflow.task import TaskImplementation, TaskManager, task_interface
 from scart.spi import Host
 
 __all__ = [

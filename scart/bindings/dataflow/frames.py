@@ -39,7 +39,7 @@ from dataflow.tf import FrameServer, Transform, TransformError
 from dataflow.tf.buffer import MAX_CACHE, FrameBuffer
 from scart.bindings.dataflow._host import host_of
 from scart.bindings.dataflow.settings import DataflowSettings
-from scart.bindings.dataflow.tasks import retire
+from scart.bindings.dataflow.task import retire
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
 
 __all__ = ["FRAMES_CODE", "FramesElement", "FramesParticipant"]

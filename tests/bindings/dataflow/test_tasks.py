@@ -269,7 +269,7 @@ def test_an_explicit_name_service_that_cannot_be_bound_fails_the_start(tmp_path:
 def test_checked_property_type_built_once_per_declaration() -> None:
     """The checked type of a Property is memoised: the TypeAdapter cache is not defeated."""
     from dataflow import Property
-    from scart.bindings.dataflow.tasks import _checked_type
+    from scart.bindings.dataflow.task import _checked_type
 
     def positive(value: float) -> None:
         if value <= 0:

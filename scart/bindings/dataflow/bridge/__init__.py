@@ -51,15 +51,17 @@ registered like ``implementation.task`` components. ``scart describe NAME`` show
 each input, the age of its last sample (``INPUT.age``, seconds; null before the first)
 and how many it got (``INPUT.samples``), and ``outputs``: how many were written.
 
-The package, by what it does: :mod:`._spec` (the element as read), :mod:`._resolve` (the
-types, checked), :mod:`._task` (the task a bridge runs as), :mod:`._element` (the element's
-check and the participant that runs the bridges).
+The package, by what it does — the spec, the checks, the runtime: :mod:`._spec` (the
+element as read); :mod:`._resolve` (the types, checked) and :mod:`._element` (the element's
+load-time check); :mod:`._runtime` (the participant that runs the bridges) and
+:mod:`._task` (the task a bridge runs as).
 """
 
 from __future__ import annotations
 
-from ._element import RETRY_S, BridgeElement, BridgeParticipant
+from ._element import BridgeElement
 from ._resolve import Resolved, Resolver, path_type, same_type, shown
+from ._runtime import RETRY_S, BridgeParticipant
 from ._spec import BRIDGE, BRIDGE_TYPE, BridgeSpec, InputSpec, TopicSpec, bridges_of, parse_bridge
 from ._task import BridgeTask
 

@@ -12,13 +12,14 @@ from dataflow.fields import parse_path
 from scart.bindings.dataflow._plan import MIN_PERIOD_S
 from scart.spi import Element, Location
 
-__all__ = ["BRIDGE", "BRIDGE_TYPE", "BridgeSpec", "InputSpec", "MAX_INPUTS", "MISSING", "TRIGGERS", "TopicSpec",
+__all__ = ["BRIDGE", "BRIDGE_TYPE", "ELEMENT", "BridgeSpec", "InputSpec", "MAX_INPUTS", "MISSING", "TRIGGERS", "TopicSpec",
            "bridges_of", "parse_bridge"]
 
 #: Problem codes of the bridge.
 BRIDGE = "SCART-B001"  # a malformed bridge: attributes, inputs, output, trigger, a callable not found
 BRIDGE_TYPE = "SCART-B002"  # types that do not agree: source, converter, builder, output
 
+ELEMENT = "bridge"  #: the element's local name, ``<scart:bridge>``
 TRIGGERS = ("periodic", "any", "all")
 MISSING = ("hold", "skip", "default")
 MAX_INPUTS = 64

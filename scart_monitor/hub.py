@@ -188,7 +188,7 @@ class StatusHub:
             cached = self._status_json if self._status_json_of == samples else None
             age = None if self._received_at is None else now - self._received_at
             events = [e for e in self._events if e["id"] > after_event]
-            message = {
+            message: dict[str, Any] = {
                 "version": self._version,
                 "age": age,
                 "rate": self._rate(age),

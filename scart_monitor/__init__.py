@@ -1,8 +1,12 @@
 """The youBot Monitor: a live web page for the youBot driver, fed by its host.
 
+Part of the installed package (the wheel ships it, page and all), so that the youBot
+composite's monitor component (``composites/youbot/monitor_component.py``) runs from a
+plain ``pip install``; it is why ``plotly`` is a dependency of the package.
+
 Use::
 
-    from composites.youbot.monitor import MonitorServer, MonitorBackend
+    from scart_monitor import MonitorServer, MonitorBackend
 
     server = MonitorServer(backend)          # backend: set_period / send_pose / poses
     server.start(); print(server.page_url)   # http://127.0.0.1:PORT/ (?token=... in token mode)

@@ -1,7 +1,7 @@
 """A synthetic arm that feeds a `MonitorServer`: to look at the page without a robot, and
 for the monitor's own tests (it stands in for the driver + proxy + Locomotor host).
 
-    python -m composites.youbot.monitor.demo [--port 8765]
+    python -m scart_monitor.demo [--port 8765]
 
 `SyntheticArm` is both the `MonitorBackend` and the status source: one feeder thread
 (created in `start`, joined in `stop`) publishes a status every period; positions move
