@@ -147,7 +147,7 @@ class Recording:
     def __init__(self, fd: int, ports: list[tuple[str, str, str]], limit: int | None) -> None:
         from mcap.writer import Writer
 
-        from dataflow.cli._jsonschema import _schema_of, schema_name
+        from scart_wire.jsonschema import message_schema, schema_name
 
         self.done = threading.Event()
         self.failure: str | None = None
@@ -161,7 +161,7 @@ class Recording:
         self._channels = {}
         for task, port, type_name in ports:
             schema_id = self._writer.register_schema(name=schema_name(type_name), encoding="jsonschema",
-                                                     data=json.dumps(_schema_of(type_name)).encode())
+                                                     data=json.dumps(message_schema(type_name)).encode())
             self._channels[f"{task}.{port}"] = self._writer.register_channel(
                 topic=f"{task}.{port}", message_encoding="json", schema_id=schema_id,
                 metadata={"type_name": type_name})
@@ -208,7 +208,7 @@ class Recording:
         return True
 
     def _add(self, item: tuple[str, int, float, Any]) -> None:
-        from dataflow.cli._jsonschema import message_of
+        from scart_wire.jsonschema import message_of
 
         topic, log_ns, source_time, value = item
         self.counts[topic] += 1
