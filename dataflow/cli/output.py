@@ -25,6 +25,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from scart_wire.bounds import nesting_depth
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 __all__ = ["add_common", "address_arg", "checked_address", "dump", "err", "jsonable", "listen_arg", "ns_address",
@@ -148,7 +149,7 @@ def parse_value(text: str) -> Any:
         value = json.loads(text)
     except (ValueError, RecursionError):
         value = _yaml(text)
-    if depth(value) > MAX_VALUE_DEPTH:
+    if nesting_depth(value, MAX_VALUE_DEPTH, MAX_VALUE_CHARS) > MAX_VALUE_DEPTH:
         raise ValueError(f"a value nested deeper than {MAX_VALUE_DEPTH} levels")
     return value
 
@@ -163,28 +164,6 @@ def _yaml(text: str) -> Any:
     if value is None and text.strip() not in ("null", "~", ""):
         return text  # a comment or a document marker: the text is what was meant
     return value
-
-
-def depth(value: Any, limit: int = MAX_VALUE_DEPTH, max_items: int = MAX_VALUE_CHARS) -> int:
-    """How deeply lists and mappings nest in ``value`` (iterative, so any depth is safe to
-    measure; stops past ``limit`` + 1 levels). Raises ``ValueError`` past ``max_items``
-    items (YAML aliases can make a short text a huge or cyclic value)."""
-    deepest = 0
-    seen = 0
-    stack: list[tuple[Any, int]] = [(value, 0)]
-    while stack:
-        item, level = stack.pop()
-        seen += 1
-        if seen > max_items:
-            raise ValueError(f"a value of more than {max_items} items")
-        if isinstance(item, dict):
-            item = list(item.values())
-        if isinstance(item, list):
-            level += 1
-            deepest = max(deepest, level)
-            if level <= limit:
-                stack.extend((child, level) for child in item)
-    return deepest
 
 
 def policy_of(text: str) -> Any:

@@ -32,7 +32,7 @@ import threading
 import time
 from typing import Any
 
-from dataflow.cli._mcap import Sink, open_output, output_problem
+from dataflow.recording.mcap import Sink, open_output, output_problem
 from dataflow.cli.output import add_common, err, out, stopped_by_signals, wait_until_stopped, with_system
 from dataflow.threads import OwnedThread
 
