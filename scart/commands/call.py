@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"'SCA services at ...'; or ${SERVICES_ENV})")
     parser.add_argument("--type", default=None, metavar="pkg/Srv",
                         help="a ROS service's type (ROS 1: default, asked of the service as rosservice does)")
-    from dataflow.cli import _ros as ros_args
-    from dataflow.cli import _yarp as yarp_args
+    from dataflow.launch import ros as ros_args
+    from dataflow.launch import yarp as yarp_args
 
     ros_args.add_arguments(parser, calls=True)
     yarp_args.add_arguments(parser)
@@ -127,13 +127,13 @@ def _call(args: argparse.Namespace) -> int:
 
 def _yarp_call(args: argparse.Namespace) -> object:
     """``yarp:/port``: the reply bottle as plain data."""
-    from dataflow.cli import _yarp as yarp_args
+    from dataflow.launch import yarp as yarp_args
 
     return jsonable(yarp_args.call(args, _arguments(args)))
 
 
 def _ros_call(args: argparse.Namespace) -> object:
     """``ros1:/service`` or ``ros2:/service``: the response as plain data."""
-    from dataflow.cli import _ros as ros_args
+    from dataflow.launch import ros as ros_args
 
     return jsonable(ros_args.call(args, _arguments(args)))

@@ -280,7 +280,7 @@ def test_the_circle_finder_can_fail() -> None:
 
 #: The README's layers, most specific first (a module belongs to the first that names it).
 LAYERS = (*STACKS, "scart_wire", "dataflow.transports", "dataflow.remote", "dataflow.foxglove", "dataflow.recording",
-          "dataflow.cli", "dataflow", "scart.bindings", "scart.spi", "scart.errors", "scart")
+          "dataflow.launch", "dataflow.cli", "dataflow", "scart.bindings", "scart.spi", "scart.errors", "scart")
 
 
 def _layer(module: str) -> str:

@@ -11,10 +11,11 @@ import json
 import threading
 from typing import Any
 
-from dataflow.cli import _zenoh as zenoh_args
+from dataflow.cli.connected import with_session
 from dataflow.cli.output import (
     add_common, dump, err, jsonable, out, policy_of, stopped_by_signals, wait_until_stopped, with_system,
 )
+from dataflow.launch import zenoh as zenoh_args
 from dataflow.remote.api import split_port
 
 HELP = "print samples of an output port"
@@ -45,7 +46,7 @@ def main(args: argparse.Namespace) -> int:
         if args.policy != "data" or args.period is not None:
             err("echo: --policy and --period are for the name service's subscriptions, not --zenoh")
             return 1
-        return zenoh_args.with_session(args, _echo)
+        return with_session(args, _echo)
     return with_system(args, _echo)
 
 

@@ -32,8 +32,8 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from dataflow.cli import _ros as ros_args
-from dataflow.cli import _yarp as yarp_args
+from dataflow.launch import ros as ros_args
+from dataflow.launch import yarp as yarp_args
 from scart.bindings.dataflow.settings import DataflowSettings, Remap
 from scart.errors import ScartError
 from scart.spi import (
