@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, address_arg, dump, err, jsonable, out, parse_value, with_system
 from scart.commands._sca import SERVICES_ENV, at, call, find, list_services, split_target, with_services
+from scart_wire.console import add_common, address_arg, dump, err, jsonable, out, parse_value, with_client
 
 HELP = "call a task's operation or an SCA service's, with JSON or YAML arguments"
 
@@ -54,7 +54,9 @@ def main(args: argparse.Namespace) -> int:
         return 2
     if address is not None:
         return with_services(args, lambda a: _print(a, _sca_call(address, a, split_target(a.operation)[0])))
-    return with_system(args, _call)
+    from dataflow.remote import connect  # the data-flow system the name service knows
+
+    return with_client(args, connect, _call)
 
 
 def _arguments(args: argparse.Namespace) -> list[object]:

@@ -9,7 +9,7 @@ import argparse
 import os
 from typing import Any
 
-from dataflow.cli.output import dump, err, out
+from scart_wire.console import dump, err, out
 
 __all__ = ["recover"]
 

@@ -7,7 +7,8 @@ import argparse
 import threading
 from typing import TYPE_CHECKING
 
-from dataflow.cli.output import add_common, err, ns_address, wait_until_stopped, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, err, ns_address, wait_until_stopped
 
 if TYPE_CHECKING:
     from dataflow.foxglove.server import FoxgloveLive

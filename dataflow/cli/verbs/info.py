@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from dataflow.cli.output import dump, err, out
+from scart_wire.console import dump, err, out
 
 HELP = "channels, counts, rates and duration of an MCAP file"
 

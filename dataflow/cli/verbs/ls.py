@@ -13,9 +13,9 @@ import argparse
 import threading
 from typing import Any
 
-from dataflow.cli.connected import with_session
-from dataflow.cli.output import add_common, dump, out, rate_of, with_system
+from dataflow.cli.connected import with_session, with_system
 from dataflow.launch import zenoh as zenoh_args
+from scart_wire.console import add_common, dump, out, rate_of
 
 HELP = "list components: name, state, period, measured rate, deployer"
 

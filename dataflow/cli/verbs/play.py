@@ -24,9 +24,10 @@ import threading
 import time
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, err, out, stopped_by_signals, with_system
+from dataflow.cli.connected import with_system
 from dataflow.errors import DataflowError
 from dataflow.remote.api import split_port
+from scart_wire.console import add_common, dump, err, out, stopped_by_signals
 
 HELP = "replay an MCAP file into input ports"
 DEFAULT_MAX_GAP = 3.0

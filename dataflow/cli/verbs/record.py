@@ -32,9 +32,10 @@ import threading
 import time
 from typing import Any
 
+from dataflow.cli.connected import with_system
 from dataflow.recording.mcap import Sink, open_output, output_problem
-from dataflow.cli.output import add_common, err, out, stopped_by_signals, wait_until_stopped, with_system
 from dataflow.threads import OwnedThread
+from scart_wire.console import add_common, err, out, stopped_by_signals, wait_until_stopped
 
 HELP = "record output ports to an MCAP file"
 MAX_RECORDED_PORTS = 256
