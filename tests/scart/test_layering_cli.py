@@ -6,6 +6,7 @@ apart from its verbs).
   options the composite elements use live in ``dataflow.foxglove``, ``dataflow.recording``
   and ``dataflow.launch``, and the output every verb shares in ``scart_wire.console``;
 * the SCA verbs (``scart.cli``, ``scart.commands``) import no ``dataflow.cli``;
+* one tree of verbs, one verb per module, in ``scart.commands`` or ``dataflow.cli.verbs``;
 * so the imports into the command line from below it are none (there were 14 import
   statements, 9 pairs of modules: the SCA verbs' 9 into ``dataflow.cli``'s output, ROS and
   YARP options, and the data-flow extension's 5 into its ROS and YARP options and Foxglove
@@ -108,3 +109,19 @@ def test_the_import_graph_has_no_circle() -> None:
     graph = import_graph()
     assert {"dataflow.launch.ros", "scart_wire.console", "dataflow.cli.connected"} <= set(graph)
     assert circles(graph) == []
+
+
+def test_one_tree_one_verb_per_module() -> None:
+    """Every verb of the ``scart.verbs`` entry points is a module of its own (ros2cli's
+    shape), in one of the two verb packages, with ``HELP``, ``add_arguments`` and ``main``;
+    no module serves two verbs, and no verb module is outside the command line."""
+    import importlib
+    import tomllib
+
+    verbs = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]["entry-points"]["scart.verbs"]
+    modules = list(verbs.values())
+    assert len(verbs) >= 20 and len(set(modules)) == len(modules)
+    assert [m for m in modules if not m.startswith(("scart.commands.", "dataflow.cli.verbs."))] == []
+    for module in modules:
+        loaded = importlib.import_module(module)
+        assert all(hasattr(loaded, attr) for attr in ("HELP", "add_arguments", "main")), module
