@@ -34,8 +34,8 @@ import pydantic
 from . import rosmsgs
 from .errors import PortTypeError, PortValueError
 
-__all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "non_finite",
-           "refuse_unknown_fields", "unknown_field"]
+__all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "nesting_depth",
+           "non_finite", "refuse_unknown_fields", "unknown_field"]
 
 _NUMBERS = (float, int)
 _ATOMS = (int, bool, str, bytes, type(None))
@@ -348,3 +348,26 @@ def check_argument(where: str, hint: Any, value: Any) -> Any:
         error = exc.errors()[0]
         kind = PortTypeError if error["type"].endswith(("_type", "_parsing", "_class")) else PortValueError
         raise kind(f"{where}: {value!r:.80} refused: {error['msg']}") from None
+
+
+def nesting_depth(value: Any, limit: int, max_items: int) -> int:
+    """How deeply lists and mappings nest in ``value`` (a value typed on a command line, a
+    recorded message): iterative, so any depth is safe to measure; stops past ``limit`` + 1
+    levels. Raises ``ValueError`` past ``max_items`` items (YAML aliases can make a short
+    text a huge or cyclic value)."""
+    deepest = 0
+    seen = 0
+    stack: list[tuple[Any, int]] = [(value, 0)]
+    while stack:
+        item, level = stack.pop()
+        seen += 1
+        if seen > max_items:
+            raise ValueError(f"a value of more than {max_items} items")
+        if isinstance(item, dict):
+            item = list(item.values())
+        if isinstance(item, list):
+            level += 1
+            deepest = max(deepest, level)
+            if level <= limit:
+                stack.extend((child, level) for child in item)
+    return deepest

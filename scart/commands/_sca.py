@@ -28,7 +28,7 @@ MAX_ENDPOINTS = 64  # services endpoints one command lists or searches
 def at(args: argparse.Namespace) -> str | None:
     """``--at``, else ``$SCART_SERVICES``, else None (then the name service is asked).
     Raises ``ValueError`` naming ``$SCART_SERVICES`` when it is not ``HOST:PORT``."""
-    from dataflow.cli.output import checked_address
+    from scart_wire.console import checked_address
 
     given = getattr(args, "at", None)
     if given:
@@ -41,7 +41,7 @@ def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace],
     """Run ``body``; a remote fault, a refusal or a malformed target becomes one stderr line
     and exit 1."""
     from scart_wire.errors import DataflowError
-    from dataflow.cli.output import err
+    from scart_wire.console import err
 
     try:
         return body(args)
@@ -69,7 +69,7 @@ def named_endpoints(args: argparse.Namespace) -> list[tuple[str, str]]:
     """``(address, namespace)`` of each services endpoint the name service knows (the
     namespace of a ``scart run --remap __ns=NS``, else ``""``); raises ``DataflowError``
     naming the name service when it does not answer."""
-    from dataflow.cli.output import ns_address
+    from scart_wire.console import ns_address
     from scart_wire.errors import RemoteTimeoutError, UnavailableError
     from dataflow.remote.naming import NameClient
     from scart_wire.security import from_args

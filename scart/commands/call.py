@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, address_arg, dump, err, jsonable, out, parse_value, with_system
 from scart.commands._sca import SERVICES_ENV, at, call, find, list_services, split_target, with_services
+from scart_wire.console import add_common, address_arg, dump, err, jsonable, out, parse_value, with_client
 
 HELP = "call a task's operation or an SCA service's, with JSON or YAML arguments"
 
@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"'SCA services at ...'; or ${SERVICES_ENV})")
     parser.add_argument("--type", default=None, metavar="pkg/Srv",
                         help="a ROS service's type (ROS 1: default, asked of the service as rosservice does)")
-    from dataflow.cli import _ros as ros_args
-    from dataflow.cli import _yarp as yarp_args
+    from dataflow.launch import ros as ros_args
+    from dataflow.launch import yarp as yarp_args
 
     ros_args.add_arguments(parser, calls=True)
     yarp_args.add_arguments(parser)
@@ -54,7 +54,9 @@ def main(args: argparse.Namespace) -> int:
         return 2
     if address is not None:
         return with_services(args, lambda a: _print(a, _sca_call(address, a, split_target(a.operation)[0])))
-    return with_system(args, _call)
+    from dataflow.remote import connect  # the data-flow system the name service knows
+
+    return with_client(args, connect, _call)
 
 
 def _arguments(args: argparse.Namespace) -> list[object]:
@@ -127,13 +129,13 @@ def _call(args: argparse.Namespace) -> int:
 
 def _yarp_call(args: argparse.Namespace) -> object:
     """``yarp:/port``: the reply bottle as plain data."""
-    from dataflow.cli import _yarp as yarp_args
+    from dataflow.launch import yarp as yarp_args
 
     return jsonable(yarp_args.call(args, _arguments(args)))
 
 
 def _ros_call(args: argparse.Namespace) -> object:
     """``ros1:/service`` or ``ros2:/service``: the response as plain data."""
-    from dataflow.cli import _ros as ros_args
+    from dataflow.launch import ros as ros_args
 
     return jsonable(ros_args.call(args, _arguments(args)))

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, address_arg, dump, out
 from scart.commands._sca import SERVICES_ENV, at, list_services, named_endpoints, with_services
+from scart_wire.console import add_common, address_arg, dump, out
 
 HELP = "list the SCA services scart run serves (found through the name service, or --at)"
 

@@ -420,7 +420,7 @@ def test_a_zenoh_error_carries_no_rust_source_path() -> None:
     out = scart(None, "echo", "a.b", "--zenoh", "--zenoh-connect", "tcp/[::1:3", "--timeout", "1", check=False)
     assert out.returncode == 1 and "Unable to connect" in out.stderr, out.stderr
     assert ".rs:" not in out.stderr and ".cargo" not in out.stderr and len(out.stderr.strip().splitlines()) == 1
-    from dataflow.cli._zenoh import plain_error
+    from dataflow.launch.zenoh import plain_error
 
     assert plain_error("Bad thing! at /x/y/src/net/z.rs:447.") == "Bad thing!"
     assert plain_error("[zenoh/src/a.rs:12]: refused") == "refused"

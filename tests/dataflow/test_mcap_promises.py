@@ -18,7 +18,7 @@ import zstandard
 from mcap.writer import CompressionType, Writer
 
 from dataflow import Deployer
-from dataflow.cli._mcap import MAGIC, MIN_MESSAGES, Budget, McapError, McapScan
+from dataflow.recording.mcap import MAGIC, MIN_MESSAGES, Budget, McapError, McapScan
 from support import ROOT
 
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess]

@@ -263,8 +263,8 @@ def test_the_circle_finder_can_fail() -> None:
 
 
 #: The README's layers, most specific first (a module belongs to the first that names it).
-LAYERS = (*STACKS, "scart_wire", "dataflow.transports", "dataflow.remote", "dataflow.cli", "dataflow", "scart.bindings",
-          "scart.spi", "scart.errors", "scart")
+LAYERS = (*STACKS, "scart_wire", "dataflow.transports", "dataflow.remote", "dataflow.foxglove", "dataflow.recording",
+          "dataflow.launch", "dataflow.cli", "dataflow", "scart.bindings", "scart.spi", "scart.errors", "scart")
 
 
 def _layer(module: str) -> str:
@@ -422,14 +422,16 @@ def test_the_cli_modules_import_each_other_in_no_circle() -> None:
 
 
 def test_shared_cli_helpers_import_no_verb() -> None:
-    """What verbs share (output, Zenoh options, MCAP files, JSON Schemas, the Foxglove
-    server, the composite and SCA helpers) imports no verb module."""
+    """What verbs share inside the command line (running a verb connected, the composite and
+    SCA helpers) imports no verb module. What they share outside it (the output module, the
+    Foxglove server, MCAP files, the ROS/YARP/Zenoh options) imports no command line at all:
+    ``test_layering_cli.py``."""
     graph = _cli_imports()
     verbs = {m for m in graph if m.startswith("dataflow.cli.verbs.") or
              (m.startswith("scart.commands.") and not m.rpartition(".")[2].startswith("_"))}
     shared = [m for m in graph if m not in verbs and m not in ("scart.cli", "dataflow.cli.verbs")]
     assert {m: sorted(graph[m] & verbs) for m in shared if graph[m] & verbs} == {}
-    assert "dataflow.cli.output" in shared and "scart.commands._composite" in shared
+    assert "dataflow.cli.connected" in shared and "scart.commands._composite" in shared
 
 
 def test_a_verb_loads_its_own_module_only() -> None:

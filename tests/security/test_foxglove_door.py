@@ -29,7 +29,7 @@ from pathlib import Path
 import pytest
 
 from dataflow import Deployer, PeriodicActivity
-from dataflow.cli.foxglove import MAX_PARAMETER_NAMES, FoxgloveLive, control_token
+from dataflow.foxglove.server import MAX_PARAMETER_NAMES, FoxgloveLive, control_token
 from dataflow.remote import connect
 from scart_wire.security import Security
 from support import ROOT

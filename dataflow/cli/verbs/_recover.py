@@ -9,7 +9,7 @@ import argparse
 import os
 from typing import Any
 
-from dataflow.cli.output import dump, err, out
+from scart_wire.console import dump, err, out
 
 __all__ = ["recover"]
 
@@ -17,7 +17,7 @@ __all__ = ["recover"]
 def recover(args: argparse.Namespace) -> int:
     """Copy ``args.recover`` to ``args.output`` (default ``FILE-recovered.mcap``); 0 when
     a copy was written, 1 (one line) when the source cannot be read at all."""
-    from dataflow.cli._mcap import McapError, McapScan
+    from dataflow.recording.mcap import McapError, McapScan
 
     source = args.recover
     target = _target(args)
@@ -45,7 +45,7 @@ def recover(args: argparse.Namespace) -> int:
 
 def _target(args: argparse.Namespace) -> str | None:
     """Where the copy goes (``-o``, else ``FILE-recovered.mcap``), or None after saying why not."""
-    from dataflow.cli._mcap import output_problem
+    from dataflow.recording.mcap import output_problem
 
     stem, ext = os.path.splitext(args.recover)
     target = args.output or f"{stem}-recovered{ext or '.mcap'}"
@@ -63,7 +63,7 @@ def _write_copy(target: str, overwrite: bool, head: list[Any], records: Any) -> 
     Raises ``ValueError`` when the file cannot be made."""
     from mcap.writer import Writer
 
-    from dataflow.cli._mcap import Sink, open_output
+    from dataflow.recording.mcap import Sink, open_output
 
     fd = open_output(target, overwrite)
     try:
@@ -81,7 +81,7 @@ def _copy(writer: Any, head: list[Any], records: Any) -> tuple[int, str]:
     part stopped the copy or "")``."""
     from mcap import records as kinds
 
-    from dataflow.cli._mcap import McapError
+    from dataflow.recording.mcap import McapError
 
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}

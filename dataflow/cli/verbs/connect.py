@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, out, policy_of, with_system
+from dataflow.cli.connected import with_system
+from dataflow.policy import ConnPolicy
+from scart_wire.console import add_common, dump, out
 
 HELP = "connect an output port to an input port (any deployers)"
 
@@ -32,8 +34,6 @@ def main(args: argparse.Namespace) -> int:
 def _transport(text: str) -> str:
     """``--transport``: a name a policy accepts, checked by the policy (plug-ins are looked
     up only for a name that is not scart's own)."""
-    from dataflow import ConnPolicy
-
     try:
         return ConnPolicy(transport=text).transport
     except ValueError as exc:
@@ -42,7 +42,7 @@ def _transport(text: str) -> str:
 
 def cmd_connect(args: argparse.Namespace) -> int:
     """``scart connect A.out B.in [--policy P]``."""
-    policy = policy_of(args.policy).with_(transport=args.transport)
+    policy = ConnPolicy.parse(args.policy).with_(transport=args.transport)
     note = args.system.connect_ports(args.source, args.sink, policy, name=args.name)
     name = args.name or next((lk.name for lk in args.system.links()
                               if (lk.source, lk.sink) == (args.source, args.sink)), f"{args.source}->{args.sink}")

@@ -28,10 +28,10 @@ from collections.abc import Callable
 from typing import Any
 
 from dataflow.activities import freeze_heap
-from dataflow.cli import _ros as ros_args
-from dataflow.cli import _yarp as yarp_args
-from dataflow.cli import _zenoh as zenoh_args
-from dataflow.cli.output import listen_arg
+from dataflow.launch import ros as ros_args
+from dataflow.launch import yarp as yarp_args
+from dataflow.launch import zenoh as zenoh_args
+from scart_wire.console import listen_arg
 from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from scart_wire.security import add_arguments as add_arguments_security
 from scart_wire.security import from_args

@@ -7,7 +7,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, jsonable, out, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, dump, jsonable, out
 
 HELP = "properties, operations and ports of a component"
 

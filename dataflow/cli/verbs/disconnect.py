@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, out, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, dump, out
 
 HELP = "disconnect a link (by its name, or by its two ports)"
 

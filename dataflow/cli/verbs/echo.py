@@ -11,11 +11,11 @@ import json
 import threading
 from typing import Any
 
-from dataflow.cli import _zenoh as zenoh_args
-from dataflow.cli.output import (
-    add_common, dump, err, jsonable, out, policy_of, stopped_by_signals, wait_until_stopped, with_system,
-)
+from dataflow.cli.connected import with_session, with_system
+from dataflow.launch import zenoh as zenoh_args
+from dataflow.policy import ConnPolicy
 from dataflow.remote.api import split_port
+from scart_wire.console import add_common, dump, err, jsonable, out, stopped_by_signals, wait_until_stopped
 
 HELP = "print samples of an output port"
 
@@ -45,7 +45,7 @@ def main(args: argparse.Namespace) -> int:
         if args.policy != "data" or args.period is not None:
             err("echo: --policy and --period are for the name service's subscriptions, not --zenoh")
             return 1
-        return zenoh_args.with_session(args, _echo)
+        return with_session(args, _echo)
     return with_system(args, _echo)
 
 
@@ -66,7 +66,7 @@ def _echo(args: argparse.Namespace) -> int:
             sub: Any = ZenohSubscription(args.zenoh_session, component, port, printer, args.zenoh_ns)
         else:
             assert proxy is not None
-            sub = proxy.subscribe(port, printer, policy=policy_of(args.policy), period=args.period)
+            sub = proxy.subscribe(port, printer, policy=ConnPolicy.parse(args.policy), period=args.period)
         try:
             wait_until_stopped(done, args.duration)
         finally:

@@ -1,11 +1,17 @@
 """``scart foxglove [--host H] [--port P]``: every output port live in the Foxglove app
-(the server is :class:`dataflow.cli.foxglove.FoxgloveLive`; see there)."""
+(the server is :class:`dataflow.foxglove.server.FoxgloveLive`; see there)."""
 
 from __future__ import annotations
 
 import argparse
+import threading
+from typing import TYPE_CHECKING
 
-from dataflow.cli.output import add_common, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, err, ns_address, wait_until_stopped
+
+if TYPE_CHECKING:
+    from dataflow.foxglove.server import FoxgloveLive
 
 HELP = "serve every output port live to the Foxglove app (WebSocket protocol)"
 
@@ -29,6 +35,54 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Serve until Ctrl-C or ``--duration``."""
-    from dataflow.cli.foxglove import cmd_foxglove
+    return with_system(args, _serve)
 
-    return with_system(args, cmd_foxglove)
+
+def _serve(args: argparse.Namespace) -> int:
+    """``scart foxglove [--host H] [--port P] [--control [TOKEN_FILE]] [--auth-file AUTH]``
+    with ``args.system`` connected: serve, print the URL, wait."""
+    import dataclasses
+
+    from dataflow.foxglove.server import FoxgloveLive, control_token
+    from dataflow.remote import connect
+    from scart_wire.security import from_args
+
+    control = None
+    security = from_args(args)
+    if args.control is not None:
+        token = control_token(args.control or None, security, "--control", ns=ns_address(args))
+        control = connect(ns_address(args), timeout=args.timeout, security=dataclasses.replace(security, token=token))
+    try:
+        live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host, control=control,
+                            auth_file=security.auth_file)
+    except BaseException:
+        if control is not None:
+            control.close()
+        raise
+    if not _started(live, args):
+        return 1
+    try:
+        print(f"scart: Foxglove at {live.url} ({live.channels} channel(s), "
+              f"{'writable' if live.writable else 'read-only'})", flush=True)
+        err(f"foxglove: open {live.url} in the Foxglove app; Ctrl-C to stop")
+        wait_until_stopped(threading.Event(), args.duration)
+    finally:
+        live.stop()
+    return 0
+
+
+def _started(live: FoxgloveLive, args: argparse.Namespace) -> bool:
+    """Start ``live``; False (said on stderr) when the port is taken or the server behind
+    the gate could not be kept private."""
+    import errno
+
+    from dataflow.foxglove.inner_guard import GuardError
+
+    try:
+        live.start()
+    except OSError as exc:
+        why = "the port is in use" if exc.errno == errno.EADDRINUSE else (exc.strerror or str(exc))
+        err(f"foxglove: {exc}" if isinstance(exc, GuardError) else
+            f"foxglove: cannot listen on {args.host}:{args.port}: {why}; choose another --port (0: a free one)")
+        return False
+    return True

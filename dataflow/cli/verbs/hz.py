@@ -11,8 +11,9 @@ import statistics
 import threading
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, err, out, rate_of, stopped_by_signals, wait_until_stopped, with_system
+from dataflow.cli.connected import with_system
 from dataflow.remote.api import split_port
+from scart_wire.console import add_common, dump, err, out, rate_of, stopped_by_signals, wait_until_stopped
 
 HELP = "measure the rate of an output port"
 

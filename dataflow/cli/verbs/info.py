@@ -1,5 +1,5 @@
 """``scart info FILE.mcap``: the channels of an MCAP file (topic, type, messages, rate)
-and its duration, read with the bounds of :mod:`dataflow.cli._mcap`. A file cut short
+and its duration, read with the bounds of :mod:`dataflow.recording.mcap`. A file cut short
 (a recording killed, a full disk) is read as far as it goes, and said to be truncated
 (``scart record --recover`` finishes it); a file that is not a readable MCAP file gets
 one line saying what is wrong, and exit 1."""
@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from dataflow.cli.output import dump, err, out
+from scart_wire.console import dump, err, out
 
 HELP = "channels, counts, rates and duration of an MCAP file"
 
@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Describe the file; 1 (one line) when it cannot be read."""
-    from dataflow.cli._mcap import McapError
+    from dataflow.recording.mcap import McapError
 
     try:
         doc = describe(args.file)
@@ -50,10 +50,10 @@ def describe(path: str) -> dict[str, Any]:
     ``channels`` (``topic``, ``type``, ``count``, ``rate``, ``declared``: a message may name
     a channel the file never declares; it is counted in its own row, so the rows add up
     to ``messages``), ``undeclared`` (those messages), ``truncated`` and
-    ``truncated_at``. Raises :class:`~dataflow.cli._mcap.McapError`."""
+    ``truncated_at``. Raises :class:`~dataflow.recording.mcap.McapError`."""
     from mcap import records as kinds
 
-    from dataflow.cli._mcap import McapScan
+    from dataflow.recording.mcap import McapScan
 
     scan = McapScan(path)
     counts: dict[int, int] = {}

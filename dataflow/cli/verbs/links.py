@@ -7,7 +7,8 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, out, with_rates, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, dump, out, with_rates
 
 HELP = "list links and streams: name, ends, policy, transport, state, measured rate, drops"
 

@@ -13,8 +13,9 @@ import argparse
 import threading
 from typing import Any
 
-from dataflow.cli import _zenoh as zenoh_args
-from dataflow.cli.output import add_common, dump, out, rate_of, with_system
+from dataflow.cli.connected import with_session, with_system
+from dataflow.launch import zenoh as zenoh_args
+from scart_wire.console import add_common, dump, out, rate_of
 
 HELP = "list components: name, state, period, measured rate, deployer"
 
@@ -29,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """List the components."""
     if args.zenoh:
-        return zenoh_args.with_session(args, _ls_zenoh)
+        return with_session(args, _ls_zenoh)
     return with_system(args, _ls)
 
 

@@ -6,13 +6,13 @@ deadlines: no drift), or one by one on Enter with ``--step``.
 ``--remap OLD.PORT:=NEW.PORT`` (or ``=``) writes a channel's samples to another port; a
 port may be named ``/COMP/PORT`` too. A pause longer than ``--max-gap`` seconds in the
 file (default :data:`DEFAULT_MAX_GAP`) is shortened to it, and said. The file is read
-with the bounds of :mod:`dataflow.cli._mcap`: a message that is too large, not JSON or
+with the bounds of :mod:`dataflow.recording.mcap`: a message that is too large, not JSON or
 nested too deeply is skipped and counted, a malformed or truncated file is said in one
 line. The exit code is 1 when anything was not played (skipped, refused, a bad file).
 
 The samples of an array or ``bytes`` port (a camera's frames, over the control plane's
 4 MiB once large) go through a link of play's own from its process to the port, as a link
-between deployers does (:mod:`dataflow.cli._playlink`: shm on one host); every other
+between deployers does (:mod:`dataflow.recording.playlink`: shm on one host); every other
 sample is written through the control plane."""
 
 from __future__ import annotations
@@ -24,9 +24,10 @@ import threading
 import time
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, err, out, stopped_by_signals, with_system
+from dataflow.cli.connected import with_system
 from dataflow.errors import DataflowError
 from dataflow.remote.api import split_port
+from scart_wire.console import add_common, dump, err, out, stopped_by_signals
 
 HELP = "replay an MCAP file into input ports"
 DEFAULT_MAX_GAP = 3.0
@@ -110,7 +111,7 @@ class _Pace:
 
 
 def _play(args: argparse.Namespace) -> int:
-    from dataflow.cli._mcap import McapError, McapScan
+    from dataflow.recording.mcap import McapError, McapScan
 
     tally = {"written": 0, "skipped": 0, "refused": 0, "left_out": 0}
     seen: set[str] = set()
@@ -179,12 +180,12 @@ def _write(args: argparse.Namespace, proxies: dict[str, Any], topic: str, data: 
 
 
 def _link_for(args: argparse.Namespace, proxy: Any, target: str) -> Any:
-    """The :class:`~dataflow.cli._playlink.PlayLink` that carries ``target``'s samples (made
+    """The :class:`~dataflow.recording.playlink.PlayLink` that carries ``target``'s samples (made
     at its first sample), or None when the control plane does (a port of another type
     than an array or ``bytes``). Raises ``DataflowError`` when the link cannot be made."""
     if target in args.links:
         return args.links[target]
-    from dataflow.cli._playlink import PlayLink, on_data_plane
+    from dataflow.recording.playlink import PlayLink, on_data_plane
 
     task, port = split_port(target)
     found = proxy.ports().get(port)
@@ -211,7 +212,7 @@ def _close_links(args: argparse.Namespace, tally: dict[str, int]) -> None:
 def _report(args: argparse.Namespace, tally: dict[str, int], seen: set[str], scan: Any, pace: _Pace,
             problem: str) -> int:
     """The closing line (stdout), what went wrong (stderr); the exit code."""
-    from dataflow.cli._mcap import MAX_JSON_DEPTH, MAX_MESSAGE_BYTES
+    from dataflow.recording.mcap import MAX_JSON_DEPTH, MAX_MESSAGE_BYTES
 
     missing = sorted((args.topic_set or set()) - seen)
     if missing:

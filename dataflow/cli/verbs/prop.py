@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, jsonable, out, parse_value, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, dump, jsonable, out, parse_value
 
 HELP = "list, get or set properties"
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, out, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, dump, out
 
 HELP = "point a link at another input port (made before the old one goes)"
 

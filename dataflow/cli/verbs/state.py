@@ -6,8 +6,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, err, out, with_system
+from dataflow.cli.connected import with_system
 from dataflow.remote.api import TRANSITIONS
+from scart_wire.console import add_common, dump, err, out
 
 HELP = "show or change a component's lifecycle state"
 

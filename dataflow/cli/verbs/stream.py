@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import argparse
 
-from dataflow.cli.output import add_common, dump, out, policy_of, with_system
+from dataflow.cli.connected import with_system
+from dataflow.policy import ConnPolicy
+from scart_wire.console import add_common, dump, out
 
 HELP = "join a port to a topic of a transport (zenoh, ros1, ros2...): a stream"
 
@@ -36,7 +38,7 @@ def cmd_stream(args: argparse.Namespace) -> int:
     options = dict(_option(o) for o in args.option)
     if args.type:
         options["type"] = args.type
-    policy = policy_of(args.policy).with_(transport=transport, topic=topic)
+    policy = ConnPolicy.parse(args.policy).with_(transport=transport, topic=topic)
     link = args.system.stream(args.port, policy, options, name=args.name)
     out(dump(link.model_dump()) if args.json else f"streaming {link.source} -> {link.sink} ({link.policy}) "
         f"as {link.name}")

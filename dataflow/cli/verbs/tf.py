@@ -20,7 +20,8 @@ import threading
 import time
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, err, out, stopped_by_signals, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, dump, err, out, stopped_by_signals
 
 HELP = "a running frame tree: echo a transform (as tf_echo), list the frames (as view_frames)"
 

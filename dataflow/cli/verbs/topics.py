@@ -15,7 +15,8 @@ import threading
 import time
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, out, rate_of, with_system
+from dataflow.cli.connected import with_system
+from scart_wire.console import add_common, dump, out, rate_of
 
 HELP = "list every port: name, type, direction, measured rate, connections"
 ALIASES = ("ports",)

@@ -17,8 +17,9 @@ import threading
 import time
 from typing import Any
 
-from dataflow.cli.output import add_common, dump, err, out, parse_value, stopped_by_signals, with_system
+from dataflow.cli.connected import with_system
 from dataflow.remote.api import split_port
+from scart_wire.console import add_common, dump, err, out, parse_value, stopped_by_signals
 
 HELP = "write a value (JSON or YAML) to an input port, once or at a rate"
 MAX_RATE = 1000.0

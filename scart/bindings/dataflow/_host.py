@@ -167,7 +167,7 @@ class DataflowHost(Participant):
         are both given and no name service answers at ``ns``."""
         settings = self.host.settings
         own = DataflowSettings.of(settings)
-        from dataflow.cli import _ros
+        from dataflow.launch import ros as _ros
 
         try:  # the process's ROS node speaks for these tasks (their properties its parameters)
             _ros.attach(self.deployer)
@@ -223,7 +223,7 @@ class DataflowHost(Participant):
             server, self.server = self.server, None
         if server is not None:
             server.stop()
-        from dataflow.cli import _ros
+        from dataflow.launch import ros as _ros
 
         _ros.detach(self.deployer)
 

@@ -32,8 +32,8 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from dataflow.cli import _ros as ros_args
-from dataflow.cli import _yarp as yarp_args
+from dataflow.launch import ros as ros_args
+from dataflow.launch import yarp as yarp_args
 from scart.bindings.dataflow.settings import DataflowSettings, Remap
 from scart.errors import ScartError
 from scart.spi import (
@@ -272,7 +272,7 @@ def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = Non
     """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service
     the runtime serves or joined: read-only (on this process's credentials), or with
     ``control`` (``--foxglove-control [TOKEN_FILE]``) writable, acting with that file's
-    token (see :func:`dataflow.cli.foxglove.control_token`). Raises when the composite
+    token (see :func:`dataflow.foxglove.server.control_token`). Raises when the composite
     serves no tasks, the control token is refused or the server cannot start."""
     host, _, port = spec.rpartition(":")
     host = host.strip("[]") or "127.0.0.1"
@@ -281,7 +281,7 @@ def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = Non
     where = context.served.get("name service")
     if where is None:
         raise ScartError("this composite serves no data-flow tasks to show")
-    from dataflow.cli.foxglove import FoxgloveLive, control_token
+    from dataflow.foxglove.server import FoxgloveLive, control_token
     from dataflow.remote import connect
 
     security = context.settings.security

@@ -1,4 +1,5 @@
-"""``scart foxglove``: every data-flow output port, live, in the Foxglove app.
+"""The Foxglove server: every data-flow output port, live, in the Foxglove app (what ``scart
+foxglove`` and ``scart run --foxglove`` serve).
 
 It serves the Foxglove WebSocket protocol (with the ``foxglove-sdk`` package) on loopback
 (``--host``/``--port``; default port 8765, 0 for a free one): each output port of every
@@ -12,11 +13,11 @@ are Foxglove *parameters* named ``task.property``. The address to open in the ap
 Security (the protocol carries no credentials, so the server decides alone):
 
 - **Handshake**: the SDK's server listens on a loopback port of its own, behind a gate
-  (:mod:`dataflow.cli._ws_gate`) that admits a WebSocket only with a loopback ``Host``
+  (:mod:`dataflow.foxglove.gate`) that admits a WebSocket only with a loopback ``Host``
   and either no ``Origin`` (a program) or one of the Foxglove app's
-  (:data:`~dataflow.cli._ws_gate.FOXGLOVE_ORIGINS`): no other web page can connect.
+  (:data:`~dataflow.foxglove.gate.FOXGLOVE_ORIGINS`): no other web page can connect.
 - **Only the gate reaches the SDK's server**: a socket filter on its listening socket
-  drops every connection but the gate's own (:mod:`dataflow.cli._inner_guard`, which says
+  drops every connection but the gate's own (:mod:`dataflow.foxglove.inner_guard`, which says
   why: the SDK takes no Unix socket and checks no peer, and every local user can read the
   address it listens on).
 - **Tokens**: the printed URL carries a token made for this launch (``ws://HOST:PORT/
@@ -43,21 +44,22 @@ Security (the protocol carries no credentials, so the server decides alone):
 - A routable ``--host`` needs ``--insecure`` and is logged as a warning; control is
   never offered there.
 
-:class:`FoxgloveLive` is the same server for other hosts of it: ``scart run --foxglove``.
+:class:`FoxgloveLive` is the server; :func:`control_token` reads and checks the token its
+writes act with. Both the ``scart foxglove`` verb and ``scart run --foxglove`` (the
+data-flow extension's launch provider) use them; this package imports no command line.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import threading
 from typing import Any
 
 from dataflow.threads import OwnedThread
-from dataflow.cli._jsonschema import _schema_of, message_of, schema_name, type_schema
+from scart_wire.jsonschema import message_of, message_schema, schema_name, type_schema
 
-__all__ = ["FoxgloveLive", "cmd_foxglove"]
+__all__ = ["FoxgloveLive", "control_token"]
 
 log = logging.getLogger("scart.foxglove")
 MAX_CHANNELS = 512
@@ -109,7 +111,7 @@ class _Bridge:
                         continue
                     self.channels[topic] = None  # made with its schema: now if the type is known here,
                     if registry.python_type(port.type_name) is not None:  # else from the first sample
-                        self.channels[topic] = self._channel(topic, port.type_name, _schema_of(port.type_name))
+                        self.channels[topic] = self._channel(topic, port.type_name, message_schema(port.type_name))
 
                 def observer(event: Any, topic: str = topic, type_name: str = port.type_name) -> None:
                     data = message_of(event.value)
@@ -385,7 +387,7 @@ class FoxgloveLive:
         and keep looking for new tasks. Nothing is left running when it raises."""
         import foxglove
 
-        from dataflow.cli._ws_gate import WebSocketGate
+        from dataflow.foxglove.gate import WebSocketGate
 
         self._bridge = bridge = _Bridge(self._system, foxglove.Context(), self._control)
         try:
@@ -407,7 +409,7 @@ class FoxgloveLive:
     @staticmethod
     def _inner_server(bridge: _Bridge, capabilities: list[Any], services: list[Any]) -> tuple[Any, Any]:
         """The SDK's server, behind the gate, and the guard that lets only the gate reach it
-        (:mod:`dataflow.cli._inner_guard`): on a random address of 127.0.0.0/8 (a web page
+        (:mod:`dataflow.foxglove.inner_guard`): on a random address of 127.0.0.0/8 (a web page
         cannot guess it), else 127.0.0.1; a free port. A connection that came before the
         guard: started again elsewhere (3 tries). Raises ``GuardError`` when it cannot be
         kept private."""
@@ -415,7 +417,7 @@ class FoxgloveLive:
 
         import foxglove
 
-        from dataflow.cli._inner_guard import GuardError, InnerGuard
+        from dataflow.foxglove.inner_guard import GuardError, InnerGuard
 
         for attempt in range(3):
             server, host = None, ""
@@ -547,45 +549,3 @@ def _refuse_admin(ns: str, token: str, token_file: str, security: Any, flag: str
         raise ValueError(f"{flag} {token_file}: that token has the 'admin' role (the name service at {ns} says); "
                          "give one of the 'operate' role made for Foxglove (--auth-file AUTH lets scart check it "
                          "itself)")
-
-
-def cmd_foxglove(args: argparse.Namespace) -> int:
-    """``scart foxglove [--host H] [--port P] [--control [TOKEN_FILE]] [--auth-file AUTH]``:
-    see the module docstring."""
-    import dataclasses
-
-    from dataflow.cli.output import err as _err, ns_address, wait_until_stopped as _wait_until_stopped
-    from dataflow.remote import connect
-    from scart_wire.security import from_args
-
-    control = None
-    security = from_args(args)
-    if args.control is not None:
-        token = control_token(args.control or None, security, "--control", ns=ns_address(args))
-        control = connect(ns_address(args), timeout=args.timeout, security=dataclasses.replace(security, token=token))
-    try:
-        live = FoxgloveLive(args.system, args.host, args.port, args.refresh, args.insecure_host, control=control,
-                            auth_file=security.auth_file)
-    except BaseException:
-        if control is not None:
-            control.close()
-        raise
-    try:
-        live.start()
-    except OSError as exc:  # the port taken, or the server behind the gate could not be kept private
-        from dataflow.cli._inner_guard import GuardError
-
-        import errno
-
-        why = "the port is in use" if exc.errno == errno.EADDRINUSE else (exc.strerror or str(exc))
-        _err(f"foxglove: {exc}" if isinstance(exc, GuardError) else
-             f"foxglove: cannot listen on {args.host}:{args.port}: {why}; choose another --port (0: a free one)")
-        return 1
-    try:
-        print(f"scart: Foxglove at {live.url} ({live.channels} channel(s), "
-              f"{'writable' if live.writable else 'read-only'})", flush=True)
-        _err(f"foxglove: open {live.url} in the Foxglove app; Ctrl-C to stop")
-        _wait_until_stopped(threading.Event(), args.duration)
-    finally:
-        live.stop()
-    return 0

@@ -1,7 +1,7 @@
 """A gate in front of a WebSocket server that cannot check its own handshake (the Foxglove
 SDK's): it listens where the user asked, reads each connection's HTTP upgrade request,
 checks its ``Host``, ``Origin`` and token, and only then relays the connection, byte for
-byte, to the real server, which only the gate can reach (:mod:`dataflow.cli._inner_guard`).
+byte, to the real server, which only the gate can reach (:mod:`dataflow.foxglove.inner_guard`).
 
 The checks (the monitor's, for a WebSocket):
 
@@ -168,7 +168,7 @@ class _Refused(Exception):
 class WebSocketGate:
     """Listens on ``host:port`` and relays each connection whose handshake passes (see the
     module docstring) to ``inner``, a loopback ``(host, port)`` reached through ``guard``
-    (an :class:`~dataflow.cli._inner_guard.InnerGuard`, started: it gives the sockets the
+    (an :class:`~dataflow.foxglove.inner_guard.InnerGuard`, started: it gives the sockets the
     server behind lets through; None: a plain connection). ``tokens(token)`` says whether
     a token is accepted (None: none is). ``start()`` then ``stop()`` (idempotent);
     ``port`` is the bound port once started."""

@@ -1,6 +1,9 @@
-"""What the data-flow verbs share: their common options, printing, errors, the values a
-user types, and reaching the name service. It imports no verb (each verb module imports
-it), and nothing heavy until a verb runs.
+"""What every verb of the ``scart`` command line shares, the SCA verbs
+(:mod:`scart.commands`) and the data-flow ones (:mod:`dataflow.cli.verbs`) alike: their
+common options, printing, errors, the values a user types, and reaching the name service.
+It sits in the wire layer, below both worlds, so that each world's verbs use it without
+importing the other's command line; it imports no verb and neither world, and nothing
+heavy until a verb runs.
 
 Every verb that reads a running system finds it through a name service: ``--ns
 HOST:PORT``, else the ``SCART_NS`` environment variable, else ``127.0.0.1:7850``. Data
@@ -9,7 +12,6 @@ streams), diagnostics to stderr, one line each, never a traceback. ``--timeout``
 deadline of each remote call. Exit codes: 0 success, 1 a failure (nothing answers,
 unknown name, wrong type, refused value or transition), 2 usage.
 """
-
 from __future__ import annotations
 
 import argparse
@@ -25,11 +27,12 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from scart_wire.bounds import nesting_depth
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
 
 __all__ = ["add_common", "address_arg", "checked_address", "dump", "err", "jsonable", "listen_arg", "ns_address",
-           "out", "parse_value", "policy_of", "rate_of", "seconds_arg", "stopped_by_signals", "wait_until_stopped",
-           "with_rates", "with_system"]
+           "out", "parse_value", "rate_of", "seconds_arg", "stopped_by_signals", "wait_until_stopped", "with_client",
+           "with_rates"]
 
 #: A value typed on the command line (JSON or YAML), at most this long.
 MAX_VALUE_CHARS = 1 << 20
@@ -121,7 +124,7 @@ def dump(obj: Any) -> str:
 def jsonable(value: Any) -> Any:
     """A sample or result as JSON-able data (the type registry's form); a numpy array
     (an image, a point cloud) as a summary: its shape, element type, mean, min and max."""
-    from dataflow import registry
+    from scart_wire.types import registry
 
     kind = type(value)
     if kind.__name__ == "ndarray" and kind.__module__ == "numpy":
@@ -148,7 +151,7 @@ def parse_value(text: str) -> Any:
         value = json.loads(text)
     except (ValueError, RecursionError):
         value = _yaml(text)
-    if depth(value) > MAX_VALUE_DEPTH:
+    if nesting_depth(value, MAX_VALUE_DEPTH, MAX_VALUE_CHARS) > MAX_VALUE_DEPTH:
         raise ValueError(f"a value nested deeper than {MAX_VALUE_DEPTH} levels")
     return value
 
@@ -165,41 +168,13 @@ def _yaml(text: str) -> Any:
     return value
 
 
-def depth(value: Any, limit: int = MAX_VALUE_DEPTH, max_items: int = MAX_VALUE_CHARS) -> int:
-    """How deeply lists and mappings nest in ``value`` (iterative, so any depth is safe to
-    measure; stops past ``limit`` + 1 levels). Raises ``ValueError`` past ``max_items``
-    items (YAML aliases can make a short text a huge or cyclic value)."""
-    deepest = 0
-    seen = 0
-    stack: list[tuple[Any, int]] = [(value, 0)]
-    while stack:
-        item, level = stack.pop()
-        seen += 1
-        if seen > max_items:
-            raise ValueError(f"a value of more than {max_items} items")
-        if isinstance(item, dict):
-            item = list(item.values())
-        if isinstance(item, list):
-            level += 1
-            deepest = max(deepest, level)
-            if level <= limit:
-                stack.extend((child, level) for child in item)
-    return deepest
-
-
-def policy_of(text: str) -> Any:
-    """``--policy`` text as a :class:`~dataflow.ConnPolicy` (``ValueError`` naming it)."""
-    from dataflow import ConnPolicy
-
-    return ConnPolicy.parse(text)
-
-
-def with_system(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
-    """Run a verb's ``body`` with ``args.system`` connected to the name service; every
-    error it can meet becomes one stderr line and exit code 1."""
-    from dataflow import DataflowError
-    from dataflow.remote import connect
-    from dataflow.remote.errors import RemoteTimeoutError, UnavailableError
+def with_client(args: argparse.Namespace, connect: Callable[..., Any],
+                body: Callable[[argparse.Namespace], int]) -> int:
+    """Run a verb's ``body`` with ``args.system`` connected to the name service by
+    ``connect(address, timeout=..., security=...)`` (the data-flow world's
+    :func:`dataflow.remote.connect`: this layer imports neither world); every error it can
+    meet becomes one stderr line and exit code 1 (2: ``$SCART_NS`` is no address)."""
+    from scart_wire.errors import DataflowError, RemoteTimeoutError, UnavailableError
     from scart_wire.security import from_args
 
     try:

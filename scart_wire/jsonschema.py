@@ -1,11 +1,12 @@
 """Samples as JSON messages with a JSON Schema of their port's type: what MCAP files
-(``scart record``) and the Foxglove app (``scart foxglove``) carry."""
+(``scart record``) and the Foxglove app (``scart foxglove``) carry. Part of the wire layer:
+it knows the type registry and arrays, nothing of either world."""
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["message_of", "schema_name", "type_schema"]
+__all__ = ["message_of", "message_schema", "schema_name", "type_schema"]
 
 
 def type_schema(type_name: str) -> dict[str, Any]:
@@ -13,7 +14,7 @@ def type_schema(type_name: str) -> dict[str, Any]:
     this process does not know the type or pydantic cannot describe it)."""
     import pydantic
 
-    from dataflow import registry
+    from scart_wire.types import registry
 
     py_type = registry.python_type(type_name)
     if py_type is None:
@@ -33,11 +34,11 @@ def schema_name(type_name: str) -> str:
     return RAW_IMAGE if spec is not None and spec.image else type_name
 
 
-def _schema_of(type_name: str) -> dict[str, Any]:
+def message_schema(type_name: str) -> dict[str, Any]:
     """A message's JSON Schema: the type's, a non-object wrapped as ``{"value": ...}``
     (Foxglove wants objects); ``{"title": name}`` for a type unknown here; an array's,
     what :func:`message_of` makes of it."""
-    from dataflow import registry
+    from scart_wire.types import registry
     from scart_wire.arrays import array_spec
 
     spec = array_spec(type_name)
@@ -51,8 +52,8 @@ def _schema_of(type_name: str) -> dict[str, Any]:
 
 def message_of(value: Any) -> dict[str, Any]:
     """A sample as a JSON message: its JSON form, a non-object wrapped as ``{"value": ...}``
-    (the shape :func:`_schema_of` describes)."""
-    from dataflow import registry
+    (the shape :func:`message_schema` describes)."""
+    from scart_wire.types import registry
 
     kind = type(value)
     if kind.__name__ == "ndarray" and kind.__module__ == "numpy":  # an image or a cloud: base64, not a list

@@ -1,17 +1,17 @@
 """The ``--zenoh`` options of ``scart deploy``, ``ls`` and ``echo`` (see
-:mod:`dataflow.transports.zenoh`), and running a verb on a Zenoh session."""
+:mod:`dataflow.transports.zenoh`): the Zenoh session they say, how many peers it reached,
+and why a peer may have refused it, in a user's words (:func:`plain_error`)."""
 
 from __future__ import annotations
 
 import argparse
 import socket
-from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from scart_wire.security import Security
 
-__all__ = ["add_arguments", "peers", "refusal_hint", "session_of", "with_session"]
+__all__ = ["add_arguments", "peers", "plain_error", "refusal_hint", "session_of"]
 
 
 def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
@@ -74,49 +74,10 @@ def refusal_hint(security: Security) -> str:
     return "; a peer that checks tokens (--auth-file) admits only a command given one (SCART_TOKEN / --token-file)"
 
 
-def with_session(args: argparse.Namespace, body: Callable[[argparse.Namespace], int]) -> int:
-    """Run a verb's ``body`` with ``args.zenoh_session`` open (no name service involved);
-    every error it can meet, Zenoh's own included, becomes one stderr line and exit 1."""
-    from dataflow import DataflowError
-    from dataflow.cli.output import err
-    from scart_wire.security import from_args
-
-    try:
-        security = from_args(args)
-    except DataflowError as exc:  # unusable security files
-        err(f"{args.command}: {exc}")
-        return 1
-    try:
-        args.zenoh_session, _ = session_of(args, security=security)
-    except (ValueError, DataflowError) as exc:  # ours: a bad endpoint, namespace or auth file, a missing package
-        err(f"{args.command}: --zenoh: {exc}")
-        return 1
-    except Exception as exc:  # noqa: BLE001 - Zenoh's own errors: nothing reached, perhaps refused
-        err(f"{args.command}: --zenoh: {_plain(exc)}{refusal_hint(security)}")
-        return 1
-    try:
-        if not peers(args.zenoh_session):
-            err(f"{args.command}: --zenoh: no Zenoh peer reached; give --zenoh-connect ENDPOINT "
-                f"(scart deploy --zenoh prints where it listens){refusal_hint(security)}")
-            if args.command == "ls":
-                return 1
-        return body(args)
-    except Exception as exc:  # noqa: BLE001 - Zenoh's own errors too: one line, exit 1
-        err(f"{args.command}: {_plain(exc)}")
-        return 1
-    finally:
-        args.zenoh_session.close()
-
-
-def _plain(exc: BaseException) -> str:
-    """Zenoh's error text without the Rust source location it carries (``at
-    /home/.../src/x.rs:12.``, or a ``[path.rs:12]`` prefix): a user needs what went wrong."""
-    return plain_error(str(exc))
-
-
 def plain_error(text: str) -> str:
     """``text`` with Rust source paths (``/x/y.rs:12``, ``src/z.rs:3:4``) and the words
-    around them removed; see :func:`_plain`."""
+    around them removed (Zenoh's error text carries the Rust source location: ``at
+    /home/.../src/x.rs:12.``, or a ``[path.rs:12]`` prefix; a user needs what went wrong)."""
     import re
 
     cleaned = re.sub(r"\s*\bat\s+\S+\.rs(:\d+)+\.?", "", text)

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from dataflow.transports.limits import MAX_FRAME_BYTES
+from scart_wire.bounds import nesting_depth
 
 __all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "MAX_RATIO", "MAX_READ_SECONDS", "Budget",
            "McapError", "McapScan", "Sink", "decode_json", "open_output", "output_problem"]
@@ -230,8 +231,6 @@ class McapScan:
 def decode_json(data: bytes) -> dict[str, Any] | None:
     """A message's JSON object, or None when it is over :data:`MAX_MESSAGE_BYTES`, not JSON,
     not an object, or nested deeper than :data:`MAX_JSON_DEPTH`."""
-    from dataflow.cli.output import depth
-
     if len(data) > MAX_MESSAGE_BYTES:
         return None
     try:
@@ -239,7 +238,7 @@ def decode_json(data: bytes) -> dict[str, Any] | None:
     except (ValueError, RecursionError):
         return None
     try:
-        if not isinstance(value, dict) or depth(value, MAX_JSON_DEPTH, MAX_MESSAGE_BYTES) > MAX_JSON_DEPTH:
+        if not isinstance(value, dict) or nesting_depth(value, MAX_JSON_DEPTH, MAX_MESSAGE_BYTES) > MAX_JSON_DEPTH:
             return None
     except ValueError:
         return None
