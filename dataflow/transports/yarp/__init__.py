@@ -30,6 +30,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from dataflow.buffers import WaitingStorage
 from dataflow.policy import ConnPolicy, ConnType, WaitMode
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
@@ -257,7 +258,7 @@ class _PortStream(Stream):
             end.transport = "yarp"
             storage = end.storage
             self._port = network.open_port(topic, reader=_receiver(end, conv, storage), connect=connect)
-            if storage is not None and end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT:
+            if isinstance(storage, WaitingStorage) and end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT:
                 storage.on_room(self._port.resume)  # a read made room: what was held back comes in
 
     @property
