@@ -330,7 +330,7 @@ class OutputPort(Port[T]):
         n, last = self._sample
         return n, (None if last is _NONE else last)
 
-    def connect_to(self, other: InputPort[T], policy: ConnPolicy | None = None, *,
+    def connect_to(self, other: Port[T], policy: ConnPolicy | None = None, *,
                    storage: Storage[T] | None = None) -> Connection[T]:
         """Connect to ``other`` with ``policy`` (default ``ConnPolicy()``); returns the connection.
 

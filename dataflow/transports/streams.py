@@ -8,9 +8,10 @@ import re
 import threading
 from typing import Any
 
+from dataflow.errors import DeploymentError
 from dataflow.introspection import LinkDescription, PortStreamDescription
 from dataflow.policy import ConnPolicy
-from dataflow.ports import ChannelConnection, InputPort, OutputPort
+from dataflow.ports import ChannelConnection, InputPort, OutputPort, Port
 from dataflow.transports import load
 from dataflow.transports.ends import ReaderEnd, WriterEnd, attach, detach
 from dataflow.transports.limits import check_fits
@@ -33,8 +34,7 @@ class PortStream:
     ``ConnPolicy.name_id``): an output port's writer end publishes, an input port's reader
     end receives (its buffer feeding the port). Listed with the links."""
 
-    def __init__(self, port: InputPort[Any] | OutputPort[Any], policy: ConnPolicy, options: dict[str, str],
-                 name: str) -> None:
+    def __init__(self, port: Port[Any], policy: ConnPolicy, options: dict[str, str], name: str) -> None:
         self.port = port
         self.policy = policy
         self.options = dict(options)
@@ -52,9 +52,11 @@ class PortStream:
             self.reader = end = ReaderEnd(label, port_check(port, nan_ok=self.transport.converts), conn.store,
                                           lambda: conn.dropped, port=port, policy=policy)
             self.reader.storage = conn.storage
-        else:
+        elif isinstance(port, OutputPort):
             self.writer = end = WriterEnd(port, policy, label)
             attach(port, self.writer)
+        else:
+            raise DeploymentError(f"{port.qualname}: a stream joins an input or an output port")
         try:
             self._stream = self.transport.stream(end, policy.topic, self.options)
         except BaseException:
