@@ -22,7 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, TypeAlias, TypeVar
 
 import grpc
 
@@ -37,6 +37,10 @@ from scart.bindings.grpc._wire import (
 from scart.spi import CURRENT_CALLBACK, Host, InterfaceInfo, ServiceEndpoint
 
 log = logging.getLogger("scart.bindings.grpc")
+R = TypeVar("R")
+#: How a provider's callback reaches its caller: the ``CallbackCall`` sent, the caller's
+#: ``Outcome`` back (None for a one-way callback).
+SendCallback: TypeAlias = "Callable[[pb.CallbackCall], pb.Outcome | None]"
 
 MAX_WORKERS = 64
 MAX_STREAMS = 48  # Invoke calls + callback sessions open at once: the rest of the pool stays for unary calls
@@ -62,7 +66,7 @@ class Exported:
         self.oneway_failures = 0
         self._lock = threading.Lock()
 
-    def call(self, inv: Any, callback: object | None) -> Any:
+    def call(self, inv: pb.Invocation, callback: object | None) -> Any:
         """Run a synchronous operation (any raised error becomes the caller's ``RemoteError``)."""
         name = inv.operation
         sig = self.sigs.get(name)
@@ -77,7 +81,7 @@ class Exported:
         sig.check_shape(len(inv.args), inv.kwargs)
         return fn(*sig.args(inv.args), **sig.kwargs(inv.kwargs))
 
-    def send(self, inv: Any, callback: object | None) -> None:
+    def send(self, inv: pb.Invocation, callback: object | None) -> None:
         """Queue a one-way operation on the runtime's pool; raises if it cannot be queued."""
         name = inv.operation
         sig = self.sigs.get(name)
@@ -101,7 +105,7 @@ class Exported:
         work.__qualname__ = f"{self.names[0]}.{name} (binding.grpc one-way)"
         self.host.submit(work)
 
-    def info(self) -> Any:
+    def info(self) -> pb.ServiceInfo:
         """This service as a ``ServiceInfo`` message."""
         iface, cb = self.endpoint.interface, self.callback_iface
         ops = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value,
@@ -122,7 +126,7 @@ class _Callback:
     provider that keeps its callers in a set or dict keeps one entry per caller, as with
     local callers; without a session each callback is only equal to itself."""
 
-    def __init__(self, exported: Exported, send: Callable[[Any], Any | None], target_id: int,
+    def __init__(self, exported: Exported, send: SendCallback, target_id: int,
                  session_id: str = "") -> None:
         self._key = (session_id, target_id) if session_id else None
         iface = exported.callback_iface
@@ -130,9 +134,9 @@ class _Callback:
             setattr(self, name, self._make(name, op.oneway, exported.callback_sigs[name], send, target_id))
 
     @staticmethod
-    def _make(name: str, oneway: bool, sig: Signature, send: Callable[[Any], Any | None],
+    def _make(name: str, oneway: bool, sig: Signature, send: SendCallback,
               target_id: int) -> Callable[..., Any]:
-        def callback(*args: Any, **kwargs: Any) -> Any:
+        def callback(*args: object, **kwargs: object) -> Any:
             cc = pb.CallbackCall(operation=name, oneway=oneway, target_id=target_id)
             fill_invocation(cc, args, kwargs)
             outcome = send(cc)
@@ -158,8 +162,8 @@ class _StreamCallback:
     (replies arrive by ``ReplyCallback`` → :meth:`deliver`); after it returned, through
     the caller's session (if it named one)."""
 
-    def __init__(self, out: queue.SimpleQueue[Any], context: grpc.ServicerContext, timeout: float,
-                 fallback: Callable[[Any], Any | None] | None) -> None:
+    def __init__(self, out: queue.SimpleQueue[pb.InvokeResponse | None], context: grpc.ServicerContext,
+                 timeout: float, fallback: SendCallback | None) -> None:
         self._out = out
         self._context = context
         self._timeout = timeout
@@ -174,7 +178,7 @@ class _StreamCallback:
         self.done = True
         self.deliver(None)
 
-    def deliver(self, reply: Any | None) -> bool:
+    def deliver(self, reply: pb.CallbackReply | None) -> bool:
         """Hand the caller's ``CallbackReply`` to the waiting callback (None: wake it, no reply)."""
         slot = self._waiting
         if slot is None or (reply is not None and reply.id != slot[0]):
@@ -183,11 +187,11 @@ class _StreamCallback:
         slot[1].set()
         return reply is not None
 
-    def send(self, cc: Any) -> Any | None:
+    def send(self, cc: pb.CallbackCall) -> pb.Outcome | None:
         with self._lock:  # one callback at a time on the stream: replies come back in order
             if not self.done:
                 cc.id = next(self._ids)
-                slot = None if cc.oneway else [cc.id, threading.Event(), None]
+                slot: list[Any] | None = None if cc.oneway else [cc.id, threading.Event(), None]
                 self._waiting = slot
                 self._out.put(pb.InvokeResponse(callback_call=cc))
                 if slot is None:
@@ -207,9 +211,9 @@ class _Session:
     """A caller's callback session: ``CallbackCall`` s go out in order; a reader thread
     matches the caller's replies to the waiting senders."""
 
-    def __init__(self, session_id: str, requests: Iterator[Any]) -> None:
+    def __init__(self, session_id: str, requests: Iterator[pb.OpenCallbackSessionRequest]) -> None:
         self.id = session_id
-        self.out: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self.out: queue.SimpleQueue[pb.OpenCallbackSessionResponse | None] = queue.SimpleQueue()
         self._requests = requests
         self._ids = itertools.count(1)
         self._pending: dict[int, list[Any]] = {}  # id -> [Event, outcome]
@@ -231,7 +235,7 @@ class _Session:
         finally:
             self.close()
 
-    def send(self, cc: Any, timeout: float) -> Any | None:
+    def send(self, cc: pb.CallbackCall, timeout: float) -> pb.Outcome | None:
         """Send ``cc``; for a synchronous callback wait (at most ``timeout`` s) for the reply."""
         slot: list[Any] = [threading.Event(), None]
         with self._lock:
@@ -350,9 +354,9 @@ class GrpcServer:
         if self._server_pool is not None:
             self._server_pool.shutdown(wait=not abandoned)  # gRPC does not shut down a pool it was given
 
-    def _tracked(self, label: str, fn: Callable[[], Any]) -> Callable[[], Any]:
+    def _tracked(self, label: str, fn: Callable[[], R]) -> Callable[[], R]:
         """``fn`` counted as a running call while it runs (stop waits for it, bounded)."""
-        def run() -> Any:
+        def run() -> R:
             key = next(self._run_ids)
             with self._idle:
                 self._running[key] = label
@@ -390,21 +394,21 @@ class GrpcServer:
             raise ServiceNotFoundError(f"no service {name!r} at {self.address}; it serves: {', '.join(names) or 'none'}")
         return found
 
-    def _callback_for(self, exported: Exported, inv: Any) -> object | None:
+    def _callback_for(self, exported: Exported, inv: pb.Invocation) -> object | None:
         if not inv.session_id or exported.callback_iface is None:
             return None
         return _Callback(exported, self._session_sender(inv.session_id, exported.timeout), inv.target_id,
                          inv.session_id)
 
-    def _session_sender(self, session_id: str, timeout: float) -> Callable[[Any], Any | None]:
-        def send(cc: Any) -> Any | None:
+    def _session_sender(self, session_id: str, timeout: float) -> SendCallback:
+        def send(cc: pb.CallbackCall) -> pb.Outcome | None:
             session = self._sessions.get(session_id)
             if session is None:
                 raise InvocationError(f"callback {cc.operation}: the caller's callback session is closed")
             return session.send(cc, timeout)
         return send
 
-    def _call(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _call(self, request: pb.CallRequest, context: grpc.ServicerContext) -> pb.CallResponse:
         inv = request.invocation
         if not context.is_active():  # waited for a server thread past the caller's deadline
             log.warning("binding.grpc: %s.%s at %s: cancelled before start (the caller gave up)",
@@ -416,7 +420,7 @@ class GrpcServer:
             return exported.call(inv, self._callback_for(exported, inv))
         return pb.CallResponse(outcome=outcome_of(self._tracked(f"{inv.service}.{inv.operation}", run)))
 
-    def _send(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _send(self, request: pb.SendRequest, context: grpc.ServicerContext) -> pb.SendResponse:
         inv = request.invocation
         try:
             exported = self._find(inv.service)
@@ -427,9 +431,9 @@ class GrpcServer:
             return pb.SendResponse(fault=fault(exc))
         return pb.SendResponse()
 
-    def _invoke(self, request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
+    def _invoke(self, request: pb.InvokeRequest, context: grpc.ServicerContext) -> Iterator[pb.InvokeResponse]:
         inv, call_id = request.invocation, request.call_id
-        out: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        out: queue.SimpleQueue[pb.InvokeResponse | None] = queue.SimpleQueue()
         cb: _StreamCallback | None = None
 
         def ended() -> None:  # the RPC ended (outcome sent, deadline, cancel): stop every wait
@@ -481,11 +485,12 @@ class GrpcServer:
             if item.HasField("outcome"):
                 return
 
-    def _reply(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _reply(self, request: pb.ReplyCallbackRequest, context: grpc.ServicerContext) -> pb.ReplyCallbackResponse:
         cb = self._calls.get(request.call_id)
         return pb.ReplyCallbackResponse(delivered=cb is not None and cb.deliver(request.reply))
 
-    def _open_session(self, requests: Iterator[Any], context: grpc.ServicerContext) -> Iterator[Any]:
+    def _open_session(self, requests: Iterator[pb.OpenCallbackSessionRequest],
+                      context: grpc.ServicerContext) -> Iterator[pb.OpenCallbackSessionResponse]:
         first = next(requests, None)
         if first is None or not first.session_id:
             return
@@ -513,7 +518,7 @@ class GrpcServer:
                 if self._sessions.get(session.id) is session:
                     del self._sessions[session.id]
 
-    def _list(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _list(self, request: pb.ListServicesRequest, context: grpc.ServicerContext) -> pb.ListServicesResponse:
         with self._lock:
             exported = list(self._exported)
         return pb.ListServicesResponse(services=[e.info() for e in exported])
