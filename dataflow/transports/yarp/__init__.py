@@ -28,6 +28,7 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from dataflow.buffers import WaitingStorage
@@ -37,6 +38,9 @@ from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 if TYPE_CHECKING:
     from scart_yarp import Incoming, Network, Port
+
+    from dataflow.buffers import Storage
+    from dataflow.ports import Port as DataflowPort
 
     from .convert import Conversion
 
@@ -126,7 +130,7 @@ class YarpTransport(Transport):
         network.close()
 
     # ---- streams -----------------------------------------------------------------------
-    def conversion(self, port: Any) -> tuple[Conversion | None, list[str]]:
+    def conversion(self, port: DataflowPort[Any]) -> tuple[Conversion | None, list[str]]:
         """How ``port``'s type crosses as a bottle (planned once per type)."""
         from .convert import plan
 
@@ -211,7 +215,7 @@ class _Carrier:
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(), only when a reader is connected
 
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+    def send(self, sample: OutSample[Any], _data: object) -> bool:  # the writer's thread
         if not self._port.has_outputs:
             return True
         try:
@@ -290,7 +294,7 @@ class _PortStream(Stream):
         self._transport.release(self._network)
 
 
-def _receiver(end: ReaderEnd, conv: Conversion, storage: Any) -> Any:
+def _receiver(end: ReaderEnd[Any], conv: Conversion, storage: Storage[Any] | None) -> Callable[[Incoming], bool]:
     """What the YARP port calls (io thread) with each bottle: decoded, converted, handed
     to ``end`` numbered; a bottle that is malformed or does not fit is refused there. With
     a policy that makes writers wait, a bottle that finds the buffer full is held back
@@ -302,9 +306,10 @@ def _receiver(end: ReaderEnd, conv: Conversion, storage: Any) -> Any:
     from_bottle = conv.from_bottle
     count = [0]
     holds = end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT and storage is not None
+    has_room = storage.has_room if holds and storage is not None else None
 
     def on_message(msg: Incoming) -> bool:
-        if holds and not storage.has_room():
+        if has_room is not None and not has_room():
             return False
         try:
             value = from_bottle(msg.values())
