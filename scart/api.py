@@ -43,7 +43,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 _MISSING: Any = object()
 
 #: The callback target of the call being executed (set by bindings; read by ``callback()``).
-CURRENT_CALLBACK: contextvars.ContextVar[Any] = contextvars.ContextVar(
+CURRENT_CALLBACK: contextvars.ContextVar[object] = contextvars.ContextVar(
     "scart_current_callback", default=None
 )
 
@@ -301,7 +301,7 @@ def interface_info(iface: type) -> InterfaceInfo:
     return _cache(iface, _IFACE_ATTR, info)
 
 
-def _returns(func: Callable[..., Any]) -> bool:
+def _returns(func: Callable[..., object]) -> bool:
     ann = getattr(func, "__annotations__", {}).get("return", _MISSING)
     return ann is not _MISSING and ann not in (None, "None", type(None))
 

@@ -98,7 +98,7 @@ class ServiceProxy:
         return f"<scart proxy {self.__dict__['_scart_name']}>"
 
 
-def _stopped_stub(message: str) -> Callable[..., Any]:
+def _stopped_stub(message: str) -> Callable[..., NoReturn]:
     def stopped(*args: object, **kwargs: object) -> NoReturn:
         raise RuntimeStateError(message)
     return stopped
@@ -571,7 +571,7 @@ class _LocalCallback:
                                                submit=runtime.submitter(f"callback {iface.name}.{name}")))
 
 
-def _missing(cls: str, op: str) -> Callable[..., Any]:
+def _missing(cls: str, op: str) -> Callable[..., NoReturn]:
     def fail(*args: object, **kwargs: object) -> NoReturn:
         raise InvocationError(f"callback {op!r}: the calling component {cls} has no method {op!r}")
     return fail

@@ -86,8 +86,8 @@ class Invocation:
     """One call: operation name, arguments, and the callback target (or None)."""
 
     operation: str
-    args: tuple[Any, ...] = ()
-    kwargs: dict[str, Any] = field(default_factory=dict)
+    args: tuple[object, ...] = ()
+    kwargs: dict[str, object] = field(default_factory=dict)
     callback: object | None = None
 
 
