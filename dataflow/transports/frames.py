@@ -15,7 +15,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
-from typing import Any, TypeAlias
+from typing import Any, TypeAlias, TypeVar
 
 from scart_wire import codec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
@@ -26,6 +26,7 @@ from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
 __all__ = ["encoder", "feed", "heartbeat", "report_of", "sample_frame", "varint"]
 
 _Frame = pb.SubscribeResponse
+T = TypeVar("T")
 #: A parsed frame of samples: a subscription's or a link's.
 Frame: TypeAlias = "pb.SubscribeResponse | pb.LinkRequest"
 #: How the samples of one port's type become a frame's bytes (:func:`encoder`).
@@ -97,7 +98,7 @@ def connected(end: WriterEnd[Any], boot_id: str) -> bytes:
     return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, written=end.port.last_sample()[0]).SerializeToString()
 
 
-def feed(end: ReaderEnd[Any], message: Frame, values: Mapping[int, object] | None = None) -> int:
+def feed(end: ReaderEnd[T], message: Frame, values: Mapping[int, object] | None = None) -> int:
     """Hand the samples of one parsed frame (``SubscribeResponse`` or ``LinkRequest``) to
     ``end``; returns how many it stored. ``values``: the value of a sample whose bytes
     are elsewhere (shared memory), by its index in the frame. (Every sample of every
