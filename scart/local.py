@@ -85,13 +85,13 @@ def wrap_operation(
     """
     inner = call
     if by_value and not op.oneway:  # a one-way call is copied once, at submit (below)
-        def inner(*args: Any, _c: Callable[..., Any] = call, **kwargs: Any) -> Any:
+        def inner(*args: object, _c: Callable[..., Any] = call, **kwargs: object) -> Any:
             return by_value_copy(_c(*by_value_copy(args), **by_value_copy(kwargs)))
     if callback is not None:
         plain = inner
         var_set, var_reset = CURRENT_CALLBACK.set, CURRENT_CALLBACK.reset
 
-        def inner(*args: Any, **kwargs: Any) -> Any:
+        def inner(*args: object, **kwargs: object) -> Any:
             token = var_set(callback)
             try:
                 return plain(*args, **kwargs)

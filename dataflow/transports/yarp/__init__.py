@@ -142,7 +142,7 @@ class YarpTransport(Transport):
                 self._plans[port.type] = found
         return found
 
-    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+    def check_stream(self, port: DataflowPort[Any], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
         _, unfit = self.conversion(port)
         where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
