@@ -40,6 +40,7 @@ log = logging.getLogger(__name__)
 
 _time_ns = time.time_ns
 T = TypeVar("T")
+D = TypeVar("D")
 
 
 class OutSample(Generic[T]):
@@ -59,9 +60,9 @@ class OutSample(Generic[T]):
         #: then does not grow with its readers).
         self.inline = 0
         self._key: Callable[[OutSample[T]], Any] | None = None
-        self._bytes: Any = None
+        self._bytes: Any = None  # what the last encoder made (each transport's own type)
 
-    def encoded(self, encode: Callable[[OutSample[T]], Any]) -> Any:
+    def encoded(self, encode: Callable[[OutSample[T]], D]) -> D:
         """``encode(self)``, computed once per encoder (the last one's result is kept:
         the ends of one port almost always share one encoder)."""
         if self._key is encode:
@@ -71,14 +72,15 @@ class OutSample(Generic[T]):
         return data
 
 
-class Carrier(Protocol):
-    """What a transport attaches to a :class:`WriterEnd` while it is connected."""
+class Carrier(Protocol[D]):
+    """What a transport attaches to a :class:`WriterEnd` while it is connected; ``D`` is
+    what a sample becomes for it (scart's frames: ``bytes``)."""
 
-    def encode(self, sample: OutSample[Any]) -> Any:
+    def encode(self, sample: OutSample[Any]) -> D:
         """How a sample is encoded for this transport (the same function for every
         carrier of a transport, so a sample is encoded once however many ends send it)."""
 
-    def send(self, sample: OutSample[Any], data: Any) -> bool:
+    def send(self, sample: OutSample[Any], data: D) -> bool:
         """Send ``sample`` (``data``: :attr:`encode`'s result) now without blocking;
         False when there is no room (the end keeps it, as its policy says, until
         :meth:`WriterEnd.flush`). Called in the writer's thread, or in the transport's
@@ -211,7 +213,7 @@ class WriterEnd(Generic[T]):
         #: The port's write number the channel counts from: when this end was made (with
         #: ``init``, one less: the last value written is the channel's first sample).
         self.start = max(0, written - 1) if policy.init else written
-        self._carrier: Carrier | None = None
+        self._carrier: Carrier[Any] | None = None  # any transport's
         self._queue: deque[OutSample[T]] = deque()
         #: Samples written while another thread held the lock, oldest first: only a lock
         #: holder moves them into the queue (so the queue changes under the lock alone).
@@ -315,7 +317,7 @@ class WriterEnd(Generic[T]):
             if not self._more:
                 return
 
-    def _encoded(self, sample: OutSample[T], carrier: Carrier) -> Any:
+    def _encoded(self, sample: OutSample[T], carrier: Carrier[Any]) -> Any:
         """``sample`` encoded for ``carrier`` (once per transport); None, counted and
         said once, when it cannot be (a value the wire cannot carry: never raised into
         the writer)."""
@@ -364,7 +366,7 @@ class WriterEnd(Generic[T]):
         self._unsent_total += 1
 
     # ---- the transport's side -----------------------------------------------------------
-    def connected(self, transport: str, carrier: Carrier, *, new_peer: bool,
+    def connected(self, transport: str, carrier: Carrier[Any], *, new_peer: bool,
                   first: Callable[[], object] | None = None) -> None:
         """The transport is connected: samples go through ``carrier`` from now on.
         ``new_peer``: a reader end that knows nothing of this channel (a first connection,
@@ -422,7 +424,7 @@ class WriterEnd(Generic[T]):
                 return False
         return True
 
-    def _send_next(self, carrier: Carrier, limit: int) -> bool:
+    def _send_next(self, carrier: Carrier[Any], limit: int) -> bool:
         """Send the oldest queued sample, or (``limit`` > 0: a carrier whose frames join,
         see ``Carrier.batch_bytes``) the oldest samples joined into one message of at most
         ``limit`` bytes; False, with the queue as it was, when the carrier has no room. A

@@ -43,7 +43,8 @@ SAMPLE_PATH = {
 
 def _annotations(path: Path, name: str) -> list[ast.expr]:
     """The annotations of ``name`` (a function's parameters and return, or an attribute
-    annotated in its class's ``__init__``) in the module at ``path``."""
+    annotated in its class's ``__init__``) in the module at ``path``. What a transport
+    makes of a sample (its carrier's encoding) is the transport's own: not checked here."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
     owner, _, member = name.rpartition(".")
     scope: list[ast.stmt] = tree.body
@@ -53,7 +54,10 @@ def _annotations(path: Path, name: str) -> list[ast.expr]:
         scope = found[0].body
     for node in scope:
         if isinstance(node, ast.FunctionDef) and node.name == member:
-            return list(count_any.annotations(ast.Module(body=[node], type_ignores=[])))
+            args = node.args
+            every = [*args.posonlyargs, *args.args, *args.kwonlyargs, args.vararg, args.kwarg]
+            found = [a.annotation for a in every if a is not None and a.annotation is not None]
+            return found + ([node.returns] if node.returns is not None else [])
     for node in scope:
         if isinstance(node, ast.FunctionDef) and node.name == "__init__":
             for sub in ast.walk(node):
