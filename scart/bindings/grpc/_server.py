@@ -157,6 +157,18 @@ class _Callback:
         return hash(self._key) if self._key is not None else id(self)
 
 
+class _Awaited:
+    """A synchronous callback waiting for its caller's reply: set ``outcome`` (None: no
+    reply), then ``arrived``."""
+
+    __slots__ = ("id", "arrived", "outcome")
+
+    def __init__(self, call_id: int) -> None:
+        self.id = call_id
+        self.arrived = threading.Event()
+        self.outcome: pb.Outcome | None = None
+
+
 class _StreamCallback:
     """Sends callbacks on an ``Invoke`` call's own response stream while the call runs
     (replies arrive by ``ReplyCallback`` → :meth:`deliver`); after it returned, through
@@ -170,7 +182,7 @@ class _StreamCallback:
         self._fallback = fallback
         self._lock = threading.Lock()
         self._ids = itertools.count(1)
-        self._waiting: list[Any] | None = None  # [id, Event, outcome] of the callback awaiting its reply
+        self._waiting: _Awaited | None = None  # the callback awaiting its reply
         self.done = False
 
     def finish(self) -> None:
@@ -181,27 +193,27 @@ class _StreamCallback:
     def deliver(self, reply: pb.CallbackReply | None) -> bool:
         """Hand the caller's ``CallbackReply`` to the waiting callback (None: wake it, no reply)."""
         slot = self._waiting
-        if slot is None or (reply is not None and reply.id != slot[0]):
+        if slot is None or (reply is not None and reply.id != slot.id):
             return False
-        slot[2] = reply.outcome if reply is not None else None
-        slot[1].set()
+        slot.outcome = reply.outcome if reply is not None else None
+        slot.arrived.set()
         return reply is not None
 
     def send(self, cc: pb.CallbackCall) -> pb.Outcome | None:
         with self._lock:  # one callback at a time on the stream: replies come back in order
             if not self.done:
                 cc.id = next(self._ids)
-                slot: list[Any] | None = None if cc.oneway else [cc.id, threading.Event(), None]
+                slot = None if cc.oneway else _Awaited(cc.id)
                 self._waiting = slot
                 self._out.put(pb.InvokeResponse(callback_call=cc))
                 if slot is None:
                     return None
                 remaining = self._context.time_remaining()
-                slot[1].wait(min(self._timeout, remaining) if remaining is not None else self._timeout)
+                slot.arrived.wait(min(self._timeout, remaining) if remaining is not None else self._timeout)
                 self._waiting = None
-                if slot[2] is None:
+                if slot.outcome is None:
                     raise InvocationError(f"callback {cc.operation}: no reply from the caller (gone, or too slow)")
-                return slot[2]
+                return slot.outcome
         if self._fallback is None:
             raise InvocationError(f"callback {cc.operation}: the call has returned and the caller has no callback session")
         return self._fallback(cc)
@@ -216,7 +228,7 @@ class _Session:
         self.out: queue.SimpleQueue[pb.OpenCallbackSessionResponse | None] = queue.SimpleQueue()
         self._requests = requests
         self._ids = itertools.count(1)
-        self._pending: dict[int, list[Any]] = {}  # id -> [Event, outcome]
+        self._pending: dict[int, _Awaited] = {}  # by callback id
         self._lock = threading.Lock()
         self.closed = False
         self.reader = OwnedThread(self._read, f"scart-grpc-session-{session_id[:8]}")
@@ -228,8 +240,8 @@ class _Session:
                     with self._lock:
                         slot = self._pending.pop(msg.callback_reply.id, None)
                     if slot is not None:
-                        slot[1] = msg.callback_reply.outcome
-                        slot[0].set()
+                        slot.outcome = msg.callback_reply.outcome
+                        slot.arrived.set()
         except grpc.RpcError:
             pass
         finally:
@@ -237,23 +249,23 @@ class _Session:
 
     def send(self, cc: pb.CallbackCall, timeout: float) -> pb.Outcome | None:
         """Send ``cc``; for a synchronous callback wait (at most ``timeout`` s) for the reply."""
-        slot: list[Any] = [threading.Event(), None]
         with self._lock:
             if self.closed:
                 raise InvocationError(f"callback {cc.operation}: the caller's callback session is closed")
             cc.id = next(self._ids)
+            slot = _Awaited(cc.id)
             if not cc.oneway:
                 self._pending[cc.id] = slot
             self.out.put(pb.OpenCallbackSessionResponse(callback_call=cc))
         if cc.oneway:
             return None
-        if not slot[0].wait(timeout):
+        if not slot.arrived.wait(timeout):
             with self._lock:
                 self._pending.pop(cc.id, None)
             raise InvocationError(f"callback {cc.operation}: no reply from the caller within {timeout} s")
-        if slot[1] is None:
+        if slot.outcome is None:
             raise InvocationError(f"callback {cc.operation}: the caller's callback session closed")
-        return slot[1]
+        return slot.outcome
 
     def close(self) -> None:
         """Close: wake the stream handler and every waiting sender. Idempotent."""
@@ -264,7 +276,7 @@ class _Session:
             pending, self._pending = self._pending, {}
         self.out.put(None)
         for slot in pending.values():
-            slot[0].set()
+            slot.arrived.set()
 
 
 class GrpcServer:
