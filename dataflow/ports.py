@@ -610,7 +610,7 @@ class InputPort(Port[T]):
             self._current = 0
 
 
-def _counted(refs: dict[int, int], storage: Storage[Any], delta: int) -> bool:
+def _counted(refs: dict[int, int], storage: object, delta: int) -> bool:
     """Count one more (``delta=+1``) or one less (-1) connection of a port using ``storage``;
     True when the storage joins or leaves the port's set (several connections may share one
     storage: PER_INPUT_PORT, PER_OUTPUT_PORT, SHARED). O(1)."""
