@@ -61,12 +61,13 @@ that raises is logged and never disturbs the writer.
 
 from __future__ import annotations
 
+import builtins
 import dataclasses
 import itertools
 import logging
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
 
 import pydantic
 
@@ -229,6 +230,13 @@ class OutputPort(Port[T]):
     """Writes samples to every connected input; never blocks (see module docstring)."""
 
     is_input = False
+
+    # A class (``OutputPort(float)``, ``OutputPort(list[float])``) types the port's samples
+    # for mypy; any other type form (``Annotated[...]``, an array type) leaves them Any.
+    @overload
+    def __init__(self: OutputPort[T], type: builtins.type[T], name: str | None = None, doc: str = "") -> None: ...
+    @overload
+    def __init__(self: OutputPort[Any], type: object, name: str | None = None, doc: str = "") -> None: ...
 
     def __init__(self, type: Any, name: str | None = None, doc: str = "") -> None:
         super().__init__(type, name, doc)
@@ -441,6 +449,19 @@ class InputPort(Port[T]):
     """
 
     is_input = True
+
+    @overload  # as OutputPort's: a class types the samples
+    def __init__(
+        self: InputPort[T], type: builtins.type[T], name: str | None = None, doc: str = "", event: bool = False, *,
+        ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None,
+        finite: bool | None = None, check: Callable[[T], None] | None = None,
+    ) -> None: ...
+    @overload
+    def __init__(
+        self: InputPort[Any], type: object, name: str | None = None, doc: str = "", event: bool = False, *,
+        ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None,
+        finite: bool | None = None, check: Callable[[Any], None] | None = None,
+    ) -> None: ...
 
     def __init__(
         self, type: Any, name: str | None = None, doc: str = "", event: bool = False, *,
