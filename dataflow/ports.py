@@ -86,7 +86,8 @@ __all__ = ["InputPort", "OutputPort", "Connection", "ChannelConnection", "Port"]
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
-DataCallback = Callable[["InputPort[Any]"], None]
+#: Called with an input port after a sample was stored for it (its result is ignored).
+DataCallback = Callable[["InputPort[T]"], object]
 
 _setup_lock = threading.RLock()  # connect/disconnect only; never taken by read/write
 _NO_DATA = (FlowStatus.NO_DATA, None)
@@ -479,7 +480,7 @@ class InputPort(Port[T]):
         self.check_text = _described(check)
         self._sources: tuple[Storage[T], ...] = ()
         self._current = 0
-        self._callbacks: tuple[DataCallback, ...] = ()
+        self._callbacks: tuple[DataCallback[T], ...] = ()
         self._port_storage: Storage[T] | None = None  # PER_INPUT_PORT
         self._shared: Storage[T] | None = None  # SHARED
 
@@ -585,7 +586,7 @@ class InputPort(Port[T]):
         for storage in self._sources:
             storage.clear()
 
-    def add_data_callback(self, callback: DataCallback) -> None:
+    def add_data_callback(self, callback: DataCallback[T]) -> None:
         """Call ``callback(port)`` in the writer's thread after each sample stored for this port.
 
         The callback must be cheap and never block (e.g. set an Event). Thread-safe.
@@ -593,7 +594,7 @@ class InputPort(Port[T]):
         with _setup_lock:
             self._callbacks = (*self._callbacks, callback)
 
-    def remove_data_callback(self, callback: DataCallback) -> None:
+    def remove_data_callback(self, callback: DataCallback[T]) -> None:
         """Remove a callback added before (idempotent)."""
         with _setup_lock:
             cbs = list(self._callbacks)
