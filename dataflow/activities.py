@@ -37,13 +37,15 @@ import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from dataflow.clock import WALL, Clock
 from dataflow.threads import Wake
 
 if TYPE_CHECKING:
     from .task import TaskContext
+
+R = TypeVar("R")
 
 __all__ = ["Activity", "PeriodicActivity", "SequentialActivity", "SlaveActivity", "EventActivity",
            "fit_switch_interval", "freeze_heap"]
@@ -98,7 +100,7 @@ class Activity:
     def _on_event(self) -> None:
         """Data arrived on an event port (called in the writer's thread; must not block)."""
 
-    def _submit(self, fn: Callable[[], Any]) -> Future[Any] | None:
+    def _submit(self, fn: Callable[[], R]) -> Future[R] | None:
         """Queue ``fn`` to this activity's thread; None means 'run it yourself, now'."""
         return None
 
@@ -209,7 +211,7 @@ class _ThreadedActivity(Activity):
         super().__init__()
         self._run = _Run()
         self._run.accepting = False
-        self._ops: deque[tuple[Callable[[], Any], Future[Any]]] = deque()
+        self._ops: deque[tuple[Callable[[], Any], Future[Any]]] = deque()  # each its own result type
         self._ops_lock = threading.Lock()  # operation queue only; cycles never take it
 
     @property
@@ -248,14 +250,14 @@ class _ThreadedActivity(Activity):
         """True when called from this activity's thread."""
         return self._run.thread is threading.current_thread()
 
-    def _submit(self, fn: Callable[[], Any]) -> Future[Any] | None:
+    def _submit(self, fn: Callable[[], R]) -> Future[R] | None:
         if self.in_own_thread():
             return None
         with self._ops_lock:
             run = self._run
             if not run.accepting:
                 return None
-            fut: Future[Any] = Future()
+            fut: Future[R] = Future()
             self._ops.append((fn, fut))
         run.wake.set()
         return fut

@@ -67,9 +67,13 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from .policy import ConnPolicy, ConnType, FlowStatus, LockPolicy, WaitMode
+
+if TYPE_CHECKING:
+    from .ports import InputPort
 
 __all__ = ["Storage", "DataObject", "Buffer", "LockedStorage", "WaitingStorage", "make_storage"]
 
@@ -78,6 +82,7 @@ _NEW = FlowStatus.NEW_DATA
 _OLD = FlowStatus.OLD_DATA
 _NO = FlowStatus.NO_DATA
 _get_ident = threading.get_ident
+T = TypeVar("T")
 
 
 class _Counter:
@@ -98,14 +103,15 @@ class _Counter:
         return sum(list(self._cells.values()))
 
 
-class Storage:
-    """Base of a connection's storage. ``readers`` are the input ports fed by it."""
+class Storage(Generic[T]):
+    """Base of a connection's storage of samples of type ``T``. ``readers`` are the input
+    ports fed by it."""
 
     __slots__ = ("policy", "readers", "_drops")
 
     def __init__(self, policy: ConnPolicy) -> None:
         self.policy = policy
-        self.readers: tuple[Any, ...] = ()
+        self.readers: tuple[InputPort[T], ...] = ()
         self._drops = _Counter()
 
     @property
@@ -113,12 +119,12 @@ class Storage:
         """Samples lost before being read (rejected, evicted, overwritten or cleared)."""
         return self._drops.value
 
-    def write(self, value: Any) -> bool:  # pragma: no cover - interface
+    def write(self, value: T) -> bool:  # pragma: no cover - interface
         """Store ``value``; False when it was rejected (full BUFFER). Never blocks (but a
         :class:`WaitingStorage`'s, whose writer asked to wait)."""
         raise NotImplementedError
 
-    def write_now(self, value: Any) -> bool:
+    def write_now(self, value: T) -> bool:
         """:meth:`write` that never waits, whatever the policy (a transport's thread, which
         must not: it holds the writer back by other means)."""
         return self.write(value)
@@ -127,11 +133,11 @@ class Storage:
         """A write now would be taken without dropping anything (DATA: always)."""
         return True
 
-    def read(self) -> tuple[FlowStatus, Any]:  # pragma: no cover - interface
+    def read(self) -> tuple[FlowStatus, T | None]:  # pragma: no cover - interface
         """Take the next sample (see the truth table). Never blocks."""
         raise NotImplementedError
 
-    def read_newest(self) -> tuple[FlowStatus, Any]:
+    def read_newest(self) -> tuple[FlowStatus, T | None]:
         """Like ``read`` but skips to the newest sample (skipped ones count as dropped)."""
         return self.read()
 
@@ -144,7 +150,7 @@ class Storage:
         return 0
 
 
-class DataObject(Storage):
+class DataObject(Storage[T]):
     """Last-value storage (``ConnType.DATA``), lock-free: one reference swap per write.
 
     A sample lives in a cell ``[value, token]``; whoever pops the token first (a reader:
@@ -157,7 +163,7 @@ class DataObject(Storage):
         super().__init__(policy)
         self._cell: list[Any] | None = None
 
-    def write(self, value: Any) -> bool:
+    def write(self, value: T) -> bool:
         prev = self._cell
         self._cell = [value, True]
         if prev is not None and len(prev) == 2:
@@ -168,7 +174,7 @@ class DataObject(Storage):
             self._drops.add()
         return True
 
-    def read(self) -> tuple[FlowStatus, Any]:
+    def read(self) -> tuple[FlowStatus, T | None]:
         cell = self._cell
         if cell is None:
             return _NO, None
@@ -194,7 +200,7 @@ class DataObject(Storage):
         return 1 if cell is not None and len(cell) == 2 else 0
 
 
-class Buffer(Storage):
+class Buffer(Storage[T]):
     """Bounded FIFO (``BUFFER``) or ring (``CIRCULAR_BUFFER``), lock-free MPMC.
 
     Capacity is exact: a writer must take a free-slot token before appending.
@@ -204,12 +210,12 @@ class Buffer(Storage):
 
     def __init__(self, policy: ConnPolicy) -> None:
         super().__init__(policy)
-        self._items: deque[Any] = deque()
+        self._items: deque[T] = deque()
         self._free: list[None] = [None] * policy.size
-        self._last: Any = _NONE
+        self._last: T = _NONE
         self._circular = policy.type is ConnType.CIRCULAR_BUFFER
 
-    def write(self, value: Any) -> bool:
+    def write(self, value: T) -> bool:
         try:
             self._free.pop()
         except IndexError:
@@ -235,7 +241,7 @@ class Buffer(Storage):
                 continue
         return False
 
-    def read(self) -> tuple[FlowStatus, Any]:
+    def read(self) -> tuple[FlowStatus, T | None]:
         try:
             value = self._items.popleft()
         except IndexError:
@@ -245,7 +251,7 @@ class Buffer(Storage):
         self._last = value
         return _NEW, value
 
-    def read_newest(self) -> tuple[FlowStatus, Any]:
+    def read_newest(self) -> tuple[FlowStatus, T | None]:
         status, value = self.read()
         if status is not _NEW:
             return status, value
@@ -270,12 +276,12 @@ class Buffer(Storage):
         return len(self._items)
 
 
-class LockedStorage(Storage):
+class LockedStorage(Storage[T]):
     """Wraps a storage so that every operation holds one ``threading.Lock`` (``LOCKED``)."""
 
     __slots__ = ("_inner", "_lock")
 
-    def __init__(self, inner: Storage) -> None:
+    def __init__(self, inner: Storage[T]) -> None:
         super().__init__(inner.policy)
         self._inner = inner
         self._lock = threading.Lock()
@@ -284,15 +290,15 @@ class LockedStorage(Storage):
     def dropped(self) -> int:
         return self._inner.dropped
 
-    def write(self, value: Any) -> bool:
+    def write(self, value: T) -> bool:
         with self._lock:
             return self._inner.write(value)
 
-    def read(self) -> tuple[FlowStatus, Any]:
+    def read(self) -> tuple[FlowStatus, T | None]:
         with self._lock:
             return self._inner.read()
 
-    def read_newest(self) -> tuple[FlowStatus, Any]:
+    def read_newest(self) -> tuple[FlowStatus, T | None]:
         with self._lock:
             return self._inner.read_newest()
 
@@ -304,7 +310,7 @@ class LockedStorage(Storage):
         return self._inner.size()
 
 
-class WaitingStorage(Storage):
+class WaitingStorage(Storage[T]):
     """Wraps a buffer whose writer waits for room (``ConnPolicy.wait``): :meth:`write` to a
     full buffer blocks until a read frees a slot or ``wait_timeout`` s pass (then it is
     refused and counted, as a full buffer refuses); every read wakes the writer. Thread-safe.
@@ -312,11 +318,11 @@ class WaitingStorage(Storage):
 
     __slots__ = ("_inner", "_room", "_callbacks", "waited")
 
-    def __init__(self, inner: Storage) -> None:
+    def __init__(self, inner: Storage[T]) -> None:
         super().__init__(inner.policy)
         self._inner = inner
         self._room = threading.Condition(threading.Lock())
-        self._callbacks: tuple[Any, ...] = ()
+        self._callbacks: tuple[Callable[[], object], ...] = ()
         self.waited = 0.0  #: seconds writers spent waiting for room, in all
 
     @property
@@ -326,10 +332,10 @@ class WaitingStorage(Storage):
     def has_room(self) -> bool:
         return self._inner.size() < self.policy.size
 
-    def write_now(self, value: Any) -> bool:
+    def write_now(self, value: T) -> bool:
         return self._inner.write(value)
 
-    def write(self, value: Any) -> bool:
+    def write(self, value: T) -> bool:
         if not self.has_room():
             started = time.monotonic()
             with self._room:
@@ -344,12 +350,12 @@ class WaitingStorage(Storage):
             for callback in self._callbacks:
                 callback()
 
-    def read(self) -> tuple[FlowStatus, Any]:
+    def read(self) -> tuple[FlowStatus, T | None]:
         status, value = self._inner.read()
         self._freed(status)
         return status, value
 
-    def read_newest(self) -> tuple[FlowStatus, Any]:
+    def read_newest(self) -> tuple[FlowStatus, T | None]:
         status, value = self._inner.read_newest()
         self._freed(status)
         return status, value
@@ -361,14 +367,15 @@ class WaitingStorage(Storage):
     def size(self) -> int:
         return self._inner.size()
 
-    def on_room(self, callback: Any) -> None:
+    def on_room(self, callback: Callable[[], object]) -> None:
         """Call ``callback()`` (in the reader's thread) whenever a read makes room."""
         self._callbacks = (*self._callbacks, callback)
 
 
-def make_storage(policy: ConnPolicy) -> Storage:
-    """The storage a connection with ``policy`` needs (new, empty)."""
-    inner: Storage = DataObject(policy) if policy.type is ConnType.DATA else Buffer(policy)
+def make_storage(policy: ConnPolicy) -> Storage[Any]:
+    """The storage a connection with ``policy`` needs (new, empty), for samples of any
+    type (the port it serves decides which)."""
+    inner: Storage[Any] = DataObject(policy) if policy.type is ConnType.DATA else Buffer(policy)
     if policy.lock_policy is LockPolicy.LOCKED:
         inner = LockedStorage(inner)
     if policy.wait is not WaitMode.NO_WAIT and policy.type is not ConnType.DATA:

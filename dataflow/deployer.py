@@ -35,7 +35,7 @@ from .clock import WALL, Clock
 from .errors import DeploymentError, NotFoundError
 from .introspection import LinkDescription
 from .policy import ConnPolicy
-from .ports import Connection, InputPort, OutputPort
+from .ports import Connection, InputPort, OutputPort, Port
 from .task import TaskContext, TaskState
 
 if TYPE_CHECKING:
@@ -181,13 +181,19 @@ class Deployer:
         """Task names in the order they were added."""
         return list(self._tasks)
 
-    def _port(self, ref: str) -> Any:
+    def _port(self, ref: str) -> Port[Any]:
         task_name, dot, port_name = ref.rpartition(".")
         if not dot or not task_name or not port_name:
             raise DeploymentError(f"expected 'task.port', got {ref!r}")
         return self.task(task_name).port(port_name)
 
-    def connect(self, source: str, target: str, policy: ConnPolicy | None = None, name: str | None = None) -> Connection:
+    def _output(self, ref: str) -> OutputPort[Any]:
+        port = self._port(ref)
+        if not isinstance(port, OutputPort):
+            raise DeploymentError(f"{ref} is not an output port")
+        return port
+
+    def connect(self, source: str, target: str, policy: ConnPolicy | None = None, name: str | None = None) -> Connection[Any]:
         """Connect output ``"a.out"`` to input ``"b.in"``, as the link ``name`` (default
         ``"a.out->b.in"``); raises NotFound/PortType/DeploymentError (also for a name
         another link has). A refused connection keeps no name."""
@@ -221,7 +227,7 @@ class Deployer:
                 self._link_names[(source, target)] = name
             if not same_policy(old.policy, policy):
                 old.close()
-                self._port(source).connect_to(self._port(target), policy)
+                self._output(source).connect_to(self._port(target), policy)
                 notes.insert(0, f"policy changed from {old.policy} to {policy}")
             return "; ".join(notes) or "connected already"
 
@@ -348,7 +354,7 @@ class Deployer:
                 return link
         raise NotFoundError(f"no link {name!r}; links: {', '.join(lk.name for lk in links[:20]) or 'none'}")
 
-    def connection(self, source: str, sink: str) -> Connection | None:
+    def connection(self, source: str, sink: str) -> Connection[Any] | None:
         """The connection from output ``source`` to input ``sink``, if they are connected."""
         inp = self._port(sink)
         return next((c for c in self._port(source).connections() if c.input is inp), None)
@@ -368,7 +374,7 @@ class Deployer:
             assert old is not None  # listed a moment ago, under the lock
             given = self._link_names.pop((link.source, link.sink), None)
             try:
-                self._port(link.source).connect_to(self._port(sink), old.policy)
+                self._output(link.source).connect_to(self._port(sink), old.policy)
             except BaseException:
                 if given is not None:
                     self._link_names[(link.source, link.sink)] = given

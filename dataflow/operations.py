@@ -36,7 +36,7 @@ def operation(fn: F) -> F: ...
 def operation(*, own_thread: bool = False) -> Callable[[F], F]: ...
 
 
-def operation(fn: Any = None, *, own_thread: bool = False) -> Any:
+def operation(fn: F | None = None, *, own_thread: bool = False) -> F | Callable[[F], F]:
     """Declare a TaskContext method an operation (``@operation`` or ``@operation(own_thread=True)``)."""
 
     def mark(f: F) -> F:
@@ -46,12 +46,12 @@ def operation(fn: Any = None, *, own_thread: bool = False) -> Any:
     return mark(fn) if fn is not None else mark
 
 
-def spec_of(fn: Any) -> OperationSpec | None:
+def spec_of(fn: object) -> OperationSpec | None:
     """The OperationSpec of a declared operation, or None."""
     return getattr(fn, _MARK, None)
 
 
-def _name_of(tp: Any) -> str:
+def _name_of(tp: object) -> str:
     if tp is None or tp is type(None):
         return "None"
     if tp is inspect.Parameter.empty:
@@ -59,7 +59,7 @@ def _name_of(tp: Any) -> str:
     return registry.type_name(tp)
 
 
-def describe_operation(name: str, fn: Callable[..., Any], spec: OperationSpec) -> OperationDescription:
+def describe_operation(name: str, fn: Callable[..., object], spec: OperationSpec) -> OperationDescription:
     """An OperationDescription with params, return type and signature ``name(a: float64) -> None``."""
     try:
         hints = typing.get_type_hints(fn)

@@ -61,12 +61,13 @@ that raises is logged and never disturbs the writer.
 
 from __future__ import annotations
 
+import builtins
 import dataclasses
 import itertools
 import logging
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
 
 import pydantic
 
@@ -78,12 +79,15 @@ from scart_wire.types import registry
 
 if TYPE_CHECKING:
     from .task import TaskContext
+    from .transports.ends import Fanout
+    from .transports.streams import PortStream
 
 __all__ = ["InputPort", "OutputPort", "Connection", "ChannelConnection", "Port"]
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
-DataCallback = Callable[["InputPort[Any]"], None]
+#: Called with an input port after a sample was stored for it (its result is ignored).
+DataCallback = Callable[["InputPort[T]"], object]
 
 _setup_lock = threading.RLock()  # connect/disconnect only; never taken by read/write
 _NO_DATA = (FlowStatus.NO_DATA, None)
@@ -93,13 +97,13 @@ _FAILURE = WriteStatus.WRITE_FAILURE
 _NOT_CONNECTED = WriteStatus.NOT_CONNECTED
 
 
-class Connection:
+class Connection(Generic[T]):
     """One output→input connection. ``close()`` disconnects it (idempotent, thread-safe)."""
 
     __slots__ = ("output", "input", "policy", "storage")
 
     def __init__(
-        self, output: OutputPort[Any], input: InputPort[Any], policy: ConnPolicy, storage: Storage
+        self, output: OutputPort[T], input: InputPort[T], policy: ConnPolicy, storage: Storage[T]
     ) -> None:
         self.output = output
         self.input = input
@@ -120,7 +124,7 @@ class Connection:
         return f"<Connection {self.output.qualname} -> {self.input.qualname} [{self.policy}]>"
 
 
-class ChannelConnection(Connection):
+class ChannelConnection(Connection[T]):
     """A connection into an input port fed from another process: the reader end of a
     channel (a link, a remote writer, a stream; see :mod:`dataflow.transports`) writes
     into its storage, which the port reads like any other. ``output`` is None; ``peer``
@@ -128,16 +132,16 @@ class ChannelConnection(Connection):
 
     __slots__ = ("peer",)
 
-    def __init__(self, input: InputPort[Any], policy: ConnPolicy, storage: Storage, peer: str) -> None:
+    def __init__(self, input: InputPort[T], policy: ConnPolicy, storage: Storage[T], peer: str) -> None:
         super().__init__(None, input, policy, storage)  # type: ignore[arg-type]  # no output port in this process
         self.peer = peer
 
-    def write(self, value: Any) -> bool:
+    def write(self, value: T) -> bool:
         """Store ``value`` (already checked) and wake the port's readers; False when the
         storage refused it (a full BUFFER: counted in :attr:`dropped`). Never blocks."""
         return self.store(0, 0, value)
 
-    def store(self, _n: int, _t_ns: int, value: Any) -> bool:
+    def store(self, _n: int, _t_ns: int, value: T) -> bool:
         """:meth:`write`, as a reader end's ``store`` (write number and time are its own).
         Never waits, even where the policy makes writers wait: a transport asks
         :meth:`~dataflow.buffers.Storage.has_room` first and holds its writer back itself."""
@@ -168,7 +172,7 @@ class Port(Generic[T]):
     is_input: bool = False
     #: The streams joining this port to topics (:class:`~dataflow.transports.streams.PortStream`;
     #: each adds and removes itself), for ``describe``.
-    streams: tuple[Any, ...] = ()
+    streams: tuple[PortStream, ...] = ()
 
     def __init__(self, type: Any, name: str | None = None, doc: str = "") -> None:
         self.type = type
@@ -177,7 +181,8 @@ class Port(Generic[T]):
         self.task: TaskContext | None = None
         self.attr: str | None = None
         self._check = registry.checker(type)
-        self._conns: dict[Port[Any], Connection] = {}
+        #: Its connections, by the port at their other end (a channel's: by itself).
+        self._conns: dict[object, Connection[T]] = {}
         self._refs: dict[int, int] = {}  # id(storage) -> connections of this port using it
 
     @property
@@ -207,7 +212,7 @@ class Port(Generic[T]):
         """Number of connections of this port."""
         return len(self._conns)
 
-    def connections(self) -> list[Connection]:
+    def connections(self) -> list[Connection[T]]:
         """A snapshot of this port's connections."""
         return list(self._conns.values())
 
@@ -227,19 +232,26 @@ class OutputPort(Port[T]):
 
     is_input = False
 
+    # A class (``OutputPort(float)``, ``OutputPort(list[float])``) types the port's samples
+    # for mypy; any other type form (``Annotated[...]``, an array type) leaves them Any.
+    @overload
+    def __init__(self: OutputPort[T], type: builtins.type[T], name: str | None = None, doc: str = "") -> None: ...
+    @overload
+    def __init__(self: OutputPort[Any], type: object, name: str | None = None, doc: str = "") -> None: ...
+
     def __init__(self, type: Any, name: str | None = None, doc: str = "") -> None:
         super().__init__(type, name, doc)
         # (number of writes, last value): one tuple, so a reader on another thread always
         # sees a value with its own write number (remote polling tells new from old by it).
-        self._sample: tuple[int, Any] = (0, _NONE)
+        self._sample: tuple[int, T] = (0, _NONE)
         self._writes = itertools.count(1)
-        self._storages: tuple[Storage, ...] = ()
-        self._single_data: DataObject | None = None  # the one lock-free DATA storage, if so
-        self._port_storage: Storage | None = None  # PER_OUTPUT_PORT
-        self._shared: Storage | None = None  # SHARED
+        self._storages: tuple[Storage[T], ...] = ()
+        self._single_data: DataObject[T] | None = None  # the one lock-free DATA storage, if so
+        self._port_storage: Storage[T] | None = None  # PER_OUTPUT_PORT
+        self._shared: Storage[T] | None = None  # SHARED
         #: The channel ends crossing a process (links, subscriptions, streams; see
         #: :mod:`dataflow.transports`): one fan-out, which encodes each sample once for all.
-        self._fanout: Any = None
+        self._fanout: Fanout[T] | None = None
 
     def _clone(self) -> OutputPort[T]:
         port: OutputPort[T] = OutputPort(self.type, self.name, self.doc)
@@ -286,7 +298,7 @@ class OutputPort(Port[T]):
                 status = _FAILURE
         return status
 
-    def _write_all(self, number: int, value: Any, fanout: Any) -> WriteStatus:
+    def _write_all(self, number: int, value: T, fanout: Fanout[T]) -> WriteStatus:
         """``write`` with channel ends attached: the local connections, then the fan-out
         (which hands the sample to each end; False when a mandatory end refused it)."""
         status = _SUCCESS
@@ -301,14 +313,14 @@ class OutputPort(Port[T]):
             status = _FAILURE
         return status
 
-    def attach_fanout(self, fanout: Any) -> None:
+    def attach_fanout(self, fanout: Fanout[T] | None) -> None:
         """Make ``fanout`` (a :class:`dataflow.transports.Fanout`) receive every sample
         written from now on, with its write number; None detaches it. Setup path."""
         with _setup_lock:
             self._fanout = fanout
             self._publish(self._storages)
 
-    def _checked(self, value: Any) -> Any:
+    def _checked(self, value: object) -> T:
         try:
             return self._check(value)
         except TypeError as exc:
@@ -327,8 +339,8 @@ class OutputPort(Port[T]):
         n, last = self._sample
         return n, (None if last is _NONE else last)
 
-    def connect_to(self, other: InputPort[T], policy: ConnPolicy | None = None, *,
-                   storage: Storage | None = None) -> Connection:
+    def connect_to(self, other: Port[T], policy: ConnPolicy | None = None, *,
+                   storage: Storage[T] | None = None) -> Connection[T]:
         """Connect to ``other`` with ``policy`` (default ``ConnPolicy()``); returns the connection.
 
         Idempotent: connecting an already connected pair returns the existing connection.
@@ -369,7 +381,7 @@ class OutputPort(Port[T]):
             _rebuild_readers(storage, other)
             return conn
 
-    def _storage_for(self, other: InputPort[Any], policy: ConnPolicy) -> Storage:
+    def _storage_for(self, other: InputPort[T], policy: ConnPolicy) -> Storage[T]:
         bp = policy.buffer_policy
         if bp is BufferPolicy.PER_CONNECTION:
             return make_storage(policy)
@@ -387,7 +399,7 @@ class OutputPort(Port[T]):
             )
         return storage
 
-    def disconnect(self, other: InputPort[Any] | None = None) -> None:
+    def disconnect(self, other: InputPort[T] | None = None) -> None:
         """Disconnect from ``other`` (or from every input); idempotent, thread-safe."""
         if other is None:
             super().disconnect()
@@ -397,7 +409,7 @@ class OutputPort(Port[T]):
             if conn is not None:
                 self._remove(conn)
 
-    def _remove(self, conn: Connection) -> None:
+    def _remove(self, conn: Connection[T]) -> None:
         with _setup_lock:
             if self._conns.get(conn.input) is not conn:
                 return
@@ -410,7 +422,7 @@ class OutputPort(Port[T]):
                 inp._publish(_without(inp._sources, conn.storage))
             _rebuild_readers(conn.storage)
 
-    def _publish(self, storages: tuple[Storage, ...]) -> None:
+    def _publish(self, storages: tuple[Storage[T], ...]) -> None:
         """Make ``storages`` the ones writes go to (setup path, under the setup lock)."""
         single = storages[0] if len(storages) == 1 else None
         # Publish in an order that is safe for a concurrent writer: the fast path is
@@ -439,6 +451,19 @@ class InputPort(Port[T]):
 
     is_input = True
 
+    @overload  # as OutputPort's: a class types the samples
+    def __init__(
+        self: InputPort[T], type: builtins.type[T], name: str | None = None, doc: str = "", event: bool = False, *,
+        ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None,
+        finite: bool | None = None, check: Callable[[T], None] | None = None,
+    ) -> None: ...
+    @overload
+    def __init__(
+        self: InputPort[Any], type: object, name: str | None = None, doc: str = "", event: bool = False, *,
+        ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None,
+        finite: bool | None = None, check: Callable[[Any], None] | None = None,
+    ) -> None: ...
+
     def __init__(
         self, type: Any, name: str | None = None, doc: str = "", event: bool = False, *,
         ge: float | None = None, gt: float | None = None, le: float | None = None, lt: float | None = None,
@@ -453,11 +478,11 @@ class InputPort(Port[T]):
         self.check = check
         #: What ``check`` checks, in words (its docstring's first line; "" without a check).
         self.check_text = _described(check)
-        self._sources: tuple[Storage, ...] = ()
+        self._sources: tuple[Storage[T], ...] = ()
         self._current = 0
-        self._callbacks: tuple[DataCallback, ...] = ()
-        self._port_storage: Storage | None = None  # PER_INPUT_PORT
-        self._shared: Storage | None = None  # SHARED
+        self._callbacks: tuple[DataCallback[T], ...] = ()
+        self._port_storage: Storage[T] | None = None  # PER_INPUT_PORT
+        self._shared: Storage[T] | None = None  # SHARED
 
     def _clone(self) -> InputPort[T]:
         port: InputPort[T] = InputPort(self.type, self.name, self.doc, self.event, check=self.check)
@@ -465,22 +490,22 @@ class InputPort(Port[T]):
         port.attr = self.attr
         return port
 
-    def open_channel(self, policy: ConnPolicy, peer: str) -> ChannelConnection:
+    def open_channel(self, policy: ConnPolicy, peer: str) -> ChannelConnection[T]:
         """A new connection into this port fed by a channel's reader end (see
         :class:`ChannelConnection`), with its own storage made for ``policy``. Setup path;
         thread-safe, also while the task runs."""
-        storage = make_storage(policy.with_(buffer_policy=BufferPolicy.PER_CONNECTION))
+        storage: Storage[T] = make_storage(policy.with_(buffer_policy=BufferPolicy.PER_CONNECTION))
         conn = ChannelConnection(self, policy, storage, peer)
         with _setup_lock:
-            self._conns[conn] = conn  # type: ignore[index]  # keyed by itself: no output port here
+            self._conns[conn] = conn  # keyed by itself: no output port here
             if _counted(self._refs, storage, +1):
                 self._publish((*self._sources, storage))
             _rebuild_readers(storage, self)
         return conn
 
-    def _detach(self, conn: ChannelConnection) -> None:
+    def _detach(self, conn: ChannelConnection[T]) -> None:
         with _setup_lock:
-            if self._conns.pop(conn, None) is None:  # type: ignore[call-overload]  # keyed by itself, as above
+            if self._conns.pop(conn, None) is None:  # keyed by itself, as above
                 return
             if _counted(self._refs, conn.storage, -1):
                 self._publish(_without(self._sources, conn.storage))
@@ -542,8 +567,8 @@ class InputPort(Port[T]):
         return self._read_many(sources, n, newest=True)
 
     def _read_many(
-        self, sources: tuple[Storage, ...], n: int, newest: bool
-    ) -> tuple[FlowStatus, Any]:
+        self, sources: tuple[Storage[T], ...], n: int, newest: bool
+    ) -> tuple[FlowStatus, T | None]:
         cur = self._current if self._current < n else 0
         first = sources[cur].read_newest() if newest else sources[cur].read()
         if first[0] is _NEW:
@@ -561,7 +586,7 @@ class InputPort(Port[T]):
         for storage in self._sources:
             storage.clear()
 
-    def add_data_callback(self, callback: DataCallback) -> None:
+    def add_data_callback(self, callback: DataCallback[T]) -> None:
         """Call ``callback(port)`` in the writer's thread after each sample stored for this port.
 
         The callback must be cheap and never block (e.g. set an Event). Thread-safe.
@@ -569,7 +594,7 @@ class InputPort(Port[T]):
         with _setup_lock:
             self._callbacks = (*self._callbacks, callback)
 
-    def remove_data_callback(self, callback: DataCallback) -> None:
+    def remove_data_callback(self, callback: DataCallback[T]) -> None:
         """Remove a callback added before (idempotent)."""
         with _setup_lock:
             cbs = list(self._callbacks)
@@ -584,7 +609,7 @@ class InputPort(Port[T]):
             except Exception:  # a reader's callback must never break its writer
                 log.exception("data callback %r of %s raised", cb, self.qualname)
 
-    def _publish(self, sources: tuple[Storage, ...]) -> None:
+    def _publish(self, sources: tuple[Storage[T], ...]) -> None:
         """Make ``sources`` the ones reads come from (setup path, under the setup lock).
         Keeps reading from the current channel across connects/disconnects (as RTT does):
         a port that holds data must not answer NO_DATA because an unrelated peer came."""
@@ -607,7 +632,7 @@ class InputPort(Port[T]):
             self._current = 0
 
 
-def _counted(refs: dict[int, int], storage: Storage, delta: int) -> bool:
+def _counted(refs: dict[int, int], storage: object, delta: int) -> bool:
     """Count one more (``delta=+1``) or one less (-1) connection of a port using ``storage``;
     True when the storage joins or leaves the port's set (several connections may share one
     storage: PER_INPUT_PORT, PER_OUTPUT_PORT, SHARED). O(1)."""
@@ -620,13 +645,13 @@ def _counted(refs: dict[int, int], storage: Storage, delta: int) -> bool:
     return (n == 1 and delta > 0) or (n <= 0 and delta < 0)
 
 
-def _without(storages: tuple[Storage, ...], storage: Storage) -> tuple[Storage, ...]:
+def _without(storages: tuple[Storage[T], ...], storage: Storage[T]) -> tuple[Storage[T], ...]:
     """``storages`` without ``storage`` (found by identity, at C speed)."""
     i = storages.index(storage)
     return storages[:i] + storages[i + 1:]
 
 
-def _rebuild_readers(storage: Storage, extra: InputPort[Any] | None = None) -> None:
+def _rebuild_readers(storage: Storage[T], extra: InputPort[T] | None = None) -> None:
     """Recompute which inputs a storage feeds (for data callbacks); setup path only."""
     readers = [inp for inp in storage.readers if storage in inp._sources]
     if extra is not None and storage in extra._sources and extra not in readers:
@@ -634,7 +659,7 @@ def _rebuild_readers(storage: Storage, extra: InputPort[Any] | None = None) -> N
     storage.readers = tuple(readers)
 
 
-def _described(check: Callable[..., Any] | None) -> str:
+def _described(check: Callable[..., object] | None) -> str:
     """A check in words: its docstring's first line, else its name; "" for no check."""
     if check is None:
         return ""

@@ -13,13 +13,16 @@ reference operations: thread-safe.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
 
 import pydantic
 
 from scart_wire.bounds import Bounds, bounded_adapter, unknown_field
 from .errors import PortTypeError, PropertyValueError
 from scart_wire.types import registry
+
+if TYPE_CHECKING:
+    from .task import TaskContext
 
 __all__ = ["Property", "BoundProperty"]
 
@@ -63,15 +66,21 @@ class Property(Generic[T]):
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
 
-    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+    @overload
+    def __get__(self, obj: None, owner: type | None = None) -> Property[T]: ...
+    @overload
+    def __get__(self, obj: TaskContext, owner: type | None = None) -> T: ...
+
+    def __get__(self, obj: TaskContext | None, owner: type | None = None) -> Property[T] | T:
         if obj is None:
             return self
-        return obj._prop_values[self.name]
+        value: T = obj._prop_values[self.name]
+        return value
 
-    def __set__(self, obj: Any, value: Any) -> None:
+    def __set__(self, obj: TaskContext, value: object) -> None:
         obj._prop_values[self.name] = self.validate(value, getattr(obj, "name", "?"))
 
-    def validate(self, value: Any, task_name: str = "?") -> T:
+    def validate(self, value: object, task_name: str = "?") -> T:
         """Coerce ``value`` to the property's type and run ``check``; raises as the module says."""
         where = f"{task_name}.{self.name}"
         said = unknown_field(self.type, value)
@@ -98,7 +107,7 @@ class BoundProperty:
 
     __slots__ = ("task", "prop")
 
-    def __init__(self, task: Any, prop: Property[Any]) -> None:
+    def __init__(self, task: TaskContext, prop: Property[Any]) -> None:
         self.task = task
         self.prop = prop
 
@@ -119,15 +128,15 @@ class BoundProperty:
         return self.prop.doc
 
     @property
-    def default(self) -> Any:
+    def default(self) -> object:
         return self.prop.default
 
     @property
-    def value(self) -> Any:
+    def value(self) -> object:
         """The current value."""
         return self.task._prop_values[self.prop.name]
 
-    def set(self, value: Any) -> None:
+    def set(self, value: object) -> None:
         """Validate and store ``value`` (raises like ``Property.validate``)."""
         setattr(self.task, self.prop.name, value)
 

@@ -109,7 +109,7 @@ class TaskContext:
     #: follows a simulation's (:meth:`Deployer.use_clock`); its periodic activity counts on it.
     clock: Clock = WALL
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
+    def __init_subclass__(cls, **kwargs: object) -> None:
         super().__init_subclass__(**kwargs)
         ports = dict(cls._port_templates)
         props = dict(cls._property_decls)
@@ -335,7 +335,7 @@ class TaskContext:
         return self._tc_activity.execute()
 
     # -- machinery --------------------------------------------------------------
-    def _call_hook(self, hook: Callable[[], Any], from_stop: bool = False) -> Any:
+    def _call_hook(self, hook: Callable[[], object], from_stop: bool = False) -> object:
         try:
             return hook()
         except Exception as exc:
@@ -383,7 +383,7 @@ class TaskContext:
         """Every port by port name (a copy)."""
         return dict(self._tc_ports)
 
-    def port(self, name: str) -> Any:
+    def port(self, name: str) -> Port[Any]:
         """The port called ``name``; raises ``NotFoundError`` listing the existing ones."""
         try:
             return self._tc_ports[name]
@@ -438,7 +438,7 @@ class TaskContext:
         self._prop(name)
         return self._prop_values[name]
 
-    def set_property(self, name: str, value: Any) -> None:
+    def set_property(self, name: str, value: object) -> None:
         """Validate and set property ``name``.
 
         Raises ``NotFoundError``, ``PortTypeError`` (wrong type) or ``PropertyValueError``.
@@ -466,7 +466,7 @@ class TaskContext:
                 out[name] = describe_operation(name, fn, spec)
         return out
 
-    def check_arguments(self, name: str, args: list[Any]) -> list[Any]:
+    def check_arguments(self, name: str, args: list[object]) -> list[object]:
         """``args`` of operation ``name`` checked as values from outside, by the one check
         every remote entry uses (:func:`scart_wire.bounds.check_argument`): each against its
         parameter's declared type (numbers strict: no string, no bool), bounds
@@ -491,7 +491,7 @@ class TaskContext:
             out[i] = check_argument(f"{self.name}.{name}({param})", hints.get(param), value)
         return out
 
-    def call(self, name: str, *args: Any, **kwargs: Any) -> Any:
+    def call(self, name: str, *args: object, **kwargs: object) -> Any:
         """Call operation ``name``; blocks until it returned; re-raises what it raised.
 
         ``own_thread`` operations run in the activity's thread when it has a live one.
@@ -500,7 +500,7 @@ class TaskContext:
         """
         return self.send(name, *args, **kwargs).result()
 
-    def send(self, name: str, *args: Any, **kwargs: Any) -> Future[Any]:
+    def send(self, name: str, *args: object, **kwargs: object) -> Future[Any]:
         """Start operation ``name`` and return a :class:`~concurrent.futures.Future` (RTT's
         ``send``/``collect``).
 

@@ -31,7 +31,7 @@ import inspect
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import Any, TypeVar, overload
 
 from scart.errors import NoCallbackError
 from scart.settings import Settings
@@ -43,12 +43,20 @@ F = TypeVar("F", bound=Callable[..., Any])
 _MISSING: Any = object()
 
 #: The callback target of the call being executed (set by bindings; read by ``callback()``).
-CURRENT_CALLBACK: contextvars.ContextVar[Any] = contextvars.ContextVar(
+CURRENT_CALLBACK: contextvars.ContextVar[object] = contextvars.ContextVar(
     "scart_current_callback", default=None
 )
 
 
 # --- decorators ------------------------------------------------------------------------
+
+
+@overload
+def component(cls: C, *, services: list[type] | None = None, scope: str = "composite",
+              eager_init: bool = True) -> C: ...
+@overload
+def component(cls: None = None, *, services: list[type] | None = None, scope: str = "composite",
+              eager_init: bool = True) -> Callable[[C], C]: ...
 
 
 def component(
@@ -57,7 +65,7 @@ def component(
     services: list[type] | None = None,
     scope: str = "composite",
     eager_init: bool = True,
-) -> Any:
+) -> C | Callable[[C], C]:
     """Mark a class as an SCA component implementation (usable bare or with arguments).
 
     ``scope`` is "composite" (one instance per component) or "stateless" (one per call);
@@ -80,9 +88,15 @@ def component(
     return mark(cls) if cls is not None else mark
 
 
+@overload
+def interface(cls: C, *, callback: type | None = None, remotable: bool = False) -> C: ...
+@overload
+def interface(cls: None = None, *, callback: type | None = None, remotable: bool = False) -> Callable[[C], C]: ...
+
+
 def interface(
     cls: C | None = None, *, callback: type | None = None, remotable: bool = False
-) -> Any:
+) -> C | Callable[[C], C]:
     """Mark a class as a service interface; ``callback`` is the interface callers implement;
     ``remotable=True`` gives pass-by-value semantics even in-process."""
 
@@ -121,7 +135,7 @@ class _Spec:
 class PropSpec(_Spec):
     """Declared by :func:`prop`: ``default`` (copied per instance) and ``required``."""
 
-    def __init__(self, default: Any, required: bool) -> None:
+    def __init__(self, default: object, required: bool) -> None:
         self.default = default
         self.required = required
 
@@ -287,7 +301,7 @@ def interface_info(iface: type) -> InterfaceInfo:
     return _cache(iface, _IFACE_ATTR, info)
 
 
-def _returns(func: Callable[..., Any]) -> bool:
+def _returns(func: Callable[..., object]) -> bool:
     ann = getattr(func, "__annotations__", {}).get("return", _MISSING)
     return ann is not _MISSING and ann not in (None, "None", type(None))
 

@@ -80,7 +80,7 @@ class CompositeScopeManager(ComponentManager):
         if inst is not None:
             return getattr(inst, operation)
 
-        def lazy(*args: Any, **kwargs: Any) -> Any:
+        def lazy(*args: object, **kwargs: object) -> Any:
             return getattr(self.get(), operation)(*args, **kwargs)
         return lazy
 
@@ -108,7 +108,7 @@ class StatelessManager(ComponentManager):
         ctype = self.node.ctype
         cls, host, node = ctype.cls, self.host, self.node
 
-        def per_call(*args: Any, **kwargs: Any) -> Any:
+        def per_call(*args: object, **kwargs: object) -> Any:
             inst = cls()
             host.configure(node, inst)
             _call_all(inst, ctype.init)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from scart.api import CURRENT_CALLBACK, InterfaceInfo, Operation
 from scart.model import Binding
@@ -85,13 +85,13 @@ def wrap_operation(
     """
     inner = call
     if by_value and not op.oneway:  # a one-way call is copied once, at submit (below)
-        def inner(*args: Any, _c: Callable[..., Any] = call, **kwargs: Any) -> Any:
+        def inner(*args: object, _c: Callable[..., Any] = call, **kwargs: object) -> Any:
             return by_value_copy(_c(*by_value_copy(args), **by_value_copy(kwargs)))
     if callback is not None:
         plain = inner
         var_set, var_reset = CURRENT_CALLBACK.set, CURRENT_CALLBACK.reset
 
-        def inner(*args: Any, **kwargs: Any) -> Any:
+        def inner(*args: object, **kwargs: object) -> Any:
             token = var_set(callback)
             try:
                 return plain(*args, **kwargs)
@@ -100,25 +100,26 @@ def wrap_operation(
     if op.oneway:
         work = inner
         if by_value:
-            def oneway(*args: Any, **kwargs: Any) -> None:  # copy now: the caller may mutate after return
+            def oneway(*args: object, **kwargs: object) -> None:  # copy now: the caller may mutate after return
                 submit(work, *by_value_copy(args), **by_value_copy(kwargs))
         else:
-            def oneway(*args: Any, **kwargs: Any) -> None:
+            def oneway(*args: object, **kwargs: object) -> None:
                 submit(work, *args, **kwargs)
         return oneway
     return inner
 
 
+T = TypeVar("T")
 _ATOMIC = frozenset({int, float, str, bool, bytes, complex, type(None)})
 
 
-def by_value_copy(value: Any) -> Any:
+def by_value_copy(value: T) -> T:
     """A deep copy of ``value`` for pass-by-value, skipping the copy when it holds only
     immutable atoms (ints, strings...), which cannot be mutated by the callee anyway."""
     kind = type(value)
     if kind in _ATOMIC:
         return value
-    if kind is tuple and all(type(v) in _ATOMIC for v in value):
+    if kind is tuple and all(type(v) in _ATOMIC for v in value):  # type: ignore[attr-defined]  # kind is tuple
         return value
     if kind is dict and not value:
         return value

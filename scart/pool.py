@@ -7,9 +7,14 @@ import queue
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TypeAlias
 
 __all__ = ["WORKER_PREFIX", "OnewayPool"]
+
+#: A one-way call: what runs, and its arguments (only passed on: its result is dropped).
+Job: TypeAlias = Callable[..., object]
+Args: TypeAlias = tuple[object, ...]
+Kwargs: TypeAlias = dict[str, object]
 
 #: Name prefix of the worker threads (``scart-oneway_0``, ...): ``stop()`` called from one
 #: of them does not wait for itself.
@@ -23,8 +28,8 @@ class OnewayPool:
     once closed. ``close(deadline)`` lets workers drain the queue until ``deadline``, then
     drops what is still queued; returns (dropped count, labels of calls still running)."""
 
-    def __init__(self, workers: int, max_pending: int, run: Callable[[str, Callable[..., Any], tuple[Any, ...], dict[str, Any]], None]) -> None:
-        self._queue: queue.Queue[Any] = queue.Queue(max_pending + max(1, workers))  # room for the stop sentinels
+    def __init__(self, workers: int, max_pending: int, run: Callable[[str, Job, Args, Kwargs], None]) -> None:
+        self._queue: queue.Queue[tuple[str, Job, Args, Kwargs] | None] = queue.Queue(max_pending + max(1, workers))  # room for the stop sentinels
         self._max_pending = max_pending
         self._run = run
         self._lock = threading.Lock()
@@ -35,7 +40,7 @@ class OnewayPool:
         self._threads: list[threading.Thread] = []  # started on demand, up to ``workers``
         self._idle = 0
 
-    def submit(self, label: str, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+    def submit(self, label: str, fn: Job, args: Args, kwargs: Kwargs) -> None:
         with self._lock:
             if self._closed:
                 raise RuntimeError("runtime stopped")

@@ -47,7 +47,7 @@ import threading
 import time
 import weakref
 from collections.abc import Callable, Sequence
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 from pydantic import BaseModel
 
@@ -58,7 +58,7 @@ from scart.extensions import ExtensionRegistry
 from scart.assembled import Assembly
 from scart.graph import DEFAULT, Bound, Node, Target
 from scart.local import LocalReferenceBinding, wrap_operation
-from scart.pool import WORKER_PREFIX, OnewayPool
+from scart.pool import WORKER_PREFIX, Args, Job, Kwargs, OnewayPool
 from scart.model import Binding
 from scart.settings import Settings
 from scart.spi import (
@@ -98,8 +98,8 @@ class ServiceProxy:
         return f"<scart proxy {self.__dict__['_scart_name']}>"
 
 
-def _stopped_stub(message: str) -> Callable[..., Any]:
-    def stopped(*args: Any, **kwargs: Any) -> Any:
+def _stopped_stub(message: str) -> Callable[..., NoReturn]:
+    def stopped(*args: object, **kwargs: object) -> NoReturn:
         raise RuntimeStateError(message)
     return stopped
 
@@ -438,7 +438,7 @@ class Runtime:
         hooks in reverse order of registration; errors are logged."""
         self._stop_hooks.append(hook)
 
-    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+    def submit(self, fn: Job, *args: object, **kwargs: object) -> None:
         """Queue ``fn`` on the one-way pool (bounded worker count); failures are logged and
         counted in ``oneway_failures``. After stop, the call is counted and dropped with a log.
         With ``max_pending`` calls already waiting, raises ``ScartError`` (counted in
@@ -447,11 +447,11 @@ class Runtime:
 
     def submitter(self, label: str) -> Callable[..., None]:
         """A ``submit`` whose calls are named ``label`` in logs (e.g. "Comp/Service.op")."""
-        def submit(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+        def submit(fn: Job, *args: object, **kwargs: object) -> None:
             self._submit(label, fn, args, kwargs)
         return submit
 
-    def _submit(self, label: str, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+    def _submit(self, label: str, fn: Job, args: Args, kwargs: Kwargs) -> None:
         pool = self._pool
         try:
             if pool is None:
@@ -466,7 +466,7 @@ class Runtime:
             raise ScartError(f"one-way call {label} refused: {self.max_pending} one-way calls already "
                              "pending (backpressure); retry later") from None
 
-    def _run_oneway(self, label: str, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+    def _run_oneway(self, label: str, fn: Job, args: Args, kwargs: Kwargs) -> None:
         try:
             fn(*args, **kwargs)
         except Exception:
@@ -571,8 +571,8 @@ class _LocalCallback:
                                                submit=runtime.submitter(f"callback {iface.name}.{name}")))
 
 
-def _missing(cls: str, op: str) -> Callable[..., Any]:
-    def fail(*args: Any, **kwargs: Any) -> Any:
+def _missing(cls: str, op: str) -> Callable[..., NoReturn]:
+    def fail(*args: object, **kwargs: object) -> NoReturn:
         raise InvocationError(f"callback {op!r}: the calling component {cls} has no method {op!r}")
     return fail
 
@@ -584,7 +584,7 @@ def _iface_of(node: Node, ref: str) -> InterfaceInfo | None:
     return interface_info(ref_type) if ref_type is not None else None
 
 
-def _guarded(what: str, fn: Callable[..., T], *args: Any) -> T:
+def _guarded(what: str, fn: Callable[..., T], *args: object) -> T:
     """``fn(*args)``; an extension's failure other than a ``ScartError`` becomes one that
     says ``what`` failed (the cause chained), so callers see one error tree."""
     try:

@@ -86,8 +86,8 @@ class Invocation:
     """One call: operation name, arguments, and the callback target (or None)."""
 
     operation: str
-    args: tuple[Any, ...] = ()
-    kwargs: dict[str, Any] = field(default_factory=dict)
+    args: tuple[object, ...] = ()
+    kwargs: dict[str, object] = field(default_factory=dict)
     callback: object | None = None
 
 
@@ -147,7 +147,7 @@ class Host(Protocol):
     def drain_timeout(self) -> float:
         """How long (s) stopping waits for work in flight before leaving it behind."""
 
-    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
+    def submit(self, fn: Callable[..., object], *args: object, **kwargs: object) -> None:
         """Run ``fn(*args, **kwargs)`` on the runtime's bounded one-way pool; failures are
         logged and counted; raises ``ScartError`` when the pool is full (backpressure)."""
 

@@ -14,7 +14,7 @@ import functools
 import json
 import typing
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeAlias
 
 from lxml import etree
 from pydantic import TypeAdapter, ValidationError
@@ -26,6 +26,11 @@ XSD_TYPES: MappingProxyType[str, type] = MappingProxyType({
 })
 
 
+#: An XML element as plain data: its stripped text, or its attributes and child elements
+#: by local name (a repeated child: a list).
+XmlData: TypeAlias = "str | dict[str, XmlData | list[XmlData]]"
+
+
 class XmlValue(str):
     """A complex property value: the XML of its ``<value>`` (or global element) element."""
 
@@ -34,20 +39,20 @@ class XmlValue(str):
         parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
         return etree.fromstring(self.encode(), parser)
 
-    def data(self) -> Any:
+    def data(self) -> XmlData:
         """The value as plain data (see the module docstring); for a ``<value>`` wrapper,
         its content."""
         return xml_data(self.element())
 
 
-def xml_data(el: etree._Element) -> Any:
+def xml_data(el: etree._Element) -> XmlData:
     """Plain data of an element: a dict of its attributes and child elements (by local name;
     repeated children: a list), or its stripped text when it has neither."""
     children = [c for c in el if isinstance(c.tag, str)]
     attrs = {etree.QName(k).localname: v for k, v in el.attrib.items() if not k.startswith("{")}
     if not children and not attrs:
         return (el.text or "").strip()
-    grouped: dict[str, list[Any]] = {}
+    grouped: dict[str, list[XmlData]] = {}
     for child in children:
         grouped.setdefault(etree.QName(child).localname, []).append(xml_data(child))
     return {**attrs, **{k: v[0] if len(v) == 1 else v for k, v in grouped.items()}}
@@ -97,7 +102,7 @@ def parse_value(raw: list[str], py_type: Any) -> Any:
     return _adapt(py_type, data)
 
 
-def _adapt(py_type: Any, data: Any) -> Any:
+def _adapt(py_type: Any, data: object) -> Any:
     adapter = _adapter(py_type)
     try:
         return adapter.validate_python(data)

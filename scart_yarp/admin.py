@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import socket
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from . import bottle
-from .bottle import Vocab
+from .bottle import Item, Vocab
 from .names import NameClient
 
 if TYPE_CHECKING:
@@ -24,19 +25,19 @@ __all__ = ["admin_call", "rpc_call"]
 MAX_REPLY = 1 << 20
 
 
-def admin_call(network: Network | NameClient, port: str, words: list[Any]) -> list[Any]:
+def admin_call(network: Network | NameClient, port: str, words: Sequence[str]) -> list[Item]:
     """Send the administrative bottle ``words`` (strings naming commands become vocabs) to
     ``port``; its reply. Raises ``OSError`` when the port cannot be found or answer."""
     cmd = [Vocab(w) if i == 0 or (i == 1 and words[0] == "list") else w for i, w in enumerate(words)]
     return _call(network, port, "a", cmd)
 
 
-def rpc_call(network: Network | NameClient, port: str, values: list[Any]) -> list[Any]:
+def rpc_call(network: Network | NameClient, port: str, values: Sequence[object]) -> list[Item]:
     """Send ``values`` to the RPC port ``port``; its reply bottle. Raises ``OSError``."""
     return _call(network, port, "d", values)
 
 
-def _call(network: Network | NameClient, port: str, key: str, values: list[Any]) -> list[Any]:
+def _call(network: Network | NameClient, port: str, key: str, values: Sequence[object]) -> list[Item]:
     names = network if isinstance(network, NameClient) else network.names
     contact = names.query(port)
     if contact is None:

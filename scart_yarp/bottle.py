@@ -33,11 +33,15 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeAlias
 
-__all__ = ["BottleError", "Limits", "Vocab", "decode", "encode", "from_text", "to_text", "TAGS"]
+__all__ = ["BottleError", "Item", "Limits", "Vocab", "decode", "encode", "from_text", "to_text", "TAGS"]
+
+#: One value of a bottle as decoding gives it (see the table above; a DICT: a list of pairs).
+Item: TypeAlias = "int | float | str | bytes | Vocab | list[Item]"
 
 INT8, INT16, INT32, INT64, VOCAB32 = 32, 64, 1, 17, 9
 FLOAT32, FLOAT64, STRING, BLOB, LIST, DICT = 128, 10, 4, 12, 256, 512
@@ -146,7 +150,7 @@ def _subcode(items: Any) -> int:
     return first
 
 
-def encode(values: list[Any] | tuple[Any, ...]) -> bytes:
+def encode(values: Sequence[object]) -> bytes:
     """The binary form of a bottle holding ``values`` (its tag, count and items); raises
     :class:`BottleError` for a value with no bottle form."""
     out: list[bytes] = []
@@ -225,7 +229,7 @@ class _Reader:
         return chunk
 
 
-def decode(data: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> list[Any]:
+def decode(data: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> list[Item]:
     """The values of a bottle's binary form; :class:`BottleError` for anything malformed,
     truncated, over ``limits`` or followed by stray bytes."""
     reader = _Reader(data, limits)
@@ -238,7 +242,7 @@ def decode(data: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> list[An
     return values
 
 
-def _decode_list(reader: _Reader, sub: int, is_dict: int, depth: int) -> list[Any]:
+def _decode_list(reader: _Reader, sub: int, is_dict: int, depth: int) -> list[Item]:
     if depth > reader.limits.depth:
         raise BottleError(f"a bottle nested over {reader.limits.depth} deep (the limit)")
     fixed = _FIXED.get(sub)
@@ -253,7 +257,7 @@ def _decode_list(reader: _Reader, sub: int, is_dict: int, depth: int) -> list[An
     return out
 
 
-def _decode_item(reader: _Reader, tag: int, depth: int) -> Any:
+def _decode_item(reader: _Reader, tag: int, depth: int) -> Item:
     fixed = _FIXED.get(tag)
     if fixed is not None:
         if reader.pos + fixed.size > len(reader.data):
@@ -271,7 +275,7 @@ def _decode_item(reader: _Reader, tag: int, depth: int) -> Any:
 
 
 # ---- text ------------------------------------------------------------------------------
-def to_text(values: list[Any] | tuple[Any, ...]) -> str:
+def to_text(values: Sequence[object]) -> str:
     """The text form of a bottle (what ``yarp read`` prints)."""
     return " ".join(_item_text(v) for v in values)
 
@@ -311,7 +315,7 @@ def _quoted(text: str) -> str:
     return '"' + escaped.replace("\0", "\\0") + '"'
 
 
-def from_text(line: str, limits: Limits = DEFAULT_LIMITS) -> list[Any]:
+def from_text(line: str, limits: Limits = DEFAULT_LIMITS) -> list[Item]:
     """The values of a bottle's text form (YARP's ``fromString``: words, numbers, quoted
     strings, ``(lists)``, ``{blobs}``, ``[vocabs]``); :class:`BottleError` over ``limits``
     or for an unbalanced line."""
@@ -321,10 +325,10 @@ def from_text(line: str, limits: Limits = DEFAULT_LIMITS) -> list[Any]:
     return _words(line, limits, 1, budget)
 
 
-def _words(line: str, limits: Limits, depth: int, budget: list[int]) -> list[Any]:
+def _words(line: str, limits: Limits, depth: int, budget: list[int]) -> list[Item]:
     if depth > limits.depth:
         raise BottleError(f"a bottle nested over {limits.depth} deep (the limit)")
-    out: list[Any] = []
+    out: list[Item] = []
     for word in _split(line):
         budget[0] -= 1
         if budget[0] < 0:
@@ -363,7 +367,7 @@ def _split(line: str) -> list[str]:
     return words
 
 
-def _word(word: str, limits: Limits, depth: int, budget: list[int]) -> Any:
+def _word(word: str, limits: Limits, depth: int, budget: list[int]) -> Item:
     first = word[0]
     if first == "(":
         return _words(word[1:-1], limits, depth + 1, budget)

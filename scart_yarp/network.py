@@ -35,7 +35,7 @@ from typing import Any
 from .connection import Connection
 from .names import NameClient, check_name
 from .poll import READ, WRITE, Poll
-from .port import Incoming, Port, PortLimits
+from .port import Incoming, Port, PortLimits, Responder
 from .dgram import DatagramReader
 from .wire import Frame, ProtocolError, yarp_number
 
@@ -111,7 +111,7 @@ class Network:
         self._wanted: dict[str, dict[str, str]] = {}  # port -> {peer: carrier} it keeps connected
         self._rpc: dict[str, _Worker] = {}
         self._conns: dict[int, Connection] = {}
-        self._sel = Poll()
+        self._sel: Poll[Connection | Port | None] = Poll()
         self._wake_r, self._wake_w = socket.socketpair()
         self._wake_r.setblocking(False)
         self._wake_w.setblocking(False)
@@ -126,8 +126,8 @@ class Network:
         self._io.start()
 
     # ---- ports --------------------------------------------------------------------------
-    def open_port(self, name: str, *, reader: Callable[[Incoming], Any] | None = None,
-                  responder: Callable[[list[Any]], list[Any]] | None = None, queue: int = 1,
+    def open_port(self, name: str, *, reader: Callable[[Incoming], object] | None = None,
+                  responder: Responder | None = None, queue: int = 1,
                   connect: dict[str, str] | None = None) -> Port:
         """Open ``name``: listen, register it (now — blocking ≤ the name client's timeout —
         or, when the name server does not answer, as soon as it does), and keep connected
@@ -284,7 +284,7 @@ class Network:
             if frame.key == "a":
                 port.answer(conn, reply, frame)
             elif conn.text:
-                conn.send(("".join(f"{line}\r\n" for line in reply).encode("utf-8"),), force=True)
+                conn.send(("".join(str(line) + "\r\n" for line in reply).encode("utf-8"),), force=True)
                 conn.ack()
             else:
                 conn.ack()
@@ -435,7 +435,7 @@ class Network:
                     self._woken()
                 elif type(data) is Connection:
                     self._serve(data, events)
-                else:
+                elif isinstance(data, Port):  # a listener (rare: the hot case is above)
                     self._accept(data)
             now = time.monotonic()
             if now >= next_check:  # not on every message's wake-up: a deadline is seconds long

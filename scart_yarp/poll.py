@@ -10,33 +10,35 @@ from __future__ import annotations
 
 import select
 import socket
-from typing import Any
+from typing import Generic, TypeVar
 
 __all__ = ["Poll", "READ", "WRITE"]
+
+D = TypeVar("D")
 
 READ, WRITE = 1, 2  #: what a socket is watched for, and what :meth:`Poll.select` says is ready
 _IN, _OUT = select.POLLIN, select.POLLOUT  # EPOLLIN and EPOLLOUT have the same values
 _WRITABLE = select.POLLOUT | select.POLLERR | select.POLLHUP  # an error or a hang-up wakes both sides
 
 
-class Poll:
-    """Sockets watched by one io thread, each with its ``data``."""
+class Poll(Generic[D]):
+    """Sockets watched by one io thread, each with its ``data`` (of type ``D``)."""
 
     def __init__(self) -> None:
         self._epoll = select.epoll() if hasattr(select, "epoll") else None
-        self._poll: Any = self._epoll if self._epoll is not None else select.poll()
-        self._watched: dict[int, tuple[socket.socket, Any]] = {}
+        self._poll: select.epoll | select.poll = self._epoll if self._epoll is not None else select.poll()
+        self._watched: dict[int, tuple[socket.socket, D]] = {}
 
     @staticmethod
     def _mask(events: int) -> int:
         return (_IN if events & READ else 0) | (_OUT if events & WRITE else 0)
 
-    def register(self, sock: socket.socket, events: int, data: Any) -> None:
+    def register(self, sock: socket.socket, events: int, data: D) -> None:
         fd = sock.fileno()
         self._poll.register(fd, self._mask(events))
         self._watched[fd] = (sock, data)
 
-    def modify(self, sock: socket.socket, events: int, data: Any) -> None:
+    def modify(self, sock: socket.socket, events: int, data: D) -> None:
         """Change what ``sock`` is watched for; ``KeyError`` when it is not watched."""
         fd = sock.fileno()
         if fd not in self._watched:
@@ -58,7 +60,7 @@ class Poll:
         except (KeyError, ValueError, OSError):  # closed meanwhile: the kernel forgot it with the file
             pass
 
-    def select(self, timeout: float) -> list[tuple[Any, int]]:
+    def select(self, timeout: float) -> list[tuple[D, int]]:
         """``[(data, READ|WRITE)]`` of the sockets ready within ``timeout`` s."""
         if self._epoll is not None:
             ready = self._epoll.poll(timeout, max(1, len(self._watched)))

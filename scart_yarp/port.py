@@ -20,12 +20,12 @@ import logging
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypeAlias
 
 from . import bottle
-from .bottle import BottleError, Vocab
+from .bottle import BottleError, Item, Vocab
 from .connection import Connection
 from .dgram import datagrams
 from .wire import QUIT_BINARY, Frame, carrier_header, command_block, data_frame, read_number, sender_specifier
@@ -58,6 +58,10 @@ class PortLimits:
     bottle: bottle.Limits = bottle.DEFAULT_LIMITS
 
 
+#: An RPC port's answer to a request: the request's values in, the reply's out (None: no reply).
+Responder: TypeAlias = "Callable[[list[Item]], Sequence[object] | None]"
+
+
 class Incoming:
     """A message for a port's owner: who sent it (``source``, a port name), and its
     bottle, decoded when asked (:meth:`values` raises :class:`BottleError` for a
@@ -70,7 +74,7 @@ class Incoming:
         self.payload = payload
         self.limits = limits
 
-    def values(self) -> list[Any]:
+    def values(self) -> list[Item]:
         if isinstance(self.payload, str):
             return bottle.from_text(self.payload, self.limits)
         return bottle.decode(self.payload, self.limits)
@@ -83,7 +87,7 @@ class Port:
     -> values`` answers requests in the port's own thread (an RPC port). Thread-safe."""
 
     def __init__(self, network: Network, name: str, listener: socket.socket, *,
-                 reader: Callable[[Incoming], Any] | None, responder: Callable[[list[Any]], list[Any]] | None,
+                 reader: Callable[[Incoming], object] | None, responder: Responder | None,
                  queue: int, limits: PortLimits) -> None:
         self.network = network
         self.name = name
@@ -120,7 +124,7 @@ class Port:
         with self._lock:
             return [c for c in self._inputs if c.greeted and not c.closed]
 
-    def write(self, values: list[Any] | None = None, *, binary: bytes | None = None) -> int:
+    def write(self, values: Sequence[object] | None = None, *, binary: bytes | None = None) -> int:
         """Send one bottle (``values``, or its ``binary`` form already encoded) to every
         reader, never blocking; how many connections took it (the others were behind:
         counted in their ``dropped``). Raises :class:`BottleError` for values with no
@@ -129,7 +133,7 @@ class Port:
         if not outputs:
             return 0
         data = binary if binary is not None else bottle.encode(values or [])
-        frames: dict[str, Any] = {}
+        frames: dict[str, list[bytes]] = {}
         taken = 0
         for conn in outputs:
             kind = "text" if conn.text else "udp" if conn.datagrams else "binary"
@@ -143,7 +147,7 @@ class Port:
         return taken
 
     @staticmethod
-    def _frame(kind: str, data: bytes, values: list[Any] | None) -> list[bytes]:
+    def _frame(kind: str, data: bytes, values: Sequence[object] | None) -> list[bytes]:
         if kind == "text":
             text = bottle.to_text(values if values is not None else bottle.decode(data))
             return [f"d\r\n{text}\r\n".encode("utf-8")]
@@ -313,7 +317,7 @@ class Port:
             self.network.admin(self, conn, frame)
         return True
 
-    def answer(self, conn: Connection, reply: list[Any] | None, frame: Frame) -> None:
+    def answer(self, conn: Connection, reply: Sequence[object] | None, frame: Frame) -> None:
         """Send ``reply`` (or nothing) for ``frame`` back on ``conn``, then its acknowledgement."""
         if reply is not None and frame.key != "D":
             if conn.text:
@@ -322,7 +326,7 @@ class Port:
                 conn.send((bottle.encode(reply),), force=True)
         conn.ack()
 
-    def command(self, conn: Connection, frame: Frame) -> list[Any] | list[str]:
+    def command(self, conn: Connection, frame: Frame) -> Sequence[Item] | list[str]:
         """An administrative bottle (``a``) or a text command; its reply."""
         if frame.key != "a":
             return self._text_command(frame.text)
@@ -351,7 +355,7 @@ class Port:
                     "[list] [out]"]
         return [Vocab("fail"), f"unknown administrative command {bottle.to_text(cmd)[:80]}"]
 
-    def _list(self, direction: str, target: str) -> list[Any]:
+    def _list(self, direction: str, target: str) -> list[Item]:
         conns = self.inputs if direction == "in" else list(self.outputs.values())
         if not target:
             return [c.peer for c in conns]

@@ -21,6 +21,7 @@ published since it subscribed (and every static transform).
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any, Protocol
 
 from dataflow.policy import ConnPolicy
@@ -35,10 +36,15 @@ log = logging.getLogger(__name__)
 ORIGIN = "listener"
 
 
-class Subscribable(Protocol):
-    """What a listener needs of a component proxy."""
+class _Closing(Protocol):
+    def close(self) -> None: ...
 
-    def subscribe(self, port: str, callback: Any, *, policy: ConnPolicy | None = None) -> Any: ...
+
+class Subscribable(Protocol):
+    """What a listener needs of a component proxy: a subscription it can close."""
+
+    def subscribe(self, port: str, callback: Callable[[Any], None], *,
+                  policy: ConnPolicy | None = None) -> _Closing: ...
 
 
 class FrameListener:
@@ -49,7 +55,7 @@ class FrameListener:
     def __init__(self, component: Subscribable, buffer: FrameBuffer | None = None, *, depth: int = 1000) -> None:
         self.buffer = buffer if buffer is not None else FrameBuffer()
         self.received = 0
-        self._subs: list[Any] = []
+        self._subs: list[_Closing] = []
         try:
             self._subs.append(component.subscribe("tf_static", lambda e: self._take(e.value, True),
                                                   policy=ConnPolicy.data()))
@@ -59,7 +65,7 @@ class FrameListener:
             self.close()
             raise
 
-    def _take(self, value: Any, static: bool) -> None:
+    def _take(self, value: object, static: bool) -> None:
         if not isinstance(value, TFMessage):
             log.warning("frame listener: a %s on %s, not a TFMessage: ignored", type(value).__name__,
                         "tf_static" if static else "tf")

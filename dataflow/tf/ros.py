@@ -23,7 +23,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Protocol
 
 from dataflow.transports import TransportError, load
 
@@ -36,6 +36,10 @@ log = logging.getLogger(__name__)
 
 TF, TF_STATIC = "/tf", "/tf_static"
 _DEPTH = 100  #: tf2_ros' queue and history depth on /tf
+
+
+class _Closing(Protocol):
+    def close(self) -> None: ...
 
 
 class RosFrames:
@@ -70,7 +74,7 @@ class RosFrames:
         """Every static transform of this process (not those this ROS gave), in one message."""
         self._send(TF_STATIC, self.buffer.statics(excluding=self.origin))
 
-    def _on_message(self, message: Any, static: bool) -> None:
+    def _on_message(self, message: Any, static: bool) -> None:  # a rosbags TFMessage
         """A TFMessage from ROS (the node's or participant's thread): into the buffer."""
         self.received += 1
         try:
@@ -139,7 +143,7 @@ class Ros1Frames(RosFrames):
             raise TransportError(f"transport 'ros1' is a {type(transport).__qualname__}, not scart's")
         self._transport = transport
         self.node = transport.acquire(dict(options or {}))
-        self._parts: list[Any] = []
+        self._parts: list[_Closing] = []
         try:
             if self.TYPE not in self.node.types.names():
                 self.node.types.add_msg(self.TYPE, self.DEFINITION)
@@ -195,7 +199,7 @@ class Ros2Frames(RosFrames):
         except ValueError as exc:
             raise TransportError(f"ros2: {exc}") from None
         self.participant = self._transport.acquire(where)
-        self._parts: list[Any] = []
+        self._parts: list[_Closing] = []
         try:
             self._pub = self.participant.publisher(TF, self.TYPE, QoS.buffer(_DEPTH))
             self._parts.append(self._pub)

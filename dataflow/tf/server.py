@@ -29,8 +29,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Callable, Mapping
 
 from dataflow.activities import PeriodicActivity
 from dataflow.errors import DataflowError
@@ -73,7 +72,7 @@ class FrameServer(TaskContext):
         self.frames = self.buffer
         self.ros1, self.ros2 = (dict(ros1) if ros1 is not None else None), (dict(ros2) if ros2 is not None else None)
         self._ros: list[RosFrames] = []
-        self._unhook: Any = None
+        self._unhook: Callable[[], None] | None = None
         self.failure = ""  #: why the last start was refused ("" when it was not)
         self.set_activity(PeriodicActivity(period))
         self._prop_values["cache"] = self.buffer.cache_time
@@ -141,7 +140,7 @@ class FrameServer(TaskContext):
         return _stamped(self._checked(lambda: self.buffer.lookup(target, target_time, source, source_time, fixed)))
 
     @staticmethod
-    def _checked(attempt: Any) -> Transform:
+    def _checked(attempt: Callable[[], Transform]) -> Transform:
         try:
             found: Transform = attempt()
         except DataflowError:

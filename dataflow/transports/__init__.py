@@ -77,6 +77,7 @@ from typing import TYPE_CHECKING, Any
 from dataflow.errors import DataflowError
 
 if TYPE_CHECKING:  # the ends import the policy, which reads the names from this registry
+    from dataflow.ports import Port
     from dataflow.transports.ends import ReaderEnd, WriterEnd
 
 __all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
@@ -250,7 +251,7 @@ class Transport(ABC):
         raise TransportError(f"transport {self.name!r} carries links and subscriptions, not topics; "
                              f"streams need one of: {', '.join(n for n in names() if _has_topics(n)) or 'none'}")
 
-    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+    def check_stream(self, port: Port[Any], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         """What keeps ``port`` (an input or output port, a task's or its class's template)
         from being joined to ``topic`` with ``options``, found without joining anything:
         a composite's load-time check asks it. Default: nothing for a transport with

@@ -20,12 +20,15 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import Peer, frames
 from dataflow.transports.ends import ReaderEnd
+
+if TYPE_CHECKING:
+    from google.protobuf.message import Message
 
 __all__ = ["SILENT_HEARTBEATS", "SharedFeed", "SharedStreams", "carry_shared"]
 
@@ -43,7 +46,7 @@ class SharedFeed:
     turns at the reader ends (each is fed by one thread at a time), and ``_lock`` guards
     who is attached, so that leaving never waits for a frame being handed over."""
 
-    def __init__(self, streams: SharedStreams, key: tuple[Any, ...], heartbeat: float) -> None:
+    def __init__(self, streams: SharedStreams, key: tuple[object, ...], heartbeat: float) -> None:
         self.key = key
         self.heartbeat = heartbeat
         self.error: BaseException | None = None  #: why the stream ended, when it failed
@@ -51,13 +54,13 @@ class SharedFeed:
         self.join_stream: Callable[[], object] = lambda: None  #: waits for what :attr:`close` ended
         self.opened = threading.Event()  #: the opening is over (the stream is up, or it failed)
         self._streams = streams
-        self._ends: dict[ReaderEnd, threading.Event] = {}
+        self._ends: dict[ReaderEnd[Any], threading.Event] = {}
         self._lock = threading.Lock()
         self._feeding = threading.RLock()  # a reader end's hooks run in the feeding thread
         self._boot_id = ""
         self._written = 0  # the last write number the stream carried, or said it will not carry
-        self._last: Any = None  # the last sample it carried (a joiner with ``init`` gets it)
-        self._last_value: Any = None  # its value, when its bytes are elsewhere (shared memory)
+        self._last: pb.Sample | None = None  # the last sample it carried (a joiner with ``init`` gets it)
+        self._last_value: object = None  # its value, when its bytes are elsewhere (shared memory)
         self._connected = False  # its first frame came
         self._seen = time.monotonic()
         self._ended = False
@@ -113,7 +116,7 @@ class SharedFeed:
         for end in tuple(self._ends):
             end.seen = seen
 
-    def feed(self, message: Any, values: dict[int, Any] | None = None) -> None:
+    def feed(self, message: pb.SubscribeResponse, values: Mapping[int, object] | None = None) -> None:
         """Hand a parsed frame to every reader end attached (``values``: see
         :func:`~dataflow.transports.frames.feed`)."""
         ends = self._ends
@@ -138,7 +141,7 @@ class SharedFeed:
                 left.set()
         self.opened.set()
 
-    def _note(self, message: Any, values: dict[int, Any] | None = None) -> None:
+    def _note(self, message: pb.SubscribeResponse, values: Mapping[int, object] | None = None) -> None:
         """Keep where the stream is, for a reader end that joins later."""
         self._connected = True
         if message.boot_id:
@@ -157,9 +160,9 @@ class SharedStreams:
 
     def __init__(self) -> None:
         self.lock = threading.Lock()  # taken before a SharedFeed's own
-        self._feeds: dict[tuple[Any, ...], SharedFeed] = {}
+        self._feeds: dict[tuple[object, ...], SharedFeed] = {}
 
-    def attach(self, key: tuple[Any, ...], end: ReaderEnd, heartbeat: float,
+    def attach(self, key: tuple[object, ...], end: ReaderEnd[Any], heartbeat: float,
                open_stream: Callable[[SharedFeed], bool]) -> tuple[SharedFeed, threading.Event] | None:
         """The stream for ``key``, shared or opened now, with ``end`` attached; and the
         event set when ``end`` is to stop waiting (it left, or the stream ended). The
@@ -205,7 +208,7 @@ class SharedStreams:
             del self._feeds[feed.key]
 
 
-def carry_shared(transport: str, streams: SharedStreams, request: Any, end: ReaderEnd, peer: Peer,
+def carry_shared(transport: str, streams: SharedStreams, request: Message, end: ReaderEnd[Any], peer: Peer,
                  open_stream: Callable[[SharedFeed], bool]) -> bool:
     """A transport's ``subscribe`` on a shared stream: attach ``end`` to the stream that
     ``request`` (a protobuf message) opens at the peer, opening it when it is the first;

@@ -24,26 +24,33 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar, cast
 
 from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports.flow import WriterFlow, waits
+
+if TYPE_CHECKING:
+    from dataflow.buffers import Storage
+    from dataflow.ports import InputPort, OutputPort
+    from dataflow.transports.frames import Frame
 
 __all__ = ["Carrier", "Fanout", "LossCount", "OutSample", "ReaderEnd", "WriterEnd", "attach", "detach"]
 
 log = logging.getLogger(__name__)
 
 _time_ns = time.time_ns
+T = TypeVar("T")
+D = TypeVar("D")
 
 
-class OutSample:
+class OutSample(Generic[T]):
     """One sample on its way out: the port's write number, when it was written (ns since
     the epoch), the value and the port's type. Each encoding of it is made once, however
     many ends send it (:meth:`encoded`)."""
 
     __slots__ = ("n", "t_ns", "value", "type", "inline", "_key", "_bytes")
 
-    def __init__(self, n: int, t_ns: int, value: Any, py_type: Any) -> None:
+    def __init__(self, n: int, t_ns: int, value: T, py_type: Any) -> None:
         self.n = n
         self.t_ns = t_ns
         self.value = value
@@ -52,10 +59,10 @@ class OutSample:
         #: to the first few there and hands the rest to its own thread: the writer's cost
         #: then does not grow with its readers).
         self.inline = 0
-        self._key: Any = None
-        self._bytes: Any = None
+        self._key: Callable[[OutSample[T]], Any] | None = None
+        self._bytes: Any = None  # what the last encoder made (each transport's own type)
 
-    def encoded(self, encode: Callable[[OutSample], Any]) -> Any:
+    def encoded(self, encode: Callable[[OutSample[T]], D]) -> D:
         """``encode(self)``, computed once per encoder (the last one's result is kept:
         the ends of one port almost always share one encoder)."""
         if self._key is encode:
@@ -65,14 +72,15 @@ class OutSample:
         return data
 
 
-class Carrier(Protocol):
-    """What a transport attaches to a :class:`WriterEnd` while it is connected."""
+class Carrier(Protocol[D]):
+    """What a transport attaches to a :class:`WriterEnd` while it is connected; ``D`` is
+    what a sample becomes for it (scart's frames: ``bytes``)."""
 
-    def encode(self, sample: OutSample) -> Any:
+    def encode(self, sample: OutSample[Any]) -> D:
         """How a sample is encoded for this transport (the same function for every
         carrier of a transport, so a sample is encoded once however many ends send it)."""
 
-    def send(self, sample: OutSample, data: Any) -> bool:
+    def send(self, sample: OutSample[Any], data: D) -> bool:
         """Send ``sample`` (``data``: :attr:`encode`'s result) now without blocking;
         False when there is no room (the end keeps it, as its policy says, until
         :meth:`WriterEnd.flush`). Called in the writer's thread, or in the transport's
@@ -83,18 +91,18 @@ class Carrier(Protocol):
     # in messages of up to that many bytes, many samples each (``send`` gets the last one).
 
 
-class Fanout:
+class Fanout(Generic[T]):
     """The writer ends of one output port: each write is handed to every end (in the
     writer's thread), encoded at most once per encoding. Attached to the port while it
     has ends (:func:`attach`, :func:`detach`)."""
 
     __slots__ = ("port", "ends")
 
-    def __init__(self, port: Any) -> None:
+    def __init__(self, port: OutputPort[T]) -> None:
         self.port = port
-        self.ends: tuple[WriterEnd, ...] = ()
+        self.ends: tuple[WriterEnd[T], ...] = ()
 
-    def push(self, n: int, value: Any) -> bool:
+    def push(self, n: int, value: T) -> bool:
         """Offer sample ``n`` to every end; False when a mandatory end refused it."""
         sample = OutSample(n, _time_ns(), value, self.port.type)
         ends = self.ends
@@ -111,7 +119,7 @@ class Fanout:
 _attach_lock = threading.Lock()
 
 
-def attach(port: Any, end: WriterEnd) -> None:
+def attach(port: OutputPort[T], end: WriterEnd[T]) -> None:
     """Make ``end`` receive every sample ``port`` writes from now on (setup path)."""
     with _attach_lock:
         fanout = port._fanout if port._fanout is not None else Fanout(port)
@@ -120,7 +128,7 @@ def attach(port: Any, end: WriterEnd) -> None:
             port.attach_fanout(fanout)
 
 
-def detach(port: Any, end: WriterEnd) -> None:
+def detach(port: OutputPort[T], end: WriterEnd[T]) -> None:
     """Stop handing ``port``'s samples to ``end`` (idempotent, setup path)."""
     with _attach_lock:
         fanout = port._fanout
@@ -168,7 +176,7 @@ class _Ranges:
         self._ranges.clear()
 
 
-class WriterEnd:
+class WriterEnd(Generic[T]):
     """The writer side of one channel (RTT's sender stream end), next to its output port.
 
     :meth:`offer` runs in the writer's thread for every sample the port writes: with a
@@ -186,7 +194,7 @@ class WriterEnd:
     sends what waits. No sample is left queued with no one to send it.
     """
 
-    def __init__(self, port: Any, policy: ConnPolicy, label: str, *, reports: bool = True,
+    def __init__(self, port: OutputPort[T], policy: ConnPolicy, label: str, *, reports: bool = True,
                  byte_budget: int | None = None, held: bool = False) -> None:
         self.port = port
         self.policy = policy
@@ -205,11 +213,11 @@ class WriterEnd:
         #: The port's write number the channel counts from: when this end was made (with
         #: ``init``, one less: the last value written is the channel's first sample).
         self.start = max(0, written - 1) if policy.init else written
-        self._carrier: Carrier | None = None
-        self._queue: deque[OutSample] = deque()
+        self._carrier: Carrier[Any] | None = None  # any transport's
+        self._queue: deque[OutSample[T]] = deque()
         #: Samples written while another thread held the lock, oldest first: only a lock
         #: holder moves them into the queue (so the queue changes under the lock alone).
-        self._inbox: deque[OutSample] = deque()
+        self._inbox: deque[OutSample[T]] = deque()
         self._room = 1 if policy.type is ConnType.DATA else max(1, policy.size)
         self._lock = threading.Lock()
         self._more = False
@@ -231,7 +239,7 @@ class WriterEnd:
             self.offer = self._offer_waiting  # type: ignore[method-assign]  # a waiting writer's own offer
 
     # ---- the writer's thread ------------------------------------------------------------
-    def _offer_waiting(self, sample: OutSample) -> bool:
+    def _offer_waiting(self, sample: OutSample[T]) -> bool:
         """:meth:`offer` for a writer that waits: first for its reader's room, then (for
         ``WAIT_AFTER``) for its report that the sample arrived; either bounded by the
         policy's ``wait_timeout``, after which the sample is refused and counted."""
@@ -246,7 +254,7 @@ class WriterEnd:
         flow.after(sample.n)
         return True
 
-    def offer(self, sample: OutSample) -> bool:
+    def offer(self, sample: OutSample[T]) -> bool:
         """Send or keep ``sample`` (see the class); False when it will not leave."""
         carrier = self._carrier
         if carrier is None:
@@ -309,7 +317,7 @@ class WriterEnd:
             if not self._more:
                 return
 
-    def _encoded(self, sample: OutSample, carrier: Carrier) -> Any:
+    def _encoded(self, sample: OutSample[T], carrier: Carrier[Any]) -> Any:
         """``sample`` encoded for ``carrier`` (once per transport); None, counted and
         said once, when it cannot be (a value the wire cannot carry: never raised into
         the writer)."""
@@ -332,7 +340,7 @@ class WriterEnd:
             return self._room
         return max(1, min(self._room, self.byte_budget // self._sample_bytes))
 
-    def _keep(self, sample: OutSample) -> bool:
+    def _keep(self, sample: OutSample[T]) -> bool:
         queue = self._queue
         if len(queue) < self.room:
             queue.append(sample)
@@ -358,7 +366,7 @@ class WriterEnd:
         self._unsent_total += 1
 
     # ---- the transport's side -----------------------------------------------------------
-    def connected(self, transport: str, carrier: Carrier, *, new_peer: bool,
+    def connected(self, transport: str, carrier: Carrier[Any], *, new_peer: bool,
                   first: Callable[[], object] | None = None) -> None:
         """The transport is connected: samples go through ``carrier`` from now on.
         ``new_peer``: a reader end that knows nothing of this channel (a first connection,
@@ -381,7 +389,7 @@ class WriterEnd:
             n, value = self.port.last_sample()
             with self._lock:
                 if n > self.peer_last and n > 0 and not self._queue and not self._inbox:
-                    self._keep(OutSample(n, _time_ns(), value, self.port.type))
+                    self._keep(OutSample(n, _time_ns(), cast(T, value), self.port.type))  # written: n > 0
         self.flush()
         if self.on_connected is not None:
             self.on_connected()
@@ -416,14 +424,14 @@ class WriterEnd:
                 return False
         return True
 
-    def _send_next(self, carrier: Carrier, limit: int) -> bool:
+    def _send_next(self, carrier: Carrier[Any], limit: int) -> bool:
         """Send the oldest queued sample, or (``limit`` > 0: a carrier whose frames join,
         see ``Carrier.batch_bytes``) the oldest samples joined into one message of at most
         ``limit`` bytes; False, with the queue as it was, when the carrier has no room. A
         reader that fell behind then catches up many samples per message, not one each.
         A sample that cannot be encoded is counted (:meth:`_encoded`) and skipped."""
         queue = self._queue
-        taken: list[OutSample] = []
+        taken: list[OutSample[T]] = []
         parts: list[Any] = []
         size = 0
         while queue:
@@ -557,7 +565,7 @@ class LossCount:
             self.tail = 0
 
 
-class ReaderEnd:
+class ReaderEnd(Generic[T]):
     """The reader side of one channel, next to its input port (or observer): it checks
     each sample once (``check``: decode, type, bounds; an exception refuses the sample,
     counted) and keeps it in the channel's one policy-shaped buffer (``store``: the
@@ -569,9 +577,9 @@ class ReaderEnd:
     sample received).
     """
 
-    def __init__(self, label: str, check: Callable[[Any], Any], store: Callable[[int, int, Any], bool],
+    def __init__(self, label: str, check: Callable[[Any], T], store: Callable[[int, int, T], bool],
                  buffer_dropped: Callable[[], int], after: int | None = None, init: bool = False,
-                 port: Any = None, policy: ConnPolicy | None = None) -> None:
+                 port: InputPort[T] | None = None, policy: ConnPolicy | None = None) -> None:
         self.label = label
         #: The input port it feeds, when there is one (a converting transport maps its type).
         self.port = port
@@ -579,7 +587,7 @@ class ReaderEnd:
         self.policy = policy
         #: Its channel's storage, when a transport holds writers back until it has room
         #: (flow control: ``has_room()``, ``on_room(callback)``; see :mod:`dataflow.buffers`).
-        self.storage: Any = None
+        self.storage: Storage[T] | None = None
         self.init = init  #: its policy hands a new connection the last value written
         self.seen = time.monotonic()  #: when its transport last heard from the writer (any byte)
         self._check = check
@@ -594,7 +602,7 @@ class ReaderEnd:
         self._warned = False
         #: Called with each frame a scart transport hands over, before its samples (a
         #: subscription notes the stream is alive, and who sends).
-        self.on_frame: Callable[[Any], None] | None = None
+        self.on_frame: Callable[[Frame], None] | None = None
 
     def writer(self, boot_id: str) -> None:
         """The writer process is ``boot_id``; a change means it restarted (see :class:`LossCount`)."""
@@ -603,7 +611,7 @@ class ReaderEnd:
                 self.loss.restarted()
             self.boot_id = boot_id
 
-    def receive(self, n: int, t_ns: int, payload: Any) -> bool:
+    def receive(self, n: int, t_ns: int, payload: object) -> bool:
         """One sample: counted by its write number (False for one had already), checked,
         stored. Never raises: a sample that fails its check is refused and counted (the
         first refusal logged)."""

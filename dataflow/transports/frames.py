@@ -13,8 +13,9 @@ refused as it is encoded (:class:`~dataflow.transports.limits.SampleTooLarge`), 
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeAlias, TypeVar
 
 from scart_wire import codec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
@@ -25,9 +26,14 @@ from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
 __all__ = ["encoder", "feed", "heartbeat", "report_of", "sample_frame", "varint"]
 
 _Frame = pb.SubscribeResponse
+T = TypeVar("T")
+#: A parsed frame of samples: a subscription's or a link's.
+Frame: TypeAlias = "pb.SubscribeResponse | pb.LinkRequest"
+#: How the samples of one port's type become a frame's bytes (:func:`encoder`).
+Encoder: TypeAlias = "Callable[[OutSample[Any]], bytes]"
 
 
-def sample_frame(sample: OutSample) -> bytes:
+def sample_frame(sample: OutSample[Any]) -> bytes:
     """``sample`` as an encoded frame (see the module docstring); raises ``TypeError``
     (a :class:`~dataflow.PortTypeError`) when the value cannot be encoded, and
     :class:`~dataflow.transports.limits.SampleTooLarge` when it is over the limit."""
@@ -50,7 +56,7 @@ def varint(x: int) -> bytes:
     return bytes(out)
 
 
-def _number_frame(type_name: str, pack: Any) -> Any:
+def _number_frame(type_name: str, pack: Callable[[Any], bytes]) -> Encoder:
     """A :func:`sample_frame` for a port of a number type: the same bytes as the
     generated code makes (a test holds the two equal), put together directly. A
     periodic writer pays for every step cold, at each write: building the message
@@ -59,7 +65,7 @@ def _number_frame(type_name: str, pack: Any) -> Any:
     width = len(pack(0))
     value_field = bytes((0x0A, len(name) + width + 4, 0x0A, len(name))) + name + bytes((0x12, width))  # Sample.value
 
-    def number_frame(sample: OutSample) -> bytes:
+    def number_frame(sample: OutSample[Any]) -> bytes:
         value, n, t_ns = sample.value, sample.n, sample.t_ns
         if type(value) is not sample.type or not (0 < n < 1 << 63 and 0 < t_ns < 1 << 63):
             return sample_frame(sample)  # a subclass, or a field the generated code would leave out
@@ -72,7 +78,7 @@ _NUMBER_FRAMES = MappingProxyType({py_type: _number_frame(registry.type_name(py_
                                    for py_type, code in ((float, "<d"), (int, "<q"))})
 
 
-def encoder(py_type: Any) -> Any:
+def encoder(py_type: Any) -> Encoder:
     """The frame encoder for samples of ``py_type`` (one function per type: a sample is
     encoded once for every carrier of its port that uses it)."""
     return _NUMBER_FRAMES.get(py_type, sample_frame)
@@ -85,14 +91,14 @@ def heartbeat(boot_id: str = "", dropped: int = 0, sent_last: int = 0) -> bytes:
                                 sent_last=sent_last).SerializeToString()
 
 
-def connected(end: WriterEnd, boot_id: str) -> bytes:
+def connected(end: WriterEnd[Any], boot_id: str) -> bytes:
     """A subscription's first frame: who writes, and up to which write number the stream
     will not carry (see ``SubscribeResponse.written``). Made under ``end``'s lock (its
     ``first`` hook), so no write slips in between."""
     return pb.SubscribeResponse(heartbeat=True, boot_id=boot_id, written=end.port.last_sample()[0]).SerializeToString()
 
 
-def feed(end: ReaderEnd, message: Any, values: dict[int, Any] | None = None) -> int:
+def feed(end: ReaderEnd[T], message: Frame, values: Mapping[int, object] | None = None) -> int:
     """Hand the samples of one parsed frame (``SubscribeResponse`` or ``LinkRequest``) to
     ``end``; returns how many it stored. ``values``: the value of a sample whose bytes
     are elsewhere (shared memory), by its index in the frame. (Every sample of every
@@ -119,6 +125,6 @@ def feed(end: ReaderEnd, message: Any, values: dict[int, Any] | None = None) -> 
     return stored
 
 
-def report_of(end: ReaderEnd, *, known: bool = True, final: bool = False, pending: int = 0) -> Any:
+def report_of(end: ReaderEnd[Any], *, known: bool = True, final: bool = False, pending: int = 0) -> pb.LinkResponse:
     """The ``LinkResponse`` a link's reader end sends back."""
     return pb.LinkResponse(last=end.last, lost=end.lost, known=known, final=final, pending=pending)

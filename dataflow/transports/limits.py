@@ -11,9 +11,12 @@ limit: a sample never leaves to be dropped unseen at the reader.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.errors import DeploymentError
+
+if TYPE_CHECKING:
+    from dataflow.ports import Port
 
 __all__ = ["FRAME_ROOM", "MAX_FRAME_BYTES", "MAX_SAMPLE_BYTES", "SampleTooLarge", "check_fits", "check_size"]
 
@@ -40,7 +43,7 @@ def check_size(data: bytes, limit: int = MAX_FRAME_BYTES, transport: str = "") -
     return data
 
 
-def check_fits(port: Any, across: str) -> None:
+def check_fits(port: Port[Any], across: str) -> None:
     """Refuse, when it is made, a channel of ``port`` (``across``: what it joins) whose
     type makes every write fail: a fixed-size type (an array of a fixed shape) over the
     limit. Raises :class:`~dataflow.errors.DeploymentError` saying the size and the limit."""

@@ -5,15 +5,27 @@ from __future__ import annotations
 
 import itertools
 import threading
-from typing import Any
+from typing import Any, TypedDict
 
 from dataflow.policy import ConnPolicy
 from dataflow.ports import OutputPort
 from dataflow.transports.ends import WriterEnd, attach, detach
 
-__all__ = ["BYTE_BUDGET", "Served", "ServedSet"]
+__all__ = ["BYTE_BUDGET", "Served", "ServedInfo", "ServedSet"]
 
 BYTE_BUDGET = 4 * 1024 * 1024  #: encoded bytes a subscription may have waiting on the deployer's side, at most
+
+
+class ServedInfo(TypedDict):
+    """What listings show of one subscription (:meth:`ServedSet.info`)."""
+
+    id: int
+    source: str
+    subscriber: str
+    policy: str
+    transport: str
+    samples: int
+    dropped: int
 
 
 class Served:
@@ -22,7 +34,7 @@ class Served:
     could not send is counted (:attr:`dropped`), and the subscriber counts the rest from
     the write numbers."""
 
-    def __init__(self, port: OutputPort, policy: ConnPolicy, serial: int, subscriber: str, transport: str) -> None:
+    def __init__(self, port: OutputPort[Any], policy: ConnPolicy, serial: int, subscriber: str, transport: str) -> None:
         self.port = port
         self.policy = policy
         self.serial = serial
@@ -59,7 +71,7 @@ class ServedSet:
         self._serials = itertools.count(1)
         self._served: dict[int, Served] = {}
 
-    def open(self, port: OutputPort, policy: ConnPolicy, subscriber: str, transport: str) -> Served:
+    def open(self, port: OutputPort[Any], policy: ConnPolicy, subscriber: str, transport: str) -> Served:
         """A new subscription of ``port``; ``OverflowError`` naming the limit past it."""
         with self._lock:
             streams = sum(1 for s in self._served.values() if s.transport == "grpc")
@@ -88,7 +100,7 @@ class ServedSet:
     def __len__(self) -> int:
         return len(self._served)
 
-    def info(self) -> list[dict[str, Any]]:
+    def info(self) -> list[ServedInfo]:
         """What listings show of each subscription."""
-        return [dict(id=s.serial, source=s.port.qualname, subscriber=s.subscriber[:300], policy=str(s.policy),
+        return [ServedInfo(id=s.serial, source=s.port.qualname, subscriber=s.subscriber[:300], policy=str(s.policy),
                      transport=s.transport, samples=s.port.last_sample()[0], dropped=s.dropped) for s in self.all()]

@@ -16,16 +16,19 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from scart_wire import codec
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy
-from dataflow.ports import InputPort
+from dataflow.ports import InputPort, Port
 from dataflow.buffers import WaitingStorage
 from dataflow.transports.ends import ReaderEnd
 from dataflow.transports.flow import waits
 from scart_wire.types import registry
+
+if TYPE_CHECKING:
+    from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 
 __all__ = ["IncomingLink", "LINGER_S", "REPORT_EVERY", "REPORT_S", "Refused", "Sinks", "port_check"]
 
@@ -35,13 +38,14 @@ LINGER_S = 1.0  #: how long a closing link's buffer may wait for its task to rea
 REPORT_EVERY = 64  #: samples between two reports of a link's reader end to its source, at most ...
 REPORT_S = 0.1  #: ... or this many seconds, when something changed (on every transport)
 MAX_CHANNELS = 4096  #: incoming links one deployer keeps, at most
+T = TypeVar("T")
 
 
 class Refused(DataflowError):
     """The sink refuses a link (no such input port, another type, out of room)."""
 
 
-def port_check(port: InputPort, nan_ok: bool = False) -> Callable[[Any], Any]:
+def port_check(port: InputPort[T], nan_ok: bool = False) -> Callable[[Any], T]:
     """The one check of a sample from outside into ``port``: decode (a ``Value``; a
     transport that converts types gives a Python value), the port's type, its bounds
     (``nan_ok``: NaN and inf are legal where the sample comes from, ROS, so only a port
@@ -49,7 +53,7 @@ def port_check(port: InputPort, nan_ok: bool = False) -> Callable[[Any], Any]:
     py_type = port.type
     admit = port.admit
 
-    def check(msg: Any) -> Any:
+    def check(msg: object) -> T:
         value = codec.decode(msg) if isinstance(msg, (codec.Value, codec.Payload)) else msg  # else a converting
         # transport's value
         if type(value) is not py_type:
@@ -62,7 +66,7 @@ def port_check(port: InputPort, nan_ok: bool = False) -> Callable[[Any], Any]:
 class IncomingLink:
     """One link's reader end at its sink (see the module docstring)."""
 
-    def __init__(self, channel: str, port: InputPort, policy: ConnPolicy, after: int, source: str,
+    def __init__(self, channel: str, port: InputPort[Any], policy: ConnPolicy, after: int, source: str,
                  name: str, boot_id: str, source_ns: str) -> None:
         self.channel = channel
         self.port = port
@@ -92,7 +96,7 @@ class IncomingLink:
         if on_room is not None:
             on_room()
 
-    def _store(self, n: int, t_ns: int, value: Any) -> bool:
+    def _store(self, n: int, t_ns: int, value: object) -> bool:
         if self.closed:
             self._after_close += 1
             return False
@@ -123,12 +127,12 @@ class Sinks:
     input port (raising :class:`~dataflow.errors.DataflowError` when there is none).
     Thread-safe."""
 
-    def __init__(self, port_of: Callable[[str, str], Any]) -> None:
+    def __init__(self, port_of: Callable[[str, str], Port[Any]]) -> None:
         self._port_of = port_of
         self._lock = threading.Lock()
         self._links: dict[str, IncomingLink] = {}
 
-    def open(self, hello: Any, policy: ConnPolicy) -> tuple[IncomingLink, bool]:
+    def open(self, hello: pb.LinkHello, policy: ConnPolicy) -> tuple[IncomingLink, bool]:
         """The reader end for a channel opening (``hello``: a ``LinkHello``) and whether
         it was known already. Raises :class:`Refused` saying why not."""
         where = f"{hello.task}.{hello.port}"

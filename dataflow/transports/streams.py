@@ -8,8 +8,10 @@ import re
 import threading
 from typing import Any
 
+from dataflow.errors import DeploymentError
 from dataflow.introspection import LinkDescription, PortStreamDescription
 from dataflow.policy import ConnPolicy
+from dataflow.ports import ChannelConnection, InputPort, OutputPort, Port
 from dataflow.transports import load
 from dataflow.transports.ends import ReaderEnd, WriterEnd, attach, detach
 from dataflow.transports.limits import check_fits
@@ -32,7 +34,7 @@ class PortStream:
     ``ConnPolicy.name_id``): an output port's writer end publishes, an input port's reader
     end receives (its buffer feeding the port). Listed with the links."""
 
-    def __init__(self, port: Any, policy: ConnPolicy, options: dict[str, str], name: str) -> None:
+    def __init__(self, port: Port[Any], policy: ConnPolicy, options: dict[str, str], name: str) -> None:
         self.port = port
         self.policy = policy
         self.options = dict(options)
@@ -40,19 +42,21 @@ class PortStream:
         check_fits(port, f"stream {name}")
         self.transport = load(policy.transport)
         self.topic = policy.topic
-        self.writer: WriterEnd | None = None
-        self.reader: ReaderEnd | None = None
-        self._connection: Any = None
+        self.writer: WriterEnd[Any] | None = None
+        self.reader: ReaderEnd[Any] | None = None
+        self._connection: ChannelConnection[Any] | None = None
         label = f"stream {name}"
-        if port.is_input:
+        end: WriterEnd[Any] | ReaderEnd[Any]
+        if isinstance(port, InputPort):
             self._connection = conn = port.open_channel(policy, peer=f"{policy.transport}:{policy.topic}")
-            self.reader = ReaderEnd(label, port_check(port, nan_ok=self.transport.converts), conn.store,
-                                    lambda: conn.dropped, port=port, policy=policy)
+            self.reader = end = ReaderEnd(label, port_check(port, nan_ok=self.transport.converts), conn.store,
+                                          lambda: conn.dropped, port=port, policy=policy)
             self.reader.storage = conn.storage
-            end: Any = self.reader
-        else:
+        elif isinstance(port, OutputPort):
             self.writer = end = WriterEnd(port, policy, label)
             attach(port, self.writer)
+        else:
+            raise DeploymentError(f"{port.qualname}: a stream joins an input or an output port")
         try:
             self._stream = self.transport.stream(end, policy.topic, self.options)
         except BaseException:
@@ -68,7 +72,8 @@ class PortStream:
 
     def _state(self) -> tuple[str, str]:
         """``(transport now, or "" while waiting; what it waits for)``."""
-        end: Any = self.writer if self.writer is not None else self.reader
+        end = self.writer if self.writer is not None else self.reader
+        assert end is not None
         waiting = self._stream.waiting
         return ("" if waiting else end.transport), waiting
 
@@ -76,7 +81,7 @@ class PortStream:
         source, sink = (self.where, self.port.qualname) if self.port.is_input else (self.port.qualname, self.where)
         refused = self._stream.refused
         if self.writer is not None:
-            dropped, samples = self.writer.dropped + refused, self.port.last_sample()[0]
+            dropped, samples = self.writer.dropped + refused, self.writer.port.last_sample()[0]
         else:
             assert self.reader is not None
             dropped, samples = self.reader.lost + refused, self.reader.received
@@ -103,7 +108,7 @@ class PortStream:
         with _ports_lock:
             self.port.streams = tuple(s for s in self.port.streams if s is not self)
         if self.writer is not None:
-            detach(self.port, self.writer)
+            detach(self.writer.port, self.writer)
             self.writer.disconnected()
         if self._connection is not None:
             self._connection.close()

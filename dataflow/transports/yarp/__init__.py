@@ -28,14 +28,19 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from dataflow.buffers import WaitingStorage
 from dataflow.policy import ConnPolicy, ConnType, WaitMode
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 if TYPE_CHECKING:
     from scart_yarp import Incoming, Network, Port
+
+    from dataflow.buffers import Storage
+    from dataflow.ports import Port as DataflowPort
 
     from .convert import Conversion
 
@@ -125,7 +130,7 @@ class YarpTransport(Transport):
         network.close()
 
     # ---- streams -----------------------------------------------------------------------
-    def conversion(self, port: Any) -> tuple[Conversion | None, list[str]]:
+    def conversion(self, port: DataflowPort[Any]) -> tuple[Conversion | None, list[str]]:
         """How ``port``'s type crosses as a bottle (planned once per type)."""
         from .convert import plan
 
@@ -137,7 +142,7 @@ class YarpTransport(Transport):
                 self._plans[port.type] = found
         return found
 
-    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+    def check_stream(self, port: DataflowPort[Any], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
         _, unfit = self.conversion(port)
         where = f"{'into' if port.is_input else 'from'} port {getattr(port, 'qualname', port.name)} ({port.type_name})"
@@ -210,7 +215,7 @@ class _Carrier:
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(), only when a reader is connected
 
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+    def send(self, sample: OutSample[Any], _data: object) -> bool:  # the writer's thread
         if not self._port.has_outputs:
             return True
         try:
@@ -257,7 +262,7 @@ class _PortStream(Stream):
             end.transport = "yarp"
             storage = end.storage
             self._port = network.open_port(topic, reader=_receiver(end, conv, storage), connect=connect)
-            if storage is not None and end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT:
+            if isinstance(storage, WaitingStorage) and end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT:
                 storage.on_room(self._port.resume)  # a read made room: what was held back comes in
 
     @property
@@ -289,7 +294,7 @@ class _PortStream(Stream):
         self._transport.release(self._network)
 
 
-def _receiver(end: ReaderEnd, conv: Conversion, storage: Any) -> Any:
+def _receiver(end: ReaderEnd[Any], conv: Conversion, storage: Storage[Any] | None) -> Callable[[Incoming], bool]:
     """What the YARP port calls (io thread) with each bottle: decoded, converted, handed
     to ``end`` numbered; a bottle that is malformed or does not fit is refused there. With
     a policy that makes writers wait, a bottle that finds the buffer full is held back
@@ -301,9 +306,10 @@ def _receiver(end: ReaderEnd, conv: Conversion, storage: Any) -> Any:
     from_bottle = conv.from_bottle
     count = [0]
     holds = end.policy is not None and end.policy.wait is not WaitMode.NO_WAIT and storage is not None
+    has_room = storage.has_room if holds and storage is not None else None
 
     def on_message(msg: Incoming) -> bool:
-        if holds and not storage.has_room():
+        if has_room is not None and not has_room():
             return False
         try:
             value = from_bottle(msg.values())

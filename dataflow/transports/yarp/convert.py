@@ -31,12 +31,14 @@ from typing import Any
 
 import pydantic
 
-from scart_yarp.bottle import Vocab
+from scart_yarp.bottle import Item, Vocab
 
 __all__ = ["Conversion", "Unfit", "item_reader", "plan"]
 
-Out = Callable[[Any], Any]
-In = Callable[[Any], Any]
+#: A value of the port's type as one bottle item.
+Out = Callable[[Any], Item]
+#: One bottle item as a value of the port's type (raises :class:`Unfit`).
+In = Callable[[Item], Any]
 
 
 class Unfit(ValueError):
@@ -48,8 +50,8 @@ class Conversion:
     """How one port type crosses: ``to_bottle(value) -> list`` (the items of the bottle),
     ``from_bottle(items) -> value`` (raises :class:`Unfit`), and the shape in words."""
 
-    to_bottle: Callable[[Any], list[Any]]
-    from_bottle: Callable[[list[Any]], Any]
+    to_bottle: Callable[[Any], list[Item]]
+    from_bottle: Callable[[list[Item]], Any]
     shape: str
 
 
@@ -70,7 +72,7 @@ def plan(py_type: Any) -> tuple[Conversion | None, list[str]]:
         return None, [str(exc)]
 
 
-def item_reader(py_type: Any) -> Callable[[Any], Any]:
+def item_reader(py_type: Any) -> In:
     """What reads one bottle item as a value of ``py_type`` (an operation's argument; a
     model from the list of its fields), raising :class:`Unfit`; a type with no bottle form
     is read as plain data (its own check then judges it)."""
@@ -121,7 +123,7 @@ def _convert(t: Any, where: str) -> tuple[Out, In, str]:
     raise TypeError(f"{where} is {_label(t)}, which has no bottle form (int, float, str, bool, bytes, lists, models)")
 
 
-def _model(model: type[pydantic.BaseModel], where: str) -> tuple[Out, In, str]:
+def _model(model: type[pydantic.BaseModel], where: str) -> tuple[Callable[[Any], list[Item]], In, str]:
     names, outs, ins, shapes = [], [], [], []
     for name, info in model.model_fields.items():
         out, inp, shape = _convert(info.annotation, f"{model.__name__}.{name}")
@@ -132,10 +134,10 @@ def _model(model: type[pydantic.BaseModel], where: str) -> tuple[Out, In, str]:
     pairs = tuple(zip(names, outs))
     checks = tuple(zip(names, ins))
 
-    def to_bottle(value: Any) -> list[Any]:
+    def to_bottle(value: pydantic.BaseModel) -> list[Item]:
         return [out(getattr(value, name)) for name, out in pairs]
 
-    def from_bottle(items: Any) -> dict[str, Any]:
+    def from_bottle(items: Item) -> dict[str, Any]:
         if type(items) is not list:
             raise Unfit(f"{where}: a list of {len(names)} items is wanted, got {_what(items)}")
         if len(items) != len(names):
@@ -146,7 +148,7 @@ def _model(model: type[pydantic.BaseModel], where: str) -> tuple[Out, In, str]:
 
 
 def _list_in(each: In, where: str) -> In:
-    def from_bottle(items: Any) -> list[Any]:
+    def from_bottle(items: Item) -> list[Any]:
         if type(items) is not list:
             raise Unfit(f"{where}: a list is wanted, got {_what(items)}")
         try:
@@ -161,8 +163,8 @@ def _list_in(each: In, where: str) -> In:
     return from_bottle
 
 
-def _single(each: In) -> Callable[[list[Any]], Any]:
-    def from_bottle(items: list[Any]) -> Any:
+def _single(each: In) -> Callable[[list[Item]], Any]:
+    def from_bottle(items: list[Item]) -> Any:
         if len(items) != 1:
             raise Unfit(f"one item is wanted, got {len(items)}")
         return each(items[0])
@@ -173,7 +175,7 @@ def _named(inp: In, where: str) -> In:
     if not where:
         return inp
 
-    def check(item: Any) -> Any:
+    def check(item: Item) -> Any:
         try:
             return inp(item)
         except Unfit as exc:
@@ -181,7 +183,7 @@ def _named(inp: In, where: str) -> In:
     return check
 
 
-def _what(item: Any) -> str:
+def _what(item: object) -> str:
     if isinstance(item, list):
         return f"a list of {len(item)}"
     if isinstance(item, Vocab):
@@ -189,19 +191,19 @@ def _what(item: Any) -> str:
     return f"{type(item).__name__} {item!r}"[:80]
 
 
-def _int_in(item: Any) -> int:
+def _int_in(item: Item) -> int:
     if type(item) is int:
         return item
     raise Unfit(f"an int is wanted, got {_what(item)}")
 
 
-def _float_in(item: Any) -> float:
+def _float_in(item: Item) -> float:
     if type(item) is float or type(item) is int:
         return float(item)
     raise Unfit(f"a number is wanted, got {_what(item)}")
 
 
-def _str_in(item: Any) -> str:
+def _str_in(item: Item) -> str:
     if type(item) is str:
         return item
     if type(item) is Vocab:
@@ -209,7 +211,7 @@ def _str_in(item: Any) -> str:
     raise Unfit(f"a string is wanted, got {_what(item)}")
 
 
-def _bool_in(item: Any) -> bool:
+def _bool_in(item: Item) -> bool:
     if type(item) is Vocab and item.code in (0, ord("1")):
         return item.code != 0
     if type(item) is int and item in (0, 1):
@@ -217,19 +219,19 @@ def _bool_in(item: Any) -> bool:
     raise Unfit(f"true or false is wanted, got {_what(item)}")
 
 
-def _bytes_in(item: Any) -> bytes:
+def _bytes_in(item: Item) -> bytes:
     if type(item) is bytes:
         return item
     raise Unfit(f"a blob is wanted, got {_what(item)}")
 
 
-def _plain(item: Any) -> Any:
+def _plain(item: Item) -> object:
     if isinstance(item, list):
         return [_plain(x) for x in item]
     return item.text if isinstance(item, Vocab) else item
 
 
-_SCALARS: Mapping[Any, tuple[Out, In, str]] = MappingProxyType({
+_SCALARS: Mapping[type, tuple[Out, In, str]] = MappingProxyType({
     int: (int, _int_in, "int"),
     float: (float, _float_in, "float"),
     str: (str, _str_in, "string"),

@@ -18,12 +18,17 @@ from __future__ import annotations
 import inspect
 import logging
 import typing
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 from dataflow.transports import TransportError
 
 from .convert import Unfit, item_reader, plan
+
+if TYPE_CHECKING:
+    from scart_yarp.bottle import Item
+
+    from dataflow.task import TaskContext
 
 __all__ = ["RpcPort", "call_rpc", "check_port_name", "rpc_port_name", "serve_calls", "serve_task"]
 
@@ -37,7 +42,7 @@ def check_port_name(name: str) -> str:
     return check_name(name)
 
 
-def call_rpc(port: str, values: list[Any], server: str | None = None, timeout: float = 5.0) -> list[Any]:
+def call_rpc(port: str, values: Sequence[object], server: str | None = None, timeout: float = 5.0) -> list[object]:
     """Call the YARP RPC port ``port`` with the bottle ``values``, as ``yarp rpc`` does; the
     reply as plain data (a vocab as its text). ``server``: the name server ``HOST:PORT``
     (default YARP's configuration). Raises ``ValueError`` saying what went wrong — also for
@@ -56,7 +61,7 @@ def call_rpc(port: str, values: list[Any], server: str | None = None, timeout: f
     return [_plain(v) for v in reply]
 
 
-def _plain(value: Any) -> Any:
+def _plain(value: Item) -> object:
     from scart_yarp import Vocab
 
     if isinstance(value, list):
@@ -84,7 +89,7 @@ class RpcPort:
             self._close()
 
 
-def serve_task(task: Any, name: str = "", options: dict[str, str] | None = None, timeout: float = 5.0) -> RpcPort:
+def serve_task(task: TaskContext, name: str = "", options: dict[str, str] | None = None, timeout: float = 5.0) -> RpcPort:
     """Answer ``task``'s operations on the YARP RPC port ``name`` (default
     :func:`rpc_port_name`). Raises :class:`TransportError` when the port cannot be opened."""
     ops = {op: _task_call(task, op, timeout) for op in task.operations()}
@@ -92,16 +97,16 @@ def serve_task(task: Any, name: str = "", options: dict[str, str] | None = None,
     return _serve(name or rpc_port_name(task.name), ops, hints, f"task {task.name}", options or {})
 
 
-def serve_calls(calls: dict[str, Callable[..., Any]], name: str, label: str,
+def serve_calls(calls: Mapping[str, Callable[..., object]], name: str, label: str,
                 options: dict[str, str] | None = None) -> RpcPort:
     """Answer the callables ``calls`` (by operation name) on the YARP RPC port ``name``,
     each argument checked against its annotation. Raises :class:`TransportError`."""
     from scart_wire.bounds import check_argument
 
-    def checked(op: str, fn: Callable[..., Any]) -> Callable[..., Any]:
+    def checked(op: str, fn: Callable[..., object]) -> Callable[..., object]:
         params = list(_hints(fn).items())
 
-        def call(*args: Any) -> Any:
+        def call(*args: object) -> object:
             values = [check_argument(f"{label}.{op}({p})", hint, v) for (p, hint), v in zip(params, args)]
             return fn(*values)
         return call
@@ -110,13 +115,13 @@ def serve_calls(calls: dict[str, Callable[..., Any]], name: str, label: str,
     return _serve(name, ops, {op: _hints(fn) for op, fn in calls.items()}, label, options or {})
 
 
-def _task_call(task: Any, op: str, timeout: float) -> Callable[..., Any]:
-    def call(*args: Any) -> Any:
+def _task_call(task: TaskContext, op: str, timeout: float) -> Callable[..., object]:
+    def call(*args: object) -> object:
         return task.send(op, *task.check_arguments(op, list(args))).result(timeout)
     return call
 
 
-def _hints(fn: Callable[..., Any]) -> dict[str, Any]:
+def _hints(fn: Callable[..., object]) -> dict[str, object]:
     """``{parameter: annotation}`` of ``fn`` (``self`` left out; ``Any`` where unannotated)."""
     try:
         hints = typing.get_type_hints(fn, include_extras=True)
@@ -127,7 +132,7 @@ def _hints(fn: Callable[..., Any]) -> dict[str, Any]:
     return {p.name: hints.get(p.name, Any) for p in params}
 
 
-def _serve(name: str, ops: dict[str, Callable[..., Any]], hints: dict[str, dict[str, Any]], label: str,
+def _serve(name: str, ops: Mapping[str, Callable[..., object]], hints: Mapping[str, Mapping[str, object]], label: str,
            options: dict[str, str]) -> RpcPort:
     from scart_yarp import Vocab
 
@@ -138,11 +143,11 @@ def _serve(name: str, ops: dict[str, Callable[..., Any]], hints: dict[str, dict[
     assert isinstance(transport, YarpTransport)
     readers = {op: [item_reader(h) for h in params.values()] for op, params in hints.items()}
 
-    def respond(cmd: list[Any]) -> list[Any]:
+    def respond(cmd: list[Item]) -> list[Item]:
         word = cmd[0].text if cmd and isinstance(cmd[0], Vocab) else (cmd[0] if cmd else "")
         if word == "help" or not cmd:
             return [Vocab("many"), *(f"{op} {' '.join(hints[op])}".strip() for op in sorted(ops))]
-        if word not in ops:
+        if not isinstance(word, str) or word not in ops:  # (an operation's name is a string)
             return [Vocab("fail"), f"no operation {str(word)[:80]!r}; {label} has: {', '.join(sorted(ops))}"]
         args, wanted = cmd[1:], readers[word]
         if len(args) != len(wanted):
@@ -171,7 +176,7 @@ def _serve(name: str, ops: dict[str, Callable[..., Any]], hints: dict[str, dict[
     return RpcPort(name, label, close)
 
 
-def _reply(result: Any) -> list[Any]:
+def _reply(result: object) -> list[Item]:
     from scart_yarp import Vocab
 
     if result is None:

@@ -12,20 +12,23 @@ import threading
 import uuid
 import weakref
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import Any, TypeVar
 
 import grpc
+
+from scart_wire import codec
 
 from scart_wire.security import tls_mismatch
 from dataflow.threads import OwnedThread
 from scart.errors import InvocationError, ServiceUnavailableError
 from scart.bindings.grpc._server import Exported, GrpcServer, ServerTable
 from scart.bindings.grpc._wire import (
-    UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, pb_grpc, signatures,
+    Reader, UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
 from scart.spi import Binding, Host, InterfaceInfo, Operation, ReferenceBinding, ServiceBinding, ServiceEndpoint
 
 log = logging.getLogger("scart.bindings.grpc")
+T = TypeVar("T")
 
 DEFAULT_SERVICE_ADDRESS = "127.0.0.1:0"
 DEFAULT_CALL_TIMEOUT_S = 5.0
@@ -132,7 +135,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         self._channel: grpc.Channel | None = None
         self._lock = threading.Lock()
         self._session: _ClientSession | None = None
-        self._targets: weakref.WeakValueDictionary[int, Any] = weakref.WeakValueDictionary()
+        self._targets: weakref.WeakValueDictionary[int, object] = weakref.WeakValueDictionary()
         self._target_ids = itertools.count(1)
         self._uid = uuid.uuid4().hex[:12]
         self._call_ids = itertools.count(1)
@@ -174,7 +177,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         convert = self._sigs[name].result if name in self._sigs else decode
         fail = self._rpc_failure
 
-        def call(*args: Any, **kwargs: Any) -> Any:
+        def call(*args: object, **kwargs: object) -> Any:
             req = pb.CallRequest()
             inv = req.invocation
             inv.service = service
@@ -197,7 +200,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         stub, service, timeout, where = self._send, self.service, self.timeout, self.where
         target_id = self._target_id(callback) if callback is not None else 0
 
-        def send(*args: Any, **kwargs: Any) -> None:
+        def send(*args: object, **kwargs: object) -> None:
             req = pb.SendRequest()
             inv = req.invocation
             inv.service = service
@@ -226,7 +229,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         convert = self._sigs[name].result if name in self._sigs else decode
         target_id = self._target_id(callback)
 
-        def call(*args: Any, **kwargs: Any) -> Any:
+        def call(*args: object, **kwargs: object) -> Any:
             req = pb.InvokeRequest()
             inv = req.invocation
             inv.service = self.service
@@ -239,7 +242,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         call.__qualname__ = f"grpc.{name}"
         return call
 
-    def _run_stream(self, name: str, req: Any, callback: object) -> Any:
+    def _run_stream(self, name: str, req: pb.InvokeRequest, callback: object) -> codec.Value:
         req.call_id = call_id = f"{self._uid}-{next(self._call_ids)}"
         try:
             responses = self._invoke(req, timeout=self.timeout, wait_for_ready=True)
@@ -264,7 +267,7 @@ class GrpcReferenceBinding(ReferenceBinding):
 
     # --- callbacks ----------------------------------------------------------------------
 
-    def run_callback(self, callback: object | None, cc: Any) -> Any | None:
+    def run_callback(self, callback: object | None, cc: pb.CallbackCall) -> pb.CallbackReply | None:
         """Run one ``CallbackCall`` on ``callback`` (None: the session target it names);
         returns the ``CallbackReply`` (None for one-way callbacks, whose errors are logged)."""
         target = callback if callback is not None else self._targets.get(cc.target_id)
@@ -331,7 +334,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         return InvocationError(f"binding.grpc: {self.where}: {name}: {code.name if code else 'error'}: {details}")
 
 
-def _converted(convert: Callable[[Any], Any], value: Any, where: str, name: str) -> Any:
+def _converted(convert: Reader, value: codec.Value, where: str, name: str) -> Any:
     """``convert(value)``; a result this side cannot decode or coerce is an ``InvocationError``
     naming the service and operation."""
     try:
@@ -341,7 +344,7 @@ def _converted(convert: Callable[[Any], Any], value: Any, where: str, name: str)
                               f"({value.type_name or 'untyped'}): {type(exc).__name__}: {exc}") from exc
 
 
-def _drain(outbox: queue.SimpleQueue[Any]) -> Iterator[Any]:
+def _drain(outbox: queue.SimpleQueue[T | None]) -> Iterator[T]:
     """Yield what is put in ``outbox`` until None (always put in a ``finally``)."""
     while True:
         item = outbox.get()
@@ -356,7 +359,7 @@ class _ClientSession:
     def __init__(self, binding: GrpcReferenceBinding) -> None:
         self.id = uuid.uuid4().hex
         self._binding = binding
-        self._outbox: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._outbox: queue.SimpleQueue[pb.OpenCallbackSessionRequest | None] = queue.SimpleQueue()
         self.opened = threading.Event()
         self.closed = threading.Event()
         self._call: Any = None

@@ -22,7 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, TypeAlias, TypeVar
 
 import grpc
 
@@ -37,6 +37,10 @@ from scart.bindings.grpc._wire import (
 from scart.spi import CURRENT_CALLBACK, Host, InterfaceInfo, ServiceEndpoint
 
 log = logging.getLogger("scart.bindings.grpc")
+R = TypeVar("R")
+#: How a provider's callback reaches its caller: the ``CallbackCall`` sent, the caller's
+#: ``Outcome`` back (None for a one-way callback).
+SendCallback: TypeAlias = "Callable[[pb.CallbackCall], pb.Outcome | None]"
 
 MAX_WORKERS = 64
 MAX_STREAMS = 48  # Invoke calls + callback sessions open at once: the rest of the pool stays for unary calls
@@ -62,7 +66,7 @@ class Exported:
         self.oneway_failures = 0
         self._lock = threading.Lock()
 
-    def call(self, inv: Any, callback: object | None) -> Any:
+    def call(self, inv: pb.Invocation, callback: object | None) -> Any:
         """Run a synchronous operation (any raised error becomes the caller's ``RemoteError``)."""
         name = inv.operation
         sig = self.sigs.get(name)
@@ -77,7 +81,7 @@ class Exported:
         sig.check_shape(len(inv.args), inv.kwargs)
         return fn(*sig.args(inv.args), **sig.kwargs(inv.kwargs))
 
-    def send(self, inv: Any, callback: object | None) -> None:
+    def send(self, inv: pb.Invocation, callback: object | None) -> None:
         """Queue a one-way operation on the runtime's pool; raises if it cannot be queued."""
         name = inv.operation
         sig = self.sigs.get(name)
@@ -101,7 +105,7 @@ class Exported:
         work.__qualname__ = f"{self.names[0]}.{name} (binding.grpc one-way)"
         self.host.submit(work)
 
-    def info(self) -> Any:
+    def info(self) -> pb.ServiceInfo:
         """This service as a ``ServiceInfo`` message."""
         iface, cb = self.endpoint.interface, self.callback_iface
         ops = [pb.OperationInfo(name=o.name, oneway=o.oneway, returns_value=o.returns_value,
@@ -122,7 +126,7 @@ class _Callback:
     provider that keeps its callers in a set or dict keeps one entry per caller, as with
     local callers; without a session each callback is only equal to itself."""
 
-    def __init__(self, exported: Exported, send: Callable[[Any], Any | None], target_id: int,
+    def __init__(self, exported: Exported, send: SendCallback, target_id: int,
                  session_id: str = "") -> None:
         self._key = (session_id, target_id) if session_id else None
         iface = exported.callback_iface
@@ -130,9 +134,9 @@ class _Callback:
             setattr(self, name, self._make(name, op.oneway, exported.callback_sigs[name], send, target_id))
 
     @staticmethod
-    def _make(name: str, oneway: bool, sig: Signature, send: Callable[[Any], Any | None],
+    def _make(name: str, oneway: bool, sig: Signature, send: SendCallback,
               target_id: int) -> Callable[..., Any]:
-        def callback(*args: Any, **kwargs: Any) -> Any:
+        def callback(*args: object, **kwargs: object) -> Any:
             cc = pb.CallbackCall(operation=name, oneway=oneway, target_id=target_id)
             fill_invocation(cc, args, kwargs)
             outcome = send(cc)
@@ -153,20 +157,32 @@ class _Callback:
         return hash(self._key) if self._key is not None else id(self)
 
 
+class _Awaited:
+    """A synchronous callback waiting for its caller's reply: set ``outcome`` (None: no
+    reply), then ``arrived``."""
+
+    __slots__ = ("id", "arrived", "outcome")
+
+    def __init__(self, call_id: int) -> None:
+        self.id = call_id
+        self.arrived = threading.Event()
+        self.outcome: pb.Outcome | None = None
+
+
 class _StreamCallback:
     """Sends callbacks on an ``Invoke`` call's own response stream while the call runs
     (replies arrive by ``ReplyCallback`` → :meth:`deliver`); after it returned, through
     the caller's session (if it named one)."""
 
-    def __init__(self, out: queue.SimpleQueue[Any], context: grpc.ServicerContext, timeout: float,
-                 fallback: Callable[[Any], Any | None] | None) -> None:
+    def __init__(self, out: queue.SimpleQueue[pb.InvokeResponse | None], context: grpc.ServicerContext,
+                 timeout: float, fallback: SendCallback | None) -> None:
         self._out = out
         self._context = context
         self._timeout = timeout
         self._fallback = fallback
         self._lock = threading.Lock()
         self._ids = itertools.count(1)
-        self._waiting: list[Any] | None = None  # [id, Event, outcome] of the callback awaiting its reply
+        self._waiting: _Awaited | None = None  # the callback awaiting its reply
         self.done = False
 
     def finish(self) -> None:
@@ -174,30 +190,30 @@ class _StreamCallback:
         self.done = True
         self.deliver(None)
 
-    def deliver(self, reply: Any | None) -> bool:
+    def deliver(self, reply: pb.CallbackReply | None) -> bool:
         """Hand the caller's ``CallbackReply`` to the waiting callback (None: wake it, no reply)."""
         slot = self._waiting
-        if slot is None or (reply is not None and reply.id != slot[0]):
+        if slot is None or (reply is not None and reply.id != slot.id):
             return False
-        slot[2] = reply.outcome if reply is not None else None
-        slot[1].set()
+        slot.outcome = reply.outcome if reply is not None else None
+        slot.arrived.set()
         return reply is not None
 
-    def send(self, cc: Any) -> Any | None:
+    def send(self, cc: pb.CallbackCall) -> pb.Outcome | None:
         with self._lock:  # one callback at a time on the stream: replies come back in order
             if not self.done:
                 cc.id = next(self._ids)
-                slot = None if cc.oneway else [cc.id, threading.Event(), None]
+                slot = None if cc.oneway else _Awaited(cc.id)
                 self._waiting = slot
                 self._out.put(pb.InvokeResponse(callback_call=cc))
                 if slot is None:
                     return None
                 remaining = self._context.time_remaining()
-                slot[1].wait(min(self._timeout, remaining) if remaining is not None else self._timeout)
+                slot.arrived.wait(min(self._timeout, remaining) if remaining is not None else self._timeout)
                 self._waiting = None
-                if slot[2] is None:
+                if slot.outcome is None:
                     raise InvocationError(f"callback {cc.operation}: no reply from the caller (gone, or too slow)")
-                return slot[2]
+                return slot.outcome
         if self._fallback is None:
             raise InvocationError(f"callback {cc.operation}: the call has returned and the caller has no callback session")
         return self._fallback(cc)
@@ -207,12 +223,12 @@ class _Session:
     """A caller's callback session: ``CallbackCall`` s go out in order; a reader thread
     matches the caller's replies to the waiting senders."""
 
-    def __init__(self, session_id: str, requests: Iterator[Any]) -> None:
+    def __init__(self, session_id: str, requests: Iterator[pb.OpenCallbackSessionRequest]) -> None:
         self.id = session_id
-        self.out: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self.out: queue.SimpleQueue[pb.OpenCallbackSessionResponse | None] = queue.SimpleQueue()
         self._requests = requests
         self._ids = itertools.count(1)
-        self._pending: dict[int, list[Any]] = {}  # id -> [Event, outcome]
+        self._pending: dict[int, _Awaited] = {}  # by callback id
         self._lock = threading.Lock()
         self.closed = False
         self.reader = OwnedThread(self._read, f"scart-grpc-session-{session_id[:8]}")
@@ -224,32 +240,32 @@ class _Session:
                     with self._lock:
                         slot = self._pending.pop(msg.callback_reply.id, None)
                     if slot is not None:
-                        slot[1] = msg.callback_reply.outcome
-                        slot[0].set()
+                        slot.outcome = msg.callback_reply.outcome
+                        slot.arrived.set()
         except grpc.RpcError:
             pass
         finally:
             self.close()
 
-    def send(self, cc: Any, timeout: float) -> Any | None:
+    def send(self, cc: pb.CallbackCall, timeout: float) -> pb.Outcome | None:
         """Send ``cc``; for a synchronous callback wait (at most ``timeout`` s) for the reply."""
-        slot: list[Any] = [threading.Event(), None]
         with self._lock:
             if self.closed:
                 raise InvocationError(f"callback {cc.operation}: the caller's callback session is closed")
             cc.id = next(self._ids)
+            slot = _Awaited(cc.id)
             if not cc.oneway:
                 self._pending[cc.id] = slot
             self.out.put(pb.OpenCallbackSessionResponse(callback_call=cc))
         if cc.oneway:
             return None
-        if not slot[0].wait(timeout):
+        if not slot.arrived.wait(timeout):
             with self._lock:
                 self._pending.pop(cc.id, None)
             raise InvocationError(f"callback {cc.operation}: no reply from the caller within {timeout} s")
-        if slot[1] is None:
+        if slot.outcome is None:
             raise InvocationError(f"callback {cc.operation}: the caller's callback session closed")
-        return slot[1]
+        return slot.outcome
 
     def close(self) -> None:
         """Close: wake the stream handler and every waiting sender. Idempotent."""
@@ -260,7 +276,7 @@ class _Session:
             pending, self._pending = self._pending, {}
         self.out.put(None)
         for slot in pending.values():
-            slot[0].set()
+            slot.arrived.set()
 
 
 class GrpcServer:
@@ -350,9 +366,9 @@ class GrpcServer:
         if self._server_pool is not None:
             self._server_pool.shutdown(wait=not abandoned)  # gRPC does not shut down a pool it was given
 
-    def _tracked(self, label: str, fn: Callable[[], Any]) -> Callable[[], Any]:
+    def _tracked(self, label: str, fn: Callable[[], R]) -> Callable[[], R]:
         """``fn`` counted as a running call while it runs (stop waits for it, bounded)."""
-        def run() -> Any:
+        def run() -> R:
             key = next(self._run_ids)
             with self._idle:
                 self._running[key] = label
@@ -390,21 +406,21 @@ class GrpcServer:
             raise ServiceNotFoundError(f"no service {name!r} at {self.address}; it serves: {', '.join(names) or 'none'}")
         return found
 
-    def _callback_for(self, exported: Exported, inv: Any) -> object | None:
+    def _callback_for(self, exported: Exported, inv: pb.Invocation) -> object | None:
         if not inv.session_id or exported.callback_iface is None:
             return None
         return _Callback(exported, self._session_sender(inv.session_id, exported.timeout), inv.target_id,
                          inv.session_id)
 
-    def _session_sender(self, session_id: str, timeout: float) -> Callable[[Any], Any | None]:
-        def send(cc: Any) -> Any | None:
+    def _session_sender(self, session_id: str, timeout: float) -> SendCallback:
+        def send(cc: pb.CallbackCall) -> pb.Outcome | None:
             session = self._sessions.get(session_id)
             if session is None:
                 raise InvocationError(f"callback {cc.operation}: the caller's callback session is closed")
             return session.send(cc, timeout)
         return send
 
-    def _call(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _call(self, request: pb.CallRequest, context: grpc.ServicerContext) -> pb.CallResponse:
         inv = request.invocation
         if not context.is_active():  # waited for a server thread past the caller's deadline
             log.warning("binding.grpc: %s.%s at %s: cancelled before start (the caller gave up)",
@@ -416,7 +432,7 @@ class GrpcServer:
             return exported.call(inv, self._callback_for(exported, inv))
         return pb.CallResponse(outcome=outcome_of(self._tracked(f"{inv.service}.{inv.operation}", run)))
 
-    def _send(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _send(self, request: pb.SendRequest, context: grpc.ServicerContext) -> pb.SendResponse:
         inv = request.invocation
         try:
             exported = self._find(inv.service)
@@ -427,9 +443,9 @@ class GrpcServer:
             return pb.SendResponse(fault=fault(exc))
         return pb.SendResponse()
 
-    def _invoke(self, request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
+    def _invoke(self, request: pb.InvokeRequest, context: grpc.ServicerContext) -> Iterator[pb.InvokeResponse]:
         inv, call_id = request.invocation, request.call_id
-        out: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        out: queue.SimpleQueue[pb.InvokeResponse | None] = queue.SimpleQueue()
         cb: _StreamCallback | None = None
 
         def ended() -> None:  # the RPC ended (outcome sent, deadline, cancel): stop every wait
@@ -481,11 +497,12 @@ class GrpcServer:
             if item.HasField("outcome"):
                 return
 
-    def _reply(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _reply(self, request: pb.ReplyCallbackRequest, context: grpc.ServicerContext) -> pb.ReplyCallbackResponse:
         cb = self._calls.get(request.call_id)
         return pb.ReplyCallbackResponse(delivered=cb is not None and cb.deliver(request.reply))
 
-    def _open_session(self, requests: Iterator[Any], context: grpc.ServicerContext) -> Iterator[Any]:
+    def _open_session(self, requests: Iterator[pb.OpenCallbackSessionRequest],
+                      context: grpc.ServicerContext) -> Iterator[pb.OpenCallbackSessionResponse]:
         first = next(requests, None)
         if first is None or not first.session_id:
             return
@@ -513,7 +530,7 @@ class GrpcServer:
                 if self._sessions.get(session.id) is session:
                     del self._sessions[session.id]
 
-    def _list(self, request: Any, context: grpc.ServicerContext) -> Any:
+    def _list(self, request: pb.ListServicesRequest, context: grpc.ServicerContext) -> pb.ListServicesResponse:
         with self._lock:
             exported = list(self._exported)
         return pb.ListServicesResponse(services=[e.info() for e in exported])

@@ -15,8 +15,8 @@ import logging
 import secrets
 import typing
 from types import MappingProxyType
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any, TypeVar
 
 import pydantic
 
@@ -38,9 +38,10 @@ PATHS: MappingProxyType[str, str] = MappingProxyType(
 log = logging.getLogger("scart.bindings.grpc")
 NONE_TYPE = codec.NONE_TYPE
 JSON_TYPE = codec.JSON_TYPE
+T = TypeVar("T")
 
 
-def encode(value: Any) -> Any:
+def encode(value: object) -> codec.Value:
     """``value`` as a ``scart.dataflow.v1.Value``; raises ``InvocationError`` if it cannot be sent."""
     try:
         return codec.encode(value)
@@ -48,7 +49,7 @@ def encode(value: Any) -> Any:
         raise InvocationError(f"binding.grpc: cannot send a value of type {type(value).__qualname__}: {exc}") from None
 
 
-def decode(value: Any) -> Any:
+def decode(value: codec.Value) -> Any:
     """The Python value of a ``Value`` message; raises ``InvocationError`` for malformed bytes."""
     try:
         return codec.decode(value)
@@ -58,10 +59,13 @@ def decode(value: Any) -> Any:
 
 # --- coercion to annotations -----------------------------------------------------------
 
-Converter = Callable[[Any], Any]
+#: Coerces a decoded value to an annotation (:func:`converter`).
+Converter = Callable[[object], Any]
+#: Decodes a ``Value`` message and coerces it (:func:`reader`).
+Reader = Callable[[codec.Value], Any]
 
 
-def _identity(value: Any) -> Any:
+def _identity(value: T) -> T:
     return value
 
 
@@ -84,7 +88,7 @@ def converter(annotation: Any) -> Converter:
     base = typing.get_args(annotation)[0] if typing.get_origin(annotation) is typing.Annotated else annotation
     shown = getattr(base, "__name__", None) or repr(base)
 
-    def convert(value: Any) -> Any:
+    def convert(value: object) -> Any:
         if exact is not None and type(value) is exact:
             return value
         try:
@@ -96,7 +100,7 @@ def converter(annotation: Any) -> Converter:
     return convert
 
 
-def reader(annotation: Any) -> Converter:
+def reader(annotation: Any) -> Reader:
     """A function ``Value message -> Python value`` decoding and coercing to ``annotation``;
     when the wire type name is the annotation's registered name the value is taken as
     decoded (no validation: the registry built it as that type)."""
@@ -109,7 +113,7 @@ def reader(annotation: Any) -> Converter:
     except TypeError:  # unhashable annotation
         exact = None
 
-    def read(v: Any) -> Any:
+    def read(v: codec.Value) -> Any:
         value = decode(v)
         return value if v.type_name == exact else conv(value)
     return read
@@ -126,9 +130,9 @@ class Signature:
 
     def __init__(self, func: Callable[..., Any] | None, label: str = "") -> None:
         """``label``: what refusals name the operation (default: the function's name)."""
-        self.positional: list[Converter] = []
-        self.named: dict[str, Converter] = {}
-        self.result: Converter = decode
+        self.positional: list[Reader] = []
+        self.named: dict[str, Reader] = {}
+        self.result: Reader = decode
         self.label = label
         self._shape: inspect.Signature | None = None
         if func is None:
@@ -147,13 +151,13 @@ class Signature:
             self.named[p.name] = read
         self.result = reader(hints.get("return"))
 
-    def args(self, values: Any) -> tuple[Any, ...]:
+    def args(self, values: Iterable[codec.Value]) -> tuple[Any, ...]:
         """Decoded and coerced positional arguments (``Value`` messages in)."""
         pos = self.positional
         n = len(pos)
         return tuple(pos[i](v) if i < n else decode(v) for i, v in enumerate(values))
 
-    def kwargs(self, values: Any) -> dict[str, Any]:
+    def kwargs(self, values: Mapping[str, codec.Value]) -> dict[str, Any]:
         """Decoded and coerced keyword arguments (``Value`` messages in)."""
         named = self.named
         return {k: named.get(k, decode)(v) for k, v in values.items()}
@@ -175,12 +179,12 @@ class Signature:
             raise ArgumentRefused(f"{self.label}({', '.join(self._shape.parameters)}): {exc}") from None
 
 
-def _checked_reader(where: str, hint: Any) -> Converter:
+def _checked_reader(where: str, hint: Any) -> Reader:
     """``Value`` message -> the argument, decoded and checked (see :class:`Signature`)."""
     if argument_adapter(hint) is None:
         return decode
 
-    def read(v: Any) -> Any:
+    def read(v: codec.Value) -> Any:
         try:
             return check_argument(where, hint, decode(v))
         except DataflowError as exc:  # the same refusal, in this side's error tree
@@ -195,7 +199,8 @@ def signatures(iface_cls: type | None, names: typing.Iterable[str], label: str =
             for n in names}
 
 
-def fill_invocation(msg: Any, args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+def fill_invocation(msg: pb.Invocation | pb.CallbackCall, args: tuple[object, ...],
+                    kwargs: Mapping[str, object]) -> None:
     """Encode ``args``/``kwargs`` into a message with ``args`` and ``kwargs`` fields."""
     if args:
         msg.args.extend([encode(a) for a in args])
@@ -227,7 +232,7 @@ def fault_code(exc: BaseException) -> str:
     return "FAILED"
 
 
-def fault(exc: BaseException) -> Any:
+def fault(exc: BaseException) -> pb.Fault:
     """A ``Fault`` message describing ``exc`` to the caller: its type, message, code and a
     reference. The traceback (with this side's paths) never leaves: it is logged here
     under that reference (a warning when the operation itself failed)."""
@@ -241,12 +246,12 @@ def fault(exc: BaseException) -> Any:
     return pb.Fault(type=name, message=message, code=code, reference=reference)
 
 
-def failure(where: str, f: Any) -> RemoteError:
+def failure(where: str, f: pb.Fault) -> RemoteError:
     """The :class:`RemoteError` for a received ``Fault``."""
     return RemoteError(where, f.type, f.message, code=f.code, reference=f.reference)
 
 
-def outcome_of(fn: Callable[[], Any]) -> Any:
+def outcome_of(fn: Callable[[], object]) -> pb.Outcome:
     """Run ``fn`` and wrap its result or exception in an ``Outcome`` message."""
     try:
         return pb.Outcome(value=encode(fn()))
