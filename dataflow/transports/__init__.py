@@ -77,9 +77,13 @@ from typing import TYPE_CHECKING, Any
 from dataflow.errors import DataflowError
 
 if TYPE_CHECKING:  # the ends import the policy, which reads the names from this registry
-    from dataflow.transports.ends import ReaderEnd, WriterEnd
+    import grpc
 
-__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
+    from dataflow.policy import ConnPolicy
+    from dataflow.transports.ends import ReaderEnd, WriterEnd
+    from scart_wire.proto.scart.dataflow.v1.dataflow_pb2 import ConnPolicy as PolicyMsg
+
+__all__ = ["ENTRY_POINT_GROUP", "LinkRefused", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
            "candidates", "carry", "default", "load", "names"]
 
 log = logging.getLogger(__name__)
@@ -103,24 +107,31 @@ class TransportError(DataflowError):
     what a channel asks of it (a stream on a transport without topics)."""
 
 
+class LinkRefused(TransportError):
+    """The sink refused a link (another type, no such input port): retrying cannot help."""
+
+
 class Peer:
     """The other side of a link or a subscription, as the control plane found it.
 
     ``address`` and ``stub`` (its ``DeployerService``), the ``task`` and ``port`` there,
     ``timeout`` (s) for control-plane calls, ``heartbeat`` (s, a subscription's), and
-    ``channel`` (a link's id: ``boot id/serial`` of its source). The owner cancels a
-    connection in progress through :meth:`cancel`; a transport registers how with
-    :meth:`opened`. Thread-safe.
+    ``channel`` (a link's id: ``boot id/serial`` of its source). ``policy_msg`` is the
+    channel's policy as the control plane negotiated it, in its wire form: a transport
+    sends it as it is. The owner cancels a connection in progress through :meth:`cancel`;
+    a transport registers how with :meth:`opened`. Thread-safe.
     """
 
     def __init__(self, address: str, task: str, port: str, stub: Any, timeout: float, *,
-                 policy: Any = None, channel_of: Any = None, heartbeat: float = 0.5, channel: str = "",
-                 name: str = "", boot_id: str = "", source_ns: str = "") -> None:
+                 policy_msg: PolicyMsg, policy: ConnPolicy | None = None, channel_of: grpc.Channel | None = None,
+                 heartbeat: float = 0.5, channel: str = "", name: str = "", boot_id: str = "",
+                 source_ns: str = "") -> None:
         self.address = address
         self.task = task
         self.port = port
         self.stub = stub
         self.timeout = timeout
+        self.policy_msg = policy_msg
         self.policy = policy  #: a subscription's policy (a link's is its writer end's)
         self.channel_of = channel_of  #: the gRPC channel to the peer (for a transport's own calls)
         self.heartbeat = heartbeat
@@ -129,7 +140,7 @@ class Peer:
         self.boot_id = boot_id
         self.source_ns = source_ns
         self.cancelled = threading.Event()
-        self._cancel: Callable[[], None] | None = None
+        self._cancel: Callable[[], object] | None = None
         self._finish: Callable[[float], bool] | None = None
         self._lock = threading.Lock()
 
@@ -143,7 +154,7 @@ class Peer:
         """``task.port`` at the peer."""
         return f"{self.task}.{self.port}"
 
-    def opened(self, cancel: Callable[[], None], finish: Callable[[float], bool] | None = None) -> bool:
+    def opened(self, cancel: Callable[[], object], finish: Callable[[float], bool] | None = None) -> bool:
         """A connection is up; ``cancel`` ends it at once, ``finish(timeout)`` (a link's)
         ends it gracefully. False (and ``cancel`` called) when the owner cancelled meanwhile."""
         with self._lock:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import struct
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from scart_wire import codec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
@@ -22,7 +22,10 @@ from scart_wire.types import registry
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
 
-__all__ = ["encoder", "feed", "heartbeat", "report_of", "sample_frame", "varint"]
+if TYPE_CHECKING:
+    from dataflow.transports import Peer
+
+__all__ = ["encoder", "feed", "heartbeat", "link_hello", "report_of", "sample_frame", "varint"]
 
 _Frame = pb.SubscribeResponse
 
@@ -122,3 +125,12 @@ def feed(end: ReaderEnd, message: Any, values: dict[int, Any] | None = None) -> 
 def report_of(end: ReaderEnd, *, known: bool = True, final: bool = False, pending: int = 0) -> Any:
     """The ``LinkResponse`` a link's reader end sends back."""
     return pb.LinkResponse(last=end.last, lost=end.lost, known=known, final=final, pending=pending)
+
+
+def link_hello(end: WriterEnd, peer: Peer) -> pb.LinkHello:
+    """What a link's reader end is told when its channel opens (on every transport that
+    carries links to a deployer): where it goes, with the policy the control plane
+    negotiated, and from which write number on it counts."""
+    return pb.LinkHello(task=peer.task, port=peer.port, policy=peer.policy_msg, channel=peer.channel,
+                        after=end.peer_last or end.start, boot_id=peer.boot_id, source=end.port.qualname,
+                        type_name=end.port.type_name, name=peer.name, source_ns=peer.source_ns)

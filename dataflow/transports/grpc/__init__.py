@@ -25,12 +25,10 @@ from collections.abc import Callable, Iterator
 from typing import Any, Generic, TypeVar
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
-from dataflow.remote._convert import policy_to_msg
 from dataflow.threads import OwnedThread, Wake
-from dataflow.transports import Peer, Transport, frames
+from dataflow.transports import LinkRefused, Peer, Transport, frames
 from dataflow.transports._shared import SharedFeed, SharedStreams, carry_shared
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
-from dataflow.transports.ipc import LinkRefused, link_hello
 from dataflow.transports.limits import MAX_FRAME_BYTES
 
 __all__ = ["GrpcTransport", "LINK_METHOD", "PART_BYTES", "Parts", "ROOM", "messages_of", "passthrough"]
@@ -135,10 +133,12 @@ class GrpcTransport(Transport):
         self._streams = SharedStreams()  # the Subscribe streams open, shared by subscriptions alike
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
+        if peer.channel_of is None:  # not a deployer's peer: nothing to open a stream on
+            return False
         carrier = _LinkCarrier(end)
         call = peer.channel_of.stream_stream(LINK_METHOD, request_serializer=passthrough,
                                              response_deserializer=pb.LinkResponse.FromString)(
-            carrier.frames(link_hello(end, peer)))
+            carrier.frames(frames.link_hello(end, peer)))
         try:
             first = next(call)
             if first.refused:
@@ -161,7 +161,7 @@ class GrpcTransport(Transport):
         """Feed ``end`` from the peer's port: one ``Subscribe`` call, read by a thread of its
         own and shared by the subscriptions of this system proxy to that port with the
         same policy (see :mod:`~dataflow.transports._shared`)."""
-        request = pb.SubscribeRequest(task=peer.task, port=peer.port, policy=policy_to_msg(peer.policy),
+        request = pb.SubscribeRequest(task=peer.task, port=peer.port, policy=peer.policy_msg,
                                       heartbeat_ms=int(peer.heartbeat * 1000))
 
         def open_stream(feed: SharedFeed) -> bool:

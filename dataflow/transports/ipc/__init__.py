@@ -28,24 +28,19 @@ from collections.abc import Callable
 from typing import Any
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
-from dataflow.policy import ConnPolicy
-from dataflow.transports import Peer, Transport, TransportError, frames
+from dataflow.transports import LinkRefused, Peer, Transport, TransportError, frames
 from dataflow.transports._shared import SharedFeed, SharedStreams, carry_shared
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 from dataflow.transports.ipc._hub import Conn, Hub
 from dataflow.transports.ipc._wire import IpcUnavailable, available, connect, host_id
 
-__all__ = ["IpcTransport", "LinkRefused", "REFUSED"]
+__all__ = ["IpcTransport", "REFUSED"]
 
 log = logging.getLogger(__name__)
 
 #: What ``OpenIpc*`` may answer that means "use gRPC" under transport ``auto``: an old
 #: deployer, another host or platform, a deployer out of ipc room.
 REFUSED = frozenset({"UNIMPLEMENTED", "FAILED_PRECONDITION", "RESOURCE_EXHAUSTED"})
-
-
-class LinkRefused(TransportError):
-    """The sink refused a link (another type, no such input port): retrying cannot help."""
 
 
 class IpcTransport(Transport):
@@ -66,8 +61,8 @@ class IpcTransport(Transport):
 
     def _link(self, end: WriterEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, WriterEnd], Any]) -> bool:
         """:meth:`link`, its connection made by ``conn_class`` (a :class:`_LinkOut`)."""
-        hello = link_hello(end, peer)
-        request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=policy_msg(end.policy),
+        hello = frames.link_hello(end, peer)
+        request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=peer.policy_msg,
                                           host_id=host_id(), hello=hello, shm=self.shm)
         opened = _open(lambda: peer.stub.OpenIpcWriter(request, timeout=peer.timeout), end.policy.transport, peer,
                        self.name)
@@ -100,7 +95,7 @@ class IpcTransport(Transport):
 
     def _subscribe(self, end: ReaderEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, SharedFeed, str], Any]) -> bool:
         """:meth:`subscribe`, its connection made by ``conn_class`` (a :class:`_SubIn`)."""
-        request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=policy_msg(peer.policy), host_id=host_id(),
+        request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=peer.policy_msg, host_id=host_id(),
                                           heartbeat_ms=int(peer.heartbeat * 1000), shm=self.shm)
 
         def open_stream(feed: SharedFeed) -> bool:
@@ -116,20 +111,6 @@ class IpcTransport(Transport):
             return True
 
         return carry_shared(self.name, self._streams, request, end, peer, open_stream)
-
-
-def policy_msg(policy: ConnPolicy) -> Any:
-    """``policy`` as the wire's message."""
-    from dataflow.remote._convert import policy_to_msg
-
-    return policy_to_msg(policy)
-
-
-def link_hello(end: WriterEnd, peer: Peer) -> Any:
-    """What a link's reader end is told when its channel opens."""
-    return pb.LinkHello(task=peer.task, port=peer.port, policy=policy_msg(end.policy), channel=peer.channel,
-                        after=end.peer_last or end.start, boot_id=peer.boot_id, source=end.port.qualname,
-                        type_name=end.port.type_name, name=peer.name, source_ns=peer.source_ns)
 
 
 def _open(ask: Callable[[], Any], transport: str, peer: Peer, name: str = "ipc") -> tuple[socket.socket, bytes] | None:
