@@ -28,8 +28,8 @@ from dataflow.transports.grpc import Parts, ServedCarrier, serve_subscription
 from dataflow.transports.ipc import _wire as ipc_wire
 from dataflow.transports.ipc._serve import IpcServer
 from dataflow.transports.limits import check_fits
-from dataflow.transports.shm import ShmFlavour, carries_large
-from dataflow.transports.shm import available as shm_available
+from dataflow.transports.ipc.shm import ShmFlavour, carries_large
+from dataflow.transports.ipc.shm import available as shm_available
 from dataflow.transports.served import Served, ServedSet
 from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, Refused, Sinks
 

@@ -94,7 +94,7 @@ NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
 
 #: scart's own transports, used also when its entry points are not installed (a source tree).
 BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
-                            "shm": "dataflow.transports.shm:ShmTransport",
+                            "shm": "dataflow.transports.ipc.shm:ShmTransport",
                             "grpc": "dataflow.transports.grpc:GrpcTransport",
                             "zenoh": "dataflow.transports.zenoh:ZenohTransport",
                             "ros1": "dataflow.transports.ros1.transport:Ros1Transport",

@@ -14,6 +14,9 @@ dispatcher); a sample is sent from the writer's own thread, encoded once for eve
 reader of its port. It declines (``auto`` goes on to gRPC) when the two ends are not on
 one host, or the peer has no ipc; a policy naming ``ipc`` gets an error saying why.
 
+Transport ``shm`` (:mod:`.shm`) is this one with large samples in shared memory: the
+same tickets, socket and io thread, registered under a name of its own.
+
 Why a socket and not a shared-memory ring: a ring still needs a kernel wake-up per
 sample in Python (no spinning under the GIL), and a datagram socket is a bounded kernel
 ring with that wake-up built in; an abstract socket has no file to clean up.

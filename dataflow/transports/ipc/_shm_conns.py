@@ -31,7 +31,7 @@ from dataflow.transports.ipc._hub import READS_PER_WAKE, Conn, Hub
 from dataflow.transports.ipc._serve import Flavour, IpcServer, _LinkIn, _ReaderOut
 from dataflow.transports.ipc._wire import CHUNK, WHOLE
 from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
-from dataflow.transports.shm._slots import Slot, SlotMaps, SlotPool
+from dataflow.transports.ipc._slots import Slot, SlotMaps, SlotPool
 from dataflow.transports.sinks import IncomingLink
 from dataflow.transports.served import Served
 from scart_wire import codec
