@@ -47,6 +47,12 @@ next), True once a connection it carried has ended, and raises what interrupted 
   :meth:`Transport.check_stream` says, without joining anything, what would keep a port
   from a topic (a composite's load-time check).
 
+A transport is whole: what connects (these methods) and what answers in the deployer a
+peer connects to (its serving half, :meth:`Transport.serving`; see :mod:`.serving`) are
+in its own folder. The control plane only negotiates (finds the peer, checks the policy,
+hands out what the transport asks for) and routes the calls of the sample path to the
+transport that serves them. No transport imports another.
+
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
 Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
@@ -81,6 +87,7 @@ if TYPE_CHECKING:  # the ends import the policy, which reads the names from this
 
     from dataflow.policy import ConnPolicy
     from dataflow.transports.ends import ReaderEnd, WriterEnd
+    from dataflow.transports.serving import Serving
     from scart_wire.proto.scart.dataflow.v1.dataflow_pb2 import ConnPolicy as PolicyMsg
 
 __all__ = ["ENTRY_POINT_GROUP", "LinkRefused", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
@@ -253,6 +260,12 @@ class Transport(ABC):
         """Carry the samples of the output port ``peer.where`` to ``end`` until the
         connection ends. Default: subscriptions not carried (False)."""
         return False
+
+    def serving(self) -> type[Serving] | None:
+        """The class of this transport's serving half: what answers, in a deployer, the
+        links and subscriptions its peers ask for there (:mod:`.serving`). Default: None,
+        nothing to serve (a transport of topics)."""
+        return None
 
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
         """Join ``end`` to ``topic`` (a writer end publishes, a reader end receives);

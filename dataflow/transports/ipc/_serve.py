@@ -49,7 +49,7 @@ class _Ticket:
     expires: float
     peer: str
     kind: str  # "in": a link into an input port; "out": a subscription of an output port
-    request: Any  # OpenIpcWriterRequest / OpenIpcReaderRequest
+    request: pb.OpenIpcWriterRequest | pb.OpenIpcReaderRequest
     policy: ConnPolicy
     heartbeat: float
     who: str
@@ -104,7 +104,7 @@ class IpcServer:
         with self._lock:
             return len(self._conns)
 
-    def ticket(self, kind: str, request: Any, policy: ConnPolicy, peer: str, heartbeat: float = 0.5,
+    def ticket(self, kind: str, request: pb.OpenIpcWriterRequest | pb.OpenIpcReaderRequest, policy: ConnPolicy, peer: str, heartbeat: float = 0.5,
                who: str = "") -> bytes:
         """A one-time ticket for a connection of ``kind`` (``in`` or ``out``) asked by
         ``request``, for ``peer`` (its key for the per-peer bounds; ``who``: its address).
@@ -164,6 +164,8 @@ class IpcServer:
         made.start()
 
     def _link_in(self, sock: socket.socket, ticket: _Ticket) -> Conn:
+        if not isinstance(ticket.request, pb.OpenIpcWriterRequest):
+            raise TypeError("a link's ticket was not asked for by OpenIpcWriter")
         hello = ticket.request.hello
         try:
             link, known = self.sinks.open(hello, ticket.policy)

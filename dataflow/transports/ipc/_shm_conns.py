@@ -26,7 +26,7 @@ from typing import Any
 from dataflow.policy import ConnType
 from dataflow.transports import frames
 from dataflow.transports.ends import OutSample
-from dataflow.transports.ipc import _LinkOut, _SubIn
+from dataflow.transports.ipc._conns import LinkOut, SubIn
 from dataflow.transports.ipc._hub import READS_PER_WAKE, Conn, Hub
 from dataflow.transports.ipc._serve import Flavour, IpcServer, _LinkIn, _ReaderOut
 from dataflow.transports.ipc._wire import CHUNK, WHOLE
@@ -39,7 +39,7 @@ from scart_wire.arrays import ArraySpec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from scart_wire.types import registry
 
-__all__ = ["LARGE_BYTES", "ShmFlavour", "ShmLinkOut", "ShmSubIn", "large_size"]
+__all__ = ["LARGE_BYTES", "ShmFlavour", "ShmLinkOut", "ShmSubIn", "carries_large", "large_size"]
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +59,15 @@ def large_size(value: Any) -> int:
     if kind.__name__ == "ndarray" and kind.__module__ == "numpy":
         return int(value.nbytes) + 1 + 8 * value.ndim
     return 0
+
+
+def carries_large(py_type: Any) -> bool:
+    """Whether a port of ``py_type`` may carry samples of :data:`LARGE_BYTES` or more:
+    ``bytes``, or an array type whose fixed size (if any) is that large."""
+    if py_type is bytes:
+        return True
+    size = getattr(py_type, "fixed_bytes", 0)
+    return hasattr(py_type, "fixed_bytes") and (size is None or size >= LARGE_BYTES)
 
 
 def slots_for(policy: Any) -> int:
@@ -169,11 +178,11 @@ def _array_head(value: Any) -> bytes:
     return struct.pack(f"<B{value.ndim}Q", value.ndim, *value.shape)
 
 
-class ShmLinkOut(SlotSender, _LinkOut):
+class ShmLinkOut(SlotSender, LinkOut):
     """A link going out on shm: ipc's, with its large samples in slots."""
 
     def __init__(self, hub: Hub, sock: socket.socket, end: Any) -> None:
-        _LinkOut.__init__(self, hub, sock, end)
+        LinkOut.__init__(self, hub, sock, end)
         self.init_slots(end.port, end.policy)
         self.encode = self.encode_large  # the instance's own: slots are this channel's
 
@@ -305,11 +314,11 @@ class SlotReader(Conn):
         self.maps.close()
 
 
-class ShmSubIn(SlotReader, _SubIn):
+class ShmSubIn(SlotReader, SubIn):
     """A subscription read on shm: ipc's, with large samples viewed in shared memory."""
 
     def __init__(self, hub: Hub, sock: socket.socket, feed: Any, label: str) -> None:
-        _SubIn.__init__(self, hub, sock, feed, label)
+        SubIn.__init__(self, hub, sock, feed, label)
         self.init_maps()
 
     def readable(self) -> None:

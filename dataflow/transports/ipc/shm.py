@@ -32,24 +32,13 @@ names its segments in ``/dev/shm``: a killed process leaks them.
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataflow.transports import Peer, TransportError
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 from dataflow.transports.ipc import IpcTransport
-from dataflow.transports.ipc._shm_conns import LARGE_BYTES, ShmFlavour, ShmLinkOut, ShmSubIn
+from dataflow.transports.ipc._shm_conns import LARGE_BYTES, ShmFlavour, ShmLinkOut, ShmSubIn, carries_large
 from dataflow.transports.ipc._slots import available
 
 __all__ = ["LARGE_BYTES", "ShmFlavour", "ShmTransport", "available", "carries_large"]
-
-
-def carries_large(py_type: Any) -> bool:
-    """Whether a port of ``py_type`` may carry samples of :data:`LARGE_BYTES` or more:
-    ``bytes``, or an array type whose fixed size (if any) is that large."""
-    if py_type is bytes:
-        return True
-    size = getattr(py_type, "fixed_bytes", 0)
-    return hasattr(py_type, "fixed_bytes") and (size is None or size >= LARGE_BYTES)
 
 
 class ShmTransport(IpcTransport):
