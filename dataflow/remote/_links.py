@@ -153,7 +153,7 @@ class RemoteLink:
             if stopping.is_set():
                 return
             carry(self.policy.transport, lambda t: self._attempt(t, peer), f"link {self.name}",
-                  PEER_FAILURES)
+                  PEER_FAILURES, "link")
         if not stopping.is_set():
             log.info("link %s: the sink's deployer went away; reconnecting", self.name)
 

@@ -213,7 +213,7 @@ class GrpcSubscription(Subscription):
         self._last_seen = time.monotonic()
         try:
             carry(self.policy.transport, lambda t: t.subscribe(self._end, peer),
-                  f"{self.component}.{self.port}", PEER_FAILURES)
+                  f"{self.component}.{self.port}", PEER_FAILURES, "subscription")
         except NoTransportError as exc:
             raise errors.UnavailableError(str(exc), "UNAVAILABLE", address) from None
 

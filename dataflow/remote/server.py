@@ -31,7 +31,7 @@ from dataflow.deployer import Deployer, same_policy
 from dataflow.errors import CONNECT_DIRECTION, CONNECT_TYPE, DeploymentError, NotFoundError, PortTypeError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy
-from dataflow.transports import load, names
+from dataflow.transports import CannotCarry, load, names, refusal
 from dataflow.transports.flow import waits
 from dataflow.remote import errors
 from scart_wire import rpc
@@ -302,6 +302,9 @@ class DeployerServer:
             return True, self.address, note, self.deployer.find_link(self.deployer.link_name(source, sink))
         if name is not None:
             self.deployer.check_link_name(source, sink, name)
+        refused = refusal(policy.transport, "link")  # ros1 carries topics, not links: said, by name
+        if refused is not None:
+            raise CannotCarry(f"link {source} -> {sink}: {refused}")
         if waits(policy) and policy.transport != "auto" and not load(policy.transport).waits:  # said, not dropped
             raise ValueError(f"link {source} -> {sink}: transport {policy.transport} carries no writer that waits "
                              f"({policy.wait.value}); {', '.join(n for n in names() if _waits(n))} do")

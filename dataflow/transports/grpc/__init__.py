@@ -52,6 +52,7 @@ class GrpcTransport(Transport):
 
     name = "grpc"
     rank = 100
+    carries = frozenset({"link", "subscription"})
 
     def __init__(self) -> None:
         self._streams = SharedStreams()  # the Subscribe streams open, shared by subscriptions alike

@@ -58,6 +58,7 @@ class IpcTransport(Transport):
 
     name = "ipc"
     rank = 10
+    carries = frozenset({"link", "subscription"})
     waits = True
 
     #: What it asks the deployer for (OpenIpcWriterRequest.shm...): a socket alone, here.
