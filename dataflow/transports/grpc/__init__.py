@@ -22,10 +22,9 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from collections import deque
-from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.threads import OwnedThread, Wake
@@ -104,7 +103,7 @@ class GrpcTransport(Transport):
         return carry_shared(self.name, self._streams, request, end, peer, open_stream)
 
 
-def _read(call: Any, feed: SharedFeed) -> None:
+def _read(call: Iterator[pb.SubscribeResponse], feed: SharedFeed) -> None:
     """A shared ``Subscribe`` call's thread: each response to the reader ends, until it ends."""
     error = None
     parts = Parts(pb.SubscribeResponse.FromString)
@@ -142,7 +141,7 @@ class _LinkCarrier:
         self._wake.set()
         return True
 
-    def frames(self, hello: Any) -> Iterator[bytes]:
+    def frames(self, hello: pb.LinkHello) -> Iterator[bytes]:
         """The stream's requests (gRPC's thread): the hello, then what waits, joined."""
         yield pb.LinkRequest(hello=hello).SerializeToString()
         while not self._closed:

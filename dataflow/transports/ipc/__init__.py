@@ -31,7 +31,7 @@ from __future__ import annotations
 import logging
 import socket
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import LinkRefused, Peer, Transport, TransportError, frames
@@ -130,7 +130,8 @@ class IpcTransport(Transport):
         return carry_shared(self.name, self._streams, request, end, peer, open_stream)
 
 
-def _open(ask: Callable[[], Any], transport: str, peer: Peer, name: str = "ipc") -> tuple[socket.socket, bytes] | None:
+def _open(ask: Callable[[], pb.OpenIpcWriterResponse | pb.OpenIpcReaderResponse], transport: str, peer: Peer,
+          name: str = "ipc") -> tuple[socket.socket, bytes] | None:
     """Ask the deployer for a ticket and connect with it: the socket (non-blocking) and the
     deployer's first message. None when the transport ``name`` does not work between the
     two ends and the policy (``auto``) lets another transport do; with ``name`` named, that

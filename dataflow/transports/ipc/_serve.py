@@ -20,9 +20,9 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 from dataflow.policy import ConnPolicy
+from scart_wire import codec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import frames
 from dataflow.transports.ipc._hub import Conn, Hub
@@ -295,7 +295,7 @@ class _LinkIn(Conn):
             return
         self.took(frame)
 
-    def took(self, frame: Any, values: dict[int, Any] | None = None) -> None:
+    def took(self, frame: pb.LinkRequest, values: dict[int, codec.Payload] | None = None) -> None:
         """One frame of the link (``values``: see :func:`~dataflow.transports.frames.feed`)."""
         self._unreported += frames.feed(self.link.end, frame, values) + 1
         if frame.closing:

@@ -21,11 +21,14 @@ import socket
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
-from dataflow.policy import ConnType
+from dataflow.policy import ConnPolicy, ConnType
+from dataflow.ports import OutputPort
 from dataflow.transports import frames
-from dataflow.transports.ends import OutSample
+from dataflow.transports._shared import SharedFeed
+from dataflow.transports.ends import OutSample, WriterEnd
 from dataflow.transports.ipc._conns import LinkOut, SubIn
 from dataflow.transports.ipc._hub import READS_PER_WAKE, Conn, Hub
 from dataflow.transports.ipc._serve import Flavour, IpcServer, _LinkIn, _ReaderOut
@@ -70,7 +73,7 @@ def carries_large(py_type: Any) -> bool:
     return hasattr(py_type, "fixed_bytes") and (size is None or size >= LARGE_BYTES)
 
 
-def slots_for(policy: Any) -> int:
+def slots_for(policy: ConnPolicy) -> int:
     """The slots a channel of ``policy`` may have: its buffer, and :data:`EXTRA_SLOTS`."""
     return (1 if policy.type is ConnType.DATA else policy.size) + EXTRA_SLOTS
 
@@ -81,13 +84,13 @@ class SlotSender(Conn):
 
     batch_bytes = 0  # a large sample's frame is not bytes: queued samples go one by one
     pool: SlotPool
-    plain: Any  # the frame encoder of the port's type (small samples)
+    plain: Callable[[OutSample], bytes]  # the frame encoder of the port's type (small samples)
 
-    def init_slots(self, port: Any, policy: Any) -> None:
+    def init_slots(self, port: OutputPort, policy: ConnPolicy) -> None:
         self.plain = frames.encoder(port.type)
         self.pool = SlotPool(slots_for(policy))
 
-    def encode_large(self, sample: OutSample) -> Any:
+    def encode_large(self, sample: OutSample) -> bytes | OutSample:
         """The carrier's ``encode``: a small sample's frame (bytes), or the sample itself:
         written into a slot when sent. Raises :class:`~dataflow.transports.limits.SampleTooLarge` over the limit."""
         size = large_size(sample.value)
@@ -97,12 +100,12 @@ class SlotSender(Conn):
             raise SampleTooLarge(size)
         return sample
 
-    def send(self, sample: OutSample, data: Any) -> bool:
-        if type(data) is bytes:
+    def send(self, sample: OutSample, data: bytes | OutSample) -> bool:
+        if isinstance(data, bytes):
             return self.send_sample(sample, data)
         value, py_type = sample.value, sample.type
         if type(value) is bytes:
-            body: Any = value
+            body: bytes | None = value
         else:  # an array: written as it is into the slot; any other type: its wire bytes
             body = None if isinstance(py_type, ArraySpec) else registry.encode(value, py_type).data
         size = len(body) if body is not None else large_size(value)
@@ -146,7 +149,7 @@ class SlotSender(Conn):
         finally:
             self._lock.release()
 
-    def released(self, report: Any) -> bool:
+    def released(self, report: pb.LinkResponse) -> bool:
         """A reader's message giving slots back (True: that is all it is)."""
         if not report.released:
             return False
@@ -157,7 +160,7 @@ class SlotSender(Conn):
         self.pool.close()
 
 
-def _fill(slot: Slot, value: Any, body: Any) -> None:
+def _fill(slot: Slot, value: Any, body: bytes | None) -> None:
     """Write a value's wire form into ``slot`` (its one copy): ``body`` (its bytes), or
     for an array, its shape then its data."""
     import numpy as np
@@ -181,7 +184,7 @@ def _array_head(value: Any) -> bytes:
 class ShmLinkOut(SlotSender, LinkOut):
     """A link going out on shm: ipc's, with its large samples in slots."""
 
-    def __init__(self, hub: Hub, sock: socket.socket, end: Any) -> None:
+    def __init__(self, hub: Hub, sock: socket.socket, end: WriterEnd) -> None:
         LinkOut.__init__(self, hub, sock, end)
         self.init_slots(end.port, end.policy)
         self.encode = self.encode_large  # the instance's own: slots are this channel's
@@ -258,7 +261,7 @@ class SlotReader(Conn):
                     log.exception("shm %s: a message could not be handled", self.label)
             self._close_stray_fds()
 
-    def slot_values(self, message: Any) -> dict[int, Any] | None:
+    def slot_values(self, message: pb.SubscribeResponse | pb.LinkRequest) -> dict[int, codec.Payload] | None:
         """Map the slots ``message`` announces; the values of its samples that name one
         (a :class:`~scart_wire.codec.Payload` over the slot's bytes, or an empty one that
         fails its check for a slot that is not there: refused and counted)."""
@@ -269,7 +272,7 @@ class SlotReader(Conn):
             if not self._fds:
                 raise ValueError(f"slot {slot.id} announced without its memory")
             self.maps.add(slot.id, slot.size, self._fds.popleft())
-        values: dict[int, Any] | None = None
+        values: dict[int, codec.Payload] | None = None
         for i, sample in enumerate(message.samples):
             if sample.slot:
                 try:
@@ -317,7 +320,7 @@ class SlotReader(Conn):
 class ShmSubIn(SlotReader, SubIn):
     """A subscription read on shm: ipc's, with large samples viewed in shared memory."""
 
-    def __init__(self, hub: Hub, sock: socket.socket, feed: Any, label: str) -> None:
+    def __init__(self, hub: Hub, sock: socket.socket, feed: SharedFeed, label: str) -> None:
         SubIn.__init__(self, hub, sock, feed, label)
         self.init_maps()
 
