@@ -55,7 +55,7 @@ class Channels:
         self.stopping = threading.Event()
         self._lock = threading.Lock()
         self._servings: dict[type[Serving], Serving] = {}
-        self._handlers: dict[str, grpc.RpcMethodHandler[Any, Any] | None] = {}
+        self._handlers: dict[str, grpc.RpcMethodHandler[Any, Any] | None] = {}  # by method, once looked up
 
     # ---- the ChannelHost ------------------------------------------------------------------
     @property
@@ -89,12 +89,13 @@ class Channels:
         """The handler of the ``DeployerService`` method ``method`` from the serving half
         of the first transport that lists it (``auto``'s order, then the others by name;
         made now if it is the first), or None when none does (the call is then
-        UNIMPLEMENTED: a peer's transport falls back to another)."""
+        UNIMPLEMENTED: a peer's transport falls back to another). A serving half made
+        once this deployer stops sees :attr:`stopping`, and refuses."""
+        if method in self._handlers:  # each method's is set once, never removed: read without the lock
+            return self._handlers[method]
         with self._lock:
             if method in self._handlers:
                 return self._handlers[method]
-            if self.stopping.is_set():
-                return None
             found = None
             for transport in _every_transport():
                 kind = transport.serving()

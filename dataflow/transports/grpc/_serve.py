@@ -22,10 +22,10 @@ from dataflow.threads import Wake
 from dataflow.transports import frames
 from dataflow.transports.ends import OutSample, WriterEnd
 from dataflow.transports.grpc._messages import Parts, messages_of, passthrough, room
-from dataflow.transports.serving import Serving
+from dataflow.transports.serving import ChannelHost, Serving
 from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, Refused
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
-from scart_wire.rpc import abort
+from scart_wire.rpc import Abort, abort
 
 __all__ = ["GrpcServing", "MAX_WAKE_WINDOW_S", "ServedCarrier", "WAKE_SHARE_S", "serve_subscription"]
 
@@ -133,6 +133,7 @@ class GrpcServing(Serving):
         call ends or the deployer stops."""
         host = self.host
         try:
+            _open(host)
             served = host.serve(request.task, request.port, host.policy(request.policy), context.peer() or "", "grpc")
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
@@ -150,6 +151,7 @@ class GrpcServing(Serving):
         end, its reports back — until the source closes it or the deployer stops."""
         host = self.host
         try:
+            _open(host)
             first = next(requests)
             link, known = host.sinks.open(first.hello, host.policy(first.hello.policy))
         except StopIteration:
@@ -187,3 +189,9 @@ class GrpcServing(Serving):
         finally:
             if not finished:
                 host.sinks.carried(link)
+
+
+def _open(host: ChannelHost) -> None:
+    """Refuse a new channel once the deployer stops (UNAVAILABLE: the peer comes back later)."""
+    if host.stopping.is_set():
+        raise Abort("UNAVAILABLE", "this deployer is stopping")
