@@ -47,6 +47,11 @@ next), True once a connection it carried has ended, and raises what interrupted 
   :meth:`Transport.check_stream` says, without joining anything, what would keep a port
   from a topic (a composite's load-time check).
 
+What a transport carries, of these three kinds, it says at registration
+(:attr:`Transport.carries`; by default, what its class implements): a policy naming it for
+another kind is refused at once with :class:`CannotCarry`, naming the transport, what it
+carries and which transports carry that kind (``scart connect --transport ros1``).
+
 A transport is whole: what connects (these methods) and what answers in the deployer a
 peer connects to (its serving half, :meth:`Transport.serving`; see :mod:`.serving`) are
 in its own folder. The control plane only negotiates (finds the peer, checks the policy,
@@ -90,8 +95,9 @@ if TYPE_CHECKING:  # the ends import the policy, which reads the names from this
     from dataflow.transports.serving import Serving
     from scart_wire.proto.scart.dataflow.v1.dataflow_pb2 import ConnPolicy as PolicyMsg
 
-__all__ = ["CannotCarry", "ENTRY_POINT_GROUP", "KINDS", "Kind", "LinkRefused", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
-           "candidates", "carry", "default", "load", "names", "refusal"]
+__all__ = ["CannotCarry", "ENTRY_POINT_GROUP", "KINDS", "Kind", "LinkRefused", "MAX_NAME", "Peer", "Stream",
+           "StreamProblem", "Transport", "TransportError", "TransportRegistry", "candidates", "carry", "default",
+           "load", "names", "refusal"]
 
 log = logging.getLogger(__name__)
 
@@ -462,9 +468,9 @@ def carry(wanted: str, attempt: Callable[[Transport], bool], what: str,
     raised when it is a peer's failure (``peer_failures``, the owner's: it reconnects), or
     :class:`TransportError` naming ``what`` and the transports tried when every one
     declined; :class:`CannotCarry` at once when the transport named does not carry
-    ``kind`` (under ``auto``, only those that do are tried). Under ``auto``, a transport that raises anything else (a plug-in's bug) is
-    passed over, said once, and the next one tried: it never keeps the connection from the
-    transports that work."""
+    ``kind`` (under ``auto``, only those that do are tried). Under ``auto``, a transport
+    that raises anything else (a plug-in's bug) is passed over, said once, and the next
+    one tried: it never keeps the connection from the transports that work."""
     refused = refusal(wanted, kind)
     if refused is not None:
         raise refused

@@ -123,8 +123,8 @@ class GrpcServing(Serving):
 
     def handler(self, method: str) -> grpc.RpcMethodHandler[Any, Any]:
         if method == "Subscribe":  # frames are sent as the bytes they were encoded to, once per write
-            return grpc.unary_stream_rpc_method_handler(self.subscribe, request_deserializer=pb.SubscribeRequest.FromString,
-                                                        response_serializer=passthrough)
+            return grpc.unary_stream_rpc_method_handler(
+                self.subscribe, request_deserializer=pb.SubscribeRequest.FromString, response_serializer=passthrough)
         return grpc.stream_stream_rpc_method_handler(self.link, request_deserializer=pb.LinkRequest.FromString,
                                                      response_serializer=pb.LinkResponse.SerializeToString)
 

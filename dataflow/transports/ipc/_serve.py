@@ -104,8 +104,8 @@ class IpcServer:
         with self._lock:
             return len(self._conns)
 
-    def ticket(self, kind: str, request: pb.OpenIpcWriterRequest | pb.OpenIpcReaderRequest, policy: ConnPolicy, peer: str, heartbeat: float = 0.5,
-               who: str = "") -> bytes:
+    def ticket(self, kind: str, request: pb.OpenIpcWriterRequest | pb.OpenIpcReaderRequest, policy: ConnPolicy,
+               peer: str, heartbeat: float = 0.5, who: str = "") -> bytes:
         """A one-time ticket for a connection of ``kind`` (``in`` or ``out``) asked by
         ``request``, for ``peer`` (its key for the per-peer bounds; ``who``: its address).
         Raises ``OverflowError`` naming the bound past it."""
