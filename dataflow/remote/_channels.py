@@ -98,15 +98,27 @@ class Channels:
                 return self._handlers[method]
             found = None
             for transport in _every_transport():
-                kind = transport.serving()
-                if kind is not None and method in kind.methods:
-                    serving = self._servings.get(kind)
-                    if serving is None:
-                        serving = self._servings[kind] = kind(self)
-                    found = serving.handler(method)
+                try:
+                    found = self._handler_of(transport, method)
+                except Exception as exc:  # noqa: BLE001 - a plug-in's bug never stops the others serving
+                    registry.warn_once(f"serving:{transport.name}", f"transport {transport.name!r} cannot serve "
+                                       f"{method} ({type(exc).__name__}: {exc}); passed over")
+                    continue
+                if found is not None:
                     break
             self._handlers[method] = found
             return found
+
+    def _handler_of(self, transport: Transport, method: str) -> grpc.RpcMethodHandler[Any, Any] | None:
+        """``method``'s handler from ``transport``'s serving half (made now if it is the
+        first), None when it does not list it. Under the lock."""
+        kind = transport.serving()
+        if kind is None or method not in kind.methods:
+            return None
+        serving = self._servings.get(kind)
+        if serving is None:
+            serving = self._servings[kind] = kind(self)
+        return serving.handler(method)
 
     def serving_of(self, kind: type[S]) -> S | None:
         """The serving half of class ``kind``, once made."""

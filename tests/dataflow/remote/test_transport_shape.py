@@ -118,3 +118,21 @@ def test_the_control_plane_routes_sample_path_calls_to_the_transport_serving_the
             with pytest.raises(grpc.RpcError) as failed:
                 call(pb.ListTasksRequest(), timeout=5)
             assert failed.value.code() == grpc.StatusCode.UNIMPLEMENTED
+
+
+def test_a_plug_in_whose_serving_half_fails_is_passed_over(monkeypatch: pytest.MonkeyPatch,
+                                                          caplog: pytest.LogCaptureFixture) -> None:
+    from dataflow.remote import _channels
+
+    class Broken(Transport):
+        name = "broken-serving"
+
+        def serving(self) -> None:
+            raise RuntimeError("a bug in the plug-in")
+
+    monkeypatch.setattr(_channels, "_every_transport", lambda: [Broken(), load("grpc")])
+    with two_deployers() as (s1, _):
+        channels = s1._servicer.channels  # noqa: SLF001 - the routing table
+        assert channels.handler("Subscribe") is not None
+        assert channels.serving_of(GrpcServing) is not None
+    assert "transport 'broken-serving' cannot serve Subscribe (RuntimeError: a bug in the plug-in)" in caplog.text
