@@ -51,7 +51,8 @@ class Channels:
         self._owner = owner
         self.heartbeat_ms = heartbeat_ms
         self.sinks = Sinks(lambda task, port: owner.deployer.task(task).port(port))
-        self.served = ServedSet(max_streams)
+        self.max_streams = max_streams
+        self.served = ServedSet()
         self.stopping = threading.Event()
         self._lock = threading.Lock()
         self._servings: dict[type[Serving], Serving] = {}
@@ -76,11 +77,12 @@ class Channels:
         too often is a busy loop, too rare hides a frozen peer."""
         return min(max(asked_ms or self.heartbeat_ms, MIN_HEARTBEAT_MS), MAX_HEARTBEAT_MS) / 1000.0
 
-    def serve(self, task: str, port: str, policy: ConnPolicy, who: str, transport: str) -> Served:
+    def serve(self, task: str, port: str, policy: ConnPolicy, who: str, transport: str,
+              limit: int | None = None) -> Served:
         output = self.output(task, port)
         check_fits(output, "a subscription")  # every sample would be refused: said now
         try:
-            return self.served.open(output, policy, who, transport)
+            return self.served.open(output, policy, who, transport, limit)
         except OverflowError as exc:
             raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
 

@@ -62,9 +62,16 @@ class ChannelHost(Protocol):
     def output(self, task: str, port: str) -> OutputPort:
         """The output port ``task.port`` (``NotFoundError``; refused for an input port)."""
 
-    def serve(self, task: str, port: str, policy: ConnPolicy, who: str, transport: str) -> Served:
+    @property
+    def max_streams(self) -> int:
+        """How many calls may each hold one of the deployer's gRPC workers for their life
+        (a streamed subscription), at most."""
+
+    def serve(self, task: str, port: str, policy: ConnPolicy, who: str, transport: str,
+              limit: int | None = None) -> Served:
         """A new subscription of the output port ``task.port`` for ``who``, carried by
-        ``transport`` (refused when a sample could never fit, or past a limit)."""
+        ``transport``, of which there may be at most ``limit`` (refused when a sample
+        could never fit, or past a limit)."""
 
     def heartbeat_s(self, asked_ms: int) -> float:
         """A subscriber's heartbeat period (s): what it asked for (0: the deployer's), bounded."""

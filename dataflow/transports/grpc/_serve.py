@@ -134,7 +134,8 @@ class GrpcServing(Serving):
         host = self.host
         try:
             _open(host)
-            served = host.serve(request.task, request.port, host.policy(request.policy), context.peer() or "", "grpc")
+            served = host.serve(request.task, request.port, host.policy(request.policy), context.peer() or "", "grpc",
+                                host.max_streams)  # each a worker of the deployer's server, for its life
         except Exception as exc:  # noqa: BLE001
             abort(context, exc)
         carrier = ServedCarrier(served.end)
