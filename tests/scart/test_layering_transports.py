@@ -3,7 +3,7 @@
 * no transport imports another (a transport's home is the package or module its
   ``scart.transports`` entry point names, ``dataflow.transports.<name>``; what transports
   share lives in the SPI and in ``dataflow/transports/_*`` modules, which are no
-  transport's);
+  transport's and import none);
 * the control plane (``dataflow.remote``) holds no transport's serving code: it imports
   no transport's home (only the SPI) and answers none of the methods a transport's
   serving half lists; each serving half is in its transport's home;
@@ -96,6 +96,17 @@ def test_the_crossing_check_can_fail() -> None:
     graph["dataflow.transports.shm"] = {"dataflow.transports.ipc._hub"}
     assert crossings(graph, {**homes(), "shm": "dataflow.transports.shm"}) == {
         "dataflow.transports.shm -> dataflow.transports.ipc._hub"}
+
+
+def test_what_transports_share_imports_no_transport() -> None:
+    """The SPI and the shared modules (``dataflow/transports/*.py``): a transport's module
+    here would be a crossing in disguise (ipc and grpc share ``_shared``, ROS's two share
+    ``_ros*``)."""
+    shared = {_module_of(path): _imports(path) for path in sorted(TRANSPORTS.glob("*.py"))}
+    assert "dataflow.transports._shared" in shared and "dataflow.transports.serving" in shared
+    offenders = {f"{module} -> {m}" for module, imported in shared.items() for m in imported
+                 for home in homes().values() if _within(m, home)}
+    assert offenders == set()
 
 
 def _remote_imports() -> dict[str, set[str]]:
