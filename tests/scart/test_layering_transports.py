@@ -7,7 +7,8 @@
 * the control plane (``dataflow.remote``) holds no transport's serving code: it imports
   no transport's home (only the SPI) and answers none of the methods a transport's
   serving half lists; each serving half is in its transport's home;
-* the transports import the control plane only where Zenoh's name service still does.
+* the transports import the control plane only where Zenoh's name service still does;
+* a process that only connects (a client: ``scart echo``) loads no serving code.
 
 Every import statement counts: module-level, lazy and annotation-only ones.
 """
@@ -15,6 +16,9 @@ Every import statement counts: module-level, lazy and annotation-only ones.
 from __future__ import annotations
 
 import ast
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 from support import ROOT
@@ -151,3 +155,21 @@ def test_transports_import_the_control_plane_only_for_zenohs_name_service() -> N
     found = {f"{module} -> {m}" for module, imported in graph.items() for m in imported
              if _within(m, "dataflow.remote")}
     assert found == ZENOH_NAMES
+
+
+#: What a process that only connects must not load: the transports' serving halves.
+SERVING = {"dataflow.transports.serving", "dataflow.transports.grpc._serve", "dataflow.transports.ipc._serve",
+           "dataflow.transports.ipc._tickets", "dataflow.transports.ipc._shm_serve"}
+
+
+def _loaded_after(code: str) -> set[str]:
+    probe = f"{code}\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    return set(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def test_the_connecting_half_loads_no_serving_code() -> None:
+    connect = "from dataflow.transports import load\nfor n in ('ipc', 'shm', 'grpc'): load(n)\nimport dataflow.remote.client"
+    assert _loaded_after(connect) & SERVING == set()
+    assert _loaded_after(connect + "\nfor n in ('ipc', 'grpc'): load(n).serving()") >= SERVING  # the probe sees them

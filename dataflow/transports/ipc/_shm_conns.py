@@ -1,5 +1,7 @@
-"""shm's connections (private): ipc's, with a large sample's bytes in a shared-memory
-slot instead of on the socket.
+"""shm's connections at the side that asked for them, and what both sides share
+(private): ipc's, with a large sample's bytes in a shared-memory slot instead of on the
+socket. The deployer's side (a link coming in, a subscription served) is
+:mod:`._shm_serve`.
 
 * The writer's side (:class:`SlotSender`, mixed into a link going out and a subscription
   served): a sample whose value is at least :data:`LARGE_BYTES` is written into a free
@@ -31,18 +33,15 @@ from dataflow.transports._shared import SharedFeed
 from dataflow.transports.ends import OutSample, WriterEnd
 from dataflow.transports.ipc._conns import LinkOut, SubIn
 from dataflow.transports.ipc._hub import READS_PER_WAKE, Conn, Hub
-from dataflow.transports.ipc._serve import Flavour, IpcServer, _LinkIn, _ReaderOut
 from dataflow.transports.ipc._wire import CHUNK, WHOLE
 from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
 from dataflow.transports.ipc._slots import Slot, SlotMaps, SlotPool
-from dataflow.transports.sinks import IncomingLink
-from dataflow.transports.served import Served
 from scart_wire import codec
 from scart_wire.arrays import ArraySpec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from scart_wire.types import registry
 
-__all__ = ["LARGE_BYTES", "ShmFlavour", "ShmLinkOut", "ShmSubIn", "carries_large", "large_size"]
+__all__ = ["LARGE_BYTES", "ShmLinkOut", "ShmSubIn", "SlotReader", "SlotSender", "carries_large", "large_size"]
 
 log = logging.getLogger(__name__)
 
@@ -198,25 +197,6 @@ class ShmLinkOut(SlotSender, LinkOut):
         self.close_slots()
 
 
-class ShmReaderOut(SlotSender, _ReaderOut):
-    """A subscription served on shm: ipc's, with its large samples in slots."""
-
-    def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> None:
-        _ReaderOut.__init__(self, hub, sock, server, served, heartbeat)
-        self.init_slots(served.port, served.policy)
-        self.encode = self.encode_large  # the instance's own: slots are this channel's
-
-    def message(self, data: bytes) -> None:
-        try:
-            self.released(pb.LinkResponse.FromString(data))
-        except Exception:  # noqa: BLE001 - not a release: counted with the malformed ones
-            self._assembler.dropped += 1
-
-    def ended_hook(self) -> None:
-        super().ended_hook()
-        self.close_slots()
-
-
 # ---- the reader's side ----------------------------------------------------------------
 class SlotReader(Conn):
     """The reader's side of an shm connection (see the module docstring): it reads the
@@ -333,34 +313,3 @@ class ShmSubIn(SlotReader, SubIn):
         values = self.slot_values(message) if message.slots or message.samples else None
         if message.samples or not message.slots:
             self.feed.feed(message, values)
-
-
-class ShmLinkIn(SlotReader, _LinkIn):
-    """A link coming in on shm: ipc's, with large samples viewed in shared memory."""
-
-    def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, link: IncomingLink, known: bool) -> None:
-        _LinkIn.__init__(self, hub, sock, server, link, known)
-        self.init_maps()
-        self.link.end.transport = "shm"
-
-    def message(self, data: bytes) -> None:
-        try:
-            frame = pb.LinkRequest.FromString(data)
-        except Exception:  # noqa: BLE001 - not a frame: counted with the malformed ones
-            self._assembler.dropped += 1
-            return
-        values = self.slot_values(frame) if frame.slots or frame.samples else None
-        if frame.samples or not frame.slots:
-            self.took(frame, values)
-
-
-class ShmFlavour(Flavour):
-    """What an ipc ticket asking for shm opens at the deployer (see
-    :class:`~dataflow.transports.ipc._serve.Flavour`)."""
-
-    def link_in(self, hub: Hub, sock: socket.socket, server: IpcServer, link: IncomingLink, known: bool) -> Conn:
-        return ShmLinkIn(hub, sock, server, link, known)
-
-    def reader_out(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> Conn:
-        return ShmReaderOut(hub, sock, server, served, heartbeat)
-

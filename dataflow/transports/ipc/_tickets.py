@@ -16,7 +16,8 @@ import grpc
 
 from dataflow.policy import ConnPolicy
 from dataflow.transports.ipc._serve import IpcServer
-from dataflow.transports.ipc._shm_conns import ShmFlavour, carries_large
+from dataflow.transports.ipc._shm_conns import carries_large
+from dataflow.transports.ipc._shm_serve import ShmFlavour
 from dataflow.transports.ipc._slots import available as shm_available
 from dataflow.transports.ipc._wire import available, host_id
 from dataflow.transports.limits import check_fits

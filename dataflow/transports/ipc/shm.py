@@ -35,10 +35,10 @@ from __future__ import annotations
 from dataflow.transports import Peer, TransportError
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 from dataflow.transports.ipc import IpcTransport
-from dataflow.transports.ipc._shm_conns import LARGE_BYTES, ShmFlavour, ShmLinkOut, ShmSubIn, carries_large
+from dataflow.transports.ipc._shm_conns import LARGE_BYTES, ShmLinkOut, ShmSubIn, carries_large
 from dataflow.transports.ipc._slots import available
 
-__all__ = ["LARGE_BYTES", "ShmFlavour", "ShmTransport", "available", "carries_large"]
+__all__ = ["LARGE_BYTES", "ShmTransport", "available", "carries_large"]
 
 
 class ShmTransport(IpcTransport):
