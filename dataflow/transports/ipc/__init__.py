@@ -19,7 +19,9 @@ same tickets, socket and io thread, registered under a name of its own.
 
 Both halves are here: this module and :mod:`._conns` connect; a deployer hands out
 tickets (:mod:`._tickets`, its serving half) and serves their connections (:mod:`._serve`).
-The one io thread is :mod:`._hub`, the socket and its frames :mod:`._wire`.
+The one io thread is :mod:`._hub`, the socket and its frames :mod:`._wire`; shm's slots
+are :mod:`._slots`, its connections :mod:`._shm_conns` (connecting) and
+:mod:`._shm_serve` (serving).
 
 Why a socket and not a shared-memory ring: a ring still needs a kernel wake-up per
 sample in Python (no spinning under the GIL), and a datagram socket is a bounded kernel
