@@ -31,9 +31,8 @@ from dataflow.remote._convert import policy_to_msg
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
 from dataflow.threads import OwnedThread
-from dataflow.transports import NoTransportError, Peer, TransportError, carry
+from dataflow.transports import LinkRefused, NoTransportError, Peer, TransportError, carry
 from dataflow.transports.ends import WriterEnd, attach, detach
-from dataflow.transports.ipc import LinkRefused
 from dataflow.transports.sinks import LINGER_S, IncomingLink, Sinks
 
 if TYPE_CHECKING:
@@ -148,13 +147,13 @@ class RemoteLink:
         address = server.resolve(self.sink_task)
         with server.security.channel(address, rpc.channel_options()) as channel:
             peer = Peer(address, self.sink_task, self.sink_port, df_grpc.DeployerServiceStub(channel),
-                        server.ns_timeout, channel_of=channel, channel=self.channel, name=self.name,
-                        boot_id=server.boot_id, source_ns=server.ns_address)
+                        server.ns_timeout, policy_msg=policy_to_msg(self.policy), channel_of=channel,
+                        channel=self.channel, name=self.name, boot_id=server.boot_id, source_ns=server.ns_address)
             self._peer = peer
             if stopping.is_set():
                 return
             carry(self.policy.transport, lambda t: self._attempt(t, peer), f"link {self.name}",
-                  PEER_FAILURES)
+                  PEER_FAILURES, "link")
         if not stopping.is_set():
             log.info("link %s: the sink's deployer went away; reconnecting", self.name)
 

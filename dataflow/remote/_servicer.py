@@ -1,7 +1,8 @@
 """The DeployerService implementation (private; see :mod:`dataflow.remote.server`):
 the control plane — introspection, lifecycle, operations, properties, single writes,
 and making, listing and undoing links and streams. The sample path's RPCs (subscriptions
-and links carried over gRPC or ipc) are :mod:`dataflow.remote._channel_rpcs`'.
+and links carried over gRPC or ipc) are answered by the transports' serving halves,
+which :mod:`dataflow.remote._channels` dispatches to.
 
 Every RPC runs on a worker of the server's pool, never on a task's thread. ReadPort
 attaches nothing to the task (it reads ``last_sample()``), and the one connection the
@@ -26,7 +27,7 @@ from dataflow.errors import NotFoundError, PortTypeError, PortValueError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.ports import InputPort, OutputPort
 from dataflow.remote import _convert as cv
-from dataflow.remote._channel_rpcs import ChannelRpcs
+from dataflow.remote._channels import Channels
 from dataflow.remote._proto import df as pb
 from dataflow.remote._proto import df_grpc
 from scart_wire.rpc import Abort, abort, peer_key
@@ -180,7 +181,7 @@ class _Writers:
                 writer.close()
 
 
-class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
+class DeployerServicer(df_grpc.DeployerServiceServicer):
     """Implements every method of ``scart.dataflow.v1.DeployerService`` for one server."""
 
     def __init__(self, owner: DeployerServer, heartbeat_ms: int, max_streams: int) -> None:
@@ -195,7 +196,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
         self._stopping = threading.Event()
         # started with the first remote writer: reclaims those of clients gone away
         self._sweeper = OwnedThread(self._sweep, "scart-writer-sweeper")
-        self._init_channels(max_streams)
+        self.channels = Channels(owner, heartbeat_ms, max_streams)  #: the sample path, by transport
 
     def _sweep(self, stopping: threading.Event) -> None:
         """Reclaim the writers of clients that went away (bounded: idle + a quarter of it)."""
@@ -253,7 +254,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
             self._seen.clear()
             self._defaults.clear()
         self._writers.close_all()
-        self._stop_channels()
+        self.channels.stop()
         self._sweeper.stop()
 
     # ---- introspection and lifecycle ---------------------------------------------------
@@ -520,7 +521,7 @@ class DeployerServicer(ChannelRpcs, df_grpc.DeployerServiceServicer):
 
     def ListLinks(self, request: pb.ListLinksRequest, context: grpc.ServicerContext) -> pb.ListLinksResponse:  # noqa: N802
         try:
-            served = [pb.SubscriptionInfo(**info) for info in self.served.info()[:MAX_LINKS_LISTED]]
+            served = [pb.SubscriptionInfo(**info) for info in self.channels.served.info()[:MAX_LINKS_LISTED]]
             return pb.ListLinksResponse(links=[_link_info(lk) for lk in self.owner.links()[:MAX_LINKS_LISTED]],
                                         subscriptions=served)
         except Exception as exc:  # noqa: BLE001

@@ -33,6 +33,7 @@ from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy, FlowStatus
 from dataflow.remote import errors
 from scart_wire import rpc
+from dataflow.remote._convert import policy_to_msg
 from dataflow.remote._delivery import Dispatcher, Mailbox
 from dataflow.remote._links import failure_reason
 from dataflow.remote.api import GapEvent, Observer, SampleEvent, Subscription
@@ -204,14 +205,15 @@ class GrpcSubscription(Subscription):
     def _stream(self, address: str, stopping: threading.Event) -> None:
         """One stream over the first transport that reaches the deployer, until it ends."""
         peer = Peer(address, self.component, self.port, self._system._stub(address),  # noqa: SLF001
-                    self._system.timeout, policy=self.policy, heartbeat=self.heartbeat)
+                    self._system.timeout, policy_msg=policy_to_msg(self.policy), policy=self.policy,
+                    heartbeat=self.heartbeat)
         self._peer = peer
         if stopping.is_set():
             return
         self._last_seen = time.monotonic()
         try:
             carry(self.policy.transport, lambda t: t.subscribe(self._end, peer),
-                  f"{self.component}.{self.port}", PEER_FAILURES)
+                  f"{self.component}.{self.port}", PEER_FAILURES, "subscription")
         except NoTransportError as exc:
             raise errors.UnavailableError(str(exc), "UNAVAILABLE", address) from None
 

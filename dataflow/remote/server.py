@@ -31,7 +31,7 @@ from dataflow.deployer import Deployer, same_policy
 from dataflow.errors import CONNECT_DIRECTION, CONNECT_TYPE, DeploymentError, NotFoundError, PortTypeError
 from dataflow.introspection import LinkDescription
 from dataflow.policy import ConnPolicy
-from dataflow.transports import load, names
+from dataflow.transports import CannotCarry, load, names, refusal
 from dataflow.transports.flow import waits
 from dataflow.remote import errors
 from scart_wire import rpc
@@ -46,6 +46,7 @@ from dataflow.remote._proto import (
     ns,
     ns_grpc,
 )
+from dataflow.remote._channels import Channels
 from dataflow.remote._servicer import DeployerServicer
 from dataflow.remote.naming import (
     DEFAULT_LEASE,
@@ -69,24 +70,40 @@ log = logging.getLogger(__name__)
 REASSERT_S = 1.0  #: how often an embedded deployer claims again the names another deployer held
 
 
-def add_deployer_service(servicer: Any, server: grpc.Server) -> None:
-    """Register the DeployerService: the generated handlers, except that ``Subscribe``
-    sends frames that are encoded already (bytes), as they were made once per write."""
-    from dataflow.transports.grpc import passthrough
-
-    handlers: dict[str, Any] = {}
+def add_deployer_service(servicer: DeployerServicer, server: grpc.Server) -> None:
+    """Register the DeployerService: the control plane's methods (the servicer's own),
+    and the sample path's, answered by the transports that serve them (dispatched by
+    :meth:`~dataflow.remote._channels.Channels.handler`)."""
+    handlers: dict[str, grpc.RpcMethodHandler[Any, Any]] = {}
 
     class _Capture:
         def add_generic_rpc_handlers(self, found: Any) -> None:
             pass
 
-        def add_registered_method_handlers(self, _name: str, found: dict[str, Any]) -> None:
+        def add_registered_method_handlers(self, _name: str, found: dict[str, grpc.RpcMethodHandler[Any, Any]]) -> None:
             handlers.update(found)
 
     df_grpc.add_DeployerServiceServicer_to_server(servicer, _Capture())
-    handlers["Subscribe"] = grpc.unary_stream_rpc_method_handler(
-        servicer.Subscribe, request_deserializer=pb.SubscribeRequest.FromString, response_serializer=passthrough)
-    server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(DEPLOYER_SERVICE_NAME, handlers),))
+    base = df_grpc.DeployerServiceServicer
+    own = {name: h for name, h in handlers.items() if getattr(type(servicer), name) is not getattr(base, name)}
+    server.add_generic_rpc_handlers((_Routes(own, servicer.channels),))
+
+
+class _Routes(grpc.GenericRpcHandler):
+    """The DeployerService's calls: the control plane's to its servicer, the others to
+    the transport that serves them (None: UNIMPLEMENTED)."""
+
+    def __init__(self, own: dict[str, grpc.RpcMethodHandler[Any, Any]], channels: Channels) -> None:
+        self._own = own
+        self._channels = channels
+        self._prefix = f"/{DEPLOYER_SERVICE_NAME}/"
+
+    def service(self, handler_call_details: grpc.HandlerCallDetails) -> grpc.RpcMethodHandler[Any, Any] | None:
+        path = handler_call_details.method
+        if not path.startswith(self._prefix):
+            return None
+        method = path[len(self._prefix):]
+        return self._own.get(method) or self._channels.handler(method)
 
 
 class _EmbeddedNaming(NamingServicer):
@@ -162,7 +179,7 @@ class DeployerServer:
         self._published: list[str] = []
         self._refused: list[str] = []
         self._retry_at = 0.0
-        self._keeper = LinkKeeper(self, self._servicer.sinks)
+        self._keeper = LinkKeeper(self, self._servicer.channels.sinks)
         try:
             if self.registry is not None:
                 self.refresh_names()
@@ -285,6 +302,9 @@ class DeployerServer:
             return True, self.address, note, self.deployer.find_link(self.deployer.link_name(source, sink))
         if name is not None:
             self.deployer.check_link_name(source, sink, name)
+        refused = refusal(policy.transport, "link")  # ros1 carries topics, not links: said, by name
+        if refused is not None:
+            raise CannotCarry(f"link {source} -> {sink}: {refused}")
         if waits(policy) and policy.transport != "auto" and not load(policy.transport).waits:  # said, not dropped
             raise ValueError(f"link {source} -> {sink}: transport {policy.transport} carries no writer that waits "
                              f"({policy.wait.value}); {', '.join(n for n in names() if _waits(n))} do")

@@ -47,6 +47,17 @@ next), True once a connection it carried has ended, and raises what interrupted 
   :meth:`Transport.check_stream` says, without joining anything, what would keep a port
   from a topic (a composite's load-time check).
 
+What a transport carries, of these three kinds, it says at registration
+(:attr:`Transport.carries`; by default, what its class implements): a policy naming it for
+another kind is refused at once with :class:`CannotCarry`, naming the transport, what it
+carries and which transports carry that kind (``scart connect --transport ros1``).
+
+A transport is whole: what connects (these methods) and what answers in the deployer a
+peer connects to (its serving half, :meth:`Transport.serving`; see :mod:`.serving`) are
+in its own folder. The control plane only negotiates (finds the peer, checks the policy,
+hands out what the transport asks for) and routes the calls of the sample path to the
+transport that serves them. No transport imports another.
+
 ``transport="auto"`` tries every transport that takes part in ``auto`` by
 :attr:`Transport.rank` (lowest first); a named transport is the only one tried.
 Transports are found through the ``scart.transports`` entry points; scart's own (``ipc``,
@@ -72,16 +83,22 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from dataflow.errors import DataflowError
 
 if TYPE_CHECKING:  # the ends import the policy, which reads the names from this registry
+    import grpc
+
+    from dataflow.policy import ConnPolicy
     from dataflow.ports import Port
     from dataflow.transports.ends import ReaderEnd, WriterEnd
+    from dataflow.transports.serving import Serving
+    from scart_wire.proto.scart.dataflow.v1.dataflow_pb2 import ConnPolicy as PolicyMsg
 
-__all__ = ["ENTRY_POINT_GROUP", "MAX_NAME", "Peer", "Stream", "StreamProblem", "Transport", "TransportError", "TransportRegistry",
-           "candidates", "carry", "default", "load", "names"]
+__all__ = ["CannotCarry", "ENTRY_POINT_GROUP", "KINDS", "Kind", "LinkRefused", "MAX_NAME", "Peer", "Stream",
+           "StreamProblem", "Transport", "TransportError", "TransportRegistry", "candidates", "carry", "default",
+           "load", "names", "refusal"]
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +108,7 @@ NAME = re.compile(rf"^[a-z][a-z0-9_.-]{{0,{MAX_NAME - 1}}}$")
 
 #: scart's own transports, used also when its entry points are not installed (a source tree).
 BUILTIN = MappingProxyType({"ipc": "dataflow.transports.ipc:IpcTransport",
-                            "shm": "dataflow.transports.shm:ShmTransport",
+                            "shm": "dataflow.transports.ipc.shm:ShmTransport",
                             "grpc": "dataflow.transports.grpc:GrpcTransport",
                             "zenoh": "dataflow.transports.zenoh:ZenohTransport",
                             "ros1": "dataflow.transports.ros1.transport:Ros1Transport",
@@ -104,24 +121,42 @@ class TransportError(DataflowError):
     what a channel asks of it (a stream on a transport without topics)."""
 
 
+#: The kinds of channel a transport may carry (see the module docstring).
+Kind = Literal["link", "subscription", "stream"]
+KINDS: tuple[Kind, ...] = ("link", "subscription", "stream")
+_NOUNS = MappingProxyType({"link": "links", "subscription": "subscriptions", "stream": "topics"})
+
+
+class CannotCarry(TransportError, ValueError):
+    """A policy names a transport for a kind of channel it does not carry (it says what
+    it carries at registration: :attr:`Transport.carries`)."""
+
+
+class LinkRefused(TransportError):
+    """The sink refused a link (another type, no such input port): retrying cannot help."""
+
+
 class Peer:
     """The other side of a link or a subscription, as the control plane found it.
 
     ``address`` and ``stub`` (its ``DeployerService``), the ``task`` and ``port`` there,
     ``timeout`` (s) for control-plane calls, ``heartbeat`` (s, a subscription's), and
-    ``channel`` (a link's id: ``boot id/serial`` of its source). The owner cancels a
-    connection in progress through :meth:`cancel`; a transport registers how with
-    :meth:`opened`. Thread-safe.
+    ``channel`` (a link's id: ``boot id/serial`` of its source). ``policy_msg`` is the
+    channel's policy as the control plane negotiated it, in its wire form: a transport
+    sends it as it is. The owner cancels a connection in progress through :meth:`cancel`;
+    a transport registers how with :meth:`opened`. Thread-safe.
     """
 
     def __init__(self, address: str, task: str, port: str, stub: Any, timeout: float, *,
-                 policy: Any = None, channel_of: Any = None, heartbeat: float = 0.5, channel: str = "",
-                 name: str = "", boot_id: str = "", source_ns: str = "") -> None:
+                 policy_msg: PolicyMsg, policy: ConnPolicy | None = None, channel_of: grpc.Channel | None = None,
+                 heartbeat: float = 0.5, channel: str = "", name: str = "", boot_id: str = "",
+                 source_ns: str = "") -> None:
         self.address = address
         self.task = task
         self.port = port
         self.stub = stub
         self.timeout = timeout
+        self.policy_msg = policy_msg
         self.policy = policy  #: a subscription's policy (a link's is its writer end's)
         self.channel_of = channel_of  #: the gRPC channel to the peer (for a transport's own calls)
         self.heartbeat = heartbeat
@@ -130,7 +165,7 @@ class Peer:
         self.boot_id = boot_id
         self.source_ns = source_ns
         self.cancelled = threading.Event()
-        self._cancel: Callable[[], None] | None = None
+        self._cancel: Callable[[], object] | None = None
         self._finish: Callable[[float], bool] | None = None
         self._lock = threading.Lock()
 
@@ -144,7 +179,7 @@ class Peer:
         """``task.port`` at the peer."""
         return f"{self.task}.{self.port}"
 
-    def opened(self, cancel: Callable[[], None], finish: Callable[[float], bool] | None = None) -> bool:
+    def opened(self, cancel: Callable[[], object], finish: Callable[[float], bool] | None = None) -> bool:
         """A connection is up; ``cancel`` ends it at once, ``finish(timeout)`` (a link's)
         ends it gracefully. False (and ``cancel`` called) when the owner cancelled meanwhile."""
         with self._lock:
@@ -229,10 +264,30 @@ class Transport(ABC):
     topics: bool = False
     #: It carries its own message types (a port's type is mapped onto them: ROS).
     converts: bool = False
+    #: What it carries, of links, subscriptions and streams — what a policy may name it
+    #: for. Said by the class (what is registered): a class that does not say it carries
+    #: what it implements (:meth:`link`, :meth:`subscribe`; :attr:`topics` for streams).
+    carries: ClassVar[frozenset[Kind]] = frozenset()
     #: Its links hold a waiting writer back (``ConnPolicy.wait``, YARP's flow control: its
     #: reader ends report at once after each sample and each read that frees room; see
     #: :mod:`.flow`). A link whose writer waits is carried only by such a transport.
     waits: bool = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "carries" not in cls.__dict__:  # not said: what the class implements
+            has: dict[Kind, bool] = {"link": cls.link is not Transport.link,
+                                     "subscription": cls.subscribe is not Transport.subscribe, "stream": cls.topics}
+            cls.carries = frozenset(kind for kind in KINDS if has[kind])
+
+    def lacks(self, kind: Kind) -> str:
+        """Why a policy naming this transport cannot have a channel of ``kind`` ("" when
+        it carries it): what it carries, and the transports that carry ``kind``."""
+        if kind in self.carries:
+            return ""
+        carried = " and ".join(_NOUNS[k] for k in KINDS if k in self.carries) or "nothing"
+        return (f"transport {self.name!r} carries {carried}, not {_NOUNS[kind]}; {kind}s need one of: "
+                f"{', '.join(_carriers(kind)) or 'none'}")
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
         """Carry ``end``'s samples to the input port ``peer.where`` until the connection
@@ -244,31 +299,41 @@ class Transport(ABC):
         connection ends. Default: subscriptions not carried (False)."""
         return False
 
+    def serving(self) -> type[Serving] | None:
+        """The class of this transport's serving half: what answers, in a deployer, the
+        links and subscriptions its peers ask for there (:mod:`.serving`). Default: None,
+        nothing to serve (a transport of topics)."""
+        return None
+
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
         """Join ``end`` to ``topic`` (a writer end publishes, a reader end receives);
         ``options``: what the user gave besides (a ROS message type...). Raises
         :class:`TransportError` for a transport without topics or a bad topic."""
-        raise TransportError(f"transport {self.name!r} carries links and subscriptions, not topics; "
-                             f"streams need one of: {', '.join(n for n in names() if _has_topics(n)) or 'none'}")
+        raise CannotCarry(self.lacks("stream"))
 
     def check_stream(self, port: Port[Any], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         """What keeps ``port`` (an input or output port, a task's or its class's template)
         from being joined to ``topic`` with ``options``, found without joining anything:
         a composite's load-time check asks it. Default: nothing for a transport with
         topics; for a converting one, whether the port's type maps onto the topic's."""
-        if not self.topics:
-            return [StreamProblem(f"transport {self.name!r} carries links and subscriptions, not topics")]
+        if "stream" not in self.carries:
+            return [StreamProblem(self.lacks("stream").partition(";")[0])]
         return []
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.name!r}>"
 
 
-def _has_topics(name: str) -> bool:
-    try:
-        return load(name).topics
-    except TransportError:
-        return False
+def _carriers(kind: Kind) -> list[str]:
+    """The transports that carry ``kind`` (each loaded; one that cannot be is left out)."""
+    found = []
+    for name in names():
+        try:
+            if kind in load(name).carries:
+                found.append(name)
+        except TransportError:
+            continue
+    return found
 
 
 class TransportRegistry:
@@ -388,17 +453,32 @@ def candidates(wanted: str) -> list[Transport]:
     return default.candidates(wanted)
 
 
+def refusal(wanted: str, kind: Kind) -> CannotCarry | None:
+    """Why a policy's ``wanted`` transport cannot carry a channel of ``kind`` (None when it
+    can, and for ``auto``); a :class:`TransportError` naming it when it cannot be loaded."""
+    if wanted == "auto":
+        return None
+    lacking = load(wanted).lacks(kind)
+    return CannotCarry(lacking) if lacking else None
+
+
 def carry(wanted: str, attempt: Callable[[Transport], bool], what: str,
-          peer_failures: tuple[type[BaseException], ...]) -> None:
+          peer_failures: tuple[type[BaseException], ...], kind: Kind) -> None:
     """Offer one connection to the transports for a policy's ``wanted`` in order, until
     ``attempt(transport)`` says one carried it (and it ended). Raises what an attempt
     raised when it is a peer's failure (``peer_failures``, the owner's: it reconnects), or
     :class:`TransportError` naming ``what`` and the transports tried when every one
-    declined. Under ``auto``, a transport that raises anything else (a plug-in's bug) is
-    passed over, said once, and the next one tried: it never keeps the connection from the
-    transports that work."""
+    declined; :class:`CannotCarry` at once when the transport named does not carry
+    ``kind`` (under ``auto``, only those that do are tried). Under ``auto``, a transport
+    that raises anything else (a plug-in's bug) is passed over, said once, and the next
+    one tried: it never keeps the connection from the transports that work."""
+    refused = refusal(wanted, kind)
+    if refused is not None:
+        raise refused
     tried = []
     for transport in candidates(wanted):
+        if kind not in transport.carries:
+            continue
         tried.append(transport.name)
         try:
             if attempt(transport):

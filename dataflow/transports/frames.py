@@ -15,7 +15,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
-from typing import Any, TypeAlias, TypeVar
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 
 from scart_wire import codec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
@@ -23,7 +23,10 @@ from scart_wire.types import registry
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
 
-__all__ = ["encoder", "feed", "heartbeat", "report_of", "sample_frame", "varint"]
+if TYPE_CHECKING:
+    from dataflow.transports import Peer
+
+__all__ = ["encoder", "feed", "heartbeat", "link_hello", "report_of", "sample_frame", "varint"]
 
 _Frame = pb.SubscribeResponse
 T = TypeVar("T")
@@ -128,3 +131,12 @@ def feed(end: ReaderEnd[T], message: Frame, values: Mapping[int, object] | None 
 def report_of(end: ReaderEnd[Any], *, known: bool = True, final: bool = False, pending: int = 0) -> pb.LinkResponse:
     """The ``LinkResponse`` a link's reader end sends back."""
     return pb.LinkResponse(last=end.last, lost=end.lost, known=known, final=final, pending=pending)
+
+
+def link_hello(end: WriterEnd[Any], peer: Peer) -> pb.LinkHello:
+    """What a link's reader end is told when its channel opens (on every transport that
+    carries links to a deployer): where it goes, with the policy the control plane
+    negotiated, and from which write number on it counts."""
+    return pb.LinkHello(task=peer.task, port=peer.port, policy=peer.policy_msg, channel=peer.channel,
+                        after=end.peer_last or end.start, boot_id=peer.boot_id, source=end.port.qualname,
+                        type_name=end.port.type_name, name=peer.name, source_ns=peer.source_ns)

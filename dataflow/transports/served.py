@@ -61,22 +61,22 @@ class Served:
 
 
 class ServedSet:
-    """The subscriptions one deployer serves, numbered. Those carried by gRPC streams (a
-    server worker each) are at most ``limit``; the ipc ones are bounded by the ipc
-    server's own connection limit."""
+    """The subscriptions one deployer serves, numbered, whatever carries them. A transport
+    bounds its own with ``limit`` (gRPC's: a server worker each; ipc's connections are
+    bounded by its socket's own limit)."""
 
-    def __init__(self, limit: int) -> None:
-        self.limit = limit
+    def __init__(self) -> None:
         self._lock = threading.Lock()
         self._serials = itertools.count(1)
         self._served: dict[int, Served] = {}
 
-    def open(self, port: OutputPort[Any], policy: ConnPolicy, subscriber: str, transport: str) -> Served:
-        """A new subscription of ``port``; ``OverflowError`` naming the limit past it."""
+    def open(self, port: OutputPort[Any], policy: ConnPolicy, subscriber: str, transport: str,
+             limit: int | None = None) -> Served:
+        """A new subscription of ``port`` carried by ``transport``, of which there may be at
+        most ``limit`` (None: no bound here); ``OverflowError`` naming the limit past it."""
         with self._lock:
-            streams = sum(1 for s in self._served.values() if s.transport == "grpc")
-            if transport == "grpc" and streams >= self.limit:
-                raise OverflowError(f"this deployer serves at most {self.limit} subscriptions over gRPC streams")
+            if limit is not None and sum(1 for s in self._served.values() if s.transport == transport) >= limit:
+                raise OverflowError(f"this deployer serves at most {limit} subscriptions over {transport}")
             served = Served(port, policy, next(self._serials), subscriber, transport)
             self._served[served.serial] = served
             return served

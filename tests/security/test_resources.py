@@ -190,7 +190,7 @@ def test_a_remote_buffer_is_capped_and_a_stuck_subscriber_is_bounded_in_bytes() 
             stream = df_grpc.DeployerServiceStub(channel).Subscribe(pb.SubscribeRequest(
                 task="p", port="big", policy=policy_to_msg(ConnPolicy.buffer(10_000))))
             assert next(stream).heartbeat
-            (served,) = server._servicer.served.all()
+            (served,) = server._servicer.channels.served.all()
             for i in range(400):  # 64 MB written; the deployer may hold a few MB of it
                 task.big.write([float(i)] * 20_000)
             wait_until(lambda: served.dropped > 0, timeout=10, message="nothing dropped: unbounded")

@@ -14,6 +14,15 @@ dispatcher); a sample is sent from the writer's own thread, encoded once for eve
 reader of its port. It declines (``auto`` goes on to gRPC) when the two ends are not on
 one host, or the peer has no ipc; a policy naming ``ipc`` gets an error saying why.
 
+Transport ``shm`` (:mod:`.shm`) is this one with large samples in shared memory: the
+same tickets, socket and io thread, registered under a name of its own.
+
+Both halves are here: this module and :mod:`._conns` connect; a deployer hands out
+tickets (:mod:`._tickets`, its serving half) and serves their connections (:mod:`._serve`).
+The one io thread is :mod:`._hub`, the socket and its frames :mod:`._wire`; shm's slots
+are :mod:`._slots`, its connections :mod:`._shm_conns` (connecting) and
+:mod:`._shm_serve` (serving).
+
 Why a socket and not a shared-memory ring: a ring still needs a kernel wake-up per
 sample in Python (no spinning under the GIL), and a datagram socket is a bounded kernel
 ring with that wake-up built in; an abstract socket has no file to clean up.
@@ -23,19 +32,21 @@ from __future__ import annotations
 
 import logging
 import socket
-import threading
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
-from dataflow.policy import ConnPolicy
-from dataflow.transports import Peer, Transport, TransportError, frames
+from dataflow.transports import LinkRefused, Peer, Transport, TransportError, frames
 from dataflow.transports._shared import SharedFeed, SharedStreams, carry_shared
 from dataflow.transports.ends import ReaderEnd, WriterEnd
-from dataflow.transports.ipc._hub import Conn, Hub
+from dataflow.transports.ipc._conns import LinkOut, SubIn
+from dataflow.transports.ipc._hub import Hub
 from dataflow.transports.ipc._wire import IpcUnavailable, available, connect, host_id
 
-__all__ = ["IpcTransport", "LinkRefused", "REFUSED"]
+if TYPE_CHECKING:
+    from dataflow.transports.serving import Serving
+
+__all__ = ["IpcTransport", "REFUSED"]
 
 log = logging.getLogger(__name__)
 
@@ -44,15 +55,12 @@ log = logging.getLogger(__name__)
 REFUSED = frozenset({"UNIMPLEMENTED", "FAILED_PRECONDITION", "RESOURCE_EXHAUSTED"})
 
 
-class LinkRefused(TransportError):
-    """The sink refused a link (another type, no such input port): retrying cannot help."""
-
-
 class IpcTransport(Transport):
     """Samples over the deployer's abstract Unix socket, when both ends are on one host."""
 
     name = "ipc"
     rank = 10
+    carries = frozenset({"link", "subscription"})
     waits = True
 
     #: What it asks the deployer for (OpenIpcWriterRequest.shm...): a socket alone, here.
@@ -62,12 +70,12 @@ class IpcTransport(Transport):
         self._streams = SharedStreams()  # the subscriptions' sockets open, shared by subscriptions alike
 
     def link(self, end: WriterEnd, peer: Peer) -> bool:
-        return self._link(end, peer, _LinkOut)
+        return self._link(end, peer, LinkOut)
 
-    def _link(self, end: WriterEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, WriterEnd], Any]) -> bool:
-        """:meth:`link`, its connection made by ``conn_class`` (a :class:`_LinkOut`)."""
-        hello = link_hello(end, peer)
-        request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=policy_msg(end.policy),
+    def _link(self, end: WriterEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, WriterEnd], LinkOut]) -> bool:
+        """:meth:`link`, its connection made by ``conn_class`` (a :class:`LinkOut`)."""
+        hello = frames.link_hello(end, peer)
+        request = pb.OpenIpcWriterRequest(task=peer.task, port=peer.port, policy=peer.policy_msg,
                                           host_id=host_id(), hello=hello, shm=self.shm)
         opened = _open(lambda: peer.stub.OpenIpcWriter(request, timeout=peer.timeout), end.policy.transport, peer,
                        self.name)
@@ -92,15 +100,21 @@ class IpcTransport(Transport):
             end.disconnected()
         return True
 
+    def serving(self) -> type[Serving]:
+        """ipc's and shm's serving half: the tickets of ``OpenIpcWriter`` and ``OpenIpcReader``."""
+        from dataflow.transports.ipc._tickets import IpcServing
+
+        return IpcServing
+
     def subscribe(self, end: ReaderEnd, peer: Peer) -> bool:
         """Feed ``end`` from the peer's port: one socket, read by the io thread and shared
         by the subscriptions of this system proxy to that port with the same policy (see
         :mod:`~dataflow.transports._shared`)."""
-        return self._subscribe(end, peer, _SubIn)
+        return self._subscribe(end, peer, SubIn)
 
-    def _subscribe(self, end: ReaderEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, SharedFeed, str], Any]) -> bool:
-        """:meth:`subscribe`, its connection made by ``conn_class`` (a :class:`_SubIn`)."""
-        request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=policy_msg(peer.policy), host_id=host_id(),
+    def _subscribe(self, end: ReaderEnd, peer: Peer, conn_class: Callable[[Hub, socket.socket, SharedFeed, str], SubIn]) -> bool:
+        """:meth:`subscribe`, its connection made by ``conn_class`` (a :class:`SubIn`)."""
+        request = pb.OpenIpcReaderRequest(task=peer.task, port=peer.port, policy=peer.policy_msg, host_id=host_id(),
                                           heartbeat_ms=int(peer.heartbeat * 1000), shm=self.shm)
 
         def open_stream(feed: SharedFeed) -> bool:
@@ -118,21 +132,8 @@ class IpcTransport(Transport):
         return carry_shared(self.name, self._streams, request, end, peer, open_stream)
 
 
-def policy_msg(policy: ConnPolicy) -> Any:
-    """``policy`` as the wire's message."""
-    from dataflow.remote._convert import policy_to_msg
-
-    return policy_to_msg(policy)
-
-
-def link_hello(end: WriterEnd, peer: Peer) -> Any:
-    """What a link's reader end is told when its channel opens."""
-    return pb.LinkHello(task=peer.task, port=peer.port, policy=policy_msg(end.policy), channel=peer.channel,
-                        after=end.peer_last or end.start, boot_id=peer.boot_id, source=end.port.qualname,
-                        type_name=end.port.type_name, name=peer.name, source_ns=peer.source_ns)
-
-
-def _open(ask: Callable[[], Any], transport: str, peer: Peer, name: str = "ipc") -> tuple[socket.socket, bytes] | None:
+def _open(ask: Callable[[], pb.OpenIpcWriterResponse | pb.OpenIpcReaderResponse], transport: str, peer: Peer,
+          name: str = "ipc") -> tuple[socket.socket, bytes] | None:
     """Ask the deployer for a ticket and connect with it: the socket (non-blocking) and the
     deployer's first message. None when the transport ``name`` does not work between the
     two ends and the policy (``auto``) lets another transport do; with ``name`` named, that
@@ -153,54 +154,3 @@ def _open(ask: Callable[[], Any], transport: str, peer: Peer, name: str = "ipc")
         if transport == name:
             raise TransportError(f"transport {name} to {peer.where}: {exc}") from None
         return None
-
-
-class _LinkOut(Conn):
-    """A link going out: the carrier of its writer end; reports come back."""
-
-    def __init__(self, hub: Hub, sock: socket.socket, end: WriterEnd) -> None:
-        super().__init__(hub, sock, end.label)
-        self.encode = frames.encoder(end.port.type)
-        self.end = end
-        self.final = threading.Event()
-
-    send = Conn.send_sample  # the carrier's send: the writer's thread (or the io thread's flush)
-
-    def drained(self) -> None:
-        self.end.flush()
-
-    def message(self, data: bytes) -> None:
-        report = pb.LinkResponse.FromString(data)
-        self.end.report(report.last, report.lost, report.pending)
-        if report.final:
-            self.final.set()
-
-    def finish(self, timeout: float) -> bool:
-        """Close gracefully: what waits goes, the sink lets its task read what it holds,
-        and reports (True) — or ``timeout`` s pass (False). Then the connection ends."""
-        self.end.flush()
-        self.put(pb.LinkRequest(closing=True).SerializeToString())
-        done = self.final.wait(timeout)
-        self.close()
-        return done
-
-    def ended_hook(self) -> None:
-        self.final.set()
-
-
-class _SubIn(Conn):
-    """A subscription coming in: frames into the reader ends of its shared feed."""
-
-    def __init__(self, hub: Hub, sock: socket.socket, feed: SharedFeed, label: str) -> None:
-        super().__init__(hub, sock, label)
-        self.feed = feed
-
-    def readable(self) -> None:
-        self.feed.alive()  # any byte: alive (a large sample is many frames)
-        super().readable()
-
-    def message(self, data: bytes) -> None:
-        self.feed.feed(pb.SubscribeResponse.FromString(data))
-
-    def ended_hook(self) -> None:
-        self.feed.ended()

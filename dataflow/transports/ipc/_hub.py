@@ -23,13 +23,20 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from dataflow.threads import OwnedThread
 from dataflow.transports._poll import GONE, IN, OUT, READABLE, WRITABLE, Poller
 from dataflow.transports.ipc._wire import CHUNK, WHOLE, Reassembler, frames_of, shutdown_quietly
 
-__all__ = ["Conn", "Hub", "TICK_S"]
+if TYPE_CHECKING:
+    from dataflow.transports.ends import OutSample
+
+__all__ = ["Conn", "Encode", "Hub", "TICK_S"]
+
+#: How a carrier makes a sample's frame: its bytes, or (shm) the sample itself, kept for a
+#: slot of shared memory when it is large.
+Encode: TypeAlias = "Callable[[OutSample[Any]], bytes | OutSample[Any]]"
 
 log = logging.getLogger(__name__)
 
@@ -274,7 +281,7 @@ class Conn:
     #: message stays a few milliseconds of its io thread's work at most.
     batch_bytes = 16 * 1024
 
-    def send_sample(self, sample: Any, data: bytes) -> bool:
+    def send_sample(self, sample: OutSample, data: bytes) -> bool:
         """A carrier's ``send``: from the writer's thread for the first :data:`INLINE_SENDS`
         connections a sample goes to (one reader, one link: no thread hand-over at all),
         else left to the io thread (False: the writer end keeps the sample, as its policy

@@ -20,12 +20,12 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 from dataflow.policy import ConnPolicy
+from scart_wire import codec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from dataflow.transports import frames
-from dataflow.transports.ipc._hub import Conn, Hub
+from dataflow.transports.ipc._hub import Conn, Encode, Hub
 from dataflow.transports.ipc._wire import WHOLE
 from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, IncomingLink, Refused, Sinks
 from dataflow.transports.served import Served
@@ -49,7 +49,7 @@ class _Ticket:
     expires: float
     peer: str
     kind: str  # "in": a link into an input port; "out": a subscription of an output port
-    request: Any  # OpenIpcWriterRequest / OpenIpcReaderRequest
+    request: pb.OpenIpcWriterRequest | pb.OpenIpcReaderRequest
     policy: ConnPolicy
     heartbeat: float
     who: str
@@ -104,8 +104,8 @@ class IpcServer:
         with self._lock:
             return len(self._conns)
 
-    def ticket(self, kind: str, request: Any, policy: ConnPolicy, peer: str, heartbeat: float = 0.5,
-               who: str = "") -> bytes:
+    def ticket(self, kind: str, request: pb.OpenIpcWriterRequest | pb.OpenIpcReaderRequest, policy: ConnPolicy,
+               peer: str, heartbeat: float = 0.5, who: str = "") -> bytes:
         """A one-time ticket for a connection of ``kind`` (``in`` or ``out``) asked by
         ``request``, for ``peer`` (its key for the per-peer bounds; ``who``: its address).
         Raises ``OverflowError`` naming the bound past it."""
@@ -164,6 +164,8 @@ class IpcServer:
         made.start()
 
     def _link_in(self, sock: socket.socket, ticket: _Ticket) -> Conn:
+        if not isinstance(ticket.request, pb.OpenIpcWriterRequest):
+            raise TypeError("a link's ticket was not asked for by OpenIpcWriter")
         hello = ticket.request.hello
         try:
             link, known = self.sinks.open(hello, ticket.policy)
@@ -293,7 +295,7 @@ class _LinkIn(Conn):
             return
         self.took(frame)
 
-    def took(self, frame: Any, values: dict[int, Any] | None = None) -> None:
+    def took(self, frame: pb.LinkRequest, values: dict[int, codec.Payload] | None = None) -> None:
         """One frame of the link (``values``: see :func:`~dataflow.transports.frames.feed`)."""
         self._unreported += frames.feed(self.link.end, frame, values) + 1
         if frame.closing:
@@ -348,7 +350,7 @@ class _ReaderOut(Conn):
 
     def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> None:
         super().__init__(hub, sock, served.end.label)
-        self.encode = frames.encoder(served.port.type)
+        self.encode: Encode = frames.encoder(served.port.type)
         self.server = server
         self.served = served
         self.heartbeat = heartbeat

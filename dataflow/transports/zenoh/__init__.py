@@ -430,6 +430,7 @@ class ZenohTransport(Transport):
     name = "zenoh"
     rank = None
     topics = True
+    carries = frozenset({"stream"})
 
     def stream(self, end: WriterEnd | ReaderEnd, topic: str, options: dict[str, str]) -> Stream:
         try:

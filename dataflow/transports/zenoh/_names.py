@@ -13,6 +13,7 @@ import secrets
 from typing import TYPE_CHECKING, Any
 from urllib.parse import unquote
 
+from scart_wire.errors import RemoteNotFoundError
 from scart_wire.security import is_loopback
 from dataflow.transports.zenoh._keys import _WORD, DEFAULT_NS, MAX_REPLIES, ROOT, SERVED, key_of
 
@@ -193,8 +194,6 @@ class ZenohNames:
 
     def resolve(self, component: str, timeout: float | None = None) -> NameEntry:
         """Where ``component`` is served; ``RemoteNotFoundError`` listing the known names."""
-        from dataflow.remote import errors
-
         try:
             key_of(self.ns, component)
         except ValueError:
@@ -203,7 +202,7 @@ class ZenohNames:
             found = self._look(component, timeout)
         if not found:
             known = ", ".join(e.component for e in self.entries(timeout)[:20]) or "none"
-            raise errors.RemoteNotFoundError(f"no component named {component[:80]!r} is served on Zenoh "
+            raise RemoteNotFoundError(f"no component named {component[:80]!r} is served on Zenoh "
                                              f"(namespace {self.ns}); known: {known}", "NOT_FOUND", "zenoh")
         return found[0]
 

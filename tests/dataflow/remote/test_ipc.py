@@ -202,8 +202,10 @@ def _start_echo(ns: str):
 
 
 def _readers(server) -> int:
-    ipc = server._servicer._ipc  # noqa: SLF001 - how many connections the deployer serves over ipc
-    return 0 if ipc is None else ipc.connections
+    from dataflow.transports.ipc._tickets import IpcServing
+
+    serving = server._servicer.channels.serving_of(IpcServing)  # noqa: SLF001 - the connections it serves over ipc
+    return 0 if serving is None or serving.server is None else serving.server.connections
 
 
 class FloatSource(TaskContext):
@@ -307,7 +309,7 @@ def test_a_reader_that_falls_behind_gets_true_write_numbers_and_never_fails_the_
                 seen += [sample.sequence for sample in reply.samples]
                 if seen and seen[-1] == 2000:
                     break
-            unsent = server._servicer.served.all()[0].dropped  # noqa: SLF001 - what the deployer could not send
+            unsent = server._servicer.channels.served.all()[0].dropped  # noqa: SLF001 - what the deployer could not send
         assert seen == sorted(seen) and len(set(seen)) == len(seen)
         values_ok = all(1 <= s <= 2000 for s in seen)
         assert values_ok and seen[-1] == 2000  # each sample tagged with its own write number

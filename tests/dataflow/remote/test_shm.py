@@ -19,7 +19,7 @@ from support.remote import address_of, start_scart, stop_process
 
 from dataflow import Array, ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext
 from dataflow.remote import connect
-from dataflow.transports import shm as shm_transport
+from dataflow.transports.ipc import shm as shm_transport
 
 pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(not shm_transport.available(), reason="shm needs Linux anonymous memory files")]

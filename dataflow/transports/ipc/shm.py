@@ -1,9 +1,9 @@
-"""Transport ``shm``: the same-host path for large samples, through shared memory
+"""Transport ``shm``: ipc's own path for large samples, through shared memory
 (registered as the ``scart.transports`` entry point ``shm``; rank 5, so ``auto`` tries it
-first, for the ports it is for).
+first, for the ports it is for). It lives in ipc's folder because it is ipc.
 
 It is ipc (its tickets, socket, io thread and counting), with one difference: a sample
-whose value is 64 KiB or more (:data:`~._conns.LARGE_BYTES`: an image, a point cloud) is
+whose value is 64 KiB or more (:data:`~._shm_conns.LARGE_BYTES`: an image, a point cloud) is
 written once into a slot of the channel's shared memory, and only a small frame naming
 the slot crosses the socket. The reader maps the slot read-only: an array type's value is
 a read-only view of the writer's bytes, valid as long as the task holds it; the slot goes
@@ -32,24 +32,13 @@ names its segments in ``/dev/shm``: a killed process leaks them.
 
 from __future__ import annotations
 
-from typing import Any
-
 from dataflow.transports import Peer, TransportError
 from dataflow.transports.ends import ReaderEnd, WriterEnd
 from dataflow.transports.ipc import IpcTransport
-from dataflow.transports.shm._conns import LARGE_BYTES, ShmFlavour, ShmLinkOut, ShmSubIn
-from dataflow.transports.shm._slots import available
+from dataflow.transports.ipc._shm_conns import LARGE_BYTES, ShmLinkOut, ShmSubIn, carries_large
+from dataflow.transports.ipc._slots import available
 
-__all__ = ["LARGE_BYTES", "ShmFlavour", "ShmTransport", "available", "carries_large"]
-
-
-def carries_large(py_type: Any) -> bool:
-    """Whether a port of ``py_type`` may carry samples of :data:`LARGE_BYTES` or more:
-    ``bytes``, or an array type whose fixed size (if any) is that large."""
-    if py_type is bytes:
-        return True
-    size = getattr(py_type, "fixed_bytes", 0)
-    return hasattr(py_type, "fixed_bytes") and (size is None or size >= LARGE_BYTES)
+__all__ = ["LARGE_BYTES", "ShmTransport", "available", "carries_large"]
 
 
 class ShmTransport(IpcTransport):

@@ -1,5 +1,7 @@
-"""shm's connections (private): ipc's, with a large sample's bytes in a shared-memory
-slot instead of on the socket.
+"""shm's connections at the side that asked for them, and what both sides share
+(private): ipc's, with a large sample's bytes in a shared-memory slot instead of on the
+socket. The deployer's side (a link coming in, a subscription served) is
+:mod:`._shm_serve`.
 
 * The writer's side (:class:`SlotSender`, mixed into a link going out and a subscription
   served): a sample whose value is at least :data:`LARGE_BYTES` is written into a free
@@ -21,25 +23,25 @@ import socket
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
-from dataflow.policy import ConnType
+from dataflow.policy import ConnPolicy, ConnType
+from dataflow.ports import OutputPort
 from dataflow.transports import frames
-from dataflow.transports.ends import OutSample
-from dataflow.transports.ipc import _LinkOut, _SubIn
+from dataflow.transports._shared import SharedFeed
+from dataflow.transports.ends import OutSample, WriterEnd
+from dataflow.transports.ipc._conns import LinkOut, SubIn
 from dataflow.transports.ipc._hub import READS_PER_WAKE, Conn, Hub
-from dataflow.transports.ipc._serve import Flavour, IpcServer, _LinkIn, _ReaderOut
 from dataflow.transports.ipc._wire import CHUNK, WHOLE
 from dataflow.transports.limits import MAX_FRAME_BYTES, SampleTooLarge
-from dataflow.transports.shm._slots import Slot, SlotMaps, SlotPool
-from dataflow.transports.sinks import IncomingLink
-from dataflow.transports.served import Served
+from dataflow.transports.ipc._slots import Slot, SlotMaps, SlotPool
 from scart_wire import codec
 from scart_wire.arrays import ArraySpec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from scart_wire.types import registry
 
-__all__ = ["LARGE_BYTES", "ShmFlavour", "ShmLinkOut", "ShmSubIn", "large_size"]
+__all__ = ["LARGE_BYTES", "ShmLinkOut", "ShmSubIn", "SlotReader", "SlotSender", "carries_large", "large_size"]
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +63,16 @@ def large_size(value: Any) -> int:
     return 0
 
 
-def slots_for(policy: Any) -> int:
+def carries_large(py_type: Any) -> bool:
+    """Whether a port of ``py_type`` may carry samples of :data:`LARGE_BYTES` or more:
+    ``bytes``, or an array type whose fixed size (if any) is that large."""
+    if py_type is bytes:
+        return True
+    size = getattr(py_type, "fixed_bytes", 0)
+    return hasattr(py_type, "fixed_bytes") and (size is None or size >= LARGE_BYTES)
+
+
+def slots_for(policy: ConnPolicy) -> int:
     """The slots a channel of ``policy`` may have: its buffer, and :data:`EXTRA_SLOTS`."""
     return (1 if policy.type is ConnType.DATA else policy.size) + EXTRA_SLOTS
 
@@ -72,13 +83,13 @@ class SlotSender(Conn):
 
     batch_bytes = 0  # a large sample's frame is not bytes: queued samples go one by one
     pool: SlotPool
-    plain: Any  # the frame encoder of the port's type (small samples)
+    plain: Callable[[OutSample], bytes]  # the frame encoder of the port's type (small samples)
 
-    def init_slots(self, port: Any, policy: Any) -> None:
+    def init_slots(self, port: OutputPort, policy: ConnPolicy) -> None:
         self.plain = frames.encoder(port.type)
         self.pool = SlotPool(slots_for(policy))
 
-    def encode_large(self, sample: OutSample) -> Any:
+    def encode_large(self, sample: OutSample) -> bytes | OutSample:
         """The carrier's ``encode``: a small sample's frame (bytes), or the sample itself:
         written into a slot when sent. Raises :class:`~dataflow.transports.limits.SampleTooLarge` over the limit."""
         size = large_size(sample.value)
@@ -88,12 +99,12 @@ class SlotSender(Conn):
             raise SampleTooLarge(size)
         return sample
 
-    def send(self, sample: OutSample, data: Any) -> bool:
-        if type(data) is bytes:
+    def send(self, sample: OutSample, data: bytes | OutSample) -> bool:
+        if isinstance(data, bytes):
             return self.send_sample(sample, data)
         value, py_type = sample.value, sample.type
         if type(value) is bytes:
-            body: Any = value
+            body: bytes | None = value
         else:  # an array: written as it is into the slot; any other type: its wire bytes
             body = None if isinstance(py_type, ArraySpec) else registry.encode(value, py_type).data
         size = len(body) if body is not None else large_size(value)
@@ -137,7 +148,7 @@ class SlotSender(Conn):
         finally:
             self._lock.release()
 
-    def released(self, report: Any) -> bool:
+    def released(self, report: pb.LinkResponse) -> bool:
         """A reader's message giving slots back (True: that is all it is)."""
         if not report.released:
             return False
@@ -148,7 +159,7 @@ class SlotSender(Conn):
         self.pool.close()
 
 
-def _fill(slot: Slot, value: Any, body: Any) -> None:
+def _fill(slot: Slot, value: Any, body: bytes | None) -> None:
     """Write a value's wire form into ``slot`` (its one copy): ``body`` (its bytes), or
     for an array, its shape then its data."""
     import numpy as np
@@ -169,36 +180,17 @@ def _array_head(value: Any) -> bytes:
     return struct.pack(f"<B{value.ndim}Q", value.ndim, *value.shape)
 
 
-class ShmLinkOut(SlotSender, _LinkOut):
+class ShmLinkOut(SlotSender, LinkOut):
     """A link going out on shm: ipc's, with its large samples in slots."""
 
-    def __init__(self, hub: Hub, sock: socket.socket, end: Any) -> None:
-        _LinkOut.__init__(self, hub, sock, end)
+    def __init__(self, hub: Hub, sock: socket.socket, end: WriterEnd) -> None:
+        LinkOut.__init__(self, hub, sock, end)
         self.init_slots(end.port, end.policy)
         self.encode = self.encode_large  # the instance's own: slots are this channel's
 
     def message(self, data: bytes) -> None:
         if not self.released(pb.LinkResponse.FromString(data)):
             super().message(data)
-
-    def ended_hook(self) -> None:
-        super().ended_hook()
-        self.close_slots()
-
-
-class ShmReaderOut(SlotSender, _ReaderOut):
-    """A subscription served on shm: ipc's, with its large samples in slots."""
-
-    def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> None:
-        _ReaderOut.__init__(self, hub, sock, server, served, heartbeat)
-        self.init_slots(served.port, served.policy)
-        self.encode = self.encode_large  # the instance's own: slots are this channel's
-
-    def message(self, data: bytes) -> None:
-        try:
-            self.released(pb.LinkResponse.FromString(data))
-        except Exception:  # noqa: BLE001 - not a release: counted with the malformed ones
-            self._assembler.dropped += 1
 
     def ended_hook(self) -> None:
         super().ended_hook()
@@ -249,7 +241,7 @@ class SlotReader(Conn):
                     log.exception("shm %s: a message could not be handled", self.label)
             self._close_stray_fds()
 
-    def slot_values(self, message: Any) -> dict[int, Any] | None:
+    def slot_values(self, message: pb.SubscribeResponse | pb.LinkRequest) -> dict[int, codec.Payload] | None:
         """Map the slots ``message`` announces; the values of its samples that name one
         (a :class:`~scart_wire.codec.Payload` over the slot's bytes, or an empty one that
         fails its check for a slot that is not there: refused and counted)."""
@@ -260,7 +252,7 @@ class SlotReader(Conn):
             if not self._fds:
                 raise ValueError(f"slot {slot.id} announced without its memory")
             self.maps.add(slot.id, slot.size, self._fds.popleft())
-        values: dict[int, Any] | None = None
+        values: dict[int, codec.Payload] | None = None
         for i, sample in enumerate(message.samples):
             if sample.slot:
                 try:
@@ -305,11 +297,11 @@ class SlotReader(Conn):
         self.maps.close()
 
 
-class ShmSubIn(SlotReader, _SubIn):
+class ShmSubIn(SlotReader, SubIn):
     """A subscription read on shm: ipc's, with large samples viewed in shared memory."""
 
-    def __init__(self, hub: Hub, sock: socket.socket, feed: Any, label: str) -> None:
-        _SubIn.__init__(self, hub, sock, feed, label)
+    def __init__(self, hub: Hub, sock: socket.socket, feed: SharedFeed, label: str) -> None:
+        SubIn.__init__(self, hub, sock, feed, label)
         self.init_maps()
 
     def readable(self) -> None:
@@ -321,34 +313,3 @@ class ShmSubIn(SlotReader, _SubIn):
         values = self.slot_values(message) if message.slots or message.samples else None
         if message.samples or not message.slots:
             self.feed.feed(message, values)
-
-
-class ShmLinkIn(SlotReader, _LinkIn):
-    """A link coming in on shm: ipc's, with large samples viewed in shared memory."""
-
-    def __init__(self, hub: Hub, sock: socket.socket, server: IpcServer, link: IncomingLink, known: bool) -> None:
-        _LinkIn.__init__(self, hub, sock, server, link, known)
-        self.init_maps()
-        self.link.end.transport = "shm"
-
-    def message(self, data: bytes) -> None:
-        try:
-            frame = pb.LinkRequest.FromString(data)
-        except Exception:  # noqa: BLE001 - not a frame: counted with the malformed ones
-            self._assembler.dropped += 1
-            return
-        values = self.slot_values(frame) if frame.slots or frame.samples else None
-        if frame.samples or not frame.slots:
-            self.took(frame, values)
-
-
-class ShmFlavour(Flavour):
-    """What an ipc ticket asking for shm opens at the deployer (see
-    :class:`~dataflow.transports.ipc._serve.Flavour`)."""
-
-    def link_in(self, hub: Hub, sock: socket.socket, server: IpcServer, link: IncomingLink, known: bool) -> Conn:
-        return ShmLinkIn(hub, sock, server, link, known)
-
-    def reader_out(self, hub: Hub, sock: socket.socket, server: IpcServer, served: Served, heartbeat: float) -> Conn:
-        return ShmReaderOut(hub, sock, server, served, heartbeat)
-
