@@ -298,7 +298,11 @@ def start_scart(args: list[str], ns: str | None = None, ready: str = "serving", 
     """Start ``scart ARGS`` and wait (≤ ``timeout``) for a stderr line containing ``ready``.
 
     Returns ``(process, line)``. Raises ``AssertionError`` with the output on failure.
+    A ``deploy`` told neither ``--ns`` nor ``--listen`` listens on a free port, not on the
+    default name-service port (another run on this host may hold it).
     """
+    if args[:1] == ["deploy"] and ns is None and not {"--ns", "--listen"} & set(args):
+        args = [*args, "--listen", "127.0.0.1:0"]
     proc = subprocess.Popen(
         [sys.executable, "-m", "scart", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         env=subprocess_env(ns), text=True, bufsize=1,

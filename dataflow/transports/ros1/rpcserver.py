@@ -16,6 +16,7 @@ import collections
 import io
 import logging
 import socket
+import sys
 import threading
 import time
 from typing import Any, ClassVar
@@ -110,8 +111,13 @@ class _PooledServer(SimpleXMLRPCServer):
             self.shutdown_request(request)
 
     def handle_error(self, request: Any, client_address: Any) -> None:
-        """socketserver prints a traceback to stderr here: log it instead (the server goes on)."""
-        log.error("ROS 1 XML-RPC: request from %s failed", client_address[0], exc_info=True)
+        """socketserver prints a traceback to stderr here: log it instead (the server goes
+        on). A connection cut (the client gone, or ours cut at close) is one line, no trace."""
+        exc = sys.exc_info()[1]
+        if isinstance(exc, OSError):
+            log.info("ROS 1 XML-RPC: connection from %s cut: %s", client_address[0], exc)
+        else:
+            log.error("ROS 1 XML-RPC: request from %s failed", client_address[0], exc_info=True)
 
 
 class _Workers:
