@@ -35,7 +35,7 @@ from dataflow.transports import TransportError
 from dataflow.transports._rosplan import signature_of
 from dataflow.transports.ros1.transport import NODE_OPTIONS
 from dataflow.transports.ros2._errors import Ros2Error
-from scart.bindings.dataflow._elements import Serving, check_each
+from scart.bindings.dataflow._elements import Served, Serving, check_each
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Problem
@@ -204,7 +204,7 @@ class RosServiceParticipant(Serving[RosService]):
     def what(self, rs: RosService) -> str:
         return f"ROS service {rs.service} ({rs.where})"
 
-    def serve(self, rs: RosService) -> Any:
+    def serve(self, rs: RosService) -> Served:
         made = self._serve(rs)
         log.info("ROS service %s (%s, %s) answered by %s", made.name, rs.type, rs.transport, made.label)
         return made
