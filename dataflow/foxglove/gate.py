@@ -177,7 +177,8 @@ class WebSocketGate:
     ``port`` is the bound port once started."""
 
     def __init__(self, host: str, port: int, inner: tuple[str, int], origins: Iterable[str] = FOXGLOVE_ORIGINS, *,
-                 tokens: Callable[[str], bool] | None = None, tokens_required: bool = False, guard: InnerGuard | None = None,
+                 tokens: Callable[[str], bool] | None = None, tokens_required: bool = False,
+                 guard: InnerGuard | None = None,
                  max_connections: int = 64, max_per_token: int = 16, max_tokenless: int = 16,
                  max_tokenless_per_peer: int = 4, max_pending: int = 64, max_pending_per_peer: int = 16,
                  auth_timeout: float = AUTH_TIMEOUT) -> None:

@@ -164,7 +164,8 @@ class _Bridge:
         params = [p for p, _ in op.params]
         request: dict[str, JsonValue] = {"title": f"{name} request", "type": "object", "required": [*params],
                    "properties": {p: type_schema(t) for p, t in op.params}}
-        response: dict[str, JsonValue] = {"title": f"{name} response", "type": "object", "properties": {"result": type_schema(op.returns)}}
+        response: dict[str, JsonValue] = {"title": f"{name} response", "type": "object",
+                                          "properties": {"result": type_schema(op.returns)}}
 
         def schema(title: str, body: dict[str, JsonValue]) -> MessageSchema:
             return MessageSchema(encoding="json", schema=foxglove.Schema(

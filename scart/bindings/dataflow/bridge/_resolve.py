@@ -277,7 +277,8 @@ class Resolver:
         self._resolved[spec.name] = resolved
         return resolved
 
-    def converter(self, spec: BridgeSpec, inp: InputSpec, src: object) -> tuple[Callable[[object], object] | None, object]:
+    def converter(self, spec: BridgeSpec, inp: InputSpec,
+                  src: object) -> tuple[Callable[[object], object] | None, object]:
         where = f"bridge {spec.name!r} input {inp.name!r}"
         if inp.path is not None:
             path = inp.path
