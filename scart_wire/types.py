@@ -56,7 +56,7 @@ class Encoded:
     data: bytes
 
 
-class UnknownValue(dict[str, Any]):
+class UnknownValue(dict[str, object]):
     """A decoded value whose type name this process does not know: a plain mapping."""
 
     def __init__(self, type_name: str, *args: Any, **kwargs: Any) -> None:
@@ -239,7 +239,7 @@ class TypeRegistry:
 
         return check
 
-    def validate(self, py_type: Any, value: Any) -> Any:
+    def validate(self, py_type: Any, value: object) -> Any:
         """Coerce ``value`` to ``py_type`` (pydantic lax mode) or raise ``PortTypeError``."""
         if rosmsgs.is_message_class(py_type):
             return value if isinstance(value, py_type) else self.from_jsonable(py_type, value)
@@ -270,7 +270,7 @@ class TypeRegistry:
             return rosmsgs.to_jsonable(value)
         return value
 
-    def from_jsonable(self, py_type_or_name: Any, obj: Any) -> Any:
+    def from_jsonable(self, py_type_or_name: Any, obj: object) -> Any:
         """Build a value of the given type (or registered name) from JSON-able data.
 
         An unknown name gives an :class:`UnknownValue`; a mismatch raises ``PortTypeError``.
