@@ -26,6 +26,7 @@ starts (after every component's ``@init``), withdrawn when it stops.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -169,7 +170,7 @@ def _check(rs: RosService, assembly: AssemblyView, context: CheckContext) -> lis
     return [f"<scart:rosservice> {rs.service} ({rs.type}) by {what}: {p}" for p in problems]
 
 
-def _callable_of(rs: RosService, assembly: AssemblyView) -> tuple[Any, str]:
+def _callable_of(rs: RosService, assembly: AssemblyView) -> tuple[Callable[..., object], str]:
     """The function a service will call, as declared on its class (for the check)."""
     if rs.operation:
         task, _, op = rs.operation.rpartition(".")
@@ -215,7 +216,7 @@ class RosServiceParticipant(Serving[RosService]):
         if rs.transport == "ros2":
             from dataflow.transports import ros2 as lib
 
-            how: dict[str, Any] = dict(options=dict(rs.options))
+            how: dict[str, object] = dict(options=dict(rs.options))
         else:
             from dataflow.transports.ros1 import calls as lib
 
