@@ -16,7 +16,6 @@ import math
 import random
 import threading
 import time
-from typing import Any
 
 from .server import MonitorServer
 
@@ -154,7 +153,7 @@ class SyntheticArm:
             server.publish_event("idle", f"at {name}")
             server.publish_event("reached", name)
 
-    def _advance(self, dt: float) -> tuple[dict[str, Any], bool]:
+    def _advance(self, dt: float) -> tuple[dict[str, object], bool]:
         joints = []
         for i in range(JOINTS):
             error = self._target[i] - self._pos[i]

@@ -18,7 +18,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from typing import NotRequired, TypedDict
 
 RATE_WINDOW_S = 1.0
 """Measured rate = samples whose timestamp lies in the last RATE_WINDOW_S of sample time."""
@@ -50,6 +50,49 @@ def flag_names(word: int, names: dict[int, str]) -> list[str]:
     return [names.get(bit, f"bit{bit}") for bit in range(word.bit_length()) if word >> bit & 1]
 
 
+class Driver(TypedDict):
+    """The driver's state as the page shows it."""
+
+    state: str
+    period: float | None
+    connected: bool
+
+
+class Event(TypedDict):
+    """One event of the log (``busy``, ``idle``, ``error``, ...)."""
+
+    id: int
+    name: str
+    detail: str
+    time: float
+
+
+class Coalesced(TypedDict):
+    """An event counted, not logged one by one: how often, when last, its detail (and, in a
+    snapshot, how long ago)."""
+
+    count: int
+    last: float
+    detail: str
+    age: NotRequired[float]
+
+
+class Snapshot(TypedDict):
+    """The page's view (:meth:`StatusHub.snapshot`); ``status`` a JSON text, put in last."""
+
+    version: int
+    age: float | None
+    rate: float
+    samples: int
+    driver: Driver
+    summary: dict[str, object] | None
+    gripper: dict[str, object] | None
+    flags: list[list[str]]
+    events: list[Event]
+    coalesced: dict[str, Coalesced]
+    status: NotRequired[str]
+
+
 class StatusHub:
     """Latest-value store with a condition; thread-safe; no method blocks except `wait`.
 
@@ -63,17 +106,17 @@ class StatusHub:
         self._version = 0
         self._closed = False
         self._status: dict[str, object] | None = None
-        self._summary: dict[str, Any] | None = None  # the demo bridge's newest ArmSummary
-        self._gripper: dict[str, Any] | None = None  # the gripper in base_link, from the frame tree
+        self._summary: dict[str, object] | None = None  # the demo bridge's newest ArmSummary
+        self._gripper: dict[str, object] | None = None  # the gripper in base_link, from the frame tree
         self._status_json = "null"
         self._status_json_of = 0  # the sample count that _status_json encodes
         self._received_at: float | None = None
         self._stamps: deque[float] = deque()
         self._samples = 0
-        self._events: deque[dict[str, Any]] = deque(maxlen=MAX_EVENTS)
+        self._events: deque[Event] = deque(maxlen=MAX_EVENTS)
         self._event_id = 0
-        self._coalesced: dict[str, dict[str, Any]] = {}
-        self._driver: dict[str, Any] = {"state": "unknown", "period": None, "connected": False}
+        self._coalesced: dict[str, Coalesced] = {}
+        self._driver: Driver = {"state": "unknown", "period": None, "connected": False}
         self._flag_names: dict[int, str] = {}
         self._flag_words: list[int] | None = None  # each joint's error word in the last sample
         self._history: deque[tuple[float, dict[str, object]]] = deque()  # (arrival, status), last HISTORY_S
@@ -129,13 +172,13 @@ class StatusHub:
                 self._add_event("period", f"{before['period'] * 1000:g} ms → {period * 1000:g} ms")
             self._bump()
 
-    def set_summary(self, summary: dict[str, Any]) -> None:
+    def set_summary(self, summary: dict[str, object]) -> None:
         """Keep the newest bridge summary; it goes out with the next status (no wake-up of
         its own: it changes at the status's rate)."""
         with self._cond:
             self._summary = dict(summary)
 
-    def set_gripper(self, gripper: dict[str, Any]) -> None:
+    def set_gripper(self, gripper: dict[str, object]) -> None:
         """Keep where the gripper is in ``base_link`` (``x``, ``y``, ``z`` [m], ``stamp`` [s]);
         it goes out with the next status, as the summary does."""
         with self._cond:
@@ -175,7 +218,7 @@ class StatusHub:
             self._cond.wait_for(lambda: self._closed or self._version != seen_version, timeout)
             return self._version
 
-    def snapshot(self, after_event: int = 0) -> tuple[dict[str, Any], int]:
+    def snapshot(self, after_event: int = 0) -> tuple[Snapshot, int]:
         """The page's view now, with events whose id is greater than ``after_event``.
 
         Returns ``(message, last_event_id)``; the status is embedded pre-serialised as
@@ -188,17 +231,17 @@ class StatusHub:
             cached = self._status_json if self._status_json_of == samples else None
             age = None if self._received_at is None else now - self._received_at
             events = [e for e in self._events if e["id"] > after_event]
-            message: dict[str, Any] = {
+            message: Snapshot = {
                 "version": self._version,
                 "age": age,
                 "rate": self._rate(age),
                 "samples": self._samples,
-                "driver": dict(self._driver),
+                "driver": self._driver.copy(),
                 "summary": None if self._summary is None else dict(self._summary),
                 "gripper": None if self._gripper is None else dict(self._gripper),
                 "flags": self._decoded_flags(status),
                 "events": events,
-                "coalesced": {k: dict(v, age=time.time() - v["last"]) for k, v in self._coalesced.items()},
+                "coalesced": {k: {**v, "age": time.time() - v["last"]} for k, v in self._coalesced.items()},
             }
             last_event = self._event_id
         if cached is None:

@@ -78,14 +78,20 @@ import urllib.parse
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from types import MappingProxyType
-from typing import Any, Protocol, runtime_checkable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
 from scart_wire.bounds import check_argument
 from scart_wire.errors import DataflowError
 from scart_wire.security import is_loopback
 
 from .connections import Connections
-from .hub import StatusHub
+from .hub import Snapshot, StatusHub
+
+if TYPE_CHECKING:
+    from pydantic import JsonValue
+
+A = TypeVar("A")
 
 log = logging.getLogger(__name__)
 
@@ -243,7 +249,7 @@ class _HTTPServer(ThreadingHTTPServer):
         """Every loop of ``serve_forever``: end the requests past their deadline."""
         self.connections.sweep()
 
-    def _serve_connection(self, request: Any, client_address: Any) -> None:
+    def _serve_connection(self, request: socket.socket, client_address: tuple[str, int]) -> None:
         try:
             self.finish_request(request, client_address)
         except (ConnectionError, TimeoutError, OSError):
@@ -270,7 +276,7 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "scart-monitor/0.1"
     timeout = 10.0  # a connection that never sends its request line does not pin a thread
 
-    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib name
+    def log_message(self, format: str, *args: object) -> None:  # noqa: A002 - stdlib name
         if log.isEnabledFor(logging.DEBUG):  # request lines may carry ?token=: never logged
             log.debug("monitor: %s", _TOKEN_IN_TEXT.sub(r"\1***", format % args))
 
@@ -315,9 +321,8 @@ class _Handler(BaseHTTPRequestHandler):
             self._send(HTTPStatus.OK, script, "text/javascript; charset=utf-8", cache=True)
         elif path == "/api/state":
             state, _ = monitor._hub.snapshot()
-            state["status"] = json.loads(state["status"])
-            state["poses"] = monitor._safe_poses()
-            self._send_json(HTTPStatus.OK, state)
+            doc = {**state, "status": json.loads(state["status"]), "poses": monitor._safe_poses()}
+            self._send_json(HTTPStatus.OK, doc)
         elif path == "/api/poses":
             self._send_json(HTTPStatus.OK, {"poses": monitor._safe_poses()})
         elif path == "/api/history":
@@ -377,7 +382,7 @@ class _Handler(BaseHTTPRequestHandler):
         token, _, number = self.headers.get("Last-Event-ID", "").partition(":")
         return int(number) if token == instance and number.isdigit() else 0
 
-    def _json_body(self) -> Any:
+    def _json_body(self) -> JsonValue:
         ctype = self.headers.get("Content-Type", "").split(";", 1)[0].strip().lower()
         if ctype != "application/json":
             raise _BadRequest(
@@ -396,7 +401,7 @@ class _Handler(BaseHTTPRequestHandler):
         except (ValueError, UnicodeDecodeError) as exc:
             raise _BadRequest(f"body is not valid JSON: {exc}") from None
 
-    def _call(self, func: Any, arg: Any) -> tuple[bool, str]:
+    def _call(self, func: Callable[[A], tuple[object, object]], arg: A) -> tuple[bool, str]:
         try:
             ok, message = func(arg)
         except Exception as exc:  # noqa: BLE001 - the host's failure is reported, not raised
@@ -415,7 +420,7 @@ class _Handler(BaseHTTPRequestHandler):
         self.end_headers()
         self.wfile.write(body)
 
-    def _send_json(self, status: HTTPStatus, obj: Any, extra: tuple[tuple[str, str], ...] = ()) -> None:
+    def _send_json(self, status: HTTPStatus, obj: object, extra: tuple[tuple[str, str], ...] = ()) -> None:
         self._send(status, json.dumps(obj, default=str).encode(), "application/json", extra=extra)
 
     def _events_if_room(self) -> None:
@@ -460,7 +465,7 @@ class _Handler(BaseHTTPRequestHandler):
             hub.wait(seen, HEARTBEAT_S)
 
 
-def _sse_frame(message: dict[str, Any], event_id: str) -> bytes:
+def _sse_frame(message: Snapshot, event_id: str) -> bytes:
     status_json = message.pop("status")
     body = json.dumps(message, default=str)
     # Splice the pre-serialised status in, rather than decoding and re-encoding it.
@@ -472,7 +477,7 @@ def _sse_frame(message: dict[str, Any], event_id: str) -> bytes:
 _COMMANDS = MappingProxyType({"/api/period": "set_period", "/api/pose": "move"})
 
 
-def _number(body: Any, key: str) -> float:
+def _number(body: JsonValue, key: str) -> float:
     """``body[key]``, a finite number (a refusal worded as the one check of operation
     arguments words it: ``set_period(seconds): VALUE refused: REASON``)."""
     if not isinstance(body, dict) or key not in body:
@@ -483,7 +488,7 @@ def _number(body: Any, key: str) -> float:
         raise _BadRequest(str(exc)) from None
 
 
-def _pose(body: Any) -> str | list[float]:
+def _pose(body: JsonValue) -> str | list[float]:
     if not isinstance(body, dict) or "pose" not in body:
         raise _BadRequest('expected a JSON object like {"pose": "home"} or {"pose": [0, 0, 0, 0, 0]}')
     pose = body["pose"]
@@ -492,7 +497,7 @@ def _pose(body: Any) -> str | list[float]:
     if isinstance(pose, list) and pose and all(
         isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pose
     ):
-        return [float(v) for v in pose]
+        return [float(v) for v in pose if isinstance(v, (int, float))]  # all of them (checked above)
     raise _BadRequest(f"move(pose): {pose!r:.80} refused: Input should be a pose name or a list of finite joint "
                       "positions")
 

@@ -26,7 +26,15 @@ import re
 import struct
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import DTypeLike
+    from pydantic import GetCoreSchemaHandler
+    from pydantic_core import CoreSchema
+
+T = TypeVar("T")
 
 __all__ = ["Array", "ArraySpec", "DTYPES", "RAW_IMAGE", "array_spec", "from_message", "image_encoding", "to_message"]
 
@@ -38,7 +46,7 @@ PREFIX = "ndarray<"
 _NAME = re.compile(r"^ndarray<([a-z0-9]+)>(?:\[((?:\*|\d{1,10})(?:,(?:\*|\d{1,10})){0,7})\])?$")
 
 
-def _dtype_name(dtype: Any) -> str:
+def _dtype_name(dtype: DTypeLike) -> str:
     import numpy as np
 
     try:
@@ -94,7 +102,7 @@ class ArraySpec:
         return 1 + 8 * len(self.shape) + count * _itemsize(self.dtype)
 
     # ---- checks ---------------------------------------------------------------------
-    def mismatch(self, value: Any) -> str:
+    def mismatch(self, value: object) -> str:
         """What ``value`` is, when it is not a sample of this type ("" when it is):
         ``ndarray<float64>[480,640]``, ``list [[1, 2], ...``."""
         import numpy as np
@@ -109,7 +117,7 @@ class ArraySpec:
             return describe(value)
         return ""
 
-    def check(self, value: Any) -> Any:
+    def check(self, value: T) -> T:
         """``value`` when it is an array of this dtype and shape; ``TypeError`` saying what
         it is otherwise (a port's check: exact, no conversion)."""
         why = self.mismatch(value)
@@ -117,12 +125,12 @@ class ArraySpec:
             raise TypeError(why)
         return value
 
-    def coerce(self, value: Any) -> Any:
+    def coerce(self, value: object) -> np.ndarray:
         """``value`` as an array of this type: an array of it as it is, else a list (a
         value typed on the command line) converted; ``ValueError`` when it does not fit."""
         import numpy as np
 
-        if not self.mismatch(value):
+        if isinstance(value, np.ndarray) and not self.mismatch(value):
             return value
         if isinstance(value, dict):  # a recorded message (scart record, the Foxglove app)
             value = from_message(value, self)
@@ -136,7 +144,7 @@ class ArraySpec:
         return array
 
     # ---- the wire ---------------------------------------------------------------------
-    def encode(self, value: Any) -> bytes:
+    def encode(self, value: np.ndarray) -> bytes:
         """``value`` (checked) as wire bytes: shape, then the C-order little-endian data."""
         import numpy as np
 
@@ -145,7 +153,7 @@ class ArraySpec:
         head = struct.pack(f"<B{value.ndim}Q", value.ndim, *value.shape)
         return b"".join((head, np.ascontiguousarray(value).data))
 
-    def decode(self, data: Any) -> Any:
+    def decode(self, data: bytes | bytearray | memoryview) -> np.ndarray:
         """Wire bytes (``bytes`` or a buffer) as a read-only array of this type, over
         ``data`` (no copy); ``ValueError`` when they do not fit."""
         import numpy as np
@@ -174,7 +182,7 @@ class ArraySpec:
         return array
 
     # ---- pydantic (lax validation: registry.validate, scart write) ----------------------
-    def __get_pydantic_core_schema__(self, source: Any, handler: Any) -> Any:
+    def __get_pydantic_core_schema__(self, source: object, handler: GetCoreSchemaHandler) -> CoreSchema:
         from pydantic_core import core_schema
 
         return core_schema.no_info_plain_validator_function(
@@ -198,7 +206,7 @@ def image_encoding(dtype: str, shape: tuple[int | None, ...] | None) -> str | No
     return IMAGE_ENCODINGS.get((dtype, channels)) if channels is not None else None
 
 
-def to_message(value: Any) -> dict[str, Any]:
+def to_message(value: np.ndarray) -> dict[str, object]:
     """An array as a JSON message (what ``scart record`` and the Foxglove app carry): an
     image as ``foxglove.RawImage`` (width, height, encoding, step, base64 data), any other
     array as its shape, element type and base64 data."""
@@ -216,7 +224,7 @@ def to_message(value: Any) -> dict[str, Any]:
             "data": data}
 
 
-def from_message(message: Any, spec: ArraySpec) -> Any:
+def from_message(message: dict[str, Any], spec: ArraySpec) -> np.ndarray:
     """The array a :func:`to_message` message holds, as ``spec``; ``ValueError`` when it
     does not fit."""
     import base64
@@ -242,7 +250,7 @@ def _itemsize(dtype: str) -> int:
     return int(np.dtype(dtype).itemsize)
 
 
-def describe(value: Any) -> str:
+def describe(value: np.ndarray) -> str:
     """An array in a few words: ``ndarray<float64>[480,640]``."""
     return f"{PREFIX}{value.dtype.name}>[{','.join(str(s) for s in value.shape)}]"
 
@@ -251,7 +259,7 @@ class Array:
     """``Array[dtype]`` or ``Array[dtype, shape]``: an :class:`ArraySpec` (see the module
     docstring). ``shape`` is a tuple of sizes or ``None`` (any size), or one size."""
 
-    def __class_getitem__(cls, params: Any) -> ArraySpec:
+    def __class_getitem__(cls, params: object) -> ArraySpec:
         if not isinstance(params, tuple):
             params = (params,)
         if len(params) not in (1, 2):

@@ -27,7 +27,8 @@ import math
 import types
 import typing
 from dataclasses import dataclass
-from typing import Annotated, Any
+from collections.abc import Callable
+from typing import Annotated, Any, TypeVar
 
 import pydantic
 
@@ -37,14 +38,16 @@ from .errors import PortTypeError, PortValueError
 __all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "nesting_depth",
            "non_finite", "refuse_unknown_fields", "unknown_field"]
 
+T = TypeVar("T")
+
 _NUMBERS = (float, int)
 _ATOMS = (int, bool, str, bytes, type(None))
 
 
-def non_finite(value: Any) -> float | None:
+def non_finite(value: object) -> float | None:
     """The first NaN or infinite number found anywhere in ``value`` (floats, complex
     numbers, lists, tuples, sets, dict values, pydantic models, dataclasses), else None."""
-    stack = [value]
+    stack: list[Any] = [value]  # any data, walked by exact type (no isinstance on the common kinds)
     while stack:
         v = stack.pop()
         kind = type(v)
@@ -70,7 +73,7 @@ def non_finite(value: Any) -> float | None:
     return None
 
 
-def _all_finite(value: Any) -> Any:
+def _all_finite(value: T) -> T:
     bad = non_finite(value)
     if bad is not None:
         raise ValueError(f"{bad} is not a finite number")
@@ -82,7 +85,7 @@ FINITE = pydantic.AfterValidator(_all_finite)
 
 
 @functools.lru_cache(maxsize=1024)
-def _may_hold_floats(hint: Any, depth: int = 0) -> bool:
+def _may_hold_floats(hint: object, depth: int = 0) -> bool:
     """Can a value of ``hint`` hold a float (so that finiteness applies)?"""
     if depth > 8:
         return True
@@ -100,7 +103,7 @@ def _may_hold_floats(hint: Any, depth: int = 0) -> bool:
         if rosmsgs.is_message_class(hint):  # ROS's own: a NaN means what ROS says (an invalid point), as in arrays
             return False
         if issubclass(hint, pydantic.BaseModel):
-            annotations: list[Any] = [f.annotation for f in hint.model_fields.values()]  # any type form
+            annotations: list[object] = [f.annotation for f in hint.model_fields.values()]  # any type form
             return any(_may_hold_floats(a, depth + 1) for a in annotations)
         if dataclasses.is_dataclass(hint):
             try:
@@ -112,7 +115,7 @@ def _may_hold_floats(hint: Any, depth: int = 0) -> bool:
     return False
 
 
-def _allows_inf_nan(hint: Any) -> bool:
+def _allows_inf_nan(hint: object) -> bool:
     """Does an ``Annotated`` hint say ``allow_inf_nan=True`` (pydantic ``Field``)?"""
     if typing.get_origin(hint) is not Annotated:
         return False
@@ -123,7 +126,7 @@ def _allows_inf_nan(hint: Any) -> bool:
     return False
 
 
-def from_outside(hint: Any) -> Any:
+def from_outside(hint: object) -> object:
     """The annotation to check a value of ``hint`` from outside with: ``hint`` itself, held
     finite when it can hold floats (unless its ``Field`` allows inf and NaN)."""
     try:
@@ -146,7 +149,7 @@ class Bounds:
     finite: bool = True
 
     @classmethod
-    def of(cls, py_type: Any, ge: float | None = None, gt: float | None = None, le: float | None = None,
+    def of(cls, py_type: object, ge: float | None = None, gt: float | None = None, le: float | None = None,
            lt: float | None = None, finite: bool | None = None) -> Bounds | None:
         """The bounds of a value of ``py_type`` (None when nothing applies: not a number nor a
         list of numbers, and no limit given). Raises ``ValueError`` for limits that cannot
@@ -179,7 +182,7 @@ class Bounds:
         return ", ".join(parts)
 
 
-def _item(py_type: Any) -> Any:
+def _item(py_type: object) -> type[float] | type[int] | None:
     """The number type of ``py_type`` (itself, or a list's items), or None."""
     if py_type in _NUMBERS:
         return py_type
@@ -202,19 +205,19 @@ def bounded_adapter(py_type: Any, bounds: Bounds) -> pydantic.TypeAdapter[Any]:
     return pydantic.TypeAdapter(list[checked] if item is not py_type else checked)
 
 
-def argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
+def argument_adapters(fn: Callable[..., object]) -> dict[str, pydantic.TypeAdapter[object]]:
     """For each annotated parameter of ``fn`` pydantic can check, the adapter that checks
     a value from outside (see :func:`argument_adapter`)."""
     return _argument_adapters(getattr(fn, "__func__", fn))
 
 
 @functools.lru_cache(maxsize=1024)
-def _argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
+def _argument_adapters(fn: Callable[..., object]) -> dict[str, pydantic.TypeAdapter[object]]:
     try:
         hints = typing.get_type_hints(fn, include_extras=True)
     except Exception:  # unresolvable annotations: nothing checkable
         return {}
-    out: dict[str, pydantic.TypeAdapter[Any]] = {}
+    out: dict[str, pydantic.TypeAdapter[object]] = {}
     for name, hint in hints.items():
         adapter = argument_adapter(hint) if name != "return" else None
         if adapter is not None:
@@ -222,7 +225,7 @@ def _argument_adapters(fn: Any) -> dict[str, pydantic.TypeAdapter[Any]]:
     return out
 
 
-def argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+def argument_adapter(hint: object) -> pydantic.TypeAdapter[object] | None:
     """The adapter checking an operation argument of type ``hint`` from outside: its type,
     with numbers strict (a string or a bool is no number), its declared bounds, numbers
     finite (:func:`from_outside`). None when there is nothing to check (no annotation,
@@ -236,19 +239,20 @@ def argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
 
 
 @functools.lru_cache(maxsize=1024)
-def _cached_argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+def _cached_argument_adapter(hint: object) -> pydantic.TypeAdapter[object] | None:
     return _make_argument_adapter(hint)
 
 
-def _make_argument_adapter(hint: Any) -> pydantic.TypeAdapter[Any] | None:
+def _make_argument_adapter(hint: object) -> pydantic.TypeAdapter[object] | None:
     checked = from_outside(hint)
     try:
-        return pydantic.TypeAdapter(_strict_numbers(checked))
+        strict: Any = _strict_numbers(checked)  # a type expression, which only pydantic reads
+        return pydantic.TypeAdapter(strict)
     except Exception:  # noqa: BLE001 - a type pydantic cannot check: finiteness alone, where it applies
         return pydantic.TypeAdapter(Annotated[Any, FINITE]) if checked is not hint else None
 
 
-def _strict_numbers(hint: Any, depth: int = 0) -> Any:
+def _strict_numbers(hint: object, depth: int = 0) -> object:
     """``hint`` with each ``float`` and ``int`` in it (inside ``Annotated``, unions and
     containers) strict: pydantic's lax mode would take ``"0.5"`` or ``true`` as a number."""
     if hint is float or hint is int:
@@ -257,7 +261,7 @@ def _strict_numbers(hint: Any, depth: int = 0) -> Any:
     if origin is None or not args or depth > 8:
         return hint
     if origin is Annotated:
-        return Annotated[(_strict_numbers(args[0], depth + 1), *hint.__metadata__)]
+        return Annotated[(_strict_numbers(args[0], depth + 1), *args[1:])]
     new = tuple(a if a is Ellipsis else _strict_numbers(a, depth + 1) for a in args)
     if new == args:
         return hint
@@ -266,7 +270,8 @@ def _strict_numbers(hint: Any, depth: int = 0) -> Any:
     if isinstance(hint, types.GenericAlias):
         return types.GenericAlias(origin, new)
     try:
-        return hint.copy_with(new)
+        copy_with: Callable[[tuple[object, ...]], object] = getattr(hint, "copy_with")  # noqa: B009
+        return copy_with(new)
     except Exception:  # noqa: BLE001 - a generic we cannot rebuild: as declared
         return hint
 
@@ -274,7 +279,7 @@ def _strict_numbers(hint: Any, depth: int = 0) -> Any:
 _MAX_WALK = 10_000  #: mappings :func:`unknown_field` looks into, at most (the transport bounds the value anyway)
 
 
-def unknown_field(hint: Any, value: Any) -> str | None:
+def unknown_field(hint: object, value: object) -> str | None:
     """Where ``value`` (plain data from outside: mappings, lists) names a field that the
     pydantic model it would become does not declare, e.g. ``"pose.z (Pose has: x, y)"``;
     None when every field is known. Follows ``hint`` through models, ``Optional``/unions
@@ -283,7 +288,7 @@ def unknown_field(hint: Any, value: Any) -> str | None:
     return _unknown(hint, value, "", 0, budget)
 
 
-def _unknown(hint: Any, value: Any, path: str, depth: int, budget: list[int]) -> str | None:
+def _unknown(hint: object, value: object, path: str, depth: int, budget: list[int]) -> str | None:
     if depth > 32 or budget[0] <= 0:
         return None
     origin, args = typing.get_origin(hint), typing.get_args(hint)
@@ -323,7 +328,7 @@ def _unknown(hint: Any, value: Any, path: str, depth: int, budget: list[int]) ->
     return None
 
 
-def refuse_unknown_fields(where: str, hint: Any, value: Any) -> None:
+def refuse_unknown_fields(where: str, hint: object, value: object) -> None:
     """Raise :class:`~scart_wire.errors.PortTypeError` (``WHERE: unknown field ...``) when
     ``value`` names a field its model does not declare (see :func:`unknown_field`)."""
     said = unknown_field(hint, value)
@@ -331,7 +336,11 @@ def refuse_unknown_fields(where: str, hint: Any, value: Any) -> None:
         raise PortTypeError(f"{where}: unknown field {said}")
 
 
-def check_argument(where: str, hint: Any, value: Any) -> Any:
+@typing.overload
+def check_argument(where: str, hint: type[T], value: object) -> T: ...
+@typing.overload
+def check_argument(where: str, hint: object, value: object) -> object: ...
+def check_argument(where: str, hint: object, value: object) -> object:
     """The one check of an operation argument from outside, used by every entry (the
     data-flow path and its CLI, Foxglove, binding.grpc, the services endpoint): ``value``
     validated as :func:`argument_adapter` says, returned as converted. Raises
@@ -350,14 +359,14 @@ def check_argument(where: str, hint: Any, value: Any) -> Any:
         raise kind(f"{where}: {value!r:.80} refused: {error['msg']}") from None
 
 
-def nesting_depth(value: Any, limit: int, max_items: int) -> int:
+def nesting_depth(value: object, limit: int, max_items: int) -> int:
     """How deeply lists and mappings nest in ``value`` (a value typed on a command line, a
     recorded message): iterative, so any depth is safe to measure; stops past ``limit`` + 1
     levels. Raises ``ValueError`` past ``max_items`` items (YAML aliases can make a short
     text a huge or cyclic value)."""
     deepest = 0
     seen = 0
-    stack: list[tuple[Any, int]] = [(value, 0)]
+    stack: list[tuple[object, int]] = [(value, 0)]
     while stack:
         item, level = stack.pop()
         seen += 1

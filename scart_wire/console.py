@@ -24,8 +24,14 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
-from typing import Any
+from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Protocol, TypeVar, cast
+
+if TYPE_CHECKING:
+    from types import FrameType
+
+    import numpy as np
+    from pydantic import JsonValue
 
 from scart_wire.bounds import nesting_depth
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
@@ -38,6 +44,23 @@ __all__ = ["add_common", "address_arg", "checked_address", "dump", "err", "jsona
 MAX_VALUE_CHARS = 1 << 20
 #: ... and nested at most this deep.
 MAX_VALUE_DEPTH = 64
+
+
+class Closable(Protocol):
+    """What :func:`with_client` connects: a system it closes when the verb is done."""
+
+    def close(self) -> None: ...
+
+
+class Named(Protocol):
+    """An item :func:`with_rates` lists: anything with a name."""
+
+    @property
+    def name(self) -> str: ...
+
+
+N = TypeVar("N", bound=Named)
+
 _HOST_PORT = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(?P<port>[0-9]{1,5})$")
 
 
@@ -116,31 +139,31 @@ def out(text: str) -> None:
     sys.stdout.flush()
 
 
-def dump(obj: Any) -> str:
+def dump(obj: object) -> str:
     """``obj`` as one line of JSON."""
     return json.dumps(obj, ensure_ascii=False)
 
 
-def jsonable(value: Any) -> Any:
+def jsonable(value: object) -> object:
     """A sample or result as JSON-able data (the type registry's form); a numpy array
     (an image, a point cloud) as a summary: its shape, element type, mean, min and max."""
     from scart_wire.types import registry
 
     kind = type(value)
     if kind.__name__ == "ndarray" and kind.__module__ == "numpy":
-        return array_summary(value)
+        return array_summary(cast("np.ndarray", value))
     return registry.to_jsonable(value)
 
 
-def array_summary(value: Any) -> dict[str, Any]:
+def array_summary(value: np.ndarray) -> dict[str, object]:
     """What ``scart echo`` shows of an array: not its data."""
-    summary: dict[str, Any] = {"shape": list(value.shape), "dtype": value.dtype.name}
+    summary: dict[str, object] = {"shape": list(value.shape), "dtype": value.dtype.name}
     if value.size and value.dtype.kind in "biuf":
         summary.update(mean=float(value.mean()), min=value.min().item(), max=value.max().item())
     return summary
 
 
-def parse_value(text: str) -> Any:
+def parse_value(text: str) -> JsonValue:
     """A value typed on the command line: JSON, else YAML as ``ros2 topic pub`` takes it
     (``"{x: 1, y: [2, 3]}"``, ``"data: hi"``), else the text itself (a bare word is a
     string). Raises ``ValueError`` for text over :data:`MAX_VALUE_CHARS` or nested deeper
@@ -156,7 +179,7 @@ def parse_value(text: str) -> Any:
     return value
 
 
-def _yaml(text: str) -> Any:
+def _yaml(text: str) -> JsonValue:
     import yaml
 
     try:
@@ -168,7 +191,7 @@ def _yaml(text: str) -> Any:
     return value
 
 
-def with_client(args: argparse.Namespace, connect: Callable[..., Any],
+def with_client(args: argparse.Namespace, connect: Callable[..., Closable],
                 body: Callable[[argparse.Namespace], int]) -> int:
     """Run a verb's ``body`` with ``args.system`` connected to the name service by
     ``connect(address, timeout=..., security=...)`` (the data-flow world's
@@ -208,7 +231,7 @@ def with_client(args: argparse.Namespace, connect: Callable[..., Any],
 def stopped_by_signals(done: threading.Event) -> Iterator[None]:
     """SIGINT and SIGTERM set ``done`` inside the block (then the former handlers again):
     set before a subscription starts printing, so a Ctrl-C after its first line stops it."""
-    def handler(signum: int, frame: Any) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         done.set()
 
     old = [signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)]
@@ -241,7 +264,8 @@ def rate_of(periods: int, span: float) -> float:
     return periods / span if periods > 0 and span > 0 else 0.0
 
 
-def with_rates(listing: Callable[[], list[Any]], count: Callable[[Any], int], sample: float) -> list[tuple[Any, float]]:
+def with_rates(listing: Callable[[], Sequence[N]], count: Callable[[N], int],
+               sample: float) -> list[tuple[N, float]]:
     """Each item of ``listing()`` with its rate (count per second) measured over ``sample`` s:
     listed twice, ``sample`` s apart; an item that appeared in between has rate 0."""
     first = {item.name: (count(item), time.monotonic()) for item in listing()}

@@ -4,12 +4,16 @@ it knows the type registry and arrays, nothing of either world."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, cast
+
+if TYPE_CHECKING:
+    import numpy as np
+    from pydantic import JsonValue
 
 __all__ = ["message_of", "message_schema", "schema_name", "type_schema"]
 
 
-def type_schema(type_name: str) -> dict[str, Any]:
+def type_schema(type_name: str) -> dict[str, JsonValue]:
     """The JSON Schema of a registry type (pydantic's; ``{"title": name}``, any JSON, when
     this process does not know the type or pydantic cannot describe it)."""
     import pydantic
@@ -34,7 +38,7 @@ def schema_name(type_name: str) -> str:
     return RAW_IMAGE if spec is not None and spec.image else type_name
 
 
-def message_schema(type_name: str) -> dict[str, Any]:
+def message_schema(type_name: str) -> dict[str, JsonValue]:
     """A message's JSON Schema: the type's, a non-object wrapped as ``{"value": ...}``
     (Foxglove wants objects); ``{"title": name}`` for a type unknown here; an array's,
     what :func:`message_of` makes of it."""
@@ -50,7 +54,7 @@ def message_schema(type_name: str) -> dict[str, Any]:
     return schema
 
 
-def message_of(value: Any) -> dict[str, Any]:
+def message_of(value: object) -> dict[str, object]:
     """A sample as a JSON message: its JSON form, a non-object wrapped as ``{"value": ...}``
     (the shape :func:`message_schema` describes)."""
     from scart_wire.types import registry
@@ -59,16 +63,16 @@ def message_of(value: Any) -> dict[str, Any]:
     if kind.__name__ == "ndarray" and kind.__module__ == "numpy":  # an image or a cloud: base64, not a list
         from scart_wire.arrays import to_message
 
-        return to_message(value)
+        return to_message(cast("np.ndarray", value))
     data = registry.to_jsonable(value)
     return data if isinstance(data, dict) else {"value": data}
 
 
-def _ARRAY_SCHEMA(type_name: str, image: bool) -> dict[str, Any]:  # noqa: N802 - a schema maker
+def _ARRAY_SCHEMA(type_name: str, image: bool) -> dict[str, JsonValue]:  # noqa: N802 - a schema maker
     """The JSON Schema of an array's message (:func:`~scart_wire.arrays.to_message`)."""
-    data = {"type": "string", "contentEncoding": "base64"}
+    data: JsonValue = {"type": "string", "contentEncoding": "base64"}
     if image:
-        stamp = {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}}
+        stamp: JsonValue = {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}}
         return {"title": "foxglove.RawImage", "description": type_name, "type": "object",
                 "properties": {"timestamp": stamp, "frame_id": {"type": "string"}, "width": {"type": "integer"},
                                "height": {"type": "integer"}, "encoding": {"type": "string"},

@@ -28,7 +28,11 @@ import functools
 import importlib
 import re
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol, TypeGuard, cast
+
+if TYPE_CHECKING:
+    import numpy
+    from rosbags.typesys.store import Typestore
 
 __all__ = ["PREFIX", "decode", "encode", "from_jsonable", "is_message_class", "message_class", "message_type_name",
            "to_jsonable"]
@@ -39,7 +43,16 @@ _NAME = re.compile(r"^rosbags:(ros[12]_[a-z0-9]{1,32}):([A-Za-z][A-Za-z0-9_]{0,9
 MAX_DEPTH = 16  #: nesting of messages built from JSON, at most
 
 
-def is_message_class(py_type: Any) -> bool:
+class _NumpyLike(Protocol):
+    """What :func:`to_jsonable` reads of an array field (a numpy array)."""
+
+    @property
+    def dtype(self) -> numpy.dtype: ...
+    def tobytes(self) -> bytes: ...
+    def tolist(self) -> object: ...
+
+
+def is_message_class(py_type: object) -> TypeGuard[type]:
     """Whether ``py_type`` is a message class of one of rosbags' ROS 1 or ROS 2 stores."""
     return (isinstance(py_type, type) and isinstance(getattr(py_type, "__msgtype__", None), str)
             and py_type.__module__.startswith(_STORES + "ros"))
@@ -61,12 +74,12 @@ def message_class(name: str) -> type | None:
         module = importlib.import_module(_STORES + store)  # rosbags' own store modules only (the pattern)
     except ImportError:
         return None
-    cls: Any = getattr(module, msgtype.replace("/", "__"), None)
-    return cls if is_message_class(cls) and cls.__msgtype__ == msgtype else None
+    cls: object = getattr(module, msgtype.replace("/", "__"), None)
+    return cls if is_message_class(cls) and getattr(cls, "__msgtype__", None) == msgtype else None
 
 
 @functools.lru_cache(maxsize=16)
-def _store(cls_module: str) -> Any:
+def _store(cls_module: str) -> Typestore:
     """rosbags' type store of the store module ``cls_module`` (built once: 0.1 s)."""
     from rosbags.typesys import Stores, get_typestore
 
@@ -77,11 +90,11 @@ def _ros1(cls: type) -> bool:
     return cls.__module__.startswith(_STORES + "ros1_")
 
 
-def encode(value: Any) -> bytes:
+def encode(value: object) -> bytes:
     """A message as its store's bytes (each array field copied once into them). Raises
     ``ValueError`` for a value a field cannot hold."""
     cls = type(value)
-    store, msgtype = _store(cls.__module__), cls.__msgtype__
+    store, msgtype = _store(cls.__module__), cls.__msgtype__  # type: ignore[attr-defined]  # a message
     try:
         data = store.serialize_ros1(value, msgtype) if _ros1(cls) else store.serialize_cdr(value, msgtype)
     except Exception as exc:  # rosbags raises struct.error, TypeError, its own errors
@@ -89,7 +102,7 @@ def encode(value: Any) -> bytes:
     return bytes(data)  # (a Value's data field holds bytes)
 
 
-def decode(cls: type, data: Any) -> Any:
+def decode(cls: type, data: bytes | bytearray | memoryview) -> object:
     """The message of class ``cls`` in ``data`` (``bytes`` or a buffer): its array fields
     read-only views of ``data``. Raises ``ValueError`` for bytes that are not one."""
     store, msgtype = _store(cls.__module__), cls.__msgtype__  # type: ignore[attr-defined]  # a message class
@@ -100,27 +113,29 @@ def decode(cls: type, data: Any) -> Any:
         raise ValueError(f"not a {msgtype}: {exc}") from None
 
 
-def to_jsonable(value: Any) -> Any:
+def to_jsonable(value: object) -> object:
     """A message (or a field of one) as JSON-able data (see the module docstring)."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return {f.name: to_jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)
                 if not f.name.startswith("__")}  # (rosbags' __msgtype__)
     if hasattr(value, "__array__") and hasattr(value, "tolist"):  # a numpy array
-        if value.dtype.name == "uint8":
-            return base64.b64encode(value.tobytes()).decode("ascii")
-        return value.tolist()
+        array = cast("_NumpyLike", value)
+        if array.dtype.name == "uint8":
+            return base64.b64encode(array.tobytes()).decode("ascii")
+        return array.tolist()
     if isinstance(value, (list, tuple)):
         return [to_jsonable(v) for v in value]
     return value
 
 
-def from_jsonable(cls: type, obj: Any) -> Any:
+def from_jsonable(cls: type, obj: object) -> object:
     """A message of class ``cls`` from :func:`to_jsonable`'s form (a field left out takes
     ROS's zero value). Raises ``ValueError`` saying which field does not fit."""
     return _build(_store(cls.__module__), cls.__msgtype__, obj, 0)  # type: ignore[attr-defined]  # a message class
 
 
-def _build(store: Any, msgtype: str, obj: Any, depth: int) -> Any:
+def _build(store: Any, msgtype: str, obj: object, depth: int) -> object:  # Any: rosbags' field definitions,
+    # a union tagged by their Nodetype, which mypy cannot narrow
     import numpy
 
     from rosbags.typesys.base import Nodetype
@@ -158,11 +173,11 @@ def _dtype(base: str) -> str:
     return {"bool": "bool", "byte": "int8", "char": "uint8"}.get(base, base)
 
 
-def _jsonable_zero(store: Any, msgtype: str) -> dict[str, Any]:
+def _jsonable_zero(store: Any, msgtype: str) -> dict[str, object]:  # Any: as _build's
     """ROS's zero value of each field of ``msgtype``, in :func:`to_jsonable`'s form."""
     from rosbags.typesys.base import Nodetype
 
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for name, (kind, detail) in store.fielddefs[msgtype][1]:
         if kind == Nodetype.NAME:
             out[name] = _jsonable_zero(store, detail)

@@ -8,14 +8,23 @@ from __future__ import annotations
 import re
 import socket
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from types import MappingProxyType
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, Generic, NoReturn, TypeVar
 
 import grpc
 
 from scart_wire import errors
 from scart_wire.security import CALLER, Role, Security, auth_interceptor, is_loopback, tls_mismatch
+
+if TYPE_CHECKING:
+    from concurrent.futures import ThreadPoolExecutor
+
+    from grpc_health.v1.health import HealthServicer
+
+R = TypeVar("R")
+Req = TypeVar("Req")
+Resp = TypeVar("Resp")
 
 #: Name prefix of the servers' worker threads (``scart-rpc_0``, ...).
 THREAD_PREFIX = "scart-rpc"
@@ -96,7 +105,7 @@ def translate(exc: grpc.RpcError, address: str) -> errors.RemoteError:
     return cls(message, code=name, address=address)
 
 
-def call(fn: Callable[..., Any], request: Any, timeout: float, address: str) -> Any:
+def call(fn: Callable[..., R], request: object, timeout: float, address: str) -> R:
     """Invoke a unary stub method with a deadline; raises the translated scart error."""
     try:
         return fn(request, timeout=timeout)
@@ -139,7 +148,7 @@ def abort(context: grpc.ServicerContext, exc: BaseException) -> NoReturn:
 
 #: A servicer and the generated function that adds it to a server
 #: (``dataflow_pb2_grpc.add_DeployerServiceServicer_to_server``, ...).
-Servicer = tuple[Callable[[Any, grpc.Server], None], object]
+Servicer = tuple[Callable[[object, grpc.Server], None], object]
 
 
 def make_server(
@@ -149,7 +158,7 @@ def make_server(
     max_workers: int = 32,
     security: Security | None = None,
     roles: Mapping[str, Role] | None = None,
-) -> tuple[grpc.Server, int, Any, Any]:
+) -> tuple[grpc.Server, int, HealthServicer, ThreadPoolExecutor]:
     """Create, bind and start a server with ``servicers``, health checking and reflection.
 
     ``security`` gives TLS and the auth file (tokens checked against ``roles``, the role
@@ -240,7 +249,7 @@ def bind_problem(address: str) -> str | None:
     return f"cannot listen on {address}: {sorted(problems, key=lambda p: 'in use' not in p)[0]}" if problems else None
 
 
-def stop_server(server: grpc.Server, executor: Any, grace: float = 0.2, timeout: float = 5.0) -> None:
+def stop_server(server: grpc.Server, executor: ThreadPoolExecutor, grace: float = 0.2, timeout: float = 5.0) -> None:
     """Stop ``server`` (``grace`` s for calls in flight), then end its worker threads.
 
     Blocks at most ``grace + 2 * timeout`` s. Idempotent.
@@ -371,7 +380,9 @@ class StreamBudget:
         budget = self
 
         class Interceptor(grpc.ServerInterceptor):
-            def intercept_service(self, continuation: Callable[[Any], Any], details: Any) -> Any:
+            def intercept_service(
+                    self, continuation: Callable[[grpc.HandlerCallDetails], grpc.RpcMethodHandler[Req, Resp] | None],
+                    details: grpc.HandlerCallDetails) -> grpc.RpcMethodHandler[Req, Resp] | None:
                 handler = continuation(details)
                 if handler is None or not (handler.request_streaming or handler.response_streaming):
                     return handler
@@ -379,7 +390,7 @@ class StreamBudget:
 
         return Interceptor()
 
-    def _wrap(self, handler: Any) -> Any:
+    def _wrap(self, handler: Any) -> Any:  # Any: one wrapper over three kinds of gRPC behaviour
         if handler.unary_stream is not None:
             behavior, make, client_stream = handler.unary_stream, grpc.unary_stream_rpc_method_handler, False
         elif handler.stream_unary is not None:
@@ -388,7 +399,7 @@ class StreamBudget:
             behavior, make, client_stream = handler.stream_stream, grpc.stream_stream_rpc_method_handler, True
         budget = self
 
-        def admitted(request: Any, context: grpc.ServicerContext) -> str:
+        def admitted(request: object, context: grpc.ServicerContext) -> str:
             peer = peer_key(context)
             refused = budget._take(peer)
             if refused is not None:
@@ -419,20 +430,20 @@ class StreamBudget:
                     response_serializer=handler.response_serializer)
 
 
-class _FirstMessageDeadline:
+class _FirstMessageDeadline(Generic[Req]):
     """A request iterator whose first message must come within ``seconds`` (else the call
     is cancelled: a client holding a stream open without speaking does not pin a worker)."""
 
-    def __init__(self, requests: Any, context: grpc.ServicerContext, seconds: float) -> None:
+    def __init__(self, requests: Iterator[Req], context: grpc.ServicerContext, seconds: float) -> None:
         self._requests = requests
         self._context = context
         self._seconds = seconds
         self._first = True
 
-    def __iter__(self) -> _FirstMessageDeadline:
+    def __iter__(self) -> _FirstMessageDeadline[Req]:
         return self
 
-    def __next__(self) -> Any:
+    def __next__(self) -> Req:
         if not self._first:
             return next(self._requests)
         self._first = False

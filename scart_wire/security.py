@@ -36,16 +36,23 @@ import hmac
 import ipaddress
 import logging
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from scart_wire.errors import DataflowError
 
 if TYPE_CHECKING:
+    import argparse
+
     import grpc
+
+Req = TypeVar("Req")
+Resp = TypeVar("Resp")
+Out = TypeVar("Out")
+In = TypeVar("In")
 
 __all__ = [
     "AuthTable", "Role", "Security", "SecurityError", "add_arguments", "auth_interceptor", "from_args", "is_loopback",
@@ -142,7 +149,7 @@ class Security:
     insecure: bool = False
 
     @classmethod
-    def from_env(cls, environ: Mapping[str, str] | None = None, **given: Any) -> Security:
+    def from_env(cls, environ: Mapping[str, str] | None = None, **given: Any) -> Security:  # Any: fields, to replace
         """Security from the ``SCART_TLS_*``, ``SCART_TOKEN`` and ``SCART_AUTH_FILE``
         variables; values in ``given`` that are not None win."""
         env = os.environ if environ is None else environ
@@ -200,7 +207,7 @@ class Security:
                     "read and drive every component", what, address, missing)
 
     # ---- clients -------------------------------------------------------------------
-    def channel(self, address: str, options: list[tuple[str, Any]] | tuple[tuple[str, Any], ...] = ()) -> grpc.Channel:
+    def channel(self, address: str, options: Sequence[tuple[str, object]] = ()) -> grpc.Channel:
         """A channel to ``address``: TLS when ``ca`` or ``cert`` is set (mTLS with both),
         sending ``token`` with every call when there is one."""
         import grpc
@@ -219,7 +226,7 @@ class Security:
         return channel
 
 
-def add_arguments(parser: Any, *, server: bool, client: bool = True) -> None:
+def add_arguments(parser: argparse.ArgumentParser, *, server: bool, client: bool = True) -> None:
     """Add the security flags to an argparse ``parser``: ``--tls-cert``, ``--tls-key``,
     ``--tls-ca`` always; ``--token`` for clients; ``--auth-file`` and ``--insecure`` for
     servers. Each defaults to its environment variable (see :meth:`Security.from_args`)."""
@@ -243,7 +250,7 @@ def add_arguments(parser: Any, *, server: bool, client: bool = True) -> None:
                            help="allow listening on a non-loopback address without TLS and tokens")
 
 
-def from_args(args: Any, environ: Mapping[str, str] | None = None) -> Security:
+def from_args(args: argparse.Namespace, environ: Mapping[str, str] | None = None) -> Security:
     """The :class:`Security` of parsed flags (see :func:`add_arguments`), each falling back
     to its environment variable. Raises :class:`SecurityError` for settings that cannot
     work together."""
@@ -418,20 +425,24 @@ def _token_interceptor_class() -> type:
         def __init__(self, token: str) -> None:
             self._header = ("authorization", f"Bearer {token}")
 
-        def _add(self, d: Any) -> Any:
+        def _add(self, d: grpc.ClientCallDetails) -> grpc.ClientCallDetails:
             return Details(d.method, d.timeout, [*(d.metadata or ()), self._header], d.credentials,
                            getattr(d, "wait_for_ready", None), getattr(d, "compression", None))
 
-        def intercept_unary_unary(self, continuation: Any, details: Any, request: Any) -> Any:
+        def intercept_unary_unary(self, continuation: Callable[[grpc.ClientCallDetails, Req], Out],
+                                  details: grpc.ClientCallDetails, request: Req) -> Out:
             return continuation(self._add(details), request)
 
-        def intercept_unary_stream(self, continuation: Any, details: Any, request: Any) -> Any:
+        def intercept_unary_stream(self, continuation: Callable[[grpc.ClientCallDetails, Req], Out],
+                                   details: grpc.ClientCallDetails, request: Req) -> Out:
             return continuation(self._add(details), request)
 
-        def intercept_stream_unary(self, continuation: Any, details: Any, requests: Any) -> Any:
+        def intercept_stream_unary(self, continuation: Callable[[grpc.ClientCallDetails, Iterator[Req]], Out],
+                                   details: grpc.ClientCallDetails, requests: Iterator[Req]) -> Out:
             return continuation(self._add(details), requests)
 
-        def intercept_stream_stream(self, continuation: Any, details: Any, requests: Any) -> Any:
+        def intercept_stream_stream(self, continuation: Callable[[grpc.ClientCallDetails, Iterator[Req]], Out],
+                                    details: grpc.ClientCallDetails, requests: Iterator[Req]) -> Out:
             return continuation(self._add(details), requests)
 
         def __repr__(self) -> str:
@@ -475,7 +486,9 @@ def auth_interceptor(table: AuthTable, roles: Mapping[str, Role],
         return roles.get(method, unknown)
 
     class Interceptor(grpc.ServerInterceptor):
-        def intercept_service(self, continuation: Callable[[Any], Any], details: Any) -> Any:
+        def intercept_service(
+                self, continuation: Callable[[grpc.HandlerCallDetails], grpc.RpcMethodHandler[Req, Resp] | None],
+                details: grpc.HandlerCallDetails) -> grpc.RpcMethodHandler[Req, Resp] | None:
             need = required(details.method)
             if need is None:
                 return continuation(details)
@@ -498,15 +511,16 @@ def auth_interceptor(table: AuthTable, roles: Mapping[str, Role],
     return Interceptor()
 
 
-def _as_caller(handler: Any, caller: str) -> Any:
+def _as_caller(handler: grpc.RpcMethodHandler[Req, Resp] | None,
+               caller: str) -> grpc.RpcMethodHandler[Req, Resp] | None:
     """``handler`` with :data:`CALLER` set to ``caller`` while its behaviour runs."""
     import grpc
 
     if handler is None:
         return None
 
-    def unary(behavior: Callable[..., Any]) -> Callable[..., Any]:
-        def run(request: Any, context: grpc.ServicerContext) -> Any:
+    def unary(behavior: Callable[[In, grpc.ServicerContext], Out]) -> Callable[[In, grpc.ServicerContext], Out]:
+        def run(request: In, context: grpc.ServicerContext) -> Out:
             token = CALLER.set(caller)
             try:
                 return behavior(request, context)
@@ -514,8 +528,9 @@ def _as_caller(handler: Any, caller: str) -> Any:
                 CALLER.reset(token)
         return run
 
-    def streaming(behavior: Callable[..., Any]) -> Callable[..., Any]:
-        def run(request: Any, context: grpc.ServicerContext) -> Any:
+    def streaming(behavior: Callable[[In, grpc.ServicerContext], Iterator[Out]],
+                  ) -> Callable[[In, grpc.ServicerContext], Iterator[Out]]:
+        def run(request: In, context: grpc.ServicerContext) -> Iterator[Out]:
             token = CALLER.set(caller)
             try:
                 yield from behavior(request, context)
@@ -526,27 +541,27 @@ def _as_caller(handler: Any, caller: str) -> Any:
                     pass
         return run
 
-    kinds = (
-        (handler.unary_unary, grpc.unary_unary_rpc_method_handler, unary),
-        (handler.unary_stream, grpc.unary_stream_rpc_method_handler, streaming),
-        (handler.stream_unary, grpc.stream_unary_rpc_method_handler, unary),
-        (handler.stream_stream, grpc.stream_stream_rpc_method_handler, streaming),
-    )
-    for behavior, make, wrap in kinds:
-        if behavior is not None:
-            return make(wrap(behavior), request_deserializer=handler.request_deserializer,
-                        response_serializer=handler.response_serializer)
+    reads, writes = handler.request_deserializer, handler.response_serializer
+    if handler.unary_unary is not None:
+        return grpc.unary_unary_rpc_method_handler(unary(handler.unary_unary), reads, writes)
+    if handler.unary_stream is not None:
+        return grpc.unary_stream_rpc_method_handler(streaming(handler.unary_stream), reads, writes)
+    if handler.stream_unary is not None:
+        return grpc.stream_unary_rpc_method_handler(unary(handler.stream_unary), reads, writes)
+    if handler.stream_stream is not None:
+        return grpc.stream_stream_rpc_method_handler(streaming(handler.stream_stream), reads, writes)
     return handler
 
 
-def _denied(handler: Any, code: Any, message: str) -> Any:
+def _denied(handler: grpc.RpcMethodHandler[Req, Resp] | None, code: grpc.StatusCode,
+            message: str) -> grpc.RpcMethodHandler[Req, Resp] | None:
     """A handler of the same shape as ``handler`` that ends the call with ``code``."""
     import grpc
 
     if handler is None:
         return None
 
-    def abort(request_or_iterator: Any, context: grpc.ServicerContext) -> Any:
+    def abort(request_or_iterator: object, context: grpc.ServicerContext) -> None:
         context.abort(code, message)
 
     kinds = (

@@ -56,7 +56,7 @@ class Encoded:
     data: bytes
 
 
-class UnknownValue(dict[str, Any]):
+class UnknownValue(dict[str, object]):
     """A decoded value whose type name this process does not know: a plain mapping."""
 
     def __init__(self, type_name: str, *args: Any, **kwargs: Any) -> None:
@@ -78,13 +78,13 @@ def model_json(value: pydantic.BaseModel) -> bytes:
     return pydantic_core.to_json(value.model_dump(), inf_nan_mode="constants")
 
 
-def _is_ndarray(value: Any) -> bool:
+def _is_ndarray(value: object) -> bool:
     """Whether ``value`` is a numpy array (without importing numpy)."""
     kind = type(value)
     return kind.__name__ == "ndarray" and kind.__module__ == "numpy"
 
 
-def _is_model(py_type: Any) -> bool:
+def _is_model(py_type: object) -> bool:
     return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
 
 
@@ -165,7 +165,7 @@ class TypeRegistry:
             self.register(py_type, name)
 
     # -- names ---------------------------------------------------------------
-    def register(self, py_type: Any, name: str | None = None) -> Any:
+    def register(self, py_type: T, name: str | None = None) -> T:
         """Register ``py_type`` under ``name`` (default: its ``__name__``); returns the type.
 
         Idempotent for the same pair; raises ``ValueError`` if the name is taken by
@@ -180,7 +180,7 @@ class TypeRegistry:
             self._by_type.setdefault(py_type, name)
         return py_type
 
-    def type_name(self, py_type: Any) -> str:
+    def type_name(self, py_type: object) -> str:
         """The registered name of ``py_type``; an unregistered type gets a descriptive name."""
         name = self._by_type.get(py_type)
         if name is not None:
@@ -239,7 +239,7 @@ class TypeRegistry:
 
         return check
 
-    def validate(self, py_type: Any, value: Any) -> Any:
+    def validate(self, py_type: Any, value: object) -> Any:
         """Coerce ``value`` to ``py_type`` (pydantic lax mode) or raise ``PortTypeError``."""
         if rosmsgs.is_message_class(py_type):
             return value if isinstance(value, py_type) else self.from_jsonable(py_type, value)
@@ -252,7 +252,7 @@ class TypeRegistry:
             ) from None
 
     # -- JSON ----------------------------------------------------------------
-    def to_jsonable(self, value: Any) -> Any:
+    def to_jsonable(self, value: object) -> object:
         """Plain JSON-able data for ``value`` (what ``scart echo --json`` prints)."""
         if isinstance(value, pydantic.BaseModel):
             return value.model_dump(mode="json")
@@ -270,7 +270,7 @@ class TypeRegistry:
             return rosmsgs.to_jsonable(value)
         return value
 
-    def from_jsonable(self, py_type_or_name: Any, obj: Any) -> Any:
+    def from_jsonable(self, py_type_or_name: Any, obj: object) -> Any:
         """Build a value of the given type (or registered name) from JSON-able data.
 
         An unknown name gives an :class:`UnknownValue`; a mismatch raises ``PortTypeError``.
@@ -333,7 +333,7 @@ class TypeRegistry:
         return Encoded(name, pydantic_core.to_json(self._adapter(py_type).dump_python(value), inf_nan_mode="constants"))
 
     @staticmethod
-    def _guess_list_type(value: list[Any]) -> Any:
+    def _guess_list_type(value: list[object]) -> object:
         if value and all(type(x) is int for x in value):
             return list[int]
         if value and all(type(x) is str for x in value):

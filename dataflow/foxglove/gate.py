@@ -44,7 +44,10 @@ import logging
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from dataflow.foxglove.inner_guard import InnerGuard
 from urllib.parse import parse_qs, urlsplit
 
 from scart_wire.security import is_loopback
@@ -174,7 +177,8 @@ class WebSocketGate:
     ``port`` is the bound port once started."""
 
     def __init__(self, host: str, port: int, inner: tuple[str, int], origins: Iterable[str] = FOXGLOVE_ORIGINS, *,
-                 tokens: Callable[[str], bool] | None = None, tokens_required: bool = False, guard: Any = None,
+                 tokens: Callable[[str], bool] | None = None, tokens_required: bool = False,
+                 guard: InnerGuard | None = None,
                  max_connections: int = 64, max_per_token: int = 16, max_tokenless: int = 16,
                  max_tokenless_per_peer: int = 4, max_pending: int = 64, max_pending_per_peer: int = 16,
                  auth_timeout: float = AUTH_TIMEOUT) -> None:
@@ -315,7 +319,8 @@ class WebSocketGate:
         log.info("foxglove: handshake refused: %s", reason)
 
     async def _relay(self, head: bytes, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        sock = self.guard.bound_socket() if self.guard is not None else None
+        guard = self.guard
+        sock = guard.bound_socket() if guard is not None else None
         port = sock.getsockname()[1] if sock is not None else None
         try:
             if sock is not None:
@@ -328,13 +333,13 @@ class WebSocketGate:
                 inner_writer.write(_forwarded(head))
                 await asyncio.gather(_pump(reader, inner_writer), _pump(inner_reader, writer))
             finally:
-                if port is not None:
-                    self.guard.forget(port)  # before the socket closes: its port is never let through again
+                if port is not None and guard is not None:
+                    guard.forget(port)  # before the socket closes: its port is never let through again
                 inner_writer.close()
         finally:
             if sock is not None:
-                if port is not None:
-                    self.guard.forget(port)
+                if port is not None and guard is not None:
+                    guard.forget(port)
                 sock.close()
 
 

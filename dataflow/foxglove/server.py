@@ -54,7 +54,19 @@ from __future__ import annotations
 import json
 import logging
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import foxglove
+    from foxglove.websocket import (
+        Capability, ChannelView, Client, ClientChannel, PlaybackControlRequest, ServiceRequest, WebSocketServer)
+    from pydantic import JsonValue
+
+    from dataflow.foxglove.gate import WebSocketGate
+    from dataflow.foxglove.inner_guard import InnerGuard
+    from dataflow.introspection import OperationDescription
+    from dataflow.remote import SampleEvent, Subscription, System
+    from scart_wire.security import Security
 
 from dataflow.threads import OwnedThread
 from scart_wire.jsonschema import message_of, message_schema, schema_name, type_schema
@@ -76,22 +88,22 @@ class _Bridge:
     method of the SDK's ``ServerListener``). ``control``: the system writes go through
     (None: read-only)."""
 
-    def __init__(self, system: Any, context: Any, control: Any = None) -> None:
+    def __init__(self, system: System, context: foxglove.Context, control: System | None = None) -> None:
         self.system = system
         self.control = control
         self.context = context
-        self.server: Any = None  # set once listening: refusals are published through it
-        self.channels: dict[str, Any] = {}
-        self.services: dict[str, Any] = {}  # name → foxglove.Service, once made
-        self.subs: list[Any] = []
+        self.server: WebSocketServer | None = None  # set once listening: refusals are published through it
+        self.channels: dict[str, foxglove.Channel | None] = {}
+        self.services: dict[str, foxglove.Service] = {}  # name → foxglove.Service, once made
+        self.subs: list[Subscription] = []
         self._lock = threading.Condition()  # notified when a channel is made from its first sample
 
-    def refresh(self) -> list[Any]:
+    def refresh(self) -> list[foxglove.Service]:
         """A channel and a subscription for every output port not bridged yet; the services
         of operations not seen before (returned, for a running server to add)."""
         from dataflow import ConnPolicy, registry
 
-        new_services: list[Any] = []
+        new_services: list[foxglove.Service] = []
         for task in self.system.component_names():
             try:
                 proxy = self.system.component(task)
@@ -113,7 +125,7 @@ class _Bridge:
                     if registry.python_type(port.type_name) is not None:  # else from the first sample
                         self.channels[topic] = self._channel(topic, port.type_name, message_schema(port.type_name))
 
-                def observer(event: Any, topic: str = topic, type_name: str = port.type_name) -> None:
+                def observer(event: SampleEvent, topic: str = topic, type_name: str = port.type_name) -> None:
                     data = message_of(event.value)
                     channel = self.channels.get(topic)
                     if channel is None:
@@ -133,32 +145,35 @@ class _Bridge:
         with self._lock:
             self._lock.wait_for(lambda: None not in self.channels.values(), timeout)
 
-    def _channel(self, topic: str, type_name: str, schema: dict[str, Any]) -> Any:
+    def _channel(self, topic: str, type_name: str, schema: dict[str, JsonValue]) -> foxglove.Channel:
         import foxglove
 
         return foxglove.Channel(topic, schema=foxglove.Schema(name=schema_name(type_name), encoding="jsonschema",
                                                               data=json.dumps(schema).encode()),
                                 message_encoding="json", context=self.context)
 
-    def _service(self, name: str, task: str, op: Any) -> Any:
+    def _service(self, name: str, task: str, op: OperationDescription) -> foxglove.Service:
         """The Foxglove service calling operation ``op`` of ``task``."""
         import foxglove
         from foxglove.websocket import MessageSchema, Service, ServiceSchema
 
         from dataflow import registry
 
+        control = self.control
+        assert control is not None  # services are made for a writable server only
         params = [p for p, _ in op.params]
-        request = {"title": f"{name} request", "type": "object", "required": params,
+        request: dict[str, JsonValue] = {"title": f"{name} request", "type": "object", "required": [*params],
                    "properties": {p: type_schema(t) for p, t in op.params}}
-        response = {"title": f"{name} response", "type": "object", "properties": {"result": type_schema(op.returns)}}
+        response: dict[str, JsonValue] = {"title": f"{name} response", "type": "object",
+                                          "properties": {"result": type_schema(op.returns)}}
 
-        def schema(title: str, body: dict[str, Any]) -> Any:
+        def schema(title: str, body: dict[str, JsonValue]) -> MessageSchema:
             return MessageSchema(encoding="json", schema=foxglove.Schema(
                 name=title, encoding="jsonschema", data=json.dumps(body).encode()))
 
-        def handler(call: Any) -> bytes:
+        def handler(call: ServiceRequest) -> bytes:
             args = _call_arguments(name, params, call.payload)
-            result = self.control.component(task).call_json(op.name, args, timeout=CALL_TIMEOUT)
+            result = control.component(task).call_json(op.name, args, timeout=CALL_TIMEOUT)
             return json.dumps({"result": registry.to_jsonable(result)}).encode()
 
         return Service(name, schema=ServiceSchema(name, request=schema(f"{name} request", request),
@@ -166,7 +181,8 @@ class _Bridge:
 
     # --- foxglove.ServerListener ------------------------------------------------------------
 
-    def on_get_parameters(self, client: Any, param_names: list[str], request_id: str | None = None) -> list[Any]:
+    def on_get_parameters(self, client: Client | None, param_names: list[str],
+                          request_id: str | None = None) -> list[foxglove.Parameter]:
         """Task properties as parameters (all of them when none are named; more than
         :data:`MAX_PARAMETER_NAMES` names: refused, none answered)."""
         import foxglove
@@ -192,7 +208,8 @@ class _Bridge:
                     out.append(foxglove.Parameter(full, value=_parameter_value(registry.to_jsonable(prop.value))))
         return out
 
-    def on_set_parameters(self, client: Any, parameters: list[Any], request_id: str | None = None) -> list[Any]:
+    def on_set_parameters(self, client: Client, parameters: list[foxglove.Parameter],
+                          request_id: str | None = None) -> list[foxglove.Parameter]:
         """Set task properties through ``control``; each refusal (read-only, the role, the
         task's bounds or type) is published as an error status with its reason, and the
         answer carries the values the tasks kept."""
@@ -224,19 +241,19 @@ class _Bridge:
         if self.server is not None:
             self.server.publish_status(message[:1000], foxglove.StatusLevel.Error)
 
-    def on_subscribe(self, client: Any, channel: Any) -> None:
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         """Nothing to do: every port is subscribed already."""
 
-    def on_unsubscribe(self, client: Any, channel: Any) -> None:
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
         """Nothing to do (the port's subscription serves the other clients too)."""
 
-    def on_client_advertise(self, client: Any, channel: Any) -> None:
+    def on_client_advertise(self, client: Client, channel: ClientChannel) -> None:
         """Clients may not publish (the capability is not offered)."""
 
-    def on_client_unadvertise(self, client: Any, client_channel_id: int) -> None:
+    def on_client_unadvertise(self, client: Client, client_channel_id: int) -> None:
         """Clients may not publish."""
 
-    def on_message_data(self, client: Any, client_channel_id: int, data: bytes) -> None:
+    def on_message_data(self, client: Client, client_channel_id: int, data: bytes) -> None:
         """Clients may not publish: ignored."""
 
     def on_parameters_subscribe(self, param_names: list[str]) -> None:
@@ -251,7 +268,7 @@ class _Bridge:
     def on_connection_graph_unsubscribe(self) -> None:
         """No connection graph."""
 
-    def on_playback_control_request(self, playback_control_request: Any) -> None:
+    def on_playback_control_request(self, playback_control_request: PlaybackControlRequest) -> None:
         """No playback (a live view)."""
 
     def close(self) -> None:
@@ -262,7 +279,7 @@ class _Bridge:
                 channel.close()
 
 
-def _call_arguments(name: str, params: list[str], payload: bytes) -> list[Any]:
+def _call_arguments(name: str, params: list[str], payload: bytes) -> list[object]:
     """A service request's arguments in order: a JSON object by parameter name, or a list
     (an empty payload: no arguments). Bounded in bytes; refusals name the service."""
     if len(payload) > MAX_REQUEST_BYTES:
@@ -283,7 +300,7 @@ def _call_arguments(name: str, params: list[str], payload: bytes) -> list[Any]:
     return [body[p] for p in params]
 
 
-def schema_of_sample(data: Any, depth: int = 0) -> dict[str, Any]:
+def schema_of_sample(data: object, depth: int = 0) -> dict[str, JsonValue]:
     """A JSON Schema describing a JSON value (for a type this process does not know: the
     first sample shows its shape), bounded in depth."""
     if depth > 16:
@@ -303,7 +320,7 @@ def schema_of_sample(data: Any, depth: int = 0) -> dict[str, Any]:
     return {}
 
 
-def _parameter_value(value: Any) -> Any:
+def _parameter_value(value: object) -> Any:  # Any: a list may hold None, which the SDK's alias leaves out
     """What a Foxglove parameter holds: bool, float, str, list, dict (ints become floats)."""
     if isinstance(value, bool) or value is None or isinstance(value, str):
         return value
@@ -327,8 +344,8 @@ class FoxgloveLive:
     ``stop()`` closes ``control``, and ``system`` too with ``owns_system``. Raises
     ``ValueError`` for a routable host refused."""
 
-    def __init__(self, system: Any, host: str = "127.0.0.1", port: int = 8765, refresh: float = 2.0,
-                 insecure_host: bool = False, owns_system: bool = False, control: Any = None,
+    def __init__(self, system: System, host: str = "127.0.0.1", port: int = 8765, refresh: float = 2.0,
+                 insecure_host: bool = False, owns_system: bool = False, control: System | None = None,
                  auth_file: str | None = None) -> None:
         from scart_wire.security import is_loopback
 
@@ -350,9 +367,9 @@ class FoxgloveLive:
         self._table = AuthTable.load(auth_file) if auth_file else None  # raises naming the file
         self._seat = secrets.token_urlsafe(24)  # this launch's own token: the printed URL carries it
         self._bridge: _Bridge | None = None
-        self._server: Any = None
-        self._gate: Any = None
-        self._guard: Any = None
+        self._server: WebSocketServer | None = None
+        self._gate: WebSocketGate | None = None
+        self._guard: InnerGuard | None = None
         self._thread = OwnedThread(self._refreshing, "scart-foxglove-refresh")
 
     @property
@@ -407,7 +424,8 @@ class FoxgloveLive:
             raise
 
     @staticmethod
-    def _inner_server(bridge: _Bridge, capabilities: list[Any], services: list[Any]) -> tuple[Any, Any]:
+    def _inner_server(bridge: _Bridge, capabilities: list[Capability],
+                      services: list[foxglove.Service]) -> tuple[WebSocketServer, InnerGuard]:
         """The SDK's server, behind the gate, and the guard that lets only the gate reach it
         (:mod:`dataflow.foxglove.inner_guard`): on a random address of 127.0.0.0/8 (a web page
         cannot guess it), else 127.0.0.1; a free port. A connection that came before the
@@ -450,7 +468,7 @@ class FoxgloveLive:
             try:
                 assert self._bridge is not None
                 services = self._bridge.refresh()
-                if services:
+                if services and self._server is not None:
                     self._server.add_services(services)
             except Exception as exc:  # noqa: BLE001 - the name service away for a while: the next round
                 log.warning("foxglove: looking for new tasks failed: %s", exc)
@@ -478,7 +496,7 @@ class FoxgloveLive:
             self._system.close()
 
 
-def control_token(token_file: str | None, security: Any, flag: str, ns: str | None = None) -> str | None:
+def control_token(token_file: str | None, security: Security, flag: str, ns: str | None = None) -> str | None:
     """The token a writable Foxglove server acts with: the first line of ``token_file``
     (None without one). Where ``security`` names the auth file (the runtime checks tokens),
     a token is needed and must be of the ``operate`` role. Where it does not, the name
@@ -511,7 +529,7 @@ def control_token(token_file: str | None, security: Any, flag: str, ns: str | No
     return token
 
 
-def _refuse_admin(ns: str, token: str, token_file: str, security: Any, flag: str) -> None:
+def _refuse_admin(ns: str, token: str, token_file: str, security: Security, flag: str) -> None:
     """Raise ``ValueError`` when the name service at ``ns`` grants ``token`` the ``admin``
     role, or does not accept it; nothing when it refuses it ``admin`` (or checks no
     token at all: then no token has a role)."""

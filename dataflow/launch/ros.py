@@ -23,12 +23,13 @@ MAX_PARAMS = 256
 SIM_TIME = "use_sim_time"  #: the node's own launch-time parameter (the others are task properties)
 
 
-def split_params(items: Iterable[str]) -> tuple[list[str], dict[str, Any]]:
+def split_params(items: Iterable[str]) -> tuple[list[str], dict[str, object]]:
     """``items`` apart from the launch-time parameters among them, and those parameters
     (``_TASK/PROP:=VALUE``, the value read as YAML, as ROS reads it). Raises ``ValueError``."""
     import yaml
 
-    rest, params = [], {}
+    rest: list[str] = []
+    params: dict[str, object] = {}
     for item in items:
         match = PARAM.match(item)
         if match is None:
@@ -101,7 +102,7 @@ def split_remaps(rules: Iterable[str]) -> tuple[list[str], dict[str, str]]:
     return rest, names
 
 
-def _sim_time(params: dict[str, Any]) -> bool | None:
+def _sim_time(params: dict[str, object]) -> bool | None:
     """Take the node's own launch-time ``_use_sim_time:=BOOL`` out of ``params`` (None when
     not given); raises ``ValueError`` for a value that is no bool."""
     if SIM_TIME not in params:
@@ -112,7 +113,7 @@ def _sim_time(params: dict[str, Any]) -> bool | None:
     return value
 
 
-def apply(args: argparse.Namespace, params: dict[str, Any] | None = None,
+def apply(args: argparse.Namespace, params: dict[str, object] | None = None,
           remaps: dict[str, str] | None = None) -> None:
     """Set the process's ROS defaults from ``args``, the launch-time ``params`` (the node's
     own ``use_sim_time`` among them, for ROS 1 and ROS 2; the rest task properties) and
@@ -162,7 +163,7 @@ def _add_types(kind: str, files: list[str]) -> None:
             raise ValueError(f"--msgs {exc}") from None
 
 
-def _transport(name: str) -> Any:
+def _transport(name: str) -> Any:  # Any: the ROS transports' own attributes (types, configure, attach)
     from dataflow.transports import TransportError, load
 
     try:
@@ -171,7 +172,7 @@ def _transport(name: str) -> Any:
         return None
 
 
-def attach(deployer: Any) -> None:
+def attach(deployer: object) -> None:
     """Make this process's ROS nodes (now, or when a stream, a service or :func:`hold`
     makes one) speak for ``deployer``'s tasks: their properties its parameters, its log on
     /rosout. Raises ``ValueError`` (a launch-time parameter refused)."""
@@ -197,7 +198,7 @@ def unhold() -> None:
         unhold()
 
 
-def detach(deployer: Any) -> None:
+def detach(deployer: object) -> None:
     """Undo :func:`attach` (idempotent)."""
     for name in ("ros2", "ros1"):
         transport = _transport(name)
@@ -221,7 +222,7 @@ def exit_on_shutdown(prog: str) -> None:
     on_shutdown(stop)
 
 
-def call(args: argparse.Namespace, json_args: list[Any]) -> Any:
+def call(args: argparse.Namespace, json_args: list[object]) -> object:
     """``scart call ros1:/service|ros2:/service ['{"field": value}'] [--type pkg/Srv]``: the
     response as plain data. Raises ``ValueError`` saying what went wrong (no such service,
     its error, a request that is not one object of its fields, a ROS 2 call without

@@ -6,7 +6,6 @@ streams and RPC ports (default: YARP's own configuration, as ``yarp conf`` write
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 __all__ = ["add_arguments", "apply", "call"]
 
@@ -32,7 +31,7 @@ def apply(args: argparse.Namespace) -> None:
         configure(server=server, insecure=insecure or None)
 
 
-def call(args: argparse.Namespace, values: list[Any]) -> Any:
+def call(args: argparse.Namespace, values: list[object]) -> list[object]:
     """``scart call yarp:/port WORD ARGS...``: the reply bottle as plain data (a vocab as its
     text). Raises ``ValueError`` saying what went wrong (no such port, no answer)."""
     from dataflow.transports.yarp.rpc import call_rpc

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import argparse
 import socket
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    import zenoh
+
     from scart_wire.security import Security
 
 __all__ = ["add_arguments", "peers", "plain_error", "refusal_hint", "session_of"]
@@ -30,7 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser, what: str) -> None:
                        help="allow routable endpoints and gossip scouting (scart does not encrypt Zenoh traffic)")
 
 
-def session_of(args: argparse.Namespace, serve: bool = False, security: Security | None = None) -> tuple[Any, list[str]]:
+def session_of(args: argparse.Namespace, serve: bool = False,
+               security: Security | None = None) -> tuple[zenoh.Session, list[str]]:
     """The Zenoh session the options say and the endpoints it listens on. ``serve``
     (``scart deploy``): a peer, listening (on a free loopback port when no endpoint is
     given, so it can be printed); else a client of the endpoints given (``ls``, ``echo``),
@@ -59,7 +62,7 @@ def _free_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def peers(session: Any) -> int:
+def peers(session: zenoh.Session) -> int:
     """How many Zenoh peers and routers the session reached."""
     info = session.info
     return len(list(info.peers_zid())) + len(list(info.routers_zid()))

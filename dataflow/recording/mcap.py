@@ -35,12 +35,20 @@ import stat
 import struct
 import time
 from array import array
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, TypeVar
 
 from dataflow.transports.limits import MAX_FRAME_BYTES
 from scart_wire.bounds import nesting_depth
+
+if TYPE_CHECKING:
+    from types import ModuleType
+
+    from mcap.opcode import Opcode
+    from mcap.records import Channel, Chunk, McapRecord, Schema
+
+R = TypeVar("R", bound="McapRecord")
 
 __all__ = ["MAX_CHUNK_BYTES", "MAX_JSON_DEPTH", "MAX_MESSAGE_BYTES", "MAX_RATIO", "MAX_READ_SECONDS", "Budget",
            "McapError", "McapScan", "Sink", "decode_json", "open_output", "output_problem"]
@@ -91,14 +99,14 @@ class McapScan:
     budget: Budget | None = None  #: None: :meth:`Budget.of` the file's size
     truncated_at: int | None = None
     complete: bool = False
-    schemas: dict[int, Any] = field(default_factory=dict)
-    channels: dict[int, Any] = field(default_factory=dict)
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
     count: int = 0  #: messages read so far
     expanded: int = 0  #: bytes decompressed so far
     spent: float = 0.0  #: seconds spent reading so far
     _budget: Budget = field(default_factory=Budget, init=False, repr=False)  # the one in force, once reading
 
-    def records(self) -> Iterator[Any]:
+    def records(self) -> Iterator[McapRecord]:
         """The file's Schema, Channel and Message records in file order (a chunk's messages
         in log-time order). Blocks on file reads only; raises :class:`McapError` (also when
         the file would cost more than its :class:`Budget`)."""
@@ -109,7 +117,7 @@ class McapScan:
             resumed = time.monotonic()
         self.spent += time.monotonic() - resumed
 
-    def _records(self) -> Iterator[Any]:
+    def _records(self) -> Iterator[McapRecord]:
         with self._open() as fh:
             size = os.fstat(fh.fileno()).st_size
             self._budget = self.budget or Budget.of(size)
@@ -147,12 +155,13 @@ class McapScan:
             raise McapError(f"still reading after {budget.seconds:g} s, at byte {at} ({self.count} messages): more "
                             "than scart spends on one file")
 
-    def messages(self) -> Iterator[tuple[str, int, dict[str, Any] | None]]:
+    def messages(self) -> Iterator[tuple[str, int, dict[str, object] | None]]:
         """``(topic, log_time ns, JSON data or None)`` of each message (None: skipped, see
         :func:`decode_json`); a message of an unknown channel raises :class:`McapError`."""
-        records = _records()
+        from mcap.records import Message
+
         for record in self.records():
-            if isinstance(record, records.Message):
+            if isinstance(record, Message):
                 channel = self.channels.get(record.channel_id)
                 if channel is None:
                     raise McapError(f"a message of channel {record.channel_id}, which the file never declares")
@@ -169,20 +178,22 @@ class McapScan:
             raise McapError("not a regular file")
         return open(fd, "rb")  # noqa: SIM115 - closed by the caller's with
 
-    def _parse(self, opcode: int, body: bytes, pos: int) -> Iterator[Any]:
+    def _parse(self, opcode: int, body: bytes, pos: int) -> Iterator[McapRecord]:
         """The records one top-level record holds (a chunk's, decompressed with bounds)."""
         ops, records = _opcodes(), _records()
         if opcode == ops.CHUNK:
             yield from self._chunk(_read(records.Chunk, body, pos), pos)
         elif opcode in (ops.SCHEMA, ops.CHANNEL, ops.MESSAGE):
-            kind = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel, ops.MESSAGE: records.Message}[opcode]
+            kinds: dict[int, type[McapRecord]] = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel,
+                                                  ops.MESSAGE: records.Message}
+            kind = kinds[opcode]
             if kind is records.Message:
                 self._spend(1, pos, time.monotonic())
             record = _read(kind, body, pos)
             self._learn(record)
             yield record
 
-    def _chunk(self, chunk: Any, pos: int) -> Iterator[Any]:
+    def _chunk(self, chunk: Chunk, pos: int) -> Iterator[McapRecord]:
         """A chunk's Schema and Channel records (learned), then its messages in log-time
         order, each made only when it is yielded."""
         records = _records()
@@ -214,21 +225,22 @@ class McapScan:
                 self._learn(record)
                 yield record
         self._spend(len(offsets) % _CHECK_EVERY, pos, started)
-        order: Any = range(len(offsets)) if ordered else sorted(range(len(offsets)), key=times.__getitem__)
+        order: Sequence[int] = range(len(offsets)) if ordered else sorted(range(len(offsets)), key=times.__getitem__)
         for i in order:
             offset = offsets[i]
             length = _HEAD.unpack_from(data, offset - _HEAD.size)[1]
             yield _read(records.Message, data[offset:offset + length], pos)
 
-    def _learn(self, record: Any) -> None:
-        records = _records()
-        if isinstance(record, records.Schema):
+    def _learn(self, record: McapRecord) -> None:
+        from mcap.records import Channel, Schema
+
+        if isinstance(record, Schema):
             self.schemas[record.id] = record
-        elif isinstance(record, records.Channel):
+        elif isinstance(record, Channel):
             self.channels[record.id] = record
 
 
-def decode_json(data: bytes) -> dict[str, Any] | None:
+def decode_json(data: bytes) -> dict[str, object] | None:
     """A message's JSON object, or None when it is over :data:`MAX_MESSAGE_BYTES`, not JSON,
     not an object, or nested deeper than :data:`MAX_JSON_DEPTH`."""
     if len(data) > MAX_MESSAGE_BYTES:
@@ -245,11 +257,12 @@ def decode_json(data: bytes) -> dict[str, Any] | None:
     return value
 
 
-def _chunk_records(data: bytes, pos: int) -> Iterator[tuple[Any, int, int]]:
+def _chunk_records(data: bytes, pos: int) -> Iterator[tuple[type[McapRecord], int, int]]:
     """``(kind, offset, length)`` of each Schema, Channel and Message record in a chunk's
     ``data`` (other kinds skipped), nothing parsed yet."""
     ops, records = _opcodes(), _records()
-    kinds = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel, ops.MESSAGE: records.Message}
+    kinds: dict[int, type[McapRecord]] = {ops.SCHEMA: records.Schema, ops.CHANNEL: records.Channel,
+                                          ops.MESSAGE: records.Message}
     offset = 0
     while offset < len(data):
         if len(data) - offset < _HEAD.size:
@@ -264,7 +277,7 @@ def _chunk_records(data: bytes, pos: int) -> Iterator[tuple[Any, int, int]]:
         offset += length
 
 
-def _decompress(chunk: Any, pos: int) -> bytes:
+def _decompress(chunk: Chunk, pos: int) -> bytes:
     """A chunk's data, decompressing at most its declared size (see the module docstring)."""
     declared = chunk.uncompressed_size
     if declared > MAX_CHUNK_BYTES:
@@ -308,26 +321,27 @@ def _unzstd(data: bytes, declared: int) -> bytes:
     return b"".join(parts)
 
 
-def _read(kind: Any, body: bytes, pos: int) -> Any:
+def _read(kind: type[R], body: bytes, pos: int) -> R:
     """One record of ``kind`` parsed from ``body`` (:class:`McapError` when malformed)."""
     from mcap.data_stream import ReadDataStream
 
     try:
         stream = ReadDataStream(io.BytesIO(body))
+        read: Callable[..., R] = getattr(kind, "read")  # noqa: B009 - each record class's own (not the base's)
         if kind.__name__ == "Message":
-            return kind.read(stream, len(body))
-        return kind.read(stream)
+            return read(stream, len(body))
+        return read(stream)
     except Exception:  # noqa: BLE001 - struct, decoding and end-of-data errors alike: a malformed record
         raise McapError(f"a malformed {kind.__name__} record at byte {pos}") from None
 
 
-def _opcodes() -> Any:
+def _opcodes() -> type[Opcode]:
     from mcap.opcode import Opcode
 
     return Opcode
 
 
-def _records() -> Any:
+def _records() -> ModuleType:
     from mcap import records
 
     return records

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 import secrets
-from typing import Any
+from typing import TYPE_CHECKING, Protocol
 
 from dataflow.errors import DataflowError
 from dataflow.policy import ConnPolicy
@@ -23,6 +23,9 @@ from dataflow.task import TaskContext
 from scart_wire import rosmsgs
 from scart_wire.arrays import array_spec
 from scart_wire.types import registry
+
+if TYPE_CHECKING:
+    from scart_wire.security import Security
 
 __all__ = ["POLICY", "PlayLink", "on_data_plane"]
 
@@ -37,11 +40,23 @@ def on_data_plane(type_name: str) -> bool:
     return type_name == "bytes" or array_spec(type_name) is not None or type_name.startswith(rosmsgs.PREFIX)
 
 
+class NameSource(Protocol):
+    """The system proxy a link's source reaches the name service through (a GrpcSystem)."""
+
+    @property
+    def security(self) -> Security: ...
+    @property
+    def timeout(self) -> float: ...
+    @property
+    def address(self) -> str: ...
+    def resolve(self, component: str, fresh: bool = False) -> str: ...
+
+
 class _Source:
     """What a link asks of its source's deployer, from play's process: an id of its own, the
     system proxy's name service, security and deadline."""
 
-    def __init__(self, system: Any) -> None:
+    def __init__(self, system: NameSource) -> None:
         self.boot_id = secrets.token_hex(8)
         self.security = system.security
         self.ns_timeout = float(system.timeout)
@@ -57,7 +72,7 @@ class PlayLink:
     once (raises :class:`DataflowError` saying why when it does not connect within
     :data:`SETTLE_S`), :meth:`write` from play's thread, :meth:`close` once."""
 
-    def __init__(self, system: Any, task: str, port: str, type_name: str, serial: int) -> None:
+    def __init__(self, system: NameSource, task: str, port: str, type_name: str, serial: int) -> None:
         from dataflow.remote._links import RemoteLink
 
         self.type_name = type_name
@@ -76,7 +91,7 @@ class PlayLink:
         """The transport the link took (``shm``, ``ipc``, ``grpc``)."""
         return self._link.end.transport or ""
 
-    def write(self, json_value: Any) -> str:
+    def write(self, json_value: object) -> str:
         """Write one recorded sample (its JSON form: converted to the port's type here, as
         the task's side would); returns the write status's name. Raises ``PortTypeError``
         (or ``ValueError``) for a value that is not of the port's type."""

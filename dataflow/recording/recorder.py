@@ -13,10 +13,13 @@ import os
 import queue
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.recording.mcap import Sink
 from dataflow.threads import OwnedThread
+
+if TYPE_CHECKING:
+    from dataflow.remote import SampleEvent
 
 __all__ = ["FLUSH_SECONDS", "Recording"]
 
@@ -55,7 +58,7 @@ class Recording:
         self._thread = OwnedThread(lambda _stopping: self._run(), "scart-record-writer").start()
         self._closed = False
 
-    def observe(self, event: Any) -> None:
+    def observe(self, event: SampleEvent) -> None:
         """A subscription's observer: queue the sample (never blocks)."""
         self._samples.put((f"{event.component}.{event.port}", time.time_ns(), event.source_time, event.value))
 
@@ -93,7 +96,7 @@ class Recording:
         self._kept = (self._sink.pos, self._total, self._first, self._last)
         return True
 
-    def _add(self, item: tuple[str, int, float, Any]) -> None:
+    def _add(self, item: tuple[str, int, float, object]) -> None:
         from scart_wire.jsonschema import message_of
 
         topic, log_ns, source_time, value = item

@@ -5,7 +5,6 @@ their types, and parsed. A mixin of the assembler, private to :mod:`scart.assemb
 from __future__ import annotations
 
 import re
-from typing import Any
 
 from scart import errors as E
 from scart.api import ComponentType, PropSpec
@@ -113,8 +112,8 @@ class Properties(AssemblerState):
         """The raw values of ``p`` (see :class:`scart.properties.PropertyReader`)."""
         return self.reader.raw(p, ctx)
 
-    def property_value(self, comp: Component, name: str, spec: PropSpec, py_type: Any, raw: list[str] | None,
-                       override: str | None = None) -> Any:
+    def property_value(self, comp: Component, name: str, spec: PropSpec, py_type: object, raw: list[str] | None,
+                       override: str | None = None) -> object:
         where = next((p.loc for p in comp.properties if p.name == name), comp.loc)
         if override is not None:  # the value came from --set: that is where the problem is
             where = Location(path="<command line>", line=0)

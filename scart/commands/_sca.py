@@ -17,7 +17,12 @@ from __future__ import annotations
 import argparse
 import os
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict
+
+if TYPE_CHECKING:
+    import grpc
+
+    from scart_wire.proto.scart.sca.v1.sca_pb2_grpc import ScaServiceStub
 
 __all__ = ["SERVICES_ENV", "at", "call", "endpoints", "find", "list_services", "named_endpoints", "with_services"]
 
@@ -50,7 +55,25 @@ def with_services(args: argparse.Namespace, body: Callable[[argparse.Namespace],
         return 1
 
 
-def _stub(address: str, args: argparse.Namespace) -> tuple[Any, Any]:
+class OperationRow(TypedDict):
+    """An operation as ``scart services --json`` lists it."""
+
+    name: str
+    oneway: bool
+    returns_value: bool
+    params: list[str]
+
+
+class ServiceRow(TypedDict):
+    """A service as ``scart services --json`` lists it: its names, interface, endpoint, operations."""
+
+    names: list[str]
+    interface: str
+    at: str
+    operations: list[OperationRow]
+
+
+def _stub(address: str, args: argparse.Namespace) -> tuple[grpc.Channel, ScaServiceStub]:
     from scart_wire.proto.scart.sca.v1 import sca_pb2_grpc
     from scart_wire import rpc
     from scart_wire.security import from_args
@@ -89,7 +112,7 @@ def named_endpoints(args: argparse.Namespace) -> list[tuple[str, str]]:
     return sorted(found)[:MAX_ENDPOINTS]
 
 
-def list_services(address: str, args: argparse.Namespace, namespace: str = "") -> list[dict[str, Any]]:
+def list_services(address: str, args: argparse.Namespace, namespace: str = "") -> list[ServiceRow]:
     """Every service the server at ``address`` exports: names (each under ``namespace/``
     when one is given), interface, operations."""
     from scart_wire.proto.scart.sca.v1 import sca_pb2 as pb
@@ -131,8 +154,8 @@ def find(service: str, args: argparse.Namespace) -> tuple[str, str]:
     return found[0]
 
 
-def call(address: str, target: str, json_args: list[Any], args: argparse.Namespace,
-         kwargs: dict[str, Any] | None = None, there: str | None = None) -> Any:
+def call(address: str, target: str, json_args: list[object], args: argparse.Namespace,
+         kwargs: dict[str, object] | None = None, there: str | None = None) -> object:
     """Call ``COMPONENT/SERVICE.operation`` (or ``SERVICE.operation`` for a promoted or
     single service) at ``address`` with JSON arguments (in order, and ``kwargs`` by name);
     ``there``: the service's name at ``address`` when ``target`` names it under a

@@ -42,20 +42,37 @@ import sys
 import threading
 import time
 from types import FrameType
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Protocol, cast
 
 from scart.commands._composite import add_launch_options, assemble_or_say, endpoint_text, run_names, settings_of
 from scart.errors import ScartError
 from scart.assembled import Assembly
 from scart.model import SCART_NS, Binding, Location
 from scart.settings import Settings
-from scart.spi import LaunchContext, Launched
+from scart.spi import LaunchContext, Launched, ServiceEndpoint
 
 if TYPE_CHECKING:
     from scart.runtime import Runtime
 
 HELP = "run a composite until Ctrl-C or SIGTERM"
 SERVICES_DEFAULT = "localhost:0"  # apart from any binding.grpc server of the composite (they share by address)
+#: A signal's handler, as signal.signal takes and returns it.
+SignalHandler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
+
+
+class _Served(Protocol):
+    """A started service binding of ``--services`` (binding.grpc's): where, under which names."""
+
+    @property
+    def address(self) -> str | None: ...
+    @property
+    def names(self) -> list[str]: ...
+    @property
+    def endpoint(self) -> ServiceEndpoint: ...
+    def stop(self) -> None: ...
+
+
 START_TIMEOUT = 60.0  # s: the whole start (every @init and start_hook)
 STOP_MARGIN = 30.0  # s past --stop-timeout after which a stop that has not finished is given up
 
@@ -154,7 +171,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             signal.signal(sig, handler)
 
 
-def _handle_signals(stop: threading.Event) -> dict[int, Any]:
+def _handle_signals(stop: threading.Event) -> dict[int, SignalHandler]:
     """SIGINT/SIGTERM set ``stop``; a second one while stopping exits at once. Returns the
     former handlers."""
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -175,7 +192,7 @@ class _Extras:
 
     def __init__(self, runtime: Runtime, settings: Settings) -> None:
         self.runtime, self.settings = runtime, settings
-        self.services: list[Any] = []
+        self.services: list[_Served] = []
         self.launched: list[Launched] = []
 
     def start(self, args: argparse.Namespace) -> str:
@@ -220,7 +237,7 @@ def _say_started(assembly: Assembly, runtime: Runtime, settings: Settings, extra
     say(f"scart: started {len(assembly.nodes)} component(s); Ctrl-C or SIGTERM to stop")
 
 
-def _services_line(services: list[Any], lister: Launched | None) -> str:
+def _services_line(services: list[_Served], lister: Launched | None) -> str:
     """Where the services are, and a call to paste (a promoted service's first operation if
     any): by name when a launch provider lists them (``lister``: its options find them, its
     names name them), else with ``--at``."""
@@ -237,7 +254,7 @@ def _services_line(services: list[Any], lister: Launched | None) -> str:
             f"call one: scart call --at {where} {target} ARGS...)")
 
 
-def _serve_services(runtime: Runtime, address: str) -> list[Any]:
+def _serve_services(runtime: Runtime, address: str) -> list[_Served]:
     """Every component service of ``runtime`` on one ``binding.grpc`` server at ``address``
     (through the extension registry, as a composite's binding would be): started service
     bindings, [] with ``off``. Raises ``ScartError`` when it cannot listen."""
@@ -246,7 +263,7 @@ def _serve_services(runtime: Runtime, address: str) -> list[Any]:
     provider = runtime.assembly.registry.binding("binding.grpc")
     if provider is None:
         return []
-    started: list[Any] = []
+    started: list[_Served] = []
     try:
         for path, node in runtime.assembly.nodes.items():
             for service in node.ctype.services:
@@ -254,10 +271,10 @@ def _serve_services(runtime: Runtime, address: str) -> list[Any]:
                                 name="services", loc=Location(path="<scart run --services>", line=0))
                 binding = provider.service(model, runtime.endpoint(f"{path}/{service}"), runtime)
                 binding.start()
-                started.append(binding)
+                started.append(cast("_Served", binding))  # binding.grpc's: it names its services too
     except BaseException:
-        for binding in reversed(started):
-            binding.stop()
+        for served in reversed(started):
+            served.stop()
         raise
     return started
 
@@ -294,7 +311,7 @@ def _start(runtime: Runtime, announced: io.StringIO, stop: threading.Event, time
     return f"start failed: {doing} did not return within {timeout:g} s (--start-timeout); stopping"
 
 
-def _stop_listening(runtime: Runtime, services: list[Any] | None = None, limit: float | None = None) -> None:
+def _stop_listening(runtime: Runtime, services: list[_Served] | None = None, limit: float | None = None) -> None:
     """Stop the ``services`` endpoint, then ``runtime``, on a thread of their own while this
     (main) thread waits in short slices. Python runs signal handlers only on the main
     thread, and the kernel may deliver a signal to any thread: a main thread blocked in one

@@ -7,9 +7,14 @@ from __future__ import annotations
 
 import argparse
 import os
-from typing import Any
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 from scart_wire.console import dump, err, out
+
+if TYPE_CHECKING:
+    from mcap.records import McapRecord
+    from mcap.writer import Writer
 
 __all__ = ["recover"]
 
@@ -58,7 +63,8 @@ def _target(args: argparse.Namespace) -> str | None:
     return target
 
 
-def _write_copy(target: str, overwrite: bool, head: list[Any], records: Any) -> tuple[int, str]:
+def _write_copy(target: str, overwrite: bool, head: list[McapRecord],
+                records: Iterator[McapRecord]) -> tuple[int, str]:
     """A complete MCAP file at ``target`` of ``head`` then ``records``: see :func:`_copy`.
     Raises ``ValueError`` when the file cannot be made."""
     from mcap.writer import Writer
@@ -76,7 +82,7 @@ def _write_copy(target: str, overwrite: bool, head: list[Any], records: Any) -> 
     return copied, stopped
 
 
-def _copy(writer: Any, head: list[Any], records: Any) -> tuple[int, str]:
+def _copy(writer: Writer, head: list[McapRecord], records: Iterator[McapRecord]) -> tuple[int, str]:
     """Every record to ``writer`` (ids renumbered); ``(messages copied, where a malformed
     part stopped the copy or "")``."""
     from mcap import records as kinds
@@ -87,7 +93,7 @@ def _copy(writer: Any, head: list[Any], records: Any) -> tuple[int, str]:
     channel_ids: dict[int, int] = {}
     copied = 0
 
-    def one(record: Any) -> None:
+    def one(record: McapRecord) -> None:
         nonlocal copied
         if isinstance(record, kinds.Schema):
             schema_ids[record.id] = writer.register_schema(record.name, record.encoding, record.data)

@@ -25,7 +25,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.activities import freeze_heap
 from dataflow.launch import ros as ros_args
@@ -35,6 +35,16 @@ from scart_wire.console import listen_arg
 from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, NS_ENV
 from scart_wire.security import add_arguments as add_arguments_security
 from scart_wire.security import from_args
+
+if TYPE_CHECKING:
+    from types import FrameType
+
+    import zenoh
+
+    from dataflow import TaskContext
+    from dataflow.deployer import Server
+    from dataflow.transports.zenoh import ZenohPublisher
+    from scart_wire.security import Security
 
 
 HELP = "host data-flow tasks in a served Deployer until Ctrl-C"
@@ -82,7 +92,7 @@ def _stop_event() -> threading.Event:
     """An Event set by SIGINT/SIGTERM (handlers installed in the main thread)."""
     event = threading.Event()
 
-    def handler(signum: int, frame: Any) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         event.set()
 
     signal.signal(signal.SIGINT, handler)
@@ -107,7 +117,7 @@ def _load(spec: str) -> tuple[type, str | None]:
     return cls, name or None
 
 
-def _make_tasks(args: argparse.Namespace) -> list[Any]:
+def _make_tasks(args: argparse.Namespace) -> list[TaskContext]:
     from dataflow import PeriodicActivity, TaskContext
 
     if args.name and len(args.classes) > 1:
@@ -181,7 +191,7 @@ def cmd_deploy(args: argparse.Namespace) -> int:
     return 0
 
 
-def _where(args: argparse.Namespace, security: Any) -> tuple[str | None, str]:
+def _where(args: argparse.Namespace, security: Security) -> tuple[str | None, str]:
     """``(name service to join or None to embed one, address to listen on)``: nothing
     answering at ``--ns``/``SCART_NS`` means embedding the name service there, as ``scart
     run`` does. Raises :class:`_Failed` when ``--listen`` says otherwise."""
@@ -201,15 +211,15 @@ class _Hosted:
     """What ``scart deploy`` runs: the deployer and its tasks, its server, and the Zenoh
     session and publisher of ``--zenoh``. :meth:`close` undoes whatever was started."""
 
-    def __init__(self, args: argparse.Namespace, security: Any) -> None:
+    def __init__(self, args: argparse.Namespace, security: Security) -> None:
         from dataflow import Deployer
 
         self.args, self.security = args, security
         self.deployer = Deployer()
-        self.server: Any = None
-        self.zenoh_session: Any = None
+        self.server: Server | None = None
+        self.zenoh_session: zenoh.Session | None = None
         self.zenoh_listen: list[str] = []
-        self.publisher: Any = None
+        self.publisher: ZenohPublisher | None = None
 
     def start(self, listen: str, ns: str | None) -> None:
         """Open Zenoh (before any task starts: a bad endpoint stops nothing running), host,
@@ -252,6 +262,7 @@ class _Hosted:
         freeze_heap()  # what start-up built is never walked by the collector again: no 20 ms pauses
 
     def _publish(self) -> None:
+        assert self.server is not None  # published once served
         try:
             from dataflow.transports.zenoh import ZenohPublisher
 
@@ -264,6 +275,7 @@ class _Hosted:
     def readiness(self, ns: str | None) -> str:
         """The one line scripts wait for: what is served where."""
         server, publisher = self.server, self.publisher
+        assert server is not None  # said once served
         where = "embedded" if ns is None else "joined"
         on_zenoh = "" if publisher is None else (
             f"; Zenoh: {len(publisher.keys)} port(s) under scart/{self.args.zenoh_ns}/, listening on "
@@ -306,7 +318,7 @@ def _open_ros2() -> None:
         _err("scart deploy: --insecure: ROS 2 streams are open to the network (DDS authenticates no one)")
 
 
-def _connect_at_start(server: Any, args: argparse.Namespace) -> None:
+def _connect_at_start(server: Server, args: argparse.Namespace) -> None:
     """Make the ``--connect`` links (a remote sink not registered yet is waited for)."""
     from dataflow import ConnPolicy
     from dataflow.remote.api import split_port

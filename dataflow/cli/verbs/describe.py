@@ -5,10 +5,13 @@ its streams: topic, type, state, whether unauthenticated, samples refused and wh
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_system
 from scart_wire.console import add_common, dump, jsonable, out
+
+if TYPE_CHECKING:
+    from dataflow.introspection import PortStreamDescription
 
 HELP = "properties, operations and ports of a component"
 
@@ -56,7 +59,7 @@ def _describe(args: argparse.Namespace) -> int:
     return 0
 
 
-def _stream_line(s: Any) -> str:
+def _stream_line(s: PortStreamDescription) -> str:
     """A stream under its port: ``stream NAME: transport:topic (type), state[, UNAUTHENTICATED]``
     and, when samples were refused, how many and why the last one was."""
     kind = f" ({s.type_name})" if s.type_name else ""

@@ -9,13 +9,17 @@ from __future__ import annotations
 import argparse
 import json
 import threading
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_session, with_system
 from dataflow.launch import zenoh as zenoh_args
 from dataflow.policy import ConnPolicy
 from dataflow.remote.api import split_port
 from scart_wire.console import add_common, dump, err, jsonable, out, stopped_by_signals, wait_until_stopped
+
+if TYPE_CHECKING:
+    from dataflow.remote import SampleEvent, Subscription
+    from dataflow.transports.zenoh import ZenohSubscription
 
 HELP = "print samples of an output port"
 
@@ -63,7 +67,7 @@ def _echo(args: argparse.Namespace) -> int:
         if args.zenoh:
             from dataflow.transports.zenoh import ZenohSubscription
 
-            sub: Any = ZenohSubscription(args.zenoh_session, component, port, printer, args.zenoh_ns)
+            sub: ZenohSubscription | Subscription = ZenohSubscription(args.zenoh_session, component, port, printer, args.zenoh_ns)
         else:
             assert proxy is not None
             sub = proxy.subscribe(port, printer, policy=ConnPolicy.parse(args.policy), period=args.period)
@@ -84,13 +88,13 @@ def _echo(args: argparse.Namespace) -> int:
 class _Printer:
     """The observer: prints each sample (thread-safe), sets ``done`` after ``-n``."""
 
-    def __init__(self, args: argparse.Namespace, path: Any, done: threading.Event) -> None:
+    def __init__(self, args: argparse.Namespace, path: tuple[str | int, ...] | None, done: threading.Event) -> None:
         self.args, self.path, self.done = args, path, done
         self.count = 0
         self.failed = ""  #: why echoing stopped: a sample without the ``--field`` asked for
         self._lock = threading.Lock()
 
-    def __call__(self, event: Any) -> None:
+    def __call__(self, event: SampleEvent) -> None:
         from dataflow.fields import apply_path
 
         args = self.args
@@ -116,7 +120,7 @@ class _Printer:
                 self.done.set()
 
 
-def _fields_of(data: Any) -> str:
+def _fields_of(data: object) -> str:
     """``"; its fields: a, b, c"`` for a structure (what ``--field`` could name first)."""
     if isinstance(data, dict) and data:
         return f"; its fields: {', '.join(sorted(map(str, data))[:20])}"

@@ -9,11 +9,14 @@ import argparse
 import math
 import statistics
 import threading
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_system
 from dataflow.remote.api import split_port
 from scart_wire.console import add_common, dump, err, out, rate_of, stopped_by_signals, wait_until_stopped
+
+if TYPE_CHECKING:
+    from dataflow.remote import SampleEvent
 
 HELP = "measure the rate of an output port"
 
@@ -62,7 +65,7 @@ def _hz(args: argparse.Namespace) -> int:
     lock = threading.Lock()
     target = None if args.n is None else args.n + 1  # n periods need n+1 samples
 
-    def observer(event: Any) -> None:
+    def observer(event: SampleEvent) -> None:
         with lock:
             stamps.append(event.source_time)
             del stamps[: max(0, len(stamps) - args.window - 1)]  # window periods need window + 1 samples

@@ -7,11 +7,33 @@ one line saying what is wrong, and exit 1."""
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TypedDict
 
 from scart_wire.console import dump, err, out
 
 HELP = "channels, counts, rates and duration of an MCAP file"
+
+
+class ChannelRow(TypedDict):
+    """One channel of :func:`describe`'s answer."""
+
+    topic: str
+    type: str
+    count: int
+    rate: float
+    declared: bool
+
+
+class FileInfo(TypedDict):
+    """What :func:`describe` says of a file (``scart info --json``)."""
+
+    file: str
+    duration: float
+    messages: int
+    channels: list[ChannelRow]
+    truncated: bool
+    truncated_at: int | None
+    undeclared: int
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,7 +67,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def describe(path: str) -> dict[str, Any]:
+def describe(path: str) -> FileInfo:
     """What ``scart info --json`` prints: ``file``, ``duration`` (s), ``messages``,
     ``channels`` (``topic``, ``type``, ``count``, ``rate``, ``declared``: a message may name
     a channel the file never declares; it is counted in its own row, so the rows add up
@@ -64,7 +86,7 @@ def describe(path: str) -> dict[str, Any]:
             start = record.log_time if start is None else min(start, record.log_time)
             end = record.log_time if end is None else max(end, record.log_time)
     duration = max(0.0, ((end or 0) - (start or 0)) / 1e9)
-    channels = []
+    channels: list[ChannelRow] = []
     for cid in sorted(set(scan.channels) | set(counts)):  # a channel the file never declares has its row too
         channel = scan.channels.get(cid)
         schema = scan.schemas.get(channel.schema_id) if channel is not None else None

@@ -5,10 +5,15 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, TypeVar
 
 from dataflow.cli.connected import with_system
 from scart_wire.console import add_common, dump, out, with_rates
+
+if TYPE_CHECKING:
+    from dataflow.introspection import LinkDescription, SubscriptionDescription
+
+R = TypeVar("R", "LinkDescription", "SubscriptionDescription")  # a row: a link or a subscription
 
 HELP = "list links and streams: name, ends, policy, transport, state, measured rate, drops"
 
@@ -42,7 +47,7 @@ def cmd_links(args: argparse.Namespace) -> int:
         ("dropped", "DROPPED", ">8")))
 
 
-def _rated_table(args: argparse.Namespace, listing: Callable[[], list[Any]],
+def _rated_table(args: argparse.Namespace, listing: Callable[[], list[R]],
                  columns: tuple[tuple[str, str, str], ...]) -> int:
     """Each item of ``listing()`` (links, subscriptions) with the rate its ``samples`` grow
     at over ``--sample`` s: JSON rows, or a table of ``columns`` (``(key, header, format)``)."""

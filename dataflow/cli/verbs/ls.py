@@ -11,11 +11,15 @@ from __future__ import annotations
 
 import argparse
 import threading
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_session, with_system
 from dataflow.launch import zenoh as zenoh_args
 from scart_wire.console import add_common, dump, out, rate_of
+
+if TYPE_CHECKING:
+    from dataflow.remote import ComponentInfo
 
 HELP = "list components: name, state, period, measured rate, deployer"
 
@@ -34,7 +38,7 @@ def main(args: argparse.Namespace) -> int:
     return with_system(args, _ls)
 
 
-def cycle_rates(listing: Any, sample: float) -> list[tuple[Any, float]]:
+def cycle_rates(listing: Callable[[], list[ComponentInfo]], sample: float) -> list[tuple[ComponentInfo, float]]:
     """Each component of ``listing()`` with its cycle rate over ``sample`` s (see the
     module docstring; 0.0 for one that did not cycle twice in between)."""
     first = {c.name: c for c in listing()}

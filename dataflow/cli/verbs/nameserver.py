@@ -7,10 +7,13 @@ import argparse
 import signal
 import sys
 import threading
-from typing import Any
+from typing import TYPE_CHECKING
 
 from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS
 from scart_wire.security import add_arguments as add_security
+
+if TYPE_CHECKING:
+    from types import FrameType
 
 HELP = "run a standalone name service until Ctrl-C"
 
@@ -30,7 +33,7 @@ def main(args: argparse.Namespace) -> int:
 
     stop = threading.Event()
 
-    def handler(signum: int, frame: Any) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
     signal.signal(signal.SIGINT, handler)

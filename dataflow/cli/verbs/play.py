@@ -22,12 +22,17 @@ import json
 import sys
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_system
 from dataflow.errors import DataflowError
 from dataflow.remote.api import split_port
 from scart_wire.console import add_common, dump, err, out, stopped_by_signals
+
+if TYPE_CHECKING:
+    from dataflow.recording.mcap import McapScan
+    from dataflow.recording.playlink import PlayLink
+    from dataflow.remote import ComponentProxy
 
 HELP = "replay an MCAP file into input ports"
 DEFAULT_MAX_GAP = 3.0
@@ -118,7 +123,7 @@ def _play(args: argparse.Namespace) -> int:
     said: set[str] = set()  # ports whose first refusal was said
     pace = _Pace(args.rate, args.max_gap, args.file)
     scan = McapScan(args.file)
-    proxies: dict[str, Any] = {}
+    proxies: dict[str, ComponentProxy] = {}
     args.links = {}  # target -> its PlayLink, or None: through the control plane
     done = threading.Event()
     problem = ""
@@ -144,7 +149,7 @@ def _play(args: argparse.Namespace) -> int:
     return _report(args, tally, seen, scan, pace, problem)
 
 
-def _wait_turn(args: argparse.Namespace, pace: _Pace, log_ns: int, topic: str, data: Any,
+def _wait_turn(args: argparse.Namespace, pace: _Pace, log_ns: int, topic: str, data: dict[str, object],
                done: threading.Event) -> bool:
     """Wait until the sample is due (or Enter with ``--step``); False to stop playing."""
     target = args.remap_table.get(topic, topic)
@@ -154,7 +159,7 @@ def _wait_turn(args: argparse.Namespace, pace: _Pace, log_ns: int, topic: str, d
     return not done.wait(max(0.0, pace.due(log_ns, topic) - time.monotonic()))
 
 
-def _write(args: argparse.Namespace, proxies: dict[str, Any], topic: str, data: dict[str, Any],
+def _write(args: argparse.Namespace, proxies: dict[str, ComponentProxy], topic: str, data: dict[str, object],
            tally: dict[str, int], said: set[str]) -> None:
     """One sample to its port; a value the port or task refuses is counted (the first
     refusal of each port said), an unknown task or port stops the play (raises)."""
@@ -179,7 +184,7 @@ def _write(args: argparse.Namespace, proxies: dict[str, Any], topic: str, data: 
     tally["written"] += 1
 
 
-def _link_for(args: argparse.Namespace, proxy: Any, target: str) -> Any:
+def _link_for(args: argparse.Namespace, proxy: ComponentProxy, target: str) -> PlayLink | None:
     """The :class:`~dataflow.recording.playlink.PlayLink` that carries ``target``'s samples (made
     at its first sample), or None when the control plane does (a port of another type
     than an array or ``bytes``). Raises ``DataflowError`` when the link cannot be made."""
@@ -209,7 +214,7 @@ def _close_links(args: argparse.Namespace, tally: dict[str, int]) -> None:
             tally["refused"] += lost
 
 
-def _report(args: argparse.Namespace, tally: dict[str, int], seen: set[str], scan: Any, pace: _Pace,
+def _report(args: argparse.Namespace, tally: dict[str, int], seen: set[str], scan: McapScan, pace: _Pace,
             problem: str) -> int:
     """The closing line (stdout), what went wrong (stderr); the exit code."""
     from dataflow.recording.mcap import MAX_JSON_DEPTH, MAX_MESSAGE_BYTES

@@ -27,12 +27,15 @@ import argparse
 import json
 import os
 import signal
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_system
 from dataflow.recording.mcap import open_output, output_problem
 from dataflow.recording.recorder import Recording
 from scart_wire.console import add_common, err, out, stopped_by_signals, wait_until_stopped
+
+if TYPE_CHECKING:
+    from dataflow.introspection import PortDescription
 
 HELP = "record output ports to an MCAP file"
 MAX_RECORDED_PORTS = 256
@@ -75,9 +78,9 @@ def _ports_to_record(args: argparse.Namespace) -> list[tuple[str, str, str]]:
     from dataflow.remote.api import split_port
 
     wanted = [split_port(p) for p in args.ports]
-    described: dict[str, dict[str, Any]] = {}  # each task described once
+    described: dict[str, dict[str, PortDescription]] = {}  # each task described once
 
-    def ports_of(task: str) -> dict[str, Any]:
+    def ports_of(task: str) -> dict[str, PortDescription]:
         if task not in described:
             described[task] = {p.name: p for p in args.system.component(task).describe().ports}
         return described[task]

@@ -4,7 +4,6 @@ when the task refuses the transition)."""
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 from dataflow.cli.connected import with_system
 from dataflow.remote.api import TRANSITIONS
@@ -32,7 +31,7 @@ def _state(args: argparse.Namespace) -> int:
         accepted = proxy.change_state(args.transition)
     state = proxy.state
     if args.json:
-        doc: dict[str, Any] = {"component": args.component, "state": state}
+        doc: dict[str, object] = {"component": args.component, "state": state}
         if args.transition:
             doc.update(transition=args.transition, accepted=accepted)
         out(dump(doc))

@@ -18,10 +18,15 @@ import argparse
 import math
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.cli.connected import with_system
 from scart_wire.console import add_common, dump, err, out, stopped_by_signals
+
+if TYPE_CHECKING:
+    from dataflow.remote import SampleEvent
+    from dataflow.tf.buffer import Transform
+    from dataflow.tf.messages import FrameTree, FrameTreeEntry
 
 HELP = "a running frame tree: echo a transform (as tf_echo), list the frames (as view_frames)"
 
@@ -61,7 +66,8 @@ def main(args: argparse.Namespace) -> int:
     return with_system(args, _frames)
 
 
-def _server(args: argparse.Namespace) -> Any:
+def _server(args: argparse.Namespace) -> Any:  # Any: a ComponentProxy, which dataflow.tf's Subscribable
+    # does not match (it names the callback differently and takes policy=None)
     from dataflow import NotFoundError
 
     try:
@@ -104,7 +110,7 @@ def _echo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print(seen: Any, as_json: bool) -> None:
+def _print(seen: Transform, as_json: bool) -> None:
     roll, pitch, yaw = seen.rpy
     if as_json:
         out(dump({"time": seen.stamp, "frame_id": seen.frame_id, "child_frame_id": seen.child_frame_id,
@@ -124,10 +130,10 @@ def _frames(args: argparse.Namespace) -> int:
     from dataflow import ConnPolicy
     from dataflow.tf.messages import FrameTree
 
-    got: list[Any] = []
+    got: list[object] = []
     arrived = threading.Event()
 
-    def take(event: Any) -> None:
+    def take(event: SampleEvent) -> None:
         if not got:
             got.append(event.value)
             arrived.set()
@@ -148,17 +154,17 @@ def _frames(args: argparse.Namespace) -> int:
     return 0
 
 
-def _rate(entry: Any) -> str:
+def _rate(entry: FrameTreeEntry) -> str:
     return "static" if entry.static else f"{entry.rate:.1f} Hz"
 
 
-def _rows(tree: Any) -> list[tuple[int, Any]]:
+def _rows(tree: FrameTree) -> list[tuple[int, FrameTreeEntry | str]]:
     """(depth, entry or root name) in tree order: each frame under its parent."""
-    children: dict[str, list[Any]] = {}
+    children: dict[str, list[FrameTreeEntry]] = {}
     for entry in tree.frames:
         children.setdefault(entry.parent, []).append(entry)
-    rows: list[tuple[int, Any]] = []
-    stack: list[tuple[int, Any]] = [(0, root) for root in reversed(tree.roots)]
+    rows: list[tuple[int, FrameTreeEntry | str]] = []
+    stack: list[tuple[int, FrameTreeEntry | str]] = [(0, root) for root in reversed(tree.roots)]
     while stack and len(rows) <= len(tree.frames) + len(tree.roots):
         depth, item = stack.pop()
         rows.append((depth, item))
@@ -167,7 +173,7 @@ def _rows(tree: Any) -> list[tuple[int, Any]]:
     return rows
 
 
-def _table(tree: Any) -> str:
+def _table(tree: FrameTree) -> str:
     lines = [("FRAME", "PARENT", "RATE", "AGE", "KEPT", "BY")]
     for depth, item in _rows(tree):
         indent = "  " * depth
@@ -185,7 +191,7 @@ def _table(tree: Any) -> str:
     return text + footer
 
 
-def _dot(tree: Any) -> str:
+def _dot(tree: FrameTree) -> str:
     lines = ["digraph frames {", f'  label="frame tree at {tree.time:.3f} s, {tree.cache:g} s kept";']
     for entry in tree.frames:
         recent = "static" if entry.static else f"{entry.newest:.3f} ({entry.age:.3f} s old)"

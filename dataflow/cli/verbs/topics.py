@@ -13,10 +13,14 @@ from __future__ import annotations
 import argparse
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict
 
 from dataflow.cli.connected import with_system
 from scart_wire.console import add_common, dump, out, rate_of
+
+if TYPE_CHECKING:
+    from dataflow.introspection import PortDescription, TaskDescription
+    from dataflow.remote import System
 
 HELP = "list every port: name, type, direction, measured rate, connections"
 ALIASES = ("ports",)
@@ -34,7 +38,7 @@ def main(args: argparse.Namespace) -> int:
     return with_system(args, _topics)
 
 
-def _describe_all(system: Any) -> tuple[float, dict[str, Any]]:
+def _describe_all(system: System) -> tuple[float, dict[str, TaskDescription]]:
     """``(when, {task: description})`` of every task that answers (one gone meanwhile is left out)."""
     from dataflow import DataflowError
 
@@ -47,14 +51,26 @@ def _describe_all(system: Any) -> tuple[float, dict[str, Any]]:
     return time.monotonic(), found
 
 
-def port_rows(system: Any, sample: float) -> list[dict[str, Any]]:
+class PortRow(TypedDict):
+    """One row of :func:`port_rows` (``scart topics --json``)."""
+
+    name: str
+    component: str
+    port: str
+    type: str
+    direction: str
+    rate: float | None
+    connections: int
+
+
+def port_rows(system: System, sample: float) -> list[PortRow]:
     """One row per port: ``name``, ``component``, ``port``, ``type``, ``direction``,
     ``rate`` (None for an input port), ``connections``."""
     t0, before = _describe_all(system)
     if sample > 0:
         threading.Event().wait(sample)
     t1, after = _describe_all(system)
-    rows = []
+    rows: list[PortRow] = []
     for task, desc in after.items():
         old = before.get(task)
         for p in desc.ports:
@@ -66,7 +82,7 @@ def port_rows(system: Any, sample: float) -> list[dict[str, Any]]:
     return rows
 
 
-def _rate(old: Any, new: Any, port: Any, elapsed: float) -> float:
+def _rate(old: TaskDescription | None, new: TaskDescription, port: PortDescription, elapsed: float) -> float:
     """Writes per second of ``port`` between the descriptions ``old`` and ``new`` (see the module docstring)."""
     if old is None:
         return 0.0

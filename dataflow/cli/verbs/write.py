@@ -15,11 +15,15 @@ from __future__ import annotations
 import argparse
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_system
 from dataflow.remote.api import split_port
 from scart_wire.console import add_common, dump, err, out, parse_value, stopped_by_signals
+
+if TYPE_CHECKING:
+    from dataflow.introspection import PortDescription
+    from dataflow.remote import ComponentProxy
 
 HELP = "write a value (JSON or YAML) to an input port, once or at a rate"
 MAX_RATE = 1000.0
@@ -63,7 +67,7 @@ def _write(args: argparse.Namespace) -> int:
     return _repeat(args, proxy, port, value)
 
 
-def _write_once(args: argparse.Namespace, proxy: Any, port: str, value: Any) -> bool:
+def _write_once(args: argparse.Namespace, proxy: ComponentProxy, port: str, value: object) -> bool:
     """One write; a refusal by the task or its port raises (one line, exit 1); a status other
     than success is said here. True when written."""
     status = proxy.write_json(port, value)
@@ -74,7 +78,7 @@ def _write_once(args: argparse.Namespace, proxy: Any, port: str, value: Any) -> 
     return True
 
 
-def _verdict(args: argparse.Namespace, component: str, port: str, info: Any) -> str:
+def _verdict(args: argparse.Namespace, component: str, port: str, info: PortDescription) -> str:
     """What an accepted write means, said plainly (see the module docstring)."""
     check = getattr(info, "check", "")
     if check:
@@ -90,7 +94,7 @@ def _verdict(args: argparse.Namespace, component: str, port: str, info: Any) -> 
     return f"WRITE_SUCCESS: {text}"
 
 
-def _repeat(args: argparse.Namespace, proxy: Any, port: str, value: Any) -> int:
+def _repeat(args: argparse.Namespace, proxy: ComponentProxy, port: str, value: object) -> int:
     """Write again at ``--rate`` (absolute deadlines: no drift) until ``-t`` writes,
     ``--duration``, Ctrl-C or a refusal; then say how many."""
     done = threading.Event()

@@ -14,10 +14,13 @@ said in one line, and ``--at`` still works.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING
 
 from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import Settings
+
+if TYPE_CHECKING:
+    from dataflow.remote.naming import NameServer, Registration
 
 __all__ = ["Announcement"]
 
@@ -32,8 +35,8 @@ class Announcement:
         self.ns = ""
         self.registered = False
         self.note = ""
-        self._registration: Any = None
-        self._nameserver: Any = None
+        self._registration: Registration | None = None
+        self._nameserver: NameServer | None = None
 
     @property
     def ns_option(self) -> str:

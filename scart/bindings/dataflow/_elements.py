@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any, Generic, TypeVar
+from typing import Generic, Protocol, TypeVar
 
 from dataflow import DataflowError
 from scart.spi import Element, Host, Participant, Problem
@@ -32,6 +32,12 @@ def check_each(elements: list[tuple[str, Element]], parse: Callable[[str, Elemen
     return out
 
 
+class Served(Protocol):
+    """What :meth:`Serving.serve` makes: something served until it is closed."""
+
+    def close(self) -> None: ...
+
+
 class Serving(Participant, Generic[T]):
     """Serves one thing per item at start — what :meth:`serve` returns, closed at stop —
     and, when one cannot be served, withdraws those served already and raises
@@ -43,9 +49,9 @@ class Serving(Participant, Generic[T]):
     def __init__(self, items: list[T], host: Host) -> None:
         self.items = items
         self.host = host
-        self._served: list[Any] = []
+        self._served: list[Served] = []
 
-    def serve(self, item: T) -> Any:  # pragma: no cover - interface
+    def serve(self, item: T) -> Served:  # pragma: no cover - interface
         """Serve ``item``; what is returned has ``close()``."""
         raise NotImplementedError
 

@@ -76,7 +76,7 @@ def remote_ports(ns: str, component: str, timeout: float = 1.0,
         system.close()
 
 
-def type_name_of(annotation: Any) -> str | None:
+def type_name_of(annotation: object) -> str | None:
     """The registry name of a Python annotation; None when it says nothing checkable
     (missing, ``Any``, ``object``). ``T | None`` counts as ``T``."""
     import inspect

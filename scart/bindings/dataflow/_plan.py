@@ -13,7 +13,7 @@ import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from dataflow import ConnPolicy
 from dataflow.policy import one_of, transport_names
@@ -22,6 +22,8 @@ from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import SCART_NS, Binding, CheckContext, InterfaceInfo, parse_host_port, parse_xml, port_in_range
 
 if TYPE_CHECKING:
+    import zenoh
+
     from scart_wire.security import Security
 
 #: Problem codes.
@@ -65,7 +67,7 @@ class ZenohEnd:
     ns: str = "default"
     insecure: bool = False
 
-    def open(self, security: Security | None = None) -> Any:
+    def open(self, security: Security | None = None) -> zenoh.Session:
         """A client session to the endpoint, presenting ``security``'s token if it has one;
         ``UnavailableError`` naming it when Zenoh cannot open one."""
         from dataflow.remote.errors import UnavailableError
@@ -164,7 +166,7 @@ def attributes(model: Binding) -> Attributes:
     return Attributes(component, ns, policy, period, mapping, tuple(problems), zenoh)
 
 
-def _signature(iface: InterfaceInfo, op: str) -> tuple[list[Any], Any] | None:
+def _signature(iface: InterfaceInfo, op: str) -> tuple[list[object], object] | None:
     """(parameter annotations, return annotation) of ``op``; None if not introspectable."""
     cls = iface.python_type
     fn = getattr(cls, op, None) if cls is not None else None

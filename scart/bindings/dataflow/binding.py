@@ -54,7 +54,12 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from dataflow.remote import ComponentProxy, GapEvent, PortWriter, SampleEvent, Subscription, System
 
 from dataflow import DataflowError, FlowStatus
 from dataflow.remote import local_system
@@ -70,6 +75,22 @@ from scart.spi import (
 __all__ = ["DataflowBinding", "DataflowReferenceBinding", "DataflowServiceBinding", "bindings_of"]
 
 log = logging.getLogger("scart.dataflow")
+
+
+class _Entry(Protocol):
+    """What a lookup tells of a task: where it is served, and by which start of its process."""
+
+    @property
+    def address(self) -> str: ...
+    @property
+    def boot_id(self) -> str: ...
+
+
+class _Lookups(Protocol):
+    """Where a remote task is looked up: the name service's client or Zenoh liveliness."""
+
+    def resolve(self, component: str, timeout: float | None = None) -> _Entry: ...
+    def close(self) -> None: ...
 
 
 def bindings_of(runtime: Host) -> list[DataflowReferenceBinding | DataflowServiceBinding]:
@@ -166,12 +187,12 @@ class _Link:
         self.local = s.ns is None and s.zenoh is None and (
             (node is not None and node.kind == TASK_KIND) or s.component in bridges)
         self.task = DataflowSettings.of(runtime.settings).remap.component(s.component)  # the name it runs under
-        self._system: Any = None
-        self._proxy: Any = None
+        self._system: System | None = None
+        self._proxy: ComponentProxy | None = None
         self._lock = threading.Lock()
         self._boot_id: str | None = None
-        self._names: Any = None
-        self._zenoh: Any = None  # the Zenoh session of the lookups (zenoh="ENDPOINT")
+        self._names: _Lookups | None = None
+        self._zenoh: zenoh.Session | None = None  # the Zenoh session of the lookups (zenoh="ENDPOINT")
         self._zenoh_lock = threading.Lock()
         self._closed = False
         self._looked = 0.0
@@ -188,7 +209,7 @@ class _Link:
         zenoh = self.s.zenoh
         return f"Zenoh {zenoh.endpoint} (namespace {zenoh.ns})" if zenoh else self.ns
 
-    def _lookups(self) -> Any:
+    def _lookups(self) -> _Lookups:
         """A new source of lookups: the name service, or Zenoh liveliness (one session, opened once)."""
         timeout, zenoh = self.runtime.settings.timeout, self.s.zenoh
         if zenoh is None:
@@ -205,7 +226,7 @@ class _Link:
             return ZenohNames(self._zenoh, zenoh.ns, timeout=timeout, insecure=zenoh.insecure,
                               token=self.runtime.settings.security.token)
 
-    def proxy(self) -> Any:
+    def proxy(self) -> ComponentProxy:
         """The component proxy (created on first success); raises ``DataflowError``."""
         proxy = self._proxy
         if proxy is not None:
@@ -280,14 +301,14 @@ class DataflowReferenceBinding(ReferenceBinding):
         self._link = _Link(host, attrs, f"reference {interface.name}")
         self.steps = {st.operation: st for st in remapped(plan(interface, "reference", attrs)[0], host, attrs)}
         self.attrs = dataclasses.replace(attrs, component=self._link.task)
-        self._writers: dict[str, Any] = {}
+        self._writers: dict[str, PortWriter] = {}
         self._lock = threading.Lock()
         self._watcher: Watcher | None = None
         self._checked = False
         self.calls = 0
         bindings_of(host).append(self)
 
-    def _writer(self, port: str) -> Any:
+    def _writer(self, port: str) -> PortWriter:
         writer = self._writers.get(port)
         if writer is None:
             with self._lock:
@@ -296,7 +317,7 @@ class DataflowReferenceBinding(ReferenceBinding):
                     writer = self._writers[port] = self._link.proxy().connect_input(port, self.attrs.policy)
         return writer
 
-    def write(self, port: str, value: Any) -> None:
+    def write(self, port: str, value: object) -> None:
         """Write ``value`` to input ``port``; raises ``InvocationError`` when unreachable."""
         try:
             self._writer(port).write(value)
@@ -305,7 +326,7 @@ class DataflowReferenceBinding(ReferenceBinding):
                                   type(exc).__name__) from exc
         self.calls += 1
 
-    def read(self, port: str) -> Any:
+    def read(self, port: str) -> object:
         """The latest sample of output ``port`` (None before any)."""
         try:
             flow, value = self._link.proxy().read(port)
@@ -315,32 +336,32 @@ class DataflowReferenceBinding(ReferenceBinding):
         self.calls += 1
         return None if flow is FlowStatus.NO_DATA else value
 
-    def invoker(self, operation: Operation, callback: object | None) -> Callable[..., Any]:
+    def invoker(self, operation: Operation, callback: object | None) -> Callable[..., object]:
         """A callable writing (one argument) or reading (none) the mapped port."""
         step = self.steps.get(operation.name)
         if step is None:
-            def unusable(*args: Any, **kwargs: Any) -> Any:
+            def unusable(*args: object, **kwargs: object) -> object:
                 raise InvocationError(f"binding.dataflow: operation {operation.name!r} maps to no port")
             return unusable
         port = step.port
         bind = self._binder(operation.name, port, step.kind == "read")
         if step.kind == "read":
-            def read(*args: Any, **kwargs: Any) -> Any:
+            def read(*args: object, **kwargs: object) -> object:
                 bind(args, kwargs)
                 return self.read(port)
             return read
         if operation.oneway:
             submit = self.host.submit
 
-            def send(*args: Any, **kwargs: Any) -> None:
+            def send(*args: object, **kwargs: object) -> None:
                 submit(self.write, port, bind(args, kwargs))
             return send
 
-        def write(*args: Any, **kwargs: Any) -> Any:
+        def write(*args: object, **kwargs: object) -> None:
             return self.write(port, bind(args, kwargs))
         return write
 
-    def _binder(self, name: str, port: str, read: bool) -> Callable[[tuple, dict], Any]:
+    def _binder(self, name: str, port: str, read: bool) -> Callable[[tuple[object, ...], dict[str, object]], object]:
         """Binds a call's arguments as the interface method's signature does (so the
         interface's own parameter names work); returns the one value written (reads: none).
         A wrong call raises ``InvocationError`` naming the operation and the port."""
@@ -356,7 +377,7 @@ class DataflowReferenceBinding(ReferenceBinding):
             sig = None
         where = f"binding.dataflow: {self.interface.name}.{name} (port {self.attrs.component}.{port})"
 
-        def bind(args: tuple, kwargs: dict) -> Any:
+        def bind(args: tuple[object, ...], kwargs: dict[str, object]) -> object:
             if sig is not None:
                 try:
                     bound = sig.bind(*args, **kwargs)
@@ -414,7 +435,7 @@ class DataflowServiceBinding(ServiceBinding):
         self._link = _Link(host, attrs, f"service {endpoint.component}/{endpoint.service}")
         self.steps: list[Step] = remapped(plan(endpoint.interface, "service", attrs)[0], host, attrs)
         self.attrs = dataclasses.replace(attrs, component=self._link.task)
-        self._subs: list[Any] = []
+        self._subs: list[Subscription] = []
         self._watcher: Watcher | None = None
         self.delivered = 0
         self.failures = 0
@@ -469,16 +490,16 @@ class DataflowServiceBinding(ServiceBinding):
         log.info("binding.dataflow %s: %d operation(s) of %s/%s driven by %s", self.model.loc, len(subs),
                  self.endpoint.component, self.endpoint.service, self.attrs.component)
 
-    def _on_gap(self, gap: Any) -> None:
+    def _on_gap(self, gap: GapEvent) -> None:
         """The subscription was cut and resumed by itself (the task's deployer restarted or
         stalled): say so, even when the name-service watch did not see it go."""
         log.info("binding.dataflow %s: task %s restarted or stalled: samples of %s resumed after %.2f s (%s)",
                  self.model.loc, gap.component, gap.port, gap.duration, gap.reason)
 
-    def _observer(self, operation: str) -> Callable[[Any], None]:
+    def _observer(self, operation: str) -> Callable[[SampleEvent], None]:
         call = self.endpoint.operation(operation, None)
 
-        def observe(event: Any) -> None:
+        def observe(event: SampleEvent) -> None:
             try:
                 call(event.value)
             except Exception:

@@ -27,7 +27,7 @@ import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from dataflow import ConnPolicy, DataflowError, Deployer, InputPort, PortTypeError
 from scart.bindings.dataflow._checks import remote_end
@@ -38,6 +38,8 @@ from scart.errors import Severity
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
 
 if TYPE_CHECKING:
+    import zenoh
+
     from dataflow.introspection import LinkDescription
     from dataflow.remote.naming import NameClient
     from dataflow.transports.zenoh import ZenohInput
@@ -229,7 +231,7 @@ class ConnectParticipant(Participant):
         self._local = local or (lambda name: name in tasks)  # is this task (as it runs) in this runtime?
         self._remote = [lk for lk in links if not self._is_local(lk) and lk.zenoh is None]
         self._on_zenoh = [lk for lk in links if lk.zenoh is not None]
-        self._sessions: dict[str, Any] = {}  # Zenoh endpoint -> session (Zenoh's own type)
+        self._sessions: dict[str, zenoh.Session] = {}  # Zenoh endpoint -> session
         self._inputs: list[ZenohInput] = []  # one for each link read from Zenoh
         self._made: dict[Link, str] = {}  # link -> boot id of the remote end it was made with
         self._watcher: Watcher | None = None

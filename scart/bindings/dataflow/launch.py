@@ -30,7 +30,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.launch import ros as ros_args
 from dataflow.launch import yarp as yarp_args
@@ -40,6 +40,9 @@ from scart.spi import (
     AssemblyView, Binding, Bound, GraphEdge, GraphNode, LaunchContext, Launched, LaunchProvider, Settings, Verb,
 )
 from scart_wire.defaults import DEFAULT_NS_ADDRESS, NS_ENV
+
+if TYPE_CHECKING:
+    from dataflow.foxglove.server import FoxgloveLive
 
 __all__ = ["DataflowLaunch"]
 
@@ -215,7 +218,7 @@ class DataflowLaunched(Launched):
         self.own = DataflowSettings.of(context.settings)
         address = context.services_address
         self.announcement = Announcement(context.served, context.settings, address) if address else None
-        self.foxglove: Any = None
+        self.foxglove: FoxgloveLive | None = None
 
     def start(self) -> None:
         """Register the services endpoint (never raises), make the ROS node a process told
@@ -268,7 +271,7 @@ class DataflowLaunched(Launched):
         return f"{namespace}/{name}" if namespace else name
 
 
-def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = None) -> Any:
+def _serve_foxglove(context: LaunchContext, spec: str, control: str | None = None) -> FoxgloveLive:
     """A started Foxglove server at ``[HOST:]PORT`` showing the tasks of the name service
     the runtime serves or joined: read-only (on this process's credentials), or with
     ``control`` (``--foxglove-control [TOKEN_FILE]``) writable, acting with that file's

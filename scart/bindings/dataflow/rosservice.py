@@ -26,6 +26,7 @@ starts (after every component's ``@init``), withdrawn when it stops.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,7 +36,7 @@ from dataflow.transports import TransportError
 from dataflow.transports._rosplan import signature_of
 from dataflow.transports.ros1.transport import NODE_OPTIONS
 from dataflow.transports.ros2._errors import Ros2Error
-from scart.bindings.dataflow._elements import Serving, check_each
+from scart.bindings.dataflow._elements import Served, Serving, check_each
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Problem
@@ -169,7 +170,7 @@ def _check(rs: RosService, assembly: AssemblyView, context: CheckContext) -> lis
     return [f"<scart:rosservice> {rs.service} ({rs.type}) by {what}: {p}" for p in problems]
 
 
-def _callable_of(rs: RosService, assembly: AssemblyView) -> tuple[Any, str]:
+def _callable_of(rs: RosService, assembly: AssemblyView) -> tuple[Callable[..., object], str]:
     """The function a service will call, as declared on its class (for the check)."""
     if rs.operation:
         task, _, op = rs.operation.rpartition(".")
@@ -204,7 +205,7 @@ class RosServiceParticipant(Serving[RosService]):
     def what(self, rs: RosService) -> str:
         return f"ROS service {rs.service} ({rs.where})"
 
-    def serve(self, rs: RosService) -> Any:
+    def serve(self, rs: RosService) -> Served:
         made = self._serve(rs)
         log.info("ROS service %s (%s, %s) answered by %s", made.name, rs.type, rs.transport, made.label)
         return made
@@ -215,7 +216,7 @@ class RosServiceParticipant(Serving[RosService]):
         if rs.transport == "ros2":
             from dataflow.transports import ros2 as lib
 
-            how: dict[str, Any] = dict(options=dict(rs.options))
+            how: dict[str, object] = dict(options=dict(rs.options))
         else:
             from dataflow.transports.ros1 import calls as lib
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow import ConnPolicy, DataflowError
 from dataflow.transports import TransportError, load, names
@@ -30,6 +30,9 @@ from scart.bindings.dataflow._host import TASK_KIND, class_ports, host_of
 from scart.bindings.dataflow._plan import parse_policy
 from scart.bindings.dataflow.settings import DataflowSettings
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Participant, Problem
+
+if TYPE_CHECKING:
+    from dataflow.ports import Port
 
 __all__ = ["StreamElement", "StreamParticipant"]
 
@@ -141,7 +144,7 @@ class StreamElement(ElementProvider):
         return StreamParticipant(streams, host)
 
 
-def _template(cls: type, port: str) -> Any:
+def _template(cls: type, port: str) -> Port[object] | None:
     """The port ``port`` a TaskContext class declares (its template), or None."""
     return next((p for p in getattr(cls, "_port_templates", {}).values() if p.name == port), None)
 

@@ -34,7 +34,7 @@ import functools
 import logging
 import typing
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 import pydantic
 from pydantic_core import core_schema
@@ -50,6 +50,9 @@ from scart.spi import (
     DEFAULT, AssemblyView, CheckContext, ComponentManager, ComponentType, Host, Implementation, ImplementationProblem,
     ImplementationProvider, InterfaceInfo, Node, Operation, Problem, PropSpec,
 )
+
+if TYPE_CHECKING:
+    from dataflow.properties import Property
 
 __all__ = ["TASK_NOT_A_TASK", "TaskImplementation", "TaskManager", "retire", "task_class", "task_interface"]
 
@@ -108,25 +111,26 @@ def _activity(impl: Implementation) -> Callable[[], Activity] | None:
 
 
 @functools.lru_cache(maxsize=1024)
-def _checked_type(prop: Any) -> Any:
+def _checked_type(prop: Property[object]) -> object:
     """The type the assembler parses a property value as: the Property's type, with its
     ``check`` attached (so a value the task would refuse is a load-time problem).
 
     Built once per Property declaration: ``scart.values`` caches a TypeAdapter per type,
     so a fresh class on every ``component_type()`` would miss that cache and grow it."""
-    if prop.check is None or prop.type is str or typing.get_origin(prop.type) in (list, tuple, set):
+    validate = prop.check
+    if validate is None or prop.type is str or typing.get_origin(prop.type) in (list, tuple, set):
         return prop.type
 
     base = prop.type
 
-    def check(value: Any) -> Any:
+    def check(value: object) -> object:
         try:
-            prop.check(value)
+            validate(value)
         except ValueError as exc:
             raise ValueError(f"refused by its check: {exc}") from None
         return value
 
-    def schema(cls: type, source: Any, handler: pydantic.GetCoreSchemaHandler) -> Any:
+    def schema(cls: type, source: object, handler: pydantic.GetCoreSchemaHandler) -> core_schema.CoreSchema:
         return core_schema.no_info_after_validator_function(check, handler(base))
 
     # named like the base type, so the assembler's messages read "not a valid float"
@@ -138,7 +142,7 @@ def task_interface(cls: type[TaskContext]) -> InterfaceInfo:
     ``python_type`` holds the operations' functions by operation name, so that a remote
     binding checks their arguments as the data-flow path does (declared types and bounds)."""
     ops: dict[str, Operation] = {}
-    functions: dict[str, Any] = {}
+    functions: dict[str, object] = {}
     for name, attr in cls._operation_attrs.items():
         functions[name] = getattr(cls, attr)
         ann = getattr(functions[name], "__annotations__", {}).get("return")
@@ -154,7 +158,7 @@ class TaskImplementation(ImplementationProvider):
     def component_type(self, impl: Implementation, context: CheckContext) -> ComponentType:
         """The task's service (its operations) and properties; raises ``ImplementationProblem``."""
         cls = task_class(impl, context)
-        props: dict[str, tuple[PropSpec, Any]] = {}
+        props: dict[str, tuple[PropSpec, object]] = {}
         for name, prop in cls._property_decls.items():
             spec = PropSpec(prop.default, False)
             spec.name = name
@@ -187,10 +191,10 @@ class TaskManager(ComponentManager):
         super().__init__(node, host)
         self.task: TaskContext | None = None
 
-    def method(self, operation: str) -> Callable[..., Any]:
+    def method(self, operation: str) -> Callable[..., object]:
         """``task.call(operation, ...)`` (raises ``RuntimeStateError`` before start)."""
 
-        def call(*args: Any, **kwargs: Any) -> Any:
+        def call(*args: object, **kwargs: object) -> object:
             task = self.task
             if task is None:
                 raise RuntimeStateError(f"task component {self.node.path} is not started")

@@ -18,13 +18,16 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dataflow.transports import TransportError
 from scart.bindings.dataflow._elements import Serving, check_each
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
-from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Problem
+from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Node, Problem
+
+if TYPE_CHECKING:
+    from dataflow.transports.yarp.rpc import RpcPort
 
 __all__ = ["YarpRpcElement", "YarpRpcParticipant"]
 
@@ -75,7 +78,7 @@ def _parse(prefix: str, el: Element) -> tuple[YarpRpc | None, list[str]]:
     return YarpRpc(prefix + component, port, timeout, options, str(el.loc)), []
 
 
-def _sca_operations(node: Any) -> dict[str, tuple[str, str]]:
+def _sca_operations(node: Node | None) -> dict[str, tuple[str, str]]:
     """``{word: (service, operation)}`` of an SCA component: ``op``, or ``Service.op`` for
     an operation two of its services share."""
     services = getattr(getattr(node, "ctype", None), "services", None) or {}
@@ -130,7 +133,7 @@ class YarpRpcParticipant(Serving[YarpRpc]):
     def what(self, rpc: YarpRpc) -> str:
         return f"YARP RPC port {rpc.port} ({rpc.where})"
 
-    def serve(self, rpc: YarpRpc) -> Any:
+    def serve(self, rpc: YarpRpc) -> RpcPort:
         from dataflow.transports.yarp.rpc import serve_calls, serve_task
 
         node = self.host.assembly.nodes.get(rpc.component)

@@ -27,12 +27,12 @@ from ._spec import BRIDGE, BRIDGE_TYPE, BridgeSpec, InputSpec, TopicSpec
 
 __all__ = ["Resolved", "Resolver", "UNKNOWN", "path_type", "same_type", "shown"]
 
-_UNKNOWN: Any = None  # a type not known at load time (checked at start)
+_UNKNOWN = None  # a type not known at load time (checked at start)
 UNKNOWN = _UNKNOWN
 
-def _plain(tp: Any) -> Any:
+def _plain(tp: object) -> object:
     """``T | None`` → ``T``; ``Any``/missing → unknown."""
-    if tp in (None, inspect.Parameter.empty, Any, object):
+    if tp in (None, inspect.Parameter.empty, typing.Any, object):
         return _UNKNOWN
     if typing.get_origin(tp) in (typing.Union, types.UnionType):
         args = [t for t in typing.get_args(tp) if t is not type(None)]
@@ -40,7 +40,7 @@ def _plain(tp: Any) -> Any:
     return tp
 
 
-def shown(tp: Any) -> str:
+def shown(tp: object) -> str:
     """A type as a message shows it."""
     if tp is _UNKNOWN:
         return "unknown"
@@ -49,7 +49,7 @@ def shown(tp: Any) -> str:
     return str(tp).replace("typing.", "")
 
 
-def same_type(given: Any, wanted: Any) -> bool:
+def same_type(given: object, wanted: object) -> bool:
     """Can values of ``given`` stand where ``wanted`` is declared? Unknown is compatible; an
     int may stand for a float, a subclass for its base; a bare ``list``/``dict`` (or an
     abstract collection) accepts any items; containers compare their item types pairwise.
@@ -81,7 +81,7 @@ def same_type(given: Any, wanted: Any) -> bool:
     return len(g_items) == len(w_items) and all(same_type(g, w) for g, w in zip(g_items, w_items))
 
 
-def path_type(tp: Any, path: tuple[str | int, ...]) -> tuple[Any, str | None]:
+def path_type(tp: object, path: tuple[str | int, ...]) -> tuple[object, str | None]:
     """The type a field path yields from a value of ``tp`` and why it cannot apply (None when
     it does). Unknown types stay unknown."""
     mapped = 0
@@ -107,11 +107,11 @@ def path_type(tp: Any, path: tuple[str | int, ...]) -> tuple[Any, str | None]:
             tp = items[0] if len(set(items)) == 1 else _UNKNOWN
             mapped += step < 0
     for _ in range(mapped):
-        tp = list[tp] if tp is not _UNKNOWN else _UNKNOWN
+        tp = types.GenericAlias(list, (tp,)) if tp is not _UNKNOWN else _UNKNOWN  # list[tp]
     return tp, None
 
 
-def _hints(fn: Callable[..., Any]) -> tuple[list[inspect.Parameter], dict[str, Any]]:
+def _hints(fn: Callable[..., object]) -> tuple[list[inspect.Parameter], dict[str, object]]:
     try:
         hints = typing.get_type_hints(fn)
     except Exception:  # noqa: BLE001 - unresolvable annotations: unchecked
@@ -128,12 +128,12 @@ class Resolved:
     """A bridge with its types and callables: what a :class:`BridgeTask` is made from."""
 
     spec: BridgeSpec
-    sources: dict[str, Any]  # input -> source port type (unknown: None)
-    converters: dict[str, Callable[[Any], Any] | None]
-    converted: dict[str, Any]  # input -> converted type
-    defaults: dict[str, Any]
-    output_type: Any
-    build: Callable[..., Any]
+    sources: dict[str, object]  # input -> source port type (unknown: None)
+    converters: dict[str, Callable[[object], object] | None]
+    converted: dict[str, object]  # input -> converted type
+    defaults: dict[str, object]
+    output_type: object
+    build: Callable[..., object]
     local: set[str] = field(default_factory=set)  # inputs whose source is a task of this runtime
 
 
@@ -158,21 +158,21 @@ class Resolver:
         """How many problems are errors (warnings do not keep a bridge from running)."""
         return sum(1 for p in self.problems if p[3] == "error")
 
-    def _import(self, ref: str, what: str) -> Any:
+    def _import(self, ref: str, what: str) -> object:
         try:
             return self.importer(ref)
         except Exception as exc:  # noqa: BLE001 - any import failure is the composite's problem
             self.problem(BRIDGE, f"{what}: cannot import {ref!r}: {type(exc).__name__}: {exc}")
             return None
 
-    def output_type(self, spec: BridgeSpec) -> Any:
+    def output_type(self, spec: BridgeSpec) -> object:
         """The output's Python type (``mod:Class``, or a registry name); None (reported) if unknown."""
         tp = self._type(spec.output_type, f"bridge {spec.name!r} output {spec.output!r}")
         if tp is not None and spec.output_topic is not None:
             self.topic(spec.output_topic, OutputPort(tp, spec.output), f"bridge {spec.name!r} output {spec.output!r}")
         return tp
 
-    def _type(self, ref: str, what: str) -> Any:
+    def _type(self, ref: str, what: str) -> object:
         if ":" in ref:
             return self._import(ref, f"{what} type")
         tp = registry.python_type(ref)
@@ -180,7 +180,7 @@ class Resolver:
             self.problem(BRIDGE, f"{what}: type {ref!r} is neither mod:Class nor a registered type name")
         return tp
 
-    def topic(self, topic: TopicSpec, port: Any, what: str) -> None:
+    def topic(self, topic: TopicSpec, port: InputPort[object] | OutputPort[object], what: str) -> None:
         """What keeps the bridge's ``port`` from joining ``topic`` (said at the stream's line)."""
         from dataflow.transports import TransportError, load
 
@@ -195,7 +195,7 @@ class Resolver:
                          "warning" if p.warning else "error")
         self._at = outer
 
-    def source_type(self, spec: BridgeSpec, inp: InputSpec, online: bool) -> tuple[Any, bool]:
+    def source_type(self, spec: BridgeSpec, inp: InputSpec, online: bool) -> tuple[object, bool]:
         """(the source port's type or unknown, whether the source runs in this runtime)."""
         self._at = inp.loc
         if inp.topic is not None:
@@ -254,10 +254,10 @@ class Resolver:
         before, outer = self.errors(), self._at
         self._at = None
         out_type = self.output_type(spec)
-        sources: dict[str, Any] = {}
-        converters: dict[str, Callable[[Any], Any] | None] = {}
-        converted: dict[str, Any] = {}
-        defaults: dict[str, Any] = {}
+        sources: dict[str, object] = {}
+        converters: dict[str, Callable[[object], object] | None] = {}
+        converted: dict[str, object] = {}
+        defaults: dict[str, object] = {}
         local: set[str] = set()
         for inp in spec.inputs:
             src, is_local = self.source_type(spec, inp, online)
@@ -277,7 +277,8 @@ class Resolver:
         self._resolved[spec.name] = resolved
         return resolved
 
-    def converter(self, spec: BridgeSpec, inp: InputSpec, src: Any) -> tuple[Callable[[Any], Any] | None, Any]:
+    def converter(self, spec: BridgeSpec, inp: InputSpec,
+                  src: object) -> tuple[Callable[[object], object] | None, object]:
         where = f"bridge {spec.name!r} input {inp.name!r}"
         if inp.path is not None:
             path = inp.path
@@ -313,7 +314,7 @@ class Resolver:
                          f"{inp.origin} is {shown(src)}")
         return fn, _plain(hints.get("return", _UNKNOWN))
 
-    def default(self, spec: BridgeSpec, inp: InputSpec, tp: Any) -> Any:
+    def default(self, spec: BridgeSpec, inp: InputSpec, tp: Any) -> object:  # Any: a type expression for pydantic
         raw = inp.default or ""
         try:
             data = json.loads(raw)
@@ -331,7 +332,7 @@ class Resolver:
                      f"{shown(tp)}: {why}")
         return None
 
-    def builder(self, spec: BridgeSpec, converted: dict[str, Any], out_type: Any) -> Callable[..., Any] | None:
+    def builder(self, spec: BridgeSpec, converted: dict[str, object], out_type: object) -> Callable[..., object] | None:
         where = f"bridge {spec.name!r} output {spec.output!r}"
         if spec.build is not None:
             fn = self._import(spec.build, f"{where} builder")
@@ -359,7 +360,7 @@ class Resolver:
             if not same_type(returns, out_type):
                 self.problem(BRIDGE_TYPE, f"{where}: builder {spec.build} returns {shown(_plain(returns))}, but the "
                              f"output is {shown(out_type)}")
-            return typing.cast(Callable[..., Any], fn)
+            return typing.cast(Callable[..., object], fn)
         fields = getattr(out_type, "model_fields", None)
         if fields is None:
             self.problem(BRIDGE, f"{where}: type {shown(out_type)} is not a pydantic model: give build=\"mod:function\"")
@@ -374,7 +375,7 @@ class Resolver:
         lacking = [n for n, f in fields.items() if f.is_required() and n not in converted]
         if lacking:
             self.problem(BRIDGE, f"{where}: {shown(out_type)} needs field(s) {', '.join(lacking)} no input gives")
-        return typing.cast(Callable[..., Any], out_type)
+        return typing.cast(Callable[..., object], out_type)
 
 
 

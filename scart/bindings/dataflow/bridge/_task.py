@@ -7,7 +7,6 @@ import logging
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
 
 from dataflow import FlowStatus, InputPort, OutputPort, PeriodicActivity, TaskContext
 from dataflow.introspection import PropertyDescription, TaskDescription
@@ -21,8 +20,8 @@ log = logging.getLogger("scart.dataflow")
 
 @dataclass
 class _Input:
-    port: InputPort[Any]
-    value: Any = None  # the last sample accepted, converted
+    port: InputPort[object]
+    value: object = None  # the last sample accepted, converted
     has_value: bool = False
     fresh: bool = False  # a sample not yet used by an output
     arrived: float | None = None  # monotonic time of the last sample
@@ -42,10 +41,10 @@ class BridgeTask(TaskContext):
         for inp in spec.inputs:
             tp = resolved.sources[inp.name]
             origin = inp.origin if inp.topic is not None else ".".join(remap.endpoint(*inp.source))
-            port: InputPort[Any] = InputPort(tp if tp is not None else object, remap.port(spec.name, inp.name),
-                                             f"from {origin}", event=event)
+            port: InputPort[object] = InputPort(tp if tp is not None else object, remap.port(spec.name, inp.name),
+                                                f"from {origin}", event=event)
             self._inputs[inp.name] = _Input(self.add_port(port))
-        self.output: OutputPort[Any] = self.add_port(
+        self.output: OutputPort[object] = self.add_port(
             OutputPort(resolved.output_type, remap.port(spec.name, spec.output), f"built by bridge {self.name}"))
         self.outputs = 0
         self.errors = 0  # samples a converter or the builder refused (logged, then skipped)
@@ -87,11 +86,11 @@ class BridgeTask(TaskContext):
             log.warning("bridge %s: %s failed (%d so far): %s: %s", self.name, what, self.errors,
                         type(exc).__name__, exc)
 
-    def _gather(self) -> dict[str, Any] | None:
+    def _gather(self) -> dict[str, object] | None:
         """Periodic and any-input triggers: each input's value by its missing-input rule."""
         if not any(s.fresh for s in self._inputs.values()) and self.resolved.spec.trigger == "any":
             return None
-        values: dict[str, Any] = {}
+        values: dict[str, object] = {}
         for inp in self.resolved.spec.inputs:
             state = self._inputs[inp.name]
             if inp.missing == "default" and not state.has_value:
@@ -102,7 +101,7 @@ class BridgeTask(TaskContext):
                 values[inp.name] = state.value
         return values
 
-    def _sync(self) -> dict[str, Any] | None:
+    def _sync(self) -> dict[str, object] | None:
         """All inputs fresh within the window (an older sample waits for a newer one)."""
         states = self._inputs.values()
         if not all(s.fresh for s in states):
