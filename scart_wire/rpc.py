@@ -147,8 +147,9 @@ def abort(context: grpc.ServicerContext, exc: BaseException) -> NoReturn:
 
 
 #: A servicer and the generated function that adds it to a server
-#: (``dataflow_pb2_grpc.add_DeployerServiceServicer_to_server``, ...).
-Servicer = tuple[Callable[[object, grpc.Server], None], object]
+#: (``dataflow_pb2_grpc.add_DeployerServiceServicer_to_server``, ...). Each function takes
+#: its own servicer class, so a list of them can name the first parameter only as Any.
+Servicer = tuple[Callable[[Any, grpc.Server], None], object]
 
 
 def make_server(
