@@ -50,6 +50,11 @@ _NUMBER = MappingProxyType({float: (registry.type_name(float), struct.Struct("<d
                             int: (registry.type_name(int), struct.Struct("<q").pack)})
 _UNPACK = MappingProxyType({registry.type_name(float): struct.Struct("<d").unpack,
                             registry.type_name(int): struct.Struct("<q").unpack})
+#: A registered model class → its name and serializer's ``to_json``; its name → its
+#: validator's ``validate_json``. The registry fills them at a class's first encode and a
+#: name's first decode; later samples skip its lookups: the same serializer and check.
+_MODEL_OUT = registry.model_encoders
+_MODEL_IN = registry.model_decoders
 
 
 def encode(value: Any, py_type: Any = None) -> Value:
@@ -60,11 +65,13 @@ def encode(value: Any, py_type: Any = None) -> Value:
         return Value(type_name=NONE_TYPE)
     try:
         if type(value) is py_type:  # a port's own type: the hot cases without the registry's lookups
-            if py_type in _NUMBER:
-                name, pack = _NUMBER[py_type]
-                return Value(type_name=name, data=pack(value))
-            if isinstance(value, pydantic.BaseModel):
-                return Value(type_name=registry.type_name(py_type), data=model_json(value))
+            number = _NUMBER.get(py_type)
+            if number is not None:
+                return Value(type_name=number[0], data=number[1](value))
+            model = _MODEL_OUT.get(py_type)
+            if model is not None:
+                data = model[1](value)  # as model_json: null may be inf or NaN, made again there
+                return Value(type_name=model[0], data=data if b"null" not in data else model_json(value))
         if py_type is not None:
             enc = registry.encode(value, py_type)
             return Value(type_name=enc.type_name, data=enc.data)
@@ -142,6 +149,12 @@ def decode(msg: Value | Payload) -> Any:
         try:
             return unpack(msg.data)[0]
         except struct.error as exc:
+            raise PortTypeError(f"cannot decode {name}: {exc}") from None
+    validate = _MODEL_IN.get(name)
+    if validate is not None:  # a registered model, straight through its validator (the hot case)
+        try:
+            return validate(msg.data)
+        except pydantic.ValidationError as exc:
             raise PortTypeError(f"cannot decode {name}: {exc}") from None
     if name == NONE_TYPE:
         return None
