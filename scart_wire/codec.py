@@ -65,13 +65,13 @@ def encode(value: Any, py_type: Any = None) -> Value:
         return Value(type_name=NONE_TYPE)
     try:
         if type(value) is py_type:  # a port's own type: the hot cases without the registry's lookups
-            number = _NUMBER.get(py_type)
-            if number is not None:
-                return Value(type_name=number[0], data=number[1](value))
-            model = _MODEL_OUT.get(py_type)
-            if model is not None:
-                data = model[1](value)  # as model_json: null may be inf or NaN, made again there
-                return Value(type_name=model[0], data=data if b"null" not in data else model_json(value))
+            if py_type in _NUMBER:
+                name, pack = _NUMBER[py_type]
+                return Value(type_name=name, data=pack(value))
+            if py_type in _MODEL_OUT:
+                name, to_json = _MODEL_OUT[py_type]
+                data = to_json(value)  # as model_json (find, not `in`): null may be inf or NaN, made again
+                return Value(type_name=name, data=data if data.find(b"null") < 0 else model_json(value))
         if py_type is not None:
             enc = registry.encode(value, py_type)
             return Value(type_name=enc.type_name, data=enc.data)
@@ -144,16 +144,14 @@ def decode(msg: Value | Payload) -> Any:
                 raise PortTypeError(f"cannot decode {msg.type_name}: {exc}") from None
         msg = Value(type_name=msg.type_name, data=bytes(msg.data))
     name = msg.type_name
-    unpack = _UNPACK.get(name)
-    if unpack is not None:  # a number, without the registry's lookups (the hot case)
+    if name in _UNPACK:  # a number, without the registry's lookups (the hot case)
         try:
-            return unpack(msg.data)[0]
+            return _UNPACK[name](msg.data)[0]
         except struct.error as exc:
             raise PortTypeError(f"cannot decode {name}: {exc}") from None
-    validate = _MODEL_IN.get(name)
-    if validate is not None:  # a registered model, straight through its validator (the hot case)
+    if name in _MODEL_IN:  # a registered model, straight through its validator (the hot case)
         try:
-            return validate(msg.data)
+            return _MODEL_IN[name](msg.data)
         except pydantic.ValidationError as exc:
             raise PortTypeError(f"cannot decode {name}: {exc}") from None
     if name == NONE_TYPE:

@@ -74,7 +74,7 @@ def model_json(value: pydantic.BaseModel) -> bytes:
     reading inf must survive), so JSON holding null is made again with inf and NaN as
     ``Infinity`` and ``NaN``."""
     data = value.__pydantic_serializer__.to_json(value)
-    if b"null" not in data:
+    if data.find(b"null") < 0:  # not `in`, which first tries the needle as an int (and clears a TypeError)
         return data
     return pydantic_core.to_json(value.model_dump(), inf_nan_mode="constants")
 
