@@ -50,6 +50,11 @@ _NUMBER = MappingProxyType({float: (registry.type_name(float), struct.Struct("<d
                             int: (registry.type_name(int), struct.Struct("<q").pack)})
 _UNPACK = MappingProxyType({registry.type_name(float): struct.Struct("<d").unpack,
                             registry.type_name(int): struct.Struct("<q").unpack})
+#: A registered model class → its name and serializer's ``to_json``; its name → its
+#: validator's ``validate_json``. The registry fills them at a class's first encode and a
+#: name's first decode; later samples skip its lookups: the same serializer and check.
+_MODEL_OUT = registry.model_encoders
+_MODEL_IN = registry.model_decoders
 
 
 def encode(value: Any, py_type: Any = None) -> Value:
@@ -63,8 +68,10 @@ def encode(value: Any, py_type: Any = None) -> Value:
             if py_type in _NUMBER:
                 name, pack = _NUMBER[py_type]
                 return Value(type_name=name, data=pack(value))
-            if isinstance(value, pydantic.BaseModel):
-                return Value(type_name=registry.type_name(py_type), data=model_json(value))
+            if py_type in _MODEL_OUT:
+                name, to_json = _MODEL_OUT[py_type]
+                data = to_json(value)  # as model_json (find, not `in`): null may be inf or NaN, made again
+                return Value(type_name=name, data=data if data.find(b"null") < 0 else model_json(value))
         if py_type is not None:
             enc = registry.encode(value, py_type)
             return Value(type_name=enc.type_name, data=enc.data)
@@ -137,11 +144,15 @@ def decode(msg: Value | Payload) -> Any:
                 raise PortTypeError(f"cannot decode {msg.type_name}: {exc}") from None
         msg = Value(type_name=msg.type_name, data=bytes(msg.data))
     name = msg.type_name
-    unpack = _UNPACK.get(name)
-    if unpack is not None:  # a number, without the registry's lookups (the hot case)
+    if name in _UNPACK:  # a number, without the registry's lookups (the hot case)
         try:
-            return unpack(msg.data)[0]
+            return _UNPACK[name](msg.data)[0]
         except struct.error as exc:
+            raise PortTypeError(f"cannot decode {name}: {exc}") from None
+    if name in _MODEL_IN:  # a registered model, straight through its validator (the hot case)
+        try:
+            return _MODEL_IN[name](msg.data)
+        except pydantic.ValidationError as exc:
             raise PortTypeError(f"cannot decode {name}: {exc}") from None
     if name == NONE_TYPE:
         return None

@@ -33,6 +33,7 @@ import struct
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any, TypeVar
 
 import pydantic
@@ -73,7 +74,7 @@ def model_json(value: pydantic.BaseModel) -> bytes:
     reading inf must survive), so JSON holding null is made again with inf and NaN as
     ``Infinity`` and ``NaN``."""
     data = value.__pydantic_serializer__.to_json(value)
-    if b"null" not in data:
+    if data.find(b"null") < 0:  # not `in`, which first tries the needle as an int (and clears a TypeError)
         return data
     return pydantic_core.to_json(value.model_dump(), inf_nan_mode="constants")
 
@@ -152,6 +153,12 @@ class TypeRegistry:
         #: name → its model's JSON validator, once decoded (a name never changes its type):
         #: a model sample, the common case off the number path, without the lookups below.
         self._models: dict[str, Callable[[bytes], Any]] = {}
+        #: registered model class → its name and its serializer's ``to_json``, once encoded.
+        self._model_out: dict[type, tuple[str, Callable[[Any], bytes]]] = {}
+        #: Read-only views of the two for the codec's hot path (:mod:`scart_wire.codec`): a
+        #: model sample straight through pydantic's own serializer and validator.
+        self.model_encoders = MappingProxyType(self._model_out)
+        self.model_decoders = MappingProxyType(self._models)
         for py_type, name in (
             (float, "float64"),
             (int, "int64"),
@@ -316,7 +323,10 @@ class TypeRegistry:
         if py_type is bytes:
             return Encoded(name, bytes(value))
         if isinstance(value, pydantic.BaseModel) and _is_model(py_type) and isinstance(value, py_type):
-            return Encoded(name, model_json(value))
+            data = model_json(value)
+            if py_type in self._by_type:  # registered: its name is for good
+                self._model_out[py_type] = (name, py_type.__pydantic_serializer__.to_json)
+            return Encoded(name, data)
         if py_type == list[float]:
             return Encoded(name, struct.pack(f"<{len(value)}d", *value))
         if py_type == list[int]:

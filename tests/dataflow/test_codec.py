@@ -112,6 +112,26 @@ def test_a_model_decodes_and_refuses_alike_every_time() -> None:
             decode(bad)
 
 
+def test_a_model_encodes_alike_every_time_and_takes_its_name_once_registered() -> None:
+    """The first encode of a registered model's class takes the registry's lookups; later
+    ones go straight to its serializer: the same bytes, inf and NaN kept. A class sent
+    before it is registered is not remembered under its unregistered name."""
+    sample = Registered(name="r", values=[1.0, math.inf, math.nan])
+    first = encode(sample, Registered)
+    for _ in range(3):
+        again = encode(sample, Registered)
+        assert again == first and b"Infinity" in again.data and b"NaN" in again.data
+
+    class Late(BaseModel):
+        x: float
+
+    assert encode(Late(x=1.0), Late).type_name == Late.__qualname__
+    register_type("test.codec.Late")(Late)
+    for _ in range(3):
+        sent = encode(Late(x=2.0), Late)
+        assert sent.type_name == "test.codec.Late" and decode(sent) == Late(x=2.0)
+
+
 def test_a_value_that_cannot_be_encoded_names_its_type() -> None:
     with pytest.raises(PortTypeError, match="cannot encode a value of type object"):
         encode(object())
