@@ -43,8 +43,7 @@ class _Closing(Protocol):
 class Subscribable(Protocol):
     """What a listener needs of a component proxy: a subscription it can close."""
 
-    def subscribe(self, port: str, callback: Callable[[Any], None], *,
-                  policy: ConnPolicy | None = None) -> _Closing: ...
+    def subscribe(self, port: str, observer: Callable[[Any], None], /, *, policy: ConnPolicy) -> _Closing: ...
 
 
 class FrameListener:

@@ -18,13 +18,13 @@ import argparse
 import math
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from dataflow.cli.connected import with_system
 from scart_wire.console import add_common, dump, err, out, stopped_by_signals
 
 if TYPE_CHECKING:
-    from dataflow.remote import SampleEvent
+    from dataflow.remote import ComponentProxy, SampleEvent
     from dataflow.tf.buffer import Transform
     from dataflow.tf.messages import FrameTree, FrameTreeEntry
 
@@ -66,8 +66,8 @@ def main(args: argparse.Namespace) -> int:
     return with_system(args, _frames)
 
 
-def _server(args: argparse.Namespace) -> Any:  # Any: a ComponentProxy, which dataflow.tf's Subscribable
-    # does not match (it names the callback differently and takes policy=None)
+def _server(args: argparse.Namespace) -> ComponentProxy:
+    """The component serving the frame tree, checked to exist."""
     from dataflow import NotFoundError
 
     try:
