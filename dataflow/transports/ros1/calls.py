@@ -37,11 +37,11 @@ from dataflow.transports import TransportError, load
 from .._rosplan import (Param, answering, is_model, match_params, operation_call, operation_signature,
                         resolve_converter, signature_of, type_label)
 from .convert import _plain_value, field_conversion
-from .master import MasterError, parse_rosrpc
-from .msgs import MessageTypes, SrvType, UnknownTypeError
-from .node import Node
-from .services import ServiceError, ServiceServer
-from .tcpros import HeaderError, encode_header, read_header
+from scart_ros1.master import MasterError, parse_rosrpc
+from scart_ros1.msgs import MessageTypes, SrvType, UnknownTypeError
+from scart_ros1.node import Node
+from scart_ros1.services import ServiceError, ServiceServer
+from scart_ros1.tcpros import HeaderError, encode_header, read_header
 
 if TYPE_CHECKING:
     from .transport import Ros1Transport
@@ -115,7 +115,7 @@ def _response_plan(types: MessageTypes, srv: SrvType, returns: Any) -> tuple[Cal
 
 
 def _message_field(type_name: str) -> Any:
-    from .msgs import FieldDef
+    from scart_ros1.msgs import FieldDef
 
     return FieldDef("response", type_name)
 

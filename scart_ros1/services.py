@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from dataflow.threads import OwnedThread
+from ._threads import OwnedThread
 
 from .io import Conn, Counters, FrameReader, InboundConn
 from .master import MasterError, MasterUnreachable, parse_rosrpc

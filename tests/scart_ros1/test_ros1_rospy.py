@@ -10,7 +10,7 @@ import pytest
 from support import wait_until
 from support.ros1 import RosMaster, needs_ros, require_rospy, rosmaster, running
 
-from dataflow.transports.ros1 import MasterError, MessageTypes, Node
+from scart_ros1 import MasterError, MessageTypes, Node
 
 pytestmark = [pytest.mark.integration, needs_ros]
 COUNT = 50
