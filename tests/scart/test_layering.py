@@ -137,7 +137,7 @@ def test_the_wire_layer_imports_neither_world() -> None:
 
 
 #: The protocol stacks: libraries of their own, which know nothing of scart (RTT's rtt_ros, YARP's os::impl).
-STACKS = ("scart_yarp", "scart_ros1")
+STACKS = ("scart_yarp", "scart_ros1", "scart_ros2")
 
 
 @pytest.mark.parametrize("stack", STACKS)
@@ -355,8 +355,6 @@ PROCESS_WIDE = {
                                              "(RTT's mqueue dispatcher), counted by acquire/release",
     "dataflow.transports.zenoh._default": "the Zenoh default session: the one this process's streams use when "
                                           "they name none (scart deploy --zenoh); its opener owns it",
-    "dataflow.transports.ros2._network.DOMAINS": "the Cyclone DDS domains: a process joins a domain once, "
-                                                 "shared by its participants and counted",
 }
 
 

@@ -40,8 +40,9 @@ from typing import Any
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
+from scart_ros2.qos import Durability, QoS, Reliability
+
 from .._roslog import MAX_TEXT, RosLog, level_of, set_level_number
-from ._qos import Durability, QoS, Reliability
 
 __all__ = ["Ros2Citizen", "from_value", "to_value"]
 
