@@ -21,7 +21,6 @@ from collections.abc import Callable
 from typing import Any
 
 from ._threads import OwnedThread
-
 from .io import Counters
 from .master import Master, MasterError, MasterUnreachable
 

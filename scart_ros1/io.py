@@ -31,7 +31,6 @@ from typing import Any
 
 from ._threads import OwnedThread
 from ._poll import GONE, IN, OUT, READABLE, WRITABLE, Poller
-
 from .tcpros import LEN, HeaderError, decode_header
 
 __all__ = ["Conn", "Counters", "FrameReader", "InboundConn", "IoLoop", "Listener"]

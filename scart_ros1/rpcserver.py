@@ -22,7 +22,6 @@ from typing import Any, ClassVar
 from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
 from ._threads import OwnedThread
-
 from .io import Counters
 
 __all__ = ["RpcServer"]
