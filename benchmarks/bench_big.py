@@ -450,7 +450,7 @@ def ros2_codec_rows(count: int) -> dict[str, float]:
     """Median ms to make and to read one 1080p RGB ``sensor_msgs/msg/Image`` sample's CDR
     bytes: scart's ROS 2 array conversion (rosbags' CDR, written and taken as bytes) and
     Cyclone DDS's own Python serialiser (an IDL ``sequence<uint8>``), at 30 Hz."""
-    from dataflow.transports.ros2 import MessageTypes
+    from scart_ros2 import MessageTypes
     from dataflow.transports.ros2._convert import plan
 
     types, spec = MessageTypes(), Array[np.uint8, (1080, 1920, 3)]

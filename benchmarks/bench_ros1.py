@@ -8,7 +8,7 @@ A ``rosmaster --core`` on a free port; then, alternating in each round, same-hos
 each a publisher process and a subscriber process, three kinds of side:
 
 * ``rospy``: Debian's rospy;
-* ``ours``: the bare node library (``dataflow.transports.ros1.Node``), its callback;
+* ``ours``: the bare node library (``scart_ros1.Node``), its callback;
 * ``scart``: the whole scart path, as a user has it — an output port of a task streamed
   with ``Deployer.stream(..., ConnPolicy(transport="ros1", topic=...))`` (the value
   written with ``port.write``), or an event input port fed by such a stream, the sample
@@ -95,7 +95,7 @@ rospy.signal_shutdown("done")
 
 def ours(role: str, rate: float, count: int, warmup: float, topic: str) -> None:
     """The ``--child`` side: our node as publisher or subscriber (same protocol as ROSPY_PEER)."""
-    from dataflow.transports.ros1 import Node
+    from scart_ros1 import Node
 
     with Node(f"ours_{role}_{os.getpid()}") as node:
         if role == "pub":

@@ -9,7 +9,7 @@ arrival − stamp (CLOCK_MONOTONIC is one clock for every process of the host). 
 * **bare**: cyclonedds-python alone, both ends: an ``IdlStruct`` named
   ``std_msgs::msg::dds_::Int64_``, a ``DataWriter``, and a ``DataReader`` drained by a
   waitset thread (``take``);
-* **ros2**: the library :mod:`dataflow.transports.ros2`, both ends:
+* **ros2**: the library :mod:`scart_ros2`, both ends:
   ``Participant.publisher`` of a rosbags message, ``Participant.subscribe`` delivering a
   rosbags message to a callback;
 * **stream out**: a scart port → a ``ros2`` stream → the bare reader: a task's
@@ -42,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from _common import paced, pct, wait_until  # noqa: E402
 
 from dataflow import ConnPolicy, Deployer, InputPort, OutputPort, TaskContext  # noqa: E402
-from dataflow.transports.ros2 import Network, Participant, QoS  # noqa: E402
+from scart_ros2 import Network, Participant, QoS  # noqa: E402
 
 TOPIC = "/scart_bench/hop"
 RATE = 1000.0

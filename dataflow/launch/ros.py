@@ -154,7 +154,7 @@ def _add_types(kind: str, files: list[str]) -> None:
         for path in files:
             add_type_file(types, path, ("msg", "srv"))
         return
-    from dataflow.transports.ros1 import TypeDefinitionError
+    from scart_ros1 import TypeDefinitionError
 
     for path in files:
         try:
@@ -239,7 +239,7 @@ def call(args: argparse.Namespace, json_args: list[object]) -> object:
             raise ValueError("a ROS 2 service needs --type pkg/srv/Type (ROS 2 cannot be asked it)")
         return call_ros2(service, request, type_name=args.type, timeout=args.timeout)
     from dataflow.transports.ros1.calls import call_service
-    from dataflow.transports.ros1.services import ServiceError
+    from scart_ros1.services import ServiceError
 
     apply(args)
     try:

@@ -191,7 +191,7 @@ class Ros2Frames(RosFrames):
             raise TransportError(f"transport 'ros2' is a {type(transport).__qualname__}, not scart's")
         self._transport = transport
         try:
-            from dataflow.transports.ros2 import QoS, Ros2Error
+            from scart_ros2 import QoS, Ros2Error
 
             where = transport.where(dict(options or {}))
         except ImportError as exc:

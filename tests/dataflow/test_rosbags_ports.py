@@ -87,7 +87,7 @@ def test_a_6mb_image_message_crosses_deployers_over_shm_as_a_view(tmp_path) -> N
 
 
 def test_a_rosbags_ros1_class_is_a_ros1_topic_as_it_is() -> None:
-    from dataflow.transports.ros1 import MessageTypes
+    from scart_ros1 import MessageTypes
     from dataflow.transports.ros1.convert import plan
 
     noetic = get_typestore(Stores.ROS1_NOETIC)

@@ -17,7 +17,7 @@ pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pi
 
 from dataflow.tf import FrameBuffer, Transform  # noqa: E402
 from dataflow.tf.ros import Ros2Frames  # noqa: E402
-from dataflow.transports.ros2 import Participant, QoS  # noqa: E402
+from scart_ros2 import Participant, QoS  # noqa: E402
 
 pytestmark = pytest.mark.integration
 

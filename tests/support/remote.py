@@ -8,11 +8,10 @@ subprocess helpers that read a deployer's readiness line with a deadline.
 from __future__ import annotations
 
 import os
-import selectors
 import signal
 import subprocess
 import sys
-import time
+import threading
 
 import numpy as np
 
@@ -307,22 +306,20 @@ def start_scart(args: list[str], ns: str | None = None, ready: str = "serving", 
         [sys.executable, "-m", "scart", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         env=subprocess_env(ns), text=True, bufsize=1,
     )
-    sel = selectors.DefaultSelector()
-    sel.register(proc.stderr, selectors.EVENT_READ)
-    deadline = time.monotonic() + timeout
+    # Blocking reads, ended by the process's end or the deadline's kill: a select on the pipe
+    # would miss a line already read into the stream's buffer with the one before it.
+    deadline = threading.Timer(timeout, proc.kill)
+    deadline.daemon = True
+    deadline.start()
     seen = []
     try:
-        while time.monotonic() < deadline:
-            if not sel.select(timeout=max(0.0, deadline - time.monotonic())):
-                continue
-            line = proc.stderr.readline()
-            if not line:
-                break
+        for line in iter(proc.stderr.readline, ""):
             seen.append(line)
             if ready in line:
                 return proc, line.strip()
     finally:
-        sel.close()
+        deadline.cancel()
+        deadline.join(5.0)  # cancelled: it ends at once
     stop_process(proc)
     raise AssertionError(f"scart {' '.join(args)} did not get ready: {''.join(seen)}")
 

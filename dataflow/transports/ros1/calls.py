@@ -25,29 +25,24 @@ from __future__ import annotations
 
 import inspect
 import logging
-import socket
-import time
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import pydantic
 
 from dataflow.transports import TransportError, load
+from scart_ros1.msgs import MessageTypes, SrvType, UnknownTypeError
+from scart_ros1.node import Node
+from scart_ros1.services import ServiceError, ServiceServer, service_type
 
 from .._rosplan import (Param, answering, is_model, match_params, operation_call, operation_signature,
                         resolve_converter, signature_of, type_label)
 from .convert import _plain_value, field_conversion
-from .master import MasterError, parse_rosrpc
-from .msgs import MessageTypes, SrvType, UnknownTypeError
-from .node import Node
-from .services import ServiceError, ServiceServer
-from .tcpros import HeaderError, encode_header, read_header
 
 if TYPE_CHECKING:
     from .transport import Ros1Transport
 
-__all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "serve", "serve_operation",
-           "service_type"]
+__all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "serve", "serve_operation"]
 
 log = logging.getLogger(__name__)
 
@@ -115,7 +110,7 @@ def _response_plan(types: MessageTypes, srv: SrvType, returns: Any) -> tuple[Cal
 
 
 def _message_field(type_name: str) -> Any:
-    from .msgs import FieldDef
+    from scart_ros1.msgs import FieldDef
 
     return FieldDef("response", type_name)
 
@@ -247,25 +242,6 @@ def serve_operation(task: Any, operation: str, service: str, type_name: str, *, 
 
 
 # ---- calling ----------------------------------------------------------------------------
-def service_type(node: Node, service: str, timeout: float = 5.0) -> str:
-    """The type (``pkg/Srv``) of the ROS service ``service``, asked of the service itself
-    (the ``probe`` header, as ``rosservice``). Raises :class:`ServiceError`."""
-    name = node.resolve(service)
-    deadline = time.monotonic() + timeout
-    try:
-        host, port = parse_rosrpc(node.master_for(timeout).lookup_service(name))
-        with socket.create_connection((host, port), timeout=timeout) as sock:
-            sock.sendall(encode_header({"callerid": node.caller_id, "service": name, "md5sum": "*", "probe": "1"}))
-            header = read_header(sock, deadline, node.limits.max_header)
-    except MasterError as exc:
-        raise ServiceError(f"service {name} is not available: {exc}") from None
-    except (OSError, HeaderError, ValueError) as exc:
-        raise ServiceError(f"service {name}: {exc}") from None
-    if "error" in header or not header.get("type"):
-        raise ServiceError(f"service {name} did not say its type: {header.get('error', 'no type in its header')}")
-    return header["type"]
-
-
 class ServiceProxy:
     """A ROS service called from scart: ``proxy(**fields)`` or ``proxy(request)`` (a
     mapping or model of the request's fields) returns the response as plain data (a

@@ -42,9 +42,9 @@ import pydantic
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
-from .master import MasterError
-from .names import RosNameError, check_name
-from .node import Node
+from scart_ros1.master import MasterError
+from scart_ros1.names import RosNameError, check_name
+from scart_ros1.node import Node
 
 if TYPE_CHECKING:
     from .rosout import Rosout

@@ -55,7 +55,7 @@ from scart_wire.rosmsgs import is_message_class, message_type_name
 from .._rosarrays import ELEMENT, MULTI, array_in, flat_data, image_data, image_in, layout_dims
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
                         item_type, model_fields, resolve_converter, type_label, unwrap)
-from .msgs import FieldDef, MessageTypes, UnknownTypeError
+from scart_ros1.msgs import FieldDef, MessageTypes, UnknownTypeError
 
 __all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "field_conversion", "plan", "resolve_converter",
            "type_label"]

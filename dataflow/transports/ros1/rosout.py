@@ -18,7 +18,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .._roslog import MAX_TEXT, RosLog, loggers, set_level
-from .node import Node
+from scart_ros1.node import Node
 
 __all__ = ["Rosout"]
 

@@ -53,13 +53,13 @@ from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
 from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
-from .names import RosNameError, check_name, master_uri_from
+from scart_ros1.names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
     from .citizen import Citizen
     from .convert import Conversion
-    from .msgs import MessageTypes
-    from .node import Node
+    from scart_ros1.msgs import MessageTypes
+    from scart_ros1.node import Node
 
 __all__ = ["NODE_OPTIONS", "NodeSettings", "OPTIONS", "Ros1Transport"]
 
@@ -262,7 +262,7 @@ class Ros1Transport(Transport):
     @property
     def types(self) -> MessageTypes:
         """The message types of this process (rosbags' Noetic store and the ``msgs`` given)."""
-        from .msgs import MessageTypes
+        from scart_ros1.msgs import MessageTypes
 
         with self._lock:
             if self._types is None:
@@ -296,7 +296,7 @@ class Ros1Transport(Transport):
             wanted = self.node_settings(options)
         except ValueError as exc:
             raise TransportError(f"ros1: {exc}") from None
-        from .node import Node
+        from scart_ros1.node import Node
 
         types = self.types
         with self._lock:
@@ -371,7 +371,7 @@ class Ros1Transport(Transport):
         return out
 
     def _add_msgs(self, options: dict[str, str]) -> None:
-        from .msgs import TypeDefinitionError
+        from scart_ros1.msgs import TypeDefinitionError
 
         for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
             try:

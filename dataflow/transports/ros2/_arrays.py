@@ -20,9 +20,10 @@ from rosbags.typesys.base import Nodetype
 
 from scart_wire.arrays import ArraySpec
 
+from scart_ros2.msgs import MessageTypes
+
 from .._rosarrays import ELEMENT, MULTI, array_in, flat_data, image_data, image_in, layout_dims
 from .._rosplan import ConversionProblem
-from ._types import MessageTypes
 
 __all__ = ["IMAGE", "default_array_type", "plan_array"]
 

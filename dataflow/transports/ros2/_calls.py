@@ -31,12 +31,13 @@ from rosbags.typesys.base import Nodetype
 
 from dataflow.transports import TransportError, load
 
+from scart_ros2.errors import Ros2Error, UnknownTypeError
+from scart_ros2.names import topic_name
+from scart_ros2.msgs import MessageTypes, message_to_dict
+
 from .._rosplan import (Mismatch, Param, answering, is_model, match_params, operation_call, operation_signature,
                         signature_of, type_label, unwrap)
 from ._convert import _Planner
-from ._errors import Ros2Error, UnknownTypeError
-from ._names import topic_name
-from ._types import MessageTypes, message_to_dict
 
 __all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "ros2_transport", "serve",
            "serve_operation"]

@@ -34,77 +34,20 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from types import MappingProxyType
 from typing import Any
 
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
-from .._roslog import MAX_TEXT, RosLog, level_of, set_level_number
-from ._qos import Durability, QoS, Reliability
+from scart_ros2.params import (LOGGER_SERVICES, MAX_NAMES, ROSOUT, ROSOUT_QOS, ROSOUT_TYPE, SERVICES, SIM_TIME,
+                               from_value, log_level, service_type, to_value)
+from scart_ros2.qos import QoS, Reliability
 
-__all__ = ["Ros2Citizen", "from_value", "to_value"]
+from .._roslog import MAX_TEXT, RosLog, level_of, set_level_number
+
+__all__ = ["Ros2Citizen"]
 
 log = logging.getLogger("dataflow.transports.ros2")
-
-SERVICES = MappingProxyType({"get_parameters": "GetParameters", "set_parameters": "SetParameters",
-                             "list_parameters": "ListParameters", "describe_parameters": "DescribeParameters",
-                             "get_parameter_types": "GetParameterTypes"})
-LOGGER_SERVICES = MappingProxyType({"get_logger_levels": "GetLoggerLevels", "set_logger_levels": "SetLoggerLevels"})
-#: rcl_interfaces/msg/ParameterType, and the ParameterValue field of each
-_FIELDS = MappingProxyType({1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value",
-                            5: "byte_array_value", 6: "bool_array_value", 7: "integer_array_value",
-                            8: "double_array_value", 9: "string_array_value"})
-_LEVELS = ((logging.CRITICAL, 50), (logging.ERROR, 40), (logging.WARNING, 30), (logging.INFO, 20))
-ROSOUT_QOS = QoS(100, Reliability.RELIABLE, Durability.TRANSIENT_LOCAL, lifespan=10.0)  # rcl's, a smaller depth
-SIM_TIME = "use_sim_time"
-_INT64 = range(-(2**63), 2**63)
-MAX_NAMES = 10_000  #: names one request may ask about
-
-
-def _kind(items: list[Any]) -> int | None:
-    if all(isinstance(i, bool) for i in items):
-        return 6
-    if all(isinstance(i, int) and not isinstance(i, bool) and i in _INT64 for i in items):
-        return 7
-    if all(isinstance(i, (int, float)) and not isinstance(i, bool) for i in items):
-        return 8
-    if all(isinstance(i, str) for i in items):
-        return 9
-    return None
-
-
-def to_value(value: Any) -> dict[str, Any] | None:
-    """``value`` as an ``rcl_interfaces/msg/ParameterValue`` (fields), or None when it
-    cannot be one (an empty list, whose item type is unknown, included)."""
-    if isinstance(value, bool):
-        kind: int | None = 1
-    elif isinstance(value, int):
-        kind = 2 if value in _INT64 else None
-    elif isinstance(value, float):
-        kind = 3
-    elif isinstance(value, str):
-        kind = 4
-    elif isinstance(value, (bytes, bytearray)):
-        return {"type": 5, "byte_array_value": list(value)}
-    elif isinstance(value, (list, tuple)) and value:
-        kind = _kind(list(value))
-        if kind == 8:
-            value = [float(v) for v in value]
-    else:
-        kind = None
-    return None if kind is None else {"type": kind, _FIELDS[kind]: list(value) if kind > 5 else value}
-
-
-def from_value(value: Any) -> Any:
-    """The Python value of an ``rcl_interfaces/msg/ParameterValue``; ``ValueError`` when
-    it is not set."""
-    field = _FIELDS.get(int(value.type))
-    if field is None:
-        raise ValueError("the value is not set (type 0)")
-    got = getattr(value, field)
-    return [v.item() if hasattr(v, "item") else v for v in got] if int(value.type) > 4 else got
-
 
 class Ros2Citizen:
     """The deployers' tasks (``deployers()``), as ``participant``'s node's own (see the
@@ -127,10 +70,10 @@ class Ros2Citizen:
         self._parts: list[Any] = []
         services = SERVICES if read_only else {**SERVICES, **LOGGER_SERVICES}
         try:
-            for service, kind in services.items():
-                self._parts.append(participant.service(f"{base}/{service}", f"rcl_interfaces/srv/{kind}",
+            for service in services:
+                self._parts.append(participant.service(f"{base}/{service}", service_type(service),
                                                        getattr(self, f"_{service}")))
-            self._rosout = participant.publisher("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
+            self._rosout = participant.publisher(ROSOUT, ROSOUT_TYPE, ROSOUT_QOS)
             self._parts.append(self._rosout)
             if sim_time:
                 self._follow(True)
@@ -265,7 +208,7 @@ class Ros2Citizen:
         t_ns = self.clock.now_ns() if self.clock.simulated else time.time_ns()
         self._rosout.publish({
             "stamp": {"sec": t_ns // 1_000_000_000, "nanosec": t_ns % 1_000_000_000},
-            "level": next((b for lvl, b in _LEVELS if record.levelno >= lvl), 10), "name": self.logger_name,
+            "level": log_level(record.levelno), "name": self.logger_name,
             "msg": record.getMessage()[:MAX_TEXT], "file": record.pathname[:1024],
             "function": record.funcName[:256], "line": max(0, record.lineno)})
 

@@ -49,15 +49,16 @@ from typing import Any
 import pydantic
 from rosbags.typesys.base import Nodetype
 
+from scart_ros2.errors import UnknownTypeError
+from scart_ros2.names import split_type_name
+from scart_ros2.msgs import MessageTypes
+
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
                         item_type, model_fields, resolve_converter, type_label, unwrap)
 from scart_wire.arrays import ArraySpec
 from scart_wire.rosmsgs import is_message_class, message_type_name
 
 from ._arrays import default_array_type, plan_array
-from ._errors import UnknownTypeError
-from ._names import split_type_name
-from ._types import MessageTypes
 
 __all__ = ["PLAIN", "Conversion", "ConversionProblem", "plan", "resolve_converter"]
 

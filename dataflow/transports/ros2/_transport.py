@@ -56,16 +56,17 @@ from dataflow.policy import ConnPolicy, ConnType
 from dataflow.transports import Stream, StreamProblem, Transport, TransportError
 from dataflow.transports.ends import OutSample, ReaderEnd, WriterEnd
 
+from scart_ros2.errors import NEEDS_DDS, DomainError, Ros2Error
+from scart_ros2.names import check_node_name, topic_name
+from scart_ros2.network import MAX_DOMAIN_ID, Network, resolve_domain_id
+
 from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
-from ._errors import NEEDS_DDS, DomainError, Ros2Error
-from ._names import check_node_name, topic_name
-from ._network import MAX_DOMAIN_ID, Network, resolve_domain_id
 
 if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them (see _dds)
     from ._convert import Conversion
-    from ._participant import Participant
-    from ._qos import QoS
-    from ._types import MessageTypes
+    from scart_ros2.participant import Participant
+    from scart_ros2.qos import QoS
+    from scart_ros2.msgs import MessageTypes
 
 __all__ = ["OPTIONS", "Ros2Transport", "add_type_file", "qos_of"]
 
@@ -93,7 +94,7 @@ def qos_of(policy: ConnPolicy | None, *, best_effort: bool = False, latch: bool 
            seconds: Mapping[str, float] | None = None) -> QoS:
     """The ROS 2 QoS of a stream with ``policy`` (see the module docstring); ``seconds``:
     ``deadline``, ``lifespan``, ``liveliness_lease`` when given."""
-    from ._qos import QoS, Durability, Reliability
+    from scart_ros2.qos import QoS, Durability, Reliability
 
     depth = DATA_DEPTH if policy is None or policy.type is ConnType.DATA else max(1, min(policy.size, MAX_DEPTH))
     given = seconds or {}
@@ -197,7 +198,7 @@ class Ros2Transport(Transport):
         with self._lock:
             if self._types is None:
                 _dds()
-                from ._types import MessageTypes
+                from scart_ros2.msgs import MessageTypes
 
                 self._types = MessageTypes()
             return self._types
@@ -238,7 +239,7 @@ class Ros2Transport(Transport):
                                          f"{_shown(entry[1])}; this asks for it {_shown(where.network)}")
                 entry[2] += 1
                 return entry[0]
-            from ._participant import Participant
+            from scart_ros2.participant import Participant
 
             namespace = self._namespace or os.environ.get("ROS_NAMESPACE") or "/"
             try:

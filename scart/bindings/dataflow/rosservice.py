@@ -35,10 +35,10 @@ from dataflow import DataflowError
 from dataflow.transports import TransportError
 from dataflow.transports._rosplan import signature_of
 from dataflow.transports.ros1.transport import NODE_OPTIONS
-from dataflow.transports.ros2._errors import Ros2Error
 from scart.bindings.dataflow._elements import Served, Serving, check_each
 from scart.bindings.dataflow._host import TASK_KIND, host_of
 from scart.bindings.dataflow.settings import DataflowSettings
+from scart_ros2.errors import Ros2Error
 from scart.spi import AssemblyView, CheckContext, Element, ElementProvider, Host, Problem
 
 __all__ = ["RosServiceElement", "RosServiceParticipant"]

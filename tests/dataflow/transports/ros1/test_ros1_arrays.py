@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dataflow import Array
-from dataflow.transports.ros1 import MessageTypes
+from scart_ros1 import MessageTypes
 from dataflow.transports.ros1.convert import default_type, plan
 
 IMAGE = Array[np.uint8, (480, 640, 3)]

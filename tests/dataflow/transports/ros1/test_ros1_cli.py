@@ -100,7 +100,7 @@ def test_scart_call_calls_a_rospy_nodes_service(ros: RosMaster) -> None:
 
 
 def test_scart_call_takes_a_custom_service_type_from_msgs(ros: RosMaster, tmp_path: Path) -> None:
-    from dataflow.transports.ros1 import MessageTypes, Node
+    from scart_ros1 import MessageTypes, Node
 
     srv_file = tmp_path / "my_msgs" / "srv" / "AddTwo.srv"
     srv_file.parent.mkdir(parents=True)

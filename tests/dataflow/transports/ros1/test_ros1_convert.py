@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from pydantic import BaseModel
 
-from dataflow.transports.ros1 import MessageTypes
+from scart_ros1 import MessageTypes
 from dataflow.transports.ros1.convert import default_type, plan
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from dataflow.transports import load
 from dataflow.transports.ros1.transport import Ros1Transport
-from dataflow.transports.ros1.names import RosNameError
+from scart_ros1.names import RosNameError
 
 
 def test_the_ros1_transport_is_registered_like_a_plug_in() -> None:

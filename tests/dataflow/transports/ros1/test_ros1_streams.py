@@ -277,7 +277,7 @@ def test_a_ros_service_is_called_from_scart(ros: RosMaster) -> None:
 
 
 def _answers(proxy: ServiceProxy) -> bool:
-    from dataflow.transports.ros1 import ServiceError
+    from scart_ros1 import ServiceError
 
     try:
         proxy()
@@ -287,7 +287,7 @@ def _answers(proxy: ServiceProxy) -> bool:
 
 
 def test_nan_and_inf_from_ros_pass_unless_the_port_asks_for_finite(ros: RosMaster, deployer: Deployer) -> None:
-    from dataflow.transports.ros1 import Node
+    from scart_ros1 import Node
 
     gauge = deployer.add(Gauge("gauge"))
     pose = stream(deployer, ros, "gauge.pose", "/gauge/pose", ConnPolicy.buffer(10), type="geometry_msgs/Point")

@@ -19,7 +19,7 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from dataflow import Array, ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.transports import load  # noqa: E402
-from dataflow.transports.ros2 import MessageTypes  # noqa: E402
+from scart_ros2 import MessageTypes  # noqa: E402
 from dataflow.transports.ros2._convert import plan  # noqa: E402
 from support import wait_until  # noqa: E402
 

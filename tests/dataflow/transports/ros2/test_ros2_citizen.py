@@ -17,7 +17,7 @@ pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pi
 from support import free_port, wait_until  # noqa: E402
 from support.remote import start_scart, stop_process, subprocess_env  # noqa: E402
 
-from dataflow.transports.ros2 import Participant, QoS  # noqa: E402
+from scart_ros2 import Participant, QoS  # noqa: E402
 
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess]
 

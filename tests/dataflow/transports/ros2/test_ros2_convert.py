@@ -15,7 +15,8 @@ pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pi
 from pydantic import BaseModel  # noqa: E402
 
 from dataflow import InputPort, OutputPort  # noqa: E402
-from dataflow.transports.ros2 import ConversionError, Ros2Transport  # noqa: E402
+from dataflow.transports.ros2 import Ros2Transport  # noqa: E402
+from scart_ros2 import ConversionError  # noqa: E402
 
 ROS2 = Ros2Transport()  # no participant is made by checks or conversions
 

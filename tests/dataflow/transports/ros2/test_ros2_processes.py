@@ -94,7 +94,7 @@ def test_the_youbot_ros2_composite_speaks_joint_states_and_takes_period_and_pose
 
 def test_a_deployed_node_is_named_in_the_graph_serves_its_parameters_and_logs(on_domain: int, topic: str,
                                                                                peer) -> None:
-    from dataflow.transports.ros2 import Participant, QoS
+    from scart_ros2 import Participant, QoS
 
     graph = peer("graph")
     ns = f"127.0.0.1:{free_port()}"
@@ -141,7 +141,7 @@ def test_a_deployed_node_is_named_in_the_graph_serves_its_parameters_and_logs(on
 
 def test_a_type_of_an_installed_package_is_found_through_ament_prefix_path(
         on_domain: int, topic: str, tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from conftest import cli_read
+    from support.ros2 import cli_read
 
     share = tmp_path / "install" / "share" / "lab_msgs" / "msg"  # as colcon installs a package
     share.mkdir(parents=True)

@@ -13,12 +13,12 @@ import pytest
 
 pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pip install 'scart[ros2]')")
 
-from conftest import cli, cli_subscribe  # noqa: E402
+from support.ros2 import cli, cli_subscribe  # noqa: E402
 from pydantic import BaseModel  # noqa: E402
 
 from dataflow import ConnPolicy, Deployer, FlowStatus, InputPort, OutputPort, TaskContext  # noqa: E402
 from dataflow.transports import TransportError, load  # noqa: E402
-from dataflow.transports.ros2 import Network, Participant, QoS  # noqa: E402
+from scart_ros2 import Network, Participant, QoS  # noqa: E402
 from support import wait_until  # noqa: E402
 
 pytestmark = pytest.mark.integration

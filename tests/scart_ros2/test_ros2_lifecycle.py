@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pip install 'scart[ros2]')")
 
-from dataflow.transports.ros2 import DomainError, Network, Participant, QoS, Ros2Error  # noqa: E402
+from scart_ros2 import DomainError, Network, Participant, QoS, Ros2Error  # noqa: E402
 from support import wait_until  # noqa: E402
 
 pytestmark = pytest.mark.integration

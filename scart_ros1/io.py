@@ -29,9 +29,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dataflow.threads import OwnedThread
-from dataflow.transports._poll import GONE, IN, OUT, READABLE, WRITABLE, Poller
-
+from ._threads import OwnedThread
+from ._poll import GONE, IN, OUT, READABLE, WRITABLE, Poller
 from .tcpros import LEN, HeaderError, decode_header
 
 __all__ = ["Conn", "Counters", "FrameReader", "InboundConn", "IoLoop", "Listener"]
@@ -52,7 +51,7 @@ class Counters(dict):
 
 
 class IoLoop:
-    """One poll thread (:mod:`dataflow.transports._poll`): readiness callbacks, calls from
+    """One poll thread (:mod:`._poll`): readiness callbacks, calls from
     other threads, and timers."""
 
     def __init__(self, name: str) -> None:

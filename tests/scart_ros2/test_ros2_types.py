@@ -13,7 +13,7 @@ pytest.importorskip("cyclonedds.idl", reason="cyclonedds is not installed (pip i
 import numpy as np  # noqa: E402
 from rosbags.typesys.base import Nodetype  # noqa: E402
 
-from dataflow.transports.ros2 import ConversionError, MessageTypes, UnknownTypeError, message_to_dict  # noqa: E402
+from scart_ros2 import ConversionError, MessageTypes, UnknownTypeError, message_to_dict  # noqa: E402
 
 _NP = {"bool": np.bool_, "byte": np.int8, "char": np.uint8, "int8": np.int8, "uint8": np.uint8,
        "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32, "int64": np.int64,

@@ -25,14 +25,12 @@ from cyclonedds.sub import DataReader
 from cyclonedds.util import duration
 from cyclonedds._clayer import ddspy_take, ddspy_write  # type: ignore[import-not-found]  # its C layer ships no stub
 
-from dataflow.threads import OwnedThread
-
-from ._errors import ConversionError
-from ._network import delete_entity
+from .errors import ConversionError
+from .network import delete_entity
 
 __all__ = ["Publisher", "Subscription", "PublisherStats", "SubscriptionStats", "Dispatcher", "write_cdr"]
 
-LOG = logging.getLogger("dataflow.transports.ros2")
+LOG = logging.getLogger("scart_ros2")
 _BATCH = 256  # samples one reader may deliver per wake before the others get their turn
 _ANY = SampleState.Any | ViewState.Any | InstanceState.Any
 Accept = Callable[[Any], bool]
@@ -263,7 +261,7 @@ class Dispatcher:
         self._busy = threading.RLock()  # held while draining: remove() waits for a running drain
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self._thread: OwnedThread | None = None
+        self._thread: threading.Thread | None = None
 
     def add(self, condition: Any, drain: Callable[[], None]) -> None:
         """Call ``drain`` whenever ``condition`` triggers."""
@@ -273,7 +271,8 @@ class Dispatcher:
             self._waitset.attach(condition)
             self._drains[id(condition)] = (condition, drain)
             if self._thread is None:
-                self._thread = OwnedThread(lambda _stopping: self._run(), self._name).start()
+                self._thread = threading.Thread(target=self._main, name=self._name, daemon=True)
+                self._thread.start()
         self._wake()  # look at the new reader now: it may already hold samples
 
     def remove(self, condition: Any) -> None:
@@ -287,6 +286,12 @@ class Dispatcher:
         # can never stay triggered unflagged (which would spin the wait)
         self._guard.set(True)
         self._guard_set = True
+
+    def _main(self) -> None:
+        try:
+            self._run()
+        except Exception:  # noqa: BLE001 - the participant's thread never dies silently
+            LOG.exception("thread %s failed", self._name)
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -313,8 +318,11 @@ class Dispatcher:
                 return
             self._stop.set()
         self._wake()
-        if self._thread is not None:
-            self._thread.join(timeout)  # (not from the thread itself; a thread that stays is logged)
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():  # (never from the thread itself)
+            thread.join(timeout)
+            if thread.is_alive():
+                LOG.warning("thread %s did not end within %.1f s", self._name, timeout)
         if self._busy.acquire(timeout=timeout):  # a drain stuck in a callback: the participant's deletion frees these
             try:
                 delete_entity(self._waitset)

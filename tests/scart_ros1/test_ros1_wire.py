@@ -8,10 +8,10 @@ import struct
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from dataflow.transports.ros1 import Limits, MessageTypes, RosNameError, TypeDefinitionError, UnknownTypeError
-from dataflow.transports.ros1.io import FrameReader
-from dataflow.transports.ros1.names import node_names, parse_remaps, resolve
-from dataflow.transports.ros1.tcpros import HeaderError, decode_header, encode_header
+from scart_ros1 import Limits, MessageTypes, RosNameError, TypeDefinitionError, UnknownTypeError
+from scart_ros1.io import FrameReader
+from scart_ros1.names import node_names, parse_remaps, resolve
+from scart_ros1.tcpros import HeaderError, decode_header, encode_header
 
 # md5sums from Debian's generated Python (python3-std-msgs, -sensor-msgs, -roscpp-msg: _md5sum)
 DEBIAN_MD5 = {

@@ -11,8 +11,8 @@ import threading
 import pytest
 from support import wait_until
 
-import dataflow.transports.ros1 as ros1
-from dataflow.transports.ros1.io import Conn, FrameReader, IoLoop
+import scart_ros1 as ros1
+from scart_ros1.io import Conn, FrameReader, IoLoop
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ pytest.importorskip("cyclonedds.qos", reason="cyclonedds is not installed (pip i
 
 from cyclonedds.qos import Policy  # noqa: E402
 
-from dataflow.transports.ros2 import (  # noqa: E402
+from scart_ros2 import (  # noqa: E402
     DomainError, Durability, Network, QoS, Reliability, dds_topic, dds_type_name, resolve_domain_id, ros_topic,
     ros_type_name, service_topics)
 
@@ -33,23 +33,6 @@ def test_bad_type_names_are_refused() -> None:
         dds_type_name("std_msgs/Float64")  # the ROS 1 form
     with pytest.raises(ValueError, match="not a ROS 2 DDS type name"):
         ros_type_name("Float64")
-
-
-def test_a_streams_qos_follows_rclpy_unless_asked_otherwise() -> None:
-    from dataflow import ConnPolicy
-    from dataflow.transports.ros2 import qos_of
-
-    assert qos_of(ConnPolicy.data()) == QoS(10, Reliability.RELIABLE, Durability.VOLATILE)  # rclpy's default
-    assert qos_of(ConnPolicy.buffer(4)) == QoS(4, Reliability.RELIABLE, Durability.VOLATILE)
-    asked = qos_of(ConnPolicy.data(), best_effort=True, latch=True,
-                   seconds={"deadline": 0.5, "lifespan": 2.0, "liveliness_lease": 3.0})
-    assert str(asked) == ("keep-last 10, best-effort, transient-local, deadline 0.5 s, lifespan 2 s, "
-                          "liveliness lease 3 s")
-    cyclone = asked.to_cyclone()
-    assert cyclone[Policy.Deadline].deadline == 500_000_000 and cyclone[Policy.Lifespan].lifespan == 2_000_000_000
-    assert cyclone[Policy.Liveliness] == Policy.Liveliness.Automatic(lease_duration=3_000_000_000)
-    with pytest.raises(ValueError, match="deadline"):
-        QoS(deadline=0.0)
 
 
 def test_qos_named_constructors_follow_the_policies() -> None:
@@ -114,15 +97,14 @@ def test_the_network_switch_opens_it_and_checks_what_it_is_given() -> None:
 
 
 def test_the_public_api_is_exactly_this() -> None:
-    import dataflow.transports.ros2 as ros2
+    import scart_ros2 as ros2
 
     assert sorted(ros2.__all__) == sorted([
         "Participant", "Publisher", "Subscription", "ServiceServer", "ServiceClient",
         "PublisherStats", "SubscriptionStats", "QoS", "Reliability", "Durability", "Network",
         "MessageTypes", "DISTROS", "message_to_dict", "resolve_domain_id",
         "dds_topic", "ros_topic", "service_topics", "topic_name", "dds_type_name", "ros_type_name",
-        "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError",
-        "Ros2Transport", "qos_of", "serve", "serve_operation", "ServedService", "ServiceProxy", "call_service"])
+        "Ros2Error", "ConversionError", "DomainError", "UnknownTypeError"])
     assert all(hasattr(ros2, name) for name in ros2.__all__)
     assert all(issubclass(getattr(ros2, e), ros2.Ros2Error) for e in ("ConversionError", "DomainError",
                                                                       "UnknownTypeError"))

@@ -20,11 +20,11 @@ import pytest
 from support import wait_until
 from support.ros1 import RosMaster, needs_ros, require_rospy, rosmaster, running
 
-from dataflow.transports.ros1 import Limits, MessageTypes, Node, ServiceError
-from dataflow.transports.ros1.tcpros import encode_header, read_header
+from scart_ros1 import Limits, MessageTypes, Node, ServiceError
+from scart_ros1.tcpros import encode_header, read_header
 
 pytestmark = [pytest.mark.integration, needs_ros]
-LOGGER = "dataflow.transports.ros1"
+LOGGER = "scart_ros1"
 
 
 @pytest.fixture(scope="module")

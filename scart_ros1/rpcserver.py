@@ -22,8 +22,7 @@ import time
 from typing import Any, ClassVar
 from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
-from dataflow.threads import OwnedThread
-
+from ._threads import OwnedThread
 from .io import Counters
 
 __all__ = ["RpcServer"]

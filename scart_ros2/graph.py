@@ -20,10 +20,10 @@ from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.topic import Topic
 
-from ._names import check_node_name
-from ._network import delete_entity
-from ._qos import QoS
-from ._types import MessageTypes
+from .names import check_node_name
+from .network import delete_entity
+from .qos import QoS
+from .msgs import MessageTypes
 
 __all__ = ["NodeGraph", "DISCOVERY_TOPIC"]
 

@@ -36,7 +36,7 @@ import re
 import threading
 from dataclasses import dataclass
 
-from ._errors import DomainError
+from .errors import DomainError
 
 __all__ = ["Network", "resolve_domain_id", "MAX_DOMAIN_ID", "MAX_SAMPLE_BYTES"]
 

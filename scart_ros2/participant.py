@@ -20,14 +20,14 @@ from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
-from ._endpoints import Accept, Dispatcher, Publisher, Subscription
-from ._errors import DomainError, Ros2Error
-from ._graph import NodeGraph
-from ._names import dds_topic, service_topics, topic_name
-from ._network import DOMAINS, Network, delete_entity, resolve_domain_id
-from ._qos import QoS
-from ._services import SERVICE_QOS, ServiceClient, ServiceServer
-from ._types import MessageTypes, message_to_dict
+from .endpoints import Accept, Dispatcher, Publisher, Subscription
+from .errors import DomainError, Ros2Error
+from .graph import NodeGraph
+from .names import dds_topic, service_topics, topic_name
+from .network import DOMAINS, Network, delete_entity, resolve_domain_id
+from .qos import QoS
+from .services import SERVICE_QOS, ServiceClient, ServiceServer
+from .msgs import MessageTypes, message_to_dict
 
 __all__ = ["Participant"]
 

@@ -20,8 +20,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from dataflow.threads import OwnedThread
-
+from ._threads import OwnedThread
 from .io import Counters
 from .master import Master, MasterError, MasterUnreachable
 

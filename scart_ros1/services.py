@@ -10,6 +10,7 @@
   ``rosrpc://host:port`` (the node's TCPROS port).
 * :func:`call_service`: ``lookupService``, header, request, ok byte, response — in the
   caller's thread, all within one timeout; failures raise :class:`ServiceError`.
+* :func:`service_type`: a service's type, asked of the service itself (``probe=1``).
 """
 
 from __future__ import annotations
@@ -23,8 +24,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from dataflow.threads import OwnedThread
-
+from ._threads import OwnedThread
 from .io import Conn, Counters, FrameReader, InboundConn
 from .master import MasterError, MasterUnreachable, parse_rosrpc
 from .msgs import SrvType
@@ -33,7 +33,7 @@ from .tcpros import HeaderError, encode_header, frame, read_frame, read_header, 
 if TYPE_CHECKING:
     from .node import Node
 
-__all__ = ["ServiceError", "ServiceServer", "Worker", "call_service"]
+__all__ = ["ServiceError", "ServiceServer", "Worker", "call_service", "service_type"]
 
 log = logging.getLogger(__name__)
 
@@ -242,3 +242,22 @@ def _exchange(node: Node, sock: socket.socket, name: str, srvtype: SrvType, data
     if ok != 1:
         raise ServiceError(f"service {name} failed: {bytes(body).decode('utf-8', 'replace')}")
     return srvtype.response.deserialize(body)
+
+
+def service_type(node: Node, service: str, timeout: float = 5.0) -> str:
+    """The type (``pkg/Srv``) of the ROS service ``service``, asked of the service itself
+    (the ``probe`` header, as ``rosservice``). Raises :class:`ServiceError`."""
+    name = node.resolve(service)
+    deadline = time.monotonic() + timeout
+    try:
+        host, port = parse_rosrpc(node.master_for(timeout).lookup_service(name))
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.sendall(encode_header({"callerid": node.caller_id, "service": name, "md5sum": "*", "probe": "1"}))
+            header = read_header(sock, deadline, node.limits.max_header)
+    except MasterError as exc:
+        raise ServiceError(f"service {name} is not available: {exc}") from None
+    except (OSError, HeaderError, ValueError) as exc:
+        raise ServiceError(f"service {name}: {exc}") from None
+    if "error" in header or not header.get("type"):
+        raise ServiceError(f"service {name} did not say its type: {header.get('error', 'no type in its header')}")
+    return header["type"]

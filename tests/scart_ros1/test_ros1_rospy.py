@@ -10,7 +10,8 @@ import pytest
 from support import wait_until
 from support.ros1 import RosMaster, needs_ros, require_rospy, rosmaster, running
 
-from dataflow.transports.ros1 import MasterError, MessageTypes, Node
+from scart_ros1 import MasterError, MessageTypes, Node, ServiceError
+from scart_ros1.services import service_type
 
 pytestmark = [pytest.mark.integration, needs_ros]
 COUNT = 50
@@ -62,9 +63,12 @@ def test_we_call_a_rospy_service(ros: RosMaster, node: Node) -> None:
     with running(peer):
         peer.read_until("ready", timeout=60)
         wait_until(lambda: _service_known(node, "/rospy/get_loggers"), timeout=20)
+        assert service_type(node, "/rospy/get_loggers") == "roscpp/GetLoggers"  # the probe, as rosservice type
         srvtype = node.types.srv("roscpp/GetLoggers")
         answer = node.call_service("/rospy/get_loggers", "roscpp/GetLoggers", srvtype.request.new(), timeout=5)
     assert [(lg.name, lg.level) for lg in answer.loggers] == [("scart.test", "info")]
+    with pytest.raises(ServiceError, match="not available"):
+        service_type(node, "/rospy/nobody", timeout=2)
 
 
 def test_rospy_calls_our_service(ros: RosMaster, node: Node) -> None:

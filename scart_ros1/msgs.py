@@ -295,7 +295,7 @@ class MessageTypes:
 
     def fields(self, name: str) -> tuple[FieldDef, ...]:
         """The fields of message type ``name`` (``pkg/Type``), in order; raises
-        :class:`UnknownTypeError` (what a converter maps a scart type onto)."""
+        :class:`UnknownTypeError` (what a caller maps its own values onto)."""
         store_name = _store_name(name)
         with self._lock:
             self._check_known(store_name, name)

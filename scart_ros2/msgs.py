@@ -55,8 +55,8 @@ from cyclonedds.idl import types as t
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.base import Nodetype
 
-from ._errors import ConversionError, UnknownTypeError
-from ._names import dds_type_name, split_type_name
+from .errors import ConversionError, UnknownTypeError
+from .names import dds_type_name, split_type_name
 
 __all__ = ["MessageTypes", "DISTROS", "message_to_dict"]
 

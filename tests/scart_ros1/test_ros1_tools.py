@@ -16,9 +16,9 @@ import pytest
 from support import wait_until
 from support.ros1 import RosMaster, needs_ros, rosmaster, running
 
-from dataflow.transports.ros1 import MessageTypes, Node, Publisher
-from dataflow.transports.ros1.master import call
-from dataflow.transports.ros1.tcpros import encode_header, read_header
+from scart_ros1 import MessageTypes, Node, Publisher
+from scart_ros1.master import call
+from scart_ros1.tcpros import encode_header, read_header
 
 pytestmark = [pytest.mark.integration, needs_ros]
 

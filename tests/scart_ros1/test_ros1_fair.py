@@ -13,8 +13,8 @@ import pytest
 from support import wait_until
 from support.ros1 import RosMaster, needs_ros, rosmaster
 
-from dataflow.transports.ros1 import Limits, MessageTypes, Node
-from dataflow.transports.ros1.tcpros import encode_header, read_header
+from scart_ros1 import Limits, MessageTypes, Node
+from scart_ros1.tcpros import encode_header, read_header
 
 pytestmark = [pytest.mark.integration, needs_ros]
 

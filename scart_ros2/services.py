@@ -30,17 +30,17 @@ from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy
 from cyclonedds.sub import DataReader
 
-from ._errors import ConversionError, Ros2Error
-from ._network import delete_entity
-from ._qos import QoS
-from ._types import MessageTypes
+from .errors import ConversionError, Ros2Error
+from .network import delete_entity
+from .qos import QoS
+from .msgs import MessageTypes
 
 if TYPE_CHECKING:
-    from ._endpoints import Dispatcher
+    from .endpoints import Dispatcher
 
 __all__ = ["ServiceServer", "ServiceClient", "SERVICE_QOS"]
 
-LOG = logging.getLogger("dataflow.transports.ros2")
+LOG = logging.getLogger("scart_ros2")
 SERVICE_QOS = QoS.buffer(10)  # rmw_qos_profile_services_default
 _ANY = SampleState.Any | ViewState.Any | InstanceState.Any
 _REPLY_WAIT = 0.1  # s, as rmw_cyclonedds' rmw_send_response

@@ -8,10 +8,10 @@ import pytest
 
 pytest.importorskip("cyclonedds.domain", reason="cyclonedds is not installed (pip install 'scart[ros2]')")
 
-from conftest import cli as _cli  # noqa: E402
-from conftest import cli_subscribe as _cli_subscribe  # noqa: E402
+from support.ros2 import cli as _cli  # noqa: E402
+from support.ros2 import cli_subscribe as _cli_subscribe  # noqa: E402
 
-from dataflow.transports.ros2 import Participant, QoS  # noqa: E402
+from scart_ros2 import Participant, QoS  # noqa: E402
 from support import wait_until  # noqa: E402
 
 pytestmark = pytest.mark.integration
