@@ -16,15 +16,16 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from ._calls import ServedService, ServiceProxy, call_service, serve, serve_operation
-    from ._transport import Ros2Transport, qos_of
+    from ._calls import ServedService, ServiceProxy, call_service, check_service, ros2_transport, serve, serve_operation
+    from ._transport import NETWORK_OPTIONS, Ros2Transport, add_type_file, qos_of
 
 #: Where each public name lives: imported when first asked for, so that loading the ``ros2``
 #: transport (``auto`` reads every transport's rank) imports neither Cyclone DDS nor rosbags,
 #: and works without the ``scart[ros2]`` extra (a stream then says it is missing).
 _WHERE = MappingProxyType({
-    **dict.fromkeys(("ServedService", "ServiceProxy", "call_service", "serve", "serve_operation"), "_calls"),
-    **dict.fromkeys(("Ros2Transport", "qos_of"), "_transport"),
+    **dict.fromkeys(("ServedService", "ServiceProxy", "call_service", "check_service", "ros2_transport", "serve",
+                     "serve_operation"), "_calls"),
+    **dict.fromkeys(("NETWORK_OPTIONS", "Ros2Transport", "add_type_file", "qos_of"), "_transport"),
 })
 
 
@@ -42,4 +43,5 @@ def __getattr__(name: str) -> Any:
         raise
 
 
-__all__ = ["Ros2Transport", "qos_of", "serve", "serve_operation", "ServedService", "ServiceProxy", "call_service"]
+__all__ = ["NETWORK_OPTIONS", "Ros2Transport", "ServedService", "ServiceProxy", "add_type_file", "call_service",
+           "check_service", "qos_of", "ros2_transport", "serve", "serve_operation"]

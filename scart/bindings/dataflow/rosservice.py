@@ -122,7 +122,7 @@ class RosServiceElement(ElementProvider):
 def _network_options(transport: str) -> frozenset[str] | tuple[str, ...]:
     """The options of the process's ROS 1 node or ROS 2 participant an element may set."""
     if transport == "ros2":
-        from dataflow.transports.ros2._transport import NETWORK_OPTIONS  # no Cyclone DDS needed to read it
+        from dataflow.transports.ros2 import NETWORK_OPTIONS  # no Cyclone DDS needed to read it
 
         return NETWORK_OPTIONS
     return NODE_OPTIONS
@@ -138,8 +138,7 @@ def _types_of(rs: RosService) -> Any:
         for path in rs.msgs:
             types.add_file(path)
         return types
-    from dataflow.transports.ros2._calls import ros2_transport
-    from dataflow.transports.ros2._transport import add_type_file
+    from dataflow.transports.ros2 import add_type_file, ros2_transport
 
     types = ros2_transport().types
     for path in rs.msgs:
@@ -160,7 +159,7 @@ def _check(rs: RosService, assembly: AssemblyView, context: CheckContext) -> lis
         return [f"<scart:rosservice> {exc}"]
     params, returns = signature_of(fn, skip_self=True)
     if rs.transport == "ros2":
-        from dataflow.transports.ros2._calls import check_service as check_ros2
+        from dataflow.transports.ros2 import check_service as check_ros2
 
         problems = check_ros2(types, rs.type, params, returns)
     else:
