@@ -38,7 +38,7 @@ def image_data(value: Any) -> tuple[int, Any]:
     return step, numpy.ascontiguousarray(value).reshape(-1).view(numpy.uint8)
 
 
-def flat_data(value: Any, count: int, label: str) -> Any:
+def flat_data(value: object, count: int, label: str) -> object:
     """An array's values as a flat view (a copy only when it is not C-contiguous);
     ``ValueError`` when ``count`` (a fixed array's length, 0 for none) is not its size."""
     flat = numpy.ascontiguousarray(value).reshape(-1)

@@ -56,6 +56,10 @@ from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream
 from scart_ros1.names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
+    from collections.abc import Callable
+
+    from dataflow.deployer import Deployer
+    from scart_ros1.topics import Publisher, Subscriber
     from .citizen import Citizen
     from .convert import Conversion
     from scart_ros1.msgs import MessageTypes
@@ -118,11 +122,11 @@ class Ros1Transport(Transport):
         self._node: Node | None = None
         self._settings: NodeSettings | None = None
         self._users = 0
-        self._shutdown_hooks: list[Any] = []
+        self._shutdown_hooks: list[Callable[[str, str, str], None]] = []
         self._told = False  # configure() was given something: the process is a ROS node from its start
-        self._launch_params: dict[str, Any] = {}
+        self._launch_params: dict[str, object] = {}
         self._sim_time = False  # a launch-time _use_sim_time:=true: the node follows /clock from its start
-        self._deployers: list[Any] = []
+        self._deployers: list[Deployer] = []
         self._held: list[Node] = []
         self._citizen: Citizen | None = None
 
@@ -181,7 +185,7 @@ class Ros1Transport(Transport):
             raise TransportError(f"ros1: {what} is refused: this process serves ROS read-only (--ros-read-only: "
                                  "it publishes only)")
 
-    def on_shutdown(self, hook: Any) -> None:
+    def on_shutdown(self, hook: Callable[[str, str, str], None]) -> None:
         """Call ``hook(node, caller_id, reason)`` when a peer (``rosnode kill``) has shut this
         process's node down, as rospy ends its process then: ``scart run`` and ``scart
         deploy`` stop. Not called when the node respawns."""
@@ -203,7 +207,7 @@ class Ros1Transport(Transport):
         if node is not None:
             self._become_citizen(node)
 
-    def detach(self, deployer: Any) -> None:
+    def detach(self, deployer: Deployer) -> None:
         """Undo :meth:`attach` (idempotent)."""
         with self._lock:
             if deployer in self._deployers:
@@ -228,7 +232,7 @@ class Ros1Transport(Transport):
         if held is not None:
             self.release(held)
 
-    def _attached(self) -> list[Any]:
+    def _attached(self) -> list[Deployer]:
         with self._lock:
             return list(self._deployers)
 
@@ -450,8 +454,8 @@ class _TopicStream(Stream):
         self._transport, self._node = transport, node
         self.topic = node.resolve(topic)
         self.type_name = conv.ros_type
-        self._pub: Any = None
-        self._sub: Any = None
+        self._pub: Publisher | None = None
+        self._sub: Subscriber | None = None
         self._carrier: _Carrier | None = None
         self._closed = False
         if isinstance(end, WriterEnd):

@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
@@ -42,6 +42,10 @@ from dataflow.errors import DataflowError
 from scart_ros2.params import (LOGGER_SERVICES, MAX_NAMES, ROSOUT, ROSOUT_QOS, ROSOUT_TYPE, SERVICES, SIM_TIME,
                                from_value, log_level, service_type, to_value)
 from scart_ros2.qos import QoS, Reliability
+
+if TYPE_CHECKING:
+    from scart_ros2.endpoints import Publisher, Subscription
+    from scart_ros2.services import ServiceServer
 
 from .._roslog import MAX_TEXT, RosLog, level_of, set_level_number
 
@@ -65,9 +69,9 @@ class Ros2Citizen:
         base = f"{graph.namespace.rstrip('/')}/{graph.name}"
         self.logger_name = base.strip("/").replace("/", ".")
         self.clock: Clock = WALL
-        self._clock_sub: Any = None
+        self._clock_sub: Subscription | None = None
         self._closed = False
-        self._parts: list[Any] = []
+        self._parts: list[ServiceServer | Publisher] = []
         services = SERVICES if read_only else {**SERVICES, **LOGGER_SERVICES}
         try:
             for service in services:
@@ -144,7 +148,7 @@ class Ros2Citizen:
 
     def _descriptor(self, name: str) -> dict[str, Any]:
         value = self._current(name)
-        out: dict[str, Any] = {"name": name, "type": value["type"] if value else 0}
+        out: dict[str, object] = {"name": name, "type": value["type"] if value else 0}
         found = self._params().get(name)
         if name == SIM_TIME:
             out["description"] = "follow /clock (a simulation's time)"
@@ -171,7 +175,7 @@ class Ros2Citizen:
         return {"results": [self._set_level(str(asked.name), int(asked.level))
                             for asked in list(request.levels)[:MAX_NAMES]]}
 
-    def _set_level(self, name: str, level: int) -> dict[str, Any]:
+    def _set_level(self, name: str, level: int) -> dict[str, object]:
         try:
             set_level_number(self._python_logger(name), level)
         except ValueError as exc:

@@ -63,6 +63,12 @@ from scart_ros2.network import MAX_DOMAIN_ID, Network, resolve_domain_id
 from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
 
 if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them (see _dds)
+    from collections.abc import Callable
+
+    from dataflow.deployer import Deployer
+    from scart_ros2.endpoints import Publisher, Subscription
+
+    from ._citizen import Ros2Citizen
     from ._convert import Conversion
     from scart_ros2.participant import Participant
     from scart_ros2.qos import QoS
@@ -147,8 +153,8 @@ class Ros2Transport(Transport):
         self._remaps: dict[str, str] = {}  # full topic or service name -> the one used
         self.read_only = False  #: publish only (``--ros-read-only``): no input stream, service or parameter set
         self.use_sim_time = False  #: the node's ``use_sim_time`` at its start (``_use_sim_time:=true``)
-        self._deployers: list[Any] = []
-        self._citizens: dict[int, Any] = {}  # domain -> its participant's Ros2Citizen
+        self._deployers: list[Deployer] = []
+        self._citizens: dict[int, Ros2Citizen | None] = {}  # domain -> its participant's Ros2Citizen
 
     # ---- the process's participants ----------------------------------------------------
     def configure(self, *, insecure: bool | None = None, interface: str | None = None,
@@ -274,13 +280,13 @@ class Ros2Transport(Transport):
         for participant in open_now:
             self._become_citizen(participant)
 
-    def detach(self, deployer: Any) -> None:
+    def detach(self, deployer: Deployer) -> None:
         """Undo :meth:`attach` (idempotent)."""
         with self._lock:
             if deployer in self._deployers:
                 self._deployers.remove(deployer)
 
-    def _attached(self) -> list[Any]:
+    def _attached(self) -> list[Deployer]:
         with self._lock:
             return list(self._deployers)
 
@@ -418,7 +424,7 @@ class _Carrier(RefusingCarrier):
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(): the conversion is this stream's own
 
-    def __init__(self, publisher: Any, conv: Conversion, label: str, stamp: Any) -> None:
+    def __init__(self, publisher: Publisher, conv: Conversion, label: str, stamp: Callable[[int], int]) -> None:
         super().__init__(label, log)
         to_message = conv.to_cdr or conv.to_idl
         assert to_message is not None
@@ -449,8 +455,8 @@ class _TopicStream(Stream):
         self._transport, self._participant = transport, participant
         self.topic = topic
         self.type_name = conv.ros_type
-        self._pub: Any = None
-        self._sub: Any = None
+        self._pub: Publisher | None = None
+        self._sub: Subscription | None = None
         self._carrier: _Carrier | None = None
         self._closed = False
         best_effort, seconds = flag(options, "best_effort"), _seconds(options)
