@@ -42,7 +42,7 @@ import pydantic
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
-from scart_ros1.master import MasterError
+from scart_ros1.master import MasterError, XmlRpcValue
 from scart_ros1.names import RosNameError, check_name
 from scart_ros1.node import Node
 
@@ -60,7 +60,7 @@ SYNC_SECONDS = 1.0  #: how often properties changed by others are set on the par
 _INT32 = range(-(2**31), 2**31)
 
 
-def to_param(value: object) -> object:
+def to_param(value: object) -> XmlRpcValue:
     """``value`` as a ROS parameter (what XML-RPC carries), or None when it cannot be one."""
     if isinstance(value, bool) or isinstance(value, str):
         return value
@@ -145,7 +145,7 @@ class Citizen:
         self.clock: Clock = WALL
         self._clock_sub: Subscriber | None = None
         self._rosout: Rosout | None = None
-        self._published: dict[str, object] = {}
+        self._published: dict[str, XmlRpcValue] = {}
         self._skipped: set[str] = set()
         self._closed = False
 
@@ -275,7 +275,7 @@ class Citizen:
             if not self._set(key, value):
                 return
 
-    def _set(self, key: str, value: object) -> bool:
+    def _set(self, key: str, value: XmlRpcValue) -> bool:
         if value is None:
             return True
         try:
