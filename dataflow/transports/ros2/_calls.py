@@ -23,8 +23,8 @@ the response as plain data, or as a model it is given) and :func:`call_service`.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import pydantic
 from rosbags.typesys.base import Nodetype
@@ -38,6 +38,9 @@ from scart_ros2.msgs import MessageTypes, message_to_dict
 from .._rosplan import (Mismatch, Param, answering, is_model, match_params, operation_call, operation_signature,
                         signature_of, type_label, unwrap)
 from ._convert import _Planner
+
+if TYPE_CHECKING:
+    from dataflow.task import TaskContext
 
 __all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "ros2_transport", "serve",
            "serve_operation"]
@@ -111,7 +114,7 @@ def _nothing(_result: object) -> dict[str, object]:
     return {}
 
 
-def _dynamic_response(fields: list[tuple[str, object]], convention: bool) -> Callable[[object], dict[str, object]]:
+def _dynamic_response(fields: Sequence[tuple[str, object]], convention: bool) -> Callable[[object], dict[str, object]]:
     """For an unannotated callable: what it returned, judged at each call."""
     def to_response(result: object) -> dict[str, object]:
         if result is None or (convention and result is True):
@@ -209,7 +212,7 @@ def serve(call: Callable[..., object], service: str, type_name: str, *,
     return ServedService(service, type_name, call, params, returns, options=options, label=label)
 
 
-def serve_operation(task: Any, operation: str, service: str, type_name: str, *,
+def serve_operation(task: TaskContext, operation: str, service: str, type_name: str, *,
                     options: Mapping[str, str] | None = None, timeout: float = 5.0) -> ServedService:
     """Answer the ROS 2 service ``service`` with ``task``'s operation ``operation`` (its
     arguments checked as outside input; an answer within ``timeout`` s, else no reply)."""
