@@ -174,7 +174,7 @@ class Node:
         self._want(("sub", resolved), (type_name if msgtype is None else msgtype.name,))
         return sub
 
-    def advertise_service(self, service: str, type_name: str, handler: Callable[[object], object]) -> ServiceServer:
+    def advertise_service(self, service: str, type_name: str, handler: Callable[[Any], object]) -> ServiceServer:
         """Serve ``service`` as ``type_name`` (``pkg/Srv``): ``handler(request) -> response``.
 
         Handlers run one at a time on the node's service thread. Raises as :meth:`advertise`.

@@ -93,7 +93,7 @@ def _error_reply(text: str) -> bytes:
 class ServiceServer:
     """An advertised service (see the module doc); thread-safe."""
 
-    def __init__(self, node: Node, name: str, srvtype: SrvType, handler: Callable[[object], object]) -> None:
+    def __init__(self, node: Node, name: str, srvtype: SrvType, handler: Callable[[Any], object]) -> None:
         self.name, self.type, self.handler = name, srvtype, handler
         self._node = node
         self._counters = Counters("requests", "handler_errors", "bad_requests", "busy", "md5_mismatches")

@@ -20,16 +20,17 @@ import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import pydantic
 
 from dataflow.transports import StreamProblem, TransportError
 
 if TYPE_CHECKING:
+    from dataflow.task import TaskContext
     from dataflow.transports.ends import ReaderEnd
 
-__all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
+__all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "RosTime", "accepts", "answering", "check_converter",
            "flag", "is_mapping", "is_model", "is_open", "item_type", "latched", "match_params", "model_fields",
            "operation_call", "operation_signature", "receiver", "resolve_converter", "signature_of", "stamper",
            "stream_problems", "type_label",
@@ -41,6 +42,13 @@ _Q = TypeVar("_Q")  #: a service's request
 _R = TypeVar("_R")  #: a service's response
 _M = TypeVar("_M")  #: a message as a subscription hands it over (an instance, or its bytes)
 _TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
+
+
+class RosTime(Protocol):
+    """A ROS 2 ``builtin_interfaces/Time`` as rosbags and Cyclone DDS give it."""
+
+    sec: int
+    nanosec: int
 
 
 # ---- port types and annotations ------------------------------------------------------
@@ -216,7 +224,7 @@ def signature_of(call: Callable[..., object], skip_self: bool = False) -> tuple[
     return params, type(None) if returns is None else returns
 
 
-def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
+def operation_signature(task: TaskContext, operation: str) -> tuple[list[Param], object]:
     """The parameters and return type of ``task``'s operation, from its description."""
     from dataflow import registry
 
@@ -231,10 +239,10 @@ def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
     return [Param(n, of(t)) for n, t in desc.params], of(desc.returns)
 
 
-def operation_call(task: Any, operation: str, timeout: float) -> Callable[..., Any]:
+def operation_call(task: TaskContext, operation: str, timeout: float) -> Callable[..., object]:
     """A callable that runs ``task``'s operation: its arguments checked as outside input
     (bounds, finiteness), its result waited for ≤ ``timeout`` s."""
-    def call(*args: Any) -> Any:
+    def call(*args: object) -> object:
         checked = task.check_arguments(operation, list(args))
         return task.send(operation, *checked).result(timeout)
 

@@ -40,6 +40,7 @@ from .._rosplan import (Param, answering, is_model, match_params, operation_call
 from .convert import _plain_value, field_conversion
 
 if TYPE_CHECKING:
+    from dataflow.task import TaskContext
     from scart_ros1.msgs import FieldDef
 
     from .transport import Ros1Transport
@@ -82,7 +83,7 @@ def _no_args(_request: object) -> list[object]:
     return []
 
 
-def _response_plan(types: MessageTypes, srv: SrvType, returns: Any) -> tuple[Callable[[Any], Any], bool, list[str]]:
+def _response_plan(types: MessageTypes, srv: SrvType, returns: object) -> tuple[Callable[[object], object], bool, list[str]]:
     """``result -> response``, whether the response follows the success/message convention,
     and the problems found. ``returns``: the callable's return annotation (``Any``: none)."""
     resp = srv.response
@@ -232,7 +233,7 @@ def serve(call: Callable[..., object], service: str, type_name: str, *, converte
                          label=label)
 
 
-def serve_operation(task: Any, operation: str, service: str, type_name: str, *, converter: str = "",
+def serve_operation(task: TaskContext, operation: str, service: str, type_name: str, *, converter: str = "",
                     options: dict[str, str] | None = None, timeout: float = 5.0) -> ServedService:
     """Answer the ROS service ``service`` with ``task``'s operation ``operation`` (its
     arguments checked as outside input; an answer within ``timeout`` s, else a service

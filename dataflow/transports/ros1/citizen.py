@@ -48,6 +48,7 @@ from scart_ros1.node import Node
 
 if TYPE_CHECKING:
     from dataflow.deployer import Deployer
+    from dataflow.task import TaskContext
     from scart_ros1.topics import Subscriber
 
     from .rosout import Rosout
@@ -149,7 +150,7 @@ class Citizen:
         self._skipped: set[str] = set()
         self._closed = False
 
-    def _tasks(self) -> list[Any]:
+    def _tasks(self) -> list[TaskContext]:
         return [task for deployer in self._deployers() for task in deployer.tasks()]
 
     def start(self) -> None:
@@ -217,7 +218,7 @@ class Citizen:
     # -- the control thread ---------------------------------------------------------------
     def _params(self) -> dict[str, tuple[Any, str]]:
         """Every task property that can be a parameter: key → (task, property)."""
-        out: dict[str, tuple[object, str]] = {}
+        out: dict[str, tuple[TaskContext, str]] = {}
         for task in self._tasks():
             try:
                 check_name(task.name, "task name")

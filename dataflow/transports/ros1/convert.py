@@ -41,7 +41,7 @@ thread-safe.
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
@@ -54,7 +54,7 @@ from scart_wire.rosmsgs import is_message_class, message_type_name
 
 from .._rosarrays import ELEMENT, MULTI, array_in, flat_data, image_data, image_in, layout_dims
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
-                        item_type, model_fields, resolve_converter, type_label, unwrap)
+                        item_type, model_fields, resolve_converter, type_label, unwrap, RosTime)
 from scart_ros1.msgs import FieldDef, MessageTypes, UnknownTypeError
 
 __all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "field_conversion", "plan", "resolve_converter",
@@ -427,7 +427,7 @@ def _same(value: object) -> object:
     return value
 
 
-def _seconds(stamp: Any) -> float:
+def _seconds(stamp: RosTime) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
@@ -456,5 +456,5 @@ def _plain_value(value: object) -> object:
     return value
 
 
-def _names(fields: Any) -> str:
+def _names(fields: Iterable[FieldDef]) -> str:
     return ", ".join(f.name for f in fields) or "none"

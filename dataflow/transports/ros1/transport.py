@@ -59,6 +59,7 @@ if TYPE_CHECKING:  # imported when a stream needs them: loading the transport st
     from collections.abc import Callable
 
     from dataflow.deployer import Deployer
+    from dataflow.ports import Port
     from scart_ros1.topics import Publisher, Subscriber
     from .citizen import Citizen
     from .convert import Conversion
@@ -192,7 +193,7 @@ class Ros1Transport(Transport):
         with self._lock:
             self._shutdown_hooks.append(hook)
 
-    def attach(self, deployer: Any) -> None:
+    def attach(self, deployer: Deployer) -> None:
         """Let this process's node speak for ``deployer``'s tasks (:mod:`.citizen`: their
         properties are its parameters), now or when it is made. The launch-time parameters
         are set on its tasks now (``ValueError`` naming one refused)."""
@@ -347,7 +348,7 @@ class Ros1Transport(Transport):
         node.close()
 
     # ---- streams -----------------------------------------------------------------------
-    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+    def check_stream(self, port: Port[object], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
         if port.is_input and self.read_only:
             problems.append(StreamProblem(f"ros1: a stream into port {getattr(port, 'qualname', port.name)} is "
@@ -383,7 +384,7 @@ class Ros1Transport(Transport):
             except TypeDefinitionError as exc:
                 raise ValueError(str(exc)) from None
 
-    def conversion(self, port: Any, options: dict[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
+    def conversion(self, port: Port[object], options: dict[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
         """How ``port``'s values cross to the topic's type, and the problems found."""
         from .convert import plan
 
@@ -421,17 +422,17 @@ class _Carrier(RefusingCarrier):
 
     encode = staticmethod(_identity)  # converted in send(), only when someone listens
 
-    def __init__(self, pub: Any, conv: Conversion, label: str, stamp: Any) -> None:
+    def __init__(self, pub: Publisher, conv: Conversion, label: str, stamp: Callable[[int], int]) -> None:
         super().__init__(label, log)
         to_ros, to_frame, frame = conv.to_ros, conv.to_frame, pub.type.frame
         assert to_ros is not None
         self._pub = pub
         if to_frame is not None:  # one fixed field: straight to bytes
-            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, stamp(sample.t_ns))
+            self._frame: Callable[[OutSample], bytes | bytearray] = lambda sample: to_frame(sample.value, sample.n, stamp(sample.t_ns))
         else:
             self._frame = lambda sample: frame(to_ros(sample.value, sample.n, stamp(sample.t_ns)))
 
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+    def send(self, sample: OutSample, _data: object) -> bool:  # the writer's thread
         pub = self._pub
         if not pub.wanted:
             return True

@@ -41,7 +41,7 @@ thread-safe.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
@@ -54,7 +54,7 @@ from scart_ros2.names import split_type_name
 from scart_ros2.msgs import MessageTypes
 
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
-                        item_type, model_fields, resolve_converter, type_label, unwrap)
+                        item_type, model_fields, resolve_converter, type_label, unwrap, RosTime)
 from scart_wire.arrays import ArraySpec
 from scart_wire.rosmsgs import is_message_class, message_type_name
 
@@ -206,7 +206,7 @@ def _hashable(py_type: object) -> bool:
     return True
 
 
-def _names(fields: Any) -> str:
+def _names(fields: Iterable[tuple[str, object]]) -> str:
     return ", ".join(name for name, _ in fields) or "none"
 
 
@@ -219,7 +219,7 @@ class _Planner:
         self.types = types
         self.outgoing = outgoing
 
-    def plain(self, py_type: object, ros_type: str) -> Callable[[object], Any]:  # fields out, a value in  # fields out, a value in
+    def plain(self, py_type: object, ros_type: str) -> Callable[[object], Any]:  # fields out, a value in
         fields = self.types.fields(ros_type)
         target = next((f for f in fields if f[0] == "data"), fields[0] if len(fields) == 1 else None)
         if target is None:
@@ -306,7 +306,7 @@ def _to_time(seconds: float) -> dict[str, int]:
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
 
 
-def _seconds(stamp: Any) -> float:
+def _seconds(stamp: RosTime) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 

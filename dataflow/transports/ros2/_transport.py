@@ -66,6 +66,7 @@ if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them
     from collections.abc import Callable
 
     from dataflow.deployer import Deployer
+    from dataflow.ports import Port
     from scart_ros2.endpoints import Publisher, Subscription
 
     from ._citizen import Ros2Citizen
@@ -271,7 +272,7 @@ class Ros2Transport(Transport):
         with self._lock:
             return self._remaps.get(full, full)
 
-    def attach(self, deployer: Any) -> None:
+    def attach(self, deployer: Deployer) -> None:
         """Let this process's ROS 2 nodes speak for ``deployer``'s tasks (:mod:`._citizen`:
         their properties its parameters), now or when one is made."""
         with self._lock:
@@ -326,7 +327,7 @@ class Ros2Transport(Transport):
             return {domain: entry[0] for domain, entry in self._open.items()}
 
     # ---- streams -----------------------------------------------------------------------
-    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+    def check_stream(self, port: Port[object], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         try:
             _dds()
         except TransportError as exc:
@@ -358,7 +359,7 @@ class Ros2Transport(Transport):
         for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
             add_type_file(self.types, path)
 
-    def conversion(self, port: Any, options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
+    def conversion(self, port: Port[object], options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
         """How ``port``'s values cross to the topic's type, and the problems found."""
         from ._convert import plan
 
@@ -432,7 +433,7 @@ class _Carrier(RefusingCarrier):
         self._publisher = publisher
         self._stamp = stamp
 
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+    def send(self, sample: OutSample, _data: object) -> bool:  # the writer's thread
         try:
             message = self._to_idl(sample.value, self._stamp(sample.t_ns))
         except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
