@@ -32,16 +32,16 @@ class Poller:
 
     def __init__(self) -> None:
         self._epoll = select.epoll() if hasattr(select, "epoll") else None
-        self._poll: Any = self._epoll if self._epoll is not None else select.poll()  # same register/modify/unregister
+        self._poll: select.epoll | select.poll = self._epoll if self._epoll is not None else select.poll()  # same register/modify/unregister
         #: ``{fd: (socket, handler, events asked for)}``: what :meth:`poll` reports on.
-        self.watched: dict[int, tuple[socket.socket, Any, int]] = {}
+        self.watched: dict[int, tuple[socket.socket, object, int]] = {}
 
-    def register(self, sock: socket.socket, events: int, handler: Any) -> None:
+    def register(self, sock: socket.socket, events: int, handler: object) -> None:
         fd = sock.fileno()
         self._poll.register(fd, events)
         self.watched[fd] = (sock, handler, events)
 
-    def modify(self, sock: socket.socket, events: int, handler: Any) -> None:
+    def modify(self, sock: socket.socket, events: int, handler: object) -> None:
         fd = sock.fileno()
         self._poll.modify(fd, events)
         self.watched[fd] = (sock, handler, events)

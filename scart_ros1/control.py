@@ -22,7 +22,7 @@ from typing import Any
 
 from ._threads import OwnedThread
 from .io import Counters
-from .master import Master, MasterError, MasterUnreachable
+from .master import Master, MasterError, MasterUnreachable, XmlRpcValue
 
 __all__ = ["Control", "Registrar"]
 
@@ -38,7 +38,7 @@ class Control:
     def __init__(self, name: str, tick: Callable[[], float]) -> None:
         self._tick = tick
         self._cond = threading.Condition()
-        self._jobs: list[tuple[float, int, Callable[..., Any], tuple]] = []
+        self._jobs: list[tuple[float, int, Callable[..., object], tuple]] = []
         self._seq = itertools.count()
         self._next_tick = 0.0
         self._stopping = False
@@ -50,7 +50,7 @@ class Control:
     def here(self) -> bool:
         return self._thread.in_thread()
 
-    def submit(self, fn: Callable[..., Any], *args: Any, delay: float = 0.0) -> None:
+    def submit(self, fn: Callable[..., object], *args: object, delay: float = 0.0) -> None:
         """Run ``fn(*args)`` on the control thread after ``delay`` s (thread-safe)."""
         with self._cond:
             heapq.heappush(self._jobs, (time.monotonic() + delay, next(self._seq), fn, args))
@@ -84,7 +84,7 @@ class Control:
             except Exception:
                 log.exception("ROS 1 control: %s failed", getattr(fn, "__qualname__", fn))
 
-    def _next(self) -> tuple[Callable[..., Any], tuple] | None:
+    def _next(self) -> tuple[Callable[..., object], tuple] | None:
         with self._cond:
             while not self._stopping:
                 now = time.monotonic()
@@ -116,7 +116,7 @@ class Registrar:
 
     def __init__(self, master: Master, caller_api: str, poll: float, counters: Counters,
                  on_publishers: Callable[[str, list[str]], None],
-                 on_param: Callable[[str, Any], None] | None = None) -> None:
+                 on_param: Callable[[str, XmlRpcValue], None] | None = None) -> None:
         self.master, self.caller_api, self.poll = master, caller_api, poll
         self.counters, self.on_publishers, self.on_param = counters, on_publishers, on_param
         self._cond = threading.Condition()

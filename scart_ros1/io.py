@@ -61,12 +61,12 @@ class IoLoop:
         for sock in (self._wake_r, self._wake_w):
             sock.setblocking(False)
         self._sel.register(self._wake_r, IN, self)  # the loop itself: a wake-up
-        self._calls: collections.deque[tuple[Callable[..., Any], tuple]] = collections.deque()
-        self._timers: list[tuple[float, int, Callable[..., Any], tuple]] = []
+        self._calls: collections.deque[tuple[Callable[..., object], tuple]] = collections.deque()
+        self._timers: list[tuple[float, int, Callable[..., object], tuple]] = []
         self._seq = itertools.count()
         self._ids = itertools.count(1)
         self._stopping = False
-        self._owned: set[Any] = set()
+        self._owned: set[Conn] = set()
         self._thread = OwnedThread(lambda _stopping: self._run(), f"ros1-io {name}")
 
     def start(self) -> None:
@@ -76,11 +76,11 @@ class IoLoop:
         """True on the io thread (or once it has ended: then the caller may act directly)."""
         return self._thread.in_thread() or not self._thread.alive
 
-    def adopt(self, conn: Any) -> None:
+    def adopt(self, conn: Conn) -> None:
         """Own ``conn`` until it closes: :meth:`close` closes it if it is still open."""
         self._owned.add(conn)
 
-    def disown(self, conn: Any) -> None:
+    def disown(self, conn: Conn) -> None:
         self._owned.discard(conn)
 
     def next_id(self) -> int:
@@ -91,11 +91,11 @@ class IoLoop:
         """How many connections are open (or not yet closed) on this loop."""
         return len(self._owned)
 
-    def connections(self) -> list[Any]:
+    def connections(self) -> list[Conn]:
         """The connections open now (the io thread's view)."""
         return list(self._owned)
 
-    def call_soon(self, fn: Callable[..., Any], *args: Any) -> None:
+    def call_soon(self, fn: Callable[..., object], *args: object) -> None:
         """Run ``fn(*args)`` on the io thread (thread-safe; never blocks)."""
         self._calls.append((fn, args))
         try:
@@ -103,7 +103,7 @@ class IoLoop:
         except (BlockingIOError, OSError):
             pass  # already awake (pipe full) or closing
 
-    def call_later(self, delay: float, fn: Callable[..., Any], *args: Any) -> None:
+    def call_later(self, delay: float, fn: Callable[..., object], *args: object) -> None:
         """Run ``fn(*args)`` on the io thread after ``delay`` seconds (thread-safe)."""
         entry = (time.monotonic() + delay, next(self._seq), fn, args)
         if self.in_loop():
@@ -111,11 +111,11 @@ class IoLoop:
         else:
             self.call_soon(heapq.heappush, self._timers, entry)
 
-    def register(self, sock: socket.socket, handler: Any, events: int = IN) -> None:
+    def register(self, sock: socket.socket, handler: object, events: int = IN) -> None:
         """Watch ``sock`` for ``handler`` (io thread only); the loop now owns ``sock``."""
         self._sel.register(sock, events, handler)
 
-    def modify(self, sock: socket.socket, handler: Any, events: int) -> None:
+    def modify(self, sock: socket.socket, handler: object, events: int) -> None:
         self._sel.modify(sock, events, handler)
 
     def unregister(self, sock: socket.socket) -> None:
@@ -191,7 +191,7 @@ class IoLoop:
             self._safely(fn, args)
 
     @staticmethod
-    def _safely(fn: Callable[..., Any], args: tuple) -> None:
+    def _safely(fn: Callable[..., object], args: tuple) -> None:
         try:
             fn(*args)
         except Exception:
@@ -220,7 +220,7 @@ class Conn:
         self.on_close: Callable[[Conn, str], None] | None = None
         self.stats = Counters("messages_sent", "bytes_sent", "dropped", "messages_received", "bytes_received")
         self._lock = threading.Lock()
-        self._queue: collections.deque[Any] = collections.deque()
+        self._queue: collections.deque[list[Any]] = collections.deque()  # [data, droppable], data cut as sent
         self._queued_bytes = 0
         self._protected = 0  # entries at the queue's head that must not be dropped
         self._writing = False
@@ -436,7 +436,7 @@ class FrameReader:
 class Listener:
     """A listening socket on the io loop; ``on_accept(sock, addr)`` per connection."""
 
-    def __init__(self, loop: IoLoop, host: str, port: int, on_accept: Callable[[socket.socket, Any], None]) -> None:
+    def __init__(self, loop: IoLoop, host: str, port: int, on_accept: Callable[[socket.socket, object], None]) -> None:
         self.loop, self.on_accept = loop, on_accept
         self.closed = False
         self.sock = socket.create_server((host, port), family=_family(host), backlog=128)

@@ -13,9 +13,17 @@ from __future__ import annotations
 
 import http.client
 import xmlrpc.client
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, TypeAlias, cast
 
-__all__ = ["Master", "MasterError", "MasterUnreachable", "server_proxy"]
+if TYPE_CHECKING:
+    from xmlrpc.client import _Marshallable  # typeshed's: what the unmarshaller gives
+
+__all__ = ["Master", "MasterError", "MasterUnreachable", "XmlRpcValue", "server_proxy"]
+
+#: A value XML-RPC carries: a parameter, an argument or answer of the Master and Slave
+#: APIs (arrays may be lists or tuples; ``None`` is ``nil``, which both ends allow).
+XmlRpcValue: TypeAlias = "bool | int | float | str | bytes | None | Sequence[XmlRpcValue] | Mapping[str, XmlRpcValue]"
 
 MAX_RESPONSE_BYTES = 16 << 20  #: an XML-RPC answer larger than this is refused
 
@@ -35,12 +43,12 @@ class _BoundedTransport(xmlrpc.client.Transport):
         super().__init__()
         self._timeout, self._max = timeout, max_bytes
 
-    def make_connection(self, host: Any) -> http.client.HTTPConnection:
+    def make_connection(self, host: tuple[str, dict[str, str]] | str) -> http.client.HTTPConnection:
         conn = super().make_connection(host)
         conn.timeout = self._timeout
         return conn
 
-    def parse_response(self, response: http.client.HTTPResponse) -> Any:
+    def parse_response(self, response: http.client.HTTPResponse) -> tuple[_Marshallable, ...]:
         parser, unmarshaller = self.getparser()
         total = 0
         while data := response.read(65536):
@@ -57,7 +65,7 @@ def server_proxy(uri: str, timeout: float, max_bytes: int = MAX_RESPONSE_BYTES) 
     return xmlrpc.client.ServerProxy(uri, transport=_BoundedTransport(timeout, max_bytes), allow_none=True)
 
 
-def call(uri: str, method: str, *args: Any, timeout: float, what: str = "XML-RPC peer") -> Any:
+def call(uri: str, method: str, *args: XmlRpcValue, timeout: float, what: str = "XML-RPC peer") -> XmlRpcValue:
     """Call ``method`` on ``uri``; the value of a ``[code, message, value]`` answer with code 1.
 
     Raises :class:`MasterUnreachable` (connection refused, timeout, reset) or
@@ -85,29 +93,29 @@ class Master:
     def __init__(self, uri: str, caller_id: str, timeout: float = 3.0) -> None:
         self.uri, self.caller_id, self.timeout = uri, caller_id, timeout
 
-    def _call(self, method: str, *args: Any) -> Any:
+    def _call(self, method: str, *args: XmlRpcValue) -> XmlRpcValue:
         return call(self.uri, method, self.caller_id, *args, timeout=self.timeout, what="ROS master")
 
     def register_publisher(self, topic: str, topic_type: str, caller_api: str) -> list[str]:
         """Register a publisher; returns the subscribers' XML-RPC URIs."""
-        return list(self._call("registerPublisher", topic, topic_type, caller_api))
+        return list(cast("list[str]", self._call("registerPublisher", topic, topic_type, caller_api)))
 
     def unregister_publisher(self, topic: str, caller_api: str) -> int:
-        return int(self._call("unregisterPublisher", topic, caller_api))
+        return int(cast("int", self._call("unregisterPublisher", topic, caller_api)))
 
     def register_subscriber(self, topic: str, topic_type: str, caller_api: str) -> list[str]:
         """Register a subscriber; returns the publishers' XML-RPC URIs."""
-        return list(self._call("registerSubscriber", topic, topic_type, caller_api))
+        return list(cast("list[str]", self._call("registerSubscriber", topic, topic_type, caller_api)))
 
     def unregister_subscriber(self, topic: str, caller_api: str) -> int:
-        return int(self._call("unregisterSubscriber", topic, caller_api))
+        return int(cast("int", self._call("unregisterSubscriber", topic, caller_api)))
 
     def register_service(self, service: str, service_api: str, caller_api: str) -> None:
         """Register a service at ``service_api`` (``rosrpc://host:port``)."""
         self._call("registerService", service, service_api, caller_api)
 
     def unregister_service(self, service: str, service_api: str) -> int:
-        return int(self._call("unregisterService", service, service_api))
+        return int(cast("int", self._call("unregisterService", service, service_api)))
 
     def lookup_node(self, node: str) -> str:
         """A node's XML-RPC URI; :class:`MasterError` if the master does not know it."""
@@ -117,42 +125,42 @@ class Master:
         """A service's ``rosrpc://host:port``; :class:`MasterError` if none is registered."""
         return str(self._call("lookupService", service))
 
-    def get_system_state(self) -> list[list[list[Any]]]:
+    def get_system_state(self) -> list[list[list[XmlRpcValue]]]:
         """``[publishers, subscribers, services]``, each ``[[name, [node, ...]], ...]``."""
-        return self._call("getSystemState")
+        return cast("list[list[list[XmlRpcValue]]]", self._call("getSystemState"))
 
     def get_published_topics(self, subgraph: str = "") -> list[list[str]]:
         """``[[topic, type], ...]`` of the topics with publishers (under ``subgraph``)."""
-        return self._call("getPublishedTopics", subgraph)
+        return cast("list[list[str]]", self._call("getPublishedTopics", subgraph))
 
     def get_topic_types(self) -> list[list[str]]:
         """``[[topic, type], ...]`` of every topic the master knows."""
-        return self._call("getTopicTypes")
+        return cast("list[list[str]]", self._call("getTopicTypes"))
 
     # -- the parameter server ---------------------------------------------------------
-    def get_param(self, key: str) -> Any:
+    def get_param(self, key: str) -> XmlRpcValue:
         """The value at ``key`` (a namespace: a dict); :class:`MasterError` if unset."""
         return self._call("getParam", key)
 
-    def set_param(self, key: str, value: Any) -> None:
+    def set_param(self, key: str, value: XmlRpcValue) -> None:
         """Set ``key`` (a dict sets a namespace); subscribers but this node are told."""
         self._call("setParam", key, value)
 
     def delete_param(self, key: str) -> None:
         self._call("deleteParam", key)
 
-    def subscribe_param(self, key: str, caller_api: str) -> Any:
+    def subscribe_param(self, key: str, caller_api: str) -> XmlRpcValue:
         """Be told of ``key``'s changes (``paramUpdate``); returns its value now (``{}``: unset)."""
         return self._call("subscribeParam", caller_api, key)
 
     def unsubscribe_param(self, key: str, caller_api: str) -> int:
-        return int(self._call("unsubscribeParam", caller_api, key))
+        return int(cast("int", self._call("unsubscribeParam", caller_api, key)))
 
     def get_uri(self) -> str:
         return str(self._call("getUri"))
 
     def get_pid(self) -> int:
-        return int(self._call("getPid"))
+        return int(cast("int", self._call("getPid")))
 
 
 def parse_rosrpc(uri: str) -> tuple[str, int]:

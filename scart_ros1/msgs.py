@@ -145,7 +145,7 @@ class MsgType:
             raise ValueError(f"bad {self.name} message: {len(data) - pos} bytes left over")
         return msg
 
-    def new(self, **fields: Any) -> object:
+    def new(self, **fields: object) -> object:
         """A message of this type: unnamed fields take ROS's defaults (0, '', [], ...).
 
         Lists become numpy arrays where rosbags wants them; a dict for a nested message

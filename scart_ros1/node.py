@@ -8,11 +8,11 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 from .control import Control, Registrar
 from .io import Conn, Counters, InboundConn, IoLoop, Listener
-from .master import Master, MasterError, MasterUnreachable
+from .master import Master, MasterError, MasterUnreachable, XmlRpcValue
 from .msgs import MessageTypes
 from .names import NodeNames, node_names
 from .services import ServiceServer, Worker, call_service
@@ -20,6 +20,8 @@ from .rpcserver import RpcServer
 from .slave import SlaveApi
 from .tcpros import Limits, encode_header
 from .topics import Publisher, Subscriber
+
+_P = TypeVar("_P", Publisher, Subscriber, ServiceServer)  #: a part of the node, kept in its table
 
 __all__ = ["Node"]
 
@@ -98,7 +100,7 @@ class Node:
         self.respawn, self.read_only = respawn, read_only
         self.shutdown_reason: str | None = None  #: who asked it to shut down, and why (``CALLER: reason``)
         self._shutdown_hooks: list[Callable[[str, str], None]] = []
-        self._params: dict[str, Callable[[str, Any], None]] = {}  # namespace/ -> callback
+        self._params: dict[str, Callable[[str, XmlRpcValue], None]] = {}  # namespace/ -> callback
         self._start(master_poll)
 
     def _start(self, master_poll: float) -> None:
@@ -172,7 +174,7 @@ class Node:
         self._want(("sub", resolved), (type_name if msgtype is None else msgtype.name,))
         return sub
 
-    def advertise_service(self, service: str, type_name: str, handler: Callable[[Any], Any]) -> ServiceServer:
+    def advertise_service(self, service: str, type_name: str, handler: Callable[[Any], object]) -> ServiceServer:
         """Serve ``service`` as ``type_name`` (``pkg/Srv``): ``handler(request) -> response``.
 
         Handlers run one at a time on the node's service thread. Raises as :meth:`advertise`.
@@ -202,7 +204,7 @@ class Node:
         return call_service(self, self.resolve(service), self.types.srv(type_name), request, timeout)
 
     # -- parameters (the master's parameter server) -----------------------------------------
-    def get_param(self, key: str, default: Any = None) -> Any:
+    def get_param(self, key: str, default: XmlRpcValue = None) -> XmlRpcValue:
         """The parameter ``key`` (resolved: ``~x`` is private), ``default`` when unset.
         Blocks ≤ the master timeout; raises :class:`~.master.MasterUnreachable`."""
         try:
@@ -212,12 +214,12 @@ class Node:
         except MasterError:
             return default
 
-    def set_param(self, key: str, value: Any) -> None:
+    def set_param(self, key: str, value: XmlRpcValue) -> None:
         """Set the parameter ``key`` (resolved) to ``value`` (an XML-RPC value; a dict sets
         a namespace). Blocks ≤ the master timeout; raises :class:`~.master.MasterError`."""
         self.master.set_param(self.resolve(key), value)
 
-    def subscribe_param(self, key: str, callback: Callable[[str, Any], None]) -> str:
+    def subscribe_param(self, key: str, callback: Callable[[str, XmlRpcValue], None]) -> str:
         """Call ``callback(key, value)`` with ``key``'s value (``{}`` when unset; a dict for a
         namespace) once subscribed, and with each change of ``key`` or a name under it
         (a peer's ``setParam``: ``rosparam set``), on the control thread, as rospy's
@@ -241,7 +243,7 @@ class Node:
             self._registrar.drop(("param", resolved))
             self.control.tick_now()
 
-    def param_update(self, key: str, value: Any) -> None:
+    def param_update(self, key: str, value: XmlRpcValue) -> None:
         """A ``paramUpdate`` from the master (the XML-RPC thread): each subscription under
         which ``key`` lies is told, on the control thread."""
         key = key.rstrip("/") or "/"
@@ -249,7 +251,7 @@ class Node:
             if key == sub or key.startswith(sub.rstrip("/") + "/"):
                 self.control.submit(callback, key, value)
 
-    def _on_param(self, key: str, value: Any) -> None:
+    def _on_param(self, key: str, value: XmlRpcValue) -> None:
         callback = self._params.get(key)
         if callback is not None:
             callback(key, value)
@@ -307,7 +309,7 @@ class Node:
             self._worker.close(timeout)
 
     # -- helpers for the parts ------------------------------------------------------------
-    def _add(self, table: dict[str, Any], name: str, part: Any, verb: str) -> None:
+    def _add(self, table: dict[str, _P], name: str, part: _P, verb: str) -> None:
         with self._lock:
             if self._closed.is_set():
                 raise RuntimeError(f"node {self.caller_id} is closed")
@@ -319,7 +321,7 @@ class Node:
         self._registrar.want(key, args)
         self.control.tick_now()
 
-    def _drop(self, table: dict[str, Any], name: str, part: Any, key: tuple[str, str]) -> None:
+    def _drop(self, table: dict[str, _P], name: str, part: _P, key: tuple[str, str]) -> None:
         with self._lock:
             if table.get(name) is not part:
                 return
@@ -386,7 +388,7 @@ class Node:
 
     def _route(self, conn: InboundConn, header: dict[str, str]) -> None:
         if "service" in header:
-            part: Any = self._srvs.get(header["service"])
+            part: ServiceServer | Publisher | None = self._srvs.get(header["service"])
             missing = f"{self.caller_id} does not serve {header['service']}"
         elif "topic" in header:
             part = self._pubs.get(header["topic"])
@@ -448,12 +450,12 @@ class Node:
         log.warning("ROS 1 node %s: restarted, registered again with %s", self.caller_id, self.master_uri)
 
     def _connections(self) -> list[Conn]:
-        parts: list[Any] = [*list(self._pubs.values()), *list(self._subs.values())]
+        parts: list[Publisher | Subscriber] = [*list(self._pubs.values()), *list(self._subs.values())]
         return [c for part in parts for c in part.connections()]
 
-    def bus_info(self) -> list[list[Any]]:
+    def bus_info(self) -> list[list[XmlRpcValue]]:
         """``[[id, peer, direction, 'TCPROS', topic, True, transport info], ...]`` as rospy."""
-        out = []
+        out: list[list[XmlRpcValue]] = []
         for conn in self._connections():
             try:
                 local, remote = conn.sock.getsockname(), conn.sock.getpeername()
@@ -463,12 +465,12 @@ class Node:
             out.append([conn.conn_id, conn.peer_id, conn.direction, "TCPROS", conn.topic, True, info])
         return out
 
-    def bus_stats(self) -> list[Any]:
+    def bus_stats(self) -> list[XmlRpcValue]:
         """``[publishStats, subscribeStats, serviceStats]`` as the Slave API describes."""
-        pubs = [[p.topic, p.counters["bytes_sent"],
+        pubs: list[XmlRpcValue] = [[p.topic, p.counters["bytes_sent"],
                  [[c.conn_id, c.stats["bytes_sent"], c.stats["messages_sent"], True] for c in p.connections()]]
                 for p in list(self._pubs.values())]
-        subs = [[s.topic, [[c.conn_id, c.stats["bytes_received"], -1, True] for c in s.connections()]]
+        subs: list[XmlRpcValue] = [[s.topic, [[c.conn_id, c.stats["bytes_received"], -1, True] for c in s.connections()]]
                 for s in list(self._subs.values())]
         requests = sum(s.counters["requests"] for s in list(self._srvs.values()))
         return [pubs, subs, [requests, 0, 0]]

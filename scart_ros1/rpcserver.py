@@ -19,13 +19,20 @@ import socket
 import sys
 import threading
 import time
-from typing import Any, ClassVar
+from collections.abc import Callable
+from typing import TYPE_CHECKING, ClassVar, TypeAlias, cast
 from xmlrpc.server import SimpleXMLRPCRequestHandler, SimpleXMLRPCServer
 
 from ._threads import OwnedThread
 from .io import Counters
 
+if TYPE_CHECKING:
+    from _typeshed import WriteableBuffer
+
 __all__ = ["RpcServer"]
+
+_Request: TypeAlias = "socket.socket | tuple[bytes, socket.socket]"  # socketserver's; TCP's is the socket
+_Address: TypeAlias = tuple[str, int]
 
 log = logging.getLogger(__name__)
 
@@ -39,14 +46,14 @@ class _DeadlineReader(io.RawIOBase):
     ``on_timeout()`` runs once when it stops (http.server turns the error into a reply).
     """
 
-    def __init__(self, sock: socket.socket, deadline: float, on_timeout: Any) -> None:
+    def __init__(self, sock: socket.socket, deadline: float, on_timeout: Callable[[], None] | None) -> None:
         super().__init__()
         self._sock, self._deadline, self._on_timeout = sock, deadline, on_timeout
 
     def readable(self) -> bool:
         return True
 
-    def readinto(self, buffer: Any) -> int:
+    def readinto(self, buffer: WriteableBuffer) -> int:
         try:
             left = self._deadline - time.monotonic()
             if left <= 0:
@@ -90,13 +97,13 @@ class _Handler(SimpleXMLRPCRequestHandler):
             self.counters["xmlrpc_bad_requests"] += 1
             log.warning("ROS 1 XML-RPC: request from %s dropped: %s", self.client_address[0], exc or "timeout")
 
-    def log_error(self, format: str, *args: Any) -> None:  # noqa: A002
+    def log_error(self, format: str, *args: object) -> None:  # noqa: A002
         """http.server reports here each request it refuses: count it (a timeout is counted once)."""
         if "timed out" not in format:
             self.counters["xmlrpc_bad_requests"] += 1
             log.warning("ROS 1 XML-RPC: request from %s dropped: " + format, self.client_address[0], *args)
 
-    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
+    def log_message(self, format: str, *args: object) -> None:  # noqa: A002
         log.debug("ROS 1 XML-RPC: " + format, *args)
 
 
@@ -105,11 +112,11 @@ class _PooledServer(SimpleXMLRPCServer):
 
     workers: _Workers
 
-    def process_request(self, request: Any, client_address: Any) -> None:
-        if not self.workers.submit(request, client_address):
+    def process_request(self, request: _Request, client_address: _Address) -> None:
+        if not self.workers.submit(cast(socket.socket, request), client_address):  # TCP: the request is its socket
             self.shutdown_request(request)
 
-    def handle_error(self, request: Any, client_address: Any) -> None:
+    def handle_error(self, request: _Request, client_address: _Address) -> None:
         """socketserver prints a traceback to stderr here: log it instead (the server goes
         on). A connection cut (the client gone, or ours cut at close) is one line, no trace."""
         exc = sys.exc_info()[1]
@@ -128,14 +135,14 @@ class _Workers:
         self._per_peer, self._waiting_per_peer = max(1, size // 2), max(1, waiting // 2)
         self._counters = counters
         self._cond = threading.Condition()
-        self._queue: collections.deque[tuple[Any, Any]] = collections.deque()
+        self._queue: collections.deque[tuple[socket.socket, _Address]] = collections.deque()
         self._threads: list[OwnedThread] = []
         self._idle = 0
-        self._active: dict[Any, str] = {}  # request being served -> its peer's address
+        self._active: dict[socket.socket, str] = {}  # request being served -> its peer's address
         self._serving: collections.Counter[str] = collections.Counter()  # peer address -> requests served now
         self._closing = False
 
-    def submit(self, request: Any, address: Any) -> bool:
+    def submit(self, request: socket.socket, address: _Address) -> bool:
         """Queue a connection; False when closing, the queue is full, or its peer has half
         of it already (the caller closes it)."""
         with self._cond:
@@ -152,7 +159,7 @@ class _Workers:
             self._cond.notify_all()  # (an idle worker may wait for its peer's turn: each looks)
         return True
 
-    def _take(self) -> tuple[Any, Any] | None:
+    def _take(self) -> tuple[socket.socket, _Address] | None:
         """The first queued connection whose peer has fewer than its share being served."""
         for job in self._queue:
             if self._serving[job[1][0]] < self._per_peer:
@@ -160,7 +167,7 @@ class _Workers:
                 return job
         return None
 
-    def _next(self) -> tuple[Any, Any] | None:
+    def _next(self) -> tuple[socket.socket, _Address] | None:
         with self._cond:
             self._idle += 1
             job = None
@@ -185,7 +192,7 @@ class _Workers:
                 self._done(request)
                 server.shutdown_request(request)
 
-    def _done(self, request: Any) -> None:
+    def _done(self, request: socket.socket) -> None:
         with self._cond:
             peer = self._active.pop(request, None)
             if peer is not None:
@@ -218,7 +225,7 @@ class RpcServer:
     accept thread, at most ``workers`` request threads (see the module doc). Raises
     ``OSError`` when it cannot bind. :meth:`close` is idempotent."""
 
-    def __init__(self, instance: Any, host: str, port: int, counters: Counters, name: str,
+    def __init__(self, instance: object, host: str, port: int, counters: Counters, name: str,
                  max_bytes: int, max_seconds: float, workers: int = WORKERS) -> None:
         handler = type("Handler", (_Handler,), {"counters": counters, "max_bytes": max_bytes, "timeout": max_seconds})
         family = socket.AF_INET6 if ":" in host else socket.AF_INET

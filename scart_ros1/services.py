@@ -48,11 +48,11 @@ class Worker:
     """One owned thread running service handlers in arrival order (bounded queue)."""
 
     def __init__(self, name: str) -> None:
-        self._queue: queue.Queue[tuple[Callable[..., Any], tuple] | None] = queue.Queue(MAX_PENDING)
+        self._queue: queue.Queue[tuple[Callable[..., object], tuple] | None] = queue.Queue(MAX_PENDING)
         self._closed = False
         self._thread = OwnedThread(lambda _stopping: self._run(), f"ros1-services {name}").start()
 
-    def submit(self, fn: Callable[..., Any], *args: Any) -> bool:
+    def submit(self, fn: Callable[..., object], *args: object) -> bool:
         """Queue ``fn(*args)``; False if the queue is full or the worker closed (never blocks)."""
         if self._closed:
             return False
@@ -93,7 +93,7 @@ def _error_reply(text: str) -> bytes:
 class ServiceServer:
     """An advertised service (see the module doc); thread-safe."""
 
-    def __init__(self, node: Node, name: str, srvtype: SrvType, handler: Callable[[Any], Any]) -> None:
+    def __init__(self, node: Node, name: str, srvtype: SrvType, handler: Callable[[Any], object]) -> None:
         self.name, self.type, self.handler = name, srvtype, handler
         self._node = node
         self._counters = Counters("requests", "handler_errors", "bad_requests", "busy", "md5_mismatches")

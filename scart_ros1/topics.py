@@ -329,7 +329,7 @@ class Subscriber:
         counters = self._counters
         counters["received"] += 1
         if self._de is None:
-            value: Any = payload
+            value: object = payload
         else:
             try:
                 value = self._de(payload)

@@ -63,7 +63,7 @@ class Publisher:
     ``publish`` is thread-safe and never blocks on readers (keep-last history).
     """
 
-    def __init__(self, writer: DataWriter, convert: Callable[[Any], Any], topic: str, type_name: str,
+    def __init__(self, writer: DataWriter, convert: Callable[[object], object], topic: str, type_name: str,
                  accept: Accept | None, cdr: bool = False) -> None:
         self.topic, self.type_name = topic, type_name
         self._writer, self._convert, self._accept = writer, convert, accept
@@ -74,7 +74,7 @@ class Publisher:
         self._closed = False
         self.closed_hook: Callable[[], None] | None = None  # the participant's (node graph)
 
-    def publish(self, message: Any) -> bool:
+    def publish(self, message: object) -> bool:
         """Convert ``message`` (rosbags message, mapping or IDL instance) and write it.
 
         Returns True once handed to DDS; False if refused (counted in :meth:`stats`) or
@@ -133,7 +133,7 @@ class Publisher:
         delete_entity(self._writer)
 
 
-def write_cdr(writer: DataWriter, data: Any) -> None:
+def write_cdr(writer: DataWriter, data: object) -> None:
     """Write CDR bytes (a buffer, its length a multiple of 4) as one sample of
     ``writer``'s type, with no serialiser of Cyclone's Python side: the bytes-level call
     its ``DataWriter.write`` makes after serialising. Raises ``DDSException``."""
@@ -142,7 +142,7 @@ def write_cdr(writer: DataWriter, data: Any) -> None:
         raise DDSException(ret, f"Occurred while writing sample in {writer!r}")
 
 
-def _take_cdr(reader: DataReader) -> list[tuple[bytes, Any]]:
+def _take_cdr(reader: DataReader) -> list[tuple[bytes, Any]]:  # (CDR, Cyclone's untyped sample info)
     """Take one sample of ``reader`` as its CDR bytes and sample info, with no
     deserialiser of Cyclone's Python side (the bytes-level call ``DataReader.take``
     makes). Raises ``DDSException``."""
@@ -163,7 +163,7 @@ class Subscription:
         self._reader, self._convert, self._callback, self._accept = reader, convert, callback, accept
         self._dispatcher = dispatcher
         self._condition = ReadCondition(reader, _ANY)
-        self._take: Callable[[], list[tuple[Any, Any]]] = (
+        self._take: Callable[[], list[tuple[Any, Any]]] = (  # (IDL instance or CDR, sample info)
             (lambda: _take_cdr(reader)) if cdr else
             (lambda: [(s, s.sample_info) for s in reader.take(N=1, condition=self._condition)]))
         self._received = self._delivered = self._refused = self._errors = 0
@@ -193,7 +193,7 @@ class Subscription:
                 self._received += 1
                 self._deliver(sample)
 
-    def _deliver(self, sample: Any) -> None:
+    def _deliver(self, sample: object) -> None:
         try:
             message = self._convert(sample)
             if self._accept is not None and not self._accept(message):
@@ -257,13 +257,13 @@ class Dispatcher:
         self._guard = GuardCondition(participant)
         self._waitset.attach(self._guard)
         self._guard_set = False  # whether the guard may be triggered (resetting it is a ctypes call)
-        self._drains: dict[int, tuple[Any, Callable[[], None]]] = {}
+        self._drains: dict[int, tuple[object, Callable[[], None]]] = {}
         self._busy = threading.RLock()  # held while draining: remove() waits for a running drain
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def add(self, condition: Any, drain: Callable[[], None]) -> None:
+    def add(self, condition: ReadCondition | GuardCondition, drain: Callable[[], None]) -> None:
         """Call ``drain`` whenever ``condition`` triggers."""
         with self._lock:
             if self._stop.is_set():
@@ -275,7 +275,7 @@ class Dispatcher:
                 self._thread.start()
         self._wake()  # look at the new reader now: it may already hold samples
 
-    def remove(self, condition: Any) -> None:
+    def remove(self, condition: ReadCondition | GuardCondition) -> None:
         """Stop calling the drain of ``condition``; waits for a drain in progress."""
         with self._busy, self._lock:
             if self._drains.pop(id(condition), None) is not None and not self._stop.is_set():

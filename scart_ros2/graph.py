@@ -54,13 +54,13 @@ class NodeGraph:
         guid = entity.guid.bytes  # dds_get_guid, as rmw_cyclonedds' get_entity_gid
         return list(guid.ljust(self._gid_size, b"\0")[: self._gid_size])
 
-    def add(self, entity: Any, reader: bool) -> None:
+    def add(self, entity: object, reader: bool) -> None:
         """Announce ``entity`` (a DataReader or DataWriter) as this node's."""
         with self._lock:
             (self._readers if reader else self._writers)[id(entity)] = self._gid_of(entity)
         self._announce()
 
-    def remove(self, entity: Any) -> None:
+    def remove(self, entity: object) -> None:
         """Stop announcing ``entity``."""
         with self._lock:
             self._readers.pop(id(entity), None)

@@ -44,16 +44,19 @@ import os
 import struct
 import sys
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from cyclonedds.idl import IdlStruct, make_idl_struct
 from cyclonedds.idl import types as t
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.base import Nodetype
+
+if TYPE_CHECKING:
+    from rosbags.interfaces.typing import Constdefs, Fielddefs, Typesdict
 
 from .errors import ConversionError, UnknownTypeError
 from .names import dds_type_name, split_type_name
@@ -108,10 +111,10 @@ class _Struct:
 
     def __init__(self, name: str) -> None:
         self.name = name
-        self.members: dict[str, Any] = {}
+        self.members: dict[str, object] = {}
         self.to_idl: dict[str, _Conv] = {}
         self.from_idl: dict[str, _Conv] = {}
-        self.zero: dict[str, Callable[[], Any]] = {}
+        self.zero: dict[str, Callable[[], object]] = {}
 
 
 class MessageTypes:
@@ -179,7 +182,7 @@ class MessageTypes:
         self.add_srv(name, file.read_text(encoding="utf-8"))
         return name
 
-    def _parse(self, parse_name: str, text: str, shown: str) -> Any:
+    def _parse(self, parse_name: str, text: str, shown: str) -> tuple[Constdefs, Fielddefs]:
         if not text.strip():  # rosidl gives an empty struct one uint8 member
             text = "uint8 structure_needs_at_least_one_member\n"
         try:
@@ -188,7 +191,7 @@ class MessageTypes:
             raise ValueError(f"{shown}: bad definition: {exc}") from None
         return definition
 
-    def _register(self, defs: dict[str, Any]) -> None:
+    def _register(self, defs: Typesdict) -> None:
         with self._lock:
             for name in defs:
                 if name in self._store.fielddefs:
@@ -203,7 +206,7 @@ class MessageTypes:
         """Whether message type ``name`` is known."""
         return name in self._store.fielddefs
 
-    def fields(self, name: str) -> list[tuple[str, Any]]:
+    def fields(self, name: str) -> Fielddefs:
         """The fields of message ``name`` in order: ``(field, rosbags field description)``;
         raises :class:`UnknownTypeError`."""
         return self._fields(name)
@@ -288,14 +291,14 @@ class MessageTypes:
                 self._idl[key] = found
         return found
 
-    def _make_idl(self, name: str, typename: str, head: dict[str, Any]) -> type[IdlStruct]:
+    def _make_idl(self, name: str, typename: str, head: dict[str, object]) -> type[IdlStruct]:
         struct = self._struct(name)
         clash = set(head) & set(struct.members)
         if clash:
             raise ConversionError(f"{name}: field {sorted(clash)[0]!r} clashes with rmw's request header")
         return make_idl_struct(typename.rsplit("::", 1)[-1], typename, {**head, **struct.members})
 
-    def _fields(self, name: str) -> list[tuple[str, Any]]:
+    def _fields(self, name: str) -> Fielddefs:
         definition = self._store.fielddefs.get(name)
         if definition is None:
             self._look_up(name)
@@ -336,7 +339,7 @@ class MessageTypes:
         return t.sequence[element, size] if size else t.sequence[element]  # type: ignore[misc]  # (as array)
 
     # ----------------------------------------------------------------- conversions
-    def to_idl(self, name: str, value: Any) -> IdlStruct:
+    def to_idl(self, name: str, value: object) -> IdlStruct:
         """``value`` (a rosbags message of ``name``, a mapping, or an instance of the IDL
         type) as an instance of :meth:`idl_type`. Raises :class:`ConversionError`."""
         cls = self.idl_type(name)
@@ -344,7 +347,7 @@ class MessageTypes:
             return value
         return cls(**self.to_fields(name, value))
 
-    def to_fields(self, name: str, value: Any) -> dict[str, Any]:
+    def to_fields(self, name: str, value: object) -> dict[str, object]:
         """The IDL member values of ``value`` by field name (see :meth:`to_idl`)."""
         struct = self._struct(name)
         if getattr(value, "__msgtype__", None) == name or _is_idl_of(value, name):  # the hot path first
@@ -361,7 +364,7 @@ class MessageTypes:
         msgtype = getattr(value, "__msgtype__", None)
         raise ConversionError(f"expected a {name} message or a mapping, got {msgtype or type(value).__name__}")
 
-    def from_idl(self, name: str, obj: Any) -> Any:
+    def from_idl(self, name: str, obj: object) -> object:
         """The rosbags message of ``name`` holding the fields of IDL instance ``obj``.
         Raises :class:`ConversionError` if ``obj`` lacks a field."""
         struct = self._structs.get(name) or self._struct(name)
@@ -372,15 +375,15 @@ class MessageTypes:
             raise ConversionError(f"{name}: {exc}") from None
         return self._store.types[name](**kwargs)
 
-    def zero(self, name: str) -> Any:
+    def zero(self, name: str) -> Any:  # an instance of the IDL class made at run time
         """A rosbags message of ``name`` with ROS's zero values (0, "", empty sequences)."""
         return self.from_idl(name, self.to_idl(name, {}))
 
-    def serialize(self, name: str, value: Any) -> bytes:
+    def serialize(self, name: str, value: object) -> bytes:
         """``value`` as rmw's CDR bytes (4-byte encapsulation header, XCDR1 little-endian)."""
         return self.to_idl(name, value).serialize(use_version_2=False)
 
-    def deserialize(self, name: str, data: bytes) -> Any:
+    def deserialize(self, name: str, data: bytes) -> object:
         """The rosbags message in CDR ``data``; raises :class:`ConversionError`."""
         try:
             obj = self.idl_type(name).deserialize(data)
@@ -389,7 +392,7 @@ class MessageTypes:
         return self.from_idl(name, obj)
 
     # ----------------------------------------------------------------- CDR by rosbags
-    def to_cdr(self, name: str, message: Any) -> bytearray:
+    def to_cdr(self, name: str, message: object) -> bytearray:
         """A rosbags message of ``name`` as rmw's CDR bytes, by rosbags' serialiser: each
         numpy array field copied once, straight into the bytes (Cyclone's Python
         serialiser packs a ``uint8[]`` value by value: 0.2 s for 6 MB). Padded to 4 bytes,
@@ -408,7 +411,7 @@ class MessageTypes:
             raise ConversionError(f"{name}: {type(exc).__name__}: {exc}") from None
         return data
 
-    def from_cdr(self, name: str, data: bytes) -> Any:
+    def from_cdr(self, name: str, data: bytes) -> object:
         """The rosbags message of ``name`` in CDR ``data``, by rosbags' deserialiser: its
         numpy array fields are read-only views of ``data`` (no copy). Raises
         :class:`ConversionError` for malformed bytes."""
@@ -456,16 +459,16 @@ class MessageTypes:
         return lambda: [element() for _ in range(size)]
 
 
-def _is_idl_of(value: Any, name: str) -> bool:
+def _is_idl_of(value: object, name: str) -> bool:
     idl = getattr(type(value), "__idl_typename__", None)
     return idl is not None and idl.replace(".", "::") == dds_type_name(name)
 
 
-def _identity(value: Any) -> Any:
+def _identity(value: object) -> object:
     return value
 
 
-def _base_member(detail: tuple[str, int], where: str) -> Any:
+def _base_member(detail: tuple[str, int], where: str) -> object:
     base, bound = detail
     if base == "bool":
         return bool
@@ -485,13 +488,13 @@ def _base_to(base: str, bound: int, where: str) -> _Conv:
     if base in ("float32", "float64"):
         return _float_to(where, base == "float32")
     if base == "bool":
-        def to_bool(value: Any) -> bool:
+        def to_bool(value: object) -> bool:
             if isinstance(value, (bool, np.bool_)) or value in (0, 1):
                 return bool(value)
             raise ConversionError(f"{where}: expected a bool, got {value!r}")
         return to_bool
     if base == "string":
-        def to_str(value: Any) -> str:
+        def to_str(value: object) -> str:
             if not isinstance(value, str):
                 raise ConversionError(f"{where}: expected a str, got {type(value).__name__}")
             if bound and len(value) > bound:
@@ -514,7 +517,7 @@ def _int_to(low: int, high: int, where: str, octet: bool) -> _Conv:
 
 
 def _float_to(where: str, single: bool) -> _Conv:
-    def to_float(value: Any) -> float:
+    def to_float(value: object) -> float:
         if type(value) is not float:
             if not isinstance(value, numbers.Real):
                 raise ConversionError(f"{where}: expected a number, got {type(value).__name__}")
@@ -541,7 +544,7 @@ def _sequence_to(element: _Conv, base: str | None, size: int, fixed: bool, where
         if isinstance(value, np.ndarray):
             if value.ndim != 1:
                 raise ConversionError(f"{where}: expected a 1-d array, got {value.ndim}-d")
-            items: Any = value
+            items: np.ndarray | Sequence[object] = value
         elif isinstance(value, (bytes, bytearray, memoryview)) and octets:
             items = bytes(value)
         elif isinstance(value, (list, tuple)):
@@ -566,7 +569,7 @@ def _sequence_to(element: _Conv, base: str | None, size: int, fixed: bool, where
     return to_sequence
 
 
-def message_to_dict(message: Any) -> Any:
+def message_to_dict(message: object) -> Any:  # a dict, list, number or str: as the message holds
     """A rosbags message (or any value in one) as plain Python: dicts, lists, numbers, str."""
     if dataclasses.is_dataclass(message):  # not __msgtype__, nor constants (ROS names them in capitals)
         return {f.name: message_to_dict(getattr(message, f.name)) for f in dataclasses.fields(message)

@@ -45,7 +45,7 @@ def log_level(levelno: int) -> int:
     return next((b for lvl, b in _LEVELS if levelno >= lvl), 10)
 
 
-def _kind(items: list[Any]) -> int | None:
+def _kind(items: list[object]) -> int | None:
     if all(isinstance(i, bool) for i in items):
         return 6
     if all(isinstance(i, int) and not isinstance(i, bool) and i in _INT64 for i in items):

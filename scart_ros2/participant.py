@@ -57,7 +57,7 @@ class Participant:
             raise DomainError(f"cannot join DDS domain {self.domain_id}: {exc}") from None
         self._lock = threading.Lock()
         self._topics: dict[str, Topic] = {}
-        self._endpoints: list[Any] = []
+        self._endpoints: list[Publisher | Subscription | ServiceServer | ServiceClient] = []
         self._dispatcher = Dispatcher(self._dp, f"ros2-dispatch-d{self.domain_id}")
         self._closed = False
         try:
@@ -102,7 +102,7 @@ class Participant:
         self._announce(endpoint, writers=(writer,))
         return endpoint
 
-    def subscribe(self, topic: str, type_name: str, callback: Callable[[Any], Any], qos: QoS | None = None, *,
+    def subscribe(self, topic: str, type_name: str, callback: Callable[[Any], object], qos: QoS | None = None, *,
                   accept: Accept | None = None, as_dict: bool = False, raw: bool = False,
                   cdr: bool = False) -> Subscription:
         """Call ``callback(message)`` on this participant's thread for every message of
@@ -142,7 +142,7 @@ class Participant:
         return endpoint
 
     # ------------------------------------------------------------------ services
-    def service(self, name: str, srv_type: str, handler: Callable[[Any], Any], *, raw: bool = False) -> ServiceServer:
+    def service(self, name: str, srv_type: str, handler: Callable[[Any], object], *, raw: bool = False) -> ServiceServer:
         """Answer ROS 2 service ``name`` of ``srv_type`` (``pkg/srv/Name``) with
         ``handler(request) -> response`` on this participant's thread: the request a
         rosbags message, or the IDL instance as Cyclone made it if ``raw`` (its fields,

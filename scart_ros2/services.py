@@ -74,9 +74,9 @@ class _Endpoint:
         self.refused = 0
         self.last_refusal: str | None = None
 
-    def _take(self) -> list[Any]:
+    def _take(self) -> list[Any]:  # instances of the request's or reply's IDL class, made at run time
         """Valid samples taken now (a malformed one is counted and skipped)."""
-        out: list[Any] = []
+        out: list[object] = []
         for _ in range(_BATCH):
             try:
                 taken = self._reader.take(N=1, condition=self._condition)
@@ -95,7 +95,7 @@ class _Endpoint:
         self.refused += 1
         self.last_refusal = why
 
-    def _body(self, sample: Any, name: str) -> Any:
+    def _body(self, sample: object, name: str) -> object:
         return self._types.from_idl(name, sample)
 
     def close(self) -> None:
@@ -117,7 +117,7 @@ class ServiceServer(_Endpoint):
     error reply) and is counted in ``refused``."""
 
     def __init__(self, reader: DataReader, writer: DataWriter, types: MessageTypes, srv_type: str,
-                 handler: Any, dispatcher: Dispatcher, raw: bool = False) -> None:
+                 handler: Callable[[Any], object], dispatcher: Dispatcher, raw: bool = False) -> None:
         super().__init__(reader, writer, types, srv_type, dispatcher)
         self._handler = handler
         self._raw = raw
@@ -192,7 +192,7 @@ class ServiceClient(_Endpoint):
             time.sleep(0.01)
         return True
 
-    def call_async(self, request: Any) -> Future:
+    def call_async(self, request: object) -> Future:
         """Send ``request`` (rosbags message or mapping); the future gets the response
         (a rosbags message). Raises :class:`ConversionError` for a bad request and
         :class:`Ros2Error` once closed."""
@@ -213,7 +213,7 @@ class ServiceClient(_Endpoint):
             raise ConversionError(f"{self.srv_type}: {exc}") from None
         return future
 
-    def call(self, request: Any, timeout: float = 5.0) -> Any:
+    def call(self, request: object, timeout: float = 5.0) -> object:
         """Send ``request`` and block for the response up to ``timeout`` s; raises
         ``TimeoutError`` (the late reply is then dropped) or as :meth:`call_async`."""
         future = self.call_async(request)

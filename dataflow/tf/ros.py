@@ -50,7 +50,7 @@ class RosFrames:
 
     def __init__(self, buffer: FrameBuffer) -> None:
         self.buffer = buffer
-        self._transport: Any = None
+        self._transport: Any = None  # a ros1 or ros2 transport: duck-typed, loaded by name
         self._lock = threading.Lock()
         self._closed = False
         self.received = 0  #: TFMessages received
@@ -110,12 +110,12 @@ def _transform(t: Any) -> Transform:
                      int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
 
 
-def _fields(transforms: list[Transform], seq: bool) -> dict[str, Any]:
+def _fields(transforms: list[Transform], seq: bool) -> dict[str, object]:
     """A ``tf2_msgs/TFMessage``'s fields (ROS 1's header has a ``seq``, ROS 2's none)."""
     out = []
     for t in transforms:
         sec, nanosec = divmod(t.stamp_ns, 1_000_000_000)
-        header: dict[str, Any] = {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": t.frame_id}
+        header: dict[str, object] = {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": t.frame_id}
         if seq:
             header["seq"] = 0
         x, y, z = t.translation

@@ -31,14 +31,14 @@ MULTI = MappingProxyType({"float64": "Float64MultiArray", "float32": "Float32Mul
 ELEMENT = MappingProxyType({"byte": "int8", "char": "uint8", "bool": "bool"})
 
 
-def image_data(value: Any) -> tuple[int, Any]:
+def image_data(value: numpy.ndarray) -> tuple[int, numpy.ndarray]:
     """An image array's ``step`` and its bytes as a flat ``uint8`` view (a copy only when
     the array is not C-contiguous)."""
     step = value.strides[0] if value.flags.c_contiguous else value[0].nbytes
     return step, numpy.ascontiguousarray(value).reshape(-1).view(numpy.uint8)
 
 
-def flat_data(value: Any, count: int, label: str) -> Any:
+def flat_data(value: object, count: int, label: str) -> numpy.ndarray:
     """An array's values as a flat view (a copy only when it is not C-contiguous);
     ``ValueError`` when ``count`` (a fixed array's length, 0 for none) is not its size."""
     flat = numpy.ascontiguousarray(value).reshape(-1)
@@ -47,16 +47,16 @@ def flat_data(value: Any, count: int, label: str) -> Any:
     return flat
 
 
-def layout_dims(value: Any) -> list[tuple[int, int]]:
+def layout_dims(value: Any) -> list[tuple[int, int]]:  # an array port's value: its shape
     """A multi-array layout's dimensions of ``value``: ``(size, stride)`` each, as ROS
     counts strides (in elements, the whole remaining block)."""
     return [(int(size), int(numpy.prod(value.shape[k:]))) for k, size in enumerate(value.shape)]
 
 
-def array_in(spec: ArraySpec, layout: bool) -> Callable[[Any], Any]:
+def array_in(spec: ArraySpec, layout: bool) -> Callable[[Any], numpy.ndarray]:
     """A multi-array message's data as the port's array: shaped by its layout (else by
     the port's shape), a read-only view of the received bytes."""
-    def from_ros(msg: Any) -> Any:
+    def from_ros(msg: Any) -> numpy.ndarray:  # msg: rosbags' message class, made at run time
         data = msg.data
         shape: tuple[int, ...] | None = None
         if layout and msg.layout.dim:
@@ -71,12 +71,12 @@ def array_in(spec: ArraySpec, layout: bool) -> Callable[[Any], Any]:
     return from_ros
 
 
-def image_in(spec: ArraySpec) -> Callable[[Any], Any]:
+def image_in(spec: ArraySpec) -> Callable[[Any], numpy.ndarray]:
     """An image message as the port's array (its ``encoding`` must be the port's): a
     read-only view of the received bytes, rows past ``width`` (a padded ``step``) left out."""
     channels = 1 if spec.shape is None or len(spec.shape) == 2 else spec.shape[2]
 
-    def from_ros(msg: Any) -> Any:
+    def from_ros(msg: Any) -> numpy.ndarray:  # msg: rosbags' message class, made at run time
         if msg.encoding != spec.image:
             raise ValueError(f"an image of encoding {msg.encoding!r}, not {spec.image!r} ({spec.name})")
         height, width, step = int(msg.height), int(msg.width), int(msg.step)

@@ -20,16 +20,17 @@ import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import pydantic
 
 from dataflow.transports import StreamProblem, TransportError
 
 if TYPE_CHECKING:
+    from dataflow.task import TaskContext
     from dataflow.transports.ends import ReaderEnd
 
-__all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts", "answering", "check_converter",
+__all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "RosTime", "accepts", "answering", "check_converter",
            "flag", "is_mapping", "is_model", "is_open", "item_type", "latched", "match_params", "model_fields",
            "operation_call", "operation_signature", "receiver", "resolve_converter", "signature_of", "stamper",
            "stream_problems", "type_label",
@@ -37,7 +38,17 @@ __all__ = ["ConversionProblem", "Mismatch", "Param", "RefusingCarrier", "accepts
 
 _C = TypeVar("_C")
 _F = TypeVar("_F")
+_Q = TypeVar("_Q")  #: a service's request
+_R = TypeVar("_R")  #: a service's response
+_M = TypeVar("_M")  #: a message as a subscription hands it over (an instance, or its bytes)
 _TRUE, _FALSE = frozenset({"true", "1", "yes"}), frozenset({"false", "0", "no", ""})
+
+
+class RosTime(Protocol):
+    """A ROS 2 ``builtin_interfaces/Time`` as rosbags and Cyclone DDS give it."""
+
+    sec: int
+    nanosec: int
 
 
 # ---- port types and annotations ------------------------------------------------------
@@ -53,28 +64,28 @@ class Mismatch(Exception):
     """A planning problem (collected as a :class:`ConversionProblem`)."""
 
 
-def type_label(py_type: Any) -> str:
+def type_label(py_type: object) -> str:
     """A short name of a port type for messages (``float``, ``list[float]``, ``YouBotStatus``)."""
     return py_type.__name__ if isinstance(py_type, type) else str(py_type).replace("typing.", "")
 
 
-def is_open(annotation: Any) -> bool:
+def is_open(annotation: object) -> bool:
     """``annotation`` says nothing of the type (``Any``, ``object``)."""
     return annotation is Any or annotation is object
 
 
-def is_mapping(annotation: Any) -> bool:
+def is_mapping(annotation: object) -> bool:
     """``annotation`` is a mapping type (``dict``, ``Mapping[str, X]``...)."""
     origin = typing.get_origin(annotation) or annotation
     return isinstance(origin, type) and issubclass(origin, Mapping)
 
 
-def is_model(py_type: Any) -> bool:
+def is_model(py_type: object) -> bool:
     """``py_type`` is a pydantic model (converted by field names)."""
     return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
 
 
-def accepts(wanted: Any, given: Any) -> bool:
+def accepts(wanted: object, given: object) -> bool:
     """A parameter annotated ``wanted`` takes a value of type ``given``."""
     if is_open(wanted) or wanted == given:
         return True
@@ -83,7 +94,7 @@ def accepts(wanted: Any, given: Any) -> bool:
     return isinstance(wanted, type) and isinstance(given, type) and issubclass(given, wanted)
 
 
-def unwrap(py_type: Any) -> Any:
+def unwrap(py_type: object) -> object:
     """``X`` for ``Optional[X]`` / ``X | None`` and ``Annotated[X, ...]``."""
     origin = typing.get_origin(py_type)
     if origin is typing.Annotated:
@@ -95,7 +106,7 @@ def unwrap(py_type: Any) -> Any:
     return py_type
 
 
-def item_type(py_type: Any) -> Any | None:
+def item_type(py_type: object) -> object | None:
     """The item type of ``list[X]`` / ``tuple[X, ...]`` / ``Sequence[X]``, else None."""
     origin, args = typing.get_origin(py_type), typing.get_args(py_type)
     if origin in (list, tuple) or (isinstance(origin, type) and origin.__name__ == "Sequence"):
@@ -106,12 +117,12 @@ def item_type(py_type: Any) -> Any | None:
 
 
 def model_fields(model: type[pydantic.BaseModel], ros_type: str, fields: Mapping[str, _F], outgoing: bool,
-                 convert: Callable[[Any, _F], Callable[[Any], Any]]) -> dict[str, Callable[[Any], Any]]:
+                 convert: Callable[[object, _F], Callable[[object], object]]) -> dict[str, Callable[[object], object]]:
     """The conversion of each field of ``model`` to or from its namesake of ``fields``
     (``ros_type``'s), made by ``convert(annotation, field)``. Publishing, every field of the
     model needs one; reading, every field it requires. Raises :class:`Mismatch` naming
     every problem, so that a model is fixed in one go."""
-    convs: dict[str, Callable[[Any], Any]] = {}
+    convs: dict[str, Callable[[object], object]] = {}
     problems, missing = [], []
     for name, info in model.model_fields.items():
         field = fields.get(name)
@@ -132,7 +143,7 @@ def model_fields(model: type[pydantic.BaseModel], ros_type: str, fields: Mapping
 
 
 # ---- converters -----------------------------------------------------------------------
-def resolve_converter(ref: str) -> Callable[..., Any]:
+def resolve_converter(ref: str) -> Callable[..., object]:
     """The function ``module:qualified.name`` of a module this process has imported
     already; raises ``ValueError`` saying what is wrong (never imports anything)."""
     module_name, colon, attr = ref.partition(":")
@@ -142,7 +153,7 @@ def resolve_converter(ref: str) -> Callable[..., Any]:
     if module is None:
         raise ValueError(f"converter {ref!r}: module {module_name!r} is not imported in this process (a stream "
                          "never imports code: import it first; a composite imports its converters at load)")
-    obj: Any = module
+    obj: object = module
     for part in attr.split("."):
         obj = getattr(obj, part, None)
         if obj is None:
@@ -152,8 +163,8 @@ def resolve_converter(ref: str) -> Callable[..., Any]:
     return obj
 
 
-def check_converter(fn: Callable[..., Any], ref: str, py_type: Any, ros_type: str, outgoing: bool,
-                    is_message: Callable[[Any], bool]) -> list[ConversionProblem]:
+def check_converter(fn: Callable[..., object], ref: str, py_type: object, ros_type: str, outgoing: bool,
+                    is_message: Callable[[object], bool]) -> list[ConversionProblem]:
     """The converter ``fn`` takes one argument, and its annotations, where given, fit the
     port's type and the message type (``is_message``: an annotation is ``ros_type``'s
     class). Checked when a stream is planned, so that a wrong converter is said then."""
@@ -194,10 +205,10 @@ class Param:
     """One parameter of a callable a service calls: its name and type (``Any``: unannotated)."""
 
     name: str
-    type: Any = Any
+    type: object = Any
 
 
-def signature_of(call: Callable[..., Any], skip_self: bool = False) -> tuple[list[Param], Any]:
+def signature_of(call: Callable[..., object], skip_self: bool = False) -> tuple[list[Param], object]:
     """The parameters and return annotation of ``call`` (``Any`` where unannotated);
     ``skip_self``: a function as declared on its class (its first parameter is ``self``)."""
     try:
@@ -213,7 +224,7 @@ def signature_of(call: Callable[..., Any], skip_self: bool = False) -> tuple[lis
     return params, type(None) if returns is None else returns
 
 
-def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
+def operation_signature(task: TaskContext, operation: str) -> tuple[list[Param], object]:
     """The parameters and return type of ``task``'s operation, from its description."""
     from dataflow import registry
 
@@ -222,16 +233,16 @@ def operation_signature(task: Any, operation: str) -> tuple[list[Param], Any]:
         raise TransportError(f"task {task.name} has no operation {operation!r}; operations: "
                              f"{', '.join(sorted(task.operations())) or 'none'}")
 
-    def of(name: str) -> Any:
+    def of(name: str) -> object:
         return Any if name == "any" else type(None) if name == "None" else (registry.python_type(name) or Any)
 
     return [Param(n, of(t)) for n, t in desc.params], of(desc.returns)
 
 
-def operation_call(task: Any, operation: str, timeout: float) -> Callable[..., Any]:
+def operation_call(task: TaskContext, operation: str, timeout: float) -> Callable[..., object]:
     """A callable that runs ``task``'s operation: its arguments checked as outside input
     (bounds, finiteness), its result waited for ≤ ``timeout`` s."""
-    def call(*args: Any) -> Any:
+    def call(*args: object) -> object:
         checked = task.check_arguments(operation, list(args))
         return task.send(operation, *checked).result(timeout)
 
@@ -256,13 +267,13 @@ def match_params(params: list[Param], fields: list[str], request: str) -> tuple[
     return [(p, p.name) for p in params], []
 
 
-def answering(call: Callable[..., Any], args_of: Callable[[Any], list[Any]], response_of: Callable[[Any], Any],
-              convention: Callable[..., Any] | None) -> Callable[[Any], Any]:
+def answering(call: Callable[..., object], args_of: Callable[[_Q], list[object]], response_of: Callable[[object], _R],
+              convention: Callable[..., _R] | None) -> Callable[[_Q], _R]:
     """``request -> response`` of a served callable. ``convention``, for a response with
     ``bool success`` and ``string message``, makes a response from those fields: then
     ``False`` or an exception answers ``success: false`` (with its text); without it an
     exception goes to the caller."""
-    def answer(request: Any) -> Any:
+    def answer(request: _Q) -> _R:
         args = args_of(request)
         if convention is None:
             return response_of(call(*args))
@@ -318,13 +329,13 @@ def usable(conv: _C | None, problems: list[StreamProblem], log: logging.Logger) 
     return conv
 
 
-def receiver(end: ReaderEnd, convert: Callable[[Any], Any], label: str) -> Callable[[Any], None]:
+def receiver(end: ReaderEnd, convert: Callable[[_M], object], label: str) -> Callable[[_M], None]:
     """What a subscription calls with each message (one at a time): the value converted
     and handed to ``end``, numbered; a message that does not convert is refused there
     (``label``: its type), never ending the stream."""
     count = [0]
 
-    def on_message(msg: Any) -> None:
+    def on_message(msg: _M) -> None:
         try:
             value = convert(msg)
         except Exception as exc:  # noqa: BLE001 - one bad message never ends the stream
@@ -336,7 +347,7 @@ def receiver(end: ReaderEnd, convert: Callable[[Any], Any], label: str) -> Calla
     return on_message
 
 
-def stamper(port: Any) -> Callable[[int], int]:
+def stamper(port: object) -> Callable[[int], int]:
     """``wall_ns -> stamp``: what a ROS message's stamp is for a sample ``port`` wrote at
     ``wall_ns``, on its task's clock (a simulation's, with ``use_sim_time``), read at
     each sample (:mod:`dataflow.clock`)."""

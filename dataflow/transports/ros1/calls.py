@@ -40,6 +40,9 @@ from .._rosplan import (Param, answering, is_model, match_params, operation_call
 from .convert import _plain_value, field_conversion
 
 if TYPE_CHECKING:
+    from dataflow.task import TaskContext
+    from scart_ros1.msgs import FieldDef
+
     from .transport import Ros1Transport
 
 __all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "serve", "serve_operation"]
@@ -60,7 +63,7 @@ def ros1_transport() -> Ros1Transport:
 
 
 # ---- planning ---------------------------------------------------------------------------
-def _request_plan(types: MessageTypes, srv: SrvType, params: list[Param]) -> tuple[Callable[[Any], list[Any]], list[str]]:
+def _request_plan(types: MessageTypes, srv: SrvType, params: list[Param]) -> tuple[Callable[[object], list[object]], list[str]]:
     """``request -> positional arguments``, and the problems found."""
     by_name = {f.name: f for f in types.fields(srv.request.name)}
     pairs, problems = match_params(params, list(by_name), srv.request.name)
@@ -76,11 +79,11 @@ def _request_plan(types: MessageTypes, srv: SrvType, params: list[Param]) -> tup
     return (lambda req: [conv(getattr(req, name)) for name, conv in plan]), problems
 
 
-def _no_args(_request: Any) -> list[Any]:
+def _no_args(_request: object) -> list[object]:
     return []
 
 
-def _response_plan(types: MessageTypes, srv: SrvType, returns: Any) -> tuple[Callable[[Any], Any], bool, list[str]]:
+def _response_plan(types: MessageTypes, srv: SrvType, returns: object) -> tuple[Callable[[object], object], bool, list[str]]:
     """``result -> response``, whether the response follows the success/message convention,
     and the problems found. ``returns``: the callable's return annotation (``Any``: none)."""
     resp = srv.response
@@ -109,15 +112,15 @@ def _response_plan(types: MessageTypes, srv: SrvType, returns: Any) -> tuple[Cal
                                   f"{', '.join(names) or 'none'}): return a model with its fields, or give a converter"]
 
 
-def _message_field(type_name: str) -> Any:
+def _message_field(type_name: str) -> FieldDef:
     from scart_ros1.msgs import FieldDef
 
     return FieldDef("response", type_name)
 
 
-def _dynamic_response(cls: type, new: Callable[..., Any], fields: tuple, convention: bool) -> Callable[[Any], Any]:
+def _dynamic_response(cls: type, new: Callable[..., object], fields: tuple, convention: bool) -> Callable[[object], object]:
     """For an unannotated callable: what it returned, judged at each call."""
-    def to_response(result: Any) -> Any:
+    def to_response(result: object) -> object:
         if type(result) is cls:
             return result
         if result is None or (convention and result is True):
@@ -135,7 +138,7 @@ def _dynamic_response(cls: type, new: Callable[..., Any], fields: tuple, convent
     return to_response
 
 
-def check_service(types: MessageTypes, type_name: str, params: list[Param], returns: Any,
+def check_service(types: MessageTypes, type_name: str, params: list[Param], returns: object,
                   converter: str = "") -> list[str]:
     """What keeps a callable with ``params`` and ``returns`` from answering ``type_name``
     (``pkg/Srv``) requests (a composite's load-time check asks this)."""
@@ -161,8 +164,8 @@ class ServedService:
     unadvertises it and lets the process's node go (idempotent). ``calls``/``failures``
     count what it answered."""
 
-    def __init__(self, service: str, type_name: str, call: Callable[..., Any], params: list[Param],
-                 returns: Any, *, converter: str = "", options: dict[str, str] | None = None,
+    def __init__(self, service: str, type_name: str, call: Callable[..., object], params: list[Param],
+                 returns: object, *, converter: str = "", options: dict[str, str] | None = None,
                  label: str = "") -> None:
         self._transport = ros1_transport()
         self._transport.refuse_input(f"serving the ROS service {service}")
@@ -177,7 +180,7 @@ class ServedService:
         self._closed = False
         if converter:
             fn = resolve_converter(converter)
-            self._answer: Callable[[Any], Any] = lambda request: _response_of(srv, fn(request, call))
+            self._answer: Callable[[object], object] = lambda request: _response_of(srv, fn(request, call))
         else:
             args_of = _request_plan(types, srv, params)[0]
             response_of, convention = _response_plan(types, srv, returns)[:2]
@@ -190,7 +193,7 @@ class ServedService:
             raise
         self.name = self._server.name
 
-    def _handle(self, request: Any) -> Any:  # the node's service thread
+    def _handle(self, request: object) -> object:  # the node's service thread
         self.calls += 1
         try:
             return self._answer(request)
@@ -210,7 +213,7 @@ class ServedService:
         self._transport.release(self._node)
 
 
-def _response_of(srv: SrvType, result: Any) -> Any:
+def _response_of(srv: SrvType, result: object) -> object:
     if type(result) is srv.response.cls:
         return result
     if isinstance(result, pydantic.BaseModel):
@@ -220,7 +223,7 @@ def _response_of(srv: SrvType, result: Any) -> Any:
     raise TypeError(f"the converter returned a {type(result).__name__}, not a {srv.response.name} or a mapping")
 
 
-def serve(call: Callable[..., Any], service: str, type_name: str, *, converter: str = "",
+def serve(call: Callable[..., object], service: str, type_name: str, *, converter: str = "",
           options: dict[str, str] | None = None, label: str = "") -> ServedService:
     """Answer the ROS service ``service`` (``pkg/Srv``) with ``call``, whose parameters
     and return annotation say how requests and responses map. Raises
@@ -230,7 +233,7 @@ def serve(call: Callable[..., Any], service: str, type_name: str, *, converter: 
                          label=label)
 
 
-def serve_operation(task: Any, operation: str, service: str, type_name: str, *, converter: str = "",
+def serve_operation(task: TaskContext, operation: str, service: str, type_name: str, *, converter: str = "",
                     options: dict[str, str] | None = None, timeout: float = 5.0) -> ServedService:
     """Answer the ROS service ``service`` with ``task``'s operation ``operation`` (its
     arguments checked as outside input; an answer within ``timeout`` s, else a service
@@ -289,8 +292,8 @@ class ServiceProxy:
         self.close()
 
 
-def call_service(service: str, request: Any = None, *, type_name: str | None = None, timeout: float = 5.0,
-                 options: dict[str, str] | None = None) -> Any:
+def call_service(service: str, request: object = None, *, type_name: str | None = None, timeout: float = 5.0,
+                 options: dict[str, str] | None = None) -> object:
     """One call of the ROS service ``service`` (see :class:`ServiceProxy`); its response
     as plain data."""
     with ServiceProxy(service, type_name, options=options, timeout=timeout) as proxy:

@@ -42,11 +42,15 @@ import pydantic
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
 
-from scart_ros1.master import MasterError
+from scart_ros1.master import MasterError, XmlRpcValue
 from scart_ros1.names import RosNameError, check_name
 from scart_ros1.node import Node
 
 if TYPE_CHECKING:
+    from dataflow.deployer import Deployer
+    from dataflow.task import TaskContext
+    from scart_ros1.topics import Subscriber
+
     from .rosout import Rosout
 
 __all__ = ["Citizen", "SYNC_SECONDS", "apply_launch_params", "to_param"]
@@ -57,7 +61,7 @@ SYNC_SECONDS = 1.0  #: how often properties changed by others are set on the par
 _INT32 = range(-(2**31), 2**31)
 
 
-def to_param(value: Any) -> Any:
+def to_param(value: object) -> XmlRpcValue:
     """``value`` as a ROS parameter (what XML-RPC carries), or None when it cannot be one."""
     if isinstance(value, bool) or isinstance(value, str):
         return value
@@ -80,7 +84,7 @@ def _ns(secs: int, nsecs: int) -> int:
     return secs * 1_000_000_000 + nsecs
 
 
-def _same(a: Any, b: Any) -> bool:
+def _same(a: object, b: object) -> bool:
     return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
 
 
@@ -135,18 +139,18 @@ class Citizen:
     """The tasks of the deployers ``deployers()`` returns, as ``node``'s own (see the
     module docstring)."""
 
-    def __init__(self, node: Node, deployers: Callable[[], list[Any]], sim_time: bool = False) -> None:
+    def __init__(self, node: Node, deployers: Callable[[], list[Deployer]], sim_time: bool = False) -> None:
         self.node, self._deployers = node, deployers
         self._sim_at_start = sim_time
         self.namespace = node.resolve("~")
         self.clock: Clock = WALL
-        self._clock_sub: Any = None
+        self._clock_sub: Subscriber | None = None
         self._rosout: Rosout | None = None
-        self._published: dict[str, Any] = {}
+        self._published: dict[str, XmlRpcValue] = {}
         self._skipped: set[str] = set()
         self._closed = False
 
-    def _tasks(self) -> list[Any]:
+    def _tasks(self) -> list[TaskContext]:
         return [task for deployer in self._deployers() for task in deployer.tasks()]
 
     def start(self) -> None:
@@ -179,7 +183,7 @@ class Citizen:
         self._follow(False)
 
     # -- time -----------------------------------------------------------------------------
-    def _sim_time(self, _key: str, value: Any) -> None:
+    def _sim_time(self, _key: str, value: object) -> None:
         self._follow((self._sim_at_start or value is True or value == "true") and not self._closed)
 
     def _follow(self, simulated: bool) -> None:
@@ -214,7 +218,7 @@ class Citizen:
     # -- the control thread ---------------------------------------------------------------
     def _params(self) -> dict[str, tuple[Any, str]]:
         """Every task property that can be a parameter: key → (task, property)."""
-        out: dict[str, tuple[Any, str]] = {}
+        out: dict[str, tuple[TaskContext, str]] = {}
         for task in self._tasks():
             try:
                 check_name(task.name, "task name")
@@ -272,7 +276,7 @@ class Citizen:
             if not self._set(key, value):
                 return
 
-    def _set(self, key: str, value: Any) -> bool:
+    def _set(self, key: str, value: XmlRpcValue) -> bool:
         if value is None:
             return True
         try:

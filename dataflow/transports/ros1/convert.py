@@ -41,7 +41,7 @@ thread-safe.
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
@@ -54,7 +54,7 @@ from scart_wire.rosmsgs import is_message_class, message_type_name
 
 from .._rosarrays import ELEMENT, MULTI, array_in, flat_data, image_data, image_in, layout_dims
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
-                        item_type, model_fields, resolve_converter, type_label, unwrap)
+                        item_type, model_fields, resolve_converter, type_label, unwrap, RosTime)
 from scart_ros1.msgs import FieldDef, MessageTypes, UnknownTypeError
 
 __all__ = ["PLAIN", "Conversion", "ConversionProblem", "default_type", "field_conversion", "plan", "resolve_converter",
@@ -82,13 +82,13 @@ class Conversion:
 
     ros_type: str
     via: str
-    to_ros: Callable[[Any, int, int], object] | None = None
-    from_ros: Callable[[object], Any] | None = None
+    to_ros: Callable[[object, int, int], object] | None = None
+    from_ros: Callable[[object], object] | None = None
     #: The same, straight from and to ROS 1 bytes where the message is one fixed field or a
     #: string (``std_msgs/Float64``...): no message object is made (``to_frame`` gives the
     #: whole TCPROS frame, its length first).
-    from_bytes: Callable[[bytes], Any] | None = None
-    to_frame: Callable[[Any, int, int], bytes] | None = None
+    from_bytes: Callable[[bytes], object] | None = None
+    to_frame: Callable[[object, int, int], bytes] | None = None
 
 
 def default_type(py_type: Any) -> str | None:
@@ -120,8 +120,9 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
         return None, [ConversionProblem(str(exc))]
     if converter:
         return _with_converter(types_, py_type, name, outgoing, converter)
-    if isinstance(unwrap(py_type), ArraySpec):
-        return _array_plan(types_, unwrap(py_type), name, outgoing, frame_id)
+    spec = unwrap(py_type)
+    if isinstance(spec, ArraySpec):
+        return _array_plan(types_, spec, name, outgoing, frame_id)
     try:
         if is_model(py_type):
             fn = _Planner(types_, outgoing, frame_id).top_model(py_type, name)
@@ -137,7 +138,7 @@ def plan(types_: MessageTypes, py_type: Any, ros_type: str | None, outgoing: boo
     return Conversion(name, via, from_ros=fn, from_bytes=fast), []
 
 
-def field_conversion(types_: MessageTypes, py_type: Any, fdef: FieldDef, outgoing: bool) -> Callable[[Any], Any]:
+def field_conversion(types_: MessageTypes, py_type: object, fdef: FieldDef, outgoing: bool) -> Callable[[object], object]:
     """How a value of ``py_type`` becomes the field ``fdef`` (``outgoing``) or comes from
     it, as a stream's fields do; raises ``ValueError`` saying why they do not fit."""
     try:
@@ -193,7 +194,7 @@ def _array_plan(types_: MessageTypes, spec: ArraySpec, name: str, outgoing: bool
         rest = {f: v for f, v in ((f.name, getattr(msgtype.new(), f.name)) for f in fields.values())
                 if f not in ("data", "layout")}
 
-        def to_ros(value: Any, _n: int, _t: int) -> object:
+        def to_ros(value: object, _n: int, _t: int) -> object:
             flat = flat_data(value, count, label)  # a view: the one copy is rosbags'
             if layout_cls is None:
                 return cls(**rest, data=flat)
@@ -204,7 +205,7 @@ def _array_plan(types_: MessageTypes, spec: ArraySpec, name: str, outgoing: bool
     return Conversion(name, "array", from_ros=array_in(spec, layout)), []
 
 
-def _image_out(types_: MessageTypes, spec: ArraySpec, name: str, frame_id: str) -> Callable[[Any, int, int], object]:
+def _image_out(types_: MessageTypes, spec: ArraySpec, name: str, frame_id: str) -> Callable[[object, int, int], object]:
     cls = types_.msg(name).cls
     header_cls, time_cls = types_.msg("std_msgs/Header").cls, types_.time_class("time")
     encoding = spec.image
@@ -224,7 +225,7 @@ _STRUCT = MappingProxyType({"float64": "d", "float32": "f", "int8": "b", "uint8"
                             "bool": "?", "byte": "b", "char": "B"})
 
 
-def _wire_fast(types_: MessageTypes, py_type: Any, ros_type: str, outgoing: bool) -> Callable[..., Any] | None:
+def _wire_fast(types_: MessageTypes, py_type: object, ros_type: str, outgoing: bool) -> Callable[..., Any] | None:
     """For a message that is one fixed-size field (or one string), the value straight from
     its bytes (reading) or to its frame (publishing); None for any other message. Bytes of
     another length, or a value the field cannot hold, raise (``struct.error``, ``ValueError``)."""
@@ -260,7 +261,7 @@ def _string_value(data: bytes) -> str:
 
 
 # ---- converters -----------------------------------------------------------------------
-def _with_converter(types_: MessageTypes, py_type: Any, name: str, outgoing: bool,
+def _with_converter(types_: MessageTypes, py_type: object, name: str, outgoing: bool,
                     ref: str) -> tuple[Conversion | None, list[ConversionProblem]]:
     try:
         fn = resolve_converter(ref)
@@ -275,7 +276,7 @@ def _with_converter(types_: MessageTypes, py_type: Any, name: str, outgoing: boo
     msgtype = types_.msg(name)
     cls, new = msgtype.cls, msgtype.new
 
-    def to_ros(value: Any, _n: int, _t_ns: int) -> object:
+    def to_ros(value: object, _n: int, _t_ns: int) -> object:
         msg = fn(value)
         if type(msg) is cls:
             return msg
@@ -296,7 +297,7 @@ class _Planner:
         self.frame_id = frame_id
         self.time_cls = types_.time_class("time")
 
-    def top_plain(self, py_type: Any, ros_type: str) -> Callable[..., Any]:
+    def top_plain(self, py_type: object, ros_type: str) -> Callable[..., object]:
         fields = self.types.fields(ros_type)
         target = next((f for f in fields if f.name == "data"), fields[0] if len(fields) == 1 else None)
         if target is None:
@@ -316,10 +317,10 @@ class _Planner:
             return lambda value, _n, _t: cls(**{key: conv(value)})
         return lambda value, _n, _t: cls(**rest, **{key: conv(value)})
 
-    def top_model(self, model: type[pydantic.BaseModel], ros_type: str) -> Callable[..., Any]:
+    def top_model(self, model: type[pydantic.BaseModel], ros_type: str) -> Callable[..., object]:
         return self.model(model, ros_type, 0)
 
-    def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[..., Any]:
+    def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[..., object]:
         if depth > MAX_DEPTH:
             raise Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
         fields = {f.name: f for f in self.types.fields(ros_type)}
@@ -329,8 +330,8 @@ class _Planner:
             return lambda msg: {name: conv(getattr(msg, name)) for name, conv in pairs}
         return self._to_msg(ros_type, convs, fields, stamped=depth == 0)
 
-    def _to_msg(self, ros_type: str, convs: dict[str, Callable[[Any], Any]], fields: dict[str, FieldDef],
-                stamped: bool) -> Callable[..., Any]:
+    def _to_msg(self, ros_type: str, convs: dict[str, Callable[[object], object]], fields: dict[str, FieldDef],
+                stamped: bool) -> Callable[..., object]:
         """A message from a model; a ``header`` the model lacks is stamped (the top level
         only) with the sample's write number, its time and the stream's frame id."""
         cls = self.types.msg(ros_type).cls
@@ -342,7 +343,7 @@ class _Planner:
         header_cls = self.types.msg("std_msgs/Header").cls if stamp else None
         time_cls, frame_id = self.time_cls, self.frame_id
 
-        def build(value: Any, n: int = 0, t_ns: int = 0) -> object:
+        def build(value: object, n: int = 0, t_ns: int = 0) -> object:
             kwargs = {name: conv(getattr(value, name)) for name, conv in pairs}
             if header_cls is not None:
                 kwargs["header"] = header_cls(seq=n & 0xFFFFFFFF, stamp=time_cls(sec=t_ns // 1_000_000_000,
@@ -351,13 +352,13 @@ class _Planner:
 
         return build
 
-    def _defaults(self, ros_type: str) -> dict[FieldDef, Any]:
+    def _defaults(self, ros_type: str) -> dict[FieldDef, object]:
         """ROS's default of each field of ``ros_type`` (shared: only ever serialised)."""
         msg = self.types.msg(ros_type).new()
         return {f: getattr(msg, f.name) for f in self.types.fields(ros_type)}
 
     # -- one field ------------------------------------------------------------------------
-    def field(self, py_type: Any, fdef: FieldDef, depth: int) -> Callable[[Any], Any]:
+    def field(self, py_type: object, fdef: FieldDef, depth: int) -> Callable[[object], object]:
         if is_open(py_type):
             if self.outgoing:
                 raise Mismatch("a field of any type cannot be published: give it a type")
@@ -422,11 +423,11 @@ class _Planner:
         return to_time
 
 
-def _same(value: Any) -> Any:
+def _same(value: object) -> object:
     return value
 
 
-def _seconds(stamp: Any) -> float:
+def _seconds(stamp: RosTime) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
@@ -443,7 +444,7 @@ def _sized(conv: Callable[[Any], Any], count: int, t: str) -> Callable[[Any], An
     return fixed
 
 
-def _plain_value(value: Any) -> Any:
+def _plain_value(value: object) -> object:
     """A message (or part of one) as plain data: mappings, lists, numbers, strings."""
     if isinstance(value, numpy.ndarray):
         return value.tolist()
@@ -455,5 +456,5 @@ def _plain_value(value: Any) -> Any:
     return value
 
 
-def _names(fields: Any) -> str:
+def _names(fields: Iterable[FieldDef]) -> str:
     return ", ".join(f.name for f in fields) or "none"

@@ -54,7 +54,7 @@ class Rosout:
             line=max(0, record.lineno), topics=[topic for topic, _ in self.node.publications()]))
 
     # -- the services (the node's service thread) -----------------------------------------
-    def _get_loggers(self, _request: Any) -> Any:
+    def _get_loggers(self, _request: object) -> object:
         logger = self.node.types.msg("roscpp/Logger")
         return self.node.types.srv("roscpp/GetLoggers").response.new(
             loggers=[logger.new(name=name, level=level) for name, level in loggers()])

@@ -56,6 +56,11 @@ from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream
 from scart_ros1.names import RosNameError, check_name, master_uri_from
 
 if TYPE_CHECKING:  # imported when a stream needs them: loading the transport stays light
+    from collections.abc import Callable
+
+    from dataflow.deployer import Deployer
+    from dataflow.ports import Port
+    from scart_ros1.topics import Publisher, Subscriber
     from .citizen import Citizen
     from .convert import Conversion
     from scart_ros1.msgs import MessageTypes
@@ -118,11 +123,11 @@ class Ros1Transport(Transport):
         self._node: Node | None = None
         self._settings: NodeSettings | None = None
         self._users = 0
-        self._shutdown_hooks: list[Any] = []
+        self._shutdown_hooks: list[Callable[[str, str, str], None]] = []
         self._told = False  # configure() was given something: the process is a ROS node from its start
-        self._launch_params: dict[str, Any] = {}
+        self._launch_params: dict[str, object] = {}
         self._sim_time = False  # a launch-time _use_sim_time:=true: the node follows /clock from its start
-        self._deployers: list[Any] = []
+        self._deployers: list[Deployer] = []
         self._held: list[Node] = []
         self._citizen: Citizen | None = None
 
@@ -181,14 +186,14 @@ class Ros1Transport(Transport):
             raise TransportError(f"ros1: {what} is refused: this process serves ROS read-only (--ros-read-only: "
                                  "it publishes only)")
 
-    def on_shutdown(self, hook: Any) -> None:
+    def on_shutdown(self, hook: Callable[[str, str, str], None]) -> None:
         """Call ``hook(node, caller_id, reason)`` when a peer (``rosnode kill``) has shut this
         process's node down, as rospy ends its process then: ``scart run`` and ``scart
         deploy`` stop. Not called when the node respawns."""
         with self._lock:
             self._shutdown_hooks.append(hook)
 
-    def attach(self, deployer: Any) -> None:
+    def attach(self, deployer: Deployer) -> None:
         """Let this process's node speak for ``deployer``'s tasks (:mod:`.citizen`: their
         properties are its parameters), now or when it is made. The launch-time parameters
         are set on its tasks now (``ValueError`` naming one refused)."""
@@ -203,7 +208,7 @@ class Ros1Transport(Transport):
         if node is not None:
             self._become_citizen(node)
 
-    def detach(self, deployer: Any) -> None:
+    def detach(self, deployer: Deployer) -> None:
         """Undo :meth:`attach` (idempotent)."""
         with self._lock:
             if deployer in self._deployers:
@@ -228,7 +233,7 @@ class Ros1Transport(Transport):
         if held is not None:
             self.release(held)
 
-    def _attached(self) -> list[Any]:
+    def _attached(self) -> list[Deployer]:
         with self._lock:
             return list(self._deployers)
 
@@ -343,7 +348,7 @@ class Ros1Transport(Transport):
         node.close()
 
     # ---- streams -----------------------------------------------------------------------
-    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+    def check_stream(self, port: Port[object], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         problems = [StreamProblem(p) for p in self._check_options(topic, options)]
         if port.is_input and self.read_only:
             problems.append(StreamProblem(f"ros1: a stream into port {getattr(port, 'qualname', port.name)} is "
@@ -379,7 +384,7 @@ class Ros1Transport(Transport):
             except TypeDefinitionError as exc:
                 raise ValueError(str(exc)) from None
 
-    def conversion(self, port: Any, options: dict[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
+    def conversion(self, port: Port[object], options: dict[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
         """How ``port``'s values cross to the topic's type, and the problems found."""
         from .convert import plan
 
@@ -417,17 +422,17 @@ class _Carrier(RefusingCarrier):
 
     encode = staticmethod(_identity)  # converted in send(), only when someone listens
 
-    def __init__(self, pub: Any, conv: Conversion, label: str, stamp: Any) -> None:
+    def __init__(self, pub: Publisher, conv: Conversion, label: str, stamp: Callable[[int], int]) -> None:
         super().__init__(label, log)
         to_ros, to_frame, frame = conv.to_ros, conv.to_frame, pub.type.frame
         assert to_ros is not None
         self._pub = pub
         if to_frame is not None:  # one fixed field: straight to bytes
-            self._frame: Any = lambda sample: to_frame(sample.value, sample.n, stamp(sample.t_ns))
+            self._frame: Callable[[OutSample], bytes | bytearray] = lambda sample: to_frame(sample.value, sample.n, stamp(sample.t_ns))
         else:
             self._frame = lambda sample: frame(to_ros(sample.value, sample.n, stamp(sample.t_ns)))
 
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+    def send(self, sample: OutSample, _data: object) -> bool:  # the writer's thread
         pub = self._pub
         if not pub.wanted:
             return True
@@ -450,8 +455,8 @@ class _TopicStream(Stream):
         self._transport, self._node = transport, node
         self.topic = node.resolve(topic)
         self.type_name = conv.ros_type
-        self._pub: Any = None
-        self._sub: Any = None
+        self._pub: Publisher | None = None
+        self._sub: Subscriber | None = None
         self._carrier: _Carrier | None = None
         self._closed = False
         if isinstance(end, WriterEnd):

@@ -40,7 +40,7 @@ def default_array_type(spec: ArraySpec) -> str | None:
 
 
 def plan_array(types: MessageTypes, spec: ArraySpec, name: str, outgoing: bool,
-               frame_id: str) -> tuple[str, Callable[..., Any]] | ConversionProblem:
+               frame_id: str) -> tuple[str, Callable[..., object]] | ConversionProblem:
     """How arrays of ``spec`` cross to message ``name`` (see the module docstring): how
     (``image`` or ``array``) and the function (publishing, ``to_cdr(value, t_ns)``;
     reading, ``from_cdr(data)``), or the problem."""
@@ -80,7 +80,7 @@ def _from_cdr(types: MessageTypes, name: str, value_of: Callable[[Any], Any]) ->
     return lambda data: value_of(types.from_cdr(name, data))
 
 
-def _image_out(types: MessageTypes, spec: ArraySpec, name: str, frame_id: str) -> Callable[[Any, int], Any]:
+def _image_out(types: MessageTypes, spec: ArraySpec, name: str, frame_id: str) -> Callable[[object, int], object]:
     cls = types.message_class(name)
     header_cls, time_cls = types.message_class("std_msgs/msg/Header"), types.message_class("builtin_interfaces/msg/Time")
     encoding = spec.image
@@ -95,14 +95,14 @@ def _image_out(types: MessageTypes, spec: ArraySpec, name: str, frame_id: str) -
     return to_cdr
 
 
-def _array_out(types: MessageTypes, name: str, layout: bool, count: int, element: str) -> Callable[[Any, int], Any]:
+def _array_out(types: MessageTypes, name: str, layout: bool, count: int, element: str) -> Callable[[object, int], object]:
     cls = types.message_class(name)
     zero = types.zero(name)
     rest = {f: getattr(zero, f) for f, _ in types.fields(name) if f not in ("data", "layout")}
     dim_cls = types.message_class("std_msgs/msg/MultiArrayDimension")
     layout_cls = types.message_class(LAYOUT)
 
-    def to_cdr(value: Any, _t_ns: int) -> Any:
+    def to_cdr(value: object, _t_ns: int) -> object:
         flat = flat_data(value, count, element)  # a view: the one copy is the serialiser's
         if not layout:
             return types.to_cdr(name, cls(**rest, data=flat))

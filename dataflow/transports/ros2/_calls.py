@@ -23,8 +23,8 @@ the response as plain data, or as a model it is given) and :func:`call_service`.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import pydantic
 from rosbags.typesys.base import Nodetype
@@ -38,6 +38,9 @@ from scart_ros2.msgs import MessageTypes, message_to_dict
 from .._rosplan import (Mismatch, Param, answering, is_model, match_params, operation_call, operation_signature,
                         signature_of, type_label, unwrap)
 from ._convert import _Planner
+
+if TYPE_CHECKING:
+    from dataflow.task import TaskContext
 
 __all__ = ["Param", "ServedService", "ServiceProxy", "call_service", "check_service", "ros2_transport", "serve",
            "serve_operation"]
@@ -57,7 +60,7 @@ def ros2_transport() -> Any:
 
 # ---- planning ---------------------------------------------------------------------------
 def _request_plan(types: MessageTypes, request: str, params: list[Param]
-                  ) -> tuple[Callable[[Any], list[Any]], list[str]]:
+                  ) -> tuple[Callable[[object], list[object]], list[str]]:
     """``request -> positional arguments``, and the problems found."""
     by_name = {n: d for n, d in types.fields(request) if n != _EMPTY}
     pairs, problems = match_params(params, list(by_name), request)
@@ -73,7 +76,7 @@ def _request_plan(types: MessageTypes, request: str, params: list[Param]
     return (lambda req: [conv(getattr(req, name)) for name, conv in plan]), problems
 
 
-def _no_args(_request: Any) -> list[Any]:
+def _no_args(_request: object) -> list[object]:
     return []
 
 
@@ -107,13 +110,13 @@ def _response_plan(types: MessageTypes, response: str, returns: Any
                                   f"{', '.join(names) or 'none'}): return a model with its fields"]
 
 
-def _nothing(_result: Any) -> dict[str, Any]:
+def _nothing(_result: object) -> dict[str, object]:
     return {}
 
 
-def _dynamic_response(fields: list[tuple[str, Any]], convention: bool) -> Callable[[Any], dict[str, Any]]:
+def _dynamic_response(fields: Sequence[tuple[str, object]], convention: bool) -> Callable[[object], dict[str, object]]:
     """For an unannotated callable: what it returned, judged at each call."""
-    def to_response(result: Any) -> dict[str, Any]:
+    def to_response(result: object) -> dict[str, object]:
         if result is None or (convention and result is True):
             return {"success": True} if convention else {}
         if isinstance(result, pydantic.BaseModel):
@@ -129,7 +132,7 @@ def _dynamic_response(fields: list[tuple[str, Any]], convention: bool) -> Callab
     return to_response
 
 
-def check_service(types: MessageTypes, type_name: str, params: list[Param], returns: Any) -> list[str]:
+def check_service(types: MessageTypes, type_name: str, params: list[Param], returns: object) -> list[str]:
     """What keeps a callable with ``params`` and ``returns`` from answering ``type_name``
     (``pkg/srv/Srv``) requests."""
     try:
@@ -172,7 +175,7 @@ class ServedService:
             self._transport.release(self._participant)
             raise
 
-    def _handle(self, request: Any) -> dict[str, Any]:  # the participant's thread
+    def _handle(self, request: object) -> object:  # the participant's thread
         self.calls += 1
         try:
             return self._answer(request)
@@ -199,7 +202,7 @@ class ServedService:
         self.close()
 
 
-def serve(call: Callable[..., Any], service: str, type_name: str, *,
+def serve(call: Callable[..., object], service: str, type_name: str, *,
           options: Mapping[str, str] | None = None, label: str = "") -> ServedService:
     """Answer the ROS 2 service ``service`` (``pkg/srv/Srv``) with ``call``, whose
     parameters and return annotation say how requests and responses map (``label``: what
@@ -209,7 +212,7 @@ def serve(call: Callable[..., Any], service: str, type_name: str, *,
     return ServedService(service, type_name, call, params, returns, options=options, label=label)
 
 
-def serve_operation(task: Any, operation: str, service: str, type_name: str, *,
+def serve_operation(task: TaskContext, operation: str, service: str, type_name: str, *,
                     options: Mapping[str, str] | None = None, timeout: float = 5.0) -> ServedService:
     """Answer the ROS 2 service ``service`` with ``task``'s operation ``operation`` (its
     arguments checked as outside input; an answer within ``timeout`` s, else no reply)."""
@@ -272,8 +275,8 @@ class ServiceProxy:
         self.close()
 
 
-def call_service(service: str, request: Any = None, *, type_name: str, timeout: float = 5.0,
-                 options: Mapping[str, str] | None = None) -> Any:
+def call_service(service: str, request: object = None, *, type_name: str, timeout: float = 5.0,
+                 options: Mapping[str, str] | None = None) -> object:
     """One call of the ROS 2 service ``service`` of ``type_name`` (``pkg/srv/Srv``; see
     :class:`ServiceProxy`); its response as plain data."""
     with ServiceProxy(service, type_name, options=options, timeout=timeout) as proxy:

@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.clock import WALL, Clock, SimClock
 from dataflow.errors import DataflowError
@@ -42,6 +42,13 @@ from dataflow.errors import DataflowError
 from scart_ros2.params import (LOGGER_SERVICES, MAX_NAMES, ROSOUT, ROSOUT_QOS, ROSOUT_TYPE, SERVICES, SIM_TIME,
                                from_value, log_level, service_type, to_value)
 from scart_ros2.qos import QoS, Reliability
+
+if TYPE_CHECKING:
+    from dataflow.deployer import Deployer
+    from dataflow.task import TaskContext
+    from scart_ros2.participant import Participant
+    from scart_ros2.endpoints import Publisher, Subscription
+    from scart_ros2.services import ServiceServer
 
 from .._roslog import MAX_TEXT, RosLog, level_of, set_level_number
 
@@ -55,19 +62,20 @@ class Ros2Citizen:
     from the start). Raises what the participant raises when its services cannot be made,
     ``ValueError`` for ``sim_time`` with ``read_only``."""
 
-    def __init__(self, participant: Any, deployers: Callable[[], list[Any]], read_only: bool = False,
+    def __init__(self, participant: Participant, deployers: Callable[[], list[Deployer]], read_only: bool = False,
                  sim_time: bool = False) -> None:
         if sim_time and read_only:
             raise ValueError("use_sim_time is refused: this process serves ROS read-only (--ros-read-only: /clock "
                              "comes from ROS)")
         graph = participant.node
+        assert graph is not None  # a citizen is made only of a participant with its node
         self._participant, self._deployers, self.read_only = participant, deployers, read_only
         base = f"{graph.namespace.rstrip('/')}/{graph.name}"
         self.logger_name = base.strip("/").replace("/", ".")
         self.clock: Clock = WALL
-        self._clock_sub: Any = None
+        self._clock_sub: Subscription | None = None
         self._closed = False
-        self._parts: list[Any] = []
+        self._parts: list[ServiceServer | Publisher] = []
         services = SERVICES if read_only else {**SERVICES, **LOGGER_SERVICES}
         try:
             for service in services:
@@ -83,11 +91,11 @@ class Ros2Citizen:
         self._log = RosLog(self._publish_log)
 
     # -- parameters -----------------------------------------------------------------------
-    def _params(self) -> dict[str, tuple[Any, str]]:
+    def _params(self) -> dict[str, tuple[TaskContext, str]]:
         return {f"{task.name.replace('/', '.')}.{prop}": (task, prop)
                 for deployer in self._deployers() for task in deployer.tasks() for prop in task.properties()}
 
-    def _current(self, name: str) -> dict[str, Any] | None:
+    def _current(self, name: str) -> dict[str, object] | None:
         if name == SIM_TIME:
             return {"type": 1, "bool_value": self.clock.simulated}
         found = self._params().get(name)
@@ -105,7 +113,7 @@ class Ros2Citizen:
     def _set_parameters(self, request: Any) -> dict[str, Any]:
         return {"results": [self._set_one(str(p.name), p.value) for p in list(request.parameters)[:MAX_NAMES]]}
 
-    def _set_one(self, name: str, value: Any) -> dict[str, Any]:
+    def _set_one(self, name: str, value: object) -> dict[str, object]:
         try:
             if self.read_only:
                 raise ValueError("this process serves ROS read-only (--ros-read-only)")
@@ -142,9 +150,9 @@ class Ros2Citizen:
     def _describe_parameters(self, request: Any) -> dict[str, Any]:
         return {"descriptors": [self._descriptor(str(n)) for n in list(request.names)[:MAX_NAMES]]}
 
-    def _descriptor(self, name: str) -> dict[str, Any]:
+    def _descriptor(self, name: str) -> dict[str, object]:
         value = self._current(name)
-        out: dict[str, Any] = {"name": name, "type": value["type"] if value else 0}
+        out: dict[str, object] = {"name": name, "type": value["type"] if value else 0}
         found = self._params().get(name)
         if name == SIM_TIME:
             out["description"] = "follow /clock (a simulation's time)"
@@ -171,7 +179,7 @@ class Ros2Citizen:
         return {"results": [self._set_level(str(asked.name), int(asked.level))
                             for asked in list(request.levels)[:MAX_NAMES]]}
 
-    def _set_level(self, name: str, level: int) -> dict[str, Any]:
+    def _set_level(self, name: str, level: int) -> dict[str, object]:
         try:
             set_level_number(self._python_logger(name), level)
         except ValueError as exc:

@@ -41,7 +41,7 @@ thread-safe.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
@@ -54,7 +54,7 @@ from scart_ros2.names import split_type_name
 from scart_ros2.msgs import MessageTypes
 
 from .._rosplan import (ConversionProblem, Mismatch, check_converter, is_mapping, is_model, is_open,
-                        item_type, model_fields, resolve_converter, type_label, unwrap)
+                        item_type, model_fields, resolve_converter, type_label, unwrap, RosTime)
 from scart_wire.arrays import ArraySpec
 from scart_wire.rosmsgs import is_message_class, message_type_name
 
@@ -63,7 +63,7 @@ from ._arrays import default_array_type, plan_array
 __all__ = ["PLAIN", "Conversion", "ConversionProblem", "plan", "resolve_converter"]
 
 #: The ROS 2 message a port of a plain type maps onto when the stream names none.
-PLAIN: Mapping[Any, str] = MappingProxyType({
+PLAIN: Mapping[object, str] = MappingProxyType({
     float: "std_msgs/msg/Float64", int: "std_msgs/msg/Int64", bool: "std_msgs/msg/Bool", str: "std_msgs/msg/String",
     list[float]: "std_msgs/msg/Float64MultiArray", list[int]: "std_msgs/msg/Int64MultiArray",
     bytes: "std_msgs/msg/UInt8MultiArray"})
@@ -86,11 +86,11 @@ class Conversion:
 
     ros_type: str
     via: str
-    to_idl: Callable[[Any, int], Any] | None = None
-    from_idl: Callable[[Any], Any] | None = None
+    to_idl: Callable[[object, int], object] | None = None
+    from_idl: Callable[[object], object] | None = None
     #: The same, to and from the sample's CDR bytes (arrays: no IDL instance is made).
-    to_cdr: Callable[[Any, int], Any] | None = None
-    from_cdr: Callable[[bytes], Any] | None = None
+    to_cdr: Callable[[object, int], object] | None = None
+    from_cdr: Callable[[bytes], object] | None = None
 
 
 def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool, converter: str = "",
@@ -135,14 +135,14 @@ def plan(types: MessageTypes, py_type: Any, ros_type: str | None, outgoing: bool
     return Conversion(name, via, to_idl=_stamped(types, name, fn, frame_id, is_model(py_type))), []
 
 
-def _stamped(types: MessageTypes, name: str, fields_of: Callable[[Any], dict[str, Any]], frame_id: str,
-             model: bool) -> Callable[[Any, int], Any]:
+def _stamped(types: MessageTypes, name: str, fields_of: Callable[[object], dict[str, object]], frame_id: str,
+             model: bool) -> Callable[[object, int], object]:
     """Publishing: the message's fields made, a ``header`` the model lacks stamped with the
     sample's time and ``frame_id``, and the IDL instance built (the library checks every
     value against its field: ranges, bounds, lengths)."""
     stamp = model and dict(types.fields(name)).get("header") == (Nodetype.NAME, HEADER)
 
-    def to_idl(value: Any, t_ns: int) -> Any:
+    def to_idl(value: object, t_ns: int) -> object:
         fields = fields_of(value)
         if stamp and "header" not in fields:
             fields["header"] = {"stamp": {"sec": t_ns // 1_000_000_000, "nanosec": t_ns % 1_000_000_000},
@@ -172,7 +172,7 @@ def _message_plan(types: MessageTypes, cls: type, ros_type: str | None) -> tuple
 
 
 # ---- converters -----------------------------------------------------------------------
-def _with_converter(types: MessageTypes, py_type: Any, name: str, outgoing: bool,
+def _with_converter(types: MessageTypes, py_type: object, name: str, outgoing: bool,
                     ref: str) -> tuple[Conversion | None, list[ConversionProblem]]:
     try:
         fn = resolve_converter(ref)
@@ -184,21 +184,21 @@ def _with_converter(types: MessageTypes, py_type: Any, name: str, outgoing: bool
         return None, problems
     via = f"converter {ref}"
     if not outgoing:
-        def from_idl(obj: Any) -> Any:
+        def from_idl(obj: object) -> object:
             return fn(types.from_idl(name, obj))
         return Conversion(name, via, from_idl=from_idl), problems
 
-    def to_idl(value: Any, _t_ns: int) -> Any:
+    def to_idl(value: object, _t_ns: int) -> object:
         return types.to_idl(name, fn(value))  # a rosbags message, a mapping or an IDL instance
     return Conversion(name, via, to_idl=to_idl), problems
 
 
-def _is_msg(annotation: Any, ros_type: str) -> bool:
+def _is_msg(annotation: object, ros_type: str) -> bool:
     return getattr(annotation, "__msgtype__", None) == ros_type
 
 
 # ---- plain types and models -----------------------------------------------------------
-def _hashable(py_type: Any) -> bool:
+def _hashable(py_type: object) -> bool:
     try:
         hash(py_type)
     except TypeError:
@@ -206,7 +206,7 @@ def _hashable(py_type: Any) -> bool:
     return True
 
 
-def _names(fields: Any) -> str:
+def _names(fields: Iterable[tuple[str, object]]) -> str:
     return ", ".join(name for name, _ in fields) or "none"
 
 
@@ -219,7 +219,7 @@ class _Planner:
         self.types = types
         self.outgoing = outgoing
 
-    def plain(self, py_type: Any, ros_type: str) -> Callable[[Any], Any]:
+    def plain(self, py_type: object, ros_type: str) -> Callable[[object], Any]:  # fields out, a value in
         fields = self.types.fields(ros_type)
         target = next((f for f in fields if f[0] == "data"), fields[0] if len(fields) == 1 else None)
         if target is None:
@@ -234,14 +234,15 @@ class _Planner:
             return lambda value: {key: conv(value)}
         return lambda obj: conv(getattr(obj, key))
 
-    def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int) -> Callable[[Any], Any]:
+    def model(self, model: type[pydantic.BaseModel], ros_type: str, depth: int
+              ) -> Callable[[object], dict[str, object]]:
         if depth > MAX_DEPTH:
             raise Mismatch(f"{model.__name__} nests deeper than {MAX_DEPTH} levels")
         fields = dict(self.types.fields(ros_type))
         convs = model_fields(model, ros_type, fields, self.outgoing, lambda t, desc: self.field(t, desc, depth))
         pairs = tuple(convs.items())
         if self.outgoing:
-            def to_fields(value: Any) -> dict[str, Any]:
+            def to_fields(value: object) -> dict[str, object]:
                 if not isinstance(value, model):
                     raise TypeError(f"expected a {model.__name__}, got {type(value).__name__}")
                 return {name: conv(getattr(value, name)) for name, conv in pairs}
@@ -296,7 +297,7 @@ class _Planner:
         return lambda values: [conv(v) for v in values]
 
 
-def _same(value: Any) -> Any:
+def _same(value: object) -> object:
     return value
 
 
@@ -305,11 +306,11 @@ def _to_time(seconds: float) -> dict[str, int]:
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
 
 
-def _seconds(stamp: Any) -> float:
+def _seconds(stamp: RosTime) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def _fields_of(obj: Any) -> dict[str, Any]:
+def _fields_of(obj: object) -> dict[str, object]:
     """An IDL instance as plain data (a field typed ``dict`` in a model)."""
     out = {}
     for name in getattr(obj, "__annotations__", {}):

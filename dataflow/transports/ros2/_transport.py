@@ -63,6 +63,13 @@ from scart_ros2.network import MAX_DOMAIN_ID, Network, resolve_domain_id
 from .._rosplan import RefusingCarrier, flag, latched, receiver, stamper, stream_problems, usable
 
 if TYPE_CHECKING:  # these import Cyclone DDS and rosbags: a stream imports them (see _dds)
+    from collections.abc import Callable
+
+    from dataflow.deployer import Deployer
+    from dataflow.ports import Port
+    from scart_ros2.endpoints import Publisher, Subscription
+
+    from ._citizen import Ros2Citizen
     from ._convert import Conversion
     from scart_ros2.participant import Participant
     from scart_ros2.qos import QoS
@@ -147,8 +154,8 @@ class Ros2Transport(Transport):
         self._remaps: dict[str, str] = {}  # full topic or service name -> the one used
         self.read_only = False  #: publish only (``--ros-read-only``): no input stream, service or parameter set
         self.use_sim_time = False  #: the node's ``use_sim_time`` at its start (``_use_sim_time:=true``)
-        self._deployers: list[Any] = []
-        self._citizens: dict[int, Any] = {}  # domain -> its participant's Ros2Citizen
+        self._deployers: list[Deployer] = []
+        self._citizens: dict[int, Ros2Citizen | None] = {}  # domain -> its participant's Ros2Citizen
 
     # ---- the process's participants ----------------------------------------------------
     def configure(self, *, insecure: bool | None = None, interface: str | None = None,
@@ -265,7 +272,7 @@ class Ros2Transport(Transport):
         with self._lock:
             return self._remaps.get(full, full)
 
-    def attach(self, deployer: Any) -> None:
+    def attach(self, deployer: Deployer) -> None:
         """Let this process's ROS 2 nodes speak for ``deployer``'s tasks (:mod:`._citizen`:
         their properties its parameters), now or when one is made."""
         with self._lock:
@@ -274,13 +281,13 @@ class Ros2Transport(Transport):
         for participant in open_now:
             self._become_citizen(participant)
 
-    def detach(self, deployer: Any) -> None:
+    def detach(self, deployer: Deployer) -> None:
         """Undo :meth:`attach` (idempotent)."""
         with self._lock:
             if deployer in self._deployers:
                 self._deployers.remove(deployer)
 
-    def _attached(self) -> list[Any]:
+    def _attached(self) -> list[Deployer]:
         with self._lock:
             return list(self._deployers)
 
@@ -320,7 +327,7 @@ class Ros2Transport(Transport):
             return {domain: entry[0] for domain, entry in self._open.items()}
 
     # ---- streams -----------------------------------------------------------------------
-    def check_stream(self, port: Any, topic: str, options: dict[str, str]) -> list[StreamProblem]:
+    def check_stream(self, port: Port[object], topic: str, options: dict[str, str]) -> list[StreamProblem]:
         try:
             _dds()
         except TransportError as exc:
@@ -352,7 +359,7 @@ class Ros2Transport(Transport):
         for path in filter(None, (p.strip() for p in options.get("msgs", "").split(","))):
             add_type_file(self.types, path)
 
-    def conversion(self, port: Any, options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
+    def conversion(self, port: Port[object], options: Mapping[str, str]) -> tuple[Conversion | None, list[StreamProblem]]:
         """How ``port``'s values cross to the topic's type, and the problems found."""
         from ._convert import plan
 
@@ -418,7 +425,7 @@ class _Carrier(RefusingCarrier):
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(): the conversion is this stream's own
 
-    def __init__(self, publisher: Any, conv: Conversion, label: str, stamp: Any) -> None:
+    def __init__(self, publisher: Publisher, conv: Conversion, label: str, stamp: Callable[[int], int]) -> None:
         super().__init__(label, log)
         to_message = conv.to_cdr or conv.to_idl
         assert to_message is not None
@@ -426,7 +433,7 @@ class _Carrier(RefusingCarrier):
         self._publisher = publisher
         self._stamp = stamp
 
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
+    def send(self, sample: OutSample, _data: object) -> bool:  # the writer's thread
         try:
             message = self._to_idl(sample.value, self._stamp(sample.t_ns))
         except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
@@ -449,8 +456,8 @@ class _TopicStream(Stream):
         self._transport, self._participant = transport, participant
         self.topic = topic
         self.type_name = conv.ros_type
-        self._pub: Any = None
-        self._sub: Any = None
+        self._pub: Publisher | None = None
+        self._sub: Subscription | None = None
         self._carrier: _Carrier | None = None
         self._closed = False
         best_effort, seconds = flag(options, "best_effort"), _seconds(options)
