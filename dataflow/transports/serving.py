@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 if TYPE_CHECKING:
     import grpc
 
+    from scart_wire.rpc import MethodHandler
+
     from dataflow.policy import ConnPolicy
     from dataflow.ports import OutputPort
     from dataflow.transports.served import Served, ServedSet
@@ -89,7 +91,7 @@ class Serving(ABC):
         self.host = host
 
     @abstractmethod
-    def handler(self, method: str) -> grpc.RpcMethodHandler[Any, Any]:
+    def handler(self, method: str) -> MethodHandler:
         """The gRPC handler of ``method`` (one of :attr:`methods`)."""
 
     def stop(self) -> None:
