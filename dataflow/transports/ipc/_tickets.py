@@ -10,7 +10,6 @@ the deployer.
 from __future__ import annotations
 
 import threading
-from typing import Any
 
 import grpc
 
