@@ -215,7 +215,7 @@ class _Carrier:
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(), only when a reader is connected
 
-    def send(self, sample: OutSample[Any], _data: object) -> bool:  # the writer's thread
+    def send(self, sample: OutSample[object], _data: object) -> bool:  # the writer's thread
         if not self._port.has_outputs:
             return True
         try:
