@@ -51,7 +51,7 @@ class OutSample(Generic[T_co]):
 
     __slots__ = ("n", "t_ns", "value", "type", "inline", "_key", "_bytes")
 
-    def __init__(self, n: int, t_ns: int, value: T_co, py_type: Any) -> None:
+    def __init__(self, n: int, t_ns: int, value: T_co, py_type: object) -> None:
         self.n = n
         self.t_ns = t_ns
         self.value = value
