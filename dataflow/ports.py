@@ -512,7 +512,7 @@ class InputPort(Port[T]):
             _rebuild_readers(conn.storage)
         conn.storage.clear()  # unread samples: counted as dropped by the storage
 
-    def admit(self, value: Any, nan_ok: bool = False) -> Any:
+    def admit(self, value: Any, nan_ok: bool = False) -> T:
         """``value`` checked against the port's bounds and ``check`` (a value written from
         outside); raises :class:`~dataflow.errors.PortValueError` naming the port, the
         value and why (its bounds, or the task's reason). ``nan_ok``: NaN and inf are

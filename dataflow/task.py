@@ -424,7 +424,7 @@ class TaskContext:
         self._tc_ports[new] = port
         return port
 
-    def _event_port_data(self, port: InputPort[Any]) -> None:
+    def _event_port_data(self, port: object) -> None:
         if self._tc_state >= S.RUNNING:
             self._tc_activity._on_event()
 

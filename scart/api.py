@@ -31,16 +31,16 @@ import inspect
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, TypeVar, overload
+from typing import Any, Final, TypeVar, overload
 
 from scart.errors import NoCallbackError
 from scart.settings import Settings
 
 T = TypeVar("T")
 C = TypeVar("C", bound=type)
-F = TypeVar("F", bound=Callable[..., Any])
+F = TypeVar("F", bound=Callable[..., object])
 
-_MISSING: Any = object()
+_MISSING: Final = object()
 
 #: The callback target of the call being executed (set by bindings; read by ``callback()``).
 CURRENT_CALLBACK: contextvars.ContextVar[object] = contextvars.ContextVar(
@@ -139,7 +139,7 @@ class PropSpec(_Spec):
         self.default = default
         self.required = required
 
-    def default_value(self) -> Any:
+    def default_value(self) -> object:
         """A fresh copy of the default (mutable defaults are never shared)."""
         return None if self.default is _MISSING else copy.deepcopy(self.default)
 
@@ -160,7 +160,7 @@ class RefSpec(_Spec):
 class CallbackSpec(_Spec):
     """Declared by :func:`callback`: reading it yields the current caller's callback proxy."""
 
-    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+    def __get__(self, obj: object, owner: type | None = None) -> Any:  # Any: the caller's proxy, of its interface
         if obj is None:
             return self
         target = CURRENT_CALLBACK.get()
@@ -176,7 +176,7 @@ class ContextSpec(_Spec):
     """Declared by :func:`context`: injected with the component's :class:`ComponentContext`."""
 
 
-def prop(default: Any = _MISSING, *, required: bool = False) -> Any:
+def prop(default: object = _MISSING, *, required: bool = False) -> Any:
     """Declare a property (named by the attribute, typed by its annotation).
 
     ``required=True`` is SCA mustSupply; without a default and not required the value is None.
@@ -207,7 +207,7 @@ class ComponentContext:
     and the runtime's ``settings`` (:class:`scart.Settings`: name service, timeouts...)."""
 
     name: str
-    lookup: Callable[[str], Any] = field(repr=False)
+    lookup: Callable[[str], object] = field(repr=False)
     settings: Settings = field(default_factory=Settings, repr=False)
 
     def service(self, name: str) -> Any:
@@ -245,7 +245,7 @@ class ComponentType:
     cls: type
     services: dict[str, InterfaceInfo]
     references: dict[str, tuple[RefSpec, type | None]]
-    properties: dict[str, tuple[PropSpec, Any]]
+    properties: dict[str, tuple[PropSpec, object]]
     callbacks: tuple[str, ...]
     contexts: tuple[str, ...]
     init: tuple[str, ...]
@@ -258,9 +258,10 @@ _CTYPE_ATTR = "__scart_component_type__"  # the ComponentType of a class, cached
 _IFACE_ATTR = "__scart_interface_info__"
 
 
-def _cached(cls: type, attr: str) -> Any:
-    """What was cached on ``cls`` itself (never inherited from a base class), or None."""
-    return vars(cls).get(attr)
+def _cached(cls: type, attr: str, kind: type[T]) -> T | None:
+    """The ``kind`` cached on ``cls`` itself (never inherited from a base class), or None."""
+    found: T | None = vars(cls).get(attr)  # only _cache puts it there, as a kind
+    return found
 
 
 def _cache(cls: type, attr: str, value: T) -> T:
@@ -276,7 +277,7 @@ def interface_info(iface: type) -> InterfaceInfo:
 
     Cached per class. Never raises for a class (an empty class has no operations).
     """
-    cached = _cached(iface, _IFACE_ATTR)
+    cached = _cached(iface, _IFACE_ATTR, InterfaceInfo)
     if cached is not None:
         return cached
     meta = getattr(iface, "__scart_interface__", {}) if "__scart_interface__" in vars(iface) else {}
@@ -306,11 +307,11 @@ def _returns(func: Callable[..., object]) -> bool:
     return ann is not _MISSING and ann not in (None, "None", type(None))
 
 
-def _hints(cls: type) -> dict[str, Any]:
+def _hints(cls: type) -> dict[str, object]:
     try:
         return typing.get_type_hints(cls)
     except Exception:  # unresolvable forward refs: fall back to raw annotations
-        merged: dict[str, Any] = {}
+        merged: dict[str, object] = {}
         for klass in reversed(cls.__mro__):
             merged.update(getattr(klass, "__annotations__", {}))
         return merged
@@ -318,12 +319,12 @@ def _hints(cls: type) -> dict[str, Any]:
 
 def component_type(cls: type) -> ComponentType:
     """Read the declarations of ``cls`` (decorated with :func:`component` or not). Cached."""
-    cached = _cached(cls, _CTYPE_ATTR)
+    cached = _cached(cls, _CTYPE_ATTR, ComponentType)
     if cached is not None:
         return cached
     meta = getattr(cls, "__scart_component__", {})
     hints = _hints(cls)
-    props: dict[str, tuple[PropSpec, Any]] = {}
+    props: dict[str, tuple[PropSpec, object]] = {}
     refs: dict[str, tuple[RefSpec, type | None]] = {}
     callbacks: list[str] = []
     contexts: list[str] = []
@@ -353,7 +354,7 @@ def component_type(cls: type) -> ComponentType:
     return _cache(cls, _CTYPE_ATTR, ctype)
 
 
-def _element_type(ann: Any, multiple: bool) -> type | None:
+def _element_type(ann: object, multiple: bool) -> type | None:
     if multiple and typing.get_origin(ann) in (list, typing.List):  # noqa: UP006
         args = typing.get_args(ann)
         ann = args[0] if args else None

@@ -10,7 +10,7 @@ element.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Final
 
 from scart.api import ComponentType, InterfaceInfo
 from scart.model import Binding, Component, Location
@@ -44,7 +44,7 @@ class Node:
     model: Component
     kind: str
     ctype: ComponentType
-    properties: dict[str, Any] = field(default_factory=dict)
+    properties: dict[str, object] = field(default_factory=dict)
     references: dict[str, list[Endpoint]] = field(default_factory=dict)
     service_bindings: dict[str, list[Binding]] = field(default_factory=dict)
     # service -> the paths it is promoted as out of nested composites whose bindings it carries
@@ -60,4 +60,4 @@ class _DefaultType:
 
 
 #: The value of a property left to its declared default (the manager supplies it).
-DEFAULT: Any = _DefaultType()
+DEFAULT: Final = _DefaultType()

@@ -18,7 +18,7 @@ from scart import errors as E
 from scart.api import ComponentType, component_type
 from scart.errors import RuntimeStateError, ScartError
 from scart.model import Implementation
-from scart.spi import CheckContext, ComponentManager, Host, ImplementationProblem, ImplementationProvider
+from scart.spi import CheckContext, ComponentManager, Host, ImplementationProblem, ImplementationProvider, Invoker
 
 if TYPE_CHECKING:
     from scart.graph import Node
@@ -74,13 +74,13 @@ class CompositeScopeManager(ComponentManager):
                     self._creating = False
             return self._instance
 
-    def method(self, operation: str) -> Callable[..., Any]:
+    def method(self, operation: str) -> Invoker:
         """The bound method when the instance exists; else a function creating it first."""
         inst = self._instance
         if inst is not None:
             return getattr(inst, operation)
 
-        def lazy(*args: object, **kwargs: object) -> Any:
+        def lazy(*args: object, **kwargs: object) -> object:
             return getattr(self.get(), operation)(*args, **kwargs)
         return lazy
 
@@ -103,12 +103,12 @@ class CompositeScopeManager(ComponentManager):
 class StatelessManager(ComponentManager):
     """A fresh instance per call: configured, @init, the call, @destroy."""
 
-    def method(self, operation: str) -> Callable[..., Any]:
+    def method(self, operation: str) -> Invoker:
         """A function creating an instance per call."""
         ctype = self.node.ctype
         cls, host, node = ctype.cls, self.host, self.node
 
-        def per_call(*args: object, **kwargs: object) -> Any:
+        def per_call(*args: object, **kwargs: object) -> object:
             inst = cls()
             host.configure(node, inst)
             _call_all(inst, ctype.init)

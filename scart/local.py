@@ -15,7 +15,7 @@ from typing import Any, TypeVar
 
 from scart.api import CURRENT_CALLBACK, InterfaceInfo, Operation
 from scart.model import Binding
-from scart.spi import BindingProvider, Host, ReferenceBinding, ServiceBinding, ServiceEndpoint
+from scart.spi import BindingProvider, Host, Invoker, ReferenceBinding, ServiceBinding, ServiceEndpoint
 
 __all__ = ["LocalBinding", "LocalReferenceBinding", "LocalServiceBinding", "by_value_copy", "wrap_operation"]
 
@@ -48,7 +48,7 @@ class LocalReferenceBinding(ReferenceBinding):
             target = host.endpoint(uri)
         self.target = target
 
-    def invoker(self, operation: Operation, callback: object | None) -> Callable[..., Any]:
+    def invoker(self, operation: Operation, callback: object | None) -> Invoker:
         """The target endpoint's callable for ``operation`` (see ``ServiceEndpoint.operation``)."""
         return self.target.operation(operation.name, callback)
 
@@ -68,13 +68,13 @@ class LocalBinding(BindingProvider):
 
 
 def wrap_operation(
-    call: Callable[..., Any],
+    call: Invoker,
     op: Operation,
     *,
     callback: object | None,
     by_value: bool,
     submit: Callable[..., None],
-) -> Callable[..., Any]:
+) -> Invoker:
     """Compose the per-operation callable from ``call`` (the raw method).
 
     Adds, only where needed: deep copies of arguments and result (``by_value``, for
@@ -85,13 +85,13 @@ def wrap_operation(
     """
     inner = call
     if by_value and not op.oneway:  # a one-way call is copied once, at submit (below)
-        def inner(*args: object, _c: Callable[..., Any] = call, **kwargs: object) -> Any:
+        def inner(*args: object, _c: Invoker = call, **kwargs: object) -> object:
             return by_value_copy(_c(*by_value_copy(args), **by_value_copy(kwargs)))
     if callback is not None:
         plain = inner
         var_set, var_reset = CURRENT_CALLBACK.set, CURRENT_CALLBACK.reset
 
-        def inner(*args: object, **kwargs: object) -> Any:
+        def inner(*args: object, **kwargs: object) -> object:
             token = var_set(callback)
             try:
                 return plain(*args, **kwargs)

@@ -30,7 +30,6 @@ import stat
 import typing
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from lxml import etree
 
@@ -95,7 +94,7 @@ def xml_family(ref: TypeRef | None, kinds: Callable[[str], str | None]) -> str |
     return "complex" if kinds(qname) == "complex" else None  # a simple type of its own: its base is not known
 
 
-def python_family(py_type: Any) -> str | None:
+def python_family(py_type: object) -> str | None:
     """The family of a Python annotation (see :func:`xml_family`); a list's is its items'."""
     origin = typing.get_origin(py_type)
     if origin in (list, tuple, set):

@@ -62,7 +62,7 @@ from scart.pool import WORKER_PREFIX, Args, Job, Kwargs, OnewayPool
 from scart.model import Binding
 from scart.settings import Settings
 from scart.spi import (
-    ComponentManager, Extension, Invocation, Participant, ReferenceBinding, ServiceBinding,
+    ComponentManager, Extension, Invocation, Invoker, Participant, ReferenceBinding, ServiceBinding,
 )
 
 log = logging.getLogger("scart.runtime")
@@ -84,7 +84,7 @@ class ServiceProxy:
     At the runtime's ``stop()`` every operation is swapped for a stub raising
     ``RuntimeStateError`` (:meth:`_scart_disable`), so calls cost nothing extra before."""
 
-    def __init__(self, name: str, invokers: dict[str, Callable[..., Any]]) -> None:
+    def __init__(self, name: str, invokers: dict[str, Invoker]) -> None:
         self.__dict__.update(invokers)
         self.__dict__["_scart_name"] = name
         self.__dict__["_scart_ops"] = tuple(invokers)
@@ -120,13 +120,13 @@ class _Endpoint:
         view.interface = dataclasses.replace(self.interface, remotable=True)
         return view
 
-    def method(self, operation: str) -> Callable[..., Any]:
+    def method(self, operation: str) -> Invoker:
         """The raw callable of ``operation`` (scope handled by the component's manager)."""
         if operation not in self.interface.operations:
             raise KeyError(operation)
         return self._manager.method(operation)
 
-    def operation(self, name: str, callback: object | None) -> Callable[..., Any]:
+    def operation(self, name: str, callback: object | None) -> Invoker:
         """The full per-operation callable (see :func:`scart.local.wrap_operation`)."""
         op = self.interface.operations.get(name)
         if op is None:

@@ -27,7 +27,7 @@ import stat
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Protocol, TypeVar
 
 from lxml import etree
 
@@ -53,6 +53,15 @@ from scart.model import (
     PropertyValue,
     Wire,
 )
+
+class _Named(Protocol):
+    """An element kept once per name (a service, a reference, a property...)."""
+
+    @property
+    def name(self) -> str: ...
+
+
+N = TypeVar("N", bound=_Named)
 
 MAX_BYTES = 8 * 1024 * 1024  #: size bound of any XML file read (composite or WSDL)
 SCA_NAMESPACES = (SCA11_NS, SCA10_NS)
@@ -233,7 +242,7 @@ class Loader:
         """Record a problem at ``el``."""
         self.problems.append(Problem(code, message, self.path, el.sourceline or 0))
 
-    def append_unique(self, items: list[Any], item: Any, code: str, what: str, el: etree._Element) -> None:
+    def append_unique(self, items: list[N], item: N, code: str, what: str, el: etree._Element) -> None:
         """Append ``item`` unless one of ``items`` has its name: then report ``code`` at ``el``
         (the second occurrence) and keep the first."""
         if any(i.name == item.name for i in items):

@@ -54,7 +54,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Literal, Protocol, TypeVar
+from typing import Any, ClassVar, Literal, Protocol, TypeAlias, TypeVar
 
 from pydantic import BaseModel
 
@@ -69,13 +69,16 @@ __all__ = [
     "CURRENT_CALLBACK", "DEFAULT", "SCART_NS", "AssemblyView", "Binding", "BindingProvider", "Bound",
     "CheckContext", "ComponentManager", "ComponentType", "Element", "ElementProvider", "Extension", "GraphEdge",
     "GraphNode", "Host", "Implementation", "ImplementationProblem", "ImplementationProvider", "InterfaceInfo",
-    "Invocation", "LaunchContext", "LaunchProvider", "Launched", "Location", "Node", "Operation", "Participant",
+    "Invocation", "Invoker", "LaunchContext", "LaunchProvider", "Launched", "Location", "Node", "Operation", "Participant",
     "Problem", "PropSpec", "ReferenceBinding", "ServiceBinding", "ServiceEndpoint", "Settings", "Side", "Target",
     "Verb", "did_you_mean", "parse_host_port", "parse_xml", "port_in_range",
 ]
 
 T = TypeVar("T")
 Side = Literal["service", "reference"]
+#: A callable that performs one operation of a service: arguments in, the operation's
+#: result out. Operations return whatever their interface says, so the result is Any.
+Invoker: TypeAlias = "Callable[..., Any]"
 
 
 # --- what the runtime offers -------------------------------------------------------------
@@ -98,11 +101,11 @@ class ServiceEndpoint(Protocol):
     service: str
     interface: InterfaceInfo
 
-    def method(self, operation: str) -> Callable[..., Any]:
+    def method(self, operation: str) -> Invoker:
         """The raw callable for ``operation`` on the right instance (scope handled); no
         callback, one-way or pass-by-value handling. Raises ``KeyError`` if unknown."""
 
-    def operation(self, name: str, callback: object | None) -> Callable[..., Any]:
+    def operation(self, name: str, callback: object | None) -> Invoker:
         """The full callable for ``name`` (callback routed, one-way queued, by-value copied)."""
 
     def invoke(self, invocation: Invocation) -> Any:
@@ -234,7 +237,7 @@ class ReferenceBinding(ABC):
         self.host = host
 
     @abstractmethod
-    def invoker(self, operation: Operation, callback: object | None) -> Callable[..., Any]:
+    def invoker(self, operation: Operation, callback: object | None) -> Invoker:
         """A callable performing ``operation``; built once, called many times, thread-safe.
         ``callback`` is the caller's callback target (one attribute per callback operation) or None."""
 
@@ -257,7 +260,7 @@ class ComponentManager(ABC):
         self.stage = "start"
 
     @abstractmethod
-    def method(self, operation: str) -> Callable[..., Any]:
+    def method(self, operation: str) -> Invoker:
         """The raw callable running ``operation`` on the right instance."""
 
     @abstractmethod

@@ -14,10 +14,13 @@ import functools
 import json
 import typing
 from types import MappingProxyType
-from typing import Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from lxml import etree
 from pydantic import TypeAdapter, ValidationError
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeForm
 
 #: XSD simple types of composite-level ``<property type="xsd:...">`` and their Python types.
 XSD_TYPES: MappingProxyType[str, type] = MappingProxyType({
@@ -58,17 +61,17 @@ def xml_data(el: etree._Element) -> XmlData:
     return {**attrs, **{k: v[0] if len(v) == 1 else v for k, v in grouped.items()}}
 
 
-def is_many(py_type: Any) -> bool:
+def is_many(py_type: object) -> bool:
     """True for many-valued property types (``list[T]``, ``tuple[...]``, ``set[T]``)."""
     return typing.get_origin(py_type) in (list, tuple, set)
 
 
 @functools.lru_cache(maxsize=512)
-def _adapter(py_type: Any) -> TypeAdapter[Any]:
+def _adapter(py_type: TypeForm[object]) -> TypeAdapter[object]:
     return TypeAdapter(py_type)
 
 
-def parse_value(raw: list[str], py_type: Any) -> Any:
+def parse_value(raw: list[str], py_type: Any) -> object:  # Any: a type form, called when int or float
     """Parse raw text values as ``py_type``: ``bool`` takes true/false/1/0, ``list[T]`` parses
     each value as T (one value starting with "[" is read as JSON), other non-primitive types
     are read as JSON and validated by pydantic. Raises ``ValueError`` with a clear message."""
@@ -102,7 +105,7 @@ def parse_value(raw: list[str], py_type: Any) -> Any:
     return _adapt(py_type, data)
 
 
-def _adapt(py_type: Any, data: object) -> Any:
+def _adapt(py_type: object, data: object) -> object:
     adapter = _adapter(py_type)
     try:
         return adapter.validate_python(data)

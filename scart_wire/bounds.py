@@ -28,12 +28,15 @@ import types
 import typing
 from dataclasses import dataclass
 from collections.abc import Callable
-from typing import Annotated, Any, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar, cast
 
 import pydantic
 
 from . import rosmsgs
 from .errors import PortTypeError, PortValueError
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeForm
 
 __all__ = ["Bounds", "argument_adapter", "bounded_adapter", "check_argument", "from_outside", "nesting_depth",
            "non_finite", "refuse_unknown_fields", "unknown_field"]
@@ -246,8 +249,7 @@ def _cached_argument_adapter(hint: object) -> pydantic.TypeAdapter[object] | Non
 def _make_argument_adapter(hint: object) -> pydantic.TypeAdapter[object] | None:
     checked = from_outside(hint)
     try:
-        strict: Any = _strict_numbers(checked)  # a type expression, which only pydantic reads
-        return pydantic.TypeAdapter(strict)
+        return pydantic.TypeAdapter(cast("TypeForm[object]", _strict_numbers(checked)))  # a type form, as given
     except Exception:  # noqa: BLE001 - a type pydantic cannot check: finiteness alone, where it applies
         return pydantic.TypeAdapter(Annotated[Any, FINITE]) if checked is not hint else None
 

@@ -57,7 +57,7 @@ _MODEL_OUT = registry.model_encoders
 _MODEL_IN = registry.model_decoders
 
 
-def encode(value: Any, py_type: Any = None) -> Value:
+def encode(value: Any, py_type: object = None) -> Value:  # Any: narrowed by its exact type
     """``value`` as a ``Value`` message (as ``py_type`` when given, see the module docstring).
 
     Raises :class:`~scart_wire.errors.PortTypeError` naming the type when the value cannot be sent."""
@@ -102,14 +102,14 @@ def _encode_untyped(value: Any) -> Value:
     return _json(value)
 
 
-def _json(value: Any) -> Value:
+def _json(value: object) -> Value:
     try:
         return Value(type_name=JSON_TYPE, data=pydantic_core.to_json(value, inf_nan_mode="constants"))
     except pydantic_core.PydanticSerializationError as exc:
         raise PortTypeError(f"cannot encode a value of type {type(value).__qualname__}: {exc}") from None
 
 
-def _list_type(value: list[Any] | tuple[Any, ...]) -> Any:
+def _list_type(value: list[object] | tuple[object, ...]) -> object:
     if not value:
         return list[float]
     first = type(value[0])
@@ -124,7 +124,7 @@ class Payload:
 
     __slots__ = ("type_name", "data")
 
-    def __init__(self, type_name: str, data: Any) -> None:
+    def __init__(self, type_name: str, data: Any) -> None:  # Any: a buffer (shm's memoryview, bytes)
         self.type_name = type_name
         self.data = data
 
@@ -136,7 +136,7 @@ def decode(msg: Value | Payload) -> Any:
 
     Raises :class:`~scart_wire.errors.PortTypeError` when the bytes do not fit their type name."""
     if type(msg) is Payload:
-        spec: Any = registry.python_type(msg.type_name)
+        spec = registry.python_type(msg.type_name)
         if isinstance(spec, ArraySpec) or rosmsgs.is_message_class(spec):
             try:  # a view of the buffer: no copy
                 return spec.decode(msg.data) if isinstance(spec, ArraySpec) else rosmsgs.decode(spec, msg.data)

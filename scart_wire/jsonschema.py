@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, cast
 if TYPE_CHECKING:
     import numpy as np
     from pydantic import JsonValue
+    from typing_extensions import TypeForm
 
 __all__ = ["message_of", "message_schema", "schema_name", "type_schema"]
 
@@ -24,7 +25,7 @@ def type_schema(type_name: str) -> dict[str, JsonValue]:
     if py_type is None:
         return {"title": type_name}
     try:
-        return pydantic.TypeAdapter(py_type).json_schema()
+        return pydantic.TypeAdapter(cast("TypeForm[object]", py_type)).json_schema()
     except Exception:  # noqa: BLE001 - a type pydantic cannot describe: any JSON
         return {"title": type_name}
 

@@ -10,7 +10,7 @@ import socket
 import threading
 from collections.abc import Callable, Iterator, Mapping
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, Generic, NoReturn, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, NoReturn, TypeAlias, TypeVar
 
 import grpc
 
@@ -150,6 +150,10 @@ def abort(context: grpc.ServicerContext, exc: BaseException) -> NoReturn:
 #: (``dataflow_pb2_grpc.add_DeployerServiceServicer_to_server``, ...). Each function takes
 #: its own servicer class, so a list of them can name the first parameter only as Any.
 Servicer = tuple[Callable[[Any, grpc.Server], None], object]
+
+#: The handler of one method of any service: each method has its own request and reply
+#: messages, so a table of them (by method name) names both only as Any.
+MethodHandler: TypeAlias = "grpc.RpcMethodHandler[Any, Any]"
 
 
 def make_server(

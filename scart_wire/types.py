@@ -31,10 +31,10 @@ import base64
 import json
 import struct
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeGuard, TypeVar, cast
 
 import pydantic
 import pydantic_core
@@ -43,10 +43,15 @@ from . import rosmsgs
 from .arrays import ArraySpec, array_spec
 from .errors import PortTypeError
 
+if TYPE_CHECKING:
+    from typing_extensions import TypeForm
+
 __all__ = ["TypeRegistry", "registry", "register_type", "UnknownValue", "Encoded", "model_json"]
 
 T = TypeVar("T")
-Checker = Callable[[Any], Any]
+#: A port's check: a value in, the same value as the port's type out (its caller's type,
+#: hence Any), or TypeError.
+Checker = Callable[[object], Any]
 
 
 @dataclass(frozen=True)
@@ -60,7 +65,7 @@ class Encoded:
 class UnknownValue(dict[str, object]):
     """A decoded value whose type name this process does not know: a plain mapping."""
 
-    def __init__(self, type_name: str, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, type_name: str, *args: Mapping[str, object], **kwargs: object) -> None:
         super().__init__(*args, **kwargs)
         self.type_name = type_name
 
@@ -85,11 +90,11 @@ def _is_ndarray(value: object) -> bool:
     return kind.__name__ == "ndarray" and kind.__module__ == "numpy"
 
 
-def _is_model(py_type: object) -> bool:
+def _is_model(py_type: object) -> TypeGuard[type[pydantic.BaseModel]]:
     return isinstance(py_type, type) and issubclass(py_type, pydantic.BaseModel)
 
 
-def _float_check(v: Any) -> float:
+def _float_check(v: Any) -> float:  # Any: narrowed by its exact type, which mypy does not follow
     t = type(v)
     if t is float:
         return v
@@ -98,13 +103,13 @@ def _float_check(v: Any) -> float:
     raise TypeError
 
 
-def _int_check(v: Any) -> int:
+def _int_check(v: object) -> int:
     if type(v) is int:
         return v
     raise TypeError
 
 
-def _float_list_check(v: Any) -> list[float]:
+def _float_list_check(v: object) -> list[float]:
     if type(v) is list or type(v) is tuple:
         ok = True
         for x in v:
@@ -125,7 +130,7 @@ def _float_list_check(v: Any) -> list[float]:
 
 
 def _exact_list_check(item: type) -> Checker:
-    def check(v: Any) -> list[Any]:
+    def check(v: object) -> list[object]:
         if (type(v) is list or type(v) is tuple) and all(type(x) is item for x in v):
             return v if type(v) is list else list(v)
         raise TypeError
@@ -134,7 +139,7 @@ def _exact_list_check(item: type) -> Checker:
 
 
 def _instance_check(py_type: type) -> Checker:
-    def check(v: Any) -> Any:
+    def check(v: object) -> object:
         if isinstance(v, py_type) and not (py_type is not bool and type(v) is bool):
             return v
         raise TypeError
@@ -147,14 +152,14 @@ class TypeRegistry:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._by_name: dict[str, Any] = {}
-        self._by_type: dict[Any, str] = {}
-        self._adapters: dict[Any, pydantic.TypeAdapter[Any]] = {}
+        self._by_name: dict[str, object] = {}
+        self._by_type: dict[object, str] = {}
+        self._adapters: dict[object, pydantic.TypeAdapter[object]] = {}
         #: name → its model's JSON validator, once decoded (a name never changes its type):
         #: a model sample, the common case off the number path, without the lookups below.
-        self._models: dict[str, Callable[[bytes], Any]] = {}
+        self._models: dict[str, Callable[[bytes], object]] = {}
         #: registered model class → its name and its serializer's ``to_json``, once encoded.
-        self._model_out: dict[type, tuple[str, Callable[[Any], bytes]]] = {}
+        self._model_out: dict[type, tuple[str, Callable[[object], bytes]]] = {}
         #: Read-only views of the two for the codec's hot path (:mod:`scart_wire.codec`): a
         #: model sample straight through pydantic's own serializer and validator.
         self.model_encoders = MappingProxyType(self._model_out)
@@ -198,7 +203,7 @@ class TypeRegistry:
             return rosmsgs.message_type_name(py_type)
         return getattr(py_type, "__qualname__", None) or repr(py_type)
 
-    def python_type(self, name: str) -> Any | None:
+    def python_type(self, name: str) -> object | None:
         """The Python type registered as ``name`` (or the array type it names), or None."""
         found = self._by_name.get(name)
         if found is not None:
@@ -209,15 +214,15 @@ class TypeRegistry:
         """Every registered type name (sorted)."""
         return sorted(self._by_name)
 
-    def _adapter(self, py_type: Any) -> pydantic.TypeAdapter[Any]:
+    def _adapter(self, py_type: object) -> pydantic.TypeAdapter[Any]:  # Any: as the type asked
         adapter = self._adapters.get(py_type)
         if adapter is None:
-            adapter = pydantic.TypeAdapter(py_type)
+            adapter = pydantic.TypeAdapter(cast("TypeForm[object]", py_type))  # a type form (or a type pydantic refuses)
             self._adapters[py_type] = adapter
         return adapter
 
     # -- validation ----------------------------------------------------------
-    def checker(self, py_type: Any) -> Checker:
+    def checker(self, py_type: object) -> Checker:
         """A fast function ``v -> v'`` for a port's hot path; raises ``TypeError`` on a mismatch.
 
         Exact types only, except the lossless int→float widening (never bool→number).
@@ -238,7 +243,7 @@ class TypeRegistry:
             return _instance_check(py_type)
         adapter = self._adapter(py_type)
 
-        def check(v: Any) -> Any:
+        def check(v: object) -> object:
             try:
                 return adapter.validate_python(v, strict=True)
             except pydantic.ValidationError:
@@ -246,7 +251,7 @@ class TypeRegistry:
 
         return check
 
-    def validate(self, py_type: Any, value: object) -> Any:
+    def validate(self, py_type: object, value: object) -> Any:  # Any: the value as the type asked
         """Coerce ``value`` to ``py_type`` (pydantic lax mode) or raise ``PortTypeError``."""
         if rosmsgs.is_message_class(py_type):
             return value if isinstance(value, py_type) else self.from_jsonable(py_type, value)
@@ -277,7 +282,7 @@ class TypeRegistry:
             return rosmsgs.to_jsonable(value)
         return value
 
-    def from_jsonable(self, py_type_or_name: Any, obj: object) -> Any:
+    def from_jsonable(self, py_type_or_name: object, obj: object) -> Any:  # Any: as validate
         """Build a value of the given type (or registered name) from JSON-able data.
 
         An unknown name gives an :class:`UnknownValue`; a mismatch raises ``PortTypeError``.
@@ -301,7 +306,7 @@ class TypeRegistry:
         return self.validate(py_type, obj)
 
     # -- wire ----------------------------------------------------------------
-    def encode(self, value: Any, py_type: Any = None) -> Encoded:
+    def encode(self, value: Any, py_type: object = None) -> Encoded:  # Any: packed as py_type says
         """Encode ``value`` (of ``py_type``, default its own type) for the wire."""
         if py_type is None:
             if isinstance(value, UnknownValue):
@@ -350,7 +355,7 @@ class TypeRegistry:
             return list[str]
         return list[float]
 
-    def decode(self, type_name: str, data: bytes) -> Any:
+    def decode(self, type_name: str, data: bytes) -> Any:  # Any: the value of the type named
         """Decode wire bytes; an unknown ``type_name`` gives an :class:`UnknownValue`.
 
         Raises ``PortTypeError`` when the bytes do not fit a known type.

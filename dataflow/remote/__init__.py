@@ -12,7 +12,7 @@ gives the same API in-process without gRPC. Standalone name service:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from dataflow.remote.api import (
     ComponentInfo, ComponentProxy, GapEvent, PortWriter, SampleEvent, Subscription, System,
@@ -21,7 +21,7 @@ from dataflow.remote.errors import (
     AlreadyRegisteredError, AuthenticationError, ClosedError, PermissionDeniedError, RemoteError,
     RemoteNotFoundError, RemoteTimeoutError, RemoteTypeError, RemoteValueError, UnavailableError,
 )
-from scart_wire.defaults import DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
+from scart_wire.defaults import DEFAULT_LEASE, DEFAULT_NS_ADDRESS, DEFAULT_NS_PORT
 from scart_wire.security import Role, Security, SecurityError
 
 if TYPE_CHECKING:
@@ -54,8 +54,9 @@ def local_system(deployer: Deployer) -> System:
     return LocalSystem(deployer)
 
 
-def serve_nameserver(address: str = "127.0.0.1:0", **options: Any) -> NameServer:
+def serve_nameserver(address: str = "127.0.0.1:0", default_lease: float = DEFAULT_LEASE, max_workers: int = 16,
+                     security: Security | None = None) -> NameServer:
     """Start a standalone name service; see :func:`dataflow.remote.naming.serve_nameserver`."""
     from dataflow.remote.naming import serve_nameserver as _serve
 
-    return _serve(address, **options)
+    return _serve(address, default_lease, max_workers, security)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from dataflow.policy import ConnPolicy
 from dataflow.ports import OutputPort
@@ -25,7 +25,7 @@ from dataflow.transports.limits import check_fits
 from dataflow.transports.served import Served, ServedSet
 from dataflow.transports.serving import Serving
 from dataflow.transports.sinks import Sinks
-from scart_wire.rpc import Abort
+from scart_wire.rpc import Abort, MethodHandler
 
 if TYPE_CHECKING:
     import grpc
@@ -56,7 +56,7 @@ class Channels:
         self.stopping = threading.Event()
         self._lock = threading.Lock()
         self._servings: dict[type[Serving], Serving] = {}
-        self._handlers: dict[str, grpc.RpcMethodHandler[Any, Any] | None] = {}  # by method, once looked up
+        self._handlers: dict[str, MethodHandler | None] = {}  # by method, once looked up
 
     # ---- the ChannelHost ------------------------------------------------------------------
     @property
@@ -87,7 +87,7 @@ class Channels:
             raise Abort("RESOURCE_EXHAUSTED", str(exc)) from None
 
     # ---- dispatch -------------------------------------------------------------------------
-    def handler(self, method: str) -> grpc.RpcMethodHandler[Any, Any] | None:
+    def handler(self, method: str) -> MethodHandler | None:
         """The handler of the ``DeployerService`` method ``method`` from the serving half
         of the first transport that lists it (``auto``'s order, then the others by name;
         made now if it is the first), or None when none does (the call is then
@@ -111,7 +111,7 @@ class Channels:
             self._handlers[method] = found
             return found
 
-    def _handler_of(self, transport: Transport, method: str) -> grpc.RpcMethodHandler[Any, Any] | None:
+    def _handler_of(self, transport: Transport, method: str) -> MethodHandler | None:
         """``method``'s handler from ``transport``'s serving half (made now if it is the
         first), None when it does not list it. Under the lock."""
         kind = transport.serving()

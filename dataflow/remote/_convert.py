@@ -7,12 +7,15 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from types import MappingProxyType
-from typing import Any
+from enum import Enum
+from typing import TypeVar
 
 from dataflow.policy import (MAX_BUFFER, MAX_TOPIC, BufferPolicy, ConnPolicy, ConnType, FlowStatus, LockPolicy, WaitMode,
                              WriteStatus)
 from dataflow.remote._proto import df as pb
 from dataflow.transports import MAX_NAME
+
+E = TypeVar("E", bound=Enum)
 
 _CONN_TO_MSG: Mapping[ConnType, pb.ConnType] = MappingProxyType({
     ConnType.DATA: pb.CONN_TYPE_DATA,
@@ -22,7 +25,7 @@ _CONN_TO_MSG: Mapping[ConnType, pb.ConnType] = MappingProxyType({
 _CONN_FROM_MSG = MappingProxyType({v: k for k, v in _CONN_TO_MSG.items()})
 
 
-def policy_to_msg(policy: ConnPolicy) -> Any:
+def policy_to_msg(policy: ConnPolicy) -> pb.ConnPolicy:
     """ConnPolicy → ``scart.dataflow.v1.ConnPolicy``."""
     waits = policy.wait is not WaitMode.NO_WAIT
     return pb.ConnPolicy(
@@ -39,7 +42,7 @@ def policy_to_msg(policy: ConnPolicy) -> Any:
     )
 
 
-def policy_from_msg(msg: Any, default: ConnPolicy | None = None) -> ConnPolicy:
+def policy_from_msg(msg: pb.ConnPolicy | None, default: ConnPolicy | None = None) -> ConnPolicy:
     """``scart.dataflow.v1.ConnPolicy`` → ConnPolicy (unset message → ``default`` or DATA).
 
     Raises ``ValueError`` (→ ``INVALID_ARGUMENT`` on the wire) naming the bad field for an
@@ -74,7 +77,7 @@ def _wait(text: str) -> WaitMode:
         raise ValueError(f"policy.wait {text[:40]!r} is not one of {', '.join(m.value for m in WaitMode)}") from None
 
 
-def _member(enum: Any, field: str, name: str, default: Any) -> Any:
+def _member(enum: type[E], field: str, name: str, default: E) -> E:
     if not name:
         return default
     if name not in enum.__members__:
@@ -118,7 +121,7 @@ def write_from_msg(number: int) -> WriteStatus:
     return _WRITE_FROM.get(number, WriteStatus.WRITE_FAILURE)
 
 
-def to_json_text(value: Any) -> str:
+def to_json_text(value: object) -> str:
     """What ``echo --json`` prints for a value."""
     from scart_wire.types import registry
 

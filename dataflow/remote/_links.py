@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import grpc
 
@@ -36,7 +36,9 @@ from dataflow.transports.ends import WriterEnd, attach, detach
 from dataflow.transports.sinks import LINGER_S, IncomingLink, Sinks
 
 if TYPE_CHECKING:
+    from dataflow.ports import OutputPort
     from dataflow.remote.server import DeployerServer
+    from dataflow.transports import Transport
     from scart_wire.security import Security
 
 __all__ = ["LinkKeeper", "LinkSource", "PEER_FAILURES", "RemoteLink", "SOURCE_GONE"]
@@ -69,7 +71,7 @@ class RemoteLink:
     docstring). ``resume``: count every write of this process (the link is made again
     after this deployer restarted), not only those after the link was made."""
 
-    def __init__(self, server: LinkSource, out: Any, sink_task: str, sink_port: str, policy: ConnPolicy,
+    def __init__(self, server: LinkSource, out: OutputPort[object], sink_task: str, sink_port: str, policy: ConnPolicy,
                  name: str, serial: int, *, resume: bool = False) -> None:
         self.server = server
         self.out = out
@@ -157,7 +159,7 @@ class RemoteLink:
         if not stopping.is_set():
             log.info("link %s: the sink's deployer went away; reconnecting", self.name)
 
-    def _attempt(self, transport: Any, peer: Peer) -> bool:
+    def _attempt(self, transport: Transport, peer: Peer) -> bool:
         if waits(self.policy) and not transport.waits:  # auto goes on; a named one is refused at connect
             self.detail = f"{transport.name} carries no writer that waits ({self.policy.wait.value})"
             return False

@@ -18,7 +18,7 @@ import secrets
 import threading
 import time
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, Literal, TypeVar, cast, overload
 
 import grpc
 
@@ -35,7 +35,11 @@ from dataflow.threads import OwnedThread
 from dataflow.transports.sinks import LINGER_S
 
 if TYPE_CHECKING:
+    from dataflow.introspection import LinkDescription, OperationDescription
+    from dataflow.ports import Port
+    from dataflow.properties import BoundProperty
     from dataflow.remote.server import DeployerServer
+    from dataflow.task import TaskContext
 
 log = logging.getLogger(__name__)
 K = TypeVar("K")
@@ -204,10 +208,14 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             self._writers.sweep()
 
     # ---- lookup helpers -------------------------------------------------------------
-    def _task(self, name: str) -> Any:
+    def _task(self, name: str) -> TaskContext:
         return self.deployer.task(name)
 
-    def _port(self, task: str, port: str, want_input: bool | None = None) -> Any:
+    @overload
+    def _port(self, task: str, port: str, want_input: Literal[True]) -> InputPort[object]: ...
+    @overload
+    def _port(self, task: str, port: str, want_input: Literal[False]) -> OutputPort[object]: ...
+    def _port(self, task: str, port: str, want_input: bool | None = None) -> Port[object]:
         p = self._task(task).port(port)
         if want_input is not None and p.is_input != want_input:
             kind = "an input" if p.is_input else "an output"
@@ -215,7 +223,8 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             raise Abort("INVALID_ARGUMENT", f"{task}.{port} is {kind} port; this needs an {need} port")
         return p
 
-    def _value_for(self, where: str, py_type: Any, type_name: str, msg: Any, json_text: str) -> Any:
+    def _value_for(self, where: str, py_type: object, type_name: str, msg: codec.Value | None,
+                   json_text: str) -> object:
         """A written value as the port's type; a field its model does not declare is
         refused (INVALID_ARGUMENT), never dropped."""
         from scart_wire.bounds import unknown_field
@@ -233,6 +242,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                 return registry.from_jsonable(py_type, obj)
             except (PortTypeError, TypeError, ValueError) as exc:
                 raise Abort("INVALID_ARGUMENT", f"{where} expects {type_name}, got {json_text!r}: {exc}") from None
+        assert msg is not None  # no JSON text: a Value was given
         given = msg.type_name or "None"
         try:
             value = codec.decode(msg)
@@ -259,7 +269,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
 
     # ---- introspection and lifecycle ---------------------------------------------------
     @staticmethod
-    def _summary(task: Any) -> Any:
+    def _summary(task: TaskContext) -> pb.TaskSummary:
         act = task.activity
         cycles, last_cycle = getattr(act, "stamp", (0, 0.0))
         if not last_cycle:
@@ -293,7 +303,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                     streams=[pb.PortStreamInfo(**s.model_dump()) for s in p.streams],
                 )
                 if p.direction == "out":
-                    port = task.port(p.name)
+                    port = cast("OutputPort[object]", task.port(p.name))  # its direction is "out"
                     last = port.last_written_value()
                     if last is not None:
                         value = codec.encode(last, port.type)
@@ -330,7 +340,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             abort(context, exc)
 
     # ---- writing ---------------------------------------------------------------------
-    def _default_writer(self, task: str, port: Any) -> _Writer:
+    def _default_writer(self, task: str, port: InputPort[object]) -> _Writer:
         key = (task, port.name)
         with self._lock:
             writer = self._defaults.get(key)
@@ -361,7 +371,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             abort(context, exc)
 
     @staticmethod
-    def _admitted(port: InputPort, value: Any, context: grpc.ServicerContext) -> Any:
+    def _admitted(port: InputPort[object], value: object, context: grpc.ServicerContext) -> object:
         """``value`` within ``port``'s bounds; a refusal is logged (who, what) and raised
         (OUT_OF_RANGE to the writer)."""
         try:
@@ -439,7 +449,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
                     f"{task.name}.{desc.signature or desc.name} takes {len(desc.params)} argument(s), got {len(given)}",
                 )
             # the one check of every entry (types, bounds, finiteness) on the values as they came
-            task.check_arguments(desc.name, [self._raw_argument(task, desc, p, a, request.use_json)
+            task.check_arguments(desc.name, [self._raw_argument(task, desc, p, a)
                                              for (p, _), a in zip(desc.params, given, strict=True)])
             args = []
             for (pname, tname), arg in zip(desc.params, given, strict=True):
@@ -462,14 +472,14 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
             abort(context, exc)
 
     @staticmethod
-    def _raw_argument(task: Any, desc: Any, param: str, arg: Any, use_json: bool) -> Any:
+    def _raw_argument(task: TaskContext, desc: OperationDescription, param: str, arg: str | codec.Value) -> object:
         """An operation argument decoded, not converted (JSON text, or a ``Value``)."""
         try:
-            return json.loads(arg) if use_json else codec.decode(arg)
+            return json.loads(arg) if isinstance(arg, str) else codec.decode(arg)
         except (ValueError, PortTypeError) as exc:
             raise Abort("INVALID_ARGUMENT", f"{task.name}.{desc.name}({param}): not a value: {exc}") from None
 
-    def _property(self, task: Any, name: str) -> Any:
+    def _property(self, task: TaskContext, name: str) -> BoundProperty:
         props = task.properties()
         if name not in props:
             raise NotFoundError(f"{task.name} has no property {name!r}; properties: {', '.join(sorted(props)) or '(none)'}")
@@ -552,7 +562,7 @@ class DeployerServicer(df_grpc.DeployerServiceServicer):
 MAX_LINKS_LISTED = 2000  # with names of at most ~600 bytes: well under the message bound
 
 
-def _link_info(link: Any) -> Any:
+def _link_info(link: LinkDescription) -> pb.LinkInfo:
     return pb.LinkInfo(name=link.name, source=link.source, sink=link.sink, policy=link.policy,
                        transport=link.transport, samples=link.samples, dropped=link.dropped, kind=link.kind,
                        state=link.state, detail=link.detail[:300], pending=link.pending)

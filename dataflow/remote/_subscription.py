@@ -24,7 +24,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import grpc
 
@@ -43,6 +43,7 @@ from dataflow.transports.ends import ReaderEnd
 
 if TYPE_CHECKING:
     from dataflow.remote.client import GrpcComponentProxy
+    from dataflow.transports.frames import Frame
 
 log = logging.getLogger(__name__)
 
@@ -120,10 +121,10 @@ class GrpcSubscription(Subscription):
         return self._end.transport
 
     # ---- the reader end's side -----------------------------------------------------------
-    def _store(self, n: int, t_ns: int, value: Any) -> bool:
+    def _store(self, n: int, t_ns: int, value: object) -> bool:
         return self._mailbox.put(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, t_ns / 1e9, n))
 
-    def _on_frame(self, message: Any) -> None:
+    def _on_frame(self, message: Frame) -> None:
         self._mark_up(message.boot_id)
 
     # ---- observer side -----------------------------------------------------------------

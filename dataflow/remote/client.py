@@ -19,7 +19,7 @@ import json
 import logging
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import grpc
 
@@ -38,10 +38,13 @@ from dataflow.remote._proto import df_grpc
 from dataflow.remote._proto import df as pb
 from dataflow.remote._subscription import GrpcSubscription
 from dataflow.remote.api import (
-    TRANSITIONS, ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, System, split_port,
+    TRANSITIONS, ComponentInfo, ComponentProxy, GapEvent, Observer, PortWriter, Subscription, System, split_port,
 )
-from dataflow.remote.naming import NameClient
+from dataflow.remote.naming import Lookups, NameClient
 from scart_wire.security import Security
+
+if TYPE_CHECKING:
+    from google.protobuf.message import Message
 
 __all__ = ["GrpcSystem", "GrpcComponentProxy", "GrpcSubscription", "GrpcPortWriter", "connect"]
 
@@ -70,7 +73,7 @@ class GrpcSystem(System):
     """
 
     def __init__(self, address: str, timeout: float = 2.0, heartbeat_ms: int = 500,
-                 security: Security | None = None, names: Any = None) -> None:
+                 security: Security | None = None, names: Lookups | None = None) -> None:
         self.address = address
         self.timeout = timeout
         self.heartbeat_ms = heartbeat_ms
@@ -81,7 +84,7 @@ class GrpcSystem(System):
         self._lock = threading.Lock()
         self._channels: dict[str, tuple[grpc.Channel, df_grpc.DeployerServiceStub]] = {}
         self._where: dict[str, str] = {}
-        self._owned: set[Any] = set()
+        self._owned: set[Subscription | PortWriter] = set()
         self._closed = False
 
     # ---- plumbing ----------------------------------------------------------------------
@@ -107,7 +110,7 @@ class GrpcSystem(System):
             self._where[component] = address
         return address
 
-    def _invoke(self, component: str, method: str, request: Any, timeout: float | None = None) -> Any:
+    def _invoke(self, component: str, method: str, request: Message, timeout: float | None = None) -> Any:
         """Call ``method`` on the deployer of ``component`` with a deadline; when the deployer is
         gone (UNAVAILABLE) or no longer has the component, re-resolve and retry once — an
         UNAVAILABLE non-idempotent call only if its request was never sent."""
@@ -131,12 +134,12 @@ class GrpcSystem(System):
             address = moved
         return rpc.call(getattr(self._stub(address), method), request, deadline, address)
 
-    def own(self, item: Any) -> None:
+    def own(self, item: Subscription | PortWriter) -> None:
         """Track a subscription/writer so :meth:`close` closes it."""
         with self._lock:
             self._owned.add(item)
 
-    def disown(self, item: Any) -> None:
+    def disown(self, item: Subscription | PortWriter) -> None:
         """Stop tracking ``item`` (idempotent)."""
         with self._lock:
             self._owned.discard(item)
@@ -189,7 +192,7 @@ class GrpcSystem(System):
                                    options=options or {}, name=name or "")
         return _link_description(self._invoke(task, "StreamPort", req).link)
 
-    def _listings(self) -> list[tuple[str, Any]]:
+    def _listings(self) -> list[tuple[str, pb.ListLinksResponse]]:
         """``(address, ListLinks reply)`` of every deployer the name service knows that answers."""
         out = []
         for address in sorted({e.address for e in self._ns.entries()}):
@@ -273,14 +276,14 @@ class GrpcSystem(System):
         self._ns.close()
 
 
-def _link_description(lk: Any) -> LinkDescription:
+def _link_description(lk: pb.LinkInfo) -> LinkDescription:
     """A ``LinkInfo`` message as the core's description."""
     return LinkDescription(name=lk.name, source=lk.source, sink=lk.sink, policy=lk.policy, transport=lk.transport,
                            samples=lk.samples, dropped=lk.dropped, kind=lk.kind or "link",
                            state=lk.state or "connected", detail=lk.detail, pending=lk.pending)
 
 
-def _task_description(info: Any) -> tuple[TaskDescription, dict[str, object]]:
+def _task_description(info: pb.TaskInfo) -> tuple[TaskDescription, dict[str, object]]:
     s = info.summary
     ports = [
         PortDescription(
@@ -321,7 +324,7 @@ class GrpcComponentProxy(ComponentProxy):
         self._seen: dict[str, tuple[str, int]] = {}
         self._lock = threading.Lock()
 
-    def _invoke(self, method: str, request: Any, timeout: float | None = None) -> Any:
+    def _invoke(self, method: str, request: Message, timeout: float | None = None) -> Any:
         return self.system._invoke(self.name, method, request, timeout)  # noqa: SLF001
 
     @property

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Literal, overload
 
 from dataflow.deployer import Deployer
 from dataflow.errors import DataflowError, NotFoundError, PortTypeError
@@ -27,12 +27,20 @@ from dataflow.remote.errors import ClosedError
 from dataflow.threads import OwnedThread
 from dataflow.transports.ends import OutSample, WriterEnd, attach, detach
 
+if TYPE_CHECKING:
+    from dataflow.ports import Port
+    from dataflow.task import TaskContext
+
 __all__ = ["LocalSystem", "LocalComponentProxy", "LocalSubscription", "LocalPortWriter"]
 
 log = logging.getLogger(__name__)
 
 
-def _port(task: Any, name: str, want_input: bool) -> Any:
+@overload
+def _port(task: TaskContext, name: str, want_input: Literal[True]) -> InputPort[object]: ...
+@overload
+def _port(task: TaskContext, name: str, want_input: Literal[False]) -> OutputPort[object]: ...
+def _port(task: TaskContext, name: str, want_input: bool) -> Port[object]:
     port = task.port(name)
     if port.is_input != want_input:
         need = "an input" if want_input else "an output"
@@ -43,7 +51,7 @@ def _port(task: Any, name: str, want_input: bool) -> Any:
 class LocalPortWriter(PortWriter):
     """A free OutputPort connected to the task's input port with ``policy``."""
 
-    def __init__(self, task: Any, port: Any, policy: ConnPolicy) -> None:
+    def __init__(self, task: TaskContext, port: InputPort[object], policy: ConnPolicy) -> None:
         super().__init__(task.name, port.name, policy)
         self._target = port
         self._out: OutputPort = OutputPort(port.type, name=f"local_{port.name}")
@@ -74,7 +82,7 @@ class LocalSubscription(Subscription):
     counts them). With ``period``, the mailbox is looked at every ``period`` s.
     """
 
-    def __init__(self, task: Any, port: Any, observer: Observer, policy: ConnPolicy, period: float | None) -> None:
+    def __init__(self, task: TaskContext, port: OutputPort[object], observer: Observer, policy: ConnPolicy, period: float | None) -> None:
         super().__init__(task.name, port.name, policy, period)
         self._port = port
         self._observer = observer
@@ -90,7 +98,7 @@ class LocalSubscription(Subscription):
 
     encode = staticmethod(lambda sample: sample.value)  # no encoding: the value itself
 
-    def send(self, sample: OutSample, value: Any) -> bool:  # the writer's thread: the carrier
+    def send(self, sample: OutSample, value: object) -> bool:  # the writer's thread: the carrier
         self._mailbox.put(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, sample.t_ns / 1e9,
                                       sample.n))
         return True  # a full mailbox drops as its policy says, counted there
@@ -135,7 +143,7 @@ class LocalSubscription(Subscription):
 class LocalComponentProxy(ComponentProxy):
     """A task of an in-process deployer behind the proxy API."""
 
-    def __init__(self, system: LocalSystem, task: Any) -> None:
+    def __init__(self, system: LocalSystem, task: TaskContext) -> None:
         self.system = system
         self.task = task
         self.name = task.name
@@ -153,7 +161,7 @@ class LocalComponentProxy(ComponentProxy):
     def last_values(self) -> dict[str, object]:
         out = {}
         for name, port in self.task.ports().items():
-            if not port.is_input and (value := port.last_written_value()) is not None:
+            if isinstance(port, OutputPort) and (value := port.last_written_value()) is not None:
                 out[name] = value
         return out
 
@@ -237,10 +245,10 @@ class LocalSystem(System):
 
     def __init__(self, deployer: Deployer) -> None:
         self.deployer = deployer
-        self._owned: list[Any] = []
+        self._owned: list[Subscription | PortWriter] = []
         self._lock = threading.Lock()
 
-    def _own(self, item: Any) -> None:
+    def _own(self, item: Subscription | PortWriter) -> None:
         with self._lock:
             self._owned.append(item)
 

@@ -20,7 +20,8 @@ import dataclasses
 
 import logging
 import threading
-from typing import Any
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Protocol
 from collections.abc import Callable
 
 import grpc
@@ -33,6 +34,7 @@ from dataflow.remote._proto import NAMING_ROLES, NAMING_SERVICE_NAME, ns_grpc
 from dataflow.remote._registry import Limits, NameEntry, NameRegistry, RegistryFullError, boot_service
 from dataflow.remote._proto import ns as pb
 from scart_wire.security import Security
+from google.protobuf.message import Message
 from dataflow.threads import OwnedThread
 
 __all__ = [
@@ -44,6 +46,7 @@ __all__ = [
     "NameRegistry",
     "NameServer",
     "NameClient",
+    "Lookups",
     "Registration",
     "SCA_PREFIX",
     "serve_nameserver",
@@ -56,8 +59,17 @@ log = logging.getLogger(__name__)
 SCA_PREFIX = "sca:"
 
 
+class Lookups(Protocol):
+    """Where remote tasks are looked up: a :class:`NameClient`, or Zenoh liveliness
+    (``dataflow.transports.zenoh.ZenohNames``)."""
 
-def _entry_msg(entry: NameEntry) -> Any:
+    def resolve(self, component: str, timeout: float | None = None) -> NameEntry: ...
+    def entries(self, timeout: float | None = None) -> list[NameEntry]: ...
+    def close(self) -> None: ...
+
+
+
+def _entry_msg(entry: NameEntry) -> pb.Entry:
     left = entry.expires_in if entry.expires_in != float("inf") else -1.0
     return pb.Entry(component=entry.component, address=entry.address, boot_id=entry.boot_id, expires_in=left)
 
@@ -116,7 +128,7 @@ class NamingServicer(ns_grpc.NamingServiceServicer):
 class NameServer:
     """A running standalone name service. ``address`` is where it listens."""
 
-    def __init__(self, server: grpc.Server, address: str, registry: NameRegistry, executor: Any = None,
+    def __init__(self, server: grpc.Server, address: str, registry: NameRegistry, executor: ThreadPoolExecutor | None = None,
                  listen_address: str | None = None) -> None:
         self._server = server
         self._executor = executor
@@ -177,7 +189,7 @@ class NameClient:
         self._channel = (security or Security()).channel(address, rpc.channel_options())
         self._stub = ns_grpc.NamingServiceStub(self._channel)
 
-    def _call(self, name: str, request: Any, timeout: float | None) -> Any:
+    def _call(self, name: str, request: Message, timeout: float | None) -> Any:  # Any: the reply of method ``name``
         return rpc.call(getattr(self._stub, name), request, timeout or self.timeout, self.address)
 
     def resolve(self, component: str, timeout: float | None = None) -> NameEntry:
@@ -244,7 +256,7 @@ def name_service_answers(address: str, timeout: float = 0.5, security: Security 
         probe.close()
 
 
-def _entry_from_msg(msg: Any) -> NameEntry:
+def _entry_from_msg(msg: pb.Entry) -> NameEntry:
     left = float("inf") if msg.expires_in < 0 else msg.expires_in
     return NameEntry(msg.component, msg.address, msg.boot_id, left)
 

@@ -22,9 +22,11 @@ import logging
 import secrets
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, cast
 
 import grpc
+
+from scart_wire.rpc import MethodHandler
 from grpc_health.v1 import health_pb2
 
 from dataflow.deployer import Deployer, same_policy
@@ -60,6 +62,10 @@ from dataflow.remote.naming import (
     security_probe,
 )
 from scart_wire.security import Security
+
+if TYPE_CHECKING:
+    from dataflow.ports import OutputPort
+    from dataflow.remote._registry import NameEntry
 from dataflow.transports.limits import check_fits
 from dataflow.transports.streams import PortStream
 
@@ -74,13 +80,13 @@ def add_deployer_service(servicer: DeployerServicer, server: grpc.Server) -> Non
     """Register the DeployerService: the control plane's methods (the servicer's own),
     and the sample path's, answered by the transports that serve them (dispatched by
     :meth:`~dataflow.remote._channels.Channels.handler`)."""
-    handlers: dict[str, grpc.RpcMethodHandler[Any, Any]] = {}
+    handlers: dict[str, MethodHandler] = {}
 
     class _Capture:
-        def add_generic_rpc_handlers(self, found: Any) -> None:
+        def add_generic_rpc_handlers(self, found: object) -> None:
             pass
 
-        def add_registered_method_handlers(self, _name: str, found: dict[str, grpc.RpcMethodHandler[Any, Any]]) -> None:
+        def add_registered_method_handlers(self, _name: str, found: dict[str, MethodHandler]) -> None:
             handlers.update(found)
 
     df_grpc.add_DeployerServiceServicer_to_server(servicer, _Capture())
@@ -93,12 +99,12 @@ class _Routes(grpc.GenericRpcHandler):
     """The DeployerService's calls: the control plane's to its servicer, the others to
     the transport that serves them (None: UNIMPLEMENTED)."""
 
-    def __init__(self, own: dict[str, grpc.RpcMethodHandler[Any, Any]], channels: Channels) -> None:
+    def __init__(self, own: dict[str, MethodHandler], channels: Channels) -> None:
         self._own = own
         self._channels = channels
         self._prefix = f"/{DEPLOYER_SERVICE_NAME}/"
 
-    def service(self, handler_call_details: grpc.HandlerCallDetails) -> grpc.RpcMethodHandler[Any, Any] | None:
+    def service(self, handler_call_details: grpc.HandlerCallDetails) -> MethodHandler | None:
         path = handler_call_details.method
         if not path.startswith(self._prefix):
             return None
@@ -251,7 +257,7 @@ class DeployerServer:
         assert self._ns_client is not None
         return self._ns_client.resolve(component).address
 
-    def resolve_entry(self, component: str, ns: str = "") -> Any:
+    def resolve_entry(self, component: str, ns: str = "") -> NameEntry:
         """The name service's entry for ``component`` (address and boot id): from the name
         service at ``ns`` when given and not this deployer's own, else from its own."""
         if ns and ns != self.ns_address:
@@ -267,7 +273,7 @@ class DeployerServer:
         return self._ns_client.resolve(component)
 
     # ---- connections -------------------------------------------------------------------
-    def _output(self, task: str, port: str) -> Any:
+    def _output(self, task: str, port: str) -> OutputPort[object]:
         """The output port ``task.port`` of this deployer; raises naming what is wrong."""
         if task not in self.deployer.names():
             raise NotFoundError(
@@ -278,7 +284,7 @@ class DeployerServer:
         if out.is_input:
             raise DeploymentError(f"{task}.{port} is an input port; a link's source must be an output port "
                                   f"[{CONNECT_DIRECTION}]")
-        return out
+        return cast("OutputPort[object]", out)  # not an input: an output
 
     def connect_ports(self, source_task: str, source_port: str, sink_task: str, sink_port: str, policy: ConnPolicy,
                       defer: bool = False, name: str | None = None,
@@ -342,7 +348,7 @@ class DeployerServer:
                 raise link.refusal
         return False, address, note, link.describe()
 
-    def _check_sink(self, address: str, task: str, port: str, out: Any) -> None:
+    def _check_sink(self, address: str, task: str, port: str, out: OutputPort[object]) -> None:
         """Refuse a link whose sink is not an input port of the source's type (asked to
         the sink's deployer): naming both types, as a composite's check does."""
         with self.security.channel(address, rpc.channel_options()) as channel:

@@ -95,6 +95,7 @@ if TYPE_CHECKING:  # the ends import the policy, which reads the names from this
     from dataflow.transports.ends import ReaderEnd, WriterEnd
     from dataflow.transports.serving import Serving
     from scart_wire.proto.scart.dataflow.v1.dataflow_pb2 import ConnPolicy as PolicyMsg
+    from scart_wire.proto.scart.dataflow.v1.dataflow_pb2_grpc import DeployerServiceStub
 
 __all__ = ["CannotCarry", "ENTRY_POINT_GROUP", "KINDS", "Kind", "LinkRefused", "MAX_NAME", "Peer", "Stream",
            "StreamProblem", "Transport", "TransportError", "TransportRegistry", "candidates", "carry", "default",
@@ -147,7 +148,7 @@ class Peer:
     a transport registers how with :meth:`opened`. Thread-safe.
     """
 
-    def __init__(self, address: str, task: str, port: str, stub: Any, timeout: float, *,
+    def __init__(self, address: str, task: str, port: str, stub: DeployerServiceStub, timeout: float, *,
                  policy_msg: PolicyMsg, policy: ConnPolicy | None = None, channel_of: grpc.Channel | None = None,
                  heartbeat: float = 0.5, channel: str = "", name: str = "", boot_id: str = "",
                  source_ns: str = "") -> None:
@@ -273,7 +274,7 @@ class Transport(ABC):
     #: :mod:`.flow`). A link whose writer waits is carried only by such a transport.
     waits: bool = False
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
+    def __init_subclass__(cls, **kwargs: object) -> None:
         super().__init_subclass__(**kwargs)
         if "carries" not in cls.__dict__:  # not said: what the class implements
             has: dict[Kind, bool] = {"link": cls.link is not Transport.link,

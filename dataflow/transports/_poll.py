@@ -32,7 +32,7 @@ class Poller:
 
     def __init__(self) -> None:
         self._epoll = select.epoll() if hasattr(select, "epoll") else None
-        self._poll: Any = self._epoll if self._epoll is not None else select.poll()  # same register/modify/unregister
+        self._poll: select.epoll | select.poll = self._epoll if self._epoll is not None else select.poll()
         #: ``{fd: (socket, handler, events asked for)}``: what :meth:`poll` reports on.
         self.watched: dict[int, tuple[socket.socket, Any, int]] = {}
 

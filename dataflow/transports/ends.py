@@ -40,17 +40,18 @@ log = logging.getLogger(__name__)
 
 _time_ns = time.time_ns
 T = TypeVar("T")
+T_co = TypeVar("T_co", covariant=True)
 D = TypeVar("D")
 
 
-class OutSample(Generic[T]):
+class OutSample(Generic[T_co]):
     """One sample on its way out: the port's write number, when it was written (ns since
     the epoch), the value and the port's type. Each encoding of it is made once, however
     many ends send it (:meth:`encoded`)."""
 
     __slots__ = ("n", "t_ns", "value", "type", "inline", "_key", "_bytes")
 
-    def __init__(self, n: int, t_ns: int, value: T, py_type: Any) -> None:
+    def __init__(self, n: int, t_ns: int, value: T_co, py_type: object) -> None:
         self.n = n
         self.t_ns = t_ns
         self.value = value
@@ -59,10 +60,10 @@ class OutSample(Generic[T]):
         #: to the first few there and hands the rest to its own thread: the writer's cost
         #: then does not grow with its readers).
         self.inline = 0
-        self._key: Callable[[OutSample[T]], Any] | None = None
+        self._key: Callable[[OutSample[T_co]], object] | None = None
         self._bytes: Any = None  # what the last encoder made (each transport's own type)
 
-    def encoded(self, encode: Callable[[OutSample[T]], D]) -> D:
+    def encoded(self, encode: Callable[[OutSample[T_co]], D]) -> D:
         """``encode(self)``, computed once per encoder (the last one's result is kept:
         the ends of one port almost always share one encoder)."""
         if self._key is encode:
@@ -76,11 +77,11 @@ class Carrier(Protocol[D]):
     """What a transport attaches to a :class:`WriterEnd` while it is connected; ``D`` is
     what a sample becomes for it (scart's frames: ``bytes``)."""
 
-    def encode(self, sample: OutSample[Any]) -> D:
+    def encode(self, sample: OutSample[object]) -> D:
         """How a sample is encoded for this transport (the same function for every
         carrier of a transport, so a sample is encoded once however many ends send it)."""
 
-    def send(self, sample: OutSample[Any], data: D) -> bool:
+    def send(self, sample: OutSample[object], data: D) -> bool:
         """Send ``sample`` (``data``: :attr:`encode`'s result) now without blocking;
         False when there is no room (the end keeps it, as its policy says, until
         :meth:`WriterEnd.flush`). Called in the writer's thread, or in the transport's

@@ -33,10 +33,10 @@ T = TypeVar("T")
 #: A parsed frame of samples: a subscription's or a link's.
 Frame: TypeAlias = "pb.SubscribeResponse | pb.LinkRequest"
 #: How the samples of one port's type become a frame's bytes (:func:`encoder`).
-Encoder: TypeAlias = "Callable[[OutSample[Any]], bytes]"
+Encoder: TypeAlias = "Callable[[OutSample[object]], bytes]"
 
 
-def sample_frame(sample: OutSample[Any]) -> bytes:
+def sample_frame(sample: OutSample[object]) -> bytes:
     """``sample`` as an encoded frame (see the module docstring); raises ``TypeError``
     (a :class:`~dataflow.PortTypeError`) when the value cannot be encoded, and
     :class:`~dataflow.transports.limits.SampleTooLarge` when it is over the limit."""
@@ -59,7 +59,7 @@ def varint(x: int) -> bytes:
     return bytes(out)
 
 
-def _number_frame(type_name: str, pack: Callable[[Any], bytes]) -> Encoder:
+def _number_frame(type_name: str, pack: Callable[[object], bytes]) -> Encoder:
     """A :func:`sample_frame` for a port of a number type: the same bytes as the
     generated code makes (a test holds the two equal), put together directly. A
     periodic writer pays for every step cold, at each write: building the message
@@ -68,7 +68,7 @@ def _number_frame(type_name: str, pack: Callable[[Any], bytes]) -> Encoder:
     width = len(pack(0))
     value_field = bytes((0x0A, len(name) + width + 4, 0x0A, len(name))) + name + bytes((0x12, width))  # Sample.value
 
-    def number_frame(sample: OutSample[Any]) -> bytes:
+    def number_frame(sample: OutSample[object]) -> bytes:
         value, n, t_ns = sample.value, sample.n, sample.t_ns
         if type(value) is not sample.type or not (0 < n < 1 << 63 and 0 < t_ns < 1 << 63):
             return sample_frame(sample)  # a subclass, or a field the generated code would leave out
@@ -77,11 +77,11 @@ def _number_frame(type_name: str, pack: Callable[[Any], bytes]) -> Encoder:
     return number_frame
 
 
-_NUMBER_FRAMES = MappingProxyType({py_type: _number_frame(registry.type_name(py_type), struct.Struct(code).pack)
+_NUMBER_FRAMES: Mapping[object, Encoder] = MappingProxyType({py_type: _number_frame(registry.type_name(py_type), struct.Struct(code).pack)
                                    for py_type, code in ((float, "<d"), (int, "<q"))})
 
 
-def encoder(py_type: Any) -> Encoder:
+def encoder(py_type: object) -> Encoder:
     """The frame encoder for samples of ``py_type`` (one function per type: a sample is
     encoded once for every carrier of its port that uses it)."""
     return _NUMBER_FRAMES.get(py_type, sample_frame)

@@ -22,10 +22,12 @@ from __future__ import annotations
 
 import threading
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 if TYPE_CHECKING:
     import grpc
+
+    from scart_wire.rpc import MethodHandler
 
     from dataflow.policy import ConnPolicy
     from dataflow.ports import OutputPort
@@ -89,7 +91,7 @@ class Serving(ABC):
         self.host = host
 
     @abstractmethod
-    def handler(self, method: str) -> grpc.RpcMethodHandler[Any, Any]:
+    def handler(self, method: str) -> MethodHandler:
         """The gRPC handler of ``method`` (one of :attr:`methods`)."""
 
     def stop(self) -> None:

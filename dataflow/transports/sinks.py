@@ -45,7 +45,7 @@ class Refused(DataflowError):
     """The sink refuses a link (no such input port, another type, out of room)."""
 
 
-def port_check(port: InputPort[T], nan_ok: bool = False) -> Callable[[Any], T]:
+def port_check(port: InputPort[T], nan_ok: bool = False) -> Callable[[object], T]:
     """The one check of a sample from outside into ``port``: decode (a ``Value``; a
     transport that converts types gives a Python value), the port's type, its bounds
     (``nan_ok``: NaN and inf are legal where the sample comes from, ROS, so only a port

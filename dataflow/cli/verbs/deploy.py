@@ -262,7 +262,7 @@ class _Hosted:
         freeze_heap()  # what start-up built is never walked by the collector again: no 20 ms pauses
 
     def _publish(self) -> None:
-        assert self.server is not None  # published once served
+        assert self.server is not None and self.zenoh_session is not None  # published once served, with a session
         try:
             from dataflow.transports.zenoh import ZenohPublisher
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
-from typing import Any
 
 import grpc
 
@@ -25,7 +24,7 @@ from dataflow.transports.grpc._messages import Parts, messages_of, passthrough, 
 from dataflow.transports.serving import ChannelHost, Serving
 from dataflow.transports.sinks import LINGER_S, REPORT_EVERY, REPORT_S, Refused
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
-from scart_wire.rpc import Abort, abort
+from scart_wire.rpc import Abort, MethodHandler, abort
 
 __all__ = ["GrpcServing", "MAX_WAKE_WINDOW_S", "ServedCarrier", "WAKE_SHARE_S", "serve_subscription"]
 
@@ -121,7 +120,7 @@ class GrpcServing(Serving):
 
     methods = frozenset({"Subscribe", "Link"})
 
-    def handler(self, method: str) -> grpc.RpcMethodHandler[Any, Any]:
+    def handler(self, method: str) -> MethodHandler:
         if method == "Subscribe":  # frames are sent as the bytes they were encoded to, once per write
             return grpc.unary_stream_rpc_method_handler(
                 self.subscribe, request_deserializer=pb.SubscribeRequest.FromString, response_serializer=passthrough)

@@ -36,7 +36,7 @@ __all__ = ["Conn", "Encode", "Hub", "TICK_S"]
 
 #: How a carrier makes a sample's frame: its bytes, or (shm) the sample itself, kept for a
 #: slot of shared memory when it is large.
-Encode: TypeAlias = "Callable[[OutSample[Any]], bytes | OutSample[Any]]"
+Encode: TypeAlias = "Callable[[OutSample[object]], bytes | OutSample[object]]"
 
 log = logging.getLogger(__name__)
 

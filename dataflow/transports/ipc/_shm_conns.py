@@ -24,7 +24,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dataflow.policy import ConnPolicy, ConnType
 from dataflow.ports import OutputPort
@@ -40,6 +40,10 @@ from scart_wire import codec
 from scart_wire.arrays import ArraySpec
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
 from scart_wire.types import registry
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
 
 __all__ = ["LARGE_BYTES", "ShmLinkOut", "ShmSubIn", "SlotReader", "SlotSender", "carries_large", "large_size"]
 
@@ -63,7 +67,7 @@ def large_size(value: Any) -> int:
     return 0
 
 
-def carries_large(py_type: Any) -> bool:
+def carries_large(py_type: object) -> bool:
     """Whether a port of ``py_type`` may carry samples of :data:`LARGE_BYTES` or more:
     ``bytes``, or an array type whose fixed size (if any) is that large."""
     if py_type is bytes:
@@ -255,6 +259,7 @@ class SlotReader(Conn):
         values: dict[int, codec.Payload] | None = None
         for i, sample in enumerate(message.samples):
             if sample.slot:
+                data: NDArray[np.uint8] | bytes
                 try:
                     data = self.maps.view(sample.slot, sample.slot_size)
                 except ValueError:

@@ -17,7 +17,11 @@ import sys
 import threading
 import weakref
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
 
 __all__ = ["MAX_MAPPED_BYTES", "MAX_POOL_BYTES", "MAX_SLOTS", "Slot", "SlotMaps", "SlotPool", "available"]
 
@@ -156,7 +160,7 @@ class SlotMaps:
 
     def __init__(self, release: Callable[[int], None]) -> None:
         self._release = release
-        self._maps: dict[int, Any] = {}  # id -> uint8 array over the mapping
+        self._maps: dict[int, NDArray[np.uint8]] = {}  # id -> uint8 array over the mapping
 
     def add(self, slot_id: int, size: int, fd: int) -> None:
         """Map the slot ``slot_id`` of ``size`` bytes (``fd`` is closed either way);
@@ -182,7 +186,7 @@ class SlotMaps:
     def mapped(self) -> int:
         return sum(m.size for m in self._maps.values())
 
-    def view(self, slot_id: int, size: int) -> Any:
+    def view(self, slot_id: int, size: int) -> NDArray[np.uint8]:
         """The first ``size`` bytes of slot ``slot_id``, read-only; the slot is released
         when the last array made of them is gone. ``ValueError`` for an unknown slot or a
         size past its end."""

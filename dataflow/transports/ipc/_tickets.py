@@ -10,7 +10,6 @@ the deployer.
 from __future__ import annotations
 
 import threading
-from typing import Any
 
 import grpc
 
@@ -24,7 +23,7 @@ from dataflow.transports.limits import check_fits
 from dataflow.transports.served import Served
 from dataflow.transports.serving import ChannelHost, Serving
 from scart_wire.proto.scart.dataflow.v1 import dataflow_pb2 as pb
-from scart_wire.rpc import Abort, abort, peer_key
+from scart_wire.rpc import Abort, MethodHandler, abort, peer_key
 
 __all__ = ["IpcServing"]
 
@@ -48,7 +47,7 @@ class IpcServing(Serving):
         """The deployer's ipc socket, once a ticket started it (None before, and once stopped)."""
         return self._server
 
-    def handler(self, method: str) -> grpc.RpcMethodHandler[Any, Any]:
+    def handler(self, method: str) -> MethodHandler:
         if method == "OpenIpcWriter":
             return grpc.unary_unary_rpc_method_handler(
                 self.open_writer, request_deserializer=pb.OpenIpcWriterRequest.FromString,

@@ -73,7 +73,7 @@ class YarpTransport(Transport):
         self._lock = threading.Lock()
         self._defaults = _Settings()
         self._networks: dict[_Settings, tuple[Network, int]] = {}
-        self._plans: dict[Any, tuple[Conversion | None, list[str]]] = {}
+        self._plans: dict[object, tuple[Conversion | None, list[str]]] = {}
 
     def configure(self, *, server: str | None = None, insecure: bool | None = None) -> None:
         """This process's defaults (``--yarp-server HOST:PORT``, ``--insecure``); raises
@@ -215,7 +215,7 @@ class _Carrier:
     def encode(sample: OutSample) -> OutSample:
         return sample  # converted in send(), only when a reader is connected
 
-    def send(self, sample: OutSample[Any], _data: object) -> bool:  # the writer's thread
+    def send(self, sample: OutSample[object], _data: object) -> bool:  # the writer's thread
         if not self._port.has_outputs:
             return True
         try:

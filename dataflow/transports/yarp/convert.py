@@ -27,7 +27,7 @@ import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeGuard
 
 import pydantic
 
@@ -36,9 +36,9 @@ from scart_yarp.bottle import Item, Vocab
 __all__ = ["Conversion", "Unfit", "item_reader", "plan"]
 
 #: A value of the port's type as one bottle item.
-Out = Callable[[Any], Item]
+Out = Callable[[Any], Item]  # Any: the value as its converter reads it (a list, a model...)
 #: One bottle item as a value of the port's type (raises :class:`Unfit`).
-In = Callable[[Item], Any]
+In = Callable[[Item], object]
 
 
 class Unfit(ValueError):
@@ -51,11 +51,11 @@ class Conversion:
     ``from_bottle(items) -> value`` (raises :class:`Unfit`), and the shape in words."""
 
     to_bottle: Callable[[Any], list[Item]]
-    from_bottle: Callable[[list[Item]], Any]
+    from_bottle: Callable[[list[Item]], object]
     shape: str
 
 
-def plan(py_type: Any) -> tuple[Conversion | None, list[str]]:
+def plan(py_type: object) -> tuple[Conversion | None, list[str]]:
     """The conversion of ``py_type``, or None and the problems found (each naming the field)."""
     try:
         if _is_model(py_type):
@@ -72,7 +72,7 @@ def plan(py_type: Any) -> tuple[Conversion | None, list[str]]:
         return None, [str(exc)]
 
 
-def item_reader(py_type: Any) -> In:
+def item_reader(py_type: object) -> In:
     """What reads one bottle item as a value of ``py_type`` (an operation's argument; a
     model from the list of its fields), raising :class:`Unfit`; a type with no bottle form
     is read as plain data (its own check then judges it)."""
@@ -82,11 +82,11 @@ def item_reader(py_type: Any) -> In:
         return _plain
 
 
-def _is_model(t: Any) -> bool:
+def _is_model(t: object) -> TypeGuard[type[pydantic.BaseModel]]:
     return isinstance(t, type) and issubclass(t, pydantic.BaseModel)
 
 
-def _item_type(t: Any) -> Any | None:
+def _item_type(t: object) -> object | None:
     origin, args = typing.get_origin(t), typing.get_args(t)
     if origin in (list, Sequence, typing.Sequence) or t in (list, tuple):
         return args[0] if args else Any
@@ -97,11 +97,11 @@ def _item_type(t: Any) -> Any | None:
     return None
 
 
-def _label(t: Any) -> str:
+def _label(t: object) -> str:
     return t.__name__ if isinstance(t, type) else str(t).replace("typing.", "")
 
 
-def _convert(t: Any, where: str) -> tuple[Out, In, str]:
+def _convert(t: object, where: str) -> tuple[Out, In, str]:
     """The converters of one item of type ``t`` (``where`` names it in problems)."""
     if typing.get_origin(t) is typing.Annotated:
         return _convert(typing.get_args(t)[0], where)
@@ -137,7 +137,7 @@ def _model(model: type[pydantic.BaseModel], where: str) -> tuple[Callable[[Any],
     def to_bottle(value: pydantic.BaseModel) -> list[Item]:
         return [out(getattr(value, name)) for name, out in pairs]
 
-    def from_bottle(items: Item) -> dict[str, Any]:
+    def from_bottle(items: Item) -> dict[str, object]:
         if type(items) is not list:
             raise Unfit(f"{where}: a list of {len(names)} items is wanted, got {_what(items)}")
         if len(items) != len(names):
@@ -148,7 +148,7 @@ def _model(model: type[pydantic.BaseModel], where: str) -> tuple[Callable[[Any],
 
 
 def _list_in(each: In, where: str) -> In:
-    def from_bottle(items: Item) -> list[Any]:
+    def from_bottle(items: Item) -> list[object]:
         if type(items) is not list:
             raise Unfit(f"{where}: a list is wanted, got {_what(items)}")
         try:
@@ -163,8 +163,8 @@ def _list_in(each: In, where: str) -> In:
     return from_bottle
 
 
-def _single(each: In) -> Callable[[list[Item]], Any]:
-    def from_bottle(items: list[Item]) -> Any:
+def _single(each: In) -> Callable[[list[Item]], object]:
+    def from_bottle(items: list[Item]) -> object:
         if len(items) != 1:
             raise Unfit(f"one item is wanted, got {len(items)}")
         return each(items[0])
@@ -175,7 +175,7 @@ def _named(inp: In, where: str) -> In:
     if not where:
         return inp
 
-    def check(item: Item) -> Any:
+    def check(item: Item) -> object:
         try:
             return inp(item)
         except Unfit as exc:
@@ -231,7 +231,7 @@ def _plain(item: Item) -> object:
     return item.text if isinstance(item, Vocab) else item
 
 
-_SCALARS: Mapping[type, tuple[Out, In, str]] = MappingProxyType({
+_SCALARS: Mapping[object, tuple[Out, In, str]] = MappingProxyType({
     int: (int, _int_in, "int"),
     float: (float, _float_in, "float"),
     str: (str, _str_in, "string"),

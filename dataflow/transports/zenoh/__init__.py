@@ -48,7 +48,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Protocol
 
 from scart_wire import codec
 from dataflow.introspection import LinkDescription
@@ -67,6 +67,9 @@ from dataflow.transports.zenoh._names import PROOF, Prover, ZenohNames, connect_
 from dataflow.transports.zenoh._session import check_endpoint, open_session, zenoh_credentials
 
 if TYPE_CHECKING:
+    import zenoh
+
+    from dataflow.deployer import Deployer
     from scart_wire.security import AuthTable
 
 __all__ = ["DEFAULT_NS", "ROOT", "SERVED", "ZenohInput", "ZenohNames", "ZenohPublisher", "ZenohSubscription",
@@ -81,7 +84,13 @@ ATTACHMENT = 24  #: bytes of scart's attachment: publisher id, write number, tim
 INLINE_BYTES = 64 * 1024
 
 
-def _quietly(undeclare: Callable[[], Any], what: str) -> None:
+class _Declared(Protocol):
+    """What a session declared (a liveliness token, a queryable): undeclared on close."""
+
+    def undeclare(self) -> object: ...
+
+
+def _quietly(undeclare: Callable[[], object], what: str) -> None:
     try:
         undeclare()
     except Exception as exc:  # noqa: BLE001 - a session already closed: nothing left to undeclare
@@ -90,10 +99,10 @@ def _quietly(undeclare: Callable[[], Any], what: str) -> None:
 
 # ---- the process's session ------------------------------------------------------------
 _session_lock = threading.Lock()
-_default: Any = None
+_default: zenoh.Session | None = None
 
 
-def use_session(session: Any) -> None:
+def use_session(session: zenoh.Session | None) -> None:
     """Make ``session`` the one streams and Zenoh links of this process use (``scart
     deploy --zenoh`` sets its own); None forgets it. The session stays its opener's."""
     global _default
@@ -101,7 +110,7 @@ def use_session(session: Any) -> None:
         _default = session
 
 
-def _session_for(options: dict[str, str]) -> tuple[Any, bool]:
+def _session_for(options: dict[str, str]) -> tuple[zenoh.Session, bool]:
     """The session a stream uses and whether it owns it: one opened from the stream's own
     ``connect`` / ``listen`` options (comma-separated endpoints; ``insecure=true`` for a
     routable one), else the process's (:func:`use_session`). :class:`TransportError` when
@@ -130,7 +139,7 @@ class _Publisher:
     encoded while no subscriber matches the key (Zenoh tells, at once when one does);
     Zenoh's ``DROP`` congestion control drops at once rather than wait for room."""
 
-    def __init__(self, session: Any, key: str, type_name: str, publisher_id: bytes,
+    def __init__(self, session: zenoh.Session, key: str, type_name: str, publisher_id: bytes,
                  flush: Callable[[], None] = lambda: None) -> None:
         import zenoh
 
@@ -153,7 +162,7 @@ class _Publisher:
         self._sender: OwnedThread | None = None
         self._sender_lock = threading.Lock()
 
-    def _on_matching(self, status: Any) -> None:  # Zenoh's thread
+    def _on_matching(self, status: zenoh.MatchingStatus) -> None:  # Zenoh's thread
         self._matching = bool(status.matching)
 
     def encode(self, sample: OutSample) -> bytes | OutSample:
@@ -216,7 +225,7 @@ class ZenohPublisher:
     and a liveliness token per task and port. :meth:`close` undeclares everything
     (idempotent, also after a failure half-way)."""
 
-    def __init__(self, deployer: Any, session: Any, ns: str = DEFAULT_NS, served: tuple[str, str] | None = None,
+    def __init__(self, deployer: Deployer, session: zenoh.Session, ns: str = DEFAULT_NS, served: tuple[str, str] | None = None,
                  auth: AuthTable | None = None) -> None:
         """``served``: ``(address, boot id)`` of the deployer's gRPC server, announced with
         each task (:func:`served_key`) so that :class:`ZenohNames` finds it; ``auth``: the
@@ -227,7 +236,7 @@ class ZenohPublisher:
         self._closed = False
         self._id = secrets.randbits(64).to_bytes(8, "little")  # this publisher: a subscriber tells restarts by it
         self._ends: list[tuple[WriterEnd, _Publisher]] = []
-        self._tokens: list[Any] = []
+        self._tokens: list[_Declared] = []
         keys = {token_id(t.decode()): t.decode() for t, _ in auth.entries} if auth is not None else {}
         try:
             for task in deployer.tasks():
@@ -238,13 +247,13 @@ class ZenohPublisher:
                         self._tokens.append(session.declare_queryable(
                             f"{PROOF}/{ns}/{task.name}", Prover(ns, task.name, served, keys)))
                 for port in task.ports().values():
-                    if not port.is_input:
+                    if isinstance(port, OutputPort):
                         self._publish(session, port, key_of(ns, task.name, port.name))
         except BaseException:
             self.close()
             raise
 
-    def _publish(self, session: Any, port: OutputPort, key: str) -> None:
+    def _publish(self, session: zenoh.Session, port: OutputPort, key: str) -> None:
         end = WriterEnd(port, ConnPolicy.data(init=False).with_(mandatory=False), f"zenoh {key}", reports=False)
         carrier = _Publisher(session, key, port.type_name, self._id, end.flush)
         self._ends.append((end, carrier))
@@ -270,7 +279,7 @@ class ZenohPublisher:
 
 
 # ---- reader ends on Zenoh -------------------------------------------------------------
-def _parse(sample: Any) -> tuple[bytes, int, int, Any]:
+def _parse(sample: zenoh.Sample) -> tuple[bytes, int, int, codec.Value]:
     """A Zenoh sample in scart's form: ``(publisher id, write number, time ns, Value)``;
     ``ValueError`` for anything else (too large, no scart attachment)."""
     if len(sample.payload) > MAX_PAYLOAD:
@@ -287,14 +296,14 @@ class _Subscriber:
     A sample not in scart's form is refused and counted; a new publisher id (a restarted
     writer, or numbers that make no sense) starts the count afresh from 0."""
 
-    def __init__(self, session: Any, key: str, end: ReaderEnd) -> None:
+    def __init__(self, session: zenoh.Session, key: str, end: ReaderEnd) -> None:
         self.end = end
         self.malformed = 0
         self._lock = threading.Lock()
         self._closed = False
         self._subscriber = session.declare_subscriber(key, self._on_sample)
 
-    def _on_sample(self, sample: Any) -> None:
+    def _on_sample(self, sample: zenoh.Sample) -> None:
         with self._lock:
             if self._closed:
                 return
@@ -326,7 +335,7 @@ class ZenohSubscription:
     Counters as a subscription's: ``delivered``, ``dropped`` (writes not received, seen as
     jumps in the write numbers, plus samples that could not be decoded)."""
 
-    def __init__(self, session: Any, component: str, port: str, observer: Callable[[SampleEvent], None],
+    def __init__(self, session: zenoh.Session, component: str, port: str, observer: Callable[[SampleEvent], None],
                  ns: str = DEFAULT_NS) -> None:
         self.component, self.port = component, port
         self.delivered = 0
@@ -334,7 +343,7 @@ class ZenohSubscription:
         self._end = ReaderEnd(f"zenoh {component}.{port}", codec.decode, self._deliver, lambda: 0)
         self._subscriber = _Subscriber(session, key_of(ns, component, port), self._end)
 
-    def _deliver(self, n: int, t_ns: int, value: Any) -> bool:
+    def _deliver(self, n: int, t_ns: int, value: object) -> bool:
         self.delivered += 1
         self._observer(SampleEvent(self.component, self.port, value, FlowStatus.NEW_DATA, t_ns / 1e9, n))
         return True
@@ -361,7 +370,7 @@ class ZenohInput:
     outside is (its type, finiteness and the port's bounds); a refused one is counted in
     :attr:`refused` and logged once. :meth:`describe` is what ``scart links`` shows."""
 
-    def __init__(self, session: Any, component: str, port: str, target: InputPort,
+    def __init__(self, session: zenoh.Session, component: str, port: str, target: InputPort,
                  policy: ConnPolicy | None = None, ns: str = DEFAULT_NS, key: str | None = None) -> None:
         self.target = target
         self.key = key or key_of(ns, component, port)

@@ -10,7 +10,7 @@ import logging
 import math
 import re
 import secrets
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 from urllib.parse import unquote
 
 from scart_wire.errors import RemoteNotFoundError
@@ -18,6 +18,8 @@ from scart_wire.security import is_loopback
 from dataflow.transports.zenoh._keys import _WORD, DEFAULT_NS, MAX_REPLIES, ROOT, SERVED, key_of
 
 if TYPE_CHECKING:
+    import zenoh
+
     from dataflow.remote._registry import NameEntry
     from dataflow.remote.client import GrpcSystem
     from scart_wire.security import Security
@@ -51,7 +53,7 @@ class Prover:
     def __init__(self, ns: str, component: str, served: tuple[str, str], keys: dict[str, str]) -> None:
         self.ns, self.component, self.served, self._keys = ns, component, served, keys
 
-    def __call__(self, query: Any) -> None:
+    def __call__(self, query: zenoh.Query) -> None:
         try:
             params = query.parameters
             ident, nonce = str(params.get("id") or ""), str(params.get("nonce") or "")
@@ -66,7 +68,7 @@ class Prover:
             log.info("zenoh: a proof query for %s not answered: %s", self.component, exc)
 
 
-def discover(session: Any, ns: str = DEFAULT_NS, timeout: float = 1.0) -> dict[str, list[str]]:
+def discover(session: zenoh.Session, ns: str = DEFAULT_NS, timeout: float = 1.0) -> dict[str, list[str]]:
     """``{component: [output ports]}`` of everything live on Zenoh in ``ns`` (from the
     liveliness tokens; no name service), sorted."""
     key_of(ns, "x")  # a namespace that is one plain key chunk (no wildcards)
@@ -103,7 +105,7 @@ class ZenohNames:
     Each is logged once. The session stays the caller's.
     """
 
-    def __init__(self, session: Any, ns: str = DEFAULT_NS, timeout: float = 1.0, insecure: bool = False,
+    def __init__(self, session: zenoh.Session, ns: str = DEFAULT_NS, timeout: float = 1.0, insecure: bool = False,
                  token: str | None = None) -> None:
         key_of(ns, "x")  # a namespace that is one plain key chunk (no wildcards)
         self.session = session
@@ -210,7 +212,7 @@ class ZenohNames:
         """Nothing to release (the session is the caller's)."""
 
 
-def connect_zenoh(session: Any, ns: str = DEFAULT_NS, timeout: float = 2.0, heartbeat_ms: int = 500,
+def connect_zenoh(session: zenoh.Session, ns: str = DEFAULT_NS, timeout: float = 2.0, heartbeat_ms: int = 500,
                   security: Security | None = None, insecure: bool = False) -> GrpcSystem:
     """A data-flow system whose lookups go through Zenoh (:class:`ZenohNames`) instead of
     a scart name service; calls, subscriptions and links go to the deployers as usual. With

@@ -9,12 +9,14 @@ import os
 import re
 import tempfile
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from scart_wire.security import is_loopback
 from dataflow.transports.zenoh._keys import MAX_PAYLOAD
 
 if TYPE_CHECKING:
+    import zenoh
+
     from scart_wire.security import Security
 
 __all__ = ["check_endpoint", "open_session", "zenoh_credentials"]
@@ -47,7 +49,7 @@ def zenoh_credentials(token: str) -> tuple[str, str]:
 
 
 def open_session(connect: Iterable[str] = (), listen: Iterable[str] = (), insecure: bool = False,
-                 mode: str = "peer", security: Security | None = None) -> Any:
+                 mode: str = "peer", security: Security | None = None) -> zenoh.Session:
     """A Zenoh session in ``mode`` (``peer``; ``router`` for a fleet's router; ``client``
     to talk through routers only): listening on ``listen`` (default ``tcp/127.0.0.1:0``;
     a client listens on nothing) and connecting to ``connect``, with multicast scouting

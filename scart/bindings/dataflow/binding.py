@@ -54,11 +54,12 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     import zenoh
 
+    from dataflow.remote.naming import Lookups
     from dataflow.remote import ComponentProxy, GapEvent, PortWriter, SampleEvent, Subscription, System
 
 from dataflow import DataflowError, FlowStatus
@@ -75,22 +76,6 @@ from scart.spi import (
 __all__ = ["DataflowBinding", "DataflowReferenceBinding", "DataflowServiceBinding", "bindings_of"]
 
 log = logging.getLogger("scart.dataflow")
-
-
-class _Entry(Protocol):
-    """What a lookup tells of a task: where it is served, and by which start of its process."""
-
-    @property
-    def address(self) -> str: ...
-    @property
-    def boot_id(self) -> str: ...
-
-
-class _Lookups(Protocol):
-    """Where a remote task is looked up: the name service's client or Zenoh liveliness."""
-
-    def resolve(self, component: str, timeout: float | None = None) -> _Entry: ...
-    def close(self) -> None: ...
 
 
 def bindings_of(runtime: Host) -> list[DataflowReferenceBinding | DataflowServiceBinding]:
@@ -191,7 +176,7 @@ class _Link:
         self._proxy: ComponentProxy | None = None
         self._lock = threading.Lock()
         self._boot_id: str | None = None
-        self._names: _Lookups | None = None
+        self._names: Lookups | None = None
         self._zenoh: zenoh.Session | None = None  # the Zenoh session of the lookups (zenoh="ENDPOINT")
         self._zenoh_lock = threading.Lock()
         self._closed = False
@@ -209,7 +194,7 @@ class _Link:
         zenoh = self.s.zenoh
         return f"Zenoh {zenoh.endpoint} (namespace {zenoh.ns})" if zenoh else self.ns
 
-    def _lookups(self) -> _Lookups:
+    def _lookups(self) -> Lookups:
         """A new source of lookups: the name service, or Zenoh liveliness (one session, opened once)."""
         timeout, zenoh = self.runtime.settings.timeout, self.s.zenoh
         if zenoh is None:

@@ -25,7 +25,7 @@ from scart.bindings.grpc._server import Exported, GrpcServer, ServerTable
 from scart.bindings.grpc._wire import (
     Reader, UnknownSessionError, decode, failure, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
-from scart.spi import Binding, Host, InterfaceInfo, Operation, ReferenceBinding, ServiceBinding, ServiceEndpoint
+from scart.spi import Binding, Host, InterfaceInfo, Invoker, Operation, ReferenceBinding, ServiceBinding, ServiceEndpoint
 
 log = logging.getLogger("scart.bindings.grpc")
 T = TypeVar("T")
@@ -159,7 +159,7 @@ class GrpcReferenceBinding(ReferenceBinding):
 
     # --- invokers -----------------------------------------------------------------------
 
-    def invoker(self, operation: Operation, callback: object | None) -> Callable[..., Any]:
+    def invoker(self, operation: Operation, callback: object | None) -> Invoker:
         """One callable for ``operation``: unary ``Call``, ``Send`` (one-way) or the
         callback-carrying ``Invoke`` stream, chosen here once."""
         if not hasattr(self, "_call"):  # never started (the runtime starts references first)
@@ -172,12 +172,12 @@ class GrpcReferenceBinding(ReferenceBinding):
             return self._stream_invoker(operation.name, callback)
         return self._unary_invoker(operation.name)
 
-    def _unary_invoker(self, name: str) -> Callable[..., Any]:
+    def _unary_invoker(self, name: str) -> Invoker:
         stub, service, timeout, where = self._call, self.service, self.timeout, self.where
         convert = self._sigs[name].result if name in self._sigs else decode
         fail = self._rpc_failure
 
-        def call(*args: object, **kwargs: object) -> Any:
+        def call(*args: object, **kwargs: object) -> object:
             req = pb.CallRequest()
             inv = req.invocation
             inv.service = service
@@ -225,11 +225,11 @@ class GrpcReferenceBinding(ReferenceBinding):
         send.__qualname__ = f"grpc.{name}"
         return send
 
-    def _stream_invoker(self, name: str, callback: object) -> Callable[..., Any]:
+    def _stream_invoker(self, name: str, callback: object) -> Invoker:
         convert = self._sigs[name].result if name in self._sigs else decode
         target_id = self._target_id(callback)
 
-        def call(*args: object, **kwargs: object) -> Any:
+        def call(*args: object, **kwargs: object) -> object:
             req = pb.InvokeRequest()
             inv = req.invocation
             inv.service = self.service
@@ -273,7 +273,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         target = callback if callback is not None else self._targets.get(cc.target_id)
         sig = self.callback_sigs.get(cc.operation)
 
-        def run() -> Any:
+        def run() -> object:
             fn = getattr(target, cc.operation, None)
             if sig is None or fn is None:
                 raise InvocationError(f"no callback operation {cc.operation!r} here (or its target is gone)")
@@ -334,7 +334,7 @@ class GrpcReferenceBinding(ReferenceBinding):
         return InvocationError(f"binding.grpc: {self.where}: {name}: {code.name if code else 'error'}: {details}")
 
 
-def _converted(convert: Reader, value: codec.Value, where: str, name: str) -> Any:
+def _converted(convert: Reader, value: codec.Value, where: str, name: str) -> object:
     """``convert(value)``; a result this side cannot decode or coerce is an ``InvocationError``
     naming the service and operation."""
     try:

@@ -34,7 +34,7 @@ from scart.bindings.grpc._wire import (
     SCA_ROLES,
     Signature, UnknownSessionError, failure, fault, fill_invocation, outcome_of, pb, pb_grpc, signatures,
 )
-from scart.spi import CURRENT_CALLBACK, Host, InterfaceInfo, ServiceEndpoint
+from scart.spi import CURRENT_CALLBACK, Host, InterfaceInfo, Invoker, ServiceEndpoint
 
 log = logging.getLogger("scart.bindings.grpc")
 R = TypeVar("R")
@@ -62,11 +62,11 @@ class Exported:
         cb = iface.callback
         self.callback_iface: InterfaceInfo | None = cb
         self.callback_sigs = signatures(cb.python_type, cb.operations) if cb is not None else {}
-        self.plain: dict[str, Callable[..., Any]] = {}
+        self.plain: dict[str, Invoker] = {}
         self.oneway_failures = 0
         self._lock = threading.Lock()
 
-    def call(self, inv: pb.Invocation, callback: object | None) -> Any:
+    def call(self, inv: pb.Invocation, callback: object | None) -> object:
         """Run a synchronous operation (any raised error becomes the caller's ``RemoteError``)."""
         name = inv.operation
         sig = self.sigs.get(name)
@@ -135,8 +135,8 @@ class _Callback:
 
     @staticmethod
     def _make(name: str, oneway: bool, sig: Signature, send: SendCallback,
-              target_id: int) -> Callable[..., Any]:
-        def callback(*args: object, **kwargs: object) -> Any:
+              target_id: int) -> Invoker:
+        def callback(*args: object, **kwargs: object) -> object:
             cc = pb.CallbackCall(operation=name, oneway=oneway, target_id=target_id)
             fill_invocation(cc, args, kwargs)
             outcome = send(cc)
@@ -427,7 +427,7 @@ class GrpcServer:
                         inv.service, inv.operation, self.address)
             return pb.CallResponse()
 
-        def run() -> Any:
+        def run() -> object:
             exported = self._find(inv.service)
             return exported.call(inv, self._callback_for(exported, inv))
         return pb.CallResponse(outcome=outcome_of(self._tracked(f"{inv.service}.{inv.operation}", run)))
@@ -454,7 +454,7 @@ class GrpcServer:
                 cb.finish()
         context.add_callback(ended)
 
-        def call() -> Any:
+        def call() -> object:
             nonlocal cb
             exported = self._find(inv.service)
             fallback = self._session_sender(inv.session_id, exported.timeout) if inv.session_id else None

@@ -16,7 +16,7 @@ import secrets
 import typing
 from types import MappingProxyType
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import pydantic
 
@@ -29,6 +29,9 @@ from scart_wire.proto.scart.sca.v1 import sca_pb2_grpc as pb_grpc  # noqa: F401 
 from scart_wire.security import Role, roles_of_service
 from scart_wire.types import registry
 from scart.errors import InvocationError, RemoteError, RuntimeStateError, ServiceNotFoundError
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeForm
 
 SCA_SERVICE = pb.DESCRIPTOR.services_by_name["ScaService"]
 #: The role each method needs on a server with an auth file: listing needs ``read``, calling ``operate``.
@@ -49,7 +52,7 @@ def encode(value: object) -> codec.Value:
         raise InvocationError(f"binding.grpc: cannot send a value of type {type(value).__qualname__}: {exc}") from None
 
 
-def decode(value: codec.Value) -> Any:
+def decode(value: codec.Value) -> object:
     """The Python value of a ``Value`` message; raises ``InvocationError`` for malformed bytes."""
     try:
         return codec.decode(value)
@@ -60,9 +63,9 @@ def decode(value: codec.Value) -> Any:
 # --- coercion to annotations -----------------------------------------------------------
 
 #: Coerces a decoded value to an annotation (:func:`converter`).
-Converter = Callable[[object], Any]
+Converter = Callable[[object], object]
 #: Decodes a ``Value`` message and coerces it (:func:`reader`).
-Reader = Callable[[codec.Value], Any]
+Reader = Callable[[codec.Value], object]
 
 
 def _identity(value: T) -> T:
@@ -70,11 +73,11 @@ def _identity(value: T) -> T:
 
 
 @functools.lru_cache(maxsize=512)
-def _adapter(annotation: Any) -> pydantic.TypeAdapter[Any]:
+def _adapter(annotation: TypeForm[object]) -> pydantic.TypeAdapter[object]:
     return pydantic.TypeAdapter(annotation)
 
 
-def converter(annotation: Any) -> Converter:
+def converter(annotation: object) -> Converter:
     """A function coercing a decoded value to ``annotation`` (identity when unannotated).
 
     Raises ``InvocationError`` (from the returned function) when the value does not fit."""
@@ -88,7 +91,7 @@ def converter(annotation: Any) -> Converter:
     base = typing.get_args(annotation)[0] if typing.get_origin(annotation) is typing.Annotated else annotation
     shown = getattr(base, "__name__", None) or repr(base)
 
-    def convert(value: object) -> Any:
+    def convert(value: object) -> object:
         if exact is not None and type(value) is exact:
             return value
         try:
@@ -100,7 +103,7 @@ def converter(annotation: Any) -> Converter:
     return convert
 
 
-def reader(annotation: Any) -> Reader:
+def reader(annotation: object) -> Reader:
     """A function ``Value message -> Python value`` decoding and coercing to ``annotation``;
     when the wire type name is the annotation's registered name the value is taken as
     decoded (no validation: the registry built it as that type)."""
@@ -113,7 +116,7 @@ def reader(annotation: Any) -> Reader:
     except TypeError:  # unhashable annotation
         exact = None
 
-    def read(v: codec.Value) -> Any:
+    def read(v: codec.Value) -> object:
         value = decode(v)
         return value if v.type_name == exact else conv(value)
     return read
@@ -128,7 +131,7 @@ class Signature:
 
     __slots__ = ("positional", "named", "result", "label", "_shape")
 
-    def __init__(self, func: Callable[..., Any] | None, label: str = "") -> None:
+    def __init__(self, func: Callable[..., object] | None, label: str = "") -> None:
         """``label``: what refusals name the operation (default: the function's name)."""
         self.positional: list[Reader] = []
         self.named: dict[str, Reader] = {}
@@ -151,13 +154,13 @@ class Signature:
             self.named[p.name] = read
         self.result = reader(hints.get("return"))
 
-    def args(self, values: Iterable[codec.Value]) -> tuple[Any, ...]:
+    def args(self, values: Iterable[codec.Value]) -> tuple[object, ...]:
         """Decoded and coerced positional arguments (``Value`` messages in)."""
         pos = self.positional
         n = len(pos)
         return tuple(pos[i](v) if i < n else decode(v) for i, v in enumerate(values))
 
-    def kwargs(self, values: Mapping[str, codec.Value]) -> dict[str, Any]:
+    def kwargs(self, values: Mapping[str, codec.Value]) -> dict[str, object]:
         """Decoded and coerced keyword arguments (``Value`` messages in)."""
         named = self.named
         return {k: named.get(k, decode)(v) for k, v in values.items()}
@@ -179,12 +182,12 @@ class Signature:
             raise ArgumentRefused(f"{self.label}({', '.join(self._shape.parameters)}): {exc}") from None
 
 
-def _checked_reader(where: str, hint: Any) -> Reader:
+def _checked_reader(where: str, hint: object) -> Reader:
     """``Value`` message -> the argument, decoded and checked (see :class:`Signature`)."""
     if argument_adapter(hint) is None:
         return decode
 
-    def read(v: codec.Value) -> Any:
+    def read(v: codec.Value) -> object:
         try:
             return check_argument(where, hint, decode(v))
         except DataflowError as exc:  # the same refusal, in this side's error tree
