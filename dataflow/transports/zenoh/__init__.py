@@ -375,6 +375,7 @@ class ZenohInput:
         self.target = target
         self.key = key or key_of(ns, component, port)
         self.policy = policy or ConnPolicy.data()
+        self._close_lock, self._closed = threading.Lock(), False
         self.connection = conn = target.open_channel(self.policy, peer=f"zenoh:{self.key}")
         self.end = ReaderEnd(f"zenoh {self.key} into {target.qualname}", port_check(target),
                              conn.store, lambda: conn.dropped)
@@ -396,6 +397,11 @@ class ZenohInput:
                                samples=self.end.received, dropped=self.end.lost, kind="stream")
 
     def close(self) -> None:
+        """Stop reading (idempotent: a stream undone is closed again at the runtime's stop)."""
+        with self._close_lock:
+            if self._closed:
+                return
+            self._closed = True
         self._subscriber.close()
         self.connection.close()
 

@@ -389,3 +389,7 @@ class _Described:
 
     def describe(self) -> LinkDescription:
         return self.feed.describe(self.name)
+
+    def close(self) -> None:
+        """Undo it (``scart unstream``, the deployer's ``unstream``): the feed stops reading."""
+        self.feed.close()

@@ -375,6 +375,12 @@ def test_binding_dataflow_finds_its_task_on_zenoh_without_a_name_service(tmp_pat
             wait_until(lambda: len(probe.ticks_seen()) >= 3, timeout=20, message="no ticks came over Zenoh")
             seen = probe.ticks_seen()
             assert seen == sorted(seen) and seen[0] > 0  # the deployer's counter, in order
+            # undone as any stream is (scart unstream): it stops feeding, and the stop after it is clean
+            from scart.bindings.dataflow._host import host_of
+
+            deployer = host_of(rt).deployer
+            (name,) = [n for n in deployer.streams() if n.startswith("zenoh:")]
+            assert deployer.unstream(name) and name not in deployer.streams()
     finally:
         stop_process(proc, signal.SIGKILL)
 
