@@ -146,9 +146,22 @@ def _subcode(items: Any) -> int:
     return first
 
 
+_ONE_INT32, _ONE_INT64, _ONE_FLOAT64 = struct.Struct("<iii"), struct.Struct("<iiq"), struct.Struct("<iid")
+
+
 def encode(values: list[Any] | tuple[Any, ...]) -> bytes:
     """The binary form of a bottle holding ``values`` (its tag, count and items); raises
     :class:`BottleError` for a value with no bottle form."""
+    if len(values) == 1:  # one number (a port of int or float): one pack
+        value = values[0]
+        kind = type(value)
+        if kind is float:
+            return _ONE_FLOAT64.pack(LIST | FLOAT64, 1, value)
+        if kind is int:
+            if _INT32_MIN <= value <= _INT32_MAX:
+                return _ONE_INT32.pack(LIST | INT32, 1, value)
+            if _INT64_MIN <= value <= _INT64_MAX:
+                return _ONE_INT64.pack(LIST | INT64, 1, value)
     out: list[bytes] = []
     _encode_list(values, out, top=True)
     return b"".join(out)

@@ -45,6 +45,8 @@ class Connection:
         self.peer = peer
         self.queue = max(1, queue)  #: messages that may wait for room, at most
         self.parser = IncomingParser(port.limits.message) if inbound else None
+        #: What an outbound connection's messages are: ``binary``, ``text`` or ``udp`` (datagrams).
+        self.kind = "text" if carrier.startswith("text") else "udp" if carrier == "udp" else "binary"
         #: A ``udp`` connection's datagram reader (inbound), once the TCP greeting is done.
         self.dgram: DatagramReader | None = None
         self.opened = time.monotonic()
@@ -93,46 +95,34 @@ class Connection:
     def send(self, parts: list[bytes] | tuple[bytes, ...], force: bool = False) -> bool:
         """Send one message made of ``parts`` without blocking; False (counted in
         ``dropped``) when :attr:`queue` messages already wait for room, unless ``force``
-        (a reply or an acknowledgement, which must not be lost)."""
+        (a reply or an acknowledgement, which must not be lost). Gathered from ``parts``
+        with no copy, in the caller's thread when nothing waits before it: what the kernel
+        does not take at once waits for the io thread."""
         with self._lock:
             if self.closed:
                 return False
             if self._waiting >= self.queue and not force:
                 self.dropped += 1
                 return False
-            self._waiting += 1
-            left: list[bytes | memoryview] = self._send_now(parts) if not self._out else list(parts)
-            if left:
-                views = [memoryview(p) for p in left if len(p)]
-                for i, view in enumerate(views):
-                    self._out.append((view, i == len(views) - 1))
-                want = True
+            if not self._out:
+                try:
+                    n = self.sock.sendmsg(parts)
+                except OSError:  # would block, or broken: the io thread sees the error and closes
+                    n = 0
+                if n == sum(map(len, parts)):  # the common case: the kernel took it all
+                    self.sent += 1
+                    return True
+                left = _after(parts, n)
             else:
-                want = False
-        if want:
-            self.port.network.watch_write(self)
+                left = list(parts)
+            self._waiting += 1
+            views = [memoryview(p) for p in left if len(p)]
+            for i, view in enumerate(views):
+                self._out.append((view, i == len(views) - 1))
+        self.port.network.watch_write(self)
         return True
 
-    def _send_now(self, parts: list[bytes] | tuple[bytes, ...]) -> list[bytes | memoryview]:
-        """Send what the kernel takes at once, gathered from ``parts`` with no copy (under
-        the lock); what is left."""
-        try:
-            n = self.sock.sendmsg(parts)
-        except OSError:  # would block, or broken: the io thread sees the error and closes
-            return list(parts)
-        left: list[bytes | memoryview] = []
-        for part in parts:
-            if n >= len(part):
-                n -= len(part)
-                continue
-            left.append(memoryview(part)[n:] if n else part)
-            n = 0
-        if not left:
-            self._waiting -= 1
-            self.sent += 1
-        return left
-
-    def send_datagrams(self, datagrams: list[bytes]) -> bool:
+    def send_datagrams(self, datagrams: list[bytes] | tuple[bytes, ...]) -> bool:
         """Send one message as ``datagrams`` (a ``udp`` output), never blocking: what the
         kernel does not take at once is lost (counted in ``dropped``), as YARP's udp loses it."""
         with self._lock:
@@ -232,6 +222,18 @@ class Connection:
     def __repr__(self) -> str:
         way = f"from {self.peer or '?'}" if self.inbound else f"to {self.peer}"
         return f"<Connection {self.port.name} {way} {self.carrier or '?'}>"
+
+
+def _after(parts: list[bytes] | tuple[bytes, ...], n: int) -> list[bytes | memoryview]:
+    """What is left of ``parts`` once their first ``n`` bytes are sent (no copy)."""
+    left: list[bytes | memoryview] = []
+    for part in parts:
+        if n >= len(part):
+            n -= len(part)
+            continue
+        left.append(memoryview(part)[n:] if n else part)
+        n = 0
+    return left
 
 
 def _peer_address(sock: socket.socket) -> str:

@@ -28,7 +28,7 @@ from . import bottle
 from .bottle import BottleError, Vocab
 from .connection import Connection
 from .dgram import datagrams
-from .wire import QUIT_BINARY, Frame, carrier_header, command_block, data_frame, read_number, sender_specifier
+from .wire import QUIT_BINARY, Frame, carrier_header, data_parts, read_number, sender_specifier
 
 if TYPE_CHECKING:
     from .network import Network
@@ -100,6 +100,7 @@ class Port:
         self.last_problem = ""
         self._said: dict[str, float] = {}
         self._outputs: dict[str, Connection] = {}
+        self._writers: tuple[Connection, ...] = ()  # _outputs' connections, replaced whole (the writer reads it unlocked)
         self._inputs: list[Connection] = []
         self._lock = threading.Lock()
         self._done = threading.Condition(self._lock)  # notified when a write is sent or acknowledged
@@ -108,7 +109,7 @@ class Port:
     @property
     def has_outputs(self) -> bool:
         """It writes to at least one reader now (no lock: a hint for the hot path)."""
-        return bool(self._outputs)
+        return bool(self._writers)
 
     @property
     def outputs(self) -> dict[str, Connection]:
@@ -125,30 +126,35 @@ class Port:
         reader, never blocking; how many connections took it (the others were behind:
         counted in their ``dropped``). Raises :class:`BottleError` for values with no
         bottle form."""
-        outputs = list(self._outputs.values())
+        outputs = self._writers
         if not outputs:
             return 0
         data = binary if binary is not None else bottle.encode(values or [])
+        if len(outputs) == 1 and outputs[0].kind == "binary":  # the common case: one tcp reader
+            if outputs[0].send(data_parts(data)):
+                return 1
+            self.counters["dropped"] += 1
+            return 0
         frames: dict[str, Any] = {}
         taken = 0
         for conn in outputs:
-            kind = "text" if conn.text else "udp" if conn.datagrams else "binary"
+            kind = conn.kind
             frame = frames.get(kind)
             if frame is None:
                 frame = frames[kind] = self._frame(kind, data, values)
-            if conn.send_datagrams(frame) if conn.datagrams else conn.send(frame):
+            if conn.send_datagrams(frame) if kind == "udp" else conn.send(frame):
                 taken += 1
             else:
                 self.counters["dropped"] += 1
         return taken
 
     @staticmethod
-    def _frame(kind: str, data: bytes, values: list[Any] | None) -> list[bytes]:
+    def _frame(kind: str, data: bytes, values: list[Any] | None) -> list[bytes] | tuple[bytes, ...]:
         if kind == "text":
             text = bottle.to_text(values if values is not None else bottle.decode(data))
             return [f"d\r\n{text}\r\n".encode("utf-8")]
-        parts = data_frame([command_block("D"), data])
-        return datagrams(parts) if kind == "udp" else parts
+        parts = data_parts(data)
+        return datagrams(list(parts)) if kind == "udp" else parts
 
     def wait_sent(self, timeout: float) -> bool:
         """Block until every connection has sent (tcp: had acknowledged) what was written
@@ -196,6 +202,7 @@ class Port:
         with self._lock:
             old = self._outputs.pop(target, None)
             self._outputs[target] = conn
+            self._writers = tuple(self._outputs.values())
         if old is not None:
             self._quit(old)
         self.network.watch(conn)
@@ -236,6 +243,7 @@ class Port:
         False when not connected."""
         with self._lock:
             conn = self._outputs.pop(target, None)
+            self._writers = tuple(self._outputs.values())
         if conn is None:
             return False
         if conn.datagrams:
@@ -268,6 +276,7 @@ class Port:
             for name, out in list(self._outputs.items()):
                 if out is conn:
                     del self._outputs[name]
+            self._writers = tuple(self._outputs.values())
         self.progressed()
 
     def say(self, text: str) -> None:

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 __all__ = ["ACK", "CARRIERS", "QUIT_BINARY", "Frame", "IncomingParser", "ProtocolError", "carrier_header", "carrier_of",
-           "command_block", "data_frame", "read_number", "sender_specifier", "text_frame", "yarp_number"]
+           "command_block", "data_frame", "data_parts", "read_number", "sender_specifier", "text_frame", "yarp_number"]
 
 _I32 = struct.Struct("<i")
 _NUMBER = struct.Struct("<2si2s")
@@ -124,6 +124,17 @@ def data_frame(blocks: list[bytes]) -> list[bytes]:
     index = yarp_number(10) + bytes((len(blocks), 1)) + b"\xff" * 8
     lengths = struct.pack(f"<{len(blocks) + 1}i", *(len(b) for b in blocks), 0)
     return [index + lengths, *blocks]
+
+
+_DATA_INDEX = yarp_number(10) + bytes((2, 1)) + b"\xff" * 8
+_DATA_LENGTHS = struct.Struct("<3i")
+_DATA_COMMAND = command_block("D")
+
+
+def data_parts(bottle: bytes) -> tuple[bytes, bytes]:
+    """``data_frame([command_block("D"), bottle])`` as two parts, the header one: what a
+    port writes for each sample, built with one pack (the bottle is not copied)."""
+    return _DATA_INDEX + _DATA_LENGTHS.pack(8, len(bottle), 0) + _DATA_COMMAND, bottle
 
 
 def text_frame(key: str, line: str) -> bytes:

@@ -183,11 +183,21 @@ def _peers(options: dict[str, str]) -> list[str]:
     return [p.strip() for p in options.get("connect", "").split(",") if p.strip()]
 
 
+class _Refused:
+    """What :attr:`_Carrier.encode` gives for a value that does not convert: why."""
+
+    __slots__ = ("why",)
+
+    def __init__(self, why: str) -> None:
+        self.why = why
+
+
 class _Carrier:
-    """A writer end's carrier onto a YARP port: each sample converted and encoded once,
-    written to every reader (a reader that is behind drops it: counted). The policy's
-    ``wait`` (YARP's flow control) makes the writer wait, ≤ ``wait_timeout`` s, until
-    every reader acknowledged the sample before (``WAIT_BEFORE``) or this one
+    """A writer end's carrier onto a YARP port: each sample converted and encoded once
+    (:attr:`encode`, in the writer's thread; only while a reader is connected), written
+    to every reader from that thread (a reader that is behind drops it: counted). The
+    policy's ``wait`` (YARP's flow control) makes the writer wait, ≤ ``wait_timeout``
+    s, until every reader acknowledged the sample before (``WAIT_BEFORE``) or this one
     (``WAIT_AFTER``); without it, it never waits. A value that does not convert is
     refused and counted here, as is one whose wait timed out."""
 
@@ -197,26 +207,27 @@ class _Carrier:
         self._port = port
         self._label = label
         self._wait, self._timeout = policy.wait, policy.wait_timeout
-        to_bottle, encode = conv.to_bottle, bottle.encode
+        to_bottle, encode_bottle = conv.to_bottle, bottle.encode
         self.refused = 0
         self.refusal = ""
 
-        def encoded(sample: OutSample) -> bytes:
-            return encode(to_bottle(sample.value))
+        def encode(sample: OutSample) -> bytes | _Refused:
+            if not port.has_outputs:
+                return b""  # no bottle is empty: nothing to convert, nothing to send
+            try:
+                return encode_bottle(to_bottle(sample.value))
+            except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
+                return _Refused(f"{type(exc).__name__}: {exc}")
 
-        self._encode = encoded
+        #: The sample's bottle, in binary form (an attribute, not a method: the writer end
+        #: keeps one encoding per encoder, known by its identity).
+        self.encode = encode
 
-    @staticmethod
-    def encode(sample: OutSample) -> OutSample:
-        return sample  # converted in send(), only when a reader is connected
-
-    def send(self, sample: OutSample, _data: Any) -> bool:  # the writer's thread
-        if not self._port.has_outputs:
+    def send(self, sample: OutSample, data: bytes | _Refused) -> bool:  # the writer's thread
+        if not data:  # no reader
             return True
-        try:
-            data = sample.encoded(self._encode)
-        except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
-            self._refuse(sample, f"{type(exc).__name__}: {exc}")
+        if isinstance(data, _Refused):
+            self._refuse(sample, data.why)
             return True
         port = self._port
         if self._wait is WaitMode.WAIT_BEFORE and not port.wait_sent(self._timeout):
