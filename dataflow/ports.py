@@ -503,15 +503,17 @@ class InputPort(Port[T]):
 
     def _within_bounds(self, value: Any, nan_ok: bool = False) -> Any:
         bounds = self.bounds
-        if nan_ok and bounds is not None:
-            limited = any(v is not None for v in (bounds.ge, bounds.gt, bounds.le, bounds.lt))
-            bounds = dataclasses.replace(bounds, finite=False) if limited else None
         if bounds is None:
             return value
         kind = type(value)
-        if kind is self.type and (kind is int or (kind is float and value - value == 0.0)) and \
+        if kind is self.type and (kind is int or (kind is float and (nan_ok or value - value == 0.0))) and \
                 bounds.ge is None and bounds.gt is None and bounds.le is None and bounds.lt is None:
-            return value  # a finite number of the port's own type, no limits: nothing to check (the hot case)
+            return value  # a (finite, unless nan_ok) number of the port's own type, no limits: the hot case
+        if nan_ok:
+            limited = any(v is not None for v in (bounds.ge, bounds.gt, bounds.le, bounds.lt))
+            if not limited:
+                return value
+            bounds = dataclasses.replace(bounds, finite=False)
         try:
             return bounded_adapter(self.type, bounds).validate_python(value)
         except pydantic.ValidationError as exc:

@@ -238,9 +238,19 @@ class _Reader:
         return chunk
 
 
+#: A bottle that is one list of numbers (a port of int, float or a list of them), by its
+#: tag: the format of one item and its size; such a bottle is read with one unpack.
+_NUMBERS = MappingProxyType({LIST | tag: (_FORMAT[tag], _FIXED[tag].size) for tag in _FORMAT if tag != VOCAB32})
+
+
 def decode(data: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> list[Any]:
     """The values of a bottle's binary form; :class:`BottleError` for anything malformed,
     truncated, over ``limits`` or followed by stray bytes."""
+    if len(data) >= 8:
+        tag, n = _II.unpack_from(data)
+        numbers = _NUMBERS.get(tag)
+        if numbers is not None and 0 <= n <= limits.items and len(data) == 8 + n * numbers[1] and limits.depth:
+            return list(struct.unpack_from(f"<{n}{numbers[0]}", data, 8))  # the common case, whole
     reader = _Reader(data, limits)
     tag = reader.int32()
     if not tag & GROUP_MASK:

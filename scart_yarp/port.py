@@ -100,7 +100,7 @@ class Port:
         self.last_problem = ""
         self._said: dict[str, float] = {}
         self._outputs: dict[str, Connection] = {}
-        self._writers: tuple[Connection, ...] = ()  # _outputs' connections, replaced whole (the writer reads it unlocked)
+        self._writers: tuple[Connection, ...] = ()  # _outputs' values, replaced whole: the writer reads it unlocked
         self._inputs: list[Connection] = []
         self._lock = threading.Lock()
         self._done = threading.Condition(self._lock)  # notified when a write is sent or acknowledged
