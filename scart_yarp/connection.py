@@ -171,7 +171,7 @@ class Connection:
             return self.dgram.feed(data)
         if self.parser is not None:
             frames = self.parser.feed(data)
-            if self.parser.greeted and not self.carrier:
+            if not self.carrier and self.parser.greeted:
                 self.carrier, self.peer = self.parser.carrier, self.parser.sender
                 if self.carrier != "udp":  # udp answers with its datagram socket's port (the network does)
                     self._welcome()

@@ -28,7 +28,8 @@ from . import bottle
 from .bottle import BottleError, Vocab
 from .connection import Connection
 from .dgram import datagrams
-from .wire import QUIT_BINARY, Frame, carrier_header, data_parts, read_number, sender_specifier
+from .wire import _DATA_COMMAND, _DATA_HEAD, _DATA_LENGTHS, QUIT_BINARY, Frame, carrier_header, data_parts, \
+    read_number, sender_specifier
 
 if TYPE_CHECKING:
     from .network import Network
@@ -100,7 +101,8 @@ class Port:
         self.last_problem = ""
         self._said: dict[str, float] = {}
         self._outputs: dict[str, Connection] = {}
-        self._writers: tuple[Connection, ...] = ()  # _outputs' values, replaced whole: the writer reads it unlocked
+        #: The connections it writes to (``_outputs``' values), replaced whole: a writer reads it unlocked.
+        self.writers: tuple[Connection, ...] = ()
         self._inputs: list[Connection] = []
         self._lock = threading.Lock()
         self._done = threading.Condition(self._lock)  # notified when a write is sent or acknowledged
@@ -109,7 +111,7 @@ class Port:
     @property
     def has_outputs(self) -> bool:
         """It writes to at least one reader now (no lock: a hint for the hot path)."""
-        return bool(self._writers)
+        return bool(self.writers)
 
     @property
     def outputs(self) -> dict[str, Connection]:
@@ -126,12 +128,12 @@ class Port:
         reader, never blocking; how many connections took it (the others were behind:
         counted in their ``dropped``). Raises :class:`BottleError` for values with no
         bottle form."""
-        outputs = self._writers
+        outputs = self.writers
         if not outputs:
             return 0
         data = binary if binary is not None else bottle.encode(values or [])
-        if len(outputs) == 1 and outputs[0].kind == "binary":  # the common case: one tcp reader
-            if outputs[0].send(data_parts(data)):
+        if len(outputs) == 1 and outputs[0].kind == "binary":  # the common case: one tcp reader (data_parts, inline)
+            if outputs[0].send((_DATA_HEAD + _DATA_LENGTHS.pack(8, len(data), 0) + _DATA_COMMAND, data)):
                 return 1
             self.counters["dropped"] += 1
             return 0
@@ -202,7 +204,7 @@ class Port:
         with self._lock:
             old = self._outputs.pop(target, None)
             self._outputs[target] = conn
-            self._writers = tuple(self._outputs.values())
+            self.writers = tuple(self._outputs.values())
         if old is not None:
             self._quit(old)
         self.network.watch(conn)
@@ -243,7 +245,7 @@ class Port:
         False when not connected."""
         with self._lock:
             conn = self._outputs.pop(target, None)
-            self._writers = tuple(self._outputs.values())
+            self.writers = tuple(self._outputs.values())
         if conn is None:
             return False
         if conn.datagrams:
@@ -276,7 +278,7 @@ class Port:
             for name, out in list(self._outputs.items()):
                 if out is conn:
                     del self._outputs[name]
-            self._writers = tuple(self._outputs.values())
+            self.writers = tuple(self._outputs.values())
         self.progressed()
 
     def say(self, text: str) -> None:
@@ -303,10 +305,10 @@ class Port:
         not read until :meth:`resume` — so a writer waiting for its acknowledgement waits
         for the reader (YARP's flow control)."""
         key = frame.key
-        if key in "dD" and self.responder is not None:
-            self.network.request(self, conn, frame)
-            return True
-        if key in "dD":
+        if key == "D" or key == "d":
+            if self.responder is not None:
+                self.network.request(self, conn, frame)
+                return True
             if self.reader is not None:
                 try:
                     if self.reader(Incoming(conn.peer, frame.payload, self.limits.bottle)) is False:

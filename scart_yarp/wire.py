@@ -130,7 +130,7 @@ def data_frame(blocks: list[bytes]) -> list[bytes]:
     return [index + lengths, *blocks]
 
 
-_DATA_INDEX = yarp_number(10) + bytes((2, 1)) + b"\xff" * 8
+_DATA_HEAD = yarp_number(10) + bytes((2, 1)) + b"\xff" * 8
 _DATA_LENGTHS = struct.Struct("<3i")
 _DATA_COMMAND = command_block("D")
 
@@ -138,7 +138,7 @@ _DATA_COMMAND = command_block("D")
 def data_parts(bottle: bytes) -> tuple[bytes, bytes]:
     """``data_frame([command_block("D"), bottle])`` as two parts, the header one: what a
     port writes for each sample, built with one pack (the bottle is not copied)."""
-    return _DATA_INDEX + _DATA_LENGTHS.pack(8, len(bottle), 0) + _DATA_COMMAND, bottle
+    return _DATA_HEAD + _DATA_LENGTHS.pack(8, len(bottle), 0) + _DATA_COMMAND, bottle
 
 
 def text_frame(key: str, line: str) -> bytes:

@@ -48,8 +48,11 @@ def port_check(port: InputPort, nan_ok: bool = False) -> Callable[[Any], Any]:
     that asked for ``finite=True`` refuses them). Raises what refuses the sample."""
     py_type = port.type
     admit = port.admit
+    plain = not (isinstance(py_type, type) and issubclass(py_type, (codec.Value, codec.Payload)))
 
     def check(msg: Any) -> Any:
+        if plain and type(msg) is py_type:  # a converting transport's value, of the port's type: the hot case
+            return admit(msg, nan_ok)
         value = codec.decode(msg) if isinstance(msg, (codec.Value, codec.Payload)) else msg  # else a converting
         # transport's value
         if type(value) is not py_type:

@@ -207,15 +207,15 @@ class _Carrier:
         self._port = port
         self._label = label
         self._wait, self._timeout = policy.wait, policy.wait_timeout
-        to_bottle, encode_bottle = conv.to_bottle, bottle.encode
+        to_bottle, one, encode_bottle = conv.to_bottle, conv.one, bottle.encode
         self.refused = 0
         self.refusal = ""
 
         def encode(sample: OutSample) -> bytes | _Refused:
-            if not port.has_outputs:
+            if not port.writers:
                 return b""  # no bottle is empty: nothing to convert, nothing to send
             try:
-                return encode_bottle(to_bottle(sample.value))
+                return encode_bottle([one(sample.value)] if one is not None else to_bottle(sample.value))
             except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
                 return _Refused(f"{type(exc).__name__}: {exc}")
 
@@ -306,6 +306,7 @@ def _receiver(end: ReaderEnd, conv: Conversion, storage: Any) -> Any:
     a policy that makes writers wait, a bottle that finds the buffer full is held back
     (False: YARP's writer then waits for its acknowledgement) until a read makes room."""
     from scart_yarp import BottleError
+    from scart_yarp.bottle import decode
 
     from .convert import Unfit
 
@@ -316,8 +317,9 @@ def _receiver(end: ReaderEnd, conv: Conversion, storage: Any) -> Any:
     def on_message(msg: Incoming) -> bool:
         if holds and not storage.has_room():
             return False
+        payload = msg.payload
         try:
-            value = from_bottle(msg.values())
+            value = from_bottle(decode(payload, msg.limits) if type(payload) is bytes else msg.values())
         except (BottleError, Unfit) as exc:
             end.refuse(f"a bottle from {msg.source} that does not fit: {exc}")
             return True

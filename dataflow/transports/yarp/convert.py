@@ -51,6 +51,9 @@ class Conversion:
     to_bottle: Callable[[Any], list[Any]]
     from_bottle: Callable[[list[Any]], Any]
     shape: str
+    #: For a bottle of one scalar item: what makes that item (``to_bottle`` is then
+    #: ``lambda v: [one(v)]``; a writer calls it itself, one call less per sample).
+    one: Callable[[Any], Any] | None = None
 
 
 def plan(py_type: Any) -> tuple[Conversion | None, list[str]]:
@@ -66,7 +69,7 @@ def plan(py_type: Any) -> tuple[Conversion | None, list[str]]:
                               f"{shape} ..."), []
         if py_type in _SCALARS:  # the commonest: one number or string, read with one call
             one_out, one_in, shape = _SCALARS[py_type]
-            return Conversion(lambda v: [one_out(v)], _single(one_in, "the value"), shape), []
+            return Conversion(lambda v: [one_out(v)], _single(one_in, "the value"), shape, one_out), []
         one_out, one_in, shape = _convert(py_type, "the value")
         return Conversion(lambda v: [one_out(v)], _single(one_in), shape), []
     except TypeError as exc:
