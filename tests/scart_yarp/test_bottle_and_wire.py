@@ -128,6 +128,20 @@ def test_the_parser_reads_what_yarp_write_sends_in_any_chunks() -> None:
         assert bottle.decode(frames[0].payload) == VALUES
 
 
+def test_a_data_message_read_whole_is_the_frame_the_general_path_makes() -> None:
+    """One data message per read (the commonest case) has a shortcut: the same frame as
+    in pieces, and a message over the limit is still refused."""
+    greeting = carrier_header("tcp") + sender_specifier("/w")
+    parser = IncomingParser(max_message=1 << 20)
+    assert parser.feed(greeting) == []
+    assert [(f.key, f.text, f.payload) for f in parser.feed(MESSAGE)] == [("D", "", FROM_YARP_WRITE)]
+    assert parser.feed(MESSAGE[:20]) == [] and [f.payload for f in parser.feed(MESSAGE[20:])] == [FROM_YARP_WRITE]
+    small = IncomingParser(max_message=len(FROM_YARP_WRITE))  # its port command's 8 bytes too many
+    small.feed(greeting)
+    with pytest.raises(ProtocolError, match="a message of"):
+        small.feed(MESSAGE)
+
+
 def test_the_parser_reads_a_text_session() -> None:
     parser = IncomingParser(max_message=1 << 20)
     frames = parser.feed(b"CONNECT /human\r\nd\r\n1 2 (3 4)\r\n*\r\nq\r\n")
