@@ -434,7 +434,11 @@ class Network:
                 if data is None:
                     self._woken()
                 elif type(data) is Connection:
-                    self._serve(data, events)
+                    if events == READ:  # a message came: read it at once (the hop's path)
+                        if not data.closed:
+                            self._read(data)
+                    else:
+                        self._serve(data, events)
                 else:
                     self._accept(data)
             now = time.monotonic()
