@@ -28,13 +28,18 @@ __all__ = ["Connection"]
 log = logging.getLogger("scart_yarp")
 
 RECV_CHUNK = 1 << 16  #: bytes asked of one recv: under malloc's mmap threshold (a bigger one maps and unmaps each time)
+#: Acknowledgements a tcp writer lets pile up before its io thread wakes to read them,
+#: unless someone waits for them (:meth:`Connection.batch_acks`): a wake-up per message
+#: would cost the writer's process CPU while its reader is taking the message.
+ACK_BATCH = 64
 
 
 class Connection:
     """A connection of ``port``: ``inbound`` (a peer connected to us) or outbound (to
     ``peer``, a reader, over ``carrier``). Counts: ``sent`` messages handed to the
-    kernel, ``acked`` (tcp: acknowledged by the reader), ``dropped`` (no room),
-    ``received`` (inbound messages)."""
+    kernel, ``acked`` (tcp: acknowledged by the reader; read in batches while no one
+    waits for them, see :meth:`batch_acks`), ``dropped`` (no room), ``received``
+    (inbound messages)."""
 
     def __init__(self, port: Port, sock: socket.socket, *, inbound: bool, carrier: str = "", peer: str = "",
                  queue: int = 1) -> None:
@@ -62,6 +67,7 @@ class Connection:
         self._ack_buf = b""
         #: Called (io thread) once the connection is gone, with why.
         self.on_close: Callable[[Connection, str], None] | None = None
+        self.batch_acks(True)
 
     # ---- what it is ---------------------------------------------------------------------
     @property
@@ -90,6 +96,18 @@ class Connection:
     @property
     def text(self) -> bool:
         return self.carrier.startswith("text")
+
+    def batch_acks(self, on: bool) -> None:
+        """An outbound tcp connection's acknowledgements: ``on``, the io thread is woken
+        once :data:`ACK_BATCH` of them wait (the socket's ``SO_RCVLOWAT``; a closed or
+        broken connection wakes it at once); off, by each one (someone waits for them:
+        YARP's flow control, :meth:`Port.wait_sent`). Any thread."""
+        if self.inbound or not self.acks or self.closed:
+            return
+        try:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVLOWAT, len(ACK) * ACK_BATCH if on else 1)
+        except OSError:  # closed meanwhile: the io thread forgets it
+            pass
 
     # ---- sending (any thread) -----------------------------------------------------------
     def send(self, parts: list[bytes] | tuple[bytes, ...], force: bool = False) -> bool:

@@ -378,6 +378,14 @@ class Network:
                 self._events(conn, READ | WRITE)
         self._call(want)
 
+    def read_acks(self, conns: tuple[Connection, ...]) -> None:
+        """Read what waits on the outbound ``conns`` now (their acknowledgements), in the io thread."""
+        def read() -> None:
+            for conn in conns:
+                if not conn.closed and self._conns.get(conn.sock.fileno()) is conn:
+                    self._read(conn)
+        self._call(read)
+
     def drop(self, conn: Connection, why: str, flush: bool = False) -> None:
         """Close ``conn`` (``why`` logged when said; ``flush``: once what waits is sent,
         within the handshake time)."""

@@ -106,6 +106,7 @@ class Port:
         self._inputs: list[Connection] = []
         self._lock = threading.Lock()
         self._done = threading.Condition(self._lock)  # notified when a write is sent or acknowledged
+        self._waiters = 0  # threads in wait_sent (under the lock)
 
     # ---- writing ------------------------------------------------------------------------
     @property
@@ -164,17 +165,31 @@ class Port:
         write, *wait-before*."""
         deadline = time.monotonic() + timeout
         with self._done:
-            while not all(c.idle or c.closed for c in self._outputs.values()):
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return False
-                self._done.wait(left)
+            self._waiters += 1
+            if self._waiters == 1:  # each acknowledgement counts now: have each wake the io thread
+                for conn in self.writers:
+                    conn.batch_acks(False)
+                self.network.read_acks(self.writers)  # and read those that piled up
+            try:
+                while not all(c.idle or c.closed for c in self._outputs.values()):
+                    left = deadline - time.monotonic()
+                    if left <= 0:
+                        return False
+                    self._done.wait(left)
+            finally:
+                self._waiters -= 1
+                if not self._waiters:
+                    for conn in self.writers:
+                        conn.batch_acks(True)
         return True
 
     def progressed(self) -> None:
-        """A connection sent or had acknowledged a message (the io thread)."""
-        with self._done:
-            self._done.notify_all()
+        """A connection sent or had acknowledged a message (the io thread). A waiter
+        counts itself in before it looks, so one that comes after this read sees the
+        progress itself."""
+        if self._waiters:
+            with self._done:
+                self._done.notify_all()
 
     # ---- connections --------------------------------------------------------------------
     def add_output(self, target: str, carrier: str = "") -> tuple[bool, str]:
@@ -205,6 +220,8 @@ class Port:
             old = self._outputs.pop(target, None)
             self._outputs[target] = conn
             self.writers = tuple(self._outputs.values())
+            if self._waiters:
+                conn.batch_acks(False)
         if old is not None:
             self._quit(old)
         self.network.watch(conn)
