@@ -166,22 +166,26 @@ class Port:
         deadline = time.monotonic() + timeout
         with self._done:
             self._waiters += 1
-            if self._waiters == 1:  # each acknowledgement counts now: have each wake the io thread
+            first = self._waiters == 1
+            if first:  # each acknowledgement counts now: have each wake the io thread
                 for conn in self.writers:
                     conn.batch_acks(False)
-                self.network.read_acks(self.writers)  # and read those that piled up
-            try:
+        try:
+            if first:
+                self.network.read_acks(self.writers)  # and read those that piled up (not under the lock)
+            with self._done:
                 while not all(c.idle or c.closed for c in self._outputs.values()):
                     left = deadline - time.monotonic()
                     if left <= 0:
                         return False
                     self._done.wait(left)
-            finally:
+            return True
+        finally:
+            with self._done:
                 self._waiters -= 1
                 if not self._waiters:
                     for conn in self.writers:
                         conn.batch_acks(True)
-        return True
 
     def progressed(self) -> None:
         """A connection sent or had acknowledged a message (the io thread). A waiter
