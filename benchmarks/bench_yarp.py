@@ -1,6 +1,6 @@
 """Benchmark of scart on YARP against YARP itself and rospy, hop by hop, one run.
 
-Usage: ``python benchmarks/bench_yarp.py [--quick | --smoke]`` (needs YARP's ``yarpserver``
+Usage: ``python benchmarks/bench_yarp.py [--quick | --smoke] [--rounds N] [--hops scart>scart,...]`` (needs YARP's ``yarpserver``
 and ``yarp`` on PATH; the rospy row needs Debian's ``ros-core`` and ``python3-rospy``).
 
 Each hop sends ``CLOCK_MONOTONIC`` stamps (an int, one per sample) at 1 kHz and 100 Hz on
@@ -231,6 +231,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one round of 2 s hops")
     parser.add_argument("--smoke", action="store_true", help="one short round (proves every path works)")
+    parser.add_argument("--rounds", type=int, help="rounds of every hop, alternating (default: 3; 1 with --quick)")
+    parser.add_argument("--hops", default=",".join(f"{p}>{s}" for p, s in HOPS),
+                        help="the hops to measure, writer>reader (default: all; the rospy hop is the goal's yardstick)")
     parser.add_argument("--child", nargs=6, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -242,9 +245,14 @@ def main() -> int:
               "them): nothing to measure\n\n| rate | hop | p50 µs |\n|---|---|---|")
         return 0
     rounds, seconds, warmup = (1, 0.5, 0.2) if args.smoke else (1, 2.0, 1.0) if args.quick else (3, 5.0, 1.0)
-    hops = list(HOPS)
-    rospy = shutil.which("rosmaster") is not None and _has_rospy()
-    if not rospy:
+    rounds = args.rounds or rounds
+    asked = [h for h in args.hops.replace(" ", "").split(",") if h]
+    unknown = sorted(set(asked) - {f"{p}>{s}" for p, s in HOPS})
+    if unknown:
+        parser.error(f"unknown hop(s) {', '.join(unknown)}; the hops: {', '.join(f'{p}>{s}' for p, s in HOPS)}")
+    hops = [hop for hop in HOPS if f"{hop[0]}>{hop[1]}" in asked]
+    rospy = ("rospy", "rospy") in hops and shutil.which("rosmaster") is not None and _has_rospy()
+    if not rospy and ("rospy", "rospy") in hops:
         print("rosmaster or rospy is missing (Debian: apt-get install ros-core python3-rospy): no rospy row")
         hops.remove(("rospy", "rospy"))
     samples: dict[tuple[float, str, str], list[float]] = {}

@@ -174,6 +174,8 @@ class DataObject(Storage[T]):
             self._drops.add()
         return True
 
+    write_now = write  # never waits: the same, one call less (a transport's thread, every sample)
+
     def read(self) -> tuple[FlowStatus, T | None]:
         cell = self._cell
         if cell is None:
@@ -224,6 +226,8 @@ class Buffer(Storage[T]):
                 return False
         self._items.append(value)
         return True
+
+    write_now = write  # never waits (as DataObject's)
 
     def _evict_oldest(self) -> bool:
         """Make room in a full ring by dropping its oldest sample; True when a slot is ours."""

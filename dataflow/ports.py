@@ -270,7 +270,8 @@ class OutputPort(Port[T]):
         self._sample = (number, value)
         fanout = self._fanout
         if fanout is not None:  # channel ends: after the local connections, never instead
-            return self._write_all(number, value, fanout)
+            status = self._write_local(value) if self._storages else _SUCCESS
+            return status if fanout.push(number, value) else _FAILURE  # False: a mandatory end refused it
         cell_store = self._single_data
         if cell_store is not None:  # hot path, inlined DataObject.write (keep the two in sync)
             prev = cell_store._cell
@@ -298,9 +299,8 @@ class OutputPort(Port[T]):
                 status = _FAILURE
         return status
 
-    def _write_all(self, number: int, value: T, fanout: Fanout[T]) -> WriteStatus:
-        """``write`` with channel ends attached: the local connections, then the fan-out
-        (which hands the sample to each end; False when a mandatory end refused it)."""
+    def _write_local(self, value: T) -> WriteStatus:
+        """``write`` to the local connections when channel ends are attached too."""
         status = _SUCCESS
         for storage in self._storages:
             if storage.write(value):
@@ -309,8 +309,6 @@ class OutputPort(Port[T]):
                         reader._notify()
             elif storage.policy.mandatory:
                 status = _FAILURE
-        if not fanout.push(number, value):
-            status = _FAILURE
         return status
 
     def attach_fanout(self, fanout: Fanout[T] | None) -> None:
@@ -518,7 +516,13 @@ class InputPort(Port[T]):
         value and why (its bounds, or the task's reason). ``nan_ok``: NaN and inf are
         legal values where they came from (a ROS message's float fields), so only a port
         that asked for ``finite=True`` refuses them (its limits still hold)."""
-        value = self._within_bounds(value, nan_ok and not self.asks_finite)
+        nan_ok = nan_ok and not self.asks_finite
+        bounds = self.bounds
+        if bounds is not None:
+            kind = type(value)
+            if not (kind is self.type and (kind is int or (kind is float and (nan_ok or value - value == 0.0))) and
+                    bounds.ge is None and bounds.gt is None and bounds.le is None and bounds.lt is None):
+                value = self._within_bounds(value, bounds, nan_ok)  # else a number of the port's type, no limits
         if self.check is not None:
             try:
                 self.check(value)
@@ -526,17 +530,12 @@ class InputPort(Port[T]):
                 raise PortValueError(f"{self.qualname}: rejected {value!r:.80}: {exc}") from None
         return value
 
-    def _within_bounds(self, value: Any, nan_ok: bool = False) -> Any:
-        bounds = self.bounds
-        if nan_ok and bounds is not None:
-            limited = any(v is not None for v in (bounds.ge, bounds.gt, bounds.le, bounds.lt))
-            bounds = dataclasses.replace(bounds, finite=False) if limited else None
-        if bounds is None:
-            return value
-        kind = type(value)
-        if kind is self.type and (kind is int or (kind is float and value - value == 0.0)) and \
-                bounds.ge is None and bounds.gt is None and bounds.le is None and bounds.lt is None:
-            return value  # a finite number of the port's own type, no limits: nothing to check (the hot case)
+    def _within_bounds(self, value: Any, bounds: Bounds, nan_ok: bool) -> Any:
+        """``value`` checked against ``bounds`` by pydantic (``nan_ok``: only the limits)."""
+        if nan_ok:
+            if bounds.ge is None and bounds.gt is None and bounds.le is None and bounds.lt is None:
+                return value
+            bounds = dataclasses.replace(bounds, finite=False)
         try:
             return bounded_adapter(self.type, bounds).validate_python(value)
         except pydantic.ValidationError as exc:

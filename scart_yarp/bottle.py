@@ -150,9 +150,21 @@ def _subcode(items: Any) -> int:
     return first
 
 
+_ONE_INT32, _ONE_INT64, _ONE_FLOAT64 = struct.Struct("<iii"), struct.Struct("<iiq"), struct.Struct("<iid")
+
+
 def encode(values: Sequence[object]) -> bytes:
     """The binary form of a bottle holding ``values`` (its tag, count and items); raises
     :class:`BottleError` for a value with no bottle form."""
+    if len(values) == 1:  # one number (a port of int or float): one pack
+        value = values[0]
+        if type(value) is float:
+            return _ONE_FLOAT64.pack(LIST | FLOAT64, 1, value)
+        if type(value) is int:
+            if _INT32_MIN <= value <= _INT32_MAX:
+                return _ONE_INT32.pack(LIST | INT32, 1, value)
+            if _INT64_MIN <= value <= _INT64_MAX:
+                return _ONE_INT64.pack(LIST | INT64, 1, value)
     out: list[bytes] = []
     _encode_list(values, out, top=True)
     return b"".join(out)
@@ -229,9 +241,19 @@ class _Reader:
         return chunk
 
 
+#: A bottle that is one list of numbers (a port of int, float or a list of them), by its
+#: tag: the format of one item and its size; such a bottle is read with one unpack.
+_NUMBERS = MappingProxyType({LIST | tag: (_FORMAT[tag], _FIXED[tag].size) for tag in _FORMAT if tag != VOCAB32})
+
+
 def decode(data: bytes | memoryview, limits: Limits = DEFAULT_LIMITS) -> list[Item]:
     """The values of a bottle's binary form; :class:`BottleError` for anything malformed,
     truncated, over ``limits`` or followed by stray bytes."""
+    if len(data) >= 8:
+        tag, n = _II.unpack_from(data)
+        numbers = _NUMBERS.get(tag)
+        if numbers is not None and 0 <= n <= limits.items and len(data) == 8 + n * numbers[1] and limits.depth:
+            return list(struct.unpack_from(f"<{n}{numbers[0]}", data, 8))  # the common case, whole
     reader = _Reader(data, limits)
     tag = reader.int32()
     if not tag & GROUP_MASK:

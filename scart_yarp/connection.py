@@ -28,13 +28,18 @@ __all__ = ["Connection"]
 log = logging.getLogger("scart_yarp")
 
 RECV_CHUNK = 1 << 16  #: bytes asked of one recv: under malloc's mmap threshold (a bigger one maps and unmaps each time)
+#: Acknowledgements a tcp writer lets pile up before its io thread wakes to read them,
+#: unless someone waits for them (:meth:`Connection.batch_acks`): a wake-up per message
+#: would cost the writer's process CPU while its reader is taking the message.
+ACK_BATCH = 64
 
 
 class Connection:
     """A connection of ``port``: ``inbound`` (a peer connected to us) or outbound (to
     ``peer``, a reader, over ``carrier``). Counts: ``sent`` messages handed to the
-    kernel, ``acked`` (tcp: acknowledged by the reader), ``dropped`` (no room),
-    ``received`` (inbound messages)."""
+    kernel, ``acked`` (tcp: acknowledged by the reader; read in batches while no one
+    waits for them, see :meth:`batch_acks`), ``dropped`` (no room), ``received``
+    (inbound messages)."""
 
     def __init__(self, port: Port, sock: socket.socket, *, inbound: bool, carrier: str = "", peer: str = "",
                  queue: int = 1) -> None:
@@ -45,6 +50,8 @@ class Connection:
         self.peer = peer
         self.queue = max(1, queue)  #: messages that may wait for room, at most
         self.parser = IncomingParser(port.limits.message) if inbound else None
+        #: What an outbound connection's messages are: ``binary``, ``text`` or ``udp`` (datagrams).
+        self.kind = "text" if carrier.startswith("text") else "udp" if carrier == "udp" else "binary"
         #: A ``udp`` connection's datagram reader (inbound), once the TCP greeting is done.
         self.dgram: DatagramReader | None = None
         self.opened = time.monotonic()
@@ -60,6 +67,7 @@ class Connection:
         self._ack_buf = b""
         #: Called (io thread) once the connection is gone, with why.
         self.on_close: Callable[[Connection, str], None] | None = None
+        self.batch_acks(True)
 
     # ---- what it is ---------------------------------------------------------------------
     @property
@@ -89,50 +97,50 @@ class Connection:
     def text(self) -> bool:
         return self.carrier.startswith("text")
 
+    def batch_acks(self, on: bool) -> None:
+        """An outbound tcp connection's acknowledgements: ``on``, the io thread is woken
+        once :data:`ACK_BATCH` of them wait (the socket's ``SO_RCVLOWAT``; a closed or
+        broken connection wakes it at once); off, by each one (someone waits for them:
+        YARP's flow control, :meth:`Port.wait_sent`). Any thread."""
+        if self.inbound or not self.acks or self.closed:
+            return
+        try:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVLOWAT, len(ACK) * ACK_BATCH if on else 1)
+        except OSError:  # closed meanwhile: the io thread forgets it
+            pass
+
     # ---- sending (any thread) -----------------------------------------------------------
     def send(self, parts: list[bytes] | tuple[bytes, ...], force: bool = False) -> bool:
         """Send one message made of ``parts`` without blocking; False (counted in
         ``dropped``) when :attr:`queue` messages already wait for room, unless ``force``
-        (a reply or an acknowledgement, which must not be lost)."""
+        (a reply or an acknowledgement, which must not be lost). Gathered from ``parts``
+        with no copy, in the caller's thread when nothing waits before it: what the kernel
+        does not take at once waits for the io thread."""
         with self._lock:
             if self.closed:
                 return False
             if self._waiting >= self.queue and not force:
                 self.dropped += 1
                 return False
-            self._waiting += 1
-            left: list[bytes | memoryview] = self._send_now(parts) if not self._out else list(parts)
-            if left:
-                views = [memoryview(p) for p in left if len(p)]
-                for i, view in enumerate(views):
-                    self._out.append((view, i == len(views) - 1))
-                want = True
+            if not self._out:
+                try:
+                    n = self.sock.sendmsg(parts)
+                except OSError:  # would block, or broken: the io thread sees the error and closes
+                    n = 0
+                if n == sum(map(len, parts)):  # the common case: the kernel took it all
+                    self.sent += 1
+                    return True
+                left = _after(parts, n)
             else:
-                want = False
-        if want:
-            self.port.network.watch_write(self)
+                left = list(parts)
+            self._waiting += 1
+            views = [memoryview(p) for p in left if len(p)]
+            for i, view in enumerate(views):
+                self._out.append((view, i == len(views) - 1))
+        self.port.network.watch_write(self)
         return True
 
-    def _send_now(self, parts: list[bytes] | tuple[bytes, ...]) -> list[bytes | memoryview]:
-        """Send what the kernel takes at once, gathered from ``parts`` with no copy (under
-        the lock); what is left."""
-        try:
-            n = self.sock.sendmsg(parts)
-        except OSError:  # would block, or broken: the io thread sees the error and closes
-            return list(parts)
-        left: list[bytes | memoryview] = []
-        for part in parts:
-            if n >= len(part):
-                n -= len(part)
-                continue
-            left.append(memoryview(part)[n:] if n else part)
-            n = 0
-        if not left:
-            self._waiting -= 1
-            self.sent += 1
-        return left
-
-    def send_datagrams(self, datagrams: list[bytes]) -> bool:
+    def send_datagrams(self, datagrams: list[bytes] | tuple[bytes, ...]) -> bool:
         """Send one message as ``datagrams`` (a ``udp`` output), never blocking: what the
         kernel does not take at once is lost (counted in ``dropped``), as YARP's udp loses it."""
         with self._lock:
@@ -181,7 +189,7 @@ class Connection:
             return self.dgram.feed(data)
         if self.parser is not None:
             frames = self.parser.feed(data)
-            if self.parser.greeted and not self.carrier:
+            if not self.carrier and self.parser.greeted:
                 self.carrier, self.peer = self.parser.carrier, self.parser.sender
                 if self.carrier != "udp":  # udp answers with its datagram socket's port (the network does)
                     self._welcome()
@@ -232,6 +240,18 @@ class Connection:
     def __repr__(self) -> str:
         way = f"from {self.peer or '?'}" if self.inbound else f"to {self.peer}"
         return f"<Connection {self.port.name} {way} {self.carrier or '?'}>"
+
+
+def _after(parts: list[bytes] | tuple[bytes, ...], n: int) -> list[bytes | memoryview]:
+    """What is left of ``parts`` once their first ``n`` bytes are sent (no copy)."""
+    left: list[bytes | memoryview] = []
+    for part in parts:
+        if n >= len(part):
+            n -= len(part)
+            continue
+        left.append(memoryview(part)[n:] if n else part)
+        n = 0
+    return left
 
 
 def _peer_address(sock: socket.socket) -> str:

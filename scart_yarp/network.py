@@ -30,7 +30,6 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any
 
 from .connection import Connection
 from .names import NameClient, check_name
@@ -378,6 +377,14 @@ class Network:
                 self._events(conn, READ | WRITE)
         self._call(want)
 
+    def read_acks(self, conns: tuple[Connection, ...]) -> None:
+        """Read what waits on the outbound ``conns`` now (their acknowledgements), in the io thread."""
+        def read() -> None:
+            for conn in conns:
+                if not conn.closed and self._conns.get(conn.sock.fileno()) is conn:
+                    self._read(conn)
+        self._call(read)
+
     def drop(self, conn: Connection, why: str, flush: bool = False) -> None:
         """Close ``conn`` (``why`` logged when said; ``flush``: once what waits is sent,
         within the handshake time)."""
@@ -434,7 +441,11 @@ class Network:
                 if data is None:
                     self._woken()
                 elif type(data) is Connection:
-                    self._serve(data, events)
+                    if events == READ:  # a message came: read it at once (the hop's path)
+                        if not data.closed:
+                            self._read(data)
+                    elif isinstance(data, Port):  # a listener (rare: the hot case is above)
+                        self._serve(data, events)
                 elif isinstance(data, Port):  # a listener (rare: the hot case is above)
                     self._accept(data)
             now = time.monotonic()

@@ -28,7 +28,8 @@ from . import bottle
 from .bottle import BottleError, Item, Vocab
 from .connection import Connection
 from .dgram import datagrams
-from .wire import QUIT_BINARY, Frame, carrier_header, command_block, data_frame, read_number, sender_specifier
+from .wire import _DATA_COMMAND, _DATA_HEAD, _DATA_LENGTHS, QUIT_BINARY, Frame, carrier_header, data_parts, \
+    read_number, sender_specifier
 
 if TYPE_CHECKING:
     from .network import Network
@@ -104,15 +105,18 @@ class Port:
         self.last_problem = ""
         self._said: dict[str, float] = {}
         self._outputs: dict[str, Connection] = {}
+        #: The connections it writes to (``_outputs``' values), replaced whole: a writer reads it unlocked.
+        self.writers: tuple[Connection, ...] = ()
         self._inputs: list[Connection] = []
         self._lock = threading.Lock()
         self._done = threading.Condition(self._lock)  # notified when a write is sent or acknowledged
+        self._waiters = 0  # threads in wait_sent (under the lock)
 
     # ---- writing ------------------------------------------------------------------------
     @property
     def has_outputs(self) -> bool:
         """It writes to at least one reader now (no lock: a hint for the hot path)."""
-        return bool(self._outputs)
+        return bool(self.writers)
 
     @property
     def outputs(self) -> dict[str, Connection]:
@@ -129,30 +133,35 @@ class Port:
         reader, never blocking; how many connections took it (the others were behind:
         counted in their ``dropped``). Raises :class:`BottleError` for values with no
         bottle form."""
-        outputs = list(self._outputs.values())
+        outputs = self.writers
         if not outputs:
             return 0
         data = binary if binary is not None else bottle.encode(values or [])
-        frames: dict[str, list[bytes]] = {}
+        if len(outputs) == 1 and outputs[0].kind == "binary":  # the common case: one tcp reader (data_parts, inline)
+            if outputs[0].send((_DATA_HEAD + _DATA_LENGTHS.pack(8, len(data), 0) + _DATA_COMMAND, data)):
+                return 1
+            self.counters["dropped"] += 1
+            return 0
+        frames: dict[str, list[bytes] | tuple[bytes, ...]] = {}
         taken = 0
         for conn in outputs:
-            kind = "text" if conn.text else "udp" if conn.datagrams else "binary"
+            kind = conn.kind
             frame = frames.get(kind)
             if frame is None:
                 frame = frames[kind] = self._frame(kind, data, values)
-            if conn.send_datagrams(frame) if conn.datagrams else conn.send(frame):
+            if conn.send_datagrams(frame) if kind == "udp" else conn.send(frame):
                 taken += 1
             else:
                 self.counters["dropped"] += 1
         return taken
 
     @staticmethod
-    def _frame(kind: str, data: bytes, values: Sequence[object] | None) -> list[bytes]:
+    def _frame(kind: str, data: bytes, values: Sequence[object] | None) -> list[bytes] | tuple[bytes, ...]:
         if kind == "text":
             text = bottle.to_text(values if values is not None else bottle.decode(data))
             return [f"d\r\n{text}\r\n".encode("utf-8")]
-        parts = data_frame([command_block("D"), data])
-        return datagrams(parts) if kind == "udp" else parts
+        parts = data_parts(data)
+        return datagrams(list(parts)) if kind == "udp" else parts
 
     def wait_sent(self, timeout: float) -> bool:
         """Block until every connection has sent (tcp: had acknowledged) what was written
@@ -160,17 +169,35 @@ class Port:
         write, *wait-before*."""
         deadline = time.monotonic() + timeout
         with self._done:
-            while not all(c.idle or c.closed for c in self._outputs.values()):
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return False
-                self._done.wait(left)
-        return True
+            self._waiters += 1
+            first = self._waiters == 1
+            if first:  # each acknowledgement counts now: have each wake the io thread
+                for conn in self.writers:
+                    conn.batch_acks(False)
+        try:
+            if first:
+                self.network.read_acks(self.writers)  # and read those that piled up (not under the lock)
+            with self._done:
+                while not all(c.idle or c.closed for c in self._outputs.values()):
+                    left = deadline - time.monotonic()
+                    if left <= 0:
+                        return False
+                    self._done.wait(left)
+            return True
+        finally:
+            with self._done:
+                self._waiters -= 1
+                if not self._waiters:
+                    for conn in self.writers:
+                        conn.batch_acks(True)
 
     def progressed(self) -> None:
-        """A connection sent or had acknowledged a message (the io thread)."""
-        with self._done:
-            self._done.notify_all()
+        """A connection sent or had acknowledged a message (the io thread). A waiter
+        counts itself in before it looks, so one that comes after this read sees the
+        progress itself."""
+        if self._waiters:
+            with self._done:
+                self._done.notify_all()
 
     # ---- connections --------------------------------------------------------------------
     def add_output(self, target: str, carrier: str = "") -> tuple[bool, str]:
@@ -200,6 +227,9 @@ class Port:
         with self._lock:
             old = self._outputs.pop(target, None)
             self._outputs[target] = conn
+            self.writers = tuple(self._outputs.values())
+            if self._waiters:
+                conn.batch_acks(False)
         if old is not None:
             self._quit(old)
         self.network.watch(conn)
@@ -240,6 +270,7 @@ class Port:
         False when not connected."""
         with self._lock:
             conn = self._outputs.pop(target, None)
+            self.writers = tuple(self._outputs.values())
         if conn is None:
             return False
         if conn.datagrams:
@@ -272,6 +303,7 @@ class Port:
             for name, out in list(self._outputs.items()):
                 if out is conn:
                     del self._outputs[name]
+            self.writers = tuple(self._outputs.values())
         self.progressed()
 
     def say(self, text: str) -> None:
@@ -298,10 +330,10 @@ class Port:
         not read until :meth:`resume` — so a writer waiting for its acknowledgement waits
         for the reader (YARP's flow control)."""
         key = frame.key
-        if key in "dD" and self.responder is not None:
-            self.network.request(self, conn, frame)
-            return True
-        if key in "dD":
+        if key == "D" or key == "d":
+            if self.responder is not None:
+                self.network.request(self, conn, frame)
+                return True
             if self.reader is not None:
                 try:
                     if self.reader(Incoming(conn.peer, frame.payload, self.limits.bottle)) is False:

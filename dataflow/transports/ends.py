@@ -279,8 +279,7 @@ class WriterEnd(Generic[T]):
             return True
         try:
             if not self._queue and not self._inbox:
-                encode = carrier.encode
-                data = sample._bytes if sample._key is encode else self._encoded(sample, carrier)  # once per transport
+                data = self._encoded(sample, carrier)  # once per transport
                 if data is None:
                     return False
                 if carrier.send(sample, data):
@@ -322,8 +321,13 @@ class WriterEnd(Generic[T]):
         """``sample`` encoded for ``carrier`` (once per transport); None, counted and
         said once, when it cannot be (a value the wire cannot carry: never raised into
         the writer)."""
+        encode = carrier.encode
         try:
-            data = sample.encoded(carrier.encode)
+            if sample._key is encode:  # OutSample.encoded's, inline: this runs for every sample written
+                data = sample._bytes
+            else:
+                data = encode(sample)
+                sample._key, sample._bytes = encode, data
             if self.byte_budget is not None and type(data) is bytes:
                 self._sample_bytes = len(data)
             return data

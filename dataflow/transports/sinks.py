@@ -52,8 +52,11 @@ def port_check(port: InputPort[T], nan_ok: bool = False) -> Callable[[object], T
     that asked for ``finite=True`` refuses them). Raises what refuses the sample."""
     py_type = port.type
     admit = port.admit
+    plain = not (isinstance(py_type, type) and issubclass(py_type, (codec.Value, codec.Payload)))
 
     def check(msg: object) -> T:
+        if plain and type(msg) is py_type:  # a converting transport's value, of the port's type: the hot case
+            return admit(msg, nan_ok)
         value = codec.decode(msg) if isinstance(msg, (codec.Value, codec.Payload)) else msg  # else a converting
         # transport's value
         if type(value) is not py_type:

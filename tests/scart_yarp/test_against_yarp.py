@@ -9,6 +9,7 @@ import logging
 import resource
 import socket
 import struct
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -144,6 +145,26 @@ def test_a_port_keeps_the_connections_it_was_asked_for(yarp: YarpServer, net: Ne
         finally:
             reader.stop()
     assert [values for _, values in inbox.got][:2] == [["round", 0], ["round", 1]]
+
+
+def test_acknowledgements_pile_up_unread_until_a_writer_waits_for_them(net: Network) -> None:
+    """A tcp writer's io thread is not woken by each acknowledgement (each would cost the
+    writer's process a wake-up while its reader takes the message); wait-after and
+    wait-before still see every one at once."""
+    inbox = Inbox()
+    net.open_port("/scart/acking", reader=inbox)
+    out = net.open_port("/scart/acked", connect={"/scart/acking": "tcp"})
+    wait_until(lambda: "/scart/acking" in out.outputs, timeout=15, message="never connected")
+    conn = out.outputs["/scart/acking"]
+    for i in range(10):
+        out.write([i])
+    assert inbox.wait(10) == [[i] for i in range(10)]
+    assert conn.acked == 0  # acknowledged by the reader, not read yet: no wake-up for them
+    started = time.monotonic()
+    for i in range(10, 30):  # each write waited for: its acknowledgement read at once (no timeout)
+        out.write([i])
+        assert out.wait_sent(5.0)
+    assert conn.acked == conn.sent == 30 and time.monotonic() - started < 4.0
 
 
 def test_yarp_rpc_calls_a_responding_port(yarp: YarpServer, net: Network) -> None:

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from scart_yarp import bottle
 from scart_yarp.bottle import BottleError, Limits, Vocab
 from scart_yarp.wire import (IncomingParser, ProtocolError, carrier_header, carrier_of, command_block, data_frame,
-                             sender_specifier, yarp_number)
+                             data_parts, sender_specifier, yarp_number)
 
 FROM_YARP_WRITE = (b"\x00\x01\x00\x00\t\x00\x00\x00\x04\x00\x00\x00\x05\x00\x00\x00hello\x01\x00\x00\x00*\x00\x00\x00"
                    b"\n\x00\x00\x00\x00\x00\x00\x00\x00\x00\x0c@\x04\x01\x00\x00\x02\x00\x00\x00\x06\x00\x00\x00nested"
@@ -30,6 +30,7 @@ MESSAGE = (b"YA\n\x00\x00\x00RP\x02\x01" + b"\xff" * 8 + b"\x08\x00\x00\x00{\x00
 def test_a_bottle_encodes_byte_for_byte_as_yarp_and_decodes_yarps() -> None:
     assert bottle.encode(VALUES) == FROM_YARP_WRITE
     assert bottle.decode(FROM_YARP_WRITE) == VALUES
+    assert b"".join(data_parts(FROM_YARP_WRITE)) == MESSAGE  # what a port writes: yarp write's message
 
 
 def test_homogeneous_lists_carry_one_tag_as_yarp_specialises_them() -> None:
@@ -40,6 +41,17 @@ def test_homogeneous_lists_carry_one_tag_as_yarp_specialises_them() -> None:
     assert bottle.decode(nested) == [[1, 2], [3.5, "a"]]
     assert bottle.decode(bottle.encode([True, False, Vocab("set")])) == [Vocab("1"), Vocab.of(0), Vocab("set")]
     assert bottle.decode(bottle.encode([2 ** 40, -(2 ** 40)])) == [2 ** 40, -(2 ** 40)]  # int64 beyond 32 bits
+
+
+@pytest.mark.parametrize("value", [0, -1, 2 ** 31 - 1, -(2 ** 31), 2 ** 31, -(2 ** 31) - 1, 2 ** 63 - 1,
+                                   -(2 ** 63), 0.0, -3.5, 1e300, math.inf])
+def test_a_bottle_of_one_number_is_the_general_form(value: object) -> None:
+    """A port of int or float sends a bottle of one number, packed at once: the bytes the
+    general encoder (YARP's) gives, an int32 as long as it fits, else an int64."""
+    general: list[bytes] = []
+    bottle._encode_list([value], general, top=True)  # noqa: SLF001 - the general path, bypassing the shortcut
+    assert bottle.encode([value]) == b"".join(general)
+    assert bottle.decode(bottle.encode([value])) == [value]
 
 
 def test_the_text_form_is_yarps() -> None:
@@ -114,6 +126,20 @@ def test_the_parser_reads_what_yarp_write_sends_in_any_chunks() -> None:
         assert parser.sender == "/w" and parser.carrier == "tcp"
         assert [(f.key, f.text) for f in frames] == [("D", ""), ("q", "q")]
         assert bottle.decode(frames[0].payload) == VALUES
+
+
+def test_a_data_message_read_whole_is_the_frame_the_general_path_makes() -> None:
+    """One data message per read (the commonest case) has a shortcut: the same frame as
+    in pieces, and a message over the limit is still refused."""
+    greeting = carrier_header("tcp") + sender_specifier("/w")
+    parser = IncomingParser(max_message=1 << 20)
+    assert parser.feed(greeting) == []
+    assert [(f.key, f.text, f.payload) for f in parser.feed(MESSAGE)] == [("D", "", FROM_YARP_WRITE)]
+    assert parser.feed(MESSAGE[:20]) == [] and [f.payload for f in parser.feed(MESSAGE[20:])] == [FROM_YARP_WRITE]
+    small = IncomingParser(max_message=len(FROM_YARP_WRITE))  # its port command's 8 bytes too many
+    small.feed(greeting)
+    with pytest.raises(ProtocolError, match="a message of"):
+        small.feed(MESSAGE)
 
 
 def test_the_parser_reads_a_text_session() -> None:

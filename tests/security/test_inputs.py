@@ -209,3 +209,21 @@ def test_a_property_file_inside_the_contribution_still_works(tmp_path) -> None:
     (tmp_path / "n.txt").write_text(" 42\n")
     with scart.Runtime.from_file(str(_composite_with_file(tmp_path, "n.txt"))) as rt:
         assert rt._managers["P"].instance().number == 42
+
+
+def test_nan_from_a_transport_that_carries_it_passes_unless_limits_or_the_port_refuse_it() -> None:
+    """``admit(v, nan_ok=True)`` (a ROS or YARP float): NaN and inf pass a port without
+    limits, limits still hold, and a port that asked ``finite=True`` refuses them."""
+    free, limited, strict = InputPort(float), InputPort(float, ge=-1.0, le=1.0), InputPort(float, finite=True)
+    assert math.isnan(free.admit(math.nan, nan_ok=True)) and free.admit(math.inf, nan_ok=True) == math.inf
+    assert free.admit(2.5, nan_ok=True) == 2.5 and InputPort(int).admit(7, nan_ok=True) == 7
+    with pytest.raises(PortValueError):
+        free.admit(math.nan)
+    assert limited.admit(0.5, nan_ok=True) == 0.5
+    for bad in (2.0, math.nan, math.inf):
+        with pytest.raises(PortValueError):
+            limited.admit(bad, nan_ok=True)
+    assert strict.admit(0.5, nan_ok=True) == 0.5
+    with pytest.raises(PortValueError):
+        strict.admit(math.nan, nan_ok=True)
+    assert InputPort(list[float]).admit([math.nan, 1.0], nan_ok=True)[1] == 1.0

@@ -188,11 +188,21 @@ def _peers(options: dict[str, str]) -> list[str]:
     return [p.strip() for p in options.get("connect", "").split(",") if p.strip()]
 
 
+class _Refused:
+    """What :attr:`_Carrier.encode` gives for a value that does not convert: why."""
+
+    __slots__ = ("why",)
+
+    def __init__(self, why: str) -> None:
+        self.why = why
+
+
 class _Carrier:
-    """A writer end's carrier onto a YARP port: each sample converted and encoded once,
-    written to every reader (a reader that is behind drops it: counted). The policy's
-    ``wait`` (YARP's flow control) makes the writer wait, ≤ ``wait_timeout`` s, until
-    every reader acknowledged the sample before (``WAIT_BEFORE``) or this one
+    """A writer end's carrier onto a YARP port: each sample converted and encoded once
+    (:attr:`encode`, in the writer's thread; only while a reader is connected), written
+    to every reader from that thread (a reader that is behind drops it: counted). The
+    policy's ``wait`` (YARP's flow control) makes the writer wait, ≤ ``wait_timeout``
+    s, until every reader acknowledged the sample before (``WAIT_BEFORE``) or this one
     (``WAIT_AFTER``); without it, it never waits. A value that does not convert is
     refused and counted here, as is one whose wait timed out."""
 
@@ -202,26 +212,27 @@ class _Carrier:
         self._port = port
         self._label = label
         self._wait, self._timeout = policy.wait, policy.wait_timeout
-        to_bottle, encode = conv.to_bottle, bottle.encode
+        to_bottle, one, encode_bottle = conv.to_bottle, conv.one, bottle.encode
         self.refused = 0
         self.refusal = ""
 
-        def encoded(sample: OutSample) -> bytes:
-            return encode(to_bottle(sample.value))
+        def encode(sample: OutSample) -> bytes | _Refused:
+            if not port.writers:
+                return b""  # no bottle is empty: nothing to convert, nothing to send
+            try:
+                return encode_bottle([one(sample.value)] if one is not None else to_bottle(sample.value))
+            except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
+                return _Refused(f"{type(exc).__name__}: {exc}")
 
-        self._encode = encoded
+        #: The sample's bottle, in binary form (an attribute, not a method: the writer end
+        #: keeps one encoding per encoder, known by its identity).
+        self.encode = encode
 
-    @staticmethod
-    def encode(sample: OutSample) -> OutSample:
-        return sample  # converted in send(), only when a reader is connected
-
-    def send(self, sample: OutSample[object], _data: object) -> bool:  # the writer's thread
-        if not self._port.has_outputs:
+    def send(self, sample: OutSample[object], data: bytes | _Refused) -> bool:  # the writer's thread
+        if not data:  # no reader
             return True
-        try:
-            data = sample.encoded(self._encode)
-        except Exception as exc:  # noqa: BLE001 - a value that does not convert never reaches the writer
-            self._refuse(sample, f"{type(exc).__name__}: {exc}")
+        if isinstance(data, _Refused):
+            self._refuse(sample, data.why)
             return True
         port = self._port
         if self._wait is WaitMode.WAIT_BEFORE and not port.wait_sent(self._timeout):
@@ -300,6 +311,7 @@ def _receiver(end: ReaderEnd[Any], conv: Conversion, storage: Storage[Any] | Non
     a policy that makes writers wait, a bottle that finds the buffer full is held back
     (False: YARP's writer then waits for its acknowledgement) until a read makes room."""
     from scart_yarp import BottleError
+    from scart_yarp.bottle import decode
 
     from .convert import Unfit
 
@@ -311,8 +323,9 @@ def _receiver(end: ReaderEnd[Any], conv: Conversion, storage: Storage[Any] | Non
     def on_message(msg: Incoming) -> bool:
         if has_room is not None and not has_room():
             return False
+        payload = msg.payload
         try:
-            value = from_bottle(msg.values())
+            value = from_bottle(decode(payload, msg.limits) if type(payload) is bytes else msg.values())
         except (BottleError, Unfit) as exc:
             end.refuse(f"a bottle from {msg.source} that does not fit: {exc}")
             return True

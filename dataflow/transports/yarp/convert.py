@@ -53,6 +53,9 @@ class Conversion:
     to_bottle: Callable[[Any], list[Item]]
     from_bottle: Callable[[list[Item]], object]
     shape: str
+    #: For a bottle of one scalar item: what makes that item (``to_bottle`` is then
+    #: ``lambda v: [one(v)]``; a writer calls it itself, one call less per sample).
+    one: Callable[[Any], Any] | None = None
 
 
 def plan(py_type: object) -> tuple[Conversion | None, list[str]]:
@@ -66,6 +69,9 @@ def plan(py_type: object) -> tuple[Conversion | None, list[str]]:
             each_out, each_in, shape = _convert(item, "")
             return Conversion(lambda v: [each_out(x) for x in v], _list_in(each_in, "the bottle"),
                               f"{shape} ..."), []
+        if py_type in _SCALARS:  # the commonest: one number or string, read with one call
+            one_out, one_in, shape = _SCALARS[py_type]
+            return Conversion(lambda v: [one_out(v)], _single(one_in, "the value"), shape, one_out), []
         one_out, one_in, shape = _convert(py_type, "the value")
         return Conversion(lambda v: [one_out(v)], _single(one_in), shape), []
     except TypeError as exc:
@@ -163,11 +169,18 @@ def _list_in(each: In, where: str) -> In:
     return from_bottle
 
 
-def _single(each: In) -> Callable[[list[Item]], object]:
+def _single(each: In, where: str = "") -> Callable[[list[Item]], object]:
+    """A bottle of one item read by ``each`` (``where``: named in its refusal, as
+    :func:`_named` would)."""
     def from_bottle(items: list[Item]) -> object:
         if len(items) != 1:
             raise Unfit(f"one item is wanted, got {len(items)}")
-        return each(items[0])
+        try:
+            return each(items[0])
+        except Unfit as exc:
+            if not where:
+                raise
+            raise Unfit(f"{where}: {exc}") from None
     return from_bottle
 
 
