@@ -32,5 +32,6 @@ def test_the_adapters_public_api_is_exactly_this() -> None:
     import dataflow.transports.ros2 as ros2
 
     assert sorted(ros2.__all__) == sorted(["Ros2Transport", "qos_of", "serve", "serve_operation", "ServedService",
-                                           "ServiceProxy", "call_service"])
+                                           "ServiceProxy", "call_service", "check_service", "ros2_transport",
+                                           "NETWORK_OPTIONS", "add_type_file"])
     assert all(hasattr(ros2, name) for name in ros2.__all__)
