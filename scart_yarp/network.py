@@ -444,7 +444,7 @@ class Network:
                     if events == READ:  # a message came: read it at once (the hop's path)
                         if not data.closed:
                             self._read(data)
-                    elif isinstance(data, Port):  # a listener (rare: the hot case is above)
+                    else:
                         self._serve(data, events)
                 elif isinstance(data, Port):  # a listener (rare: the hot case is above)
                     self._accept(data)

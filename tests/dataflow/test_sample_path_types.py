@@ -22,7 +22,7 @@ _spec.loader.exec_module(count_any)
 #: (``Class.attr``, assigned in ``__init__``) that hold what it goes through.
 SAMPLE_PATH = {
     "dataflow/ports.py": [
-        "OutputPort.write", "OutputPort._write_all", "OutputPort.attach_fanout", "OutputPort._fanout",
+        "OutputPort.write", "OutputPort._write_local", "OutputPort.attach_fanout", "OutputPort._fanout",
         "OutputPort._storages", "OutputPort._single_data", "OutputPort.connect_to",
         "ChannelConnection.write", "ChannelConnection.store", "InputPort.read", "InputPort.read_newest",
         "InputPort._read_many", "InputPort._sources", "Connection.__init__",
