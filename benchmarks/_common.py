@@ -3,6 +3,7 @@ the scripts run as ``python benchmarks/bench_*.py``, so this directory is on ``s
 
 from __future__ import annotations
 
+import json
 import socket
 import subprocess
 import sys
@@ -80,3 +81,25 @@ def raw_socket_rtt2(rate: float, n: int) -> list[float]:
         parent.close()
         proc.wait(timeout=10)
     return out[20:]
+
+
+def pub_sub_hop(sub_cmd: list[str], pub_cmd: list[str], env: dict[str, str], timeout: float,
+                what: str = "") -> list[float]:
+    """One hop between two processes: start the subscriber, wait for its ``ready`` line,
+    run the publisher to its end (≤ ``timeout`` s), then read the subscriber's last line
+    (a JSON list of latencies in ns); the latencies in µs. Raises ``RuntimeError`` naming
+    ``what`` (e.g. "rospy") and the side that failed; the subscriber never outlives it."""
+    sub = subprocess.Popen(sub_cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert sub.stdout is not None
+        if sub.stdout.readline().strip() != "ready":
+            raise RuntimeError(f"{what} subscriber failed: {sub.stderr.read() if sub.stderr else ''}")
+        pub = subprocess.run(pub_cmd, env=env, capture_output=True, text=True, timeout=timeout)
+        if pub.returncode != 0:
+            raise RuntimeError(f"{what} publisher failed: {pub.stderr[-2000:]}")
+        out, _ = sub.communicate(timeout=120)
+    finally:
+        if sub.poll() is None:
+            sub.kill()
+            sub.wait()
+    return [ns / 1000 for ns in json.loads(out.strip().splitlines()[-1])]

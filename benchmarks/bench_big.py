@@ -60,7 +60,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from _common import paced, pct, wait_until  # noqa: E402
+from _common import paced, pct, pub_sub_hop, wait_until  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -313,22 +313,9 @@ class Rospy:
 
     def hop(self, kind: str, size: int, rate: float, count: int, warmup: float) -> list[float]:
         args = [str(rate), str(count), str(warmup), str(size), kind]
-        sub = subprocess.Popen([SYSTEM_PYTHON, str(self.script), "sub", *args], env=self.bench.env,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        try:
-            assert sub.stdout is not None
-            if sub.stdout.readline().strip() != "ready":
-                raise RuntimeError("the rospy subscriber failed")
-            pub = subprocess.run([SYSTEM_PYTHON, str(self.script), "pub", *args], env=self.bench.env,
-                                 capture_output=True, text=True, timeout=count / rate + 120)
-            if pub.returncode != 0:
-                raise RuntimeError(f"the rospy publisher failed: {pub.stderr[-2000:]}")
-            out, _ = sub.communicate(timeout=120)
-        finally:
-            if sub.poll() is None:
-                sub.kill()
-                sub.wait()
-        return [ns / 1000 for ns in json.loads(out.strip().splitlines()[-1])]
+        script = [SYSTEM_PYTHON, str(self.script)]
+        return pub_sub_hop([*script, "sub", *args], [*script, "pub", *args], self.bench.env,
+                           count / rate + 120, "the rospy")
 
 
 def has_rospy() -> bool:

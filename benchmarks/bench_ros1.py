@@ -46,7 +46,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from _common import paced, pct, wait_until  # noqa: E402
+from _common import paced, pct, pub_sub_hop, wait_until  # noqa: E402
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 TOPIC = "/bench_hop"
@@ -218,22 +218,8 @@ class Bench:
     def hop(self, pub: str, sub: str, rate: float, seconds: float, warmup: float) -> list[float]:
         """One hop: start the subscriber, then the publisher; the latencies in µs."""
         count = int(rate * (seconds + warmup))
-        subscriber = subprocess.Popen(self.command(sub, "sub", rate, count, warmup), env=self.env,
-                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        try:
-            assert subscriber.stdout is not None
-            if subscriber.stdout.readline().strip() != "ready":
-                raise RuntimeError(f"{sub} subscriber failed: {subscriber.stderr.read() if subscriber.stderr else ''}")
-            publisher = subprocess.run(self.command(pub, "pub", rate, count, warmup), env=self.env,
-                                       capture_output=True, text=True, timeout=count / rate + 120)
-            if publisher.returncode != 0:
-                raise RuntimeError(f"{pub} publisher failed: {publisher.stderr[-2000:]}")
-            out, err = subscriber.communicate(timeout=120)
-        finally:
-            if subscriber.poll() is None:
-                subscriber.kill()
-                subscriber.wait()
-        return [ns / 1000 for ns in json.loads(out.strip().splitlines()[-1])]
+        return pub_sub_hop(self.command(sub, "sub", rate, count, warmup), self.command(pub, "pub", rate, count, warmup),
+                           self.env, count / rate + 120, f"{pub} → {sub}:")
 
 
 def _free_port() -> int:
