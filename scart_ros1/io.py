@@ -37,7 +37,11 @@ __all__ = ["Conn", "Counters", "FrameReader", "InboundConn", "IoLoop", "Listener
 
 log = logging.getLogger(__name__)
 
-RECV_BYTES = 256 * 1024
+#: Bytes asked of one ``recv``: under glibc malloc's mmap threshold (128 KiB until a large
+#: block is freed). A bigger request maps and unmaps a fresh block for every message, and the
+#: unmap (a TLB shoot-down across the process's CPUs) doubled a 1 kHz hop in a process that
+#: had not happened to raise the threshold by importing something large (grpc, lxml).
+RECV_BYTES = 64 * 1024
 
 
 class Counters(dict):
