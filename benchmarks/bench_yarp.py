@@ -14,6 +14,9 @@ notes when each arrived (the first second of each hop is left out). The hops:
 * ``yarp → scart``: ``yarp write`` (fed by the bench) into a scart input port, timed in the
   port's data callback (as rospy's callback runs in its receiving thread);
 * ``scart → scart``: two scart processes, both sides native;
+* ``ours → yarp`` and ``yarp → ours``: the bare YARP library (``scart_yarp.Network``, no
+  task, port or stream) in place of scart's side: the rows minus these are what scart's
+  data-flow layer adds to YARP's protocol;
 * ``rospy → rospy``: Debian's rospy, ``tcp_nodelay`` (the goal's yardstick);
 * ``pipe → cat → pipe``: the bench through ``cat``: what the two pipe legs of the
   ``yarp → yarp`` row cost by themselves (the ``scart → yarp`` and ``yarp → scart`` rows
@@ -42,7 +45,7 @@ from _common import paced, pct, wait_until  # noqa: E402
 from bench_ros1 import ROSPY_PEER, Bench, _has_rospy, _wait_for  # noqa: E402
 
 HOPS = (("rospy", "rospy"), ("yarp", "yarp"), ("scart", "yarp"), ("yarp", "scart"), ("scart", "scart"),
-        ("pipe", "pipe"))
+        ("ours", "yarp"), ("yarp", "ours"), ("pipe", "pipe"))
 IN, OUT = "/bench/scart/in", "/bench/scart/out"
 
 
@@ -84,6 +87,29 @@ def scart_side(role: str, rate: float, count: int, warmup: float, server: str, p
         got = list(task.got)
         first = got[0][1] if got else 0
         print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
+
+
+def ours_side(role: str, rate: float, count: int, warmup: float, server: str, peer: str) -> None:
+    """The ``--child-ours`` side: the same with the bare library, a ``scart_yarp`` port
+    writing a one-number bottle per stamp, or noting each in its reader callback."""
+    from scart_yarp import Network, parse_address
+
+    got: list[tuple[int, int]] = []
+    net = Network(parse_address(server))
+    try:
+        if role == "pub":
+            port = net.open_port(OUT, connect={peer: "tcp"})
+            wait_until(lambda: peer in port.outputs, 30)
+            paced(count, rate, lambda k: port.write([time.monotonic_ns()]))
+            time.sleep(0.5)
+            return
+        net.open_port(IN, reader=lambda msg: got.append((time.monotonic_ns(), msg.values()[0])))
+        print("ready", flush=True)
+        _wait_for(got, count, rate)
+    finally:
+        net.close()
+    first = got[0][1] if got else 0
+    print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
 
 
 class Yarp:
@@ -162,6 +188,10 @@ def _feed(proc: subprocess.Popen[str], count: int, rate: float) -> None:
     paced(count, rate, one)
 
 
+#: the child flag of each Python side
+_CHILD = {"scart": "--child", "ours": "--child-ours"}
+
+
 def yarp_hop(yarp: Yarp, pub: str, sub: str, rate: float, seconds: float, warmup: float) -> list[float]:
     """A hop with a YARP tool or ``cat`` on one side or both; the latencies in µs."""
     count = int(rate * (seconds + warmup))
@@ -185,10 +215,10 @@ def yarp_hop(yarp: Yarp, pub: str, sub: str, rate: float, seconds: float, warmup
                 ready.wait(30)
                 _feed(writer, count, rate)
             else:
-                subprocess.run([sys.executable, __file__, "--child", "pub", str(rate), str(count), str(warmup),
+                subprocess.run([sys.executable, __file__, _CHILD[pub], "pub", str(rate), str(count), str(warmup),
                                 yarp.address, "/bench/r"], check=True, timeout=count / rate + 120)
-        else:  # yarp → scart
-            receiver = subprocess.Popen([sys.executable, __file__, "--child", "sub", str(rate), str(count),
+        else:  # yarp → scart or ours
+            receiver = subprocess.Popen([sys.executable, __file__, _CHILD[sub], "sub", str(rate), str(count),
                                          str(warmup), yarp.address, ""], stdout=subprocess.PIPE, text=True)
             assert receiver.stdout is not None
             if receiver.stdout.readline().strip() != "ready":
@@ -235,11 +265,13 @@ def main() -> int:
     parser.add_argument("--hops", default=",".join(f"{p}>{s}" for p, s in HOPS),
                         help="the hops to measure, writer>reader (default: all; the rospy hop is the goal's yardstick)")
     parser.add_argument("--child", nargs=6, help=argparse.SUPPRESS)
+    parser.add_argument("--child-ours", nargs=6, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.child:
-        role, rate, count, warmup, server, peer = args.child
-        scart_side(role, float(rate), int(count), float(warmup), server, peer)
-        return 0
+    for child, side in ((args.child, scart_side), (args.child_ours, ours_side)):
+        if child:
+            role, rate, count, warmup, server, peer = child
+            side(role, float(rate), int(count), float(warmup), server, peer)
+            return 0
     if shutil.which("yarpserver") is None or shutil.which("yarp") is None:
         print("YARP's yarpserver and yarp are not on PATH (the steering repository's shared/yarp/build.sh builds "
               "them): nothing to measure\n\n| rate | hop | p50 µs |\n|---|---|---|")
