@@ -438,6 +438,9 @@ class MessageTypes:
         if kind == Nodetype.NAME:
             return _nested_from(self, detail)
         inner, _ = detail
+        if inner[0] == Nodetype.BASE and inner[1][0] == "byte":  # octets on the wire (0..255), int8 as rosbags has them
+            return lambda v: (np.frombuffer(v, dtype=np.uint8).copy() if isinstance(v, (bytes, bytearray))
+                              else np.array(v, dtype=np.uint8)).view(np.int8)
         if inner[0] == Nodetype.BASE and inner[1][0] in _DTYPE:
             dtype = _DTYPE[inner[1][0]]
             return lambda v: (np.frombuffer(v, dtype=dtype).copy() if isinstance(v, (bytes, bytearray))

@@ -86,4 +86,6 @@ def from_value(value: Any) -> Any:
     if field is None:
         raise ValueError("the value is not set (type 0)")
     got = getattr(value, field)
+    if int(value.type) == 5:  # octets (rosbags holds them as int8): the bytes :func:`to_value` took
+        return bytes(int(v) & 0xFF for v in got)
     return [v.item() if hasattr(v, "item") else v for v in got] if int(value.type) > 4 else got

@@ -18,15 +18,25 @@ from scart_ros2.params import (  # noqa: E402
 VALUE = "rcl_interfaces/msg/ParameterValue"
 
 
-@pytest.mark.parametrize("value", [True, -(2**63), 2.5, "ü", b"\x00\x7f", [True, False], [1, 2], [1, 2.5],
-                                   ["a", ""]])
+@pytest.mark.parametrize("value", [True, -(2**63), 2.5, "ü", b"\x00\x7f", b"\x80\xc8\xff", [True, False], [1, 2],
+                                   [1, 2.5], ["a", ""]])
 def test_a_value_crosses_as_a_parameter_value_and_comes_back(value: Any) -> None:
     types = MessageTypes()
     fields = to_value(value)
     assert fields is not None
     back = from_value(types.deserialize(VALUE, types.serialize(VALUE, fields)))
-    expected = list(value) if isinstance(value, bytes) else [float(v) for v in value] if value == [1, 2.5] else value
+    expected = [float(v) for v in value] if value == [1, 2.5] else value
     assert back == expected and type(back) is type(expected)
+
+
+def test_octets_over_127_cross_cyclone_as_rosbags_has_them() -> None:
+    """A ``byte[]`` (octets, 0..255 on the wire) from Cyclone's own types: int8 as rosbags
+    deserialises it, and the same bytes again as a parameter value."""
+    types = MessageTypes()
+    idl = types.to_idl(VALUE, to_value(b"\x01\xc8\xff"))
+    msg = types.from_idl(VALUE, type(idl).deserialize(idl.serialize()))
+    assert msg.byte_array_value.tolist() == [1, -56, -1]
+    assert from_value(msg) == b"\x01\xc8\xff"
 
 
 @pytest.mark.parametrize("value", [2**63, [], [1, "a"], {"a": 1}, None])
