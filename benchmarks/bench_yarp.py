@@ -24,6 +24,15 @@ notes when each arrived (the first second of each hop is left out). The hops:
 
 Goal (issue 32): scart's hops at most the rospy hop of the same run; the ratio to YARP's
 own hop is printed too.
+
+**YARP's own latency test, with no pipe.** The rows with a YARP tool time that tool too
+(``yarp write`` reads the bench's pipe, ``yarp read`` prints to it). A second table runs
+YARP's ``yarp latency-test --client`` (C++: it writes ``[frame, time]``, waits for
+the answer, logs the round trip, pauses 1 ms) against its own ``--server`` (C++) and against a
+``scart_yarp`` port answering the same way (``/latencyTest/server``), alternating: both
+with ``--no-reply`` (data ports: the answer goes back on a connection of its own, as a
+port's stream) and with YARP's default, the answer on the same connection (an RPC: the
+``responder`` of a scart_yarp port).
 """
 
 from __future__ import annotations
@@ -38,6 +47,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
@@ -87,6 +97,71 @@ def scart_side(role: str, rate: float, count: int, warmup: float, server: str, p
         got = list(task.got)
         first = got[0][1] if got else 0
         print(json.dumps([a - s for a, s in got if s - first >= warmup * 1e9]), flush=True)
+
+
+#: the scart_yarp side of ``yarp latency-test`` (its server's protocol)
+LATENCY_SERVER = "/latencyTest/server"
+
+
+def latency_server(server: str, mode: str) -> None:
+    """The ``--child-latency-server`` side: answer YARP's latency-test client as its C++
+    server does (``start N`` sets an N-byte payload; each ``[frame, time]`` comes back with
+    the payload, a copy time and a count appended; ``stop`` ends), with a reader that writes
+    back (``noreply``) or a responder (``reply``)."""
+    from scart_yarp import Incoming, Network, parse_address
+
+    net = Network(parse_address(server))
+    done = threading.Event()
+    state: dict[str, Any] = {"payload": "", "n": 0}
+
+    def answer(values: list[Any]) -> list[Any] | None:
+        if values and values[0] == "start":
+            state["payload"] = "p" * max(0, int(values[1]) - 1)
+            return None
+        if values and values[0] in ("stop", "quit"):
+            done.set()
+            return None
+        state["n"] += 1
+        return [*values, state["payload"], 0.0, state["n"] - 1]
+
+    def on_data(msg: Incoming) -> None:
+        reply = answer(msg.values())
+        if reply is not None:
+            port.write(reply)
+
+    try:
+        if mode == "reply":
+            port = net.open_port(LATENCY_SERVER, responder=lambda values: answer(list(values)) or [])
+        else:
+            port = net.open_port(LATENCY_SERVER, reader=on_data)
+        print("ready", flush=True)
+        done.wait(600)
+    finally:
+        net.close()
+
+
+def latency_test(yarp: Yarp, server: str, mode: str, frames: int, folder: Path) -> list[float]:
+    """One ``yarp latency-test --client`` run against ``server`` (``yarp`` or ``ours``);
+    the round trips in µs (the first quarter left out)."""
+    if server == "yarp":
+        proc = subprocess.Popen(["yarp", "latency-test", "--server"], env=yarp.env, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+    else:
+        proc = subprocess.Popen([sys.executable, __file__, "--child-latency-server", yarp.address, mode],
+                                env=yarp.env, stdout=subprocess.DEVNULL)
+    try:
+        if not wait_until(lambda: yarp.registered(LATENCY_SERVER), 30, interval=0.05):
+            raise RuntimeError(f"the {server} latency-test server did not register")
+        log = folder / f"latency_{server}_{mode}_"
+        subprocess.run(["yarp", "latency-test", "--client", "--nframes", str(frames), "--payload_size", "8",
+                        "--client_wait", "0.001", "--logfile", str(log), *(["--no-reply"] if mode == "noreply" else [])],
+                       env=yarp.env, capture_output=True, timeout=frames / 100 + 60, check=True)
+        rows = Path(f"{log}8.txt").read_text().splitlines()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+        wait_until(lambda: not yarp.registered(LATENCY_SERVER), 10, interval=0.05)
+    return [float(row.split()[0]) * 1000 for row in rows[len(rows) // 4:]]
 
 
 def ours_side(role: str, rate: float, count: int, warmup: float, server: str, peer: str) -> None:
@@ -266,7 +341,11 @@ def main() -> int:
                         help="the hops to measure, writer>reader (default: all; the rospy hop is the goal's yardstick)")
     parser.add_argument("--child", nargs=6, help=argparse.SUPPRESS)
     parser.add_argument("--child-ours", nargs=6, help=argparse.SUPPRESS)
+    parser.add_argument("--child-latency-server", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.child_latency_server:
+        latency_server(*args.child_latency_server)
+        return 0
     for child, side in ((args.child, scart_side), (args.child_ours, ours_side)):
         if child:
             role, rate, count, warmup, server, peer = child
@@ -288,6 +367,7 @@ def main() -> int:
         print("rosmaster or rospy is missing (Debian: apt-get install ros-core python3-rospy): no rospy row")
         hops.remove(("rospy", "rospy"))
     samples: dict[tuple[float, str, str], list[float]] = {}
+    trips: dict[tuple[str, str], list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         script = Path(tmp) / "rospy_peer.py"
         script.write_text(ROSPY_PEER)
@@ -307,11 +387,16 @@ def main() -> int:
                         else:
                             got = yarp_hop(yarp, pub, sub, rate, seconds, warmup)
                         samples.setdefault((rate, pub, sub), []).extend(got)
+                for mode in ("noreply", "reply"):
+                    for server in ("yarp", "ours"):
+                        frames = 300 if args.smoke else int(1000 * seconds)
+                        trips.setdefault((mode, server), []).extend(latency_test(yarp, server, mode, frames, Path(tmp)))
         finally:
             ros.stop_master()
             if yarp is not None:
                 yarp.stop()
     print_table(samples, rounds, seconds, warmup)
+    print_trips(trips)
     return 0
 
 
@@ -328,6 +413,19 @@ def print_table(samples: dict[tuple[float, str, str], list[float]], rounds: int,
 
         print(f"| {rate:g} Hz | {pub} → {sub} | {len(values)} | {pct(values, 0.5):.0f} | {pct(values, 0.99):.0f} | "
               f"{ratio(rospy, 0.5)} | {ratio(rospy, 0.99)} | {ratio(yarp, 0.5)} |")
+
+
+def print_trips(trips: dict[tuple[str, str], list[float]]) -> None:
+    print("\nYARP's own latency test (`yarp latency-test --client`, C++: a frame 1 ms after each answer, 8-byte payload): its round trip "
+          "through its own C++ server and through a scart_yarp port, no pipe\n")
+    print("| answer | server | frames | p50 µs | p99 µs | p50 / YARP's server |")
+    print("|---|---|---|---|---|---|")
+    for (mode, server), values in trips.items():
+        base = trips.get((mode, "yarp"))
+        ratio = f"{pct(values, 0.5) / pct(base, 0.5):.2f}×" if base else "—"
+        label = "its own connection (data ports)" if mode == "noreply" else "same connection (RPC)"
+        print(f"| {label} | {'YARP (C++)' if server == 'yarp' else 'scart_yarp'} | {len(values)} | "
+              f"{pct(values, 0.5):.0f} | {pct(values, 0.99):.0f} | {ratio} |")
 
 
 if __name__ == "__main__":
