@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from .io import Conn, Counters, FrameReader, InboundConn
+from .io import RECV_BYTES, RECV_LARGE, Conn, Counters, FrameReader, InboundConn
 from .master import MasterError, call
 from .msgs import MsgType
 from .tcpros import LEN, HeaderError, encode_header, read_header
@@ -197,9 +197,10 @@ class SubConn(Conn):
     reader: FrameReader
 
     def on_readable(self) -> None:
-        data = self.recv()
+        reader = self.reader
+        data = self.recv(RECV_LARGE if reader.missing() > RECV_BYTES else RECV_BYTES)
         if data:
-            self.reader.feed(data)
+            reader.feed(data)
 
 
 class _Refused(Exception):

@@ -183,6 +183,22 @@ def test_frame_reader_cuts_joins_and_skips_oversized() -> None:
     assert frames == [b"alone", b"", b"12345678"] and oversized == [20, 20, 9]
 
 
+def test_frame_reader_says_what_is_still_due() -> None:
+    """``missing()`` is the rest of the message begun (a subscriber reads a large one in
+    larger pieces), or of one being skipped; 0 between messages."""
+    frames: list[bytes] = []
+    reader = FrameReader(100, frames.append, lambda size: None)
+    assert reader.missing() == 0
+    reader.feed(struct.pack("<I", 50)[:3])  # its length not known yet
+    assert reader.missing() == 0
+    reader.feed(struct.pack("<I", 50)[3:] + b"x" * 20)
+    assert reader.missing() == 30
+    reader.feed(b"x" * 30 + struct.pack("<I", 500) + b"y" * 10)  # the next one is over the limit: skipped
+    assert frames == [b"x" * 50] and reader.missing() == 490
+    reader.feed(b"y" * 490)
+    assert reader.missing() == 0 and frames == [b"x" * 50]
+
+
 def test_limits_refuse_nonsense() -> None:
     with pytest.raises(ValueError, match="max_message"):
         Limits(max_message=0)
