@@ -6,28 +6,15 @@ from __future__ import annotations
 
 import socket
 import time
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 from support import wait_until
-from support.ros1 import RosMaster, needs_ros, rosmaster
+from support.ros1 import RosMaster, needs_ros
 
 from scart_ros1 import Limits, MessageTypes, Node
 from scart_ros1.tcpros import encode_header, read_header
 
 pytestmark = [pytest.mark.integration, needs_ros]
-
-
-@pytest.fixture(scope="module")
-def types() -> MessageTypes:
-    return MessageTypes()
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosMaster]:
-    with rosmaster(tmp_path) as master:
-        yield master
 
 
 def still_open(sock: socket.socket) -> bool:

@@ -13,29 +13,17 @@ import socket
 import struct
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from support import wait_until
-from support.ros1 import RosMaster, needs_ros, require_rospy, rosmaster, running
+from support.ros1 import RosMaster, needs_ros, require_rospy, running
 
 from scart_ros1 import Limits, MessageTypes, Node, ServiceError
 from scart_ros1.tcpros import encode_header, read_header
 
 pytestmark = [pytest.mark.integration, needs_ros]
 LOGGER = "scart_ros1"
-
-
-@pytest.fixture(scope="module")
-def types() -> MessageTypes:
-    return MessageTypes()
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosMaster]:
-    with rosmaster(tmp_path) as master:
-        yield master
 
 
 def make_node(ros: RosMaster, types: MessageTypes, name: str = "scart", **kw: object) -> Node:

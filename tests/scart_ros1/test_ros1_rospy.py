@@ -3,34 +3,20 @@ rospy publishing to us, subscribing from us, serving a service we call, calling 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from pathlib import Path
-
 import pytest
 from support import wait_until
-from support.ros1 import RosMaster, needs_ros, require_rospy, rosmaster, running
+from support.ros1 import RosMaster, needs_ros, require_rospy, running
 
-from scart_ros1 import MasterError, MessageTypes, Node, ServiceError
+from scart_ros1 import MasterError, Node, ServiceError
 from scart_ros1.services import service_type
 
 pytestmark = [pytest.mark.integration, needs_ros]
 COUNT = 50
 
 
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosMaster]:
-    require_rospy()
-    with rosmaster(tmp_path) as master:
-        yield master
-
-
-@pytest.fixture
-def node(ros: RosMaster) -> Iterator[Node]:
-    types = MessageTypes()
-    types.add_msg("roscpp/Logger", "string name\nstring level\n")
-    types.add_srv("roscpp/GetLoggers", "---\nLogger[] loggers\n")
-    with Node("scart", master_uri=ros.uri, types=types) as n:
-        yield n
+@pytest.fixture(autouse=True)
+def _rospy() -> None:
+    require_rospy()  # every test here talks to a rospy peer
 
 
 def test_rospy_publishes_to_us(ros: RosMaster, node: Node) -> None:

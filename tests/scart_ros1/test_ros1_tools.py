@@ -14,28 +14,13 @@ from pathlib import Path
 
 import pytest
 from support import wait_until
-from support.ros1 import RosMaster, needs_ros, rosmaster, running
+from support.ros1 import RosMaster, needs_ros, running
 
-from scart_ros1 import MessageTypes, Node, Publisher
+from scart_ros1 import Node, Publisher
 from scart_ros1.master import call
 from scart_ros1.tcpros import encode_header, read_header
 
 pytestmark = [pytest.mark.integration, needs_ros]
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosMaster]:
-    with rosmaster(tmp_path) as master:
-        yield master
-
-
-@pytest.fixture
-def node(ros: RosMaster) -> Iterator[Node]:
-    types = MessageTypes()
-    types.add_msg("roscpp/Logger", "string name\nstring level\n")
-    types.add_srv("roscpp/GetLoggers", "---\nLogger[] loggers\n")
-    with Node("scart", master_uri=ros.uri, types=types) as n:
-        yield n
 
 
 @contextlib.contextmanager

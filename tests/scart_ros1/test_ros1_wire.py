@@ -30,15 +30,6 @@ DEBIAN_SRV_MD5 = {  # roscpp.srv (Debian) and std_srvs (ros/std_srvs .srv files)
 }
 
 
-@pytest.fixture(scope="module")
-def types() -> MessageTypes:
-    mt = MessageTypes()
-    mt.add_msg("roscpp/Logger", "string name\nstring level\n")
-    mt.add_srv("roscpp/GetLoggers", "---\nLogger[] loggers\n")
-    mt.add_srv("roscpp/SetLoggerLevel", "string logger\nstring level\n---\n")
-    return mt
-
-
 @pytest.mark.parametrize("name", sorted(DEBIAN_MD5))
 def test_message_md5sums_equal_debians(types: MessageTypes, name: str) -> None:
     assert types.msg(name).md5sum == DEBIAN_MD5[name]

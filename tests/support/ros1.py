@@ -148,6 +148,14 @@ def rosmaster(log_dir: Path) -> Iterator[RosMaster]:
         master.stop()
 
 
+@pytest.fixture
+def ros(tmp_path: Path) -> Iterator[RosMaster]:
+    """A ``rosmaster`` of the test's own, its logs in the test's folder (the ROS 1 test
+    folders' conftests take it from here)."""
+    with rosmaster(tmp_path) as master:
+        yield master
+
+
 @contextlib.contextmanager
 def running(*procs: Proc) -> Iterator[None]:
     """Stop these processes at the end, whatever happens."""

@@ -7,21 +7,14 @@ import re
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from support import free_port, wait_until
 from support.remote import start_scart, stop_process, subprocess_env
-from support.ros1 import RosMaster, needs_ros, rosmaster
+from support.ros1 import RosMaster, needs_ros
 
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess, needs_ros]
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosMaster]:
-    with rosmaster(tmp_path) as master:
-        yield master
 
 
 def scart(*args: str, ns: str) -> subprocess.CompletedProcess[str]:

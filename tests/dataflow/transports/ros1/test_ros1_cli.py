@@ -15,15 +15,9 @@ from pathlib import Path
 import pytest
 from support import free_port, wait_until
 from support.remote import start_scart, stop_process, subprocess_env
-from support.ros1 import RosMaster, needs_ros, require_rospy, rosmaster, running
+from support.ros1 import RosMaster, needs_ros, require_rospy, running
 
 pytestmark = [pytest.mark.integration, pytest.mark.subprocess, needs_ros]
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosMaster]:
-    with rosmaster(tmp_path) as master:
-        yield master
 
 
 def scart(*args: str, ns: str | None = None, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:

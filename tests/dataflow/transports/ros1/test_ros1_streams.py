@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 from support import wait_until
-from support.ros1 import RosMaster, needs_ros, require_rospy, rosmaster, running
+from support.ros1 import RosMaster, needs_ros, require_rospy, running
 from support.ros1_tasks import Gauge
 
 from dataflow import ConnPolicy, Deployer, PeriodicActivity
@@ -23,12 +23,6 @@ from dataflow.transports.ros1.calls import ServiceProxy, serve_operation
 pytestmark = [pytest.mark.integration, needs_ros]
 
 NODE = "scart_test"
-
-
-@pytest.fixture
-def ros(tmp_path: Path) -> Iterator[RosMaster]:
-    with rosmaster(tmp_path) as master:
-        yield master
 
 
 @pytest.fixture
