@@ -92,9 +92,10 @@ them on the library path it is reachable; from PyPI alone it is not. Not built h
 
 from __future__ import annotations
 
-import importlib
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .errors import lazy_names
 
 if TYPE_CHECKING:
     from .endpoints import Publisher, PublisherStats, Subscription, SubscriptionStats
@@ -122,18 +123,7 @@ _WHERE = MappingProxyType({
 })
 
 
-def __getattr__(name: str) -> object:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    try:
-        return getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    except ImportError as exc:
-        if (exc.name or "").partition(".")[0] == "cyclonedds":
-            from .errors import NEEDS_DDS
-
-            raise ImportError(NEEDS_DDS) from exc
-        raise
+__getattr__ = lazy_names(__name__, _WHERE)
 
 
 __all__ = [

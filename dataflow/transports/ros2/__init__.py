@@ -11,9 +11,10 @@ parameters (``rcl_interfaces`` services) and logs to ``/rosout`` (:mod:`._citize
 
 from __future__ import annotations
 
-import importlib
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from scart_ros2.errors import lazy_names
 
 if TYPE_CHECKING:
     from ._calls import ServedService, ServiceProxy, call_service, check_service, ros2_transport, serve, serve_operation
@@ -29,18 +30,7 @@ _WHERE = MappingProxyType({
 })
 
 
-def __getattr__(name: str) -> object:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    try:
-        return getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    except ImportError as exc:
-        if (exc.name or "").partition(".")[0] == "cyclonedds":
-            from scart_ros2.errors import NEEDS_DDS
-
-            raise ImportError(NEEDS_DDS) from exc
-        raise
+__getattr__ = lazy_names(__name__, _WHERE)
 
 
 __all__ = ["NETWORK_OPTIONS", "Ros2Transport", "ServedService", "ServiceProxy", "add_type_file", "call_service",
