@@ -15,6 +15,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -92,14 +93,15 @@ class Peer:
         return self.proc.stderr.read().decode(errors="replace") if self.proc.stderr else ""
 
 
-@pytest.fixture
-def peer(domain: int) -> Iterator:
-    """Start the independent peer: ``peer(mode)`` returns a :class:`Peer` once ready."""
+def _peers(command: Callable[..., list[str]]) -> Iterator[Callable[..., Peer]]:
+    """The body of a peer fixture: ``start(...)`` runs ``command(...)``'s process on the
+    loopback network and returns its :class:`Peer` once it says ``ready``; every process
+    started is killed when the test ends."""
     started: list[subprocess.Popen[bytes]] = []
 
-    def start(mode: str, seconds: float = 60.0) -> Peer:
-        proc = subprocess.Popen([sys.executable, str(PEER), mode, str(domain), str(seconds)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0, env=loopback_env())
+    def start(*args: Any, **kwargs: Any) -> Peer:
+        proc = subprocess.Popen(command(*args, **kwargs), stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0,
+                                env=loopback_env())
         started.append(proc)
         found = Peer(proc)
         found.next_event("ready", timeout=30.0)
@@ -112,27 +114,28 @@ def peer(domain: int) -> Iterator:
 
 
 @pytest.fixture
-def stream_peer(domain: int) -> Iterator:
+def peer(domain: int) -> Iterator[Callable[..., Peer]]:
+    """Start the independent peer: ``peer(mode)`` returns a :class:`Peer` once ready."""
+
+    def command(mode: str, seconds: float = 60.0) -> list[str]:
+        return [sys.executable, str(PEER), mode, str(domain), str(seconds)]
+
+    yield from _peers(command)
+
+
+@pytest.fixture
+def stream_peer(domain: int) -> Iterator[Callable[..., Peer]]:
     """Start the independent peer of streams (``support/ros2_stream_peer.py``):
     ``stream_peer(mode, topic, type, values=None, latched=False, depth=10, on=DOMAIN)`` returns a
     :class:`Peer` once ready (``read``: it prints each sample; ``write``: it writes
     ``values`` once a reader matched)."""
-    started: list[subprocess.Popen[bytes]] = []
 
-    def start(mode: str, topic: str, type_name: str, values: list | None = None, *, latched: bool = False,
-              depth: int = 10, seconds: float = 60.0, on: int | None = None) -> Peer:
-        args = [sys.executable, str(STREAM_PEER), mode, str(on or domain), topic, type_name, json.dumps(values or []),
+    def command(mode: str, topic: str, type_name: str, values: list | None = None, *, latched: bool = False,
+                depth: int = 10, seconds: float = 60.0, on: int | None = None) -> list[str]:
+        return [sys.executable, str(STREAM_PEER), mode, str(on or domain), topic, type_name, json.dumps(values or []),
                 "--depth", str(depth), "--seconds", str(seconds)] + (["--latched"] if latched else [])
-        proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0, env=loopback_env())
-        started.append(proc)
-        found = Peer(proc)
-        found.next_event("ready", timeout=30.0)
-        return found
 
-    yield start
-    for proc in started:
-        proc.kill()
-        proc.communicate(timeout=30)
+    yield from _peers(command)
 
 
 def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
