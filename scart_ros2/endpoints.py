@@ -237,11 +237,7 @@ class Subscription:
         if self._closed:
             return
         self._closed = True
-        self._dispatcher.remove(self._condition)
-        if self.closed_hook is not None:
-            self.closed_hook()
-        delete_entity(self._condition)
-        delete_entity(self._reader)
+        self._dispatcher.retire(self._condition, self.closed_hook, self._reader)
 
 
 class Dispatcher:
@@ -280,6 +276,15 @@ class Dispatcher:
         with self._busy, self._lock:
             if self._drains.pop(id(condition), None) is not None and not self._stop.is_set():
                 self._waitset.detach(condition)
+
+    def retire(self, condition: ReadCondition, closed_hook: Callable[[], None] | None, *entities: object) -> None:
+        """An endpoint's close: stop calling ``condition``'s drain (waiting for one in
+        progress), tell ``closed_hook``, then delete ``condition`` and ``entities``."""
+        self.remove(condition)
+        if closed_hook is not None:
+            closed_hook()
+        for entity in (condition, *entities):
+            delete_entity(entity)
 
     def _wake(self) -> None:
         # trigger, then flag: the loop resets only a guard it knows may be set, so a guard

@@ -31,7 +31,6 @@ from cyclonedds.qos import Policy
 from cyclonedds.sub import DataReader
 
 from .errors import ConversionError, Ros2Error
-from .network import delete_entity
 from .qos import QoS
 from .msgs import MessageTypes
 
@@ -103,11 +102,7 @@ class _Endpoint:
         if self._closed:
             return
         self._closed = True
-        self._dispatcher.remove(self._condition)
-        if self.closed_hook is not None:
-            self.closed_hook()
-        for entity in (self._condition, self._reader, self._writer):
-            delete_entity(entity)
+        self._dispatcher.retire(self._condition, self.closed_hook, self._reader, self._writer)
 
 
 class ServiceServer(_Endpoint):
