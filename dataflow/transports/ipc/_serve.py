@@ -288,12 +288,17 @@ class _LinkIn(Conn):
         super().start()
 
     def message(self, data: bytes) -> None:
+        frame = self.request(data)
+        if frame is not None:
+            self.took(frame)
+
+    def request(self, data: bytes) -> pb.LinkRequest | None:
+        """``data`` as the writer's link request; None, counted with the malformed, when it is not one."""
         try:
-            frame = pb.LinkRequest.FromString(data)
+            return pb.LinkRequest.FromString(data)
         except Exception:  # noqa: BLE001 - not a frame: counted with the malformed ones
             self._assembler.dropped += 1
-            return
-        self.took(frame)
+            return None
 
     def took(self, frame: pb.LinkRequest, values: dict[int, codec.Payload] | None = None) -> None:
         """One frame of the link (``values``: see :func:`~dataflow.transports.frames.feed`)."""

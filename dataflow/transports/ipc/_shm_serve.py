@@ -44,10 +44,8 @@ class ShmLinkIn(SlotReader, _LinkIn):
         self.link.end.transport = "shm"
 
     def message(self, data: bytes) -> None:
-        try:
-            frame = pb.LinkRequest.FromString(data)
-        except Exception:  # noqa: BLE001 - not a frame: counted with the malformed ones
-            self._assembler.dropped += 1
+        frame = self.request(data)
+        if frame is None:
             return
         values = self.slot_values(frame) if frame.slots or frame.samples else None
         if frame.samples or not frame.slots:
