@@ -14,7 +14,6 @@ protocols (``scart_yarp``) know nothing of scart's ports.
 
 from __future__ import annotations
 
-import ast
 import dataclasses
 import enum
 import importlib
@@ -27,6 +26,7 @@ from pathlib import Path
 
 import pytest
 from support import ROOT
+from support.imports import imports_of
 
 #: The protocol stacks, and what no module of theirs may import.
 STACKS = ("scart_yarp", "scart_ros1", "scart_ros2")
@@ -37,27 +37,11 @@ def _within(module: str, *packages: str) -> bool:
     return any(module == p or module.startswith(p + ".") for p in packages)
 
 
-def imported(path: Path, package: str) -> set[str]:
-    """Every module an import statement of ``path`` names (relative ones resolved against
-    ``package``, the dotted package holding ``path``; lazy and annotation-only ones too)."""
-    names: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            names |= {a.name for a in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.level:
-            base = ".".join(package.split(".")[:len(package.split(".")) - node.level + 1])
-            names.add(f"{base}.{node.module}" if node.module else base)
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            names.add(node.module)
-    return names
-
-
 def offenders(folder: Path, forbidden: tuple[str, ...]) -> set[str]:
     """``path: module`` for each import under ``folder`` of a module within ``forbidden``."""
     found = set()
     for path in sorted(folder.rglob("*.py")):
-        package = ".".join(path.relative_to(ROOT).parent.parts)
-        found |= {f"{path.relative_to(ROOT)}: {m}" for m in imported(path, package) if _within(m, *forbidden)}
+        found |= {f"{path.relative_to(ROOT)}: {m}" for m in imports_of(path) if _within(m, *forbidden)}
     return found
 
 
