@@ -45,44 +45,40 @@ def closed_within(sock: socket.socket, seconds: float) -> bool:
     return False
 
 
-def test_three_slow_xmlrpc_clients_leave_rostopic_echo_answered(ros: RosMaster, types: MessageTypes) -> None:
-    with Node("fair", master_uri=ros.uri, types=types, limits=Limits(xmlrpc_seconds=60)) as node:
-        pub = node.advertise("/fair", "std_msgs/String", latch=True)
-        pub.publish(pub.type.new(data="served"))
+def echo_beside_slow_clients(ros: RosMaster, types: MessageTypes, name: str, text: str, count: int,
+                             source: str, why: str) -> None:
+    """``rostopic echo`` of a node's latched ``/NAME`` answered while ``count`` clients from
+    ``source`` each hold one of its XML-RPC workers with a request begun and never finished
+    (for 60 s); the slow ones still open after it (``why`` if not)."""
+    with Node(name, master_uri=ros.uri, types=types, limits=Limits(xmlrpc_seconds=60)) as node:
+        pub = node.advertise(f"/{name}", "std_msgs/String", latch=True)
+        pub.publish(pub.type.new(data=text))
         assert node.wait_registered(10)
         port = int(node.uri.rsplit(":", 1)[1].strip("/"))
-        slow = [socket.create_connection(("127.0.0.1", port), timeout=10) for _ in range(3)]
+        slow = [socket.create_connection(("127.0.0.1", port), timeout=10, source_address=(source, 0))
+                for _ in range(count)]
         try:
-            for sock in slow:  # a request begun, never finished: each holds its worker for 60 s
+            for sock in slow:
                 sock.sendall(b"POST / HTTP/1.0\r\nContent-Length: 500\r\n\r\n<?xml")
-            echo = ros.tool("rostopic", "echo", "-n", "1", "/fair", timeout=50)
+            echo = ros.tool("rostopic", "echo", "-n", "1", f"/{name}", timeout=50)  # its requestTopic: 127.0.0.1
             assert echo.returncode == 0, echo.stderr
-            assert 'data: "served"' in echo.stdout
-            assert all(still_open(sock) for sock in slow), "the slow clients were cut, not served beside echo"
+            assert f'data: "{text}"' in echo.stdout
+            assert all(still_open(sock) for sock in slow), why
         finally:
             for sock in slow:
                 sock.close()
+
+
+def test_three_slow_xmlrpc_clients_leave_rostopic_echo_answered(ros: RosMaster, types: MessageTypes) -> None:
+    echo_beside_slow_clients(ros, types, "fair", "served", 3, "127.0.0.1",
+                             "the slow clients were cut, not served beside echo")
 
 
 def test_eight_slow_xmlrpc_clients_of_one_peer_leave_another_peers_echo_answered(ros: RosMaster,
                                                                                 types: MessageTypes) -> None:
-    with Node("shared", master_uri=ros.uri, types=types, limits=Limits(xmlrpc_seconds=60)) as node:
-        pub = node.advertise("/shared", "std_msgs/String", latch=True)
-        pub.publish(pub.type.new(data="half the pool is yours"))
-        assert node.wait_registered(10)
-        port = int(node.uri.rsplit(":", 1)[1].strip("/"))
-        slow = [socket.create_connection(("127.0.0.1", port), timeout=10, source_address=("127.0.0.2", 0))
-                for _ in range(8)]  # as many as the pool has workers, all from one peer address
-        try:
-            for sock in slow:
-                sock.sendall(b"POST / HTTP/1.0\r\nContent-Length: 500\r\n\r\n<?xml")
-            echo = ros.tool("rostopic", "echo", "-n", "1", "/shared", timeout=50)  # its requestTopic: 127.0.0.1
-            assert echo.returncode == 0, echo.stderr
-            assert 'data: "half the pool is yours"' in echo.stdout
-            assert all(still_open(sock) for sock in slow), "the slow clients were cut, not made to wait their turn"
-        finally:
-            for sock in slow:
-                sock.close()
+    # as many as the pool has workers, all from one peer address
+    echo_beside_slow_clients(ros, types, "shared", "half the pool is yours", 8, "127.0.0.2",
+                             "the slow clients were cut, not made to wait their turn")
 
 
 def test_a_thousand_idle_connections_from_one_peer_leave_another_peer_in(ros: RosMaster, types: MessageTypes) -> None:
